@@ -1,0 +1,26 @@
+"""Hypothesis profiles: ``ci`` (derandomized, bounded, no deadline) and ``thorough``.
+
+CI selects ``ci`` (also the default); run ``pytest --hypothesis-profile thorough``
+for long local runs.
+"""
+
+import os
+
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "ci",
+    derandomize=True,
+    max_examples=60,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "thorough",
+    max_examples=5000,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
