@@ -1,0 +1,81 @@
+"""Atomic file output: write to a temporary file in the target folder, then rename.
+
+An interrupted run never leaves a half-written file behind: either the old file
+(or none) or the complete new one is on disk.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import tempfile
+from pathlib import Path
+
+__all__ = ["atomic_path", "write_bytes", "write_text", "save_npz", "save_figure"]
+
+
+@contextlib.contextmanager
+def atomic_path(path, suffix=None):
+    """Yield a temporary path beside ``path``; rename it over ``path`` on success.
+
+    The temporary file keeps ``path``'s suffix (or ``suffix``) so that libraries
+    choosing a format by extension (matplotlib) behave. On an exception the
+    temporary file is removed and ``path`` is left untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def write_text(path, text: str) -> Path:
+    """Write UTF-8 ``text`` to ``path`` atomically."""
+    return write_bytes(path, text.encode("utf-8"))
+
+
+def save_npz(path, arrays: dict) -> bytes:
+    """Write an uncompressed ``.npz`` atomically and deterministically; return its bytes.
+
+    ``np.savez`` stamps zip entries with the current time; writing through an
+    in-memory buffer with a fixed timestamp makes the same arrays give the same bytes.
+    """
+    import zipfile
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
+        for name in sorted(arrays):
+            arr_buf = io.BytesIO()
+            np.lib.format.write_array(arr_buf, np.asanyarray(arrays[name]), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, arr_buf.getvalue())
+    data = buf.getvalue()
+    write_bytes(path, data)
+    return data
+
+
+def save_figure(fig, path, **kwargs) -> Path:
+    """``fig.savefig`` atomically (PNG metadata without a timestamp)."""
+    kwargs.setdefault("metadata", {"Software": None} if str(path).endswith(".png") else None)
+    if kwargs["metadata"] is None:
+        kwargs.pop("metadata")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, **kwargs)
+    return Path(path)

@@ -1,0 +1,188 @@
+"""``moments-ref bench``: throughput of the kernels beside a same-run memory copy.
+
+Every kernel is timed on square inputs (2048² by default) and compared with
+``np.copyto`` of the same number of bytes (inputs read plus outputs written),
+measured in the same run right before it. The ratio ``copy time / kernel time``
+says how far a kernel is from being memory bound (1 = as fast as a copy; the
+foundation issue's target for float32 ``shadow_intensity`` is 1/20 = 0.05).
+Times are the best of a few repetitions (the minimum is the least noisy
+estimate of the cost on a shared machine).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time"]
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """One timed kernel: ``setup(size, dtype) -> args``; ``fn(*args)``; bytes in and out per element."""
+
+    name: str
+    dtype: str
+    setup: Callable
+    fn: Callable
+    bytes_per_element: int
+    note: str = ""
+
+
+def best_time(fn, *args, repeat=3):
+    """Best wall time of ``fn(*args)`` over ``repeat`` runs, in seconds."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(*args)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def copy_seconds(nbytes, repeat=3):
+    """Time of copying ``nbytes`` bytes between two preallocated buffers (``np.copyto``).
+
+    A kernel reading ``a`` bytes and writing ``c`` bytes moves ``a + c`` bytes;
+    a copy of ``(a + c) / 2`` bytes also moves ``a + c``. We copy half the
+    bytes so both sides count the same traffic.
+    """
+    n = max(1, nbytes // 2)
+    src = np.ones(n, dtype=np.uint8)
+    dst = np.empty_like(src)
+    return best_time(np.copyto, dst, src, repeat=repeat)
+
+
+def _moments_input(size, dtype):
+    from .moments import BIAS_FLOAT32, bias_moments, power_moments
+
+    rng = np.random.default_rng(1)
+    z = rng.uniform(-1, 1, (size, size, 4))
+    b = bias_moments(power_moments(z), BIAS_FLOAT32).astype(dtype)
+    zf = rng.uniform(-1, 1, (size, size)).astype(dtype)
+    return b, zf
+
+
+def _setup_msm(size, dtype):
+    return _moments_input(size, dtype)
+
+
+def _setup_encode(size, dtype):
+    return (_moments_input(size, dtype)[0],)
+
+
+def _setup_decode(size, dtype):
+    from .affine import encode_unorm16
+
+    return encode_unorm16(_moments_input(size, "float64")[0]), np.dtype(dtype)
+
+
+def _fn_msm(b, zf):
+    from .msm import shadow_intensity
+
+    return shadow_intensity(b, zf)
+
+
+def _fn_encode(b):
+    from .affine import encode_unorm16
+
+    return encode_unorm16(b)
+
+
+def _fn_decode(u, dtype):
+    from .affine import decode_unorm16
+
+    return decode_unorm16(u, dtype=dtype)
+
+
+def _core_benchmarks():
+    out = []
+    for dt, w in (("float32", 4), ("float64", 8)):
+        out.append(Benchmark("shadow_intensity", dt, _setup_msm, _fn_msm, 6 * w, "4 + 1 floats in, 1 out"))
+        out.append(Benchmark("encode_unorm16", dt, _setup_encode, _fn_encode, 4 * w + 8, "4 floats in, 4 uint16 out"))
+        out.append(Benchmark("decode_unorm16", dt, _setup_decode, _fn_decode, 8 + 4 * w, "4 uint16 in, 4 floats out"))
+    return out
+
+
+def _extra_benchmarks():
+    """Benchmarks contributed by other modules (``bench_entries()`` functions)."""
+    import importlib
+
+    out = []
+    for mod in ("nonlinear", "packing", "raster", "filtering", "onchip", "vwss.warp"):
+        try:
+            m = importlib.import_module(f"moments_ref.{mod}")
+        except ImportError:
+            continue
+        entries = getattr(m, "bench_entries", None)
+        if entries is not None:
+            out.extend(entries())
+    return out
+
+
+BENCHMARKS = _core_benchmarks()
+
+
+def run(size=2048, quick=False, only=None, progress=None, repeat=None):
+    """Run the benchmarks; return one dict per benchmark.
+
+    Parameters
+    ----------
+    size : int
+        Side of the square inputs (elements = size²).
+    quick : bool
+        One repetition and at most 512² (a smoke run).
+    only : list of str, optional
+        Run benchmarks whose ``name`` contains one of these strings.
+    progress : callable, optional
+        ``progress(total)`` returning a context manager with ``update(n)`` (tqdm).
+    """
+    if quick:
+        size = min(size, 512)
+    repeat = repeat or (1 if quick else 3)
+    benches = BENCHMARKS + _extra_benchmarks()
+    if only:
+        benches = [b for b in benches if any(o in b.name for o in only)]
+    rows = []
+    bar = progress(len(benches)) if progress else None
+    try:
+        for bm in benches:
+            args = bm.setup(size, bm.dtype)
+            n = size * size
+            t = best_time(bm.fn, *args, repeat=repeat)
+            nbytes = n * bm.bytes_per_element
+            tc = copy_seconds(nbytes, repeat=max(repeat, 3))
+            rows.append({
+                "name": bm.name, "dtype": bm.dtype, "elements": n, "seconds": t,
+                "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": tc,
+                "ratio_to_copy": tc / t, "note": bm.note,
+            })
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return rows
+
+
+def markdown(rows):
+    """A markdown table of :func:`run`'s rows."""
+    import platform
+
+    lines = [
+        f"# moments-ref bench ({platform.machine()}, numpy {np.__version__}, one thread of Python)",
+        "",
+        "ratio = time of a memory copy of the same bytes (same run) / kernel time; 1 = copy bound.",
+        "",
+        "| kernel | dtype | elements | seconds | Melem/s | MB moved | copy s | ratio to copy | note |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['name']} | {r['dtype']} | {r['elements']} | {r['seconds']:.4f} | {r['melem_per_s']:.1f} | "
+            f"{r['mbytes']:.1f} | {r['copy_seconds']:.4f} | {r['ratio_to_copy']:.3f} (1/{1 / r['ratio_to_copy']:.0f}) | "
+            f"{r['note']} |"
+        )
+    return "\n".join(lines) + "\n"

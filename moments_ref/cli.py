@@ -1,0 +1,140 @@
+"""The ``moments-ref`` command: thin subcommands over library functions.
+
+Exit codes: 0 done, 1 a verification found differences, 2 bad usage or bad
+input (one-line reason on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ._arrays import InputError
+
+
+def _progress(total, desc):
+    """A tqdm progress bar on stderr (silent when stderr is not a terminal)."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="step", file=sys.stderr, disable=None, leave=False)
+
+
+def _cmd_golden(args):
+    from . import golden
+
+    names = list(golden.CASES) if not args.case else args.case
+    with _progress(len(names), "golden") as bar:
+        manifest = golden.write(args.out, names, progress=lambda name: bar.update(1))
+    n_rows = sum(c["count"] for c in manifest["cases"].values())
+    print(f"wrote {len(manifest['cases'])} cases ({n_rows} rows) and manifest.json to {args.out}")
+    return 0
+
+
+def _cmd_verify(args):
+    from . import golden
+
+    report = golden.verify(args.golden, args.results, port_dtype=args.dtype)
+    print(report.format(worst_rows=args.worst))
+    return 1 if report.failed else 0
+
+
+def _cmd_bench(args):
+    from . import bench
+
+    rows = bench.run(size=args.size, quick=args.quick, only=args.only,
+                     progress=lambda total: _progress(total, "bench"))
+    text = bench.markdown(rows)
+    print(text)
+    if args.out:
+        from ._io import write_text
+
+        path = write_text(Path(args.out) / "bench.md", text)
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_stability(args):
+    from . import stability
+
+    path = stability.main(args.out)
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_figure3(args):
+    from . import figures
+
+    paths = figures.write_figure3(args.out)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _cmd_banks(args):
+    from . import banks
+
+    text = banks.main()
+    print(text)
+    if args.out:
+        from ._io import write_text
+
+        print(f"wrote {write_text(Path(args.out) / 'banks.md', text)}")
+    return 0
+
+
+def build_parser():
+    p = argparse.ArgumentParser(
+        prog="moments-ref",
+        description="Reference implementation and test oracle of moment shadow mapping.",
+    )
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    g = sub.add_parser("golden", help="write golden vectors and manifest.json")
+    g.add_argument("--out", required=True, type=Path, help="output folder")
+    g.add_argument("--case", action="append", help="only this case (repeatable)")
+    g.set_defaults(func=_cmd_golden)
+
+    v = sub.add_parser("verify", help="compare a port's results (.npz) with the goldens")
+    v.add_argument("--golden", required=True, type=Path, help="folder written by 'golden'")
+    v.add_argument("--results", required=True, type=Path, help=".npz with arrays '<case>.<output>'")
+    v.add_argument("--dtype", choices=("float32", "float64"), help="the port's precision (default: each case's)")
+    v.add_argument("--worst", type=int, default=5, help="worst rows to print per failing case")
+    v.add_argument("--out", type=Path, help="unused; accepted for uniformity")
+    v.set_defaults(func=_cmd_verify)
+
+    b = sub.add_parser("bench", help="throughput against a same-run memory copy")
+    b.add_argument("--out", type=Path, help="also write bench.md here")
+    b.add_argument("--size", type=int, default=2048, help="square input side (default 2048)")
+    b.add_argument("--quick", action="store_true", help="one repetition, small sizes")
+    b.add_argument("--only", action="append", help="only benchmarks whose name contains this")
+    b.set_defaults(func=_cmd_bench)
+
+    s = sub.add_parser("stability", help="float32/float64 against mpmath: write stability.md")
+    s.add_argument("--out", required=True, type=Path, help="output folder (docs/ in the repo)")
+    s.set_defaults(func=_cmd_stability)
+
+    f3 = sub.add_parser("figure3", help="HPG17 Figure 3 as CSV and PNG")
+    f3.add_argument("--out", required=True, type=Path, help="output folder")
+    f3.set_defaults(func=_cmd_figure3)
+
+    bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
+    bk.add_argument("--out", type=Path, help="also write banks.md here")
+    bk.set_defaults(func=_cmd_banks)
+    return p
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"moments-ref {args.command}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"moments-ref {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
