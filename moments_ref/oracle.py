@@ -81,12 +81,13 @@ def input_strategy(case):
 
 
 def _hypothesis_rows(case, n, seed):
-    from hypothesis import HealthCheck, given, settings
+    from hypothesis import HealthCheck, Phase, given, settings
 
     drawn = []
 
     @settings(max_examples=n, derandomize=True, database=None, deadline=None,
-              suppress_health_check=list(HealthCheck), phases=None)
+              suppress_health_check=list(HealthCheck),
+              phases=[Phase.explicit, Phase.reuse, Phase.generate])
     @given(input_strategy(case))
     def collect(row):
         drawn.append(row)

@@ -95,7 +95,7 @@ def two_point_distributions(draw, min_gap=1e-3):
 @st.composite
 def moment_vectors(draw, dtype=np.float64, n=4, distributions=None):
     """Moments b1..bn of a drawn distribution, as a (n,) array of ``dtype``."""
-    z, w = draw(distributions or depth_distributions())
+    z, w = draw(distributions if distributions is not None else depth_distributions())
     return power_moments(z, w, n=n).astype(dtype)
 
 

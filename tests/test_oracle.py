@@ -1,0 +1,51 @@
+"""The oracle passes the reference itself and catches mutants, naming the input."""
+
+import numpy as np
+import pytest
+
+from moments_ref import oracle
+from moments_ref._arrays import InputError
+from moments_ref.msm import shadow_intensity
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_reference_passes(dtype):
+    rep = oracle.check(lambda b, zf: shadow_intensity(b, zf), "shadow_intensity-lower", dtype=dtype,
+                       n_hypothesis=30)
+    assert rep.passed, str(rep)
+    assert rep.rows > 300
+    assert "hypothesis" in rep.per_category
+
+
+def test_mutant_upper_for_lower_fails_and_names_the_input():
+    rep = oracle.check(lambda b, zf: shadow_intensity(b, zf, bound="upper"), "shadow_intensity-lower",
+                       dtype="float64", n_hypothesis=10)
+    assert not rep.passed
+    assert rep.worst_abs > 0.1
+    b, zf = rep.worst_input["b"], rep.worst_input["zf"]
+    # The reported input reproduces the reported difference.
+    assert abs(shadow_intensity(b, zf, "upper") - shadow_intensity(b, zf)) == pytest.approx(rep.worst_abs, abs=1e-6)
+
+
+def test_mutant_missing_clamp_detected():
+    def unclamped(b, zf):
+        out = shadow_intensity(b, zf)
+        return np.where(zf > 0.9, out + 1e-3, out)
+
+    rep = oracle.check(unclamped, "shadow_intensity-lower", dtype="float64", n_hypothesis=0)
+    assert not rep.passed and rep.worst_abs == pytest.approx(1e-3, rel=1e-6)
+
+
+def test_row_by_row_candidate():
+    rep = oracle.check(lambda b, zf: float(shadow_intensity(b, zf, "upper")), "shadow_intensity-upper-float64",
+                       dtype="float64", n_hypothesis=5, vectorized=False)
+    assert rep.passed, str(rep)
+
+
+def test_bad_arguments():
+    with pytest.raises(InputError, match="unknown case"):
+        oracle.check(lambda b, zf: zf, "nope", dtype="float32")
+    with pytest.raises(InputError, match="dtype"):
+        oracle.check(lambda b, zf: zf, "shadow_intensity-lower", dtype="float16")
+    with pytest.raises(InputError, match="shape"):
+        oracle.check(lambda b, zf: zf[:3], "shadow_intensity-lower", dtype="float64", n_hypothesis=0)
