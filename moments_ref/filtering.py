@@ -1,0 +1,283 @@
+"""MSAA resolve of a moment shadow map and the two-pass 9-tap Gaussian reference blur.
+
+HPG17 §4: a multisampled shadow map is turned into moments per sample and averaged
+per texel (the resolve); then a separable Gaussian of size 9² and standard
+deviation 2.4 texels filters the moments, horizontally then vertically. This module
+is the classic multi-pass ("global") path in float64, the oracle that
+:mod:`moments_ref.onchip` (the block-wise shared-memory shader of HPG17 §4.1) is
+checked against.
+
+Border rule
+-----------
+Clamp-to-edge: a tap that falls outside the map reads the nearest texel of the
+map, ``m[clip(y, 0, H−1), clip(x, 0, W−1)]``. This is what a GPU texture load with
+clamp addressing returns, and it is what the on-chip shader's guard band loads at
+the border of the map. Each pass clamps on its own axis, which is the same as
+clamping both coordinates of the 9×9 kernel.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ._arrays import InputError, first_index, real_input
+from .moments import power_moments
+
+__all__ = [
+    "TAPS",
+    "SIGMA",
+    "resolve_moments",
+    "gaussian_weights",
+    "blur",
+    "check_depth_samples",
+    "bench_depth_map",
+    "bench_filtering",
+    "bench_entries",
+]
+
+#: Filter size and standard deviation of HPG17 §4.1 ("9² ... 2.4 texels").
+TAPS = 9
+SIGMA = 2.4
+
+
+def check_depth_samples(depth_samples, name="depth_samples") -> np.ndarray:
+    """Validate an (H, W, S) array of sample depths in [-1, 1]; dtype per the policy."""
+    z = real_input(depth_samples, name)
+    if z.ndim != 3:
+        raise InputError(f"{name}: expected an (H, W, S) array of sample depths, got shape {z.shape}")
+    if 0 in z.shape:
+        raise InputError(f"{name}: expected at least one texel and one sample, got shape {z.shape}")
+    bad = (z < -1) | (z > 1)
+    if bad.any():
+        idx = first_index(bad)
+        raise InputError(f"{name}: expected depths in [-1, 1], got {z[idx]!r} at index {idx}")
+    return z
+
+
+def resolve_moments(depth_samples):
+    """MSAA resolve: average the moments ``b(z) = (z, z², z³, z⁴)`` of each texel's samples.
+
+    Parameters
+    ----------
+    depth_samples : (H, W, S) float array
+        Depths in [-1, 1] of the S samples of each texel (S = 1 for a map without
+        multisampling).
+
+    Returns
+    -------
+    b : (H, W, 4) float array
+        ``b_k = (1/S) Σ_s z_s^k``; float32 for float32 input, else float64.
+
+    Raises
+    ------
+    InputError
+        Not three axes, an empty axis, a non-finite depth or a depth outside
+        [-1, 1] (the message gives the first bad index).
+
+    Notes
+    -----
+    HPG17 §4, first paragraph: "each sample from a multisampled shadow map is
+    turned into a vector of moments and the samples are averaged per texel for the
+    resolve". Equal weights: the samples of a texel cover equal areas.
+
+    Examples
+    --------
+    >>> resolve_moments([[[0.5, -0.5]]])
+    array([[[0.    , 0.25  , 0.    , 0.0625]]])
+    """
+    z = check_depth_samples(depth_samples)
+    return power_moments(z, axis=-1, n=4)
+
+
+def gaussian_weights(taps=TAPS, sigma=SIGMA):
+    """Normalized 1D Gaussian filter weights.
+
+    Parameters
+    ----------
+    taps : int
+        Odd number of taps (9 in HPG17 §4.1).
+    sigma : float
+        Standard deviation in texels (2.4 in HPG17 §4.1).
+
+    Returns
+    -------
+    w : (taps,) float64 array
+        ``w_i ∝ exp(−i² / (2σ²))`` for ``i = −(taps−1)/2 .. (taps−1)/2``, summing to 1.
+
+    Notes
+    -----
+    HPG17 §4.1: "The Gaussian filter has size 9² and a standard deviation of 2.4
+    texels." The truncated kernel is renormalized so that a constant map stays
+    constant (b0 = 1 is preserved by filtering).
+
+    Examples
+    --------
+    >>> w = gaussian_weights()
+    >>> w.shape, bool(np.isclose(w.sum(), 1.0))
+    ((9,), True)
+    """
+    if isinstance(taps, bool) or not isinstance(taps, (int, np.integer)) or taps < 1 or taps % 2 == 0:
+        raise InputError(f"taps: expected a positive odd integer, got {taps!r}")
+    sigma = float(sigma)
+    if not np.isfinite(sigma) or sigma <= 0:
+        raise InputError(f"sigma: expected a positive finite number, got {sigma!r}")
+    i = np.arange(taps, dtype=np.float64) - (taps - 1) / 2
+    w = np.exp(-(i * i) / (2.0 * sigma * sigma))
+    return w / w.sum()
+
+
+def _pass(m: np.ndarray, w: np.ndarray, axis: int) -> np.ndarray:
+    """One clamp-to-edge correlation pass along ``axis`` (0 = vertical, 1 = horizontal)."""
+    r = (len(w) - 1) // 2
+    pad = [(0, 0)] * m.ndim
+    pad[axis] = (r, r)
+    p = np.pad(m, pad, mode="edge")
+    n = m.shape[axis]
+
+    def window(t):
+        # The padded array shifted by t: window(t)[x] = m[clip(x + t − r)].
+        s = [slice(None)] * m.ndim
+        s[axis] = slice(t, t + n)
+        return p[tuple(s)]
+
+    out = np.multiply(window(0), w[0])
+    tmp = np.empty_like(out)
+    for t in range(1, len(w)):
+        out += np.multiply(window(t), w[t], out=tmp)
+    return out
+
+
+#: Rows (horizontal pass) or columns (vertical pass) per chunk; results do not depend on it.
+_CHUNK = 64
+
+
+def blur(moments, weights=None):
+    """Two-pass separable Gaussian blur with clamp-to-edge borders, in float64.
+
+    Parameters
+    ----------
+    moments : (H, W, C) float array
+        A moment map (C = 4 for moment shadow maps; any C, e.g. 2 for VSM).
+    weights : (taps,) float array, optional
+        Odd-length 1D kernel; default :func:`gaussian_weights` (9 taps, σ = 2.4).
+
+    Returns
+    -------
+    filtered : (H, W, C) float64 array
+        ``Σ_{s,t} w_s w_t m[clip(y + s), clip(x + t)]``: horizontal pass first,
+        then vertical. Always float64, whatever the input dtype: this is the
+        reference that float32 implementations (:mod:`moments_ref.onchip`, GPU
+        ports) are measured against.
+
+    Notes
+    -----
+    HPG17 §4: "two more passes apply a horizontal and vertical Gaussian filter".
+    Border rule: clamp-to-edge (module docstring).
+    """
+    m = real_input(moments, "moments").astype(np.float64)
+    if m.ndim != 3 or 0 in m.shape:
+        raise InputError(f"moments: expected a non-empty (H, W, C) array, got shape {m.shape}")
+    w = gaussian_weights() if weights is None else real_input(weights, "weights").astype(np.float64)
+    if w.ndim != 1 or len(w) % 2 == 0:
+        raise InputError(f"weights: expected a 1D kernel of odd length, got shape {w.shape}")
+    # Cache-sized chunks: bands of rows for the horizontal pass, of columns for the
+    # vertical one; each output sums the same terms in the same order either way.
+    horizontal = np.empty_like(m)
+    for y in range(0, m.shape[0], _CHUNK):
+        horizontal[y : y + _CHUNK] = _pass(m[y : y + _CHUNK], w, axis=1)
+    out = np.empty_like(m)
+    for x in range(0, m.shape[1], _CHUNK):
+        out[:, x : x + _CHUNK] = _pass(horizontal[:, x : x + _CHUNK], w, axis=0)
+    return out
+
+
+def _timed(fn, *args):
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, time.perf_counter() - t0
+
+
+def bench_depth_map(size=2048, samples=4, dtype=np.float32, seed=0):
+    """A deterministic (size, size, samples) depth map for benchmarks: smooth terrain plus steps."""
+    rng = np.random.default_rng(seed)
+    u = (np.arange(size) + 0.5) / size
+    base = 0.5 * np.sin(7 * u)[:, None] * np.cos(5 * u)[None, :]
+    steps = np.where((np.add.outer(np.arange(size) // 64, np.arange(size) // 64) % 2) == 0, 0.3, -0.3)
+    jitter = rng.uniform(-0.01, 0.01, size=(size, size, samples))
+    return np.clip(base[..., None] + steps[..., None] + jitter, -1, 1).astype(dtype)
+
+
+def bench_filtering(size=2048, samples=4, onchip=True):
+    """Time the global path (resolve, then blur) and the on-chip emulation.
+
+    Parameters
+    ----------
+    size : int
+        Side of the square shadow map (HPG17 §5 uses 2048²).
+    samples : int
+        MSAA samples per texel (4 in HPG17 §5).
+    onchip : bool
+        Also time :func:`moments_ref.onchip.filter_moments` per stage.
+
+    Returns
+    -------
+    results : dict
+        ``{"size", "samples", "texels", "global_resolve_s", "global_blur_s",
+        "global_total_s", "global_mtexels_per_s"}`` and, with ``onchip``, the
+        on-chip stage times ``"onchip_<stage>_s"``, ``"onchip_total_s"``,
+        ``"onchip_mtexels_per_s"`` and ``"max_abs_difference"`` between the two
+        paths. Wall-clock seconds of one run on this machine (NumPy, CPU).
+    """
+    depth = bench_depth_map(size, samples)
+    out = {"size": int(size), "samples": int(samples), "texels": int(size) * int(size)}
+    b, t_resolve = _timed(resolve_moments, depth)
+    ref, t_blur = _timed(blur, b)
+    out["global_resolve_s"] = t_resolve
+    out["global_blur_s"] = t_blur
+    out["global_total_s"] = t_resolve + t_blur
+    out["global_mtexels_per_s"] = out["texels"] / out["global_total_s"] / 1e6
+    if onchip:
+        from . import onchip as _onchip
+
+        stages = {}
+        t0 = time.perf_counter()
+        f = _onchip.filter_moments(depth, timings=stages)
+        t_total = time.perf_counter() - t0
+        for k, v in stages.items():
+            out[f"onchip_{k}_s"] = v
+        out["onchip_total_s"] = t_total
+        out["onchip_mtexels_per_s"] = out["texels"] / t_total / 1e6
+        out["max_abs_difference"] = float(np.max(np.abs(f - ref)))
+    return out
+
+
+def _bench_setup_depth(size, dtype):
+    return (bench_depth_map(size, 4, dtype),)
+
+
+def _bench_setup_moments(size, dtype):
+    return (resolve_moments(bench_depth_map(size, 4, dtype)),)
+
+
+def _global_path(z):
+    return blur(resolve_moments(z))
+
+
+def bench_entries():
+    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.bench`): resolve, blur, both.
+
+    Inputs are 4× MSAA float32 depth maps of ``size²`` texels; bytes per texel
+    count the samples read and the moments written.
+    """
+    from .bench import Benchmark
+
+    return [
+        Benchmark("resolve_moments (4x MSAA)", "float32", _bench_setup_depth, resolve_moments, 16 + 16,
+                  "4 depths in, 4 float32 moments out"),
+        Benchmark("blur 9x9 reference", "float64", _bench_setup_moments, blur, 16 + 32,
+                  "float32 moments in, float64 out, two passes, clamp-to-edge"),
+        Benchmark("resolve+blur global path", "float32", _bench_setup_depth, _global_path, 16 + 32,
+                  "4 depths in, float64 moments out"),
+    ]

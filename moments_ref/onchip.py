@@ -1,0 +1,315 @@
+"""Block-wise emulation of the HPG17 §4.1 compute shader: resolve, blur and quantize in shared memory.
+
+The shader generates the filtered moment shadow map one output block of 32×24
+texels at a time. A thread group of 256 threads (8 warps) loads the 40×32 input
+block (output block plus a guard band of 4 texels on every side), resolves the
+multisampled depths into moments in a flat float32 shared-memory array laid out as
+in HPG17 §4.1 "Memory layout", blurs it horizontally and vertically with the 9-tap
+Gaussian (σ = 2.4) in registers, and finally reads out three moment vectors per
+thread, quantizes them and writes them to the texture. Device memory is read once
+and written once.
+
+This emulation runs the shader's shared-memory accesses literally: every phase
+gathers from and scatters to a ``(blocks, words)`` float32 array through the word
+addresses of :func:`moments_ref.banks.access_pattern` and
+:func:`moments_ref.banks.shared_index`, so the accesses whose bank conflicts
+:mod:`moments_ref.banks` counts are the accesses that produce the result here.
+Loops run over batches of blocks, phases, rounds and filter taps; everything
+inside is vectorized over blocks, warps and lanes. All arithmetic is float32.
+
+Which texels a block covers
+---------------------------
+Output block ``(bx, by)`` (``bx ∈ 0..⌈W/32⌉−1``, ``by ∈ 0..⌈H/24⌉−1``) produces the
+texels ``x ∈ [32·bx, 32·bx + 32)``, ``y ∈ [24·by, 24·by + 24)``, minus those outside
+the map (the shader's only conditional, §4.1). Its input block is
+``x ∈ [32·bx − 4, 32·bx + 36)``, ``y ∈ [24·by − 4, 24·by + 28)``: the 9-tap filter
+needs 4 texels on each side, 32 + 8 = 40 and 24 + 8 = 32. Input coordinates
+outside the map are clamped to the edge, as a texture load with clamp addressing
+does; that is the border rule of :func:`moments_ref.filtering.blur`.
+
+Quantization
+------------
+The readout of the shader quantizes the three vectors each thread reads and
+writes the texels. Quantization acts on each texel alone, so
+:func:`filter_and_quantize` applies it to the whole float32 map that the emulated
+readout assembled; the texels are the same.
+
+Agreement with the reference
+----------------------------
+``filter_moments(z)`` equals ``blur(resolve_moments(z))`` up to float32 rounding:
+:func:`tolerance` gives the bound used by the tests (absolute, since the moments of
+depths in [-1, 1] lie in [-1, 1]).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from . import banks
+from ._arrays import InputError
+from .filtering import SIGMA, TAPS, check_depth_samples, gaussian_weights
+
+__all__ = [
+    "FORMATS",
+    "filter_moments",
+    "filter_and_quantize",
+    "tolerance",
+    "block_grid",
+    "bench_onchip",
+    "bench_entries",
+]
+
+#: Texture formats of :func:`filter_and_quantize` and their bits per texel.
+FORMATS = {"nlq64": 64, "nlq32": 32, "affine64": 64, "float128": 128}
+
+_OUT_W, _OUT_H = banks.BLOCK_OUT
+_IN_W, _IN_H = banks.BLOCK_IN
+_G = banks.GUARD
+_STAGES = ("resolve", "horizontal", "vertical", "readout")
+
+
+def block_grid(height, width) -> tuple[int, int]:
+    """Number of output blocks ``(rows, columns)`` = ``(⌈H/24⌉, ⌈W/32⌉)`` for an H×W map."""
+    return -(-int(height) // _OUT_H), -(-int(width) // _OUT_W)
+
+
+def tolerance(samples, taps=TAPS) -> float:
+    """Absolute float32 tolerance between :func:`filter_moments` and the float64 reference.
+
+    Parameters
+    ----------
+    samples : int
+        MSAA samples per texel.
+    taps : int
+        Filter taps per pass.
+
+    Returns
+    -------
+    atol : float
+        ``(2·(samples + 7) + 2·(taps + 1)) · u`` with ``u = 2⁻²⁴``, the unit roundoff of
+        float32.
+
+    Notes
+    -----
+    A first-order bound with ``|z| ≤ 1``, so every moment and every partial sum has
+    magnitude ≤ 1: rounding the depth to float32 and forming ``z⁴`` costs ≤ 7u, the
+    float32 mean of ``samples`` terms ≤ (samples − 1)u + u; both the emulation and
+    the reference's own float32 resolve carry this, hence the factor 2. Each
+    float32 pass rounds its ``taps`` weights and does ``taps`` products and
+    ``taps − 1`` additions of a convex combination: ≤ (taps + 1)u, two passes.
+    """
+    return float((2 * (int(samples) + 7) + 2 * (int(taps) + 1)) * 2.0**-24)
+
+
+def _addresses(layout):
+    pattern = banks.access_pattern()
+    addr = {name: banks.shared_index(p.j, p.x, p.y, layout) for name, p in pattern.items()}
+    return pattern, addr
+
+
+def _convolve(values, w, n_out, axis):
+    """Brute-force convolution in registers, float32: Σ_t w[t]·v[k + t], one tap at a time."""
+    def shifted(t):
+        s = [slice(None)] * values.ndim
+        s[axis] = slice(t, t + n_out)
+        return values[tuple(s)]
+
+    acc = w[0] * shifted(0)
+    for t in range(1, len(w)):
+        acc = acc + w[t] * shifted(t)
+    return acc
+
+
+def _run_batch(z, bx, by, out, pattern, addr, words, w, timings):
+    """Emulate the thread groups of the blocks ``(bx[i], by[i])`` and write their texels."""
+    H, W, S = z.shape
+    nb = len(bx)
+    shared = np.zeros((nb, words), dtype=np.float32)
+    x0 = (_OUT_W * bx - _G)[:, None, None]
+    y0 = (_OUT_H * by - _G)[:, None, None]
+    inv = np.float32(S)
+
+    # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
+    # map), averages b(z) and writes the 4 moments.
+    t0 = time.perf_counter()
+    res = pattern["resolve"]
+    for r in range(res.j.shape[0]):
+        tx, ty = res.texel_x[r, 0], res.texel_y[r, 0]  # (warp, lane), same for every j
+        X = np.clip(x0 + tx, 0, W - 1)
+        Y = np.clip(y0 + ty, 0, H - 1)
+        d = z[Y, X]  # (blocks, warp, lane, S)
+        acc = np.zeros((4,) + d.shape[:-1], dtype=np.float32)
+        for s in range(S):
+            zs = d[..., s]
+            z2 = zs * zs
+            acc[0] += zs
+            acc[1] += z2
+            acc[2] += z2 * zs
+            acc[3] += z2 * z2
+        acc /= inv
+        for j in range(4):
+            shared[:, addr["resolve"][r, j]] = acc[j]
+    t1 = time.perf_counter()
+
+    # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
+    v = shared[:, addr["horizontal read"]]  # (blocks, warp, 24, lane)
+    shared[:, addr["horizontal write"]] = _convolve(v, w, 16, axis=2)
+    t2 = time.perf_counter()
+
+    # Vertical blur: 20 loads per thread (upper or lower half of the strip), 12 results.
+    v = shared[:, addr["vertical read"]]  # (blocks, warp, 20, lane)
+    shared[:, addr["vertical write"]] = _convolve(v, w, 12, axis=2)
+    t3 = time.perf_counter()
+
+    # Readout: each thread reads three complete vectors; out-of-map texels are skipped.
+    ro = pattern["readout"]
+    v = shared[:, addr["readout"]]  # (blocks, row i, j, warp, lane)
+    tx, ty = ro.texel_x[:, 0], ro.texel_y[:, 0]  # (row i, warp, lane)
+    X = (_OUT_W * bx)[:, None, None, None] + tx
+    Y = (_OUT_H * by)[:, None, None, None] + ty
+    inside = (X < W) & (Y < H)
+    out[Y[inside], X[inside]] = np.moveaxis(v, 2, -1)[inside]
+    t4 = time.perf_counter()
+
+    if timings is not None:
+        for name, dt in zip(_STAGES, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+            timings[name] = timings.get(name, 0.0) + dt
+
+
+def filter_moments(depth_samples, *, blocks_per_batch=256, layout="paper", timings=None):
+    """Resolve and blur a multisampled shadow map block by block, as the HPG17 §4.1 shader does.
+
+    Parameters
+    ----------
+    depth_samples : (H, W, S) float array
+        Sample depths in [-1, 1]. Converted to float32 (the shader's precision).
+    blocks_per_batch : int, keyword-only
+        How many thread groups are emulated together. The result does not depend
+        on it.
+    layout : {"paper", "row-major"}, keyword-only
+        Shared-memory layout (:func:`moments_ref.banks.shared_index`). The result
+        does not depend on it either; only the bank conflicts do.
+    timings : dict, optional, keyword-only
+        If given, seconds per stage (``resolve``, ``horizontal``, ``vertical``,
+        ``readout``) are added to it.
+
+    Returns
+    -------
+    b : (H, W, 4) float32 array
+        Filtered moments, equal to ``blur(resolve_moments(depth_samples))`` within
+        :func:`tolerance` ``(S)``.
+
+    Raises
+    ------
+    InputError
+        As :func:`moments_ref.filtering.resolve_moments`.
+
+    Notes
+    -----
+    HPG17 §4.1 and Figure 6; the access pattern of each phase is written down in
+    :mod:`moments_ref.banks`, the block coverage in this module's docstring.
+    """
+    z = check_depth_samples(depth_samples).astype(np.float32, copy=False)
+    if isinstance(blocks_per_batch, bool) or not isinstance(blocks_per_batch, (int, np.integer)) or blocks_per_batch < 1:
+        raise InputError(f"blocks_per_batch: expected a positive integer, got {blocks_per_batch!r}")
+    words = banks.layout_words(layout)
+    pattern, addr = _addresses(layout)
+    w = gaussian_weights(TAPS, SIGMA).astype(np.float32)
+    H, W, _ = z.shape
+    rows, cols = block_grid(H, W)
+    out = np.empty((H, W, 4), dtype=np.float32)
+    ids = np.arange(rows * cols)
+    for start in range(0, len(ids), int(blocks_per_batch)):
+        b = ids[start : start + int(blocks_per_batch)]
+        _run_batch(z, b % cols, b // cols, out, pattern, addr, words, w, timings)
+    return out
+
+
+def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
+    """The texture the HPG17 §4.1 shader writes: filtered moments in a storage format.
+
+    Parameters
+    ----------
+    depth_samples : (H, W, S) float array
+        Sample depths in [-1, 1].
+    fmt : {"nlq64", "nlq32", "affine64", "float128"}
+        ``"nlq64"``: bias with ``BIAS_FLOAT32``, ``nonlinear.phi`` (HPG17 Alg. 2),
+        ``packing.pack64`` → uint16 (H, W, 4). ``"nlq32"``: same, ``packing.pack32``
+        → uint32 (H, W). ``"affine64"``: ``affine.encode_unorm16`` → uint16 (H, W, 4),
+        *without* bias: for the affine format biasing (``BIAS_UNORM16``) is the
+        shading side's step, after decoding the rounded moments. ``"float128"``:
+        the float32 moments (H, W, 4), unbiased.
+    **kwargs
+        Passed to :func:`filter_moments`.
+
+    Returns
+    -------
+    texture : array, dtype and shape per format
+
+    Notes
+    -----
+    HPG17 §4.1 "Readout and quantization" and §3.3 (the float32 bias is applied to
+    the filtered single-precision moments before Algorithm 2).
+    """
+    if fmt not in FORMATS:
+        raise InputError(f"fmt: expected one of {tuple(FORMATS)}, got {fmt!r}")
+    b = filter_moments(depth_samples, **kwargs)
+    if fmt == "float128":
+        return b
+    if fmt == "affine64":
+        from .affine import encode_unorm16
+
+        return encode_unorm16(b)
+    from .moments import BIAS_FLOAT32, bias_moments
+    from .nonlinear import phi
+    from .packing import pack32, pack64
+
+    r = phi(bias_moments(b, BIAS_FLOAT32))
+    return pack64(r) if fmt == "nlq64" else pack32(r)
+
+
+def bench_onchip(size=2048, samples=4):
+    """Seconds per stage of :func:`filter_moments` on the benchmark map of :func:`moments_ref.filtering.bench_depth_map`."""
+    from .filtering import bench_depth_map
+
+    depth = bench_depth_map(size, samples)
+    stages = {}
+    t0 = time.perf_counter()
+    filter_moments(depth, timings=stages)
+    total = time.perf_counter() - t0
+    out = {f"onchip_{k}_s": v for k, v in stages.items()}
+    out["onchip_total_s"] = total
+    out["onchip_mtexels_per_s"] = size * size / total / 1e6
+    return out
+
+
+def _bench_setup(size, dtype):
+    from .filtering import bench_depth_map
+
+    return (bench_depth_map(size, 4, dtype),)
+
+
+def _bench_nlq64(z):
+    return filter_and_quantize(z, "nlq64")
+
+
+def bench_entries():
+    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.bench`): the on-chip emulation.
+
+    4× MSAA float32 depth maps of ``size²`` texels.
+    """
+    from .bench import Benchmark
+
+    out = [
+        Benchmark("onchip filter_moments (4x MSAA)", "float32", _bench_setup, filter_moments, 16 + 16,
+                  "4 depths in, 4 float32 moments out, block-wise shared-memory emulation"),
+    ]
+    try:
+        from . import nonlinear, packing  # noqa: F401
+    except ImportError:
+        return out
+    out.append(Benchmark("onchip filter_and_quantize nlq64", "float32", _bench_setup, _bench_nlq64, 16 + 8,
+                         "4 depths in, 64-bit NLQ texel out"))
+    return out
