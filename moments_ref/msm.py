@@ -24,14 +24,21 @@ line):
 Degenerate input. When ``B(b)`` is singular the distribution with these moments
 is unique and ``Z(z < zf)`` is known exactly; both bounds then return it:
 
-* ``σ² = b2 − b1² ≤ SINGULAR_RTOL·eps·b2``: one depth at ``b1``;
-* otherwise ``ξ4 ≤ SINGULAR_RTOL·eps·max(b4, σ²)``: the two-point distribution of
-  HPG17 Algorithm 2 (depths y1 < y2, weights 1 − v2, v2).
+* ``σ² = b2 − b1² ≤ τ·b2``: one depth at ``b1``;
+* otherwise ``ξ4 ≤ τ·max(b4, σ²)``: the two-point distribution of HPG17
+  Algorithm 2 (depths y1 < y2, weights 1 − v2, v2).
 
-``eps`` is the machine epsilon of the working dtype, so float32 treats as singular
-what its own rounding of b cannot tell from singular (for example moments biased
-with ``BIAS_FLOAT32``: α = 3e-7 lifts ξ4 by about 1e-7, below float32's resolution
-of b4). Negative σ² or ξ4 (moments just outside the moment space after rounding)
+The relative threshold ``τ = SINGULAR_RTOL[dtype]·eps`` is ``8·eps`` in float64:
+moments of one or two depths computed in float64 round to pivots of that size,
+while biased moments (α ≥ 3e-7) lie nine orders of magnitude above it. In
+float32 ``τ = 0``: ``BIAS_FLOAT32`` lifts ξ4 only to about
+``α·λmin(B(b*)) ≈ 6e-8``, which is float32's own rounding of b4, so any positive
+threshold would catch biased moments and replace the paper's bound by a hard step
+at a *rounded* support point (measured: up to 0.96 above the true Z when zf lies
+between the rounded and the true support point). float32 therefore takes the
+singular branch only for pivots that are zero or negative.
+
+Negative σ² or ξ4 (moments just outside the moment space after rounding)
 fall into the same branches: they are projected onto the boundary of the moment
 space, which keeps b1..b3 (or b1) and lowers b4 (or b2). Further outside the
 result is that of the projection, not an error; bias the moments to stay inside.
@@ -55,16 +62,18 @@ __all__ = [
     "singular_thresholds",
 ]
 
-#: Multiple of the dtype's machine epsilon below which B(b) counts as singular.
-SINGULAR_RTOL = 8.0
+#: Multiple of the dtype's machine epsilon below which B(b) counts as singular
+#: (relative to b2 for σ², to max(b4, σ²) for ξ4); see the module docstring.
+SINGULAR_RTOL = {"float32": 0.0, "float64": 8.0}
 
 #: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
 CHUNK = 1 << 14
 
 
 def singular_thresholds(dtype):
-    """The relative tolerance ``SINGULAR_RTOL·eps`` of ``dtype`` (float32 or float64)."""
-    return SINGULAR_RTOL * np.finfo(dtype).eps
+    """The relative singularity threshold ``SINGULAR_RTOL[dtype]·eps`` of float32 or float64."""
+    dt = np.dtype(dtype)
+    return SINGULAR_RTOL[dt.name] * np.finfo(dt).eps
 
 
 def _two_point(b1, b2, b3, sigma2):
