@@ -1,0 +1,425 @@
+"""Scene files (TOML) and the :class:`Scene` they describe.
+
+A scene file holds::
+
+    name = "railing"                 # optional, defaults to the file stem
+    description = "..."              # optional
+    shadow_map_size = 1024           # int or [H, W]
+    msaa = 4                         # 1, 4 or 8
+    outputs = ["msm", "nlq64"]       # stored as given; a runner interprets them
+
+    [params]                         # optional free table, stored as Scene.params
+
+    [light]                          # type = "directional" | "area"
+    type = "directional"
+    direction = [0.2, -1.0, 0.5]     # directional: the direction light travels
+    # area: center, normal, width, height, optional up, fov (degrees)
+
+    [camera]                         # the shaded view
+    eye = [0, 2, 5]
+    target = [0, 0, 0]
+    up = [0, 1, 0]                   # optional
+    fov = 45                         # vertical, degrees
+    resolution = [1280, 720]         # width, height
+    # near, far optional
+
+    [[objects]]
+    name = "ground"
+    generator = "plane"              # or: obj = "path/relative/to/the/scene.obj"
+    params = { width = 6, depth = 4 }
+    transform = [ { scale = 2 }, { rotate = { axis = [0, 1, 0], degrees = 30 } },
+                  { translate = [0, 0, 1] } ]   # applied in this order
+    role = "receiver"                # "receiver", "occluder" or "both"
+    translucent = false              # optional; with opacity in (0, 1]
+    opacity = 1.0
+
+Roles: occluders are drawn into the shadow map; receivers are the surfaces whose
+shadowing is evaluated; "both" puts an object in both sets (HPG17 Figure 1: the
+banner receives the railing's shadow and shadows the ground).
+
+Errors name the file, the key (``objects[2].generator``) and the problem.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .._arrays import InputError
+from ..raster import SAMPLE_COUNTS, MAX_SIZE, rasterize_depth
+from .camera import Camera
+from .lights import AreaLight, DirectionalLight
+from .mesh import GENERATORS, Mesh, merge, read_obj, rotate, scale, translate
+
+__all__ = ["Scene", "SceneObject", "load_scene", "list_scenes", "ROLES"]
+
+ROLES = ("receiver", "occluder", "both")
+_TOP_KEYS = {"name", "description", "shadow_map_size", "msaa", "outputs", "params", "light", "camera", "objects"}
+_OBJ_KEYS = {"name", "generator", "obj", "params", "transform", "role", "translucent", "opacity"}
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One entry of ``objects``: its name, role, translucency and triangle count."""
+
+    name: str
+    role: str
+    translucent: bool
+    opacity: float
+    n_triangles: int
+
+
+@dataclass
+class Scene:
+    """A loaded scene: geometry merged per role, light, camera and parameters.
+
+    Attributes
+    ----------
+    name, description : str
+    path : Path of the scene file
+    receiver : Mesh, all objects with role receiver or both
+    occluder : Mesh, all objects with role occluder or both
+    receiver_object, occluder_object : (T,) int64, index into ``objects`` per triangle
+    occluder_translucent : (T_occ,) bool per occluder triangle
+    occluder_opacity : (T_occ,) float64 per occluder triangle (1 for opaque)
+    objects : tuple of SceneObject
+    light : DirectionalLight or AreaLight
+    camera : Camera
+    shadow_map_size : (H, W)
+    msaa : int
+    outputs : tuple of str
+    params : dict
+    """
+
+    name: str
+    description: str
+    path: Path
+    receiver: Mesh
+    occluder: Mesh
+    receiver_object: np.ndarray
+    occluder_object: np.ndarray
+    occluder_translucent: np.ndarray
+    occluder_opacity: np.ndarray
+    objects: tuple
+    light: object
+    camera: Camera
+    shadow_map_size: tuple
+    msaa: int
+    outputs: tuple
+    params: dict = field(default_factory=dict)
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) bounding box of all geometry."""
+        v = np.concatenate([self.receiver.vertices, self.occluder.vertices])
+        return np.stack([v.min(0), v.max(0)])
+
+    def shadow_view_proj(self, eye=None) -> np.ndarray:
+        """The light's shadow-map matrix.
+
+        Directional light: orthographic, fitted to all scene vertices (HPG17 §5).
+        Area light: perspective from ``eye`` on the light (default its centre).
+        """
+        pts = np.concatenate([self.receiver.vertices, self.occluder.vertices])
+        if isinstance(self.light, DirectionalLight):
+            return self.light.view_proj(pts)
+        return self.light.view_proj(pts, eye=eye)
+
+    def occluder_mesh(self, translucent=None, exclude=()) -> Mesh:
+        """Occluder triangles: all (None), only opaque (False) or only translucent (True),
+        leaving out the objects named in ``exclude``."""
+        keep = np.ones(self.occluder.n_triangles, bool)
+        if translucent is not None:
+            keep &= self.occluder_translucent == bool(translucent)
+        for name in exclude:
+            idx = [i for i, o in enumerate(self.objects) if o.name == name]
+            keep &= ~np.isin(self.occluder_object, idx)
+        return Mesh(self.occluder.vertices, self.occluder.triangles[keep])
+
+    def shadow_map(self, size=None, samples=None, translucent=False, exclude=(), cull="none"):
+        """Rasterize the occluders into the light's depth map.
+
+        Returns ``(depth (H, W, S) float32, stats)`` from :func:`moments_ref.raster.rasterize_depth`.
+        """
+        m = self.occluder_mesh(translucent=translucent, exclude=exclude)
+        return rasterize_depth(m.vertices, m.triangles, self.shadow_view_proj(),
+                               self.shadow_map_size if size is None else size,
+                               samples=self.msaa if samples is None else samples, cull=cull)
+
+
+# ---------------------------------------------------------------------------
+# Validation helpers
+
+
+class _Ctx:
+    def __init__(self, path):
+        self.path = path
+
+    def error(self, key, problem):
+        return InputError(f"scene file {self.path}: {key}: {problem}")
+
+    def number(self, table, key, where, default=None, positive=False):
+        if key not in table:
+            if default is None:
+                raise self.error(f"{where}{key}", "missing (expected a number)")
+            return default
+        v = table[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise self.error(f"{where}{key}", f"wrong type: expected a finite number, got {v!r}")
+        if positive and v <= 0:
+            raise self.error(f"{where}{key}", f"expected a positive number, got {v!r}")
+        return float(v)
+
+    def vec3(self, table, key, where, default=None):
+        if key not in table:
+            if default is None:
+                raise self.error(f"{where}{key}", "missing (expected a list of 3 numbers)")
+            return np.asarray(default, dtype=np.float64)
+        v = table[key]
+        if (not isinstance(v, list) or len(v) != 3
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+            raise self.error(f"{where}{key}", f"wrong type: expected a list of 3 numbers, got {v!r}")
+        return np.asarray(v, dtype=np.float64)
+
+    def table(self, doc, key, where="", required=True):
+        if key not in doc:
+            if required:
+                raise self.error(f"{where}{key}", "missing table")
+            return {}
+        v = doc[key]
+        if not isinstance(v, dict):
+            raise self.error(f"{where}{key}", f"wrong type: expected a table, got {type(v).__name__}")
+        return v
+
+    def unknown(self, table, allowed, where):
+        extra = sorted(set(table) - set(allowed))
+        if extra:
+            raise self.error(f"{where}{extra[0]}", f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+
+def _transform(ctx, steps, where):
+    if not isinstance(steps, list):
+        raise ctx.error(where, f"wrong type: expected a list of tables, got {type(steps).__name__}")
+    m = np.eye(4)
+    for i, step in enumerate(steps):
+        w = f"{where}[{i}]"
+        if not isinstance(step, dict) or len(step) != 1:
+            raise ctx.error(w, f"expected a table with one of translate, rotate, scale, got {step!r}")
+        (kind, val), = step.items()
+        if kind == "translate":
+            m = translate(ctx.vec3(step, "translate", f"{w}.")) @ m
+        elif kind == "rotate":
+            if not isinstance(val, dict):
+                raise ctx.error(f"{w}.rotate", f"wrong type: expected {{ axis = [x, y, z], degrees = a }}, got {val!r}")
+            ctx.unknown(val, {"axis", "degrees"}, f"{w}.rotate.")
+            axis = ctx.vec3(val, "axis", f"{w}.rotate.")
+            if not np.any(axis):
+                raise ctx.error(f"{w}.rotate.axis", "expected a non-zero axis")
+            m = rotate(axis, ctx.number(val, "degrees", f"{w}.rotate.")) @ m
+        elif kind == "scale":
+            if isinstance(val, list):
+                f = ctx.vec3(step, "scale", f"{w}.")
+            else:
+                f = ctx.number(step, "scale", f"{w}.")
+            if np.any(np.asarray(f) == 0):
+                raise ctx.error(f"{w}.scale", "expected non-zero factors")
+            m = scale(f) @ m
+        else:
+            raise ctx.error(f"{w}.{kind}", "unknown transform (expected translate, rotate or scale)")
+    return m
+
+
+def _object(ctx, obj, i, base):
+    where = f"objects[{i}]"
+    if not isinstance(obj, dict):
+        raise ctx.error(where, f"wrong type: expected a table, got {type(obj).__name__}")
+    ctx.unknown(obj, _OBJ_KEYS, f"{where}.")
+    name = obj.get("name", f"object{i}")
+    if not isinstance(name, str):
+        raise ctx.error(f"{where}.name", f"wrong type: expected a string, got {name!r}")
+    if ("generator" in obj) == ("obj" in obj):
+        raise ctx.error(where, "expected exactly one of 'generator' or 'obj'")
+    params = ctx.table(obj, "params", f"{where}.", required=False)
+    if "generator" in obj:
+        gen = obj["generator"]
+        if gen not in GENERATORS:
+            raise ctx.error(f"{where}.generator", f"unknown generator {gen!r} (known: {', '.join(GENERATORS)})")
+        try:
+            mesh = GENERATORS[gen](**params)
+        except TypeError as exc:
+            raise ctx.error(f"{where}.params", f"bad parameters for generator {gen!r}: {exc}") from None
+        except (InputError, ValueError) as exc:
+            raise ctx.error(f"{where}.params", str(exc)) from None
+    else:
+        rel = obj["obj"]
+        if not isinstance(rel, str):
+            raise ctx.error(f"{where}.obj", f"wrong type: expected a path string, got {rel!r}")
+        if params:
+            raise ctx.error(f"{where}.params", "OBJ objects take no params")
+        p = Path(rel) if Path(rel).is_absolute() else base / rel
+        if not p.is_file():
+            raise ctx.error(f"{where}.obj", f"OBJ file not found: {p}")
+        mesh = read_obj(p)
+    if "transform" in obj:
+        mesh = mesh.transformed(_transform(ctx, obj["transform"], f"{where}.transform"))
+    role = obj.get("role")
+    if role is None:
+        raise ctx.error(f"{where}.role", f"missing (expected one of {', '.join(ROLES)})")
+    if role not in ROLES:
+        raise ctx.error(f"{where}.role", f"expected one of {', '.join(ROLES)}, got {role!r}")
+    translucent = obj.get("translucent", False)
+    if not isinstance(translucent, bool):
+        raise ctx.error(f"{where}.translucent", f"wrong type: expected true or false, got {translucent!r}")
+    opacity = ctx.number(obj, "opacity", f"{where}.", default=1.0 if not translucent else None)
+    if not (0 < opacity <= 1):
+        raise ctx.error(f"{where}.opacity", f"expected a value in (0, 1], got {opacity}")
+    if opacity < 1 and not translucent:
+        raise ctx.error(f"{where}.opacity", "an opacity below 1 needs translucent = true")
+    if translucent and role == "receiver":
+        raise ctx.error(f"{where}.translucent", "a translucent object must be an occluder (role occluder or both)")
+    return SceneObject(name, role, translucent, opacity, mesh.n_triangles), mesh
+
+
+def _light(ctx, t):
+    kind = t.get("type")
+    if kind == "directional":
+        ctx.unknown(t, {"type", "direction"}, "light.")
+        d = ctx.vec3(t, "direction", "light.")
+        if not np.any(d):
+            raise ctx.error("light.direction", "expected a non-zero direction")
+        return DirectionalLight(d)
+    if kind == "area":
+        ctx.unknown(t, {"type", "center", "normal", "width", "height", "up", "fov"}, "light.")
+        try:
+            return AreaLight(ctx.vec3(t, "center", "light."), ctx.vec3(t, "normal", "light."),
+                             ctx.number(t, "width", "light.", positive=True),
+                             ctx.number(t, "height", "light.", positive=True),
+                             ctx.vec3(t, "up", "light.") if "up" in t else None,
+                             ctx.number(t, "fov", "light.", default=90.0))
+        except InputError as exc:
+            if str(exc).startswith("scene file"):
+                raise
+            raise ctx.error("light", str(exc)) from None
+    raise ctx.error("light.type", f"expected 'directional' or 'area', got {kind!r}")
+
+
+def _camera(ctx, t):
+    ctx.unknown(t, {"eye", "target", "up", "fov", "resolution", "near", "far"}, "camera.")
+    res = t.get("resolution", [1280, 720])
+    if (not isinstance(res, list) or len(res) != 2
+            or not all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in res)):
+        raise ctx.error("camera.resolution", f"wrong type: expected [width, height] positive integers, got {res!r}")
+    try:
+        return Camera(ctx.vec3(t, "eye", "camera."), ctx.vec3(t, "target", "camera."),
+                      ctx.vec3(t, "up", "camera.", default=(0.0, 1.0, 0.0)),
+                      ctx.number(t, "fov", "camera.", default=45.0), tuple(res),
+                      ctx.number(t, "near", "camera.", default=0.05, positive=True),
+                      ctx.number(t, "far", "camera.", default=100.0, positive=True))
+    except InputError as exc:
+        if str(exc).startswith("scene file"):
+            raise
+        raise ctx.error("camera", str(exc)) from None
+
+
+def _scenes_dir():
+    return resources.files("moments_ref.scene") / "scenes"
+
+
+def list_scenes() -> list[str]:
+    """Names of the shipped scenes (``moments_ref/scene/scenes/*.toml``), sorted."""
+    return sorted(p.name[:-5] for p in _scenes_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def _resolve(name_or_path) -> Path:
+    s = str(name_or_path)
+    p = Path(s)
+    if p.suffix == ".toml" or p.exists():
+        if not p.is_file():
+            raise InputError(f"scene file {p}: not found")
+        return p
+    if s in list_scenes():
+        return Path(str(_scenes_dir() / f"{s}.toml"))
+    raise InputError(f"scene: unknown scene {s!r}; known scenes: {', '.join(list_scenes())} "
+                     "(or give the path of a .toml file)")
+
+
+def load_scene(name_or_path) -> Scene:
+    """Load a shipped scene by name or a scene file by path.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        One of :func:`list_scenes` or the path of a ``.toml`` file.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    InputError
+        Unknown name (listing the known ones), unreadable TOML, or a bad entry:
+        the message names the file, the key and the problem.
+    """
+    path = _resolve(name_or_path)
+    ctx = _Ctx(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"scene file {path}: not valid TOML ({exc})") from None
+    except OSError as exc:
+        raise InputError(f"scene file {path}: cannot read ({exc.strerror})") from None
+    ctx.unknown(doc, _TOP_KEYS, "")
+
+    name = doc.get("name", path.stem)
+    desc = doc.get("description", "")
+    for key, v in (("name", name), ("description", desc)):
+        if not isinstance(v, str):
+            raise ctx.error(key, f"wrong type: expected a string, got {v!r}")
+    size = doc.get("shadow_map_size", 1024)
+    hw = [size, size] if isinstance(size, int) and not isinstance(size, bool) else size
+    if (not isinstance(hw, list) or len(hw) != 2
+            or not all(isinstance(x, int) and not isinstance(x, bool) and 1 <= x <= MAX_SIZE for x in hw)):
+        raise ctx.error("shadow_map_size", f"expected an integer or [H, W] in [1, {MAX_SIZE}], got {size!r}")
+    msaa = doc.get("msaa", 1)
+    if isinstance(msaa, bool) or msaa not in SAMPLE_COUNTS:
+        raise ctx.error("msaa", f"expected one of the supported sample counts {SAMPLE_COUNTS}, got {msaa!r}")
+    outputs = doc.get("outputs", [])
+    if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
+        raise ctx.error("outputs", f"wrong type: expected a list of strings, got {outputs!r}")
+    params = ctx.table(doc, "params", required=False)
+    light = _light(ctx, ctx.table(doc, "light"))
+    camera = _camera(ctx, ctx.table(doc, "camera"))
+
+    objs = doc.get("objects")
+    if objs is None:
+        raise ctx.error("objects", "missing (expected an array of [[objects]] tables)")
+    if not isinstance(objs, list) or not objs:
+        raise ctx.error("objects", "wrong type: expected a non-empty array of [[objects]] tables")
+    infos, meshes = zip(*(_object(ctx, o, i, path.parent) for i, o in enumerate(objs)))
+    names = [o.name for o in infos]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ctx.error("objects", f"duplicate object name {dup[0]!r}")
+
+    rec = [i for i, o in enumerate(infos) if o.role in ("receiver", "both")]
+    occ = [i for i, o in enumerate(infos) if o.role in ("occluder", "both")]
+    if not rec:
+        raise ctx.error("objects", "no object with role receiver or both")
+    if not occ:
+        raise ctx.error("objects", "no object with role occluder or both")
+    receiver, rsrc = merge(meshes[i] for i in rec)
+    occluder, osrc = merge(meshes[i] for i in occ)
+    occ_obj = np.asarray(occ)[osrc]
+    return Scene(
+        name=name, description=desc, path=path,
+        receiver=receiver, occluder=occluder,
+        receiver_object=np.asarray(rec)[rsrc], occluder_object=occ_obj,
+        occluder_translucent=np.array([infos[i].translucent for i in occ_obj], dtype=bool).reshape(-1),
+        occluder_opacity=np.array([infos[i].opacity for i in occ_obj], dtype=np.float64).reshape(-1),
+        objects=tuple(infos), light=light, camera=camera,
+        shadow_map_size=(hw[0], hw[1]), msaa=int(msaa), outputs=tuple(outputs), params=dict(params),
+    )

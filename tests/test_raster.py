@@ -1,0 +1,573 @@
+"""Tests of moments_ref.raster against brute-force per-sample references.
+
+The references here are deliberately naive and written from the definitions: a
+Python loop over pixels and samples, edge tests in exact integers with the
+top-left rule phrased geometrically ("horizontal edge with the third vertex
+below", "the interior lies to the right of the edge"), depths from barycentric
+coordinates in exact fractions, and ray/plane intersections for perspective.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from moments_ref import InputError
+from moments_ref import raster
+from moments_ref.raster import (
+    look_at,
+    orthographic,
+    perspective,
+    project_points,
+    rasterize_depth,
+    rasterize_fragments,
+    sample_positions,
+)
+
+# Written out from the Direct3D 11 documentation (D3D11_STANDARD_MULTISAMPLE_PATTERN),
+# in 1/16 pixel, x right, y down; independent of raster._D3D11_PATTERN.
+D3D11 = {
+    1: [(0, 0)],
+    4: [(-2, -6), (6, -2), (-6, 2), (2, 6)],
+    8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
+}
+
+
+# ---------------------------------------------------------------------------
+# Brute-force reference
+
+
+def _snap(ndc, h, w):
+    """Window position of an NDC vertex in 1/256 pixel (round half to even, like np.rint)."""
+    x, y = float(ndc[0]), float(ndc[1])
+    return round((x + 1.0) * w / 2 * 256), round((1.0 - y) * h / 2 * 256)
+
+
+def _on_edge_included(a, b, o):
+    """Top-left rule for a sample exactly on edge ab of a triangle whose third vertex is o."""
+    (ax, ay), (bx, by), (ox, oy) = a, b, o
+    if ay == by:  # horizontal: a top edge if the triangle lies below it (y grows downwards)
+        return oy > ay
+    # Non-horizontal: a left edge if the interior is to its right, i.e. the third vertex
+    # lies right of the edge's line at the third vertex's height.
+    x_at = Fraction(ax) + Fraction(oy - ay) * Fraction(bx - ax, by - ay)
+    return ox > x_at
+
+
+def ref_coverage_depth(ndc_tris, h, w, samples, cull="none"):
+    """Per-sample nearest depth (Fractions → float), 1.0 where uncovered, and a coverage count.
+
+    ndc_tris : list of 3 NDC vertices (x, y, z) each.
+    """
+    depth = np.ones((h, w, samples))
+    count = np.zeros((h, w, samples), dtype=int)
+    for tri in ndc_tris:
+        P = [_snap(v, h, w) for v in tri]
+        zs = [Fraction(float(v[2])) for v in tri]
+        area = (P[1][0] - P[0][0]) * (P[2][1] - P[0][1]) - (P[1][1] - P[0][1]) * (P[2][0] - P[0][0])
+        if area == 0:
+            continue
+        # Counter-clockwise in NDC (y up) means clockwise on screen (y down): area < 0.
+        front = area < 0
+        if (cull == "back" and not front) or (cull == "front" and front):
+            continue
+        for r in range(h):
+            for c in range(w):
+                for s, (dx, dy) in enumerate(D3D11[samples]):
+                    px, py = c * 256 + 128 + dx * 16, r * 256 + 128 + dy * 16
+                    inside = True
+                    for i in range(3):
+                        a, b, o = P[i], P[(i + 1) % 3], P[(i + 2) % 3]
+                        e = (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])
+                        eo = (b[0] - a[0]) * (o[1] - a[1]) - (b[1] - a[1]) * (o[0] - a[0])
+                        if e * eo > 0:
+                            continue
+                        if e == 0 and _on_edge_included(a, b, o):
+                            continue
+                        inside = False
+                        break
+                    if not inside:
+                        continue
+                    # Barycentric depth in exact arithmetic: λ_k = area with p replacing v_k.
+                    def tri_area(a, b, c):
+                        return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+                    q = (px, py)
+                    lam = [Fraction(tri_area(q, P[1], P[2]), area),
+                           Fraction(tri_area(P[0], q, P[2]), area),
+                           Fraction(tri_area(P[0], P[1], q), area)]
+                    z = float(sum(lk * zk for lk, zk in zip(lam, zs)))
+                    if -1 <= z <= 1:
+                        count[r, c, s] += 1
+                        depth[r, c, s] = min(depth[r, c, s], z)
+    return depth, count
+
+
+def _mesh(ndc_tris):
+    v = np.asarray(ndc_tris, dtype=np.float64).reshape(-1, 3)
+    return v, np.arange(v.shape[0]).reshape(-1, 3)
+
+
+def test_reference_barycentrics_sanity():
+    # The reference's own barycentrics: depth at a vertex-adjacent sample of a flat
+    # triangle equals the constant, and a tilted one matches a hand-computed value.
+    tri = [(-1, -1, 0.25), (1, -1, 0.25), (-1, 1, 0.25)]
+    d, n = ref_coverage_depth([tri], 4, 4, 1)
+    assert n.sum() == 6 and set(d[n > 0].tolist()) == {0.25}
+    tri = [(-1, -1, 0.0), (3, -1, 0.8), (-1, 3, 0.0)]  # z = 0.2 (x_ndc + 1)
+    d, n = ref_coverage_depth([tri], 2, 2, 1)
+    assert np.allclose(d[:, 0, 0], 0.2 * 0.5) and np.allclose(d[:, 1, 0], 0.2 * 1.5)
+
+
+# Vertices on the 1/16-pixel grid make samples on edges (ties) frequent.
+def _grid_tris(draw, h, w, n):
+    tris = []
+    for _ in range(n):
+        tri = []
+        for _ in range(3):
+            gx = draw(st.integers(-8, 16 * w + 8))
+            gy = draw(st.integers(-8, 16 * h + 8))
+            z = draw(st.floats(-0.95, 0.95, allow_nan=False))
+            tri.append((gx / 16 / w * 2 - 1, 1 - gy / 16 / h * 2, z))
+        tris.append(tri)
+    return tris
+
+
+@st.composite
+def tiny_scenes(draw):
+    h, w = draw(st.integers(1, 6)), draw(st.integers(1, 6))
+    samples = draw(st.sampled_from([1, 4, 8]))
+    n = draw(st.integers(1, 4))
+    if draw(st.booleans()):
+        tris = _grid_tris(draw, h, w, n)
+    else:
+        coord = st.floats(-1.4, 1.4, allow_nan=False)
+        tris = [[(draw(coord), draw(coord), draw(st.floats(-0.95, 0.95))) for _ in range(3)]
+                for _ in range(n)]
+    return h, w, samples, tris
+
+
+@given(tiny_scenes(), st.sampled_from(["none", "back", "front"]))
+@settings(max_examples=60)
+def test_depth_matches_brute_force(scene, cull):
+    h, w, samples, tris = scene
+    ref, count = ref_coverage_depth(tris, h, w, samples, cull)
+    v, t = _mesh(tris)
+    got, stats = rasterize_depth(v, t, np.eye(4), (h, w), samples=samples, cull=cull)
+    assert got.shape == (h, w, samples) and got.dtype == np.float32
+    np.testing.assert_array_equal(got < 1, count > 0)  # coverage: exact
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-7)  # float32 rounding only
+    assert stats.samples_covered == count.sum()
+
+
+@given(tiny_scenes())
+@settings(max_examples=40)
+def test_fragments_match_brute_force_and_depth_map(scene):
+    h, w, samples, tris = scene
+    _, count = ref_coverage_depth(tris, h, w, samples)
+    v, t = _mesh(tris)
+    frags, stats = rasterize_fragments(v, t, np.eye(4), (h, w), samples=samples)
+    # Counts per sample equal the brute-force coverage counts (no depth test).
+    got = np.zeros(h * w * samples, dtype=int)
+    np.add.at(got, frags.texel * samples + frags.sample, 1)
+    np.testing.assert_array_equal(got.reshape(h, w, samples), count)
+    assert len(frags) == stats.samples_covered == count.sum()
+    # The depth map is the per-sample minimum of the fragments.
+    dmap, _ = rasterize_depth(v, t, np.eye(4), (h, w), samples=samples)
+    m = np.ones(h * w * samples, np.float32)
+    np.minimum.at(m, frags.texel * samples + frags.sample, frags.depth)
+    np.testing.assert_array_equal(m.reshape(h, w, samples), dmap)
+
+
+def test_fragment_count_is_sum_over_triangles():
+    rng = np.random.default_rng(3)
+    v = np.concatenate([rng.uniform(-1.2, 1.2, (60, 2)), rng.uniform(-0.9, 0.9, (60, 1))], axis=1)
+    t = np.arange(60).reshape(20, 3)
+    for samples in (1, 4, 8):
+        frags, _ = rasterize_fragments(v, t, np.eye(4), (24, 20), samples=samples)
+        per_tri = [len(rasterize_fragments(v, t[i:i + 1], np.eye(4), (24, 20), samples=samples)[0])
+                   for i in range(len(t))]
+        assert len(frags) == sum(per_tri)
+        assert np.array_equal(np.bincount(frags.triangle, minlength=20), per_tri)
+
+
+# ---------------------------------------------------------------------------
+# Top-left rule: watertight meshes
+
+
+def _perturbed_grid(rng, h, w, nx, ny):
+    """A grid mesh covering more than the map; interior vertices jittered on 1/16 px."""
+    gx = np.linspace(-0.5, w + 0.5, nx + 1)
+    gy = np.linspace(-0.5, h + 0.5, ny + 1)
+    X, Y = np.meshgrid(gx, gy)
+    X[1:-1, 1:-1] += rng.uniform(-0.3, 0.3, (ny - 1, nx - 1)) * (w / nx)
+    Y[1:-1, 1:-1] += rng.uniform(-0.3, 0.3, (ny - 1, nx - 1)) * (h / ny)
+    X, Y = np.round(X * 16) / 16, np.round(Y * 16) / 16  # many samples land on edges
+    ndc = np.stack([X / w * 2 - 1, 1 - Y / h * 2, rng.uniform(-0.5, 0.5, X.shape)], axis=-1)
+    idx = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    diag = rng.random(a.shape) < 0.5  # random choice of the quad's diagonal
+    t1 = np.where(diag[..., None], np.stack([a, c, b], -1), np.stack([a, c, d], -1))
+    t2 = np.where(diag[..., None], np.stack([b, c, d], -1), np.stack([a, d, b], -1))
+    return ndc.reshape(-1, 3), np.concatenate([t1.reshape(-1, 3), t2.reshape(-1, 3)])
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4, 8]))
+@settings(max_examples=25)
+def test_watertight_grid_covers_every_sample_exactly_once(seed, samples):
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(3, 12)), int(rng.integers(3, 12))
+    v, t = _perturbed_grid(rng, h, w, int(rng.integers(2, 6)), int(rng.integers(2, 6)))
+    frags, _ = rasterize_fragments(v, t, np.eye(4), (h, w), samples=samples)
+    count = np.bincount(frags.texel * samples + frags.sample, minlength=h * w * samples)
+    assert count.min() == 1 and count.max() == 1
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=30)
+def test_random_quads_shared_diagonal_exhaustive(seed):
+    # Two triangles forming a convex quad: every sample is covered by at most one of
+    # them, and exactly as often as the brute-force reference covers it with the quad
+    # (its diagonal is interior, so samples on it must be covered exactly once).
+    rng = np.random.default_rng(seed)
+    h, w = 6, 6
+    while True:
+        ang = np.sort(rng.uniform(0, 2 * np.pi, 4))
+        pts = np.stack([3 + 2.6 * np.cos(ang), 3 + 2.6 * np.sin(ang)], -1)
+        pts = np.round(pts * 16) / 16
+        d = np.roll(pts, -1, axis=0) - pts
+        cross = d[:, 0] * np.roll(d, -1, axis=0)[:, 1] - d[:, 1] * np.roll(d, -1, axis=0)[:, 0]
+        if min(cross) > 0.5:
+            break
+    ndc = np.stack([pts[:, 0] / w * 2 - 1, 1 - pts[:, 1] / h * 2, np.zeros(4)], -1)
+    t = np.array([[0, 1, 2], [0, 2, 3]]) if rng.random() < 0.5 else np.array([[0, 1, 3], [1, 2, 3]])
+    for samples in (1, 4):
+        frags, _ = rasterize_fragments(ndc, t, np.eye(4), (h, w), samples=samples)
+        key = frags.texel * samples + frags.sample
+        assert np.unique(key).size == key.size  # no double coverage
+        _, count = ref_coverage_depth([ndc[t[0]].tolist(), ndc[t[1]].tolist()], h, w, samples)
+        assert count.max() <= 1
+        got = np.bincount(key, minlength=h * w * samples).reshape(h, w, samples)
+        np.testing.assert_array_equal(got, count)
+        # No gaps: a sample strictly inside the quad (winding test in floats, away from the
+        # outer boundary) must be covered.
+        c = np.arange(w) + 0.5
+        r = np.arange(h) + 0.5
+        off = np.asarray(D3D11[samples]) / 16
+        SX, SY = np.broadcast_arrays(c[None, :, None] + off[None, None, :, 0],
+                                     r[:, None, None] + off[None, None, :, 1])
+        inside = np.ones(SX.shape, bool)
+        for i in range(4):
+            a, b = pts[i], pts[(i + 1) % 4]
+            e = (b[0] - a[0]) * (SY - a[1]) - (b[1] - a[1]) * (SX - a[0])
+            inside &= e > 1e-9
+        assert (got[inside] == 1).all()
+
+
+def test_shared_edge_mutant_fails():
+    # Power of the exact-once check: with the top-left rule replaced by "all edges
+    # inclusive" a shared diagonal through sample centres is covered twice.
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    t = np.array([[0, 1, 2], [0, 2, 3]])
+    frags, _ = rasterize_fragments(v, t, np.eye(4), 4)
+    assert np.bincount(frags.texel, minlength=16).max() == 1
+    _, count = ref_coverage_depth([v[t[0]], v[t[1]]], 4, 4, 1)
+    assert count.max() == 1 and count.min() == 1
+    # the mutant reference: inclusive edges
+    orig = _on_edge_included
+    try:
+        globals()["_on_edge_included"] = lambda a, b, o: True
+        _, mutant = ref_coverage_depth([v[t[0]], v[t[1]]], 4, 4, 1)
+    finally:
+        globals()["_on_edge_included"] = orig
+    assert mutant.max() == 2
+
+
+# ---------------------------------------------------------------------------
+# MSAA sample positions
+
+
+def test_sample_positions_are_d3d11_standard():
+    for s, pat in D3D11.items():
+        np.testing.assert_array_equal(sample_positions(s), np.asarray(pat) / 16)
+
+
+@pytest.mark.parametrize("samples", [1, 4, 8])
+@pytest.mark.parametrize("axis", [0, 1])
+def test_sample_positions_through_coverage(samples, axis):
+    # A half-plane edge sweeping through one pixel in 1/32 steps: sample s is covered
+    # iff its offset along the axis lies left of (above) the edge. This reads the
+    # sample positions back from coverage alone.
+    off = np.asarray(D3D11[samples]) / 16
+    for k in range(-15, 16):
+        edge = 0.5 + (k + 0.5) / 32  # never on a sample (samples are on the 1/16 grid)
+        # big triangle covering window coordinates below `edge` along the axis (1x1 map)
+        if axis == 0:
+            win = [(-50, -50), (edge, -50), (edge, 50), (-50, 50)]
+        else:
+            win = [(-50, -50), (50, -50), (50, edge), (-50, edge)]
+        ndc = np.array([(x * 2 - 1, 1 - y * 2, 0.0) for x, y in win])
+        d, _ = rasterize_depth(ndc, [[0, 1, 2], [0, 2, 3]], np.eye(4), 1, samples=samples)
+        expect = 0.5 + off[:, axis] < edge
+        np.testing.assert_array_equal(d[0, 0] < 1, expect, err_msg=f"edge={edge}")
+
+
+def test_unsupported_sample_count_lists_supported():
+    v = np.zeros((3, 3))
+    for bad in (0, 2, 3, 16, 4.5, "4"):
+        with pytest.raises(InputError, match=r"\(1, 4, 8\)"):
+            rasterize_depth(v, [[0, 1, 2]], np.eye(4), 4, samples=bad)
+
+
+# ---------------------------------------------------------------------------
+# Culling
+
+
+def test_culling_follows_ndc_winding_and_right_hand_normal():
+    ccw = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.0, 0.5, 0.0]])
+    cw = ccw[[0, 2, 1]]
+    for verts, front in ((ccw, True), (cw, False)):
+        for cull in ("none", "back", "front"):
+            d, st_ = rasterize_depth(verts, [[0, 1, 2]], np.eye(4), 8, cull=cull)
+            drawn = (d < 1).any()
+            expect = cull == "none" or (cull == "back") == front
+            assert drawn == expect
+            assert st_.culled == (0 if expect else 1)
+    # Through a camera: a triangle whose right-hand normal faces the eye is front.
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)  # normal +z
+    vp = perspective(60, 1, 0.1, 10) @ look_at((0.3, 0.3, 3), (0.3, 0.3, 0), (0, 1, 0))
+    assert (rasterize_depth(tri, [[0, 1, 2]], vp, 16, cull="back")[0] < 1).any()
+    vp_back = perspective(60, 1, 0.1, 10) @ look_at((0.3, 0.3, -3), (0.3, 0.3, 0), (0, 1, 0))
+    assert not (rasterize_depth(tri, [[0, 1, 2]], vp_back, 16, cull="back")[0] < 1).any()
+
+
+def _box():
+    v = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    t = []
+    for a, b, c, d in quads:
+        t += [(a, b, c), (a, c, d)]
+    t = np.array(t)
+    # make every face's right-hand normal point outwards
+    n = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+    out = (n * v[t].mean(1)).sum(1) > 0
+    t[~out] = t[~out][:, [0, 2, 1]]
+    return v, t
+
+
+def test_back_face_culling_on_closed_box_keeps_nearest_surface():
+    v, t = _box()
+    vp = perspective(50, 1, 0.5, 6) @ look_at((1.2, 1.5, 2.0), (0, 0, 0), (0, 1, 0))
+    d_all, _ = rasterize_depth(v, t, vp, 32, samples=4)
+    d_back, st_ = rasterize_depth(v, t, vp, 32, samples=4, cull="back")
+    np.testing.assert_array_equal(d_all, d_back)
+    assert st_.culled == 6  # three faces seen from outside, three culled
+    f_all, _ = rasterize_fragments(v, t, vp, 32, samples=4)
+    f_back, _ = rasterize_fragments(v, t, vp, 32, samples=4, cull="back")
+    assert len(f_back) * 2 == len(f_all)  # the silhouette is the same front and back
+
+
+# ---------------------------------------------------------------------------
+# Depth against analytic planes (orthographic and perspective)
+
+
+def _plane_quad(p0, u, v):
+    verts = np.array([p0, p0 + u, p0 + u + v, p0 + v])
+    return verts, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def _snap_tolerance(depth):
+    """Depth error allowed by snapping vertices to 1/256 pixel.
+
+    The rasterized plane passes through the snapped vertices; each moves by at most
+    √2/512 pixel, so at interior points the depth differs by at most |∇z|·√2/512
+    (|∇z| per pixel, estimated from the analytic depths of neighbouring pixels), plus
+    float rounding.
+    """
+    gy = np.nanmax(np.abs(np.diff(depth[..., 0], axis=0)))
+    gx = np.nanmax(np.abs(np.diff(depth[..., 0], axis=1)))
+    return float(np.hypot(gx, gy)) * np.sqrt(2) / 512 * 1.01 + 1e-9
+
+
+def _sample_ndc(h, w, samples):
+    off = sample_positions(samples)
+    x = (np.arange(w)[None, :, None] + 0.5 + off[None, None, :, 0]) / w * 2 - 1
+    y = 1 - (np.arange(h)[:, None, None] + 0.5 + off[None, None, :, 1]) / h * 2
+    return np.broadcast_arrays(x, y)
+
+
+@pytest.mark.parametrize("samples", [1, 4])
+def test_orthographic_depth_is_the_analytic_plane(samples):
+    h, w = 24, 32
+    view = look_at((0.2, 3.0, 0.5), (0, 0, 0), (0, 0, -1))
+    proj = orthographic(-2, 2, -1.5, 1.5, 0.5, 6.0)
+    normal = np.array([0.3, 1.0, 0.2])
+    normal /= np.linalg.norm(normal)
+    # a big tilted quad through the origin with this normal
+    u = np.cross(normal, [1, 0, 0])
+    u /= np.linalg.norm(u)
+    vv = np.cross(normal, u)
+    verts, t = _plane_quad(-5 * u - 5 * vv, 10 * u, 10 * vv)
+    d, _ = rasterize_depth(verts, t, proj @ view, (h, w), samples=samples, dtype=np.float64)
+    # Analytic: the ray of an orthographic sample is the line through the unprojected
+    # near-plane point along the view direction; intersect with the plane n·p = 0.
+    inv = np.linalg.inv(proj @ view)
+    x, y = _sample_ndc(h, w, samples)
+    def unproject(z):
+        p = np.stack([x, y, np.full_like(x, z), np.ones_like(x)], -1) @ inv.T
+        return p[..., :3] / p[..., 3:]
+    a, b = unproject(-1.0), unproject(1.0)
+    s = -(a @ normal) / ((b - a) @ normal)  # fraction along [near, far]
+    expect = -1 + 2 * s  # orthographic depth is linear along the ray
+    np.testing.assert_allclose(d, expect, atol=_snap_tolerance(expect))
+
+
+@pytest.mark.parametrize("samples", [1, 8])
+def test_perspective_depth_is_the_analytic_plane(samples):
+    h, w = 20, 28
+    near, far = 0.5, 8.0
+    eye = np.array([0.5, 2.0, 3.0])
+    view = look_at(eye, (0, 0, 0), (0, 1, 0))
+    proj = perspective(55, w / h, near, far)
+    # Ground plane y = 0, large: it crosses the near plane and the far plane.
+    verts, t = _plane_quad(np.array([-40.0, 0, 40]), np.array([80.0, 0, 0]), np.array([0, 0, -80.0]))
+    d, st_ = rasterize_depth(verts, t, proj @ view, (h, w), samples=samples, dtype=np.float64)
+    inv = np.linalg.inv(proj @ view)
+    x, y = _sample_ndc(h, w, samples)
+    p = np.stack([x, y, np.ones_like(x), np.ones_like(x)], -1) @ inv.T
+    far_pt = p[..., :3] / p[..., 3:]
+    ray = far_pt - eye
+    tt = -eye[1] / ray[..., 1]
+    hit = eye + tt[..., None] * ray
+    # view-space distance along the viewing direction -> NDC depth (gluPerspective)
+    fwd = -view[2, :3]
+    dist = (hit - eye) @ fwd
+    expect = (far + near) / (far - near) - 2 * far * near / ((far - near) * dist)
+    valid = (tt > 0) & (expect >= -1) & (expect <= 1)
+    ambiguous = np.abs(expect - 1) < 1e-6
+    np.testing.assert_array_equal((d < 1)[~ambiguous], valid[~ambiguous])
+    tol = _snap_tolerance(np.where(valid, expect, np.nan))
+    np.testing.assert_allclose(d[valid], expect[valid], atol=tol)
+    assert st_.rasterized == 2
+
+
+def test_perspective_depth_mutant_linear_depth_fails():
+    # The same check would catch a rasterizer that interpolated view distance instead of
+    # NDC depth: the two differ by far more than the tolerance.
+    near, far = 0.5, 8.0
+    dist = np.linspace(1.0, 7.0, 5)
+    ndc = (far + near) / (far - near) - 2 * far * near / ((far - near) * dist)
+    linear = -1 + 2 * (dist - near) / (far - near)
+    assert np.abs(ndc - linear).max() > 1e-2
+
+
+def test_fragment_positions_project_back_to_their_samples():
+    rng = np.random.default_rng(5)
+    h, w, samples = 16, 16, 4
+    view = look_at((0.3, 2.5, 2.0), (0, 0, 0), (0, 1, 0))
+    vp = perspective(60, 1, 0.3, 10) @ view
+    verts = rng.uniform(-1, 1, (30, 3))
+    t = np.arange(30).reshape(10, 3)
+    frags, _ = rasterize_fragments(verts, t, vp, (h, w), samples=samples, dtype=np.float64)
+    xy, depth = project_points(frags.position, vp, (h, w))
+    off = sample_positions(samples)[frags.sample]
+    np.testing.assert_allclose(xy[:, 0], frags.col + 0.5 + off[:, 0], atol=2e-3)
+    np.testing.assert_allclose(xy[:, 1], frags.row + 0.5 + off[:, 1], atol=2e-3)
+    np.testing.assert_allclose(depth, frags.depth, atol=1e-5)
+    # and each fragment lies on its triangle's plane
+    a, b, c = (verts[t[frags.triangle, k]] for k in range(3))
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    assert np.abs(((frags.position - a) * n).sum(1)).max() < 1e-3
+
+
+# ---------------------------------------------------------------------------
+# Bad input, degenerate triangles, invariances
+
+
+def test_degenerate_triangles_are_skipped_and_counted():
+    good = np.array([[-0.8, -0.8, 0.1], [0.8, -0.8, 0.2], [0.0, 0.8, 0.3]])
+    extra = np.array([
+        [np.nan, 0, 0], [0.5, np.inf, 0],            # 3, 4 non-finite
+        [0.1, 0.1, 0], [0.2, 0.2, 0], [0.3, 0.3, 0],  # 5, 6, 7 collinear
+    ])
+    v = np.concatenate([good, extra])
+    t = np.array([[0, 1, 2], [3, 1, 2], [0, 4, 2], [5, 6, 7], [0, 0, 1], [1, 2, 2]])
+    d, stats = rasterize_depth(v, t, np.eye(4), 16, samples=4)
+    ref, _ = rasterize_depth(good, [[0, 1, 2]], np.eye(4), 16, samples=4)
+    np.testing.assert_array_equal(d, ref)
+    assert stats.nonfinite == 2 and stats.degenerate == 3 and stats.rasterized == 1
+    assert stats.skipped_bad == 5 and stats.as_dict()["triangles"] == 6
+    frags, fst = rasterize_fragments(v, t, np.eye(4), 16, samples=4)
+    assert fst.nonfinite == 2 and fst.degenerate == 3 and set(frags.triangle.tolist()) == {0}
+
+
+def test_zero_screen_area_and_outside_counted():
+    v = np.array([[0, -0.5, -0.5], [0, 0.5, 0.0], [0, 0.0, 0.5],     # edge-on to the view: zero area
+                  [2, 2, 0], [3, 2, 0], [2, 3, 0]], float)           # outside
+    d, stats = rasterize_depth(v, [[0, 1, 2], [3, 4, 5]], np.eye(4), 8)
+    assert (d == 1).all() and stats.zero_area == 1 and stats.outside == 1
+
+
+def test_bad_input_refused():
+    v = np.zeros((3, 3))
+    with pytest.raises(InputError, match="size"):
+        rasterize_depth(v, [[0, 1, 2]], np.eye(4), 0)
+    with pytest.raises(InputError, match="size"):
+        rasterize_depth(v, [[0, 1, 2]], np.eye(4), (0, 4))
+    with pytest.raises(InputError, match="triangles"):
+        rasterize_depth(v, [[0, 1, 3]], np.eye(4), 4)
+    with pytest.raises(InputError, match="triangles"):
+        rasterize_depth(v, [[0.0, 1.0, 2.0]], np.eye(4), 4)
+    with pytest.raises(InputError, match="view_proj"):
+        rasterize_depth(v, [[0, 1, 2]], np.eye(3), 4)
+    with pytest.raises(InputError, match="cull"):
+        rasterize_depth(v, [[0, 1, 2]], np.eye(4), 4, cull="ccw")
+    with pytest.raises(InputError, match="up"):
+        look_at((0, 0, 0), (0, 1, 0), (0, 2, 0))
+    with pytest.raises(InputError, match="fovy"):
+        perspective(180, 1, 0.1, 1)
+    # empty meshes are fine
+    d, stats = rasterize_depth(np.zeros((0, 3)), np.zeros((0, 3), int), np.eye(4), 4)
+    assert (d == 1).all() and stats.triangles == 0
+
+
+def test_results_do_not_depend_on_chunk_sizes(monkeypatch):
+    rng = np.random.default_rng(11)
+    # small and large triangles, some crossing the near plane of a perspective view
+    v = rng.uniform(-3, 3, (600, 3))
+    t = np.arange(600).reshape(200, 3)
+    vp = perspective(70, 1.3, 0.5, 12) @ look_at((0, 0, 4), (0, 0, 0), (0, 1, 0))
+    d1, s1 = rasterize_depth(v, t, vp, (40, 52), samples=4)
+    f1, _ = rasterize_fragments(v, t, vp, (40, 52), samples=4)
+    monkeypatch.setattr(raster, "_BUDGET", 64)
+    monkeypatch.setattr(raster, "_SETUP_CHUNK", 7)
+    monkeypatch.setattr(raster, "_TILE", 4)
+    d2, s2 = rasterize_depth(v, t, vp, (40, 52), samples=4)
+    f2, _ = rasterize_fragments(v, t, vp, (40, 52), samples=4)
+    np.testing.assert_array_equal(d1, d2)
+    assert s1 == s2
+    for name in ("position", "depth", "texel", "sample", "triangle"):
+        np.testing.assert_array_equal(getattr(f1, name), getattr(f2, name))
+    assert s1.rasterized > 0 and (d1 < 1).mean() > 0.2
+
+
+def test_float64_map_and_small_vs_tiled_paths_agree(monkeypatch):
+    # The same large triangle through the tiled int64 path and (with a huge tile) the
+    # small int32 path gives the same map.
+    v = np.array([[-0.9, -0.7, -0.3], [0.8, -0.9, 0.4], [0.1, 0.95, 0.9]])
+    d1, _ = rasterize_depth(v, [[0, 1, 2]], np.eye(4), 48, samples=8, dtype=np.float64)
+    monkeypatch.setattr(raster, "_TILE", 64)
+    d2, _ = rasterize_depth(v, [[0, 1, 2]], np.eye(4), 48, samples=8, dtype=np.float64)
+    assert d1.dtype == np.float64
+    np.testing.assert_array_equal(d1, d2)
+
+
+def test_bench_raster_reports_numbers():
+    out = raster.bench_raster(n_triangles=2000, size=64, samples=(1, 4), repeat=1,
+                              resolve_samples=20000)
+    assert out["raster_1x_tris_per_s"] > 0 and out["raster_4x_samples_covered"] > 0
+    assert out["resolve_agree"] is True
