@@ -30,6 +30,9 @@ class Benchmark:
     fn: Callable
     bytes_per_element: int
     note: str = ""
+    #: Elements for a ``size`` argument (default ``size²``: texels or fragments).
+    count: Callable = staticmethod(lambda size: size * size)
+    unit: str = "elem"
 
 
 def best_time(fn, *args, repeat=3):
@@ -97,12 +100,34 @@ def _fn_decode(u, dtype):
     return decode_unorm16(u, dtype=dtype)
 
 
+def _setup_raster(samples):
+    def setup(size, dtype):
+        from .raster import _small_triangles
+
+        n = size * size // 4
+        v, t = _small_triangles(n, 1024, 4.0, np.random.default_rng(0))
+        return v, t, samples
+
+    return setup
+
+
+def _fn_raster(v, t, samples):
+    from .raster import rasterize_depth
+
+    return rasterize_depth(v, t, np.eye(4), 1024, samples=samples)
+
+
 def _core_benchmarks():
     out = []
     for dt, w in (("float32", 4), ("float64", 8)):
         out.append(Benchmark("shadow_intensity", dt, _setup_msm, _fn_msm, 6 * w, "4 + 1 floats in, 1 out"))
         out.append(Benchmark("encode_unorm16", dt, _setup_encode, _fn_encode, 4 * w + 8, "4 floats in, 4 uint16 out"))
         out.append(Benchmark("decode_unorm16", dt, _setup_decode, _fn_decode, 8 + 4 * w, "4 uint16 in, 4 floats out"))
+    for s in (1, 4):
+        # Triangles in: 3 vertices of 4 float32 each; a 1024² map out, amortized per triangle.
+        out.append(Benchmark(f"rasterize_depth {s}x MSAA", "float32", _setup_raster(s), _fn_raster, 48 + 16 * s,
+                             "size²/4 small triangles (about 4 px wide) into a 1024² map; target 2 M/s",
+                             count=lambda size: size * size // 4, unit="tri"))
     return out
 
 
@@ -150,14 +175,14 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
     try:
         for bm in benches:
             args = bm.setup(size, bm.dtype)
-            n = size * size
+            n = bm.count(size)
             t = best_time(bm.fn, *args, repeat=repeat)
             nbytes = n * bm.bytes_per_element
             tc = copy_seconds(nbytes, repeat=max(repeat, 3))
             rows.append({
                 "name": bm.name, "dtype": bm.dtype, "elements": n, "seconds": t,
                 "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": tc,
-                "ratio_to_copy": tc / t, "note": bm.note,
+                "ratio_to_copy": tc / t, "note": bm.note, "unit": bm.unit,
             })
             if bar is not None:
                 bar.update(1)
@@ -165,6 +190,66 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
         if bar is not None:
             bar.close()
     return rows
+
+
+def end_to_end(size=2048, samples=4, repeat=1):
+    """Time a ``size²`` ``samples``× MSAA depth map -> filtered NLQ64 texture, by stage.
+
+    The global path of HPG17 §4 as the reference computes it: resolve
+    (:func:`~moments_ref.filtering.resolve_moments`, float32), the 9×9 Gaussian
+    (:func:`~moments_ref.filtering.blur`, float64 reference, cast to float32 like
+    the shader's registers), bias with ``BIAS_FLOAT32`` and Φ
+    (:func:`~moments_ref.nonlinear.phi`), pack (:func:`~moments_ref.packing.pack64`);
+    and beside it the on-chip emulation (:func:`~moments_ref.onchip.filter_moments`)
+    followed by the same Φ and pack. Returns a list of dicts
+    ``{path, stage, seconds, share}``; shares are of the path's total.
+    """
+    from .filtering import bench_depth_map, blur, resolve_moments
+    from .moments import BIAS_FLOAT32, bias_moments
+    from .nonlinear import phi
+    from .onchip import filter_moments
+    from .packing import pack64
+
+    z = bench_depth_map(size, samples, np.float32)
+    state = {}
+
+    def timed(path, stage, fn):
+        best = float("inf")
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            state[stage] = fn()
+            best = min(best, time.perf_counter() - t0)
+        return {"path": path, "stage": stage, "seconds": best}
+
+    rows = [
+        timed("global", "resolve", lambda: resolve_moments(z)),
+        timed("global", "blur", lambda: blur(state["resolve"]).astype(np.float32)),
+        timed("global", "bias + phi", lambda: phi(bias_moments(state["blur"], BIAS_FLOAT32))),
+        timed("global", "pack64", lambda: pack64(state["bias + phi"])),
+        timed("onchip", "filter_moments (resolve + blur in blocks)", lambda: filter_moments(z)),
+    ]
+    rows.append(timed("onchip", "bias + phi ", lambda: phi(bias_moments(
+        state["filter_moments (resolve + blur in blocks)"], BIAS_FLOAT32))))
+    rows.append(timed("onchip", "pack64 ", lambda: pack64(state["bias + phi "])))
+    for path in ("global", "onchip"):
+        total = sum(r["seconds"] for r in rows if r["path"] == path)
+        for r in rows:
+            if r["path"] == path:
+                r["share"] = r["seconds"] / total
+        rows.append({"path": path, "stage": "total", "seconds": total, "share": 1.0})
+    return rows
+
+
+def end_to_end_markdown(rows, size, samples):
+    lines = [
+        f"## End to end: {size}² {samples}× MSAA depth map -> NLQ64 texture (target: 3 s or less on one core)",
+        "",
+        "| path | stage | seconds | share |",
+        "|---|---|---:|---:|",
+    ]
+    for r in rows:
+        lines.append(f"| {r['path']} | {r['stage'].strip()} | {r['seconds']:.3f} | {100 * r['share']:.0f}% |")
+    return "\n".join(lines) + "\n"
 
 
 def markdown(rows):
@@ -176,12 +261,12 @@ def markdown(rows):
         "",
         "ratio = time of a memory copy of the same bytes (same run) / kernel time; 1 = copy bound.",
         "",
-        "| kernel | dtype | elements | seconds | Melem/s | MB moved | copy s | ratio to copy | note |",
+        "| kernel | dtype | elements | seconds | M/s | MB moved | copy s | ratio to copy | note |",
         "|---|---|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['name']} | {r['dtype']} | {r['elements']} | {r['seconds']:.4f} | {r['melem_per_s']:.1f} | "
+            f"| {r['name']} | {r['dtype']} | {r['elements']} {r['unit']} | {r['seconds']:.4f} | {r['melem_per_s']:.1f} | "
             f"{r['mbytes']:.1f} | {r['copy_seconds']:.4f} | {r['ratio_to_copy']:.3f} (1/{1 / r['ratio_to_copy']:.0f}) | "
             f"{r['note']} |"
         )

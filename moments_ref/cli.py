@@ -45,6 +45,9 @@ def _cmd_bench(args):
     rows = bench.run(size=args.size, quick=args.quick, only=args.only,
                      progress=lambda total: _progress(total, "bench"))
     text = bench.markdown(rows)
+    if not args.only or any("end_to_end" in o for o in args.only):
+        size = min(args.size, 512) if args.quick else args.size
+        text += "\n" + bench.end_to_end_markdown(bench.end_to_end(size, 4), size, 4)
     print(text)
     if args.out:
         from ._io import write_text

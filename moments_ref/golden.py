@@ -84,7 +84,7 @@ class Case:
     reference: Callable  # (**inputs) -> tuple of outputs, in the inputs' dtype
     truth: Callable | None = None  # (**inputs) -> tuple of float64 outputs
     kwargs: dict = field(default_factory=dict)
-    integer_inputs: tuple = ()
+    integer_inputs: dict = field(default_factory=dict)  # input name -> unsigned dtype
     description: str = ""
 
     @property
@@ -93,6 +93,7 @@ class Case:
 
 
 _INTEGER_OUTPUT = {"encode_unorm16", "encode_r10g10b10a2", "pack64", "pack32"}
+_U16, _U32 = {"u": "uint16"}, {"p": "uint32"}
 
 
 # --------------------------------------------------------------------------
@@ -233,6 +234,116 @@ def _r10_rows(rng, dtype):
     ])
 
 
+def _phi_rows(rng, dtype):
+    """Moments for Algorithm 2, biased with BIAS_FLOAT32 as HPG17 §3.1 prescribes."""
+    z, w = _random_distributions(rng, 150, 2, 8)
+    b = bias_moments(power_moments(z, w), BIAS_FLOAT32)
+    # Φ is ill-conditioned when the variance is small (y1, y2 barely determined): such
+    # draws are stiff, not random.
+    close = b[:, 1] - b[:, 0] ** 2 < 1e-3
+    parts = [_rows({"b": b[~close]}, "random", "2 to 8 random depths in [-1, 1], BIAS_FLOAT32 applied"),
+             _rows({"b": b[close]}, "stiff", "random draw with variance below 1e-3 (depths close together), "
+                                             "BIAS_FLOAT32 applied")]
+    stiff = [
+        ((-0.2, -0.2 + 1e-6, 0.5), "two depths 1e-6 apart (y2 - y1 ~ 1e-6)"),
+        ((-0.5, 0.5, 1e-6), "v2 = 1e-6"),
+        ((-0.5, 0.5, 1 - 1e-6), "v2 = 1 - 1e-6"),
+        ((0.3, 0.3 + 1e-3, 0.5), "two depths 1e-3 apart"),
+        ((-1.0, -1.0 + 1e-5, 0.5), "two depths within 1e-5 of -1"),
+    ]
+    for (z1, z2, v2), what in stiff:
+        parts.append(_rows({"b": bias_moments(_two_point(z1, z2, v2), BIAS_FLOAT32)[None]}, "stiff",
+                           f"{what}, BIAS_FLOAT32 applied"))
+    for d in (-1.0, 0.0, 0.7, 1.0):
+        parts.append(_rows({"b": bias_moments(power_moments([d]), BIAS_FLOAT32)[None]}, "stiff",
+                           f"one depth {d}, BIAS_FLOAT32 applied (variance at the bias floor)"))
+    edge = [((0.915, 1.0, 0.5), "HPG17 §3.2 extreme case ½δ0.915 + ½δ1"), ((-1.0, 1.0, 0.5), "½δ-1 + ½δ1"),
+            ((-1.0, 1.0, 0.25), "depths at both ends, v2 = 0.25")]
+    for (z1, z2, v2), what in edge:
+        parts.append(_rows({"b": bias_moments(_two_point(z1, z2, v2), BIAS_FLOAT32)[None]}, "edge",
+                           f"{what}, BIAS_FLOAT32 applied"))
+    return Rows.concat(parts)
+
+
+def _random_representations(rng, n):
+    y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
+    v2 = rng.uniform(0.01, 0.99, n)
+    xi4 = 10 ** rng.uniform(-7, np.log10(0.25), n)
+    return np.column_stack([y, v2, xi4])
+
+
+_STIFF_REPRESENTATIONS = [
+    ((-0.8, 0.4, 0.6, 1.2e-7), "ξ4 at the Ψ4 clamp 1.2e-7"),
+    ((-0.8, 0.4, 0.6, 1.3e-7), "ξ4 just above the Ψ4 clamp"),
+    ((0.1, 0.1 + 1e-6, 0.5, 1e-7), "y2 - y1 = 1e-6 (Algorithm 3 clamp)"),
+    ((0.1, 0.1 + 1e-4, 0.5, 1e-9), "y2 - y1 = 1e-4, tiny ξ4"),
+    ((-0.5, 0.5, 1e-6, 1e-5), "v2 = 1e-6 (Algorithm 3 clamp)"),
+    ((-0.5, 0.5, 1 - 1e-6, 1e-5), "v2 = 1 - 1e-6 (Algorithm 3 clamp)"),
+    ((-0.3, 0.2, 0.4, 0.0), "ξ4 = 0 (two-point distribution)"),
+    ((0.2, 0.6, 0.0, 1e-3), "v2 = 0 (one depth plus ξ4; Algorithm 3 clamps v2 to 1e-6)"),
+    ((0.2, 0.6, 1.0, 1e-3), "v2 = 1 (one depth plus ξ4; Algorithm 3 clamps v2 to 1 - 1e-6)"),
+]
+_EDGE_REPRESENTATIONS = [
+    ((-1.0, 1.0, 0.5, 0.25), "depths at ±1, ξ4 at its maximum 0.25"),
+    ((-1.0, -1.0 + 2 / 1023, 0.5, 1e-4), "depths in the lowest 32-bit cells"),
+    ((1.0 - 2 / 1023, 1.0, 0.5, 1e-4), "depths in the highest 32-bit cells"),
+    ((-0.0005, 0.0005, 0.5, 1e-6), "depths around the 32-bit fold at ỹ = 511.5"),
+]
+
+
+def _representation_rows(rng, dtype):
+    parts = [_rows({"r": _random_representations(rng, 150)}, "random",
+                   "y1 < y2 uniform in [-1, 1], v2 in [0.01, 0.99], ξ4 log-uniform in [1e-7, 0.25]")]
+    for cat, table in (("stiff", _STIFF_REPRESENTATIONS), ("edge", _EDGE_REPRESENTATIONS)):
+        for r, what in table:
+            parts.append(_rows({"r": np.array([r])}, cat, what))
+    return Rows.concat(parts)
+
+
+def _shade_rows(rng, dtype):
+    r = _random_representations(rng, 200)
+    parts = [_rows({"r": r, "zf": rng.uniform(-1, 1, 200)}, "random",
+                   "random representation (see case phi_inverse) and zf uniform in [-1, 1]")]
+    for cat, table in (("stiff", _STIFF_REPRESENTATIONS), ("edge", _EDGE_REPRESENTATIONS)):
+        for rep, what in table:
+            y1, y2 = rep[0], rep[1]
+            zf = np.array([y1, y2, y1 + 1e-6, y2 + 1e-6, 0.5 * (y1 + y2), min(1.0, y2 + 0.1)])
+            parts.append(_rows({"r": np.repeat(np.array([rep]), len(zf), 0), "zf": zf}, cat,
+                               [f"{what}, zf = {x:.9g}" for x in zf]))
+    return Rows.concat(parts)
+
+
+def _psi4_rows(rng, dtype):
+    return Rows.concat([
+        _rows({"xi4": 10 ** rng.uniform(-7, np.log10(0.25), 120)}, "random", "ξ4 log-uniform in [1e-7, 0.25]"),
+        _rows({"xi4": np.array([1.2e-7 * (1 + 1e-6), 1.2e-7 * (1 - 1e-6)])}, "stiff",
+              ["just above the clamp 1.2e-7", "just below the clamp 1.2e-7"]),
+        _rows({"xi4": np.array([0.0, 1e-7, 1.2e-7, 0.25])}, "edge",
+              ["ξ4 = 0 (clamped)", "ξ4 = 1e-7 (clamped)", "ξ4 at the clamp: Ψ4 = 0", "ξ4 = 0.25: Ψ4 = 1"]),
+    ])
+
+
+def _psi4_inverse_rows(rng, dtype):
+    return Rows.concat([
+        _rows({"u": rng.uniform(0, 1, 120)}, "random", "u uniform in [0, 1]"),
+        _rows({"u": np.array([0.0, 1.0, 0.5])}, "edge", ["u = 0", "u = 1", "u = 0.5"]),
+    ])
+
+
+def _pack64_input_rows(rng, dtype):
+    from .packing import pack64
+
+    r = _representation_rows(rng, dtype)
+    return Rows({"q": pack64(r.inputs["r"])}, r.category, [f"pack64 of: {c}" for c in r.comment])
+
+
+def _pack32_input_rows(rng, dtype):
+    from .packing import pack32
+
+    r = _representation_rows(rng, dtype)
+    return Rows({"p": pack32(r.inputs["r"])}, r.category, [f"pack32 of: {c}" for c in r.comment])
+
+
 # --------------------------------------------------------------------------
 # References and ground truth
 # --------------------------------------------------------------------------
@@ -254,6 +365,16 @@ def _msm_reference(bound):
         return (shadow_intensity(b, zf, bound=bound),)
 
     return ref
+
+
+def _precise(name, **kwargs):
+    def truth(*args, **kw):
+        from . import precise
+
+        out = getattr(precise, name)(*args, **kw, **kwargs)
+        return out if isinstance(out, tuple) else (out,)
+
+    return truth
 
 
 def _wrap(path, **kwargs):
@@ -294,15 +415,37 @@ def _cases():
             Case(f"encode_unorm16-{dt}", "affine.encode_unorm16", dt, ("b",), ("u",), _moment_rows,
                  _wrap("affine.encode_unorm16"), description="64-bit affine texel: four UNORM16 of the optimized basis"),
             Case(f"decode_unorm16-{dt}", "affine.decode_unorm16", dt, ("u",), ("b",), _unorm16_rows,
-                 _wrap("affine.decode_unorm16", dtype=np.dtype(dt)), integer_inputs=("u",),
+                 _wrap("affine.decode_unorm16", dtype=np.dtype(dt)), integer_inputs=_U16,
                  description="64-bit affine texel decode"),
             Case(f"to_optimized6-{dt}", "affine.to_optimized6", dt, ("b",), ("q",), _moment6_rows,
                  _wrap("affine.to_optimized6"), description="Slides, six-moment 'Quantization transform'"),
             Case(f"encode_r10g10b10a2-{dt}", "affine.encode_r10g10b10a2", dt, ("b",), ("p",), _moment6_rows,
                  _wrap("affine.encode_r10g10b10a2"), description="six moments in 2×R10G10B10A2_UNORM"),
             Case(f"decode_r10g10b10a2-{dt}", "affine.decode_r10g10b10a2", dt, ("p",), ("b",), _r10_rows,
-                 _wrap("affine.decode_r10g10b10a2", dtype=np.dtype(dt)), integer_inputs=("p",),
+                 _wrap("affine.decode_r10g10b10a2", dtype=np.dtype(dt)), integer_inputs=_U32,
                  description="six moments from 2×R10G10B10A2_UNORM"),
+            Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
+                 _precise("phi"), description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
+            Case(f"phi_inverse-{dt}", "nonlinear.phi_inverse", dt, ("r",), ("b",), _representation_rows,
+                 _wrap("nonlinear.phi_inverse"), _precise("phi_inverse"), description="HPG17 Eq. (4)"),
+            Case(f"psi4-{dt}", "nonlinear.psi4", dt, ("xi4",), ("u",), _psi4_rows, _wrap("nonlinear.psi4"),
+                 _precise("psi4"), description="HPG17 §3.3 warp of ξ4, clamped at 1.2e-7"),
+            Case(f"psi4_inverse-{dt}", "nonlinear.psi4_inverse", dt, ("u",), ("xi4",), _psi4_inverse_rows,
+                 _wrap("nonlinear.psi4_inverse"), _precise("psi4_inverse"), description="inverse of Ψ4"),
+            Case(f"shade-{dt}", "nonlinear.shade", dt, ("r", "zf"), ("intensity",), _shade_rows,
+                 _wrap("nonlinear.shade"), _precise("shade"),
+                 description="HPG17 Algorithm 3; expected: Algorithm 1 on the moments of Eq. (4) in mpmath "
+                             "(no clamps), so stiff rows show the effect of the §3.4 clamps"),
+            Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
+                 _wrap("packing.pack64"), description="64-bit texel, docs/formats.md"),
+            Case(f"unpack64-{dt}", "packing.unpack64", dt, ("q",), ("r",), _pack64_input_rows,
+                 _wrap("packing.unpack64", dtype=np.dtype(dt)), integer_inputs={"q": "uint16"},
+                 description="64-bit texel decode, docs/formats.md"),
+            Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
+                 _wrap("packing.pack32"), description="32-bit texel with the triangle fold, docs/formats.md"),
+            Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
+                 _wrap("packing.unpack32", dtype=np.dtype(dt)), integer_inputs={"p": "uint32"},
+                 description="32-bit texel decode (ξ4 rounded up), docs/formats.md"),
         ]
     return cases
 
@@ -327,7 +470,7 @@ def case_rows(case: Case):
     for k in case.inputs:
         v = np.asarray(rows.inputs[k])
         if k in case.integer_inputs:
-            inputs[k] = v.astype(np.uint16 if case.function.endswith("unorm16") else np.uint32)
+            inputs[k] = v.astype(case.integer_inputs[k])
         else:
             inputs[k] = v.astype(case.dtype)
     return inputs, np.asarray(rows.category), np.asarray(rows.comment)

@@ -1,0 +1,338 @@
+"""Texel formats for the non-linear representation: 64 bits (HPG17 §3.3), 32 bits (§3.5).
+
+Both store the output ``(y1, y2, v2, ξ4)`` of HPG17 Algorithm 2
+(:func:`moments_ref.nonlinear.phi`). The bit layouts are drawn in docs/formats.md;
+they are **stable**: golden vectors and GPU ports depend on them, so a change is a
+format version change.
+
+64 bits, :func:`pack64` -> ``uint16 (..., 4)`` (four UNORM16 channels, HPG17 §3.3)::
+
+    channel 0   round(65535 · (y1 + 1)/2)
+    channel 1   round(65535 · (y2 + 1)/2)
+    channel 2   round(65535 · v2)
+    channel 3   ceil(65535 · Ψ4(ξ4))       (rounded up, see below)
+
+Decoding is plain UNORM: ``c / 65535`` (what a texture fetch returns), then
+``y = 2 u − 1`` and ``ξ4 = Ψ4⁻¹(u)``.
+
+32 bits, :func:`pack32` -> ``uint32 (...)`` (HPG17 §3.5, Figure 5), LSB first::
+
+    bits  0.. 9  (10 bits)  ỹ2  after the fold
+    bits 10..18  ( 9 bits)  ỹ1  after the fold
+    bits 19..25  ( 7 bits)  round(127 · √v2)
+    bits 26..31  ( 6 bits)  round(63 · Ψ4(ξ4))   (decoded rounded up)
+
+Depths: ``ỹ = ⌊511.5 · (y + 1)⌋`` clamped to 0..1022 (y = 1 alone would give 1023;
+it joins the top cell). Since y1 ≤ y2 the pairs (ỹ1, ỹ2) fill a triangle; the
+fold of Figure 5 replaces ``ỹ1, ỹ2`` by ``1023 − ỹ1, 1022 − ỹ2`` when ``ỹ1 ≥ 512``,
+after which ``ỹ1 ≤ 511`` fits 9 bits and ``ỹ2 ≤ 1022`` fits 10 bits. A stored pair
+with ``ỹ2 < ỹ1`` was folded (unfolded pairs keep ỹ1 ≤ ỹ2, folded ones have
+``1022 − ỹ2 < 1023 − ỹ1``), so the decoder inverts the fold without a flag.
+Depths decode at the centre of their cell, ``y = (ỹ + 0.5)/511.5 − 1``, so the
+depth error is at most half a cell, ``1/1023 ≈ 9.8e-4``.
+
+Lower bound guarantee. HPG17 §3.5 rounds ξ4 up during loading "to guarantee a
+lower bound to the shadow intensity": the lower bound of Algorithm 1 can only
+decrease as ξ4 grows (tests/test_figures.py checks it). Both formats here make
+sure that the decoded ξ4 is never below the stored one (after the clamp of Ψ4 at
+1.2e-7): the 32-bit decoder reads the 6-bit code ``c`` as ``min(1, (c + 0.5)/63)``
+(the upper end of the rounding interval), the 64-bit encoder stores
+``ceil(65535 Ψ4)`` because a UNORM fetch cannot round up. Floating-point rounding
+in Ψ4 and Ψ4⁻¹ could still put the decoded value one ulp low; the encoders check
+the decoded value in the working dtype and bump the code where needed, so the
+guarantee is exact (tested exhaustively over the 64 codes).
+
+Input. Encoders take a representation in its domain up to
+:func:`moments_ref.nonlinear.rounding_tolerance` (clamped onto it; also
+``y ∈ [-1, 1]`` with the same tolerance), and raise
+:class:`~moments_ref.InputError` otherwise. Decoders take only uint16/uint32 and a
+``dtype`` keyword (float64 default, float32 to emulate a GPU).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._arrays import InputError, first_index, real_input
+from .nonlinear import psi4, psi4_inverse, rounding_tolerance, validate_representation
+
+__all__ = [
+    "pack64",
+    "unpack64",
+    "pack32",
+    "unpack32",
+    "fold",
+    "unfold",
+    "depth_code",
+    "Y_BITS",
+    "Y1_SHIFT",
+    "Y2_SHIFT",
+    "V_SHIFT",
+    "XI_SHIFT",
+    "DEPTH_STEP32",
+    "DEPTH_STEP64",
+]
+
+# 32-bit layout (stable): field shifts and widths.
+Y2_SHIFT, Y2_BITS = 0, 10
+Y1_SHIFT, Y1_BITS = 10, 9
+V_SHIFT, V_BITS = 19, 7
+XI_SHIFT, XI_BITS = 26, 6
+#: Bits used by both depths together after the fold (HPG17 §3.5).
+Y_BITS = Y1_BITS + Y2_BITS
+
+_V_MAX = (1 << V_BITS) - 1  # 127
+_XI_MAX = (1 << XI_BITS) - 1  # 63
+_U16 = 65535
+
+#: Width of a 32-bit depth cell, 1/511.5; decoded depths are within half of it.
+DEPTH_STEP32 = 1 / 511.5
+#: Width of a 64-bit depth step, 2/65535; decoded depths are within half of it.
+DEPTH_STEP64 = 2 / 65535
+
+
+def _encoder_input(r):
+    """Validated, clamped float copy of r with y1, y2 ∈ [-1, 1] (within rounding)."""
+    r = validate_representation(r, "r")
+    tol = rounding_tolerance(r.dtype)
+    y = r[..., :2]
+    bad = (y < -1 - tol) | (y > 1 + tol)
+    if bad.any():
+        idx = first_index(bad)
+        raise InputError(
+            f"r: expected depths y1, y2 in [-1, 1] (rounding tolerance {tol:.3g}), "
+            f"got {y[idx]!r} at index {idx[:-1]} (channel {idx[-1]})"
+        )
+    np.clip(y, -1, 1, out=y)
+    return r
+
+
+def _uint_input(q, name, dtype, trailing=None):
+    q = np.asarray(q)
+    if q.dtype != dtype:
+        raise InputError(f"{name}: expected an array of dtype {np.dtype(dtype)}, got dtype {q.dtype}")
+    if trailing is not None and (q.ndim == 0 or q.shape[-1] != trailing):
+        raise InputError(f"{name}: expected a trailing axis of length {trailing}, got shape {q.shape}")
+    return q
+
+
+def _float_dtype(dtype):
+    dt = np.dtype(dtype)
+    if dt not in (np.float32, np.float64):
+        raise InputError(f"dtype: expected float32 or float64, got {dt}")
+    return dt
+
+
+def _xi_code_up(xi4, code, decode, cmax):
+    """Bump ``code`` by one where ``decode(code) < ξ4`` (float rounding of Ψ4, Ψ4⁻¹)."""
+    xi = np.clip(xi4, 1.2e-7, 0.25).astype(xi4.dtype)
+    low = (decode(code) < xi) & (code < cmax)
+    return code + low.astype(code.dtype)
+
+
+# ---------------------------------------------------------------------------
+# 64 bits
+
+
+def pack64(r):
+    """Store ``(y1, y2, v2, ξ4)`` in four UNORM16 channels (HPG17 §3.3).
+
+    Parameters
+    ----------
+    r : (..., 4) float array
+        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+
+    Returns
+    -------
+    q : (..., 4) uint16 array
+        ``round(65535·(y1+1)/2)``, ``round(65535·(y2+1)/2)``, ``round(65535·v2)``,
+        ``ceil(65535·Ψ4(ξ4))`` (the last rounded up so the decoded ξ4 is never
+        below the stored one; see the module docstring).
+
+    Notes
+    -----
+    HPG17 §3.3: "Storing the depths y1, y2 ∈ [-1, 1] to the first two channels
+    directly works well. The weight v2 ∈ [0, 1] can also be stored directly",
+    plus Ψ4(ξ4) in the fourth channel. The arithmetic runs in r's dtype.
+
+    Examples
+    --------
+    >>> pack64([-1.0, 1.0, 0.5, 0.25])
+    array([    0, 65535, 32768, 65535], dtype=uint16)
+    """
+    r = _encoder_input(r)
+    dt = r.dtype.type
+    q = np.empty(r.shape, dtype=np.uint16)
+    scale = dt(_U16)
+    q[..., 0] = np.rint((r[..., 0] + 1) * dt(0.5) * scale)
+    q[..., 1] = np.rint((r[..., 1] + 1) * dt(0.5) * scale)
+    q[..., 2] = np.rint(r[..., 2] * scale)
+    code = np.ceil(psi4(r[..., 3]) * scale).astype(np.int64)
+    code = _xi_code_up(r[..., 3], code, lambda c: psi4_inverse(c.astype(r.dtype) / scale), _U16)
+    q[..., 3] = code
+    return q
+
+
+def unpack64(q, dtype=np.float64):
+    """Decode :func:`pack64` texels: UNORM16 -> ``(y1, y2, v2, ξ4)``.
+
+    Parameters
+    ----------
+    q : (..., 4) uint16 array
+    dtype : {float64, float32}
+        Working and output dtype (float32 emulates a shader).
+
+    Returns
+    -------
+    r : (..., 4) float array
+        ``y = 2 c/65535 − 1``, ``v2 = c/65535``, ``ξ4 = Ψ4⁻¹(c/65535)``. Decoded
+        depths satisfy y1 ≤ y2 whenever the encoded ones did.
+
+    Examples
+    --------
+    >>> unpack64(np.array([0, 65535, 65535, 0], dtype=np.uint16))
+    array([-1.0e+00,  1.0e+00,  1.0e+00,  1.2e-07])
+    """
+    q = _uint_input(q, "q", np.uint16, trailing=4)
+    dt = _float_dtype(dtype)
+    u = q.astype(dt) / dt.type(_U16)
+    r = np.empty(q.shape, dtype=dt)
+    r[..., 0] = 2 * u[..., 0] - 1
+    r[..., 1] = 2 * u[..., 1] - 1
+    r[..., 2] = u[..., 2]
+    r[..., 3] = psi4_inverse(u[..., 3])
+    return r
+
+
+# ---------------------------------------------------------------------------
+# 32 bits
+
+
+def depth_code(y):
+    """HPG17 §3.5: ``ỹ = ⌊511.5 · (y + 1)⌋`` for y ∈ [-1, 1], clamped to 0..1022.
+
+    Parameters
+    ----------
+    y : (...) float array in [-1, 1]
+
+    Returns
+    -------
+    code : (...) int64 array in 0..1022 (y = 1 alone maps to 1022, not 1023)
+    """
+    y = real_input(y, "y")
+    c = np.floor(y.dtype.type(511.5) * (y + 1)).astype(np.int64)
+    return np.clip(c, 0, 1022)
+
+
+def fold(t1, t2):
+    """The triangle fold of HPG17 Figure 5 on integer depth codes ``t1 ≤ t2``.
+
+    Parameters
+    ----------
+    t1, t2 : (...) integer arrays with ``0 ≤ t1 ≤ t2 ≤ 1022``
+
+    Returns
+    -------
+    f1, f2 : (...) int64 arrays
+        ``(t1, t2)`` if ``t1 < 512``, else ``(1023 − t1, 1022 − t2)``; always
+        ``f1 ≤ 511`` (9 bits) and ``f2 ≤ 1022`` (10 bits).
+    """
+    t1 = np.asarray(t1, dtype=np.int64)
+    t2 = np.asarray(t2, dtype=np.int64)
+    flip = t1 >= 512
+    return np.where(flip, 1023 - t1, t1), np.where(flip, 1022 - t2, t2)
+
+
+def unfold(f1, f2):
+    """Inverse of :func:`fold`: a pair with ``f2 < f1`` was folded."""
+    f1 = np.asarray(f1, dtype=np.int64)
+    f2 = np.asarray(f2, dtype=np.int64)
+    flipped = f2 < f1
+    return np.where(flipped, 1023 - f1, f1), np.where(flipped, 1022 - f2, f2)
+
+
+def pack32(r):
+    """Pack ``(y1, y2, v2, ξ4)`` into one uint32 (HPG17 §3.5, Figure 5).
+
+    Parameters
+    ----------
+    r : (..., 4) float array
+        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+
+    Returns
+    -------
+    p : (...) uint32 array
+        Layout (LSB first): ỹ2 (10 bits), ỹ1 (9 bits) after the fold,
+        ``round(127 √v2)`` (7 bits), ``round(63 Ψ4(ξ4))`` (6 bits); see the module
+        docstring and docs/formats.md.
+
+    Notes
+    -----
+    HPG17 §3.5: Ψ4(ξ4) "is simply stored as fixed-point number in six bits",
+    √v2 "as fixed-point number in seven bits", and the depths as
+    ``ỹl = ⌊511.5 (yl + 1)⌋`` with the fold "if ỹ1 ≥ 512, the integers ỹ1 and ỹ2
+    are replaced by 1023 − ỹ1 and 1022 − ỹ2".
+
+    Examples
+    --------
+    >>> p = pack32([-0.5, 0.5, 0.25, 1e-4])
+    >>> unpack32(p).round(2)
+    array([-0.5 ,  0.5 ,  0.25,  0.  ])
+    """
+    r = _encoder_input(r)
+    dt = r.dtype.type
+    f1, f2 = fold(depth_code(r[..., 0]), depth_code(r[..., 1]))
+    vcode = np.rint(np.sqrt(r[..., 2]) * dt(_V_MAX)).astype(np.int64)
+    xcode = np.rint(psi4(r[..., 3]) * dt(_XI_MAX)).astype(np.int64)
+    xcode = _xi_code_up(r[..., 3], xcode, lambda c: _decode_xi32(c, r.dtype), _XI_MAX)
+    p = (f2 << Y2_SHIFT) | (f1 << Y1_SHIFT) | (vcode << V_SHIFT) | (xcode << XI_SHIFT)
+    return p.astype(np.uint32)
+
+
+def _decode_xi32(code, dt):
+    """6-bit Ψ4 code -> ξ4, read at the upper end of its rounding interval."""
+    dt = np.dtype(dt)
+    u = np.minimum((code.astype(dt) + dt.type(0.5)) / dt.type(_XI_MAX), dt.type(1))
+    return psi4_inverse(u)
+
+
+def unpack32(p, dtype=np.float64):
+    """Decode :func:`pack32` texels -> ``(y1, y2, v2, ξ4)``.
+
+    Parameters
+    ----------
+    p : (...) uint32 array
+    dtype : {float64, float32}
+        Working and output dtype (float32 emulates a shader).
+
+    Returns
+    -------
+    r : (..., 4) float array
+        Depths at the centre of their cell ``(ỹ + 0.5)/511.5 − 1`` after undoing
+        the fold, ``v2 = (c/127)²``, ``ξ4 = Ψ4⁻¹(min(1, (c + 0.5)/63))`` (rounded
+        up: never below the ξ4 that was packed).
+
+    Examples
+    --------
+    >>> r = unpack32(np.array([0], dtype=np.uint32))[0]
+    >>> r[:3]  # both depths in the lowest cell, v2 = 0
+    array([-0.99902248, -0.99902248,  0.        ])
+    >>> bool(r[3] > 1.2e-7)  # the lowest Ψ4 code decodes rounded up
+    True
+    """
+    p = _uint_input(p, "p", np.uint32)
+    dt = _float_dtype(dtype)
+    w = p.astype(np.int64)
+    f2 = (w >> Y2_SHIFT) & ((1 << Y2_BITS) - 1)
+    f1 = (w >> Y1_SHIFT) & ((1 << Y1_BITS) - 1)
+    vcode = (w >> V_SHIFT) & _V_MAX
+    xcode = (w >> XI_SHIFT) & _XI_MAX
+    t1, t2 = unfold(f1, f2)
+    r = np.empty(p.shape + (4,), dtype=dt)
+    half, step = dt.type(0.5), dt.type(511.5)
+    r[..., 0] = (t1.astype(dt) + half) / step - 1
+    r[..., 1] = (t2.astype(dt) + half) / step - 1
+    sv = vcode.astype(dt) / dt.type(_V_MAX)
+    r[..., 2] = sv * sv
+    r[..., 3] = _decode_xi32(xcode, dt)
+    return r

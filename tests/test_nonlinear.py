@@ -1,0 +1,371 @@
+"""Tests of moments_ref.nonlinear: Φ (Alg. 2), Φ⁻¹ (Eq. 4), Ψ4 and Algorithm 3.
+
+References used here, independent of the code under test: the definition of the
+moments (power_moments of explicit distributions), HPG17 Eq. (1) and Eq. (3)
+(``det B / σ²`` with numpy.linalg.det), Algorithm 1 (msm.shadow_intensity) on
+the moments of Eq. (4), the mpmath twins in moments_ref.precise, and the values
+HPG17 §3.2 states.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from moments_ref import InputError, msm, nonlinear as nl, precise
+from moments_ref.moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments, hankel, power_moments
+from moments_ref.strategies import depth_distributions, two_point_distributions
+
+# Rounding slack of Algorithm 2's outputs for moments of a distribution on [-1, 1]
+# biased with BIAS_FLOAT32 (measured: float32 ξ4 down to −3e-8, y within 1 ulp of ±1).
+SLACK = {np.float64: 1e-12, np.float32: 4e-7}
+
+
+def biased(dist, dtype=np.float64, preset=BIAS_FLOAT32):
+    z, w = dist
+    return bias_moments(power_moments(z, w), preset).astype(dtype)
+
+
+# ---------------------------------------------------------------------------
+# Φ (Algorithm 2)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@given(dist=depth_distributions())
+def test_phi_ranges_after_float32_bias(dtype, dist):
+    r = nl.phi(biased(dist, dtype))
+    assert r.dtype == dtype
+    s = SLACK[dtype]
+    y1, y2, v2, xi4 = r
+    assert -1 - s <= y1 <= y2 <= 1 + s
+    assert -s <= v2 <= 1 + s
+    assert -s <= xi4 <= 0.25 + s
+    # The float32 output is accepted by shade without error (within rounding).
+    assert 0 <= nl.shade(r, np.asarray(0.0, dtype)) <= 1
+
+
+@given(dist=two_point_distributions())
+def test_phi_two_point_unbiased_is_exact(dist):
+    z, w = dist
+    r = nl.phi(power_moments(z, w))
+    assert abs(r[3]) <= 1e-12  # ξ4 = 0 up to rounding
+    gap = z[1] - z[0]
+    np.testing.assert_allclose(r[:2], z, atol=1e-9 / gap)
+    np.testing.assert_allclose(r[2], w[1], atol=1e-9 / gap**2)
+
+
+def test_phi_two_point_float32():
+    z, w = np.array([-0.3, 0.55]), np.array([0.7, 0.3])
+    r = nl.phi(power_moments(z, w).astype(np.float32))
+    assert r.dtype == np.float32
+    assert abs(r[3]) <= 1e-6
+    np.testing.assert_allclose(r[:3], [-0.3, 0.55, 0.3], atol=1e-5)
+
+
+@given(dist=depth_distributions(min_points=3))
+def test_xi4_three_ways(dist):
+    """Algorithm 2 step (7) vs Eq. (1) b4 − v1 y1⁴ − v2 y2⁴ vs Eq. (3) det B / σ²."""
+    b = biased(dist)
+    y1, y2, v2, xi4 = nl.phi(b)
+    eq1 = b[3] - (1 - v2) * y1**4 - v2 * y2**4
+    sigma2 = b[1] - b[0] ** 2
+    eq3 = np.linalg.det(hankel(b)) / sigma2
+    tol = 1e-13 + 1e-12 * xi4 + 1e-16 / sigma2
+    assert abs(xi4 - eq1) <= tol + 1e-11 / (y2 - y1)
+    assert abs(xi4 - eq3) <= tol
+
+
+def test_xi4_mutant_eq1_detects_wrong_weight():
+    """The Eq. (1) check has power: swapping v1 and v2 is caught."""
+    b = biased((np.array([-0.5, 0.2, 0.9]), np.array([0.2, 0.5, 0.3])))
+    y1, y2, v2, xi4 = nl.phi(b)
+    wrong = b[3] - v2 * y1**4 - (1 - v2) * y2**4
+    assert abs(wrong - xi4) > 1e-3
+
+
+def test_xi4_extreme_case_of_section_3_2():
+    """HPG17 §3.2: Z = ½δ0.915 + ½δ1 has ξ4 = 0, and ≈ 2.8e-4 after BIAS_UNORM16."""
+    z, w = np.array([0.915, 1.0]), np.array([0.5, 0.5])
+    b = power_moments(z, w)
+    assert abs(nl.phi(b)[3]) < 1e-15
+    xi = nl.phi(bias_moments(b, BIAS_UNORM16))[3]
+    assert xi == pytest.approx(2.8e-4, rel=0.02)
+
+
+def test_xi4_extreme_case_is_the_maximum_over_two_point_distributions():
+    """A grid over two-point distributions: the maximum of ξ4 after BIAS_UNORM16 is HPG17's."""
+    g = np.linspace(-1, 1, 401)  # step 0.005, contains 0.915 and 1
+    i, j = np.triu_indices(g.size, 1)
+    v = np.linspace(0.05, 0.95, 19)
+    z1 = np.repeat(g[i], v.size)
+    z2 = np.repeat(g[j], v.size)
+    v2 = np.tile(v, i.size)
+    b = nl.phi_inverse(np.stack([z1, z2, v2, np.zeros_like(z1)], -1))
+    xi = nl.phi(bias_moments(b, BIAS_UNORM16))[:, 3]
+    k = np.argmax(xi)
+    ref = nl.phi(bias_moments(power_moments([0.915, 1.0]), BIAS_UNORM16))[3]
+    assert xi[k] <= ref * (1 + 1e-9)
+    # At Z = ½δ0.915 + ½δ1 or its mirror image ½δ-1 + ½δ-0.915 (b* is symmetric).
+    top = np.flatnonzero(xi >= ref * (1 - 1e-9))
+    found = {(round(abs(a), 9), round(abs(c), 9), round(float(w), 9)) for a, c, w in zip(z1[top], z2[top], v2[top])}
+    assert found == {(0.915, 1.0, 0.5), (1.0, 0.915, 0.5)}
+
+
+@settings(max_examples=15)
+@given(dist=depth_distributions(min_points=2))
+def test_phi_matches_precise(dist):
+    b = biased(dist)
+    r = nl.phi(b)
+    ref = precise.phi(b)
+    gap = ref[1] - ref[0]
+    assert abs(r[3] - ref[3]) <= 1e-14 + 1e-9 * ref[3]
+    if gap > 1e-3:
+        np.testing.assert_allclose(r[:3], ref[:3], atol=1e-9)
+
+
+def test_phi_singular_input_is_defined():
+    """σ² = 0 (one depth, not biased) and σ² < 0 (rounding): (b1, b1, 0, b4 − b1⁴), no NaN."""
+    for dtype in (np.float64, np.float32):
+        b = power_moments(np.array([0.3, 0.3]))
+        b = b.astype(dtype)
+        r = nl.phi(b)
+        assert np.all(np.isfinite(r))
+        np.testing.assert_allclose(r, [b[0], b[0], 0, b[3] - b[0] ** 4], atol=1e-7)
+        bad = np.array([0.5, 0.25 - 1e-6, 0.125, 0.0625], dtype)  # σ² < 0
+        r = nl.phi(bad)
+        assert np.all(np.isfinite(r)) and r[2] == 0 and r[0] == r[1] == bad[0]
+    zero = nl.phi(np.zeros(4))
+    np.testing.assert_array_equal(zero, np.zeros(4))
+    ref = precise.phi(power_moments(np.array([-0.7])))
+    np.testing.assert_allclose(nl.phi(power_moments(np.array([-0.7]))), ref, atol=1e-15)
+
+
+@given(dist=depth_distributions())
+def test_phi_inverse_of_phi_is_identity(dist):
+    b = biased(dist)
+    np.testing.assert_allclose(nl.phi_inverse(nl.phi(b)), b, atol=1e-10)
+
+
+@given(
+    y1=st.floats(-1, 0.9),
+    gap=st.floats(1e-2, 1),
+    v2=st.floats(0.01, 0.99),
+    xi4=st.floats(0, 0.01),
+)
+def test_phi_of_phi_inverse_is_identity(y1, gap, v2, xi4):
+    r = np.array([y1, min(y1 + gap, 1.0), v2, xi4])
+    np.testing.assert_allclose(nl.phi(nl.phi_inverse(r)), r, atol=1e-9)
+
+
+def test_phi_inverse_matches_precise():
+    r = np.array([[-0.8, 0.4, 0.6, 1e-4], [0.1, 0.1 + 1e-7, 0.5, 0.0]])
+    np.testing.assert_allclose(nl.phi_inverse(r), precise.phi_inverse(r), rtol=1e-15, atol=1e-17)
+
+
+# ---------------------------------------------------------------------------
+# Ψ4
+
+
+def test_psi4_endpoints_and_clamp():
+    for dt in (np.float64, np.float32):
+        u = nl.psi4(np.array([-1.0, 0.0, 1e-7, 1.2e-7, 0.25, 0.3], dt))
+        assert u.dtype == dt
+        np.testing.assert_array_equal(u, [0, 0, 0, 0, 1, 1])
+        xi = nl.psi4_inverse(np.array([0.0, 1.0], dt))
+        assert xi[0] == dt(1.2e-7) and xi[1] == dt(0.25)
+
+
+def test_psi4_monotone_and_matches_precise():
+    xi = np.geomspace(1.2e-7, 0.25, 20001)
+    u = nl.psi4(xi)
+    assert np.all(np.diff(u) > 0)
+    sample = xi[::1000]
+    np.testing.assert_allclose(nl.psi4(sample), precise.psi4(sample), atol=1e-14)
+    u32 = nl.psi4(xi.astype(np.float32))
+    assert np.all(np.diff(u32) >= 0)
+    np.testing.assert_allclose(u32, u, atol=2e-6)
+
+
+@given(u=st.floats(0, 1))
+def test_psi4_inverse_round_trip(u):
+    xi = nl.psi4_inverse(u)
+    assert 1.2e-7 <= xi <= 0.25
+    assert nl.psi4(xi) == pytest.approx(u, abs=1e-12)
+    assert xi == pytest.approx(precise.psi4_inverse(u), rel=1e-12)
+
+
+def test_psi4_inverse_rejects_outside_unit_interval():
+    with pytest.raises(InputError, match="u: expected values in"):
+        nl.psi4_inverse([0.5, 1.01])
+    assert nl.psi4_inverse(1 + 1e-15) == 0.25  # rounding noise is clamped
+
+
+# ---------------------------------------------------------------------------
+# Algorithm 3
+
+
+@st.composite
+def representations(draw, min_gap=1e-3, min_v=1e-3, xi_min=1e-8):
+    y1 = draw(st.floats(-1, 1 - min_gap))
+    y2 = draw(st.floats(y1 + min_gap, 1))
+    v2 = draw(st.floats(min_v, 1 - min_v))
+    xi4 = draw(st.one_of(st.floats(xi_min, 0.25), st.sampled_from([xi_min, 1e-6, 1e-4])))
+    return np.array([y1, y2, v2, xi4])
+
+
+@given(r=representations(), zf=st.lists(st.floats(-1.2, 1.2), min_size=1, max_size=8))
+def test_shade_equals_algorithm_1_on_eq4(r, zf):
+    zf = np.concatenate([zf, r[:2], r[:2] + 1e-9, r[:2] - 1e-9])
+    ours = nl.shade(r, zf)
+    ref = msm.shadow_intensity(nl.phi_inverse(r), zf)
+    np.testing.assert_allclose(ours, ref, atol=1e-8)
+
+
+@settings(max_examples=20)
+@given(r=representations(min_gap=1e-6, min_v=1e-6, xi_min=0.0), zf=st.floats(-1, 1))
+def test_shade_matches_precise(r, zf):
+    """Against mpmath Algorithm 1 on Eq. (4), including stiff inputs (tiny gap, ξ4 → 0)."""
+    gap = r[1] - r[0]
+    zf = np.array([zf, r[0], r[1], (r[0] + r[1]) / 2])
+    if r[3] / gap**4 < 1e-30:
+        # ξ'4 ≈ 0: the bound jumps at y1 and y2 and mpmath (singular below
+        # 1e-40) takes y1, y2 from the roots of the moments, which differ from
+        # the given ones in the 50th digit: skip the jump points themselves.
+        zf = zf[(zf != r[0]) & (zf != r[1])]
+    ours = nl.shade(r, zf)
+    ref = precise.shade(r, zf)
+    gap = r[1] - r[0]
+    xip = r[3] / gap**4
+    # Error ≈ eps × the steepness of the bound, which grows as ξ'4 → 0.
+    tol = 1e-9 if (gap > 1e-3 and (xip == 0 or xip > 1e-12)) else 2e-6
+    np.testing.assert_allclose(ours, ref, atol=tol)
+
+
+def test_shade_zero_xi4_gives_the_exact_steps():
+    for dt, tol in ((np.float64, 1e-12), (np.float32, 1e-6)):
+        r = np.array([-0.8, 0.4, 0.6, 0.0], dt)
+        # A few ulps beside the jumps (at one ulp, z'f rounds onto 0 or 1).
+        h = dt(1e-12 if dt == np.float64 else 1e-6)
+        zf = np.array([-1, -0.8, -0.8 + h, 0.0, 0.4, 0.4 + h, 1.0], dt)
+        expected = (1 - r[2]) * (zf > r[0]) + r[2] * (zf > r[1])
+        np.testing.assert_allclose(nl.shade(r, zf), expected, atol=tol)
+
+
+def test_shade_three_cases_by_y1_y2():
+    """zf ≤ y1 gives exactly 0; the paper's formula with ξ'4 (not ξ'4⁻¹) would not match Alg. 1."""
+    r = np.array([-0.2, 0.5, 0.3, 3e-3])
+    zf = np.linspace(-1, -0.2, 50)
+    assert np.all(nl.shade(r, zf) == 0)
+    # Mutant: the printed "ξ'4 · (1 − z)² z²" term instead of ξ'4⁻¹, for zf > y2.
+    zf = np.linspace(0.55, 1, 20)
+    zp = (zf - r[0]) / (r[1] - r[0])
+    xip = r[3] / (r[1] - r[0]) ** 4
+    mutant = 1 - 1 / ((1 - zp) ** 2 / (1 - r[2]) + zp**2 / r[2] + xip * (1 - zp) ** 2 * zp**2)
+    ref = precise.shade(r, zf)
+    np.testing.assert_allclose(nl.shade(r, zf), ref, atol=1e-12)
+    assert np.max(np.abs(mutant - ref)) > 0.05
+
+
+@pytest.mark.parametrize("xi4", [1e-7, 1e-4, 1e-2])
+@pytest.mark.parametrize("v2", [0.0, 1e-7, 1 - 1e-7, 1.0])
+def test_shade_clamp_deviation_below_64bit_rounding(v2, xi4):
+    """HPG17 §3.4: the 1e-6 clamps introduce less error than the 64-bit rounding.
+
+    Deviation from the exact bound (mpmath, no clamp) measured up to 1e-2 for
+    v2 ∈ {0, 1} (the bound is steep in v2 there); one UNORM16 step of v2
+    (1/65535) changes the exact bound by 5e-4 .. 7e-2 in the same cases.
+    """
+    zf = np.linspace(-1, 1, 101)
+    r = np.array([-0.5, 0.5, v2, xi4])
+    exact = precise.shade(r, zf)
+    dev = np.max(np.abs(nl.shade(r, zf) - exact))
+    step = r.copy()
+    step[2] = v2 + 1 / 65535 if v2 < 0.5 else v2 - 1 / 65535
+    rounding = np.max(np.abs(precise.shade(step, zf) - exact))
+    assert dev < rounding
+    assert dev < 1.1e-2
+
+
+def test_shade_clamp_y1_equals_y2():
+    """y1 = y2 (ξ4 = 0, a single depth): the used y2 is y1 + 1e-6, the step stays within 1e-6."""
+    r = np.array([0.1, 0.1, 0.4, 0.0])
+    zf = np.array([0.1 - 1e-3, 0.1, 0.1 + 2e-6, 0.1 + 1e-3])
+    np.testing.assert_allclose(nl.shade(r, zf), [0, 0, 1, 1], atol=1e-12)
+
+
+def test_shade_no_nan_on_extremes():
+    vals_y = [-1.0, -1 + 1e-12, 0.0, 1 - 1e-12, 1.0]
+    rows = []
+    for y1 in vals_y:
+        for dy in [0.0, 1e-12, 1e-7, 1e-3, 2.0]:
+            for v2 in [0.0, 1e-12, 0.5, 1 - 1e-12, 1.0]:
+                for xi in [0.0, 1e-30, 1.2e-7, 0.25, 1e6]:
+                    rows.append([y1, y1 + dy, v2, xi])
+    r = np.array(rows)
+    tiny = np.finfo(np.float64).tiny
+    zf = np.array([-2, -1, -1 + tiny, 0, tiny, 1 - 1e-16, 1, 1 + 1e-16, 3.0])
+    for dt in (np.float64, np.float32):
+        out = nl.shade(r[:, None, :].astype(dt), zf[None, :].astype(dt))
+        assert out.dtype == dt
+        assert np.all(np.isfinite(out)) and np.all((0 <= out) & (out <= 1))
+        zero = zf[None, :].astype(dt) <= r[:, None, 0].astype(dt)
+        assert np.all(out[zero] == 0)
+
+
+def test_shade_float32_close_to_float64():
+    rng = np.random.default_rng(5)
+    n = 20000
+    y1 = rng.uniform(-1, 0.8, n)
+    r = np.stack([y1, y1 + rng.uniform(0.05, 0.2, n), rng.uniform(0.05, 0.95, n), 10 ** rng.uniform(-4, -1, n)], -1)
+    zf = rng.uniform(-1, 1, n)
+    a64 = nl.shade(r, zf)
+    a32 = nl.shade(r.astype(np.float32), zf.astype(np.float32))
+    assert a32.dtype == np.float32
+    assert np.max(np.abs(a32 - a64)) < 2e-5  # measured 5e-6
+
+
+def test_shade_broadcasting_and_chunks(monkeypatch):
+    rng = np.random.default_rng(3)
+    r = np.stack([np.full(6, -0.5), np.full(6, 0.5), np.linspace(0.1, 0.9, 6), np.geomspace(1e-6, 1e-2, 6)], -1)
+    zf = rng.uniform(-1, 1, (5, 1))
+    full = nl.shade(r, zf)
+    assert full.shape == (5, 6)
+    np.testing.assert_array_equal(full[2], nl.shade(r, zf[2, 0]))
+    assert nl.shade(r[0], zf).shape == (5, 1)
+    monkeypatch.setattr(nl, "CHUNK", 7)
+    np.testing.assert_array_equal(nl.shade(r, zf), full)
+    assert nl.shade(np.zeros((0, 4)), np.zeros(0)).shape == (0,)
+    # The input is never modified (the kernel works in place on a copy).
+    one = np.array([[-0.5, 0.5, 0.0, 1e-4]])
+    keep = one.copy()
+    nl.shade(one, 0.7)
+    np.testing.assert_array_equal(one, keep)
+
+
+def test_shade_bad_input():
+    ok = np.array([-0.5, 0.5, 0.5, 1e-4])
+    with pytest.raises(InputError, match=r"y1 <= y2.*index \(1,\)"):
+        nl.shade(np.array([ok, [0.5, -0.5, 0.5, 1e-4]]), 0.0)
+    with pytest.raises(InputError, match="v2 in"):
+        nl.shade([-0.5, 0.5, 1.01, 1e-4], 0.0)
+    with pytest.raises(InputError, match="v2 in"):
+        nl.shade([-0.5, 0.5, -0.01, 1e-4], 0.0)
+    with pytest.raises(InputError, match="xi4 >= 0"):
+        nl.shade([-0.5, 0.5, 0.5, -1e-3], 0.0)
+    with pytest.raises(InputError, match="finite"):
+        nl.shade([-0.5, 0.5, np.nan, 1e-4], 0.0)
+    with pytest.raises(InputError, match="trailing axis"):
+        nl.shade([-0.5, 0.5, 0.5], 0.0)
+    with pytest.raises(InputError, match="broadcastable"):
+        nl.shade(np.tile(ok, (3, 1)), np.zeros(2))
+    with pytest.raises(InputError, match="index \\(40000,\\)"):  # index across chunks
+        r = np.tile(ok, (40001, 1))
+        r[40000, 2] = 2.0
+        nl.shade(r, 0.0)
+    # Within rounding of the domain: accepted and clamped.
+    eps = np.finfo(np.float64).eps
+    edge = np.array([0.5, 0.5 - 4 * eps, 1 + 4 * eps, -4 * eps])
+    assert 0 <= nl.shade(edge, 0.7) <= 1
+    assert nl.shade(edge.astype(np.float32), np.float32(0.7)).dtype == np.float32
