@@ -73,6 +73,15 @@ def _cmd_figure3(args):
     return 0
 
 
+def _cmd_figure4(args):
+    from . import figures
+
+    paths = figures.write_figure4(args.out, scene=args.scene, size=args.size, samples=args.samples)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    print(paths[2].read_text())
+    return 0
+
+
 def _cmd_banks(args):
     from . import banks
 
@@ -119,6 +128,13 @@ def build_parser():
     f3 = sub.add_parser("figure3", help="HPG17 Figure 3 as CSV and PNG")
     f3.add_argument("--out", required=True, type=Path, help="output folder")
     f3.set_defaults(func=_cmd_figure3)
+
+    f4 = sub.add_parser("figure4", help="HPG17 Figure 4: histograms of xi4 and Psi4(xi4), CSV and PNG")
+    f4.add_argument("--out", required=True, type=Path, help="output folder")
+    f4.add_argument("--scene", default="railing", help="shipped scene name or scene file (default railing)")
+    f4.add_argument("--size", type=int, default=2048, help="shadow-map side (default 2048, as HPG17)")
+    f4.add_argument("--samples", type=int, default=4, help="MSAA samples (default 4)")
+    f4.set_defaults(func=_cmd_figure4)
 
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
     bk.add_argument("--out", type=Path, help="also write banks.md here")
