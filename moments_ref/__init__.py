@@ -1,11 +1,15 @@
 """moments_ref: NumPy reference implementation and numerical test oracle of moment shadow mapping.
 
-The stable API is re-exported here; see docs/api.md for the full table.
+The stable API of design.md is re-exported here; docs/api.md lists every module's
+public names.
 """
 
 from ._arrays import InputError
+from .affine import decode_unorm16, encode_unorm16, from_optimized, to_optimized
 from .moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments, hankel, power_moments
 from .msm import canonical_representation, reduce_light_leaking, shadow_intensity
+from .nonlinear import phi, phi_inverse, psi4, psi4_inverse, shade
+from .packing import pack32, pack64, unpack32, unpack64
 
 __version__ = "0.1.0"
 
@@ -21,4 +25,17 @@ __all__ = [
     "shadow_intensity",
     "canonical_representation",
     "reduce_light_leaking",
+    "to_optimized",
+    "from_optimized",
+    "encode_unorm16",
+    "decode_unorm16",
+    "phi",
+    "phi_inverse",
+    "psi4",
+    "psi4_inverse",
+    "shade",
+    "pack64",
+    "unpack64",
+    "pack32",
+    "unpack32",
 ]

@@ -102,70 +102,139 @@ def _two_point(b1, b2, b3, sigma2):
     return y1, y2, v2
 
 
-def _kernel(b, zf, want):
-    """Algorithm 1 on flat chunks: b (n, 4), zf (n,) -> dict of requested arrays.
+def _constants(dtype, n):
+    """Constant arrays for the kernel (array–array ufunc loops are the fast ones)."""
+    it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
+    return {
+        "zero": np.zeros(n, dtype=dtype),
+        "one": np.ones(n, dtype=dtype),
+        "sign": np.full(n, np.iinfo(it).min, dtype=it),
+    }
 
-    ``want`` is a set drawn from {"lower", "upper", "canonical"}.
+
+def _kernel(b, zf, want, c):
+    """Algorithm 1 on flat chunks: b (4, n) contiguous rows b1..b4, zf (n,) -> dict.
+
+    ``want`` is a set drawn from {"lower", "upper", "canonical"}; ``c`` holds the
+    constant arrays of :func:`_constants` (same length). Every case is computed
+    for every element and the result is selected by multiplying with 0/1 masks:
+    in NumPy ``np.where``, masked ufuncs, ``np.clip`` with scalars and
+    ``np.copysign`` each cost several arithmetic passes, so they are avoided here.
     """
     dt = b.dtype.type
-    b1, b2, b3, b4 = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
+    n = zf.shape[0]
+    b1, b2, b3, b4 = b
     rtol = dt(singular_thresholds(b.dtype))
-    # LDLᵀ of the Hankel matrix B(b): D = diag(1, σ², ξ4).
-    sigma2 = b2 - b1 * b1
-    single = sigma2 <= rtol * b2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        l32 = (b3 - b1 * b2) / sigma2
-        xi4 = b4 - b2 * b2 - l32 * l32 * sigma2
-        two = ~single & (xi4 <= rtol * np.maximum(b4, sigma2))
-        regular = ~(single | two)
-        # Forward substitution L·y = (1, zf, zf²): y = (1, zf − b1, zf² − b2 − L32·y2).
+    t = np.empty(n, dtype=b.dtype)
+    # LDLᵀ of the Hankel matrix B(b): L21 = b1, L31 = b2, D = diag(1, σ², ξ4),
+    # L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32² σ² (HPG17 Eq. (3)).
+    sigma2 = b1 * b1
+    np.subtract(b2, sigma2, out=sigma2)
+    l32 = b1 * b2
+    np.subtract(b3, l32, out=l32)
+    xi4 = b2 * b2
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        l32 /= sigma2
+        np.multiply(l32, l32, out=t)
+        t *= sigma2
+        xi4 += t
+        np.subtract(b4, xi4, out=xi4)
+        # Singular B(b) (module docstring): σ² ≤ τ b2 or ξ4 ≤ τ max(b4, σ²).
+        if rtol == 0:
+            singular = sigma2 <= c["zero"]
+            singular |= xi4 <= c["zero"]
+        else:
+            np.multiply(b2, rtol, out=t)
+            singular = sigma2 <= t
+            np.maximum(b4, sigma2, out=t)
+            t *= rtol
+            singular |= xi4 <= t
+        # Step (2), forward substitution L·y = (1, zf, zf²): y = (1, zf − b1, zf² − b2 − L32·y2).
         y2 = zf - b1
-        y3 = zf * zf - b2 - l32 * y2
-        # Scaling D·c = y, back substitution Lᵀ·q = c.
+        y3 = zf * zf
+        y3 -= b2
+        np.multiply(l32, y2, out=t)
+        y3 -= t
+        # Scaling D·c = y and back substitution Lᵀ·q = c.
+        c2 = y2 / sigma2
         q2 = y3 / xi4
-        q1 = y2 / sigma2 - l32 * q2
-        q0 = 1 - b1 * q1 - b2 * q2
-        # Step (3): roots of q2 z² + q1 z + q0 without cancellation.
-        disc = np.sqrt(np.maximum(q1 * q1 - 4 * q2 * q0, 0))
-        t = -0.5 * (q1 + np.copysign(disc, q1))
-        ra = t / q2
-        rb = q0 / t
-        z1 = np.fmin(ra, rb)
-        z2 = np.fmax(ra, rb)
-        # Step (4) via Prop. 10: 1/w_l = 1 + (L⁻¹v)_2²/σ² + (L⁻¹v)_3²/ξ4.
-        w0 = 1 / (1 + y2 * y2 / sigma2 + y3 * y3 / xi4)
+        q1 = l32 * q2
+        np.subtract(c2, q1, out=q1)
+        q0 = b1 * q1
+        np.multiply(b2, q2, out=t)
+        q0 += t
+        np.subtract(c["one"], q0, out=q0)
+        # w0 = 1 / (vᵀ B⁻¹ v) with v = (1, zf, zf²): 1 / (1 + y2²/σ² + y3²/ξ4).
+        w0 = y2 * c2
+        np.multiply(y3, q2, out=t)
+        w0 += t
+        w0 += 1
+        np.divide(c["one"], w0, out=w0)
+        # Step (3): roots of q2 z² + 2h z + q0 (h = q1/2) without cancellation:
+        # s = h + sign(h)·√(h² − q2 q0); the roots are −s/q2 and −q0/s.
+        h = q1
+        h *= dt(0.5)
+        d = h * h
+        np.multiply(q2, q0, out=t)
+        d -= t
+        np.maximum(d, c["zero"], out=d)
+        np.sqrt(d, out=d)
+        it = c["sign"].dtype
+        np.bitwise_or(d.view(it), np.bitwise_and(h.view(it), c["sign"]), out=d.view(it))  # copysign
+        d += h
+        ra = np.divide(q2, d, out=q2)  # −1/root: keeps the sign bookkeeping in one place
+        np.divide(q0, d, out=q0)
+        np.negative(q0, out=q0)  # rb = −q0/s
+        np.divide(c["one"], ra, out=ra)
+        np.negative(ra, out=ra)  # ra = −s/q2
+        z1 = np.minimum(ra, q0, out=y2)
+        z2 = np.maximum(ra, q0, out=ra)
+        # w1 = 1 / (1 + u2²/σ² + u3²/ξ4), u = L⁻¹(1, z1, z1²) (Prop. 10); 0 for |z1| = ∞.
         u2 = z1 - b1
-        u3 = z1 * z1 - b2 - l32 * u2
-        w1 = 1 / (1 + u2 * u2 / sigma2 + u3 * u3 / xi4)
-    w1 = np.where(np.isfinite(w1), w1, 0)
-    w2 = 1 - w0 - w1
-    out = {}
-    if "lower" in want or "upper" in want:
-        lower = np.where(zf <= z1, 0, np.where(zf <= z2, w1, 1 - w0))
-    if not regular.all():
-        # Singular B(b): the unique distribution, (1 − v2) δ_y1 + v2 δ_y2.
-        s = ~regular
-        ty1, ty2, tv2 = _two_point(b1[s], b2[s], b3[s], sigma2[s])
-        is_single = single[s]
-        ty1 = np.where(is_single, b1[s], ty1)
-        ty2 = np.where(is_single, b1[s], ty2)
-        tv2 = np.where(is_single, 0, tv2).astype(b.dtype)
+        u3 = z1 * z1
+        u3 -= b2
+        np.multiply(l32, u2, out=t)
+        u3 -= t
+        u2 *= u2
+        u2 /= sigma2
+        u3 *= u3
+        u3 /= xi4
+        u2 += u3
+        u2 += 1
+        w1 = np.divide(c["one"], u2, out=u2)
+        np.fmax(w1, c["zero"], out=w1)  # NaN (∞ − ∞ at an infinite root) -> 0
+        # Step (5): lower = [zf > z1]·(w1 + [zf > z2]·(w2)), w2 = 1 − w0 − w1.
+        w2 = np.subtract(c["one"], w0, out=q1)
+        w2 -= w1
+        lower = np.multiply(w2, zf > z2, out=t)
+        lower += w1
+        lower *= zf > z1
+    if singular.any():
+        # Singular B(b): the unique distribution (1 − v2) δ_y1 + v2 δ_y2.
+        s = singular
+        sb1, sb2 = b1[s], b2[s]
+        ssig = sb2 - sb1 * sb1
+        ty1, ty2, tv2 = _two_point(sb1, sb2, b3[s], ssig)
+        one = ssig <= rtol * sb2
+        ty1 = np.where(one, sb1, ty1)
+        ty2 = np.where(one, sb1, ty2)
+        tv2 = np.where(one, 0, tv2).astype(b.dtype)
         tv1 = 1 - tv2
         zs = zf[s]
         at1, at2 = ty1 == zs, ty2 == zs
-        below1, below2 = ty1 < zs, ty2 < zs
-        if "lower" in want or "upper" in want:
-            lower[s] = tv1 * below1 + tv2 * below2
-        z1 = z1.copy()
-        z2 = z2.copy()
+        lower[s] = tv1 * (ty1 < zs) + tv2 * (ty2 < zs)
         z1[s], z2[s] = ty1, ty2
         w0[s] = tv1 * at1 + tv2 * at2
         w1[s] = np.where(at1, 0, tv1)
         w2[s] = np.where(at2, 0, tv2)
-    if "lower" in want:
-        out["lower"] = np.clip(lower, 0, 1)
+    out = {}
     if "upper" in want:
-        out["upper"] = np.clip(lower + w0, 0, 1)
+        upper = lower + w0
+        np.minimum(upper, c["one"], out=upper)
+        out["upper"] = np.maximum(upper, c["zero"], out=upper)
+    if "lower" in want:
+        np.minimum(lower, c["one"], out=lower)
+        out["lower"] = np.maximum(lower, c["zero"], out=lower)
     if "canonical" in want:
         out["depths"] = np.stack([zf, z1, z2], axis=-1)
         out["weights"] = np.stack([w0, w1, w2], axis=-1)
@@ -186,13 +255,16 @@ def _prepare(b, zf):
 
 def _run(bflat, zflat, want, keys):
     n = zflat.size
-    outs = {}
-    for start in range(0, max(n, 1), CHUNK):
+    outs = {k: np.empty((n, 3) if k in ("depths", "weights") else (n,), dtype=bflat.dtype) for k in keys}
+    consts = _constants(bflat.dtype, min(CHUNK, max(n, 1)))
+    for start in range(0, n, CHUNK):
         stop = min(start + CHUNK, n)
-        res = _kernel(bflat[start:stop], np.ascontiguousarray(zflat[start:stop]), want)
+        m = stop - start
+        c = consts if m == CHUNK or n <= CHUNK else {k: v[:m] for k, v in consts.items()}
+        # One transposing copy per chunk: contiguous rows b1..b4 for the ufuncs.
+        res = _kernel(np.ascontiguousarray(bflat[start:stop].T), np.ascontiguousarray(zflat[start:stop]),
+                      want, c)
         for k in keys:
-            if k not in outs:
-                outs[k] = np.empty((n,) + res[k].shape[1:], dtype=bflat.dtype)
             outs[k][start:stop] = res[k]
     return outs
 
