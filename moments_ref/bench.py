@@ -252,9 +252,29 @@ def end_to_end_markdown(rows, size, samples):
     return "\n".join(lines) + "\n"
 
 
+def conformance_markdown(repeat=3):
+    """Timing of one conformance run per golden case on the OpenGL context (llvmpipe here)."""
+    from .conformance import ContextError, bench_conformance
+
+    try:
+        rows = bench_conformance(repeat=repeat)
+    except ContextError as exc:
+        return f"## Conformance runs\n\nskipped: no OpenGL 4.3 context ({exc})\n"
+    lines = [f"## Conformance runs per golden case ({rows[0]['renderer'] if rows else '-'}), best of {repeat}", "",
+             "| case | function | rows | compile s | upload s | dispatch s | readback s |",
+             "|---|---|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['case']} | {r['function']} | {r['rows']} | {r['compile_s']:.4f} | {r['upload_s']:.5f} | "
+                     f"{r['dispatch_s']:.5f} | {r['readback_s']:.5f} |")
+    return "\n".join(lines) + "\n"
+
+
 def markdown(rows):
-    """A markdown table of :func:`run`'s rows."""
+    """A markdown table of :func:`run`'s rows (empty string for no rows)."""
     import platform
+
+    if not rows:
+        return ""
 
     lines = [
         f"# moments-ref bench ({platform.machine()}, numpy {np.__version__}, one thread of Python)",

@@ -48,6 +48,8 @@ def _cmd_bench(args):
     if not args.only or any("end_to_end" in o for o in args.only):
         size = min(args.size, 512) if args.quick else args.size
         text += "\n" + bench.end_to_end_markdown(bench.end_to_end(size, 4), size, 4)
+    if not args.only or any("conformance" in o for o in args.only):
+        text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
     print(text)
     if args.out:
         from ._io import write_text
@@ -94,6 +96,12 @@ def _cmd_banks(args):
     return 0
 
 
+def _cmd_conformance(args):
+    from . import conformance
+
+    return conformance.main(args)
+
+
 def build_parser():
     p = argparse.ArgumentParser(
         prog="moments-ref",
@@ -135,6 +143,15 @@ def build_parser():
     f4.add_argument("--size", type=int, default=2048, help="shadow-map side (default 2048, as HPG17)")
     f4.add_argument("--samples", type=int, default=4, help="MSAA samples (default 4)")
     f4.set_defaults(func=_cmd_figure4)
+
+    cf = sub.add_parser("conformance", help="run a GLSL port on an OpenGL 4.3 compute context against a golden case")
+    cf.add_argument("--glsl", required=True, help="GLSL file, or the name of a shipped port (msm.glsl, nonlinear.glsl, "
+                                                  "packing.glsl)")
+    cf.add_argument("--function", required=True, help="the GLSL function to test")
+    cf.add_argument("--case", required=True, help="golden case, e.g. shade-float32")
+    cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
+    cf.add_argument("--out", type=Path, help="unused; accepted for uniformity")
+    cf.set_defaults(func=_cmd_conformance)
 
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
     bk.add_argument("--out", type=Path, help="also write banks.md here")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._arrays import InputError
-from .golden import CASES, CATEGORIES, _evaluate, case_rows
+from .golden import CASES, CATEGORIES, _evaluate, case_rows, expected_outputs
 
 __all__ = ["check", "OracleReport", "input_strategy"]
 
@@ -134,11 +134,7 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
             inputs[k] = np.concatenate([inputs[k], add])
         category = np.concatenate([category, np.full(len(extra), "hypothesis")])
     inputs = {k: (v if k in c.integer_inputs else v.astype(dtype)) for k, v in inputs.items()}
-    as64 = {k: (v if k in c.integer_inputs else v.astype(np.float64)) for k, v in inputs.items()}
-    if c.integer_output:
-        expected = c.reference(**inputs)
-    else:
-        expected = c.truth(**as64) if c.truth is not None else c.reference(**as64)
+    expected = expected_outputs(c, inputs)
     args = [inputs[k] for k in c.inputs]
     if vectorized:
         got = candidate(*args)

@@ -31,7 +31,7 @@ def _reference_results(gdir, names=None):
         case = golden.CASES[name]
         with np.load(gdir / meta["file"]) as g:
             inputs = {k: g[k] for k in case.inputs}
-        for out, val in zip(case.outputs, case.reference(**inputs)):
+        for out, val in zip(case.outputs, golden.evaluate_reference(case, inputs, case.dtype)):
             res[f"{name}.{out}"] = val
     return res
 
