@@ -99,6 +99,17 @@ def _cmd_banks(args):
 def _cmd_conformance(args):
     from . import conformance
 
+    if args.all:
+        from ._io import write_text
+
+        text = conformance.summary_markdown(golden_dir=args.golden)
+        print(text)
+        if args.out:
+            print(f"wrote {write_text(Path(args.out) / 'conformance.md', text)}")
+        return 1 if "| FAIL |" in text else 0
+    missing = [a for a in ("glsl", "function", "case") if getattr(args, a) is None]
+    if missing:
+        raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
     return conformance.main(args)
 
 
@@ -145,12 +156,12 @@ def build_parser():
     f4.set_defaults(func=_cmd_figure4)
 
     cf = sub.add_parser("conformance", help="run a GLSL port on an OpenGL 4.3 compute context against a golden case")
-    cf.add_argument("--glsl", required=True, help="GLSL file, or the name of a shipped port (msm.glsl, nonlinear.glsl, "
-                                                  "packing.glsl)")
-    cf.add_argument("--function", required=True, help="the GLSL function to test")
-    cf.add_argument("--case", required=True, help="golden case, e.g. shade-float32")
+    cf.add_argument("--glsl", help="GLSL file, or the name of a shipped port (msm.glsl, nonlinear.glsl, packing.glsl)")
+    cf.add_argument("--function", help="the GLSL function to test")
+    cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--out", type=Path, help="unused; accepted for uniformity")
+    cf.add_argument("--all", action="store_true", help="run every shipped port on every case it covers (a table)")
+    cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
     cf.set_defaults(func=_cmd_conformance)
 
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
