@@ -96,6 +96,25 @@ def _cmd_banks(args):
     return 0
 
 
+def _cmd_report(args):
+    from . import report
+
+    argv = ["--out", str(args.out)]
+    for s in args.scene or []:
+        argv += ["--scene", s]
+    if args.full:
+        argv.append("--full")
+    if args.no_progress:
+        argv.append("--no-progress")
+    return report.main(argv)
+
+
+def _cmd_vwss(args):
+    from .vwss import compare
+
+    return compare.main(args)
+
+
 def _cmd_conformance(args):
     from . import conformance
 
@@ -119,6 +138,20 @@ def build_parser():
         description="Reference implementation and test oracle of moment shadow mapping.",
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    rp = sub.add_parser("report", help="error against run time of every technique on the shipped scenes (main job)")
+    rp.add_argument("--scene", action="append", help="scene name or file (repeatable; default: all shipped scenes)")
+    rp.add_argument("--full", action="store_true", help="2048² 4× MSAA shadow maps and full camera resolution")
+    rp.add_argument("--out", required=True, type=Path, help="output folder")
+    rp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rp.set_defaults(func=_cmd_report)
+
+    vw = sub.add_parser("vwss", help="view-warped soft shadows against MVR and PCSS (VWSS Tables 1 and 2)")
+    vw.add_argument("--scene", default="knot", help="scene name or file with an area light (default knot)")
+    vw.add_argument("--views", type=int, default=None, help="light samples (default: 24 and 128; --quick: fewer)")
+    vw.add_argument("--quick", action="store_true", help="reduced resolution, under a minute on knot")
+    vw.add_argument("--out", required=True, type=Path, help="output folder")
+    vw.set_defaults(func=_cmd_vwss)
 
     g = sub.add_parser("golden", help="write golden vectors and manifest.json")
     g.add_argument("--out", required=True, type=Path, help="output folder")

@@ -379,6 +379,7 @@ def _kernel_constants(dtype, n):
         "tiny": full(fi.tiny),
         "huge": full(fi.max),
         "one": full(1),
+        "zero": full(0),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
     }
 
@@ -474,7 +475,11 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c):
     t += 1
     t *= above
     k += t
-    # Early return 0 if zf ≤ y1: multiply by [zf > y1].
+    # Early return 0 if zf ≤ y1: multiply by [zf > y1]. The branch computed for
+    # those lanes can be NaN (z'f ≤ 0 makes P < 0 and h² + P < 0 under the root);
+    # fmax turns NaN into 0 first, so that NaN·0 cannot leak into the result. Where
+    # zf > y1 every quantity above is finite and k ∈ [0, 1], so fmax changes nothing.
+    np.fmax(k, c["zero"], out=k)
     np.multiply(k, zf > y1, out=out)
 
 

@@ -369,3 +369,20 @@ def test_shade_bad_input():
     edge = np.array([0.5, 0.5 - 4 * eps, 1 + 4 * eps, -4 * eps])
     assert 0 <= nl.shade(edge, 0.7) <= 1
     assert nl.shade(edge.astype(np.float32), np.float32(0.7)).dtype == np.float32
+
+
+def test_shade_never_nan_below_y1_in_float32():
+    """Regression: zf ≤ y1 with v2 = 1 made the unused branch NaN (√ of a negative), and NaN·0 leaked."""
+    r = np.float32([-0.57086998, 0.99902248, 1.0, 1.2077858e-07])
+    assert nl.shade(r, np.float32(-0.6016781)) == 0
+    rng = np.random.default_rng(0)
+    n = 50_000
+    for dt in (np.float32, np.float64):
+        rr = np.column_stack([np.sort(rng.uniform(-1, 1, (n, 2)), 1), rng.uniform(0, 1, n),
+                              10 ** rng.uniform(-9, -0.6, n)]).astype(dt)
+        rr[::7, 2] = 1
+        rr[::11, 2] = 0
+        zf = rng.uniform(-1.2, 1.2, n).astype(dt)
+        out = nl.shade(rr, zf)
+        assert np.isfinite(out).all() and out.min() >= 0 and out.max() <= 1
+        assert (out[zf <= rr[:, 0]] == 0).all()

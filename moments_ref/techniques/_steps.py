@@ -1,0 +1,75 @@
+"""Steps shared by several techniques: per-sample features, their MSAA resolve, the blur.
+
+Every filterable technique stores a feature vector f(z) per texel (the power
+moments for MSM and NLQ, (z, z²) for VSM, exponentials for ESM and EVSM), averages
+it over the MSAA samples (the resolve, HPG17 §4) and blurs it with the 9×9
+Gaussian of σ = 2.4 (HPG17 §4.1). All of these are linear in the depth
+distribution, which is why alpha blending renders translucent occluders into
+them (Slides, "Translucent occluders").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..filtering import blur, resolve_moments
+from ..moments import power_moments
+from . import LayeredSamples, Step, is_layered
+
+__all__ = ["resolve_features", "moment_steps", "feature_steps"]
+
+
+def resolve_features(samples, feature):
+    """Mean over the samples of ``feature(z)`` (weighted over the layers when layered).
+
+    Parameters
+    ----------
+    samples : (H, W, S) float array or LayeredSamples
+    feature : callable ``z (...) -> (..., C)`` float64
+
+    Returns
+    -------
+    (H, W, C) float64 array
+    """
+    if is_layered(samples):
+        f = feature(samples.depth.astype(np.float64))  # (H, W, S, K, C)
+        f = np.einsum("hwskc,hwsk->hwc", f, samples.weight) / samples.depth.shape[2]
+        return f
+    z = np.asarray(samples, dtype=np.float64)
+    return feature(z).mean(axis=2)
+
+
+def _moments(samples, params):
+    if is_layered(samples):
+        h, w, s, k = samples.depth.shape
+        # Alpha blending far to near leaves Σ_k weight_k b(depth_k) per sample.
+        return power_moments(samples.depth.reshape(h, w, s * k).astype(np.float64),
+                             weights=samples.weight.reshape(h, w, s * k), axis=-1, n=4)
+    return resolve_moments(samples)
+
+
+def _blur(x, params):
+    return blur(x)
+
+
+def moment_steps(samples: int, layered: bool) -> tuple:
+    """Moments per texel (resolved over the MSAA samples) and the reference blur.
+
+    Names: ``compute_moments`` for a 1× map (nothing to resolve),
+    ``resolve_moments`` with MSAA, ``translucency_blend_moments`` for layered
+    input; then ``blur_moments`` (or ``translucency_blur_moments``).
+    """
+    if layered:
+        return (Step("translucency_blend_moments", _moments), Step("translucency_blur_moments", _blur))
+    first = "resolve_moments" if samples > 1 else "compute_moments"
+    return (Step(first, _moments), Step("blur_moments", _blur))
+
+
+def feature_steps(tag: str, feature, samples: int, layered: bool) -> tuple:
+    """Resolve and blur of ``feature(z)``; names ``resolve_<tag>`` / ``features_<tag>`` and ``blur_<tag>``."""
+    def resolve(x, params):
+        return resolve_features(x, feature)
+
+    prefix = "translucency_" if layered else ""
+    first = ("resolve_" if samples > 1 or layered else "features_") + tag
+    return (Step(prefix + first, resolve), Step(prefix + "blur_" + tag, _blur))

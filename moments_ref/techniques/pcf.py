@@ -1,0 +1,138 @@
+"""Percentage-closer filtering with the 9×9 Gaussian: the exact filtered hard shadow.
+
+PCF [Reeves et al. 1987] filters the *results* of shadow tests instead of the
+depths. Here every fragment applies to the unfiltered MSAA samples exactly the
+weights that a filterable technique applies to its texture: the bilinear weights
+of the 2×2 texels around ``uv`` (the texture unit), times the 9×9 Gaussian
+(σ = 2.4, HPG17 §4.1) around each of them with clamp-to-edge borders (the rule of
+:func:`moments_ref.filtering.blur`), times 1/S per sample (the resolve). The result
+
+    Z(z < zf) = Σ_taps weight · (1/S) Σ_s [z_s < zf]
+
+is the filtered hard shadow that every filterable technique approximates: with a
+filterable texture the same weights act on b(z) instead of on the test. This is
+the reference of :mod:`moments_ref.report`.
+
+For a :class:`~moments_ref.techniques.LayeredSamples` map (translucent occluders)
+the test of a sample is ``Σ_k weight_k [z_k < zf]``, one minus the product of the
+transmittances in front of ``zf``: the reference for translucent occluders.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..filtering import gaussian_weights
+from . import Technique, is_layered, register
+
+__all__ = ["pcf_filtered", "tap_weights", "PCF"]
+
+#: Fragments per chunk (each gathers 10 × 10 texels × S samples × K layers).
+CHUNK = 1 << 13
+
+
+def tap_weights(coord, size, taps=None):
+    """Texel indices and weights along one axis: bilinear ⊗ Gaussian, clamp to edge.
+
+    Parameters
+    ----------
+    coord : (N,) float64 array
+        Texel coordinate (centres at ``i + 0.5``).
+    size : int
+        Map extent along the axis.
+    taps : (9,) float array, optional
+        Gaussian weights (default :func:`moments_ref.filtering.gaussian_weights`).
+
+    Returns
+    -------
+    index : (N, 10) intp array
+        ``clamp(i0 − 4 + t)`` for t = 0..9, with ``i0 = clamp(floor(coord − ½))``.
+    weight : (N, 10) float64 array
+        Summing to 1: ``(1 − f)·g`` on the taps of texel i0, ``f·g`` on those of
+        texel ``i1 = clamp(i0 + 1)`` (which coincide with i0's at the border).
+
+    Notes
+    -----
+    The bilinear footprint is clamped first, then each texel's Gaussian taps
+    are clamped, exactly as a hardware bilinear fetch of the blurred texture.
+    """
+    g = gaussian_weights() if taps is None else np.asarray(taps, dtype=np.float64)
+    r = (len(g) - 1) // 2
+    s = np.asarray(coord, dtype=np.float64) - 0.5
+    base = np.floor(s)
+    f = s - base
+    i0 = np.clip(base, 0, size - 1).astype(np.intp)
+    i1 = np.clip(base + 1, 0, size - 1).astype(np.intp)
+    n = len(g) + 1
+    weight = np.zeros(s.shape + (n,))
+    weight[:, : n - 1] += (1 - f)[:, None] * g
+    shifted = i1 != i0
+    # i1 = i0 + 1 inside the map: its taps start one later; at the border i1 = i0.
+    weight[:, 1:] += np.where(shifted, f, 0.0)[:, None] * g
+    weight[:, : n - 1] += np.where(shifted, 0.0, f)[:, None] * g
+    index = np.clip(i0[:, None] - r + np.arange(n), 0, size - 1)
+    return index, weight
+
+
+def pcf_filtered(samples, uv, zf):
+    """Gaussian-weighted percentage-closer filtering of the MSAA samples, float64.
+
+    Parameters
+    ----------
+    samples : (H, W, S) float array or LayeredSamples
+        Unfiltered shadow map.
+    uv : (..., 2) float array
+        Texel coordinates (u = column, v = row, centres at ``i + 0.5``).
+    zf : (...) float array
+        Fragment depth (already biased), broadcast against ``uv[..., 0]``.
+
+    Returns
+    -------
+    intensity : (...) float64 array in [0, 1]
+        ``Σ_{rows, cols} wy · wx · (1/S) Σ_s Σ_k weight_k [z_k < zf]`` with the
+        weights of :func:`tap_weights`.
+    """
+    layered = is_layered(samples)
+    depth = samples.depth if layered else np.asarray(samples)[..., None]
+    lw = samples.weight if layered else None
+    H, W, S, K = depth.shape
+    uv = np.asarray(uv, dtype=np.float64)
+    zf = np.asarray(zf, dtype=np.float64)
+    shape = np.broadcast_shapes(uv.shape[:-1], zf.shape)
+    uvf = np.broadcast_to(uv, shape + (2,)).reshape(-1, 2)
+    zff = np.broadcast_to(zf, shape).reshape(-1)
+    out = np.empty(zff.shape[0])
+    for lo in range(0, zff.shape[0], CHUNK):
+        hi = lo + CHUNK
+        ci, cw = tap_weights(uvf[lo:hi, 0], W)
+        ri, rw = tap_weights(uvf[lo:hi, 1], H)
+        d = depth[ri[:, :, None], ci[:, None, :]]  # (n, 10, 10, S, K)
+        # Compare in float64: the float32 depths are exact there.
+        test = d < zff[lo:hi, None, None, None, None]
+        if layered:
+            occluded = (test * lw[ri[:, :, None], ci[:, None, :]]).sum(axis=-1).mean(axis=-1)
+        else:
+            occluded = test[..., 0].mean(axis=-1)
+        out[lo:hi] = np.einsum("nij,ni,nj->n", occluded, rw, cw)
+    return np.clip(out, 0.0, 1.0).reshape(shape)
+
+
+def _steps(samples, layered):
+    return ()  # the texture is the unfiltered shadow map itself
+
+
+def _lookup(texture, uv, zf, noise):
+    return pcf_filtered(texture, uv, zf)
+
+
+#: PCF: 32-bit depth per MSAA sample, no filtered texture; cost is per fragment.
+PCF = register(Technique(
+    name="pcf",
+    bits_per_texel=32,
+    depth_bias=1e-3,
+    make_steps=_steps,
+    lookup=_lookup,
+    description="percentage-closer filtering, 9x9 Gaussian (sigma 2.4) x bilinear over the MSAA samples "
+                "(32 bits per depth sample)",
+    reference="Reeves et al. 1987; HPG17 §5 (the reference of the comparison)",
+))

@@ -1,0 +1,160 @@
+"""The lazy runner: stage sets per scene, sharing, refusals."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from moments_ref import InputError, pipeline
+from moments_ref import techniques as T
+from moments_ref.scene import load_scene
+
+SMALL = dict(shadow_map_size=48, resolution=(40, 24))
+
+
+def _run(scene, outputs, **kw):
+    return pipeline.run(load_scene(scene), outputs, **{**SMALL, **kw})
+
+
+def test_railing_stages_share_resolve_and_blur():
+    r = _run("railing", ["msm64", "msm128", "vsm"])
+    assert r.stages.count("resolve_moments") == 1 and r.stages.count("blur_moments") == 1
+    assert {"raster_shadow_map", "camera_gbuffer", "light_projection", "quantize_affine64", "store_float128",
+            "quantize_vsm32", "shade_msm64", "shade_msm128", "shade_vsm"} <= set(r.stages)
+    assert not any("translucen" in s or "vwss" in s or "bluenoise" in s or "onchip" in s for s in r.stages)
+    # Shared stages count in each technique's texel cost.
+    assert r.texel_seconds["msm64"] >= r.seconds["blur_moments"]
+
+
+def test_knot_one_sample_map_has_no_resolve_and_no_multiview():
+    r = _run("knot", ["msm128", "nlq64"], msaa=1)
+    assert "compute_moments" in r.stages and "onchip_blur" in r.stages
+    assert not any("resolve" in s for s in r.stages)
+    assert not any("vwss" in s or "translucen" in s for s in r.stages)
+
+
+def test_translucent_scene_runs_translucency_pass_only_there():
+    r = _run("translucent", ["translucent_msm", "nlq64_dither"])
+    assert "translucency_pass" in r.stages
+    assert {"translucency_blend_moments", "translucency_blur_moments", "translucency_quantize_affine64"} <= set(r.stages)
+    assert {"bluenoise_textures", "frame_noise"} <= set(r.stages)
+    assert any(s.startswith("translucency_reference") for s in r.stages)
+    # Without translucent geometry: no translucency work, and translucent_msm is refused with the reason.
+    r2 = _run("facade", ["msm64", "pcf"])
+    assert not any("translucen" in s for s in r2.stages)
+    with pytest.raises(InputError, match="has none"):
+        _run("facade", ["translucent_msm"])
+
+
+def test_dithered_only_with_noise_and_shared_texture():
+    r = _run("three-occluders", ["nlq64", "nlq64_dither"], noise_tiles=1)
+    assert r.stages.count("quantize_nlq64") == 1
+    assert "bluenoise_textures" in r.stages
+    assert "bluenoise_textures" not in _run("three-occluders", ["nlq64"]).stages
+
+
+def test_without_reference_no_reference_stage():
+    r = _run("facade", ["msm128"], reference=False)
+    assert not any("reference" in s for s in r.stages)
+    assert r.reference == {}
+
+
+def test_pcf_row_is_the_reference_and_errors_are_small_for_msm128():
+    r = _run("facade", ["pcf", "msm128"])
+    np.testing.assert_array_equal(r.shadow["pcf"], r.reference["pcf"])
+    assert r.gbuffer.pixel.size > 100
+    assert np.sqrt(np.mean((r.shadow["msm128"] - r.reference["msm128"]) ** 2)) < 0.1
+
+
+def test_stage_plan_without_running():
+    g, targets, meta = pipeline.plan(load_scene("railing"), ["nlq32_dither"], **SMALL)
+    order = g.order(targets)
+    assert order[-1] in targets and "bluenoise_textures" in order
+
+
+def test_unknown_output_lists_known():
+    with pytest.raises(InputError, match="known techniques: pcf"):
+        _run("railing", ["msm_soft_typo"])
+
+
+def test_scene_without_receiver_or_camera_refused(tmp_path):
+    p = tmp_path / "nor.toml"
+    p.write_text('[light]\ntype = "directional"\ndirection = [0, -1, 0]\n[camera]\neye = [0, 2, 3]\n'
+                 'target = [0, 0, 0]\n[[objects]]\nname = "b"\ngenerator = "box"\nrole = "occluder"\n')
+    with pytest.raises(InputError, match="receiver"):
+        pipeline.run(str(p), ["pcf"])
+    p2 = tmp_path / "nocam.toml"
+    p2.write_text('[light]\ntype = "directional"\ndirection = [0, -1, 0]\n[[objects]]\nname = "g"\n'
+                  'generator = "plane"\nrole = "receiver"\n')
+    with pytest.raises(InputError, match="camera"):
+        pipeline.run(str(p2), ["pcf"])
+    s = load_scene("facade")
+    with pytest.raises(InputError, match="no receiver"):
+        pipeline.check_scene(dataclasses.replace(s, receiver=s.occluder_mesh(exclude=[o.name for o in s.objects])))
+    with pytest.raises(InputError, match="no camera"):
+        pipeline.check_scene(dataclasses.replace(s, camera=None))
+
+
+def test_multiview_technique_needs_area_light():
+    t = T.Technique(name="test_multiview", bits_per_texel=0, depth_bias=0.0, make_steps=lambda s, l: (),
+                    lookup=lambda tex, uv, zf, noise: np.zeros(zf.shape), multiview=True, light_kinds=("area",))
+    T.register(t)
+    try:
+        with pytest.raises(InputError, match="area"):
+            _run("railing", ["test_multiview"])
+    finally:
+        T.TECHNIQUES.pop("test_multiview", None)
+
+
+def test_receiver_slope_is_the_depth_change_per_texel():
+    """Plane z = a·x seen through the identity projection into a 100² map: 50 texels per unit."""
+    from moments_ref.pipeline import _depth_slope
+
+    rng = np.random.default_rng(0)
+    for a in (0.0, 0.3, -2.0):
+        p = rng.uniform(-0.5, 0.5, (20, 3))
+        p[:, 2] = a * p[:, 0]
+        n = np.tile(np.array([-a, 0.0, 1.0]) / np.hypot(a, 1.0), (20, 1))
+        slope = _depth_slope(p, n, np.eye(4), (100, 100))
+        np.testing.assert_allclose(slope, abs(a) / 50, atol=1e-9)
+
+
+TILTED = """
+name = "tilted"
+shadow_map_size = 256
+msaa = 1
+outputs = ["pcf"]
+[light]
+type = "directional"
+direction = [0.0, -1.0, 0.0]
+[camera]
+eye = [0.0, 3.0, 3.0]
+target = [0.0, 0.0, 0.0]
+fov = 40
+resolution = [96, 54]
+[[objects]]
+name = "slope"
+generator = "plane"
+params = { width = 2.0, depth = 2.0 }
+transform = [ { rotate = { axis = [1, 0, 0], degrees = 60 } } ]
+role = "both"
+[[objects]]
+name = "pebble"
+generator = "box"
+params = { size = [0.05, 0.05, 0.05] }
+transform = [ { translate = [3.0, 3.0, 3.0] } ]
+role = "occluder"
+"""
+
+
+def test_slope_bias_removes_self_shadowing_of_a_lit_plane(tmp_path, monkeypatch):
+    """A plane in the shadow map (role both) lit at 60° is lit; without the slope term PCF self-shadows it."""
+    import moments_ref.pipeline as pipeline
+
+    path = tmp_path / "tilted.toml"
+    path.write_text(TILTED)
+    ref = pipeline.run(str(path), ["pcf"]).reference["pcf"]
+    assert ref.max() < 0.02
+    monkeypatch.setattr(pipeline, "SLOPE_BIAS_TEXELS", 0.0)
+    acne = pipeline.run(str(path), ["pcf"]).reference["pcf"]
+    assert np.median(acne) > 0.3  # surface acne: about half of the footprint lies in front

@@ -1,0 +1,152 @@
+"""The report on a tiny scene: files, columns, plot, claims, refusals, interruption, notebook."""
+
+import csv
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from moments_ref import report
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = dict(progress=False, shadow_map_size=48, resolution=(48, 27), noise_tiles=1)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    return out, report.run(scenes=["translucent"], out_dir=out, **TINY)
+
+
+def test_files_columns_and_plot(tiny):
+    out, res = tiny
+    assert {p.name for p in out.iterdir()} == {"results.csv", "stages.json", "report.md", "scatter.png",
+                                               "errors_translucent.png"}
+    with open(out / "results.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    assert tuple(rows[0]) == report.COLUMNS
+    techs = [r[1] for r in rows[1:]]
+    assert "pcf" in techs and "translucent_msm" in techs and "nlq32_dither" in techs
+    assert (out / "scatter.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (out / "report.md").read_text()
+    assert "| scene | technique | bits_per_texel" in md and "scatter.png" in md and "errors_translucent.png" in md
+    stages = json.loads((out / "stages.json").read_text())
+    assert "translucency_pass" in stages["translucent"]
+    assert report.read_results(out / "results.csv")[0].keys() == set(report.COLUMNS)
+
+
+def test_metrics_against_the_reference(tiny):
+    _, res = tiny
+    rows = {r["technique"]: r for r in res["rows"]}
+    assert rows["translucent_msm"]["rmse"] < rows["msm64"]["rmse"]  # the sheet's shadow is only in translucent_msm
+    assert rows["msm64"]["leak_fraction"] > 0
+    for r in res["rows"]:
+        assert r["texel_seconds"] >= 0 and r["fragment_seconds"] > 0
+    pytest.importorskip("flip_evaluator")
+    assert all(np.isfinite(r["flip_mean"]) for r in res["rows"])
+
+
+def test_metrics_by_hand():
+    s = np.array([0.0, 0.5, 1.0, 0.2])
+    r = np.array([0.1, 0.5, 0.9, 0.2])
+    m = report.metrics(s, r)
+    assert m["rmse"] == pytest.approx(math.sqrt(0.02 / 4))
+    assert m["max_error"] == pytest.approx(0.1)
+    assert m["leak_fraction"] == 0.25  # only the first pixel is lit more than 0.05 above
+    assert report.metrics(s, s)["leak_fraction"] == 0.0
+
+
+def test_flip_of_identical_images_is_zero():
+    pytest.importorskip("flip_evaluator")
+    img = np.random.default_rng(0).random((20, 30, 3)).astype(np.float32)
+    assert report.flip_mean(img, img) == 0.0
+    assert report.flip_mean(img, 1 - img) > 0.1
+
+
+def _rows(values):
+    out = []
+    for (scene, tech), (rmse, leak) in values.items():
+        out.append({"scene": scene, "technique": tech, "bits_per_texel": 64, "rmse": rmse, "max_error": rmse,
+                    "p99_error": rmse, "leak_fraction": leak, "flip_mean": 0.0, "texel_seconds": 1.0,
+                    "fragment_seconds": 1.0})
+    return out
+
+
+def test_claims_verdicts():
+    good = {("railing", "nlq64"): (0.010, 0.0), ("railing", "msm128"): (0.0102, 0.0),
+            ("railing", "msm64"): (0.03, 0.0), ("railing", "vsm"): (0.1, 0.0),
+            ("railing", "nlq32"): (0.0105, 0.0), ("facade", "nlq64"): (0.01, 0.0), ("facade", "nlq32"): (0.02, 0.0),
+            ("three-occluders", "msm64"): (0.01, 0.01), ("three-occluders", "nlq64"): (0.01, 0.002)}
+    verdicts = [v for _, v, _ in report.evaluate_claims(_rows(good), four_moment=["msm64", "nlq64"])]
+    assert verdicts == [True, True, True]
+    bad = dict(good)
+    bad[("railing", "msm64")] = (0.0105, 0.0)
+    bad[("facade", "nlq32")] = (0.0101, 0.0)
+    bad[("three-occluders", "nlq64")] = (0.01, 0.0)
+    verdicts = [v for _, v, _ in report.evaluate_claims(_rows(bad), four_moment=["msm64", "nlq64"])]
+    assert verdicts == [False, False, False]
+    assert [v for _, v, _ in report.evaluate_claims([])] == [None, None, None]
+
+
+def test_unknown_names_list_known_ones(tmp_path, capsys):
+    from moments_ref import InputError
+
+    with pytest.raises(InputError, match="known scenes: facade"):
+        report.run(scenes=["nope"], out_dir=tmp_path / "a", **TINY)
+    with pytest.raises(InputError, match="known techniques"):
+        report.run(scenes=["facade"], out_dir=tmp_path / "b", techniques=["zzz"], **TINY)
+    assert report.main(["--scene", "nope", "--out", str(tmp_path / "c")]) == 2
+    assert "known scenes" in capsys.readouterr().err
+    assert report.main([]) == 2  # --out is required
+    assert not (tmp_path / "a").exists() and not (tmp_path / "c").exists()
+
+
+def test_interrupted_run_leaves_no_partial_files(tmp_path, monkeypatch):
+    calls = {"n": 0}
+    real = report.pipeline.run
+
+    def interrupted(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(report.pipeline, "run", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        report.run(scenes=["translucent", "facade"], out_dir=tmp_path / "r", **TINY)
+    assert not (tmp_path / "r").exists() or not any((tmp_path / "r").iterdir())
+    monkeypatch.setattr(report.pipeline, "run", real)
+
+    # Interrupted while writing: the files written are complete, no temporary file is left.
+    real_write = report.write_text
+
+    def write_then_stop(path, text):
+        if Path(path).name == "report.md":
+            raise KeyboardInterrupt
+        return real_write(path, text)
+
+    monkeypatch.setattr(report, "write_text", write_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        report.run(scenes=["translucent"], out_dir=tmp_path / "s", **TINY)
+    names = {p.name for p in (tmp_path / "s").iterdir()}
+    assert "report.md" not in names and not any(n.startswith(".") for n in names)
+    assert report.read_results(tmp_path / "s" / "results.csv")
+
+
+def test_notebook_executes_on_a_tiny_report(tiny, tmp_path, monkeypatch):
+    import nbclient
+    import nbformat
+
+    out, _ = tiny
+    monkeypatch.setenv("MOMENTS_REF_RESULTS", str(out / "results.csv"))
+    work = tmp_path / "error_vs_runtime.ipynb"
+    shutil.copy(ROOT / "notebooks" / "error_vs_runtime.ipynb", work)
+    nb = nbformat.read(work, as_version=4)
+    nbclient.NotebookClient(nb, timeout=120, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}}).execute()
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.get("output_type") == "error"]
+    assert any("translucent" in o.get("data", {}).get("text/plain", "") for o in outputs)
