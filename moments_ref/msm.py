@@ -269,14 +269,24 @@ def _run(bflat, zflat, want, keys):
     return outs
 
 
+def _six(b) -> bool:
+    """True for a six-moment vector (trailing axis 6): dispatched to :mod:`moments_ref.msm6`."""
+    shape = getattr(b, "shape", None)
+    if shape is None:
+        shape = np.shape(b) if not isinstance(b, (str, bytes)) else ()
+    return len(shape) > 0 and shape[-1] == 6
+
+
 def shadow_intensity(b, zf, bound="lower"):
-    """Sharp bound of the filtered shadow intensity Z(z < zf) from four moments.
+    """Sharp bound of the filtered shadow intensity Z(z < zf) from four (or six) moments.
 
     Parameters
     ----------
-    b : (..., 4) float array
+    b : (..., 4) or (..., 6) float array
         Moments b1..b4 (b0 = 1 implicit), normally biased with
-        :func:`moments_ref.moments.bias_moments`.
+        :func:`moments_ref.moments.bias_moments`. A trailing axis of 6 (b1..b6)
+        dispatches to :func:`moments_ref.msm6.shadow_intensity`, the six-moment
+        bounds (four support points, one at zf).
     zf : (...) float array
         Fragment depth, broadcast against ``b[..., 0]``; cast to b's dtype.
     bound : {"lower", "upper"}
@@ -305,6 +315,10 @@ def shadow_intensity(b, zf, bound="lower"):
     """
     if bound not in ("lower", "upper"):
         raise InputError(f"bound: expected 'lower' or 'upper', got {bound!r}")
+    if _six(b):
+        from . import msm6
+
+        return msm6.shadow_intensity(b, zf, bound)
     bflat, zflat, shape = _prepare(b, zf)
     out = _run(bflat, zflat, {bound}, (bound,))
     return out[bound].reshape(shape)
@@ -335,7 +349,15 @@ def canonical_representation(b, zf):
     For singular B(b) the unique distribution is returned as ``(zf, y1, y2)`` with
     weights ``(mass at zf, 1 − v2, v2)`` (mass at a support point equal to zf is
     moved to w0, so that ``upper = lower + w0`` holds in every case).
+
+    Six moments (trailing axis 6) dispatch to
+    :func:`moments_ref.msm6.canonical_representation`, which returns (..., 4)
+    depths ``(zf, z1, z2, z3)`` and weights.
     """
+    if _six(b):
+        from . import msm6
+
+        return msm6.canonical_representation(b, zf)
     bflat, zflat, shape = _prepare(b, zf)
     out = _run(bflat, zflat, {"canonical"}, ("depths", "weights"))
     return out["depths"].reshape(shape + (3,)), out["weights"].reshape(shape + (3,))

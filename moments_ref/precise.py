@@ -58,6 +58,9 @@ __all__ = [
     "psi4",
     "psi4_inverse",
     "shade",
+    "shadow_bounds6",
+    "shadow_intensity6",
+    "canonical_representation6",
 ]
 
 #: Default working precision in significant decimal digits.
@@ -554,3 +557,166 @@ def shade(r, zf, dps=DPS):
             b = _phi_inverse_mp(*(_mp(v) for v in r[idx]))
             out[idx] = float(_bounds_mp(*b, _mp(zf[idx]), tol)[0])
     return out
+
+
+# ---------------------------------------------------------------------------
+# six moments (the twin of moments_ref.msm6)
+#
+# Literally: the 4×4 Hankel matrix B(b), ``B q = (1, zf, zf², zf³)`` by
+# ``mpmath.lu_solve``, the roots of ``q3 z³ + q2 z² + q1 z + q0`` by
+# ``mpmath.polyroots`` and the weights by a Vandermonde solve of
+# ``Σ w_l z_l^k = b_k`` (k = 0..3). The pivots come from determinants
+# (``D1 = b2 − b1²``, ``D2 = det B3 / D1``, ``D3 = det B4 / det B3``), not from
+# the LDLᵀ recurrence of the kernel. Singular B(b) at working precision, with the
+# definitions of moments_ref.msm6: one depth, two depths (Algorithm 2 on b1..b3)
+# or three depths, the roots of the monic polynomial ``z³ + a2 z² + a1 z + a0``
+# with ``B3 a = −(b3, b4, b5)``, weights from the Vandermonde system.
+
+
+def _pivots6_mp(b):
+    """(D1, D2, D3) from determinants; b = [1, b1, ..., b6] mpmath."""
+    d = [mpmath.mpf(1)]
+    for m in (2, 3, 4):
+        d.append(mpmath.det(mpmath.matrix([[b[i + j] for j in range(m)] for i in range(m)])))
+    return [d[k] / d[k - 1] if d[k - 1] != 0 else mpmath.nan for k in (1, 2, 3)]
+
+
+def _vandermonde_weights(zs, rhs):
+    """Solve Σ_l w_l z_l^k = rhs_k (k = 0..len-1), columns scaled by 1/max(1, |z|^(n-1))."""
+    n = len(zs)
+    scale = [max(mpmath.mpf(1), abs(z) ** (n - 1)) for z in zs]
+    V = mpmath.matrix([[z**k / s for z, s in zip(zs, scale)] for k in range(n)])
+    u = mpmath.lu_solve(V, mpmath.matrix(rhs))
+    return [u[i] / scale[i] for i in range(n)]
+
+
+def _real_roots(coeffs):
+    """Real parts of the roots of a polynomial (highest power first), ascending."""
+    roots = mpmath.polyroots(coeffs, maxsteps=400, extraprec=4 * mpmath.mp.prec)
+    return sorted(mpmath.re(r) for r in roots)
+
+
+def _singular6_mp(b, piv, tol):
+    """The unique distribution (depths, weights) of singular B(b), or None if regular."""
+    D1, D2, D3 = piv
+    if not D1 > tol * b[2]:
+        return [b[1]], [mpmath.mpf(1)]
+    if not D2 > tol * max(b[4], D1):
+        y1, y2, v2 = _two_point_mp(b[1], b[2], b[3], D1)
+        return [y1, y2], [1 - v2, v2]
+    if not D3 > tol * max(b[6], D2):
+        B3 = mpmath.matrix([[b[i + j] for j in range(3)] for i in range(3)])
+        a = mpmath.lu_solve(B3, mpmath.matrix([-b[3], -b[4], -b[5]]))
+        zs = _real_roots([1, a[2], a[1], a[0]])
+        return zs, _vandermonde_weights(zs, b[0:3])
+    return None
+
+
+def _canonical6_mp(b, zf, tol):
+    """((zf, z1, z2, z3), (w0, w1, w2, w3)) for b = [1, b1..b6] mpmath scalars."""
+    piv = _pivots6_mp(b)
+    sing = _singular6_mp(b, piv, tol)
+    if sing is not None:
+        zs, ws = sing
+        zs = list(zs) + [mpmath.inf] * (3 - len(zs))
+        ws = list(ws) + [mpmath.mpf(0)] * (3 - len(ws))
+        w0 = mpmath.fsum(w for z, w in zip(zs, ws) if z == zf)
+        ws = [mpmath.mpf(0) if z == zf else w for z, w in zip(zs, ws)]
+        return [zf] + zs, [w0] + ws
+    B = mpmath.matrix([[b[i + j] for j in range(4)] for i in range(4)])
+    q = mpmath.lu_solve(B, mpmath.matrix([1, zf, zf**2, zf**3]))
+    if q[3] == 0:  # a root at infinity, weight 0
+        zs = _real_roots([q[2], q[1], q[0]]) + [mpmath.inf]
+        w = _vandermonde_weights([zf] + zs[:2], b[0:3])
+        return [zf] + zs, w + [mpmath.mpf(0)]
+    zs = _real_roots([q[3], q[2], q[1], q[0]])
+    w = _vandermonde_weights([zf] + zs, b[0:4])
+    return [zf] + zs, w
+
+
+def _bounds6_mp(b, zf, tol):
+    depths, weights = _canonical6_mp(b, zf, tol)
+    lower = mpmath.fsum(w for z, w in zip(depths[1:], weights[1:]) if z < zf)
+    upper = lower + weights[0]
+    clamp = lambda x: min(max(x, mpmath.mpf(0)), mpmath.mpf(1))  # saturate, as the kernel
+    return clamp(lower), clamp(upper)
+
+
+def _prepare6(b, zf):
+    b = real_input(b, "b", trailing=6)
+    zf = real_input(zf, "zf", dtype=b.dtype)
+    shape = broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
+    return np.broadcast_to(b, shape + (6,)), np.broadcast_to(zf, shape), shape
+
+
+def shadow_bounds6(b, zf, dps=DPS):
+    """mpmath twin of :func:`moments_ref.msm6.shadow_bounds` (six moments).
+
+    Parameters
+    ----------
+    b : (..., 6) float array
+        Moments b1..b6 (any float dtype; converted exactly).
+    zf : (...) float array
+        Fragment depth, broadcast against ``b[..., 0]``.
+    dps : int
+        Working precision in decimal digits.
+
+    Returns
+    -------
+    lower, upper : (...) float64 arrays
+        Sharp lower bound of Z(z < zf) and sharp upper bound of Z(z ≤ zf)
+        (exact Z of the unique distribution for singular B(b)).
+    """
+    dps = _check_dps(dps)
+    b, zf, shape = _prepare6(b, zf)
+    lower = np.empty(shape, dtype=np.float64)
+    upper = np.empty(shape, dtype=np.float64)
+    with mpmath.workdps(dps):
+        tol = _tol(dps)
+        for idx in np.ndindex(shape):
+            full = [mpmath.mpf(1)] + [_mp(v) for v in b[idx]]
+            lo, up = _bounds6_mp(full, _mp(zf[idx]), tol)
+            lower[idx], upper[idx] = float(lo), float(up)
+    return lower, upper
+
+
+def shadow_intensity6(b, zf, bound="lower", dps=DPS):
+    """mpmath twin of :func:`moments_ref.msm6.shadow_intensity`.
+
+    Returns
+    -------
+    intensity : (...) float64 array in [0, 1]
+
+    Examples
+    --------
+    >>> shadow_intensity6([[0.0, 0.25, 0.0, 0.0625, 0.0, 0.015625]], [0.0])
+    array([0.5])
+    """
+    if bound not in ("lower", "upper"):
+        raise InputError(f"bound: expected 'lower' or 'upper', got {bound!r}")
+    lower, upper = shadow_bounds6(b, zf, dps=dps)
+    return lower if bound == "lower" else upper
+
+
+def canonical_representation6(b, zf, dps=DPS):
+    """mpmath twin of :func:`moments_ref.msm6.canonical_representation`.
+
+    Returns
+    -------
+    depths : (..., 4) float64 array
+        ``(zf, z1, z2, z3)`` ascending after zf (+inf for an unused or infinite root).
+    weights : (..., 4) float64 array
+        From the Vandermonde system of the canonical representation.
+    """
+    dps = _check_dps(dps)
+    b, zf, shape = _prepare6(b, zf)
+    depths = np.empty(shape + (4,), dtype=np.float64)
+    weights = np.empty(shape + (4,), dtype=np.float64)
+    with mpmath.workdps(dps):
+        tol = _tol(dps)
+        for idx in np.ndindex(shape):
+            full = [mpmath.mpf(1)] + [_mp(v) for v in b[idx]]
+            d, w = _canonical6_mp(full, _mp(zf[idx]), tol)
+            depths[idx] = [float(x) for x in d]
+            weights[idx] = [float(x) for x in w]
+    return depths, weights

@@ -1,0 +1,335 @@
+"""Six-moment bounds (moments_ref.msm6) checked by independent means.
+
+References, none of them msm6 itself: the exact Z of the drawn distribution
+(strategies.exact_shadow), the mpmath twin (precise.shadow_bounds6: lu_solve,
+polyroots, Vandermonde at 50 digits), a linear program over distributions on a
+grid (HiGHS), and the fact that at most three depths are the unique distribution
+with their six moments.
+
+Tolerances:
+
+* ALPHA = BIAS6_FLOAT64.alpha (float64), ALPHA32 = BIAS6_FLOAT32.alpha (float32):
+  biased moments are those of (1 − α) Z + α Z* (Z* the five-point target), so the
+  sharp lower bound is at most Z(z < zf) + α.
+* float32 bracket: ALPHA32 + 1e-3 (msm6 docstring: worst excess measured 6.9e-4
+  with zf at and next to support points; 1.0 with α = 3e-7, which
+  test_float32_needs_stronger_bias keeps).
+* float64 against precise: 1e-8 (measured worst over 300 random biased cases
+  3.1e-12; near support points the roots are ill-conditioned, stated with margin).
+* float32 against precise away (≥ 0.05) from support points: 2e-2 (measured worst
+  1.3e-3 on 300 random cases).
+"""
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from scipy.optimize import linprog
+
+from moments_ref import InputError, msm, msm6, precise
+from moments_ref.moments import bias_moments, power_moments
+from moments_ref.strategies import depth_distributions, depths, exact_shadow
+
+ALPHA = msm6.BIAS6_FLOAT64.alpha
+ALPHA32 = msm6.BIAS6_FLOAT32.alpha
+F64_VS_PRECISE = 1e-8
+F32_VS_PRECISE_FAR = 2e-2
+F32_SLACK = ALPHA32 + 1e-3
+
+
+def _zf_candidates(z, zf):
+    zs = [zf] + list(z) + list(np.nextafter(z, 2.0)) + list(np.nextafter(z, -2.0))
+    return np.clip(np.asarray(zs, dtype=np.float64), -1, 1)
+
+
+def check_bounds(fn, z, w, zf, dtype, slack):
+    """lower ≤ Z(z < zf) ≤ Z(z ≤ zf) ≤ upper up to ``slack`` for biased six moments."""
+    preset = msm6.BIAS6_FLOAT32 if dtype == np.float32 else msm6.BIAS6_FLOAT64
+    b = bias_moments(power_moments(z, w, n=6).astype(dtype), preset)
+    zf_d = zf.astype(dtype)
+    zf_x = zf_d.astype(np.float64)
+    lower, upper = (np.asarray(x, dtype=np.float64) for x in fn(b, zf_d))
+    z_lt, z_le = exact_shadow(z, w, zf_x), exact_shadow(z, w, zf_x, strict=False)
+    assert np.isfinite(lower).all() and np.isfinite(upper).all()
+    assert (lower <= z_lt + slack).all(), (zf_d, lower, z_lt)
+    assert (z_le <= upper + slack).all(), (zf_d, upper, z_le)
+    assert (lower <= upper).all()
+
+
+# ---------------------------------------------------------------------------
+# bounds bracket the truth
+
+
+@given(depth_distributions(), depths())
+def test_bounds_biased_float64(dist, zf):
+    z, w = dist
+    check_bounds(msm6.shadow_bounds, z, w, _zf_candidates(z, zf), np.float64, ALPHA + 1e-9)
+
+
+@given(depth_distributions(), depths())
+def test_bounds_biased_float32(dist, zf):
+    z, w = dist
+    check_bounds(msm6.shadow_bounds, z, w, _zf_candidates(z, zf), np.float32, F32_SLACK)
+
+
+@settings(max_examples=25)
+@given(depth_distributions(max_points=6), depths())
+def test_bounds_biased_precise(dist, zf):
+    z, w = dist
+    check_bounds(precise.shadow_bounds6, z, w, _zf_candidates(z, zf)[:4], np.float64, ALPHA + 1e-15)
+
+
+def test_float32_needs_stronger_bias():
+    # Z = ¼ δ−1 + ½ δ0 + ¼ δ1, zf = 1: Z(z < zf) = 0.75. With α = 3e-7 the float32 pivot D3
+    # drowns in rounding and the lower bound comes out 1.0; BIAS6_FLOAT32 keeps it bracketed.
+    z, w = np.array([-1.0, 0.0, 1.0]), np.array([0.25, 0.5, 0.25])
+    b32 = power_moments(z, w, n=6).astype(np.float32)
+    weak = msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT64), np.float32(1.0))
+    assert weak > 0.75 + 0.1
+    assert msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT32), np.float32(1.0)) <= 0.75 + F32_SLACK
+
+
+def test_bounds_check_has_power():
+    # Mutant: reporting the upper bound as the lower one is caught.
+    z, w = np.array([-0.5, 0.2, 0.7, 0.9]), np.array([0.3, 0.3, 0.2, 0.2])
+    mutant = lambda b, zf: (msm6.shadow_bounds(b, zf)[1],) * 2
+    with pytest.raises(AssertionError):
+        check_bounds(mutant, z, w, _zf_candidates(z, 0.0), np.float64, ALPHA)
+
+
+@given(st.lists(st.floats(-1, 1), min_size=1, max_size=3, unique=True), st.floats(-1, 1))
+def test_at_most_three_depths_are_exact(zs, zf):
+    # Unique distribution: both bounds equal Z (away from the support points by 1e-6).
+    z = np.array(zs)
+    assume(np.abs(z - zf).min() >= 1e-6)
+    if len(z) > 1:
+        assume(np.diff(np.sort(z)).min() >= 1e-2)  # well separated: pivots far from rounding
+    w = np.full(len(z), 1 / len(z))
+    b = power_moments(z, w, n=6)
+    lo, up = msm6.shadow_bounds(b, zf)
+    assert lo == pytest.approx(exact_shadow(z, w, zf), abs=1e-6)
+    assert up == pytest.approx(exact_shadow(z, w, zf, strict=False), abs=1e-6)
+
+
+# ---------------------------------------------------------------------------
+# canonical representation
+
+
+@given(depth_distributions(min_points=4), depths())
+def test_canonical_reproduces_moments(dist, zf):
+    z, w = dist
+    b = bias_moments(power_moments(z, w, n=6), msm6.BIAS6_FLOAT64)
+    d, wt = msm6.canonical_representation(b, zf)
+    assert d.shape == (4,) and (wt >= -1e-12).all()
+    finite = np.isfinite(d)
+    assert (wt[~finite] == 0).all()
+    assume(np.abs(d[finite]).max() <= 3)
+    dd = np.where(finite, d, 0.0)
+    full = [1.0] + b.tolist()
+    for k in range(7):
+        scale = (wt * np.abs(dd) ** k).sum()
+        assert abs((wt * dd**k).sum() - full[k]) <= 1e-7 * max(scale, 1.0), k
+
+
+def test_canonical_against_precise():
+    rng = np.random.default_rng(4)
+    z, w = rng.uniform(-1, 1, (40, 5)), rng.uniform(0.1, 1, (40, 5))
+    b = bias_moments(power_moments(z, w, n=6), msm6.BIAS6_FLOAT64)
+    zf = rng.uniform(-1, 1, 40)
+    d, wt = msm6.canonical_representation(b, zf)
+    dx, wx = precise.canonical_representation6(b, zf)
+    np.testing.assert_allclose(wt, wx, atol=1e-9)
+    big = np.abs(dx) < 5
+    np.testing.assert_allclose(d[big], dx[big], atol=1e-8)
+
+
+def test_canonical_check_has_power():
+    b = bias_moments(power_moments(np.array([-0.5, 0.2, 0.7, 0.9]), np.array([0.3, 0.3, 0.2, 0.2]), n=6),
+                     msm6.BIAS6_FLOAT64)
+    d, w = msm6.canonical_representation(b, 0.1)
+    w = w[[0, 2, 1, 3]]  # mutant: two weights swapped
+    assert abs((w * d).sum() - b[0]) > 1e-3
+
+
+# ---------------------------------------------------------------------------
+# sharpness: the lower bound is the minimum of a linear program over distributions
+
+
+def _lp_lower(b, zf, grid):
+    A = np.vander(grid, 7, increasing=True).T
+    res = linprog((grid < zf).astype(float), A_eq=A, b_eq=np.concatenate([[1.0], b]), bounds=(0, None),
+                  method="highs", options={"primal_feasibility_tolerance": 1e-10,
+                                           "dual_feasibility_tolerance": 1e-10})
+    assert res.status == 0, res.message
+    return res.fun
+
+
+SHARP_CASES = [
+    ([-0.8, -0.1, 0.4, 0.9], [0.3, 0.2, 0.3, 0.2], 0.1),
+    ([-0.5, 0.0, 0.3, 0.6, 0.8], [0.2, 0.2, 0.2, 0.2, 0.2], 0.45),
+]
+SHARP_ALPHA = 0.05
+GRIDS = (201, 801, 3201)
+LP_FINAL_TOL = 5e-3
+
+
+def _grid(n):
+    return np.linspace(-3, 3, n) + (6 / (n - 1)) * (np.sqrt(2) - 1)
+
+
+@pytest.mark.parametrize("z, w, zf", SHARP_CASES)
+def test_lower_bound_is_sharp(z, w, zf):
+    b = bias_moments(power_moments(np.array(z), np.array(w), n=6), (SHARP_ALPHA, msm6.BIAS6_TARGET))
+    exact = float(precise.shadow_intensity6(b, zf))
+    d, _ = precise.canonical_representation6(b, zf)
+    assert np.abs(d).max() < 3
+    gaps = []
+    for n in GRIDS:
+        lp = _lp_lower(b, zf, _grid(n))
+        assert lp >= exact - 1e-7  # grid distributions are a subset
+        gaps.append(lp - exact)
+    assert gaps[-1] <= LP_FINAL_TOL, gaps
+    assert gaps[-1] <= 0.5 * gaps[0] + 1e-9, gaps
+    assert float(msm6.shadow_intensity(b, zf)) == pytest.approx(exact, abs=1e-9)
+
+
+def test_sharpness_check_has_power():
+    z, w, zf = SHARP_CASES[0]
+    b = bias_moments(power_moments(np.array(z), np.array(w), n=6), (SHARP_ALPHA, msm6.BIAS6_TARGET))
+    assert float(msm6.shadow_intensity(b, zf)) + 0.02 > _lp_lower(b, zf, _grid(GRIDS[-1]))
+
+
+# ---------------------------------------------------------------------------
+# float32 / float64 against precise
+
+
+@settings(max_examples=30)
+@given(depth_distributions(kind="random", min_points=2), depths())
+def test_float64_matches_precise(dist, zf):
+    z, w = dist
+    b = bias_moments(power_moments(z, w, n=6), msm6.BIAS6_FLOAT64)
+    zf = np.array([zf, *(np.clip(z + 1e-3, -1, 1))])
+    lo, up = msm6.shadow_bounds(b, zf)
+    plo, pup = precise.shadow_bounds6(b, zf)
+    np.testing.assert_allclose(lo, plo, atol=F64_VS_PRECISE)
+    np.testing.assert_allclose(up, pup, atol=F64_VS_PRECISE)
+
+
+@settings(max_examples=30)
+@given(depth_distributions(kind="random", min_points=2), st.floats(-1, 1))
+def test_float32_matches_precise_away_from_support(dist, zf):
+    z, w = dist
+    assume(np.abs(z - zf).min() >= 0.05)
+    b = bias_moments(power_moments(z, w, n=6).astype(np.float32), msm6.BIAS6_FLOAT32)
+    zf32 = np.float32(zf)
+    lo, up = msm6.shadow_bounds(b, zf32)
+    assert lo.dtype == np.float32 and up.dtype == np.float32
+    plo, pup = precise.shadow_bounds6(b, zf32)
+    assert abs(float(lo) - float(plo)) <= F32_VS_PRECISE_FAR
+    assert abs(float(up) - float(pup)) <= F32_VS_PRECISE_FAR
+
+
+# ---------------------------------------------------------------------------
+# stiff input, singular branches, dispatch, bad input
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+def test_stiff_inputs_never_nonfinite(dt):
+    rng = np.random.default_rng(7)
+    cases = []
+    for k in (1, 2, 3, 4, 6):  # 1–3 depths: singular; clustered depths: nearly singular
+        for spread in (0.0, 1e-7, 1e-4, 1e-2, 1.0):
+            c = rng.uniform(-1, 1, (50, 1))
+            z = np.clip(c + spread * rng.uniform(-1, 1, (50, k)), -1, 1)
+            cases.append(power_moments(z, rng.uniform(0.01, 1, (50, k)), n=6))
+    b = np.concatenate(cases).astype(dt)
+    b = np.concatenate([b, b + dt(1e-3) * rng.standard_normal(b.shape).astype(dt)])  # partly outside
+    zf = rng.uniform(-1, 1, b.shape[0]).astype(dt)
+    zf[::3] = b[::3, 0]  # zf at the mean
+    for biased in (False, True):
+        bb = bias_moments(b, msm6.BIAS6_FLOAT32 if dt == np.float32 else msm6.BIAS6_FLOAT64) if biased else b
+        with np.errstate(all="raise"):
+            lo, up = msm6.shadow_bounds(bb, zf)
+        assert lo.dtype == dt
+        assert np.isfinite(lo).all() and np.isfinite(up).all()
+        assert ((0 <= lo) & (lo <= up) & (up <= 1)).all()
+        d, w = msm6.canonical_representation(bb, zf)
+        assert np.isfinite(w).all()
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+def test_degenerate_vectors(dt):
+    b = np.array([
+        [0.0] * 6,  # one depth at 0
+        [1.0] * 6,  # one depth at 1
+        [0.0, 1.0, 0.0, 1.0, 0.0, 1.0],  # ±1
+        [0.0, 0.25, 0.0, 0.0625, 0.0, 0.015625],  # ±1/2
+        [0.5, 0.2, 0.1, 0.05, 0.02, 0.01],  # D1 < 0: outside
+    ], dtype=dt)
+    zf = np.array([-1.0, -0.5, 0.0, 0.5, 1.0], dtype=dt)[:, None]
+    out = msm6.shadow_intensity(b, zf)
+    assert out.shape == (5, 5) and np.isfinite(out).all()
+    np.testing.assert_array_equal(out[:, 3], exact_shadow([-0.5, 0.5], [0.5, 0.5], zf[:, 0].astype(np.float64)))
+
+
+def test_singular_matches_precise():
+    b = power_moments(np.array([[-0.6, 0.1, 0.7], [-0.2, 0.4, 0.4]]), np.array([[0.2, 0.5, 0.3], [0.5, 0.3, 0.2]]), n=6)
+    zf = np.array([-0.7, -0.3, 0.0, 0.3, 0.55, 0.8])[:, None]
+    for bound in ("lower", "upper"):
+        np.testing.assert_allclose(msm6.shadow_intensity(b, zf, bound), precise.shadow_intensity6(b, zf, bound),
+                                   atol=1e-9)
+
+
+def test_msm_dispatches_six_moments():
+    rng = np.random.default_rng(9)
+    b6 = bias_moments(power_moments(rng.uniform(-1, 1, (20, 5)), n=6), msm6.BIAS6_FLOAT64)
+    zf = rng.uniform(-1, 1, 20)
+    np.testing.assert_array_equal(msm.shadow_intensity(b6, zf), msm6.shadow_intensity(b6, zf))
+    np.testing.assert_array_equal(msm.shadow_intensity(b6, zf, "upper"), msm6.shadow_intensity(b6, zf, "upper"))
+    d, w = msm.canonical_representation(b6, zf)
+    assert d.shape == (20, 4) and w.shape == (20, 4)
+    # the four-moment path is unchanged: three-point canonical representation
+    d4, w4 = msm.canonical_representation(b6[:, :4], zf)
+    assert d4.shape == (20, 3)
+    # six moments carry more information: for four depths the six-moment bounds are tighter
+    z = np.array([-0.7, -0.2, 0.3, 0.8])
+    b = power_moments(z, n=6)
+    gap6 = msm.shadow_intensity(b, 0.1, "upper") - msm.shadow_intensity(b, 0.1)
+    gap4 = msm.shadow_intensity(b[:4], 0.1, "upper") - msm.shadow_intensity(b[:4], 0.1)
+    assert gap6 < gap4
+
+
+def test_bad_input():
+    with pytest.raises(InputError, match="trailing axis"):
+        msm6.shadow_intensity(np.zeros(5), 0.0)
+    with pytest.raises(InputError, match="trailing axis of length 4"):
+        msm.shadow_intensity(np.zeros(5), 0.0)
+    with pytest.raises(InputError, match="finite"):
+        msm6.shadow_intensity([0, 0.1, 0, np.nan, 0, 0.1], 0.0)
+    with pytest.raises(InputError, match="bound"):
+        msm.shadow_intensity(np.zeros(6), 0.0, bound="middle")
+    with pytest.raises(InputError, match="zf"):
+        msm6.shadow_intensity(np.zeros((3, 6)), np.zeros(4))
+    with pytest.raises(InputError):
+        precise.shadow_intensity6(np.zeros(4), 0.0)
+
+
+def test_broadcasting_and_dtype():
+    b = power_moments(np.array([-0.5, 0.1, 0.6, 0.9]), n=6)
+    zf = np.linspace(-1, 1, 7).reshape(7, 1)
+    out = msm6.shadow_intensity(b, zf)
+    assert out.shape == (7, 1)
+    assert msm6.shadow_intensity(b.astype(np.float32), zf).dtype == np.float32
+    elementwise = np.array([msm6.shadow_intensity(b, z) for z in zf[:, 0]])
+    np.testing.assert_array_equal(out[:, 0], elementwise)
+
+
+def test_cubic_solver_measurement():
+    m = msm6.cubic_solver_benchmark(n=2000, reference=30)
+    assert m["trig_max_rel_err"] < 1e-10 and m["eig_max_rel_err"] < 1e-10
+
+
+def test_unorm10_bias_measurement():
+    share = msm6.measure_unorm10_bias(alphas=(1e-5, msm6.BIAS6_UNORM10.alpha, 5e-3), n=1000)
+    assert share[1e-5] < share[msm6.BIAS6_UNORM10.alpha] <= share[5e-3]
+    assert share[msm6.BIAS6_UNORM10.alpha] > 0.6
