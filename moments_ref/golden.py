@@ -268,6 +268,32 @@ def _phi_rows(rng, dtype):
     return Rows.concat(parts)
 
 
+def _msm6_rows(rng, dtype):
+    """Rows for the six-moment bounds (slides, prefiltered single scattering): (b (n, 6), zf)."""
+    from .msm6 import BIAS6_FLOAT32, BIAS6_FLOAT64
+
+    bias = BIAS6_FLOAT32 if dtype == np.float32 else BIAS6_FLOAT64
+    z, w = _random_distributions(rng, 150, 5, 8)
+    parts = [_rows({"b": bias_moments(power_moments(z, w, n=6), bias), "zf": rng.uniform(-1, 1, 150)}, "random",
+                   f"5 to 8 random depths, {bias.name} bias (alpha = {bias.alpha:g})")]
+    for spread in (0.0, 1e-4, 1e-2):
+        zc = np.clip(0.3 + spread * rng.uniform(-1, 1, (4, 6)), -1, 1)
+        b = bias_moments(power_moments(zc, n=6), bias)
+        parts.append(_rows({"b": b, "zf": b[:, 0]}, "stiff",
+                           f"six depths within {spread:g} of 0.3, {bias.name} bias, zf = b1"))
+    zs = np.array([-1.0, 0.0, 1.0])
+    b3 = bias_moments(power_moments(zs, n=6), bias)
+    zf = np.array([-1.0, 0.0, 1.0, 1e-6, -0.5])
+    parts.append(_rows({"b": np.repeat(b3[None], len(zf), 0), "zf": zf}, "stiff",
+                       [f"three depths -1, 0, 1 (nearly singular 4×4 Hankel matrix), zf = {x:g}" for x in zf]))
+    z, w = _random_distributions(rng, 4, 5, 8)
+    be = bias_moments(power_moments(z, w, n=6), bias)
+    zf = np.array([-1.0, 1.0, -3.0, 3.0])
+    parts.append(_rows({"b": np.repeat(be, len(zf), 0), "zf": np.tile(zf, len(be))}, "edge",
+                       [f"random distribution, zf = {x:g} at or beyond the depth range" for x in np.tile(zf, len(be))]))
+    return Rows.concat(parts)
+
+
 def _random_representations(rng, n):
     y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
     v2 = rng.uniform(0.01, 0.99, n)
@@ -427,6 +453,11 @@ def _cases():
             Case(f"decode_r10g10b10a2-{dt}", "affine.decode_r10g10b10a2", dt, ("p",), ("b",), _r10_rows,
                  _wrap("affine.decode_r10g10b10a2"), integer_inputs=_U32,
                  description="six moments from 2×R10G10B10A2_UNORM"),
+            *[Case(f"shadow_intensity6-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
+                   _msm6_rows, _msm_reference(bound), _precise("shadow_intensity6", bound=bound), {"bound": bound},
+                   description=f"six-moment {bound} bound (slides, 'Prefiltered single scattering'); b (n, 6); "
+                               "expected from the mpmath twin")
+              for bound in ("lower", "upper")],
             Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
                  _precise("phi"), description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
             Case(f"phi_inverse-{dt}", "nonlinear.phi_inverse", dt, ("r",), ("b",), _representation_rows,

@@ -60,7 +60,8 @@ def input_strategy(case):
     from .strategies import depth_distributions, depths, moment_vectors
 
     c = CASES[case]
-    n6 = c.function.endswith("6") or "r10g10b10a2" in c.function
+    stem = c.name.split("-")[0]
+    n6 = stem.endswith("6") or "r10g10b10a2" in stem
     parts = {}
     for name in c.inputs:
         if name == "b":

@@ -49,3 +49,10 @@ def test_bad_arguments():
         oracle.check(lambda b, zf: zf, "shadow_intensity-lower", dtype="float16")
     with pytest.raises(InputError, match="shape"):
         oracle.check(lambda b, zf: zf[:3], "shadow_intensity-lower", dtype="float64", n_hypothesis=0)
+
+
+def test_six_moment_case_with_hypothesis_rows():
+    rep = oracle.check(lambda b, zf: shadow_intensity(b, zf), "shadow_intensity6-lower", dtype="float64",
+                       n_hypothesis=10)
+    assert rep.passed, str(rep)
+    assert rep.worst_input["b"].shape == (6,)
