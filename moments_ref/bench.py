@@ -117,12 +117,65 @@ def _fn_raster(v, t, samples):
     return rasterize_depth(v, t, np.eye(4), 1024, samples=samples)
 
 
+def _setup_representation(size, dtype):
+    from .moments import BIAS_FLOAT32, bias_moments
+    from .nonlinear import phi
+
+    b, zf = _moments_input(size, "float64")
+    return phi(bias_moments(b, BIAS_FLOAT32)).astype(dtype), zf.astype(dtype)
+
+
+def _setup_phi(size, dtype):
+    return (_moments_input(size, dtype)[0],)
+
+
+def _setup_pack(size, dtype):
+    return (_setup_representation(size, dtype)[0],)
+
+
+def _setup_unpack32(size, dtype):
+    from .packing import pack32
+
+    return pack32(_setup_representation(size, "float64")[0]), np.dtype(dtype)
+
+
+def _fn_phi(b):
+    from .nonlinear import phi
+
+    return phi(b)
+
+
+def _fn_shade(r, zf):
+    from .nonlinear import shade
+
+    return shade(r, zf)
+
+
+def _fn_pack32(r):
+    from .packing import pack32
+
+    return pack32(r)
+
+
+def _fn_unpack32(p, dtype):
+    from .packing import unpack32
+
+    return unpack32(p, dtype=dtype)
+
+
 def _core_benchmarks():
     out = []
     for dt, w in (("float32", 4), ("float64", 8)):
         out.append(Benchmark("shadow_intensity", dt, _setup_msm, _fn_msm, 6 * w, "4 + 1 floats in, 1 out"))
         out.append(Benchmark("encode_unorm16", dt, _setup_encode, _fn_encode, 4 * w + 8, "4 floats in, 4 uint16 out"))
         out.append(Benchmark("decode_unorm16", dt, _setup_decode, _fn_decode, 8 + 4 * w, "4 uint16 in, 4 floats out"))
+    out += [
+        Benchmark("phi (Algorithm 2)", "float32", _setup_phi, _fn_phi, 32, "4 floats in, 4 out"),
+        Benchmark("shade (Algorithm 3)", "float32", _setup_representation, _fn_shade, 24,
+                  "5 floats in, 1 out; target 1/20 of the copy"),
+        Benchmark("pack32", "float32", _setup_pack, _fn_pack32, 20, "4 floats in, 1 uint32 out"),
+        Benchmark("unpack32", "float32", _setup_unpack32, _fn_unpack32, 20, "1 uint32 in, 4 floats out"),
+    ]
     for s in (1, 4):
         # Triangles in: 3 vertices of 4 float32 each; a 1024² map out, amortized per triangle.
         out.append(Benchmark(f"rasterize_depth {s}x MSAA", "float32", _setup_raster(s), _fn_raster, 48 + 16 * s,
