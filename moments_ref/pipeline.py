@@ -28,10 +28,57 @@ technique steps             e.g. ``resolve_moments`` (``compute_moments`` for a 
 ``shade_<technique>``       the technique's lookup for every receiver pixel
 ==========================  ======================================================
 
+Area-light outputs (:data:`AREA_OUTPUTS`: ``msm_soft``, ``pcss``, ``vwss``,
+``mvr``; only for a scene whose light is an :class:`~moments_ref.scene.AreaLight`)
+shade the same receiver pixels (``light_projection``) with the soft-shadow
+techniques and measure them against multi-view rasterization (MVR) with many
+light samples, the reference of VWSS §4. They reuse :mod:`moments_ref.vwss`
+and :mod:`moments_ref.techniques.msm_soft` (settings: :func:`area_settings`):
+
+==========================  ======================================================
+``area_center_view``        the light's centre view (``vwss.light_views`` with one
+                            sample: the projection, near and far)
+``area_center_depth_map``   one depth map from the light's centre
+                            (``LightSamples.center_view_proj()``), shared by
+                            msm_soft and PCSS
+``msm_soft_sat``            :func:`moments_ref.techniques.msm_soft.prepare`:
+                            linear depth, moments, summed-area table
+``shade_msm_soft``          :func:`moments_ref.techniques.msm_soft.shade_points`
+``shade_pcss``              :func:`moments_ref.vwss.pcss` (64-tap blocker search,
+                            96-tap PCF) on the centre map
+``vwss_light_samples``      the N Poisson-disk light samples and their views
+``vwss_points``             layered points from the enlarged source view (VWSS
+                            §3.1, :func:`moments_ref.vwss.generate_points`)
+``vwss_warp``               the points warped into the N light-sample maps
+                            (VWSS §3.2, :func:`moments_ref.vwss.warp.warp`)
+``shade_vwss``              5-tap PCF in every map, averaged
+                            (:func:`moments_ref.vwss.multiview_visibility`)
+``mvr_vwss``                the N light-sample maps rasterized (only for ``mvr``)
+``shade_mvr_vwss``          5-tap PCF in those maps
+``mvr_reference_vwss``      the reference: MVR with R light samples of their own
+                            Poisson set, each map shaded as it is rasterized
+                            (``vwss.compare._shade_multiview``)
+==========================  ======================================================
+
+The texel cost of ``msm_soft`` is ``area_center_depth_map + msm_soft_sat``, of
+``pcss`` the centre map, of ``vwss`` ``vwss_points + vwss_warp``, of ``mvr``
+``mvr_vwss``; the fragment cost is the ``shade_`` stage (choosing the light
+samples and views is set-up, counted in neither, like the camera G-buffer).
+Shadow intensity is
+``1 − visibility`` for these outputs and for the reference.
+
 :attr:`RunResult.stages` records the stages that ran, in order; a stage name
 contains ``translucen`` only for translucency work and ``vwss`` only for
-multi-view work (none of the techniques here does multi-view work; a
-registered technique with ``multiview`` is refused without an area light).
+multi-view work (the area-light stages that render or read several light-sample
+views), and there is no multi-view work without an area light: area-light
+outputs and registered techniques with ``multiview`` are refused for other
+lights.
+
+Scattering outputs (:data:`SCATTERING_OUTPUTS`, scene ``scattering``):
+:func:`run_scattering` takes the rows of
+:func:`moments_ref.techniques.scattering.report_rows` and names the stages that
+call ran (:func:`scattering_stages`), all starting with ``scattering_`` (or
+``shade_scattering_``).
 
 Lights. A directional light gets its fitted orthographic map (HPG17 §5). An area
 light (scene ``knot``) is used as a spot light from its centre by the hard-shadow
@@ -49,10 +96,20 @@ from ._arrays import InputError
 from .raster import project_points, rasterize_fragments
 from . import techniques as _techniques
 
-__all__ = ["GBuffer", "RunResult", "run", "plan", "reduced_settings", "check_scene"]
+__all__ = ["GBuffer", "RunResult", "run", "plan", "reduced_settings", "check_scene", "AREA_OUTPUTS",
+           "AREA_BITS_PER_TEXEL", "area_settings", "SCATTERING_OUTPUTS", "ScatteringResult", "scattering_stages",
+           "run_scattering"]
 
 #: kind image codes of :class:`GBuffer`.
 BACKGROUND, RECEIVER, OCCLUDER, OUTSIDE_LIGHT = 0, 1, 2, 3
+
+#: Outputs shaded under an area light against the MVR reference (module docstring).
+AREA_OUTPUTS = ("msm_soft", "pcss", "vwss", "mvr")
+#: Storage per texel: msm_soft four uint32 SAT channels; PCSS one float32 map; VWSS and
+#: MVR a float32 depth per texel of each of their N light-sample maps.
+AREA_BITS_PER_TEXEL = {"msm_soft": 128, "pcss": 32, "vwss": 32, "mvr": 32}
+#: Outputs of :func:`run_scattering` (rows of ``techniques.scattering.report_rows``).
+SCATTERING_OUTPUTS = ("scattering_6m", "scattering_6m_unfiltered", "raymarch")
 
 
 @dataclass
@@ -104,6 +161,9 @@ class RunResult:
     fragment_seconds : dict technique -> seconds of its ``shade_`` stage
     shadow_map_size : (H, W); msaa : int
     values : dict stage -> result (textures, maps) for inspection
+    bits_per_texel : dict technique -> storage per texel
+    area : dict, the settings of the area-light outputs (:func:`area_settings`
+        plus ``near``, ``far``, ``bias``), empty without them
     """
 
     scene: object
@@ -118,6 +178,8 @@ class RunResult:
     shadow_map_size: tuple
     msaa: int
     values: dict = field(repr=False, default_factory=dict)
+    bits_per_texel: dict = field(default_factory=dict)
+    area: dict = field(default_factory=dict)
 
 
 def check_scene(scene):
@@ -298,20 +360,146 @@ def _light_projection(g, view_proj, size):
                    uv=xy[inside], depth=depth[inside] - SLOPE_BIAS_TEXELS * slope, slope=slope)
 
 
+def _known_outputs():
+    return (f"known techniques: {', '.join(_techniques.names())}; area-light outputs: "
+            f"{', '.join(AREA_OUTPUTS)}")
+
+
+def _positive_int(value, name):
+    try:
+        v = int(value)
+        ok = v == value and v >= 1
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"area: expected {name} to be a positive integer, got {value!r}")
+    return v
+
+
+def area_settings(scene, full=False, *, map_size=None, light_samples=None, reference_views=None):
+    """Settings of the area-light outputs (msm_soft, PCSS, VWSS, MVR and the MVR reference).
+
+    Parameters
+    ----------
+    scene : Scene with an area light
+    full : bool
+        Paper scale (VWSS §4, Table 1): maps of the scene's ``shadow_map_size``
+        (knot: 1024²), a reference of 512 light samples. Otherwise the reduced
+        run: maps of :func:`reduced_settings` (knot: 512²), 64 reference samples.
+    map_size, light_samples, reference_views : int, optional
+        Overrides. ``light_samples`` (N, the VWSS and MVR maps) defaults to the
+        scene's ``params.light_samples`` or 24 (VWSS Table 1) in both modes.
+
+    Returns
+    -------
+    dict with ``map_size``, ``light_samples``, ``reference_views``,
+    ``views_per_pass`` (8, warp passes as ``moments-ref vwss``) and ``seed`` (0;
+    the reference uses ``seed + 1000``, as :func:`moments_ref.vwss.compare.run_detailed`).
+    """
+    size = tuple(scene.shadow_map_size) if full else reduced_settings(scene)[0]
+    cfg = {"map_size": int(max(size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),
+           "reference_views": 512 if full else 64, "views_per_pass": 8, "seed": 0}
+    for key, val in (("map_size", map_size), ("light_samples", light_samples),
+                     ("reference_views", reference_views)):
+        if val is not None:
+            cfg[key] = _positive_int(val, key)
+    return cfg
+
+
+def _add_area_stages(g, scene, names, size, area, reference):
+    """Add the area-light stages (module docstring) for ``names`` ⊆ AREA_OUTPUTS; return (info, cfg)."""
+    from .raster import rasterize_depth
+    from .techniques import msm_soft
+    from .vwss import depth_range, generate_points, light_views, multiview_visibility, pcss, source_view
+    from .vwss.compare import _mvr_iter, _shade_multiview
+    from .vwss.mvr import mvr
+    from .vwss.warp import warp
+
+    cfg = {"map_size": int(max(size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),
+           "reference_views": 64, "views_per_pass": 8, "seed": 0, "bias": None}
+    unknown = set(area or {}) - set(cfg)
+    if unknown:
+        raise InputError(f"area: unknown settings {sorted(unknown)}; known: {', '.join(cfg)}")
+    cfg.update({k: v for k, v in (area or {}).items() if v is not None})
+    for key in ("map_size", "light_samples", "reference_views", "views_per_pass"):
+        cfg[key] = _positive_int(cfg[key], key)
+    light = scene.light
+    occ = scene.occluder_mesh(translucent=False)
+    near, far = depth_range(light, occ.vertices, scene.receiver.vertices)
+    # World-space depth bias along the light normal: the default of `moments-ref vwss`.
+    bias = 0.002 * far if cfg["bias"] is None else float(cfg["bias"])
+    cfg.update({"near": near, "far": far, "bias": bias})
+    m, n_views, seed = cfg["map_size"], cfg["light_samples"], int(cfg["seed"])
+
+    def centre_map(ls1):
+        return ls1, rasterize_depth(occ.vertices, occ.triangles, ls1.center_view_proj(), m)[0]
+
+    def reference_visibility(gb):
+        ls_ref = light_views(light, cfg["reference_views"], near, far, seed=seed + 1000)
+        vis, _, _, _ = _shade_multiview(_mvr_iter(occ.vertices, occ.triangles, ls_ref, m, False), gb.position,
+                                        ls_ref, bias, None)
+        return 1.0 - vis
+
+    info = {}
+    ref = None
+    if reference:
+        ref = g.add("mvr_reference_vwss", ("light_projection",), reference_visibility)
+    if {"msm_soft", "pcss"} & set(names):
+        # One light sample is enough: only the shared projection, near and far are used.
+        g.add("area_center_view", (), lambda: light_views(light, 1, near, far, seed=seed))
+        g.add("area_center_depth_map", ("area_center_view",), centre_map)
+    if {"vwss", "mvr"} & set(names):
+        g.add("vwss_light_samples", (), lambda: light_views(light, n_views, near, far, seed=seed))
+    for name in names:
+        if name == "msm_soft":
+            g.add("msm_soft_sat", ("area_center_depth_map",),
+                  lambda c: msm_soft.prepare(c[1], c[0].light, c[0].center_view_proj()))
+            g.add("shade_msm_soft", ("area_center_depth_map", "msm_soft_sat", "light_projection"),
+                  lambda c, tex, gb: 1.0 - msm_soft.shade_points(c[0], tex, gb.position, bias=bias))
+            steps = ["area_center_depth_map", "msm_soft_sat"]
+        elif name == "pcss":
+            g.add("shade_pcss", ("area_center_depth_map", "light_projection"),
+                  lambda c, gb: 1.0 - pcss(gb.position, c[1][..., 0], c[0], bias))
+            steps = ["area_center_depth_map"]
+        elif name == "vwss":
+            # Layered points of the enlarged source view (VWSS Eqs. (1)-(3), back faces culled).
+            g.add("vwss_points", ("vwss_light_samples",),
+                  lambda ls: generate_points(occ.vertices, occ.triangles, source_view(ls, m)))
+            g.add("vwss_warp", ("vwss_points", "vwss_light_samples"),
+                  lambda pc, ls: warp(pc.positions, ls, m, cfg["views_per_pass"]))
+            g.add("shade_vwss", ("vwss_warp", "vwss_light_samples", "light_projection"),
+                  lambda maps, ls, gb: 1.0 - multiview_visibility(gb.position, maps, ls, bias))
+            steps = ["vwss_points", "vwss_warp"]
+        else:  # mvr: the same N light samples rasterized
+            g.add("mvr_vwss", ("vwss_light_samples",), lambda ls: mvr(occ.vertices, occ.triangles, ls, m)[0])
+            g.add("shade_mvr_vwss", ("mvr_vwss", "vwss_light_samples", "light_projection"),
+                  lambda maps, ls, gb: 1.0 - multiview_visibility(gb.position, maps, ls, bias))
+            steps = ["mvr_vwss"]
+        shade = "shade_mvr_vwss" if name == "mvr" else f"shade_{name}"
+        info[name] = {"steps": steps, "shade": shade, "reference": ref}
+    return info, cfg
+
+
 def plan(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None, reference=True,
-         noise_tiles=64, frame=0, params=None):
+         noise_tiles=64, frame=0, params=None, area=None):
     """Build the stage graph; return ``(graph, targets, info)`` without running anything.
 
     Parameters as :func:`run`. ``info`` maps each technique to its texture-step
     names, its shade stage and its reference stage.
     """
     check_scene(scene)
-    names = list(scene.outputs) if outputs is None else list(outputs)
+    names = list(dict.fromkeys(scene.outputs if outputs is None else outputs))
     if not names:
-        raise InputError(f"outputs: scene {scene.name!r} requests no outputs; known techniques: "
-                         f"{', '.join(_techniques.names())}")
-    techs = [_techniques.get(n) for n in names]
+        raise InputError(f"outputs: scene {scene.name!r} requests no outputs; {_known_outputs()}")
     light_kind = getattr(scene.light, "kind", "directional")
+    for n in names:
+        if n not in AREA_OUTPUTS and n not in _techniques.TECHNIQUES:
+            raise InputError(f"technique: unknown technique {n!r}; {_known_outputs()}")
+    area_names = [n for n in names if n in AREA_OUTPUTS]
+    if area_names and light_kind != "area":
+        raise InputError(f"outputs: {', '.join(map(repr, area_names))} need an area light (soft shadows against "
+                         f"multi-view rasterization); scene {scene.name!r} has a {light_kind} light")
+    techs = [_techniques.get(n) for n in names if n not in AREA_OUTPUTS]
     for t in techs:
         if light_kind not in t.light_kinds or (t.multiview and light_kind != "area"):
             raise InputError(f"outputs: technique {t.name!r} needs a light of kind {' or '.join(t.light_kinds)}"
@@ -376,13 +564,25 @@ def plan(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=Non
                   (lambda b: lambda maps, gb: _techniques.pcf.pcf_filtered(maps, gb.uv, gb.depth - b))(t.depth_bias))
             targets.append(ref)
         info[t.name] = {"steps": step_names, "shade": shade, "reference": ref}
-    meta = {"size": size, "samples": samples, "resolution": res, "info": info,
-            "techniques": [t.name for t in techs]}
+    bits = {t.name: t.bits_per_texel for t in techs}
+    area_cfg = {}
+    if area_names:
+        area_info, area_cfg = _add_area_stages(g, scene, area_names, size, area, reference)
+        for n in area_names:
+            i = area_info[n]
+            targets.append(i["shade"])
+            if i["reference"]:
+                targets.append(i["reference"])
+            info[n] = i
+            bits[n] = AREA_BITS_PER_TEXEL[n]
+    order = [n for n in names if n in info]
+    meta = {"size": size, "samples": samples, "resolution": res, "info": {n: info[n] for n in order},
+            "techniques": order, "bits_per_texel": bits, "area": area_cfg}
     return g, list(dict.fromkeys(targets)), meta
 
 
 def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None, reference=True,
-        noise_tiles=64, frame=0, params=None, progress=False):
+        noise_tiles=64, frame=0, params=None, area=None, progress=False):
     """Compute the requested techniques' shadows on a scene's camera view, lazily.
 
     Parameters
@@ -390,7 +590,8 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
     scene : Scene or str
         A loaded scene, a shipped scene name or a scene file path.
     outputs : list of str, optional
-        Technique names (default: the scene's ``outputs``). Unknown names raise
+        Technique names and area-light outputs (:data:`AREA_OUTPUTS`; default:
+        the scene's ``outputs``). Unknown names raise
         :class:`~moments_ref.InputError` listing the known ones.
     shadow_map_size : int or (H, W), optional
         Default: the scene's.
@@ -407,6 +608,12 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
         Frame number selecting the blue-noise tile and offsets.
     params : dict, optional
         Overrides of the scene's ``params`` passed to the technique steps.
+    area : dict, optional
+        Settings of the area-light outputs (:data:`AREA_OUTPUTS`): ``map_size``
+        (default the larger side of ``shadow_map_size``), ``light_samples`` (N,
+        default ``params.light_samples`` or 24), ``reference_views`` (R, default
+        64), ``views_per_pass`` (8), ``seed`` (0) and ``bias`` (world units,
+        default ``0.002 · far``); see :func:`area_settings`.
     progress : bool
         Show a tqdm progress bar of the stages on stderr.
 
@@ -419,7 +626,7 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
 
         scene = load_scene(scene)
     g, targets, meta = plan(scene, outputs, shadow_map_size=shadow_map_size, msaa=msaa, resolution=resolution,
-                            reference=reference, noise_tiles=noise_tiles, frame=frame, params=params)
+                            reference=reference, noise_tiles=noise_tiles, frame=frame, params=params, area=area)
     order, values, seconds = g.run(targets, progress=progress, desc=scene.name)
     info = meta["info"]
     gb = values["light_projection"]
@@ -429,4 +636,100 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
     frag = {n: float(seconds[i["shade"]]) for n, i in info.items()}
     return RunResult(scene=scene, techniques=meta["techniques"], stages=order, seconds=seconds, gbuffer=gb,
                      shadow=shadow, reference=ref, texel_seconds=texel, fragment_seconds=frag,
-                     shadow_map_size=meta["size"], msaa=meta["samples"], values=values)
+                     shadow_map_size=meta["size"], msaa=meta["samples"], values=values,
+                     bits_per_texel=meta["bits_per_texel"], area=meta["area"])
+
+
+# ---------------------------------------------------------------------------
+# Prefiltered single scattering (rows of techniques.scattering.report_rows)
+
+
+@dataclass
+class ScatteringResult:
+    """What :func:`run_scattering` computed.
+
+    Attributes
+    ----------
+    rows : list of dict with the columns of :data:`moments_ref.report.COLUMNS`
+    images : dict name -> (H, W) scattering term (``reference`` included)
+    t_max : float, the normalization of the scattering term (longest view ray)
+    stages : list of str, the stages ``report_rows`` ran (:func:`scattering_stages`)
+    seconds : float, wall-clock seconds of the whole call
+    settings : dict, the settings used
+    """
+
+    rows: list
+    images: dict
+    t_max: float
+    stages: list
+    seconds: float
+    settings: dict
+
+
+def scattering_stages(samples):
+    """Names of the stages :func:`moments_ref.techniques.scattering.report_rows` runs, in order.
+
+    ``scattering_raster_shadow_map`` (the light's MSAA map), ``scattering_camera_rays``,
+    ``scattering_raymarch_reference`` (ray marching with the reference sample
+    count), per six-moment technique its texture steps (``Technique.steps``; the
+    shared names ``resolve_moments``/``compute_moments`` and ``blur_moments`` get the
+    prefix ``scattering_`` since they run again inside that call) and its lookup
+    ``shade_<technique>``, then ``scattering_raymarch`` (the slides' 128 samples).
+    """
+    from .techniques.scattering import SCATTERING_TECHNIQUES
+
+    out = ["scattering_raster_shadow_map", "scattering_camera_rays", "scattering_raymarch_reference"]
+    for name, tech in SCATTERING_TECHNIQUES.items():
+        for step in tech.steps(int(samples), False):
+            out.append(step.name if step.name.startswith("scattering_") else "scattering_" + step.name)
+        out.append(f"shade_{name}")
+    out.append("scattering_raymarch")
+    return out
+
+
+def run_scattering(scene, *, shadow_map_size=None, msaa=None, resolution=None, epipolar_size=None,
+                   reference_samples=None, raymarch_samples=None):
+    """Rows of the prefiltered single-scattering outputs of a scene with a directional light.
+
+    Parameters
+    ----------
+    scene : Scene or str
+        A scene whose ``outputs`` name :data:`SCATTERING_OUTPUTS` (shipped: ``scattering``).
+    shadow_map_size, msaa, resolution, epipolar_size, reference_samples, raymarch_samples
+        As :func:`moments_ref.techniques.scattering.report_rows` (defaults: the
+        scene's; the reference ray marching uses ``params.reference_samples`` or 4096).
+
+    Returns
+    -------
+    ScatteringResult
+
+    Notes
+    -----
+    The rows come unchanged from ``report_rows``: the error is that of the
+    scattering term normalized by ``t_max`` against ray marching with the
+    reference sample count. Its images are returned, not written (the report
+    writes every file at the end).
+    """
+    from .techniques import scattering
+
+    if not hasattr(scene, "receiver"):
+        from .scene import load_scene
+
+        scene = load_scene(scene)
+    check_scene(scene)
+    t0 = time.perf_counter()
+    rows, images = scattering.report_rows(scene, shadow_map_size=shadow_map_size, msaa=msaa, resolution=resolution,
+                                          epipolar_size=epipolar_size, reference_samples=reference_samples,
+                                          raymarch_samples=raymarch_samples)
+    seconds = time.perf_counter() - t0
+    # t_max depends on the eye and the scene's bounding box only, not on the resolution.
+    _, t_max = scattering.camera_rays(scene, (1, 1))
+    samples = scene.msaa if msaa is None else int(msaa)
+    params = scene.params or {}
+    settings = {"shadow_map_size": shadow_map_size or tuple(scene.shadow_map_size), "msaa": samples,
+                "resolution": tuple(resolution) if resolution is not None else tuple(scene.camera.resolution),
+                "epipolar_size": tuple(epipolar_size or params.get("epipolar_size", scattering.EPIPOLAR_SIZE)),
+                "reference_samples": int(reference_samples or params.get("reference_samples", 4096)),
+                "raymarch_samples": int(raymarch_samples or params.get("raymarch_samples", 128))}
+    return ScatteringResult(rows=rows, images=images, t_max=float(t_max), stages=scattering_stages(samples),
+                            seconds=seconds, settings=settings)

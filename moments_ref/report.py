@@ -27,7 +27,28 @@ Without ``--full`` each scene runs at reduced resolution
 (:func:`moments_ref.pipeline.reduced_settings`: shadow map halved per side,
 camera a quarter per side); ``--full`` uses 2048² maps with 4× MSAA and the
 scene's camera resolution (HPG17 §5). ``knot`` has an area light: the
-hard-shadow techniques here use its centre as a spot light.
+hard-shadow techniques here use its centre as a spot light (their reference is
+the filtered hard shadow of that spot).
+
+Area lights (any scene whose light is an :class:`~moments_ref.scene.AreaLight`)
+also get the soft-shadow rows ``msm_soft`` (moment soft shadow mapping),
+``pcss``, ``vwss`` and ``mvr`` (MVR with the same N light samples as VWSS: the
+error of the light sampling alone), run by the pipeline's area-light path
+(:data:`moments_ref.pipeline.AREA_OUTPUTS`) over the same receiver pixels. Their
+reference is multi-view rasterization with many light samples (64 reduced, 512
+with ``--full``; :func:`moments_ref.pipeline.area_settings`), shadow intensity
+``1 − visibility``; ``texel_seconds`` counts their depth-map and texture stages,
+``fragment_seconds`` their lookups. The run then also writes
+:func:`moments_ref.techniques.msm_soft.artifact_images` (``msm_soft_artifacts.png``
+and ``.md``: the artifacts the slides name) and ``soft_<scene>.png``
+(visibility images), and report.md states the measured soft-shadow results.
+
+Scenes whose ``outputs`` name the scattering techniques
+(:data:`moments_ref.pipeline.SCATTERING_OUTPUTS`: shipped ``scattering``) get the
+rows of :func:`moments_ref.techniques.scattering.report_rows`
+(:func:`moments_ref.pipeline.run_scattering`): the error there is that of the
+scattering term normalized by ``t_max`` against ray marching with 4096 samples
+per ray; images ``scattering_<scene>.png``.
 """
 
 from __future__ import annotations
@@ -47,8 +68,8 @@ from ._io import save_figure, write_text
 from . import pipeline
 from . import techniques as _techniques
 
-__all__ = ["COLUMNS", "LEAK_THRESHOLD", "run", "main", "metrics", "shaded_image", "flip_mean",
-           "evaluate_claims", "read_results", "plot_error_vs_runtime", "build_parser"]
+__all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
+           "evaluate_claims", "soft_statements", "read_results", "plot_error_vs_runtime", "build_parser"]
 
 #: Columns of results.csv, in order.
 COLUMNS = ("scene", "technique", "bits_per_texel", "rmse", "max_error", "p99_error", "leak_fraction",
@@ -117,12 +138,42 @@ def _flip_available():
         return False
 
 
+#: Area-light outputs in the default run (pipeline.AREA_OUTPUTS, msm_soft first as registered).
+AREA_ROWS = ("msm_soft", "pcss", "vwss", "mvr")
+
+
+def _check_names(requested):
+    """Refuse unknown technique names, listing every known one."""
+    known = list(dict.fromkeys(_techniques.names() + list(pipeline.AREA_OUTPUTS)
+                               + list(pipeline.SCATTERING_OUTPUTS)))
+    for n in requested:
+        if n not in known:
+            raise InputError(f"technique: unknown technique {n!r}; known techniques: {', '.join(known)}")
+
+
+def _scene_scattering(scene, requested=None):
+    """Scattering outputs the scene names (and the run asks for)."""
+    names = [n for n in pipeline.SCATTERING_OUTPUTS if n in tuple(scene.outputs or ())]
+    if requested is not None:
+        names = [n for n in names if n in requested]
+    return names
+
+
 def _scene_techniques(scene, requested=None):
-    names = _techniques.names() if requested is None else list(requested)
-    translucent = bool(np.any(scene.occluder_translucent))
+    """Pipeline outputs for a scene: registered techniques that apply, plus the area-light rows."""
     kind = getattr(scene.light, "kind", "directional")
+    if requested is None:
+        names = _techniques.names() + ([n for n in AREA_ROWS if n not in _techniques.TECHNIQUES]
+                                       if kind == "area" else [])
+    else:
+        names = [n for n in requested if n not in pipeline.SCATTERING_OUTPUTS]
+    translucent = bool(np.any(scene.occluder_translucent))
     out = []
     for n in names:
+        if n in pipeline.AREA_OUTPUTS:
+            if kind == "area" or requested is not None:
+                out.append(n)  # the pipeline refuses them without an area light, with the reason
+            continue
         t = _techniques.get(n)
         if t.requires_translucency and not translucent and requested is None:
             continue
@@ -228,10 +279,73 @@ def _error_figure(result, scene_name):
         img[result.gbuffer.pixel] = np.abs(result.shadow[n] - result.reference[n])
         im = ax.imshow(img.reshape(h, w), cmap="magma", vmin=0, vmax=0.5, interpolation="nearest")
         ax.set_title(n, fontsize="small")
-    fig.suptitle(f"{scene_name}: |shadow − reference|")
+    soft = [n for n in names if n in pipeline.AREA_OUTPUTS]
+    fig.suptitle(f"{scene_name}: |shadow − reference|"
+                 + (f" (reference of {', '.join(soft)}: MVR; of the others: the hard shadow)" if soft else ""))
     if im is not None:
         fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.8)
     return fig
+
+
+def _soft_figure(result, scene_name, names):
+    """Visibility (1 − intensity) of the MVR reference and of each area-light row on the camera view."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    w, h = result.gbuffer.resolution
+    kind = result.gbuffer.kind.reshape(-1)
+    first = names[0]
+    panels = [("MVR reference", result.reference.get(first))] + [(n, result.shadow[n]) for n in names]
+    panels = [(t, v) for t, v in panels if v is not None]
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.2 * h / w + 0.7), squeeze=False)
+    for ax, (title, inten) in zip(axes[0], panels):
+        rgb = np.zeros((h * w, 3))
+        rgb[kind == pipeline.OCCLUDER] = (0.85, 0.55, 0.3)
+        rgb[kind == pipeline.OUTSIDE_LIGHT] = 0.5
+        rgb[result.gbuffer.pixel] = (1.0 - np.clip(np.asarray(inten, np.float64), 0, 1))[:, None]
+        ax.imshow(rgb.reshape(h, w, 3), interpolation="nearest")
+        ax.set_title(title, fontsize="small")
+        ax.axis("off")
+    fig.suptitle(f"{scene_name}: visibility under the area light")
+    fig.tight_layout()
+    return fig
+
+
+def soft_statements(rows, scene):
+    """Measured statements on the area-light rows of ``scene`` (RMSE against the MVR reference).
+
+    Returns a list of strings, empty when the scene has no such rows. Every
+    number comes from ``rows``; comparisons are stated as measured (ratios),
+    not assumed.
+    """
+    r = {t: _row(rows, scene, t) for t in pipeline.AREA_OUTPUTS}
+    r = {t: v for t, v in r.items() if v is not None}
+    if not r:
+        return []
+    out = []
+    rm = {t: v["rmse"] for t, v in r.items()}
+    out.append("RMSE of the shadow intensity against the MVR reference: "
+               + ", ".join(f"{t} {v:.4g}" for t, v in rm.items())
+               + "; ranked from lowest: " + " < ".join(sorted((t for t in rm if np.isfinite(rm[t])), key=rm.get))
+               + ".")
+
+    def ratio(a, b, text):
+        if a in rm and b in rm and np.isfinite(rm[a]) and np.isfinite(rm[b]) and rm[b] > 0:
+            q = rm[a] / rm[b]
+            word = "below" if q < 1 else ("equal to" if q == 1 else "above")
+            out.append(f"{a}'s RMSE is {word} {b}'s (ratio {q:.2f}){text}.")
+
+    ratio("msm_soft", "pcss", ": moment soft shadow mapping against PCSS from the same single centre map")
+    ratio("vwss", "pcss", " (VWSS §4 reports VWSS well below PCSS)")
+    ratio("msm_soft", "vwss", "")
+    ratio("vwss", "mvr", ": the error VWSS adds to MVR with the same light samples, whose own RMSE is the "
+          "error of the light sampling alone")
+    out.append("Seconds (texel + fragment, NumPy): "
+               + ", ".join(f"{t} {v['texel_seconds']:.3g} + {v['fragment_seconds']:.3g}" for t, v in r.items())
+               + ".")
+    return out
 
 
 def _row(rows, scene, tech):
@@ -308,7 +422,8 @@ def _pipeline_slope():
     return f"{SLOPE_BIAS_TEXELS:.3g} (4.5√2)"
 
 
-def _markdown(rows, stages, settings, claims, images, flip_ok):
+def _markdown(rows, stages, settings, claims, images, flip_ok, area=None, soft=None, scattering=None,
+              artifacts=None):
     lines = ["# Shadow techniques: error against run time", ""]
     lines.append("Each technique shades the receiver pixels of each scene's camera view; errors are against the "
                  "reference at the technique's depth bias (9×9 Gaussian PCF over the MSAA samples = the exact "
@@ -320,6 +435,10 @@ def _markdown(rows, stages, settings, claims, images, flip_ok):
                  f"of {_pipeline_slope()} texels times the receiver's depth change per texel, the same for every "
                  "technique and the reference (without it the exact 9×9 PCF shades a plane lit at an angle as "
                  "half shadowed, which would be charged to the techniques as error).")
+    if area or scattering:
+        lines[-1] += (" Exceptions, described in their sections below: the soft-shadow rows under area lights "
+                      "(reference: multi-view rasterization) and the single-scattering rows (error of the "
+                      "normalized scattering term against converged ray marching).")
     lines.append("")
     if not flip_ok:
         lines.append("`flip_mean` is NaN: the package `flip-evaluator` (NVIDIA ꟻLIP) is not installed.")
@@ -334,7 +453,28 @@ def _markdown(rows, stages, settings, claims, images, flip_ok):
     lines.append("")
     if any(v["light"].startswith("area") for v in settings.values()):
         lines.append("Area lights: the hard-shadow techniques use the light's centre as a spot light "
-                     "(perspective shadow map); multi-view rows (msm_soft, pcss, vwss) come from another module.")
+                     "(perspective shadow map), and their reference is the filtered hard shadow of that spot. "
+                     "The soft-shadow rows (msm_soft, pcss, vwss, mvr) are measured against multi-view "
+                     "rasterization (MVR) with many light samples instead; see below.")
+        lines.append("")
+    if area:
+        lines.append("| scene | soft-shadow maps | light samples (vwss, mvr) | MVR reference samples | "
+                     "near | far | bias (world) | receiver pixels |")
+        lines.append("|---|---|---|---|---|---|---|---|")
+        for s, a in area.items():
+            lines.append(f"| {s} | {a['map_size']}² | {a['light_samples']} | {a['reference_views']} | "
+                         f"{a['near']:.4g} | {a['far']:.4g} | {a['bias']:.3g} | {a['pixels']} |")
+        lines.append("")
+    if scattering:
+        lines.append("| scene | scattering shadow map | MSAA | camera | epipolar map | reference ray march | "
+                     "ray march row |")
+        lines.append("|---|---|---|---|---|---|---|")
+        for s, v in scattering.items():
+            sm = v["shadow_map_size"]
+            sm = f"{sm[0]}×{sm[1]}" if not np.isscalar(sm) else f"{sm}²"
+            lines.append(f"| {s} | {sm} | {v['msaa']}× | {v['resolution'][0]}×{v['resolution'][1]} | "
+                         f"{v['epipolar_size'][0]}×{v['epipolar_size'][1]} | {v['reference_samples']} samples | "
+                         f"{v['raymarch_samples']} samples |")
         lines.append("")
     lines.append("## Headline claims of HPG17 (measured)")
     lines.append("")
@@ -352,6 +492,59 @@ def _markdown(rows, stages, settings, claims, images, flip_ok):
     for r in rows:
         lines.append("| " + " | ".join(_fmt(r[c]) for c in COLUMNS) + " |")
     lines.append("")
+    if soft:
+        lines.append("## Soft shadows under area lights (measured)")
+        lines.append("")
+        lines.append("Rows msm_soft (moment soft shadow mapping: one map from the light's centre, summed-area "
+                     "table of moments, moment-based blocker search; Slides, 'Moment soft shadow mapping'), "
+                     "pcss (the same centre map, 64-tap blocker search, 96-tap PCF), vwss (layered points from "
+                     "the enlarged source view warped into N light-sample maps, 5-tap PCF in each; VWSS §3) and "
+                     "mvr (the same N maps rasterized). Error: shadow intensity 1 − visibility against MVR with "
+                     "the reference's own Poisson set of light samples, over the receiver pixels of the camera "
+                     "view (the same pixels as the hard-shadow rows). texel_seconds: depth-map and texture "
+                     "stages; fragment_seconds: lookups.")
+        lines.append("")
+        for s, st in soft.items():
+            a = (area or {}).get(s, {})
+            head = (f"**{s}** ({a.get('map_size', '?')}² maps, N = {a.get('light_samples', '?')}, reference MVR "
+                    f"with {a.get('reference_views', '?')} light samples):")
+            lines.append(head + " " + " ".join(st))
+            lines.append("")
+        for s, p in images.get("soft", {}).items():
+            lines.append(f"![{s}: visibility]({p})")
+            lines.append("")
+    if artifacts is not None:
+        a = artifacts
+        lines.append("### Artifacts of moment soft shadow mapping (Slides, 'Results for soft shadows')")
+        lines.append("")
+        lines.append(f"![msm_soft artifacts]({images['artifacts'].get('.png', 'msm_soft_artifacts.png')}) "
+                     f"(details: [{images['artifacts'].get('.md', 'msm_soft_artifacts.md')}]"
+                     f"({images['artifacts'].get('.md', 'msm_soft_artifacts.md')}))")
+        lines.append("")
+        lines.append(f"- Light through a small hole takes the light's rectangular shape: lit-spot aspect "
+                     f"{a['hole_aspect_msm']:.3f} (reference {a['hole_aspect_reference']:.3f}), fill of its "
+                     f"bounding box {a['hole_fill_msm']:.3f} (1 = rectangle, 0.785 = ellipse).")
+        lines.append(f"- A distant wall in the blocker-search region softens a near column's shadow: 10–90 % "
+                     f"width {a['width_column']:.4f} without the wall, {a['width_column_wall']:.4f} with it; "
+                     f"reference {a['width_reference']:.4f} in both (the wall changes the reference by at most "
+                     f"{a['wall_changes_reference']:.3g}).")
+        lines.append("")
+    if scattering:
+        lines.append("## Prefiltered single scattering")
+        lines.append("")
+        refs = sorted({v["reference_samples"] for v in scattering.values()})
+        lines.append("Rows scattering_6m (six moments, filtered epipolar resampling), scattering_6m_unfiltered "
+                     "(resampling the plain depth map) and raymarch (the slides' ray marching, "
+                     f"{', '.join(str(v['raymarch_samples']) for v in scattering.values())} samples per ray): "
+                     "for these rows the error is that of the scattering term (the integral of the light's "
+                     "visibility along the view ray) normalized by t_max, the longest view ray, against ray "
+                     f"marching with {', '.join(map(str, refs))} samples per ray; leak_fraction is the share of "
+                     "pixels brighter than that reference by more than 0.05, flip_mean compares LDR images of "
+                     "the normalized term (moments_ref.techniques.scattering.report_rows).")
+        lines.append("")
+        for s, p in images.get("scattering", {}).items():
+            lines.append(f"![{s}: scattering]({p})")
+            lines.append("")
     lines.append("## Error against run time")
     lines.append("")
     lines.append(f"![error against run time]({images['scatter']})")
@@ -370,7 +563,7 @@ def _markdown(rows, stages, settings, claims, images, flip_ok):
 
 
 def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=None, shadow_map_size=None,
-        msaa=None, resolution=None, noise_tiles=64):
+        msaa=None, resolution=None, noise_tiles=64, area=None, scattering=None):
     """Run the report and write its files to ``out_dir``.
 
     Parameters
@@ -380,23 +573,36 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         (:func:`moments_ref.scene.list_scenes`).
     full : bool
         2048² maps with 4× MSAA and the scenes' camera resolution (HPG17 §5);
-        otherwise :func:`moments_ref.pipeline.reduced_settings`.
+        otherwise :func:`moments_ref.pipeline.reduced_settings`. The area-light
+        rows then use :func:`moments_ref.pipeline.area_settings` with ``full``
+        (the scene's map size, a 512-view MVR reference), the scattering rows
+        the scene's own settings.
     out_dir : path
         Output folder (created).
     progress : bool
         tqdm progress bars (scenes, and stages per scene) on stderr.
     techniques : list of str, optional
         Only these techniques (default: every registered technique that applies
-        to the scene: its light kind, translucency).
+        to the scene: its light kind, translucency; plus the area-light rows
+        under an area light and the scattering rows where the scene asks for them).
     shadow_map_size, msaa, resolution : optional
-        Override the settings for every scene (tests, notebooks).
+        Override the settings for every scene (tests, notebooks);
+        ``shadow_map_size`` also sets the maps of the area-light rows.
     noise_tiles : int
         Blue-noise tiles (HPG17: 64).
+    area : dict, optional
+        Overrides of :func:`moments_ref.pipeline.area_settings` (``map_size``,
+        ``light_samples``, ``reference_views``).
+    scattering : dict, optional
+        Overrides passed to :func:`moments_ref.pipeline.run_scattering`
+        (``epipolar_size``, ``reference_samples``, ``raymarch_samples``).
 
     Returns
     -------
     dict with ``rows`` (list of dict, :data:`COLUMNS`), ``stages`` (scene -> list),
-    ``claims`` and ``paths`` (name -> Path).
+    ``claims``, ``soft`` (scene -> measured soft-shadow statements),
+    ``artifacts`` (the measurements of ``msm_soft.artifact_images`` or None) and
+    ``paths`` (name -> Path).
 
     Raises
     ------
@@ -412,11 +618,14 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     for sc in loaded:
         pipeline.check_scene(sc)
     if techniques is not None:
-        for t in techniques:
-            _techniques.get(t)
+        _check_names(techniques)
+    area = dict(area or {})
+    unknown = set(area) - {"map_size", "light_samples", "reference_views"}
+    if unknown:
+        raise InputError(f"area: unknown settings {sorted(unknown)}; known: map_size, light_samples, reference_views")
     flip_ok = _flip_available()
-    rows, stages, settings, images = [], {}, {}, {"errors": {}}
-    figs = {}
+    rows, stages, settings, images = [], {}, {}, {"errors": {}, "soft": {}, "scattering": {}}
+    figs, deferred, soft, area_settings, scat_settings = {}, [], {}, {}, {}
     bar = None
     if progress:
         from tqdm import tqdm
@@ -432,25 +641,47 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
                 size = (shadow_map_size, shadow_map_size) if np.isscalar(shadow_map_size) else tuple(shadow_map_size)
             samples = samples if msaa is None else int(msaa)
             res = res if resolution is None else tuple(resolution)
-            techs = _scene_techniques(sc, techniques)
-            result = pipeline.run(sc, techs, shadow_map_size=size, msaa=samples, resolution=res,
-                                  noise_tiles=noise_tiles, progress=progress)
-            stages[sc.name] = list(result.stages)
             kind = getattr(sc.light, "kind", "directional")
             settings[sc.name] = {"size": size, "msaa": samples, "resolution": res,
                                  "light": "area (spot from its centre)" if kind == "area" else kind}
-            for n in result.techniques:
-                t = _techniques.get(n)
-                m = metrics(result.shadow[n], result.reference[n])
-                fl = math.nan
-                if flip_ok:
-                    fl = flip_mean(shaded_image(result.gbuffer, result.reference[n]),
-                                   shaded_image(result.gbuffer, result.shadow[n]))
-                rows.append({"scene": sc.name, "technique": n, "bits_per_texel": t.bits_per_texel, **m,
-                             "flip_mean": fl, "texel_seconds": result.texel_seconds[n],
-                             "fragment_seconds": result.fragment_seconds[n]})
-            figs[f"errors_{sc.name}.png"] = _error_figure(result, sc.name)
-            images["errors"][sc.name] = f"errors_{sc.name}.png"
+            stages[sc.name] = []
+            techs = _scene_techniques(sc, techniques)
+            if techs:
+                acfg = None
+                if any(n in pipeline.AREA_OUTPUTS for n in techs) and kind == "area":
+                    ms = area.get("map_size") or (max(size) if shadow_map_size is not None else None)
+                    acfg = pipeline.area_settings(sc, full, map_size=ms, light_samples=area.get("light_samples"),
+                                                  reference_views=area.get("reference_views"))
+                result = pipeline.run(sc, techs, shadow_map_size=size, msaa=samples, resolution=res,
+                                      noise_tiles=noise_tiles, area=acfg, progress=progress)
+                stages[sc.name] += list(result.stages)
+                for n in result.techniques:
+                    m = metrics(result.shadow[n], result.reference[n])
+                    fl = math.nan
+                    if flip_ok:
+                        fl = flip_mean(shaded_image(result.gbuffer, result.reference[n]),
+                                       shaded_image(result.gbuffer, result.shadow[n]))
+                    rows.append({"scene": sc.name, "technique": n, "bits_per_texel": result.bits_per_texel[n], **m,
+                                 "flip_mean": fl, "texel_seconds": result.texel_seconds[n],
+                                 "fragment_seconds": result.fragment_seconds[n]})
+                figs[f"errors_{sc.name}.png"] = _error_figure(result, sc.name)
+                images["errors"][sc.name] = f"errors_{sc.name}.png"
+                if result.area:
+                    area_settings[sc.name] = {**result.area, "pixels": int(result.gbuffer.pixel.size)}
+                    soft_names = [n for n in result.techniques if n in pipeline.AREA_OUTPUTS]
+                    figs[f"soft_{sc.name}.png"] = _soft_figure(result, sc.name, soft_names)
+                    images["soft"][sc.name] = f"soft_{sc.name}.png"
+            scat = _scene_scattering(sc, techniques)
+            if scat:
+                sr = pipeline.run_scattering(sc, shadow_map_size=None if full and shadow_map_size is None else size,
+                                             msaa=None if full and msaa is None else samples,
+                                             resolution=None if full and resolution is None else res,
+                                             **(scattering or {}))
+                stages[sc.name] += sr.stages
+                rows += [r for r in sr.rows if r["technique"] in scat]
+                scat_settings[sc.name] = sr.settings
+                deferred.append((sr.images, sr.t_max, f"scattering_{sc.name}.png"))
+                images["scattering"][sc.name] = f"scattering_{sc.name}.png"
             if bar is not None:
                 bar.update(1)
     finally:
@@ -459,24 +690,40 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
 
     import matplotlib.pyplot as plt
 
+    for s in area_settings:
+        soft[s] = soft_statements(rows, s)
     figs["scatter.png"] = plot_error_vs_runtime(rows)
     images["scatter"] = "scatter.png"
     claims = evaluate_claims(rows)
-    # Every text is complete before the first file is written; each file is
-    # written atomically (temporary file, then rename), so an interrupted run
-    # leaves no half-written file.
-    texts = {"results.csv": _csv_text(rows), "stages.json": json.dumps(stages, indent=2) + "\n",
-             "report.md": _markdown(rows, stages, settings, claims, images, flip_ok)}
     paths = {}
+    artifacts = None
     try:
+        if any(r["technique"] == "msm_soft" for r in rows):
+            # The artifacts the slides name, on synthetic scenes with exact references (writes its
+            # own two files atomically; report.md states its measurements).
+            from .techniques import msm_soft
+
+            artifacts, apaths = msm_soft.artifact_images(out)
+            paths.update({Path(x).name: Path(x) for x in apaths})
+            images["artifacts"] = {Path(x).suffix: Path(x).name for x in apaths}
+        # Every text is complete before the report's own files are written; each file is
+        # written atomically (temporary file, then rename), so an interrupted run
+        # leaves no half-written file.
+        texts = {"results.csv": _csv_text(rows), "stages.json": json.dumps(stages, indent=2) + "\n",
+                 "report.md": _markdown(rows, stages, settings, claims, images, flip_ok, area_settings, soft,
+                                        scat_settings, artifacts)}
         for name, fig in figs.items():
             paths[name] = save_figure(fig, out / name, dpi=110)
     finally:
         for fig in figs.values():
             plt.close(fig)
+    from .techniques.scattering import write_images
+
+    for imgs, t_max, name in deferred:
+        paths[name] = Path(write_images(imgs, t_max, out / name))
     for name, text in texts.items():
         paths[name] = write_text(out / name, text)
-    return {"rows": rows, "stages": stages, "claims": claims, "paths": paths}
+    return {"rows": rows, "stages": stages, "claims": claims, "soft": soft, "artifacts": artifacts, "paths": paths}
 
 
 def build_parser():

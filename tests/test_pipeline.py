@@ -53,6 +53,36 @@ def test_dithered_only_with_noise_and_shared_texture():
     assert "bluenoise_textures" not in _run("three-occluders", ["nlq64"]).stages
 
 
+def test_knot_scene_outputs_run_with_multiview_stages_named_vwss():
+    """knot asks for vwss and mvr: multi-view stages, all named vwss; msm_soft/PCSS work on one map."""
+    area = {"reference_views": 3, "light_samples": 3}
+    r = _run("knot", None, area=area)
+    assert r.techniques == ["vwss", "mvr"]
+    assert {"vwss_points", "vwss_warp", "shade_vwss", "mvr_vwss", "mvr_reference_vwss"} <= set(r.stages)
+    assert not any(s.startswith(("raster_shadow_map", "area_center")) for s in r.stages)  # nothing unasked
+    r2 = _run("knot", ["msm_soft", "pcss", "msm64"], area=area)
+    assert not any("vwss" in s for s in r2.stages if s != "mvr_reference_vwss")
+    assert {"area_center_depth_map", "msm_soft_sat", "shade_msm_soft", "shade_pcss", "raster_shadow_map"} <= set(r2.stages)
+    assert r2.stages.count("area_center_depth_map") == 1  # shared by msm_soft and PCSS
+    # msm64 keeps its hard-shadow reference (the spot at the light's centre), the soft rows MVR.
+    assert "reference_pcf_bias0.001" in r2.stages
+    np.testing.assert_array_equal(r2.reference["msm_soft"], r2.reference["pcss"])
+    assert r2.area["reference_views"] == 3 and r2.area["map_size"] == 48
+    r3 = _run("knot", ["vwss"], area=area, reference=False)
+    assert "mvr_reference_vwss" not in r3.stages and r3.reference == {}
+
+
+def test_scattering_stage_names_follow_the_technique_steps():
+    from moments_ref.techniques.scattering import SCATTERING_6M
+
+    st = pipeline.scattering_stages(4)
+    assert st[:3] == ["scattering_raster_shadow_map", "scattering_camera_rays", "scattering_raymarch_reference"]
+    assert [("scattering_" + s.name).replace("scattering_scattering_", "scattering_")
+            for s in SCATTERING_6M.steps(4)] == st[3:3 + len(SCATTERING_6M.steps(4))]
+    assert "scattering_compute_moments" in pipeline.scattering_stages(1)
+    assert not any("vwss" in s or "translucen" in s for s in st)
+
+
 def test_without_reference_no_reference_stage():
     r = _run("facade", ["msm128"], reference=False)
     assert not any("reference" in s for s in r.stages)

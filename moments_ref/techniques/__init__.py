@@ -32,11 +32,25 @@ fragment's NDC depth in the light's view, broadcast against ``uv[..., 0]``.
 
 Registering a technique
 -----------------------
-A further module (moment soft shadows, PCSS, VWSS) builds a :class:`Technique` and
-calls :func:`register`; the pipeline and the report pick it up by name. A
-technique that needs a light of a particular kind says so in ``light_kinds``;
-one that needs several views sets ``multiview`` (its stage names must contain
-``vwss`` for multi-view work, as ``stages.json`` promises).
+A further module builds a :class:`Technique` and calls :func:`register`; the
+pipeline and the report pick it up by name. A technique that needs a light of a
+particular kind says so in ``light_kinds``; one that needs several views sets
+``multiview`` (its stage names must contain ``vwss`` for multi-view work, as
+``stages.json`` promises).
+
+Registered here, in this order: ``pcf``, ``vsm``, ``esm``, ``evsm64``,
+``evsm128``, ``msm64``, ``msm128``, ``nlq64``, ``nlq32``, ``nlq64_dither``,
+``nlq32_dither``, ``translucent_msm`` and ``msm_soft`` (moment soft shadow
+mapping, :mod:`.msm_soft`, ``light_kinds=("area",)``). ``msm_soft`` is imported
+here so that the registry does not depend on which modules a program happened
+to import. Its texture step needs the area light, and its error is measured
+against multi-view rasterization rather than the hard-shadow PCF, so
+:mod:`moments_ref.pipeline` runs it with the other area-light outputs (PCSS,
+VWSS, MVR: :data:`moments_ref.pipeline.AREA_OUTPUTS`), not through the
+generic texture/lookup loop. The scattering techniques of :mod:`.scattering`
+work in epipolar coordinates, not in shadow-map texels: they are not
+registered (the report takes their rows from
+:func:`moments_ref.techniques.scattering.report_rows`).
 """
 
 from __future__ import annotations
@@ -293,3 +307,4 @@ def get(name) -> Technique:
 
 # Register the shipped techniques (order = the report's row order).
 from . import pcf, vsm, esm, evsm, msm, nlq, translucent  # noqa: E402,F401
+from . import msm_soft  # noqa: E402,F401  (area light: run by pipeline's area-light path)
