@@ -286,11 +286,11 @@ def _bounds_mp(b1, b2, b3, b4, zf, tol):
     return clamp(lower), clamp(upper)
 
 
-def _prepare(b, zf):
-    b = _moment_input(b)
+def _prepare(b, zf, n=4):
+    b = real_input(b, "b", trailing=n)
     zf = real_input(zf, "zf", dtype=b.dtype)
     shape = broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
-    return np.broadcast_to(b, shape + (4,)), np.broadcast_to(zf, shape), shape
+    return np.broadcast_to(b, shape + (n,)), np.broadcast_to(zf, shape), shape
 
 
 def shadow_bounds(b, zf, dps=DPS):
@@ -642,13 +642,6 @@ def _bounds6_mp(b, zf, tol):
     return clamp(lower), clamp(upper)
 
 
-def _prepare6(b, zf):
-    b = real_input(b, "b", trailing=6)
-    zf = real_input(zf, "zf", dtype=b.dtype)
-    shape = broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
-    return np.broadcast_to(b, shape + (6,)), np.broadcast_to(zf, shape), shape
-
-
 def shadow_bounds6(b, zf, dps=DPS):
     """mpmath twin of :func:`moments_ref.msm6.shadow_bounds` (six moments).
 
@@ -668,7 +661,7 @@ def shadow_bounds6(b, zf, dps=DPS):
         (exact Z of the unique distribution for singular B(b)).
     """
     dps = _check_dps(dps)
-    b, zf, shape = _prepare6(b, zf)
+    b, zf, shape = _prepare(b, zf, 6)
     lower = np.empty(shape, dtype=np.float64)
     upper = np.empty(shape, dtype=np.float64)
     with mpmath.workdps(dps):
@@ -709,7 +702,7 @@ def canonical_representation6(b, zf, dps=DPS):
         From the Vandermonde system of the canonical representation.
     """
     dps = _check_dps(dps)
-    b, zf, shape = _prepare6(b, zf)
+    b, zf, shape = _prepare(b, zf, 6)
     depths = np.empty(shape + (4,), dtype=np.float64)
     weights = np.empty(shape + (4,), dtype=np.float64)
     with mpmath.workdps(dps):
