@@ -109,8 +109,10 @@ _TILE = 32
 _GUARD_PIXELS = 1 << 20
 # Elements (triangles × grid pixels × samples) evaluated per vectorized chunk.
 _BUDGET = 1 << 21
-# Triangles set up per chunk (bounds the memory of the per-triangle arrays).
-_SETUP_CHUNK = 1 << 17
+# Triangles set up per chunk: bounds the memory of the per-triangle arrays and keeps
+# them in cache (measured on 1 M small triangles into 1024²: 2^15 gives 2.4 M/s,
+# 2^17 2.0 M/s, 2^13 2.0 M/s).
+_SETUP_CHUNK = 1 << 15
 
 
 # ---------------------------------------------------------------------------
