@@ -792,7 +792,7 @@ def verify(golden_dir, results_path, port_dtype=None):
                 "index": int(i), "category": str(category[i]), "error": float(err[i]), "tolerance": float(tol[i]),
                 "comment": str(gold["comment"][i]),
                 "inputs": {k: gold[k][i] for k in meta["inputs"]},
-                "got": [np.asarray(results[k])[i] for k in keys][0] if len(keys) == 1 else [np.asarray(results[k])[i] for k in keys],
+                "got": np.asarray(results[keys[0]])[i],  # the first output (the only one in every case)
                 "expected": gold[meta["compare"][0]][i],
             })
         per_cat = {}
