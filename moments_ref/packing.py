@@ -42,10 +42,11 @@ in Ψ4 and Ψ4⁻¹ could still put the decoded value one ulp low; the encoders 
 the decoded value in the working dtype and bump the code where needed, so the
 guarantee is exact (tested exhaustively over the 64 codes).
 
-Input. Encoders take a representation in its domain up to
-:func:`moments_ref.nonlinear.rounding_tolerance` (clamped onto it; also
-``y ∈ [-1, 1]`` with the same tolerance), and raise
-:class:`~moments_ref.InputError` otherwise. Decoders take only uint16/uint32 and a
+Input. Encoders saturate each quantity onto its stored range (y1, y2 to [-1, 1],
+v2 to [0, 1], ξ4 ≥ 0) as a UNORM texture write does: float32 Algorithm 2 on real
+maps leaves the domain by more than rounding (y1 = −1.0026 measured). They raise
+:class:`~moments_ref.InputError` for non-finite values and for y1 > y2 beyond
+:func:`moments_ref.nonlinear.rounding_tolerance`. Decoders take only uint16/uint32 and a
 ``dtype`` keyword (float64 default, float32 to emulate a GPU).
 """
 
@@ -92,18 +93,28 @@ DEPTH_STEP64 = 2 / 65535
 
 
 def _encoder_input(r):
-    """Validated, clamped float copy of r with y1, y2 ∈ [-1, 1] (within rounding)."""
-    r = validate_representation(r, "r")
+    """Float copy of r saturated onto the stored ranges, as a UNORM texture write does.
+
+    y1, y2 -> [-1, 1], v2 -> [0, 1], ξ4 -> [0, ∞) (Ψ4 clamps it at 1.2e-7 anyway).
+    float32 Φ on real filtered maps leaves this domain by more than rounding
+    (measured: y1 = −1.0026 for mass near depth −1 on a 2048² 4× MSAA map, where the
+    exact y1 lies in [-1, 1] by proofs/lemma_1); a GPU writing the texel
+    saturates, and so do the encoders. Only an inconsistent order, y1 > y2 by more
+    than :func:`~moments_ref.nonlinear.rounding_tolerance`, and non-finite values are
+    refused.
+    """
+    r = real_input(r, "r", trailing=4)
     tol = rounding_tolerance(r.dtype)
-    y = r[..., :2]
-    bad = (y < -1 - tol) | (y > 1 + tol)
+    bad = r[..., 0] > r[..., 1] + tol
     if bad.any():
         idx = first_index(bad)
-        raise InputError(
-            f"r: expected depths y1, y2 in [-1, 1] (rounding tolerance {tol:.3g}), "
-            f"got {y[idx]!r} at index {idx[:-1]} (channel {idx[-1]})"
-        )
-    np.clip(y, -1, 1, out=y)
+        raise InputError(f"r: expected y1 <= y2 (rounding tolerance {tol:.3g}), got y1 = {r[idx][0]!r}, "
+                         f"y2 = {r[idx][1]!r} at index {idx}")
+    r = np.array(r, copy=True)
+    np.clip(r[..., :2], -1, 1, out=r[..., :2])
+    np.maximum(r[..., 1], r[..., 0], out=r[..., 1])
+    np.clip(r[..., 2], 0, 1, out=r[..., 2])
+    np.maximum(r[..., 3], 0, out=r[..., 3])
     return r
 
 
