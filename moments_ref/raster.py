@@ -854,6 +854,28 @@ def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
     return v, t, m, h, w, S, pat[:, 0] * 16, pat[:, 1] * 16, dt
 
 
+def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
+    """Every covered sample with its depth in [-1, 1], chunk by chunk.
+
+    Yields ``(s, i, row, col, samp, z)``: the chunk's setup ``s``, the triangle
+    index into it, the texel and sample, and the depth; samples clipped by depth
+    are counted in ``stats`` and left out. Shared by :func:`rasterize_depth` and
+    :func:`rasterize_fragments`, so both see exactly the same coverage.
+    """
+    for lo in range(0, t.shape[0], _SETUP_CHUNK):
+        s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
+        if s is None:
+            continue
+        for i, row, col, samp in _iter_coverage(s, h, w, sx, sy):
+            z = _depth_at(s, i, row, col, samp, sx, sy)
+            ok = (z >= -1.0) & (z <= 1.0)
+            stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
+            if not ok.all():
+                i, row, col, samp, z = i[ok], row[ok], col[ok], samp[ok], z[ok]
+            stats.samples_covered += int(z.size)
+            yield s, i, row, col, samp, z
+
+
 def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none",
                     dtype=np.float32):
     """Rasterize triangles into a depth map with MSAA (the shadow-map pass).
@@ -914,20 +936,9 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     depth = np.ones(h * w * S, dtype=dt)
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for lo in range(0, t.shape[0], _SETUP_CHUNK):
-        s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, False)
-        if s is None:
-            continue
-        for i, row, col, samp in _iter_coverage(s, h, w, sx, sy):
-            z = _depth_at(s, i, row, col, samp, sx, sy)
-            ok = (z >= -1.0) & (z <= 1.0)
-            stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
-            flat = (row * w + col) * S + samp
-            if not ok.all():
-                flat, z = flat[ok], z[ok]
-            stats.samples_covered += int(z.size)
-            # Depth test: keep the nearest.
-            np.minimum.at(depth, flat, z.astype(dt))
+    for _, _, row, col, samp, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
+        # Depth test: keep the nearest.
+        np.minimum.at(depth, (row * w + col) * S + samp, z.astype(dt))
     return depth.reshape(h, w, S), stats
 
 
@@ -961,28 +972,19 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
     parts = []
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for lo in range(0, t.shape[0], _SETUP_CHUNK):
-        s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, True)
-        if s is None:
-            continue
-        for i, row, col, samp in _iter_coverage(s, h, w, sx, sy):
-            z = _depth_at(s, i, row, col, samp, sx, sy)
-            ok = (z >= -1.0) & (z <= 1.0)
-            stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
-            i, row, col, samp, z = i[ok], row[ok], col[ok], samp[ok], z[ok]
-            stats.samples_covered += int(z.size)
-            # Screen-space barycentrics from the (unbiased) edge functions, exact in int64.
-            Xs = col * _SUB + _HALF + sx[samp]
-            Ys = row * _SUB + _HALF + sy[samp]
-            E = s["A"][:, i] * Xs + s["B"][:, i] * Ys + s["C"][:, i]  # (3, n)
-            # Edge e (v_e -> v_e+1) is opposite vertex e+2: λ_{e+2} = E_e / area2.
-            lam = E[[1, 2, 0]].astype(np.float64) / s["area2"][i]
-            mu = lam * s["q"][:, i]
-            mu /= mu.sum(axis=0)
-            wv = s["world"][:, :, i]  # (3 coords, 3 vertices, n)
-            pos = (mu[0] * wv[:, 0] + mu[1] * wv[:, 1] + mu[2] * wv[:, 2]).T
-            parts.append((s["tid"][i], (row * w + col).astype(np.int64), samp.astype(np.int64),
-                          z.astype(dt), pos.astype(dt)))
+    for s, i, row, col, samp, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
+        # Screen-space barycentrics from the (unbiased) edge functions, exact in int64.
+        Xs = col * _SUB + _HALF + sx[samp]
+        Ys = row * _SUB + _HALF + sy[samp]
+        E = s["A"][:, i] * Xs + s["B"][:, i] * Ys + s["C"][:, i]  # (3, n)
+        # Edge e (v_e -> v_e+1) is opposite vertex e+2: λ_{e+2} = E_e / area2.
+        lam = E[[1, 2, 0]].astype(np.float64) / s["area2"][i]
+        mu = lam * s["q"][:, i]
+        mu /= mu.sum(axis=0)
+        wv = s["world"][:, :, i]  # (3 coords, 3 vertices, n)
+        pos = (mu[0] * wv[:, 0] + mu[1] * wv[:, 1] + mu[2] * wv[:, 2]).T
+        parts.append((s["tid"][i], (row * w + col).astype(np.int64), samp.astype(np.int64),
+                      z.astype(dt), pos.astype(dt)))
     if parts:
         tri_id, texel, samp, z, pos = (np.concatenate(c) for c in zip(*parts))
         order = np.lexsort((samp, texel, tri_id))
