@@ -675,12 +675,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     tech = SCATTERING_TECHNIQUES.get(technique, technique) if isinstance(technique, str) else technique
     if not isinstance(tech, Technique) or tech.name not in SCATTERING_TECHNIQUES:
         raise InputError(f"technique: expected one of {', '.join(SCATTERING_TECHNIQUES)}, got {technique!r}")
-    if shadow_map is None:
-        vp = scene.shadow_view_proj()
-        depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
-    else:
-        depth, vp = shadow_map
-    cam_rays, t_max = camera_rays(scene, resolution) if rays is None else rays
+    depth, vp, cam_rays, t_max = _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution)
     size = epipolar_size or scene.params.get("epipolar_size", EPIPOLAR_SIZE)
     rho_end = cam_rays.t_end * np.sqrt(np.maximum(0, 1 - np.clip(cam_rays.direction @ scene.light.direction, -1, 1) ** 2))
     frame = epipolar_frame(scene.camera.eye, scene.light.direction, max(float(rho_end.max()) * 1.001, 1e-6),
@@ -696,6 +691,17 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
             "frame": frame, "texel_seconds": t1 - t0, "fragment_seconds": t2 - t1, "t_max": t_max}
 
 
+def _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution):
+    """The light's depth map and matrix and the camera rays: given ones, or rendered from ``scene``."""
+    if shadow_map is None:
+        vp = scene.shadow_view_proj()
+        depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
+    else:
+        depth, vp = shadow_map
+    cam_rays, t_max = camera_rays(scene, resolution) if rays is None else rays
+    return depth, vp, cam_rays, t_max
+
+
 def convergence(scene, counts=(16, 32, 64, 128, 256, 512), reference=4096, *, shadow_map_size=None, msaa=None,
                 resolution=None, shadow_map=None, rays=None):
     """RMSE of ray marching with ``counts`` samples against ``reference`` samples.
@@ -706,12 +712,7 @@ def convergence(scene, counts=(16, 32, 64, 128, 256, 512), reference=4096, *, sh
     key ``"reference_image"`` (``S``, (H, W)).
     """
     _check_directional(scene)
-    if shadow_map is None:
-        vp = scene.shadow_view_proj()
-        depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
-    else:
-        depth, vp = shadow_map
-    cam_rays, t_max = camera_rays(scene, resolution) if rays is None else rays
+    depth, vp, cam_rays, t_max = _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution)
     ref = ray_march(depth, vp, scene.camera.eye, cam_rays, int(reference))
     out = {"reference_image": ref}
     for n in counts:
