@@ -1,7 +1,12 @@
 """moments_ref: NumPy reference implementation and numerical test oracle of moment shadow mapping.
 
-The stable API of design.md is re-exported here; docs/api.md lists every module's
-public names.
+The stable core API (moments, Algorithm 1, affine and non-linear quantization,
+texel packing) is re-exported here; docs/api.md lists every module's public
+names and docs/architecture.md shows the layers the modules sit in.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from ._arrays import InputError

@@ -126,3 +126,20 @@ def real_input(x, name: str, trailing=None, dtype=None, finite: bool = True) -> 
     if finite:
         check_finite(arr, name)
     return arr
+
+
+def positive_int(value, name: str, context: str = None) -> int:
+    """``value`` as an int ≥ 1, or an :class:`InputError` naming ``name`` (within ``context``).
+
+    Integral floats (``3.0``) are accepted, as ``int(value) == value``; booleans, strings,
+    fractions and values below 1 are refused.
+    """
+    try:
+        v = int(value)
+        ok = v == value and v >= 1 and not isinstance(value, (bool, str))
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        where = f"{context}: expected {name} to be" if context else f"{name}: expected"
+        raise InputError(f"{where} a positive integer, got {value!r}")
+    return v

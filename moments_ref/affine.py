@@ -72,6 +72,7 @@ Direct3D programming guide, "Data Conversion Rules" (FLOAT -> UNORM, UNORM -> FL
 tolerance D3D11_FLOAT32_TO_INTEGER_TOLERANCE_IN_ULP = 0.6).
 Vulkan specification, "Fixed-Point Data Conversions".
 DXGI_FORMAT_R10G10B10A2_UNORM (R in the least significant bits).
+HPG17, Slides : see docs/bib.md.
 """
 
 from __future__ import annotations

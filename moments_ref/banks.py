@@ -65,6 +65,10 @@ stays conflict-free with that choice too.
     vectors. 3·4 instructions per warp.
 
 The per-phase counts are per block; every block of the shadow map repeats them.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

@@ -7,6 +7,10 @@ says how far a kernel is from being memory bound (1 = as fast as a copy; the
 foundation issue's target for float32 ``shadow_intensity`` is 1/20 = 0.05).
 Times are the best of a few repetitions (the minimum is the least noisy
 estimate of the cost on a shared machine).
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -17,7 +21,12 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time"]
+from . import filtering
+from . import onchip as _onchip
+from .vwss import warp
+
+__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time", "bench_filtering",
+           "bench_onchip", "bench_entries"]
 
 
 @dataclass(frozen=True)
@@ -184,20 +193,196 @@ def _core_benchmarks():
     return out
 
 
-def _extra_benchmarks():
-    """Benchmarks contributed by other modules (``bench_entries()`` functions)."""
-    import importlib
+# ---------------------------------------------------------------------------
+# The filtering, on-chip and VWSS kernels (the bench imports what it measures)
 
-    out = []
-    for mod in ("nonlinear", "packing", "raster", "filtering", "onchip", "vwss.warp"):
-        try:
-            m = importlib.import_module(f"moments_ref.{mod}")
-        except ImportError:
-            continue
-        entries = getattr(m, "bench_entries", None)
-        if entries is not None:
-            out.extend(entries())
+
+def _timed(fn, *args):
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, time.perf_counter() - t0
+
+
+def bench_filtering(size=2048, samples=4, onchip=True):
+    """Time the global path (resolve, then blur) and the on-chip emulation.
+
+    Parameters
+    ----------
+    size : int
+        Side of the square shadow map (HPG17 §5 uses 2048²).
+    samples : int
+        MSAA samples per texel (4 in HPG17 §5).
+    onchip : bool
+        Also time :func:`moments_ref._onchip.filter_moments` per stage.
+
+    Returns
+    -------
+    results : dict
+        ``{"size", "samples", "texels", "global_resolve_s", "global_blur_s",
+        "global_total_s", "global_mtexels_per_s"}`` and, with ``onchip``, the
+        on-chip stage times ``"onchip_<stage>_s"``, ``"onchip_total_s"``,
+        ``"onchip_mtexels_per_s"`` and ``"max_abs_difference"`` between the two
+        paths. Wall-clock seconds of one run on this machine (NumPy, CPU).
+    """
+    depth = filtering.bench_depth_map(size, samples)
+    out = {"size": int(size), "samples": int(samples), "texels": int(size) * int(size)}
+    b, t_resolve = _timed(filtering.resolve_moments, depth)
+    ref, t_blur = _timed(filtering.blur, b)
+    out["global_resolve_s"] = t_resolve
+    out["global_blur_s"] = t_blur
+    out["global_total_s"] = t_resolve + t_blur
+    out["global_mtexels_per_s"] = out["texels"] / out["global_total_s"] / 1e6
+    if onchip:
+        stages = {}
+        t0 = time.perf_counter()
+        f = _onchip.filter_moments(depth, timings=stages)
+        t_total = time.perf_counter() - t0
+        for k, v in stages.items():
+            out[f"onchip_{k}_s"] = v
+        out["onchip_total_s"] = t_total
+        out["onchip_mtexels_per_s"] = out["texels"] / t_total / 1e6
+        out["max_abs_difference"] = float(np.max(np.abs(f - ref)))
     return out
+
+
+def _bench_setup_depth(size, dtype):
+    return (filtering.bench_depth_map(size, 4, dtype),)
+
+
+def _bench_setup_moments(size, dtype):
+    return (filtering.resolve_moments(filtering.bench_depth_map(size, 4, dtype)),)
+
+
+def _global_path(z):
+    return filtering.blur(filtering.resolve_moments(z))
+
+
+def _filtering_entries():
+    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.bench`): resolve, blur, both.
+
+    Inputs are 4× MSAA float32 depth maps of ``size²`` texels; bytes per texel
+    count the samples read and the moments written.
+    """
+    return [
+        Benchmark("resolve_moments (4x MSAA)", "float32", _bench_setup_depth, filtering.resolve_moments, 16 + 16,
+                  "4 depths in, 4 float32 moments out"),
+        Benchmark("blur 9x9 reference", "float64", _bench_setup_moments, filtering.blur, 16 + 32,
+                  "float32 moments in, float64 out, two passes, clamp-to-edge"),
+        Benchmark("resolve+blur global path", "float32", _bench_setup_depth, _global_path, 16 + 32,
+                  "4 depths in, float64 moments out"),
+    ]
+
+
+def bench_onchip(size=2048, samples=4):
+    """Seconds per stage of :func:`filter_moments` on the benchmark map of :func:`moments_ref.filtering.bench_depth_map`."""
+    depth = filtering.bench_depth_map(size, samples)
+    stages = {}
+    t0 = time.perf_counter()
+    _onchip.filter_moments(depth, timings=stages)
+    total = time.perf_counter() - t0
+    out = {f"onchip_{k}_s": v for k, v in stages.items()}
+    out["onchip_total_s"] = total
+    out["onchip_mtexels_per_s"] = size * size / total / 1e6
+    return out
+
+
+def _onchip_setup(size, dtype):
+    return (filtering.bench_depth_map(size, 4, dtype),)
+
+
+def _bench_nlq64(z):
+    return _onchip.filter_and_quantize(z, "nlq64")
+
+
+def _onchip_entries():
+    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.bench`): the on-chip emulation.
+
+    4× MSAA float32 depth maps of ``size²`` texels.
+    """
+    out = [
+        Benchmark("onchip filter_moments (4x MSAA)", "float32", _onchip_setup, _onchip.filter_moments, 16 + 16,
+                  "4 depths in, 4 float32 moments out, block-wise shared-memory emulation"),
+    ]
+    out.append(Benchmark("onchip filter_and_quantize nlq64", "float32", _onchip_setup, _bench_nlq64, 16 + 8,
+                         "4 depths in, 64-bit NLQ texel out"))
+    return out
+
+
+def _bench_zbuffer_setup(size, dtype):
+    rng = np.random.default_rng(3)
+    n = size * size
+    n_texels = 16 * 1024 * 1024 if size >= 1024 else 1 << 20
+    idx = rng.integers(0, n_texels, n).astype(np.intp)
+    z = rng.uniform(0, 1, n).astype(dtype)
+    return np.zeros(n_texels, warp._uint_of(dtype)), idx, z
+
+
+def _bench_zbuffer_fn(buf, idx, z):
+    buf[:] = 0
+    warp._zmax_into(buf, idx, z)
+
+
+def _bench_warp_setup(size, dtype):
+    """size² point-view updates: 16 views of 512², points on a tilted disc in front of them."""
+    from .scene import AreaLight
+    from .vwss.lights import light_views
+
+    light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
+    views = light_views(light, 16, 1.0, 5.0, seed=0)
+    n = max(1, size * size // 16)
+    rng = np.random.default_rng(4)
+    a = rng.uniform(0, 2 * np.pi, n)
+    rad = 1.5 * np.sqrt(rng.uniform(0, 1, n))
+    pts = np.stack([rad * np.cos(a), 2.0 + 0.2 * rad * np.sin(a), rad * np.sin(a)], -1).astype(dtype)
+    return pts, views.view_proj, 512
+
+
+def _bench_warp_fn(pts, vp, res):
+    for _ in warp.warp_passes(pts, vp, res, views_per_pass=8):
+        pass
+
+
+def _bench_mvr_setup(size, dtype):
+    """size² triangle-views: 4 views of 1024², size²/4 small triangles (about 4 pixels each)."""
+    from .scene import AreaLight, torus_knot
+    from .vwss.lights import light_views
+
+    light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
+    views = light_views(light, 4, 1.0, 5.0, seed=0)
+    n_tri = max(64, size * size // 4)
+    sides = 32
+    segments = max(2, n_tri // (2 * sides))
+    knot = torus_knot(p=2, q=3, radius=1.1, tube=0.14, segments=segments, sides=sides)
+    v = knot.vertices + np.array([0.0, 1.5, 0.0])
+    return v, knot.triangles, views.view_proj, 1024, np.dtype(dtype)
+
+
+def _bench_mvr_fn(v, t, vp, res, dtype):
+    from .vwss.mvr import mvr
+
+    mvr(v, t, vp, res, dtype=dtype)
+
+
+def _vwss_entries():
+    """Benchmarks for ``moments-ref bench``: z-buffer atomics, full warp, MVR.
+
+    The bench's element count is ``size²``; here an element is one point-view
+    update (``zbuffer_max`` / ``warp``) or one triangle-view (``mvr``), so
+    ``Melem/s`` reads directly as warp updates or MVR triangles per second.
+    """
+    return [
+        Benchmark("vwss zbuffer_max (np.maximum.at)", "float32", _bench_zbuffer_setup, _bench_zbuffer_fn, 12,
+                  "element = 1 update: index 8 B + depth 4 B in, random texel of a 64 MB map"),
+        Benchmark("vwss warp (project+snap+zbuffer)", "float32", _bench_warp_setup, _bench_warp_fn, 8,
+                  "element = 1 point-view update; 16 views of 512^2, 8 per pass"),
+        Benchmark("vwss mvr (rasterize_depth)", "float32", _bench_mvr_setup, _bench_mvr_fn, 4,
+                  "element = 1 triangle-view; torus knot, 4 views of 1024^2"),
+    ]
+
+
+def _extra_benchmarks():
+    """Benchmarks of the GPU-emulation and VWSS modules."""
+    return _filtering_entries() + _onchip_entries() + _vwss_entries()
 
 
 BENCHMARKS = _core_benchmarks()
@@ -220,7 +405,7 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
     if quick:
         size = min(size, 512)
     repeat = repeat or (1 if quick else 3)
-    benches = BENCHMARKS + _extra_benchmarks()
+    benches = bench_entries()
     if only:
         benches = [b for b in benches if any(o in b.name for o in only)]
     rows = []
@@ -253,7 +438,7 @@ def end_to_end(size=2048, samples=4, repeat=1):
     (:func:`~moments_ref.filtering.blur`, float64 reference, cast to float32 like
     the shader's registers), bias with ``BIAS_FLOAT32`` and Φ
     (:func:`~moments_ref.nonlinear.phi`), pack (:func:`~moments_ref.packing.pack64`);
-    and beside it the on-chip emulation (:func:`~moments_ref.onchip.filter_moments`)
+    and beside it the on-chip emulation (:func:`~moments_ref._onchip.filter_moments`)
     followed by the same Φ and pack. Returns a list of dicts
     ``{path, stage, seconds, share}``; shares are of the path's total.
     """
@@ -344,3 +529,8 @@ def markdown(rows):
             f"{r['note']} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def bench_entries():
+    """Every benchmark of ``moments-ref bench``: the core kernels, filtering, on-chip emulation, VWSS."""
+    return BENCHMARKS + _extra_benchmarks()

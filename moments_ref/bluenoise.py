@@ -70,6 +70,7 @@ References
 R. Ulichney, "The void-and-cluster method for dither array generation",
 Proc. SPIE 1913, 1993.
 C. Peters, "Non-linearly quantized moment shadow maps", HPG 2017, §4.2.
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

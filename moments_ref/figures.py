@@ -4,6 +4,10 @@ One section per figure: ``figureN_data(...)`` returns the numbers (no plotting),
 ``write_figureN(out_dir)`` writes ``figureN.csv`` and ``figureN.png`` atomically
 (matplotlib's Agg backend) and returns their paths. The command line
 (``moments-ref figureN --out DIR``) and the notebooks only call these functions.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

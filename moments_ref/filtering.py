@@ -14,11 +14,13 @@ map, ``m[clip(y, 0, H−1), clip(x, 0, W−1)]``. This is what a GPU texture loa
 clamp addressing returns, and it is what the on-chip shader's guard band loads at
 the border of the map. Each pass clamps on its own axis, which is the same as
 clamping both coordinates of the 9×9 kernel.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 
@@ -33,8 +35,6 @@ __all__ = [
     "blur",
     "check_depth_samples",
     "bench_depth_map",
-    "bench_filtering",
-    "bench_entries",
 ]
 
 #: Filter size and standard deviation of HPG17 §4.1 ("9² ... 2.4 texels").
@@ -193,12 +193,6 @@ def blur(moments, weights=None):
     return out
 
 
-def _timed(fn, *args):
-    t0 = time.perf_counter()
-    out = fn(*args)
-    return out, time.perf_counter() - t0
-
-
 def bench_depth_map(size=2048, samples=4, dtype=np.float32, seed=0):
     """A deterministic (size, size, samples) depth map for benchmarks: smooth terrain plus steps."""
     rng = np.random.default_rng(seed)
@@ -207,77 +201,3 @@ def bench_depth_map(size=2048, samples=4, dtype=np.float32, seed=0):
     steps = np.where((np.add.outer(np.arange(size) // 64, np.arange(size) // 64) % 2) == 0, 0.3, -0.3)
     jitter = rng.uniform(-0.01, 0.01, size=(size, size, samples))
     return np.clip(base[..., None] + steps[..., None] + jitter, -1, 1).astype(dtype)
-
-
-def bench_filtering(size=2048, samples=4, onchip=True):
-    """Time the global path (resolve, then blur) and the on-chip emulation.
-
-    Parameters
-    ----------
-    size : int
-        Side of the square shadow map (HPG17 §5 uses 2048²).
-    samples : int
-        MSAA samples per texel (4 in HPG17 §5).
-    onchip : bool
-        Also time :func:`moments_ref.onchip.filter_moments` per stage.
-
-    Returns
-    -------
-    results : dict
-        ``{"size", "samples", "texels", "global_resolve_s", "global_blur_s",
-        "global_total_s", "global_mtexels_per_s"}`` and, with ``onchip``, the
-        on-chip stage times ``"onchip_<stage>_s"``, ``"onchip_total_s"``,
-        ``"onchip_mtexels_per_s"`` and ``"max_abs_difference"`` between the two
-        paths. Wall-clock seconds of one run on this machine (NumPy, CPU).
-    """
-    depth = bench_depth_map(size, samples)
-    out = {"size": int(size), "samples": int(samples), "texels": int(size) * int(size)}
-    b, t_resolve = _timed(resolve_moments, depth)
-    ref, t_blur = _timed(blur, b)
-    out["global_resolve_s"] = t_resolve
-    out["global_blur_s"] = t_blur
-    out["global_total_s"] = t_resolve + t_blur
-    out["global_mtexels_per_s"] = out["texels"] / out["global_total_s"] / 1e6
-    if onchip:
-        from . import onchip as _onchip
-
-        stages = {}
-        t0 = time.perf_counter()
-        f = _onchip.filter_moments(depth, timings=stages)
-        t_total = time.perf_counter() - t0
-        for k, v in stages.items():
-            out[f"onchip_{k}_s"] = v
-        out["onchip_total_s"] = t_total
-        out["onchip_mtexels_per_s"] = out["texels"] / t_total / 1e6
-        out["max_abs_difference"] = float(np.max(np.abs(f - ref)))
-    return out
-
-
-def _bench_setup_depth(size, dtype):
-    return (bench_depth_map(size, 4, dtype),)
-
-
-def _bench_setup_moments(size, dtype):
-    return (resolve_moments(bench_depth_map(size, 4, dtype)),)
-
-
-def _global_path(z):
-    return blur(resolve_moments(z))
-
-
-def bench_entries():
-    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.bench`): resolve, blur, both.
-
-    Inputs are 4× MSAA float32 depth maps of ``size²`` texels; bytes per texel
-    count the samples read and the moments written.
-    """
-    from .bench import Benchmark
-
-    return [
-        Benchmark("resolve_moments (4x MSAA)", "float32", _bench_setup_depth, resolve_moments, 16 + 16,
-                  "4 depths in, 4 float32 moments out"),
-        Benchmark("blur 9x9 reference", "float64", _bench_setup_moments, blur, 16 + 32,
-                  "float32 moments in, float64 out, two passes, clamp-to-edge"),
-        Benchmark("resolve+blur global path", "float32", _bench_setup_depth, _global_path, 16 + 32,
-                  "4 depths in, float64 moments out"),
-    ]

@@ -46,6 +46,10 @@ result is that of the projection, not an error; bias the moments to stay inside.
 Bounds. ``lower ≤ Z(z < zf) ≤ Z(z ≤ zf) ≤ upper``: the upper bound is
 ``lower + w0``, the largest mass a distribution with these moments can have at or
 below zf. For a unique (singular) distribution both are attained.
+
+References
+----------
+HPG17, Slides, Peters and Klein 2015 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import InputError, broadcast_pair, real_input
+from ._kernels import CHUNK, SINGULAR_RTOL, copysign_inplace, singular_thresholds, two_point
 
 __all__ = [
     "shadow_intensity",
@@ -62,44 +67,9 @@ __all__ = [
     "singular_thresholds",
 ]
 
-#: Multiple of the dtype's machine epsilon below which B(b) counts as singular
-#: (relative to b2 for σ², to max(b4, σ²) for ξ4); see the module docstring.
-SINGULAR_RTOL = {"float32": 0.0, "float64": 8.0}
-
-#: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
-CHUNK = 1 << 14
-
-
-def singular_thresholds(dtype):
-    """The relative singularity threshold ``SINGULAR_RTOL[dtype]·eps`` of float32 or float64."""
-    dt = np.dtype(dtype)
-    return SINGULAR_RTOL[dt.name] * np.finfo(dt).eps
-
-
-def _two_point(b1, b2, b3, sigma2):
-    """Depths y1 ≤ y2 and weight v2 of the two-point distribution with moments b1..b3.
-
-    HPG17 Algorithm 2, steps (1)–(5): roots of ``σ² z² + q1 z + q0`` with
-    ``q1 = b1 b2 − b3`` and ``q0 = −b1 q1 − b2 σ²``; ``v2 = (b1 − y1)/(y2 − y1)``.
-    """
-    q1 = b1 * b2 - b3
-    q0 = -b1 * q1 - b2 * sigma2
-    disc = np.sqrt(np.maximum(q1 * q1 - 4 * sigma2 * q0, 0))
-    t = -0.5 * (q1 + np.copysign(disc, q1))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ra = t / sigma2
-        rb = q0 / t
-    y1 = np.minimum(ra, rb)
-    y2 = np.maximum(ra, rb)
-    gap = y2 - y1
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v2 = np.clip((b1 - y1) / gap, 0, 1)
-    bad = ~np.isfinite(v2)
-    if bad.any():  # no usable second depth: all mass at b1
-        y1 = np.where(bad, b1, y1)
-        y2 = np.where(bad, b1, y2)
-        v2 = np.where(bad, 0, v2).astype(b1.dtype)
-    return y1, y2, v2
+# One home for the chunk size, the singularity threshold and the two-point step (HPG17
+# Algorithm 2), shared with msm6 and nonlinear; re-exported here (public names).
+_two_point = two_point
 
 
 def _constants(dtype, n):
@@ -179,8 +149,7 @@ def _kernel(b, zf, want, c):
         d -= t
         np.maximum(d, c["zero"], out=d)
         np.sqrt(d, out=d)
-        it = c["sign"].dtype
-        np.bitwise_or(d.view(it), np.bitwise_and(h.view(it), c["sign"]), out=d.view(it))  # copysign
+        copysign_inplace(d, h, c["sign"])
         d += h
         ra = np.divide(q2, d, out=q2)  # −1/root: keeps the sign bookkeeping in one place
         np.divide(q0, d, out=q0)

@@ -98,6 +98,10 @@ B(b*) is positive definite: the six-moment sibling of HPG17's
   exact Z of the projection, never NaN), which costs less than a strong bias
   smearing every bound. α = 1e-3 keeps three quarters of even single-texel
   vectors inside at an RMSE cost of 0.001.
+
+References
+----------
+HPG17, Slides, Peters and Klein 2015 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -108,7 +112,8 @@ import numpy as np
 
 from ._arrays import InputError, broadcast_pair, real_input
 from .moments import BiasPreset, power_moments
-from .msm import CHUNK, SINGULAR_RTOL, _two_point, singular_thresholds
+from ._kernels import CHUNK, SINGULAR_RTOL, singular_thresholds
+from ._kernels import two_point as _two_point
 
 __all__ = [
     "shadow_intensity",

@@ -34,6 +34,10 @@ The tolerance is :func:`rounding_tolerance`: ``ROUNDING_ULPS · eps(dtype)``
 float64 (``ROUNDING_ULPS = 64``; float32 Algorithm 2 on biased moments leaves ξ4
 down to about −3e-8 by cancellation in step (7), see :func:`phi`). Anything further
 outside raises :class:`~moments_ref.InputError`.
+
+References
+----------
+HPG17, Peters and Klein 2015 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -41,6 +45,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import InputError, broadcast_pair, first_index, real_input
+from ._kernels import CHUNK as _CHUNK
+from ._kernels import copysign_inplace
 
 __all__ = [
     "phi",
@@ -56,8 +62,8 @@ __all__ = [
     "validate_representation",
 ]
 
-#: Texels per chunk in :func:`shade` (keeps the temporaries in L2 cache).
-CHUNK = 1 << 14
+#: Texels per chunk in :func:`shade`: :data:`moments_ref._kernels.CHUNK`.
+CHUNK = _CHUNK
 
 #: HPG17 §3.3: ξ4 is clamped to at least 1.2e-7 before the warp Ψ4.
 PSI4_XI_MIN = 1.2e-7
@@ -384,18 +390,6 @@ def _kernel_constants(dtype, n):
     }
 
 
-def _copysign_inplace(d, h, sign):
-    """``d := copysign(d, h)`` for ``d ≥ 0``, by setting d's sign bit from h.
-
-    Same result as ``np.copysign`` (IEEE sign bit, so −0 counts as negative);
-    ``sign`` is an integer array holding only the sign bit. Two integer passes
-    are several times faster than NumPy's float32 copysign loop.
-    """
-    it = sign.dtype
-    bits = np.bitwise_and(h.view(it), sign)
-    np.bitwise_or(d.view(it), bits, out=d.view(it))
-
-
 def _shade_kernel(y1, y2, v2, xi4, zf, out, c):
     """HPG17 Algorithm 3 on flat, contiguous 1-D chunks; writes the result to ``out``.
 
@@ -446,7 +440,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c):
     s = h * h
     s += p
     np.sqrt(s, out=s)
-    _copysign_inplace(s, h, c["sign"])
+    copysign_inplace(s, h, c["sign"])
     s += h
     np.divide(p, s, out=p)
     np.negative(s, out=s)

@@ -39,6 +39,10 @@ Agreement with the reference
 ``filter_moments(z)`` equals ``blur(resolve_moments(z))`` up to float32 rounding:
 :func:`tolerance` gives the bound used by the tests (absolute, since the moments of
 depths in [-1, 1] lie in [-1, 1]).
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -57,8 +61,6 @@ __all__ = [
     "filter_and_quantize",
     "tolerance",
     "block_grid",
-    "bench_onchip",
-    "bench_entries",
 ]
 
 #: Texture formats of :func:`filter_and_quantize` and their bits per texel.
@@ -268,48 +270,3 @@ def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
 
     r = phi(bias_moments(b, BIAS_FLOAT32))
     return pack64(r) if fmt == "nlq64" else pack32(r)
-
-
-def bench_onchip(size=2048, samples=4):
-    """Seconds per stage of :func:`filter_moments` on the benchmark map of :func:`moments_ref.filtering.bench_depth_map`."""
-    from .filtering import bench_depth_map
-
-    depth = bench_depth_map(size, samples)
-    stages = {}
-    t0 = time.perf_counter()
-    filter_moments(depth, timings=stages)
-    total = time.perf_counter() - t0
-    out = {f"onchip_{k}_s": v for k, v in stages.items()}
-    out["onchip_total_s"] = total
-    out["onchip_mtexels_per_s"] = size * size / total / 1e6
-    return out
-
-
-def _bench_setup(size, dtype):
-    from .filtering import bench_depth_map
-
-    return (bench_depth_map(size, 4, dtype),)
-
-
-def _bench_nlq64(z):
-    return filter_and_quantize(z, "nlq64")
-
-
-def bench_entries():
-    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.bench`): the on-chip emulation.
-
-    4× MSAA float32 depth maps of ``size²`` texels.
-    """
-    from .bench import Benchmark
-
-    out = [
-        Benchmark("onchip filter_moments (4x MSAA)", "float32", _bench_setup, filter_moments, 16 + 16,
-                  "4 depths in, 4 float32 moments out, block-wise shared-memory emulation"),
-    ]
-    try:
-        from . import nonlinear, packing  # noqa: F401
-    except ImportError:
-        return out
-    out.append(Benchmark("onchip filter_and_quantize nlq64", "float32", _bench_setup, _bench_nlq64, 16 + 8,
-                         "4 depths in, 64-bit NLQ texel out"))
-    return out

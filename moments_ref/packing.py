@@ -48,6 +48,10 @@ maps leaves the domain by more than rounding (y1 = −1.0026 measured). They rai
 :class:`~moments_ref.InputError` for non-finite values and for y1 > y2 beyond
 :func:`moments_ref.nonlinear.rounding_tolerance`. Decoders take only uint16/uint32 and a
 ``dtype`` keyword (float64 default, float32 to emulate a GPU).
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -55,7 +59,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import InputError, first_index, real_input
-from .nonlinear import psi4, psi4_inverse, rounding_tolerance, validate_representation
+from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, psi4, psi4_inverse, rounding_tolerance,
+                        validate_representation)
 
 __all__ = [
     "pack64",
@@ -136,7 +141,7 @@ def _float_dtype(dtype):
 
 def _xi_code_up(xi4, code, decode, cmax):
     """Bump ``code`` by one where ``decode(code) < ξ4`` (float rounding of Ψ4, Ψ4⁻¹)."""
-    xi = np.clip(xi4, 1.2e-7, 0.25).astype(xi4.dtype)
+    xi = np.clip(xi4, PSI4_XI_MIN, PSI4_XI_MAX).astype(xi4.dtype)
     low = (decode(code) < xi) & (code < cmax)
     return code + low.astype(code.dtype)
 

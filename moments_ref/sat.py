@@ -47,6 +47,10 @@ Bad input. Rectangles with more texels than ``n`` (which would be silently
 wrong after wrap-around) and rectangles reaching outside the map raise
 :class:`~moments_ref.InputError`; ``clamp=True`` intersects rectangles with
 the map instead (documented at :func:`interpolated_mean`).
+
+References
+----------
+Slides : see docs/bib.md.
 """
 
 from __future__ import annotations

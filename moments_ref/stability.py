@@ -16,6 +16,10 @@ version writes the same file.
 Input generation follows the pipeline: moments are computed in float64, cast to
 the working dtype and biased there with ``BIAS_FLOAT32`` (HPG17 §3.2: the bias for
 moments stored in floats, also the input of Algorithm 2).
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

@@ -10,10 +10,10 @@ from hypothesis.extra import numpy as hnp
 from scipy import ndimage
 
 from moments_ref import InputError
+from moments_ref.bench import bench_filtering
 from moments_ref.filtering import (
     SIGMA,
     TAPS,
-    bench_filtering,
     blur,
     gaussian_weights,
     resolve_moments,

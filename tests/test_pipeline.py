@@ -138,7 +138,7 @@ def test_multiview_technique_needs_area_light():
 
 def test_receiver_slope_is_the_depth_change_per_texel():
     """Plane z = a·x seen through the identity projection into a 100² map: 50 texels per unit."""
-    from moments_ref.pipeline import _depth_slope
+    from moments_ref.gbuffer import _depth_slope
 
     rng = np.random.default_rng(0)
     for a in (0.0, 0.3, -2.0):
@@ -179,12 +179,43 @@ role = "occluder"
 
 def test_slope_bias_removes_self_shadowing_of_a_lit_plane(tmp_path, monkeypatch):
     """A plane in the shadow map (role both) lit at 60° is lit; without the slope term PCF self-shadows it."""
+    import moments_ref.gbuffer as gbuffer
     import moments_ref.pipeline as pipeline
 
     path = tmp_path / "tilted.toml"
     path.write_text(TILTED)
     ref = pipeline.run(str(path), ["pcf"]).reference["pcf"]
     assert ref.max() < 0.02
-    monkeypatch.setattr(pipeline, "SLOPE_BIAS_TEXELS", 0.0)
+    monkeypatch.setattr(gbuffer, "SLOPE_BIAS_TEXELS", 0.0)  # the receiver-slope bias lives in gbuffer
     acne = pipeline.run(str(path), ["pcf"]).reference["pcf"]
     assert np.median(acne) > 0.3  # surface acne: about half of the footprint lies in front
+
+
+def test_graph_shares_equal_stages_and_refuses_a_different_step_under_one_key():
+    from moments_ref.techniques import Stage, stage_key
+
+    g = pipeline._Graph()
+    assert g.add(Stage("zeros", np.zeros, params=(("shape", 3),))) == "zeros_shape3" == stage_key("zeros", {"shape": 3})
+    assert g.add(Stage("zeros", np.zeros, params=(("shape", 3),))) == "zeros_shape3"  # equal: shared
+    assert g.add(Stage("zeros", np.zeros, params=(("shape", 4),))) == "zeros_shape4"  # a parameter: its own key
+    with pytest.raises(ValueError, match="added twice with different steps"):
+        g.add(Stage("zeros", np.ones, params=(("shape", 3),)))
+
+    def make(value):
+        return lambda: value
+
+    g.add(Stage("const", make(1.0)))
+    g.add(Stage("const", make(1.0)))  # same code, equal captured value: the same step
+    with pytest.raises(ValueError, match="different steps"):
+        g.add(Stage("const", make(2.0)))
+    with pytest.raises(ValueError, match="different steps"):
+        g.add(Stage("zeros", np.zeros, deps=("const",), params=(("shape", 3),)))
+    order, values, _ = g.run(["zeros_shape4"])
+    assert order == ["zeros_shape4"] and values["zeros_shape4"].shape == (4,)
+
+
+def test_reference_stage_keys_carry_the_bias():
+    g, _, meta = pipeline.plan(load_scene("railing"), ["pcf", "msm64", "nlq64"], **SMALL)
+    refs = {i["reference"] for i in meta["info"].values()}
+    assert refs == {"reference_pcf_bias0.001"}  # one bias, one shared reference stage
+    assert g.nodes["reference_pcf_bias0.001"].params == (("bias", 1e-3),)

@@ -6,6 +6,10 @@ it over the MSAA samples (the resolve, HPG17 §4) and blurs it with the 9×9
 Gaussian of σ = 2.4 (HPG17 §4.1). All of these are linear in the depth
 distribution, which is why alpha blending renders translucent occluders into
 them (Slides, "Translucent occluders").
+
+References
+----------
+HPG17, Slides : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import numpy as np
 
 from ..filtering import blur, resolve_moments
 from ..moments import power_moments
-from . import LayeredSamples, Step, is_layered
+from ._interface import LayeredSamples, Step, is_layered
 
 __all__ = ["resolve_features", "moment_steps", "feature_steps"]
 
@@ -65,11 +69,17 @@ def moment_steps(samples: int, layered: bool) -> tuple:
     return (Step(first, _moments), Step("blur_moments", _blur))
 
 
-def feature_steps(tag: str, feature, samples: int, layered: bool) -> tuple:
-    """Resolve and blur of ``feature(z)``; names ``resolve_<tag>`` / ``features_<tag>`` and ``blur_<tag>``."""
-    def resolve(x, params):
+def feature_steps(tag: str, feature, samples: int, layered: bool, params=()) -> tuple:
+    """Resolve and blur of ``feature(z)``: steps ``resolve_<tag>`` / ``features_<tag>`` and ``blur_<tag>``.
+
+    ``params`` (pairs, e.g. ``(("c", 80.0),)``) are the feature's parameters: part of
+    the steps' keys (``resolve_esm_c80``), so features with other parameters never
+    share a stage.
+    """
+    def resolve(x, options):
         return resolve_features(x, feature)
 
     prefix = "translucency_" if layered else ""
     first = ("resolve_" if samples > 1 or layered else "features_") + tag
-    return (Step(prefix + first, resolve), Step(prefix + "blur_" + tag, _blur))
+    params = tuple(params)
+    return (Step(prefix + first, resolve, params), Step(prefix + "blur_" + tag, _blur, params))

@@ -15,13 +15,17 @@ receiver leak light.
 ``c = ESM_C = 80`` on NDC depth z ∈ [-1, 1]: ``exp(80) ≈ 5.5e34`` still fits
 float32 (whose limit is exp(88.7)). The product is evaluated as
 ``exp(ln E − c zf)`` so that it cannot overflow.
+
+References
+----------
+Annen et al. 2008 : see docs/bib.md.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import Step, Technique, bilinear_filtered, register
+from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import feature_steps
 
 __all__ = ["ESM_C", "esm_feature", "esm_shadow", "ESM"]
@@ -63,7 +67,7 @@ def _store(x, params):
 
 
 def _steps(samples, layered):
-    return feature_steps("esm_c80", esm_feature, samples, layered) + (Step("store_esm_float32", _store),)
+    return feature_steps("esm", esm_feature, samples, layered, (("c", ESM_C),)) + (Step("store_esm_float32", _store),)
 
 
 def _lookup(texture, uv, zf, noise):

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import Step, Technique, bilinear_filtered, register
+from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import feature_steps
 from .vsm import cantelli_shadow
 
@@ -76,7 +76,6 @@ def evsm_shadow(m, zf, c_pos, c_neg, min_depth_std=0.0):
 
 
 def _make(name, bits, c_pos, c_neg, storage, delta, description):
-    tag = f"evsm_c{c_pos:g}_{c_neg:g}"
 
     def feature(z):
         return evsm_feature(z, c_pos, c_neg)
@@ -85,7 +84,7 @@ def _make(name, bits, c_pos, c_neg, storage, delta, description):
         return x.astype(storage)
 
     def steps(samples, layered):
-        return feature_steps(tag, feature, samples, layered) + (
+        return feature_steps("evsm", feature, samples, layered, (("c", (c_pos, c_neg)),)) + (
             Step(f"store_{name}_{np.dtype(storage).name}", store),)
 
     def lookup(texture, uv, zf, noise):

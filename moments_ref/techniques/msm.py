@@ -12,6 +12,10 @@ bound of Z(z < zf)).
 * ``msm128``: b1..b4 in R32G32B32A32_FLOAT; bias ``BIAS_FLOAT32`` (α = 3e-7).
 
 Shading runs in float32, as a shader would.
+
+References
+----------
+HPG17, Slides, Peters and Klein 2015 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import numpy as np
 from ..affine import encode_unorm16, from_optimized, unorm_to_float
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ..msm import shadow_intensity
-from . import Step, Technique, bilinear_filtered, register
+from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import moment_steps
 
 __all__ = ["msm64_steps", "msm64_lookup", "MSM64", "MSM128"]

@@ -18,6 +18,10 @@ Lookup: non-linearly quantized texels cannot be filtered by the texture unit.
 
 Depth bias 1e-3 (HPG17 §5: "With non-linear quantization we use a constant depth
 bias of 10⁻³ depth units for all results"). Shading runs in float32.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from ..moments import BIAS_FLOAT32, bias_moments
 from ..nonlinear import phi, shade
 from ..onchip import filter_moments
 from ..packing import pack32, pack64, unpack32, unpack64
-from . import Step, Technique, register
+from ._interface import Step, Technique, register
 
 __all__ = ["NLQ64", "NLQ32", "NLQ64_DITHER", "NLQ32_DITHER"]
 

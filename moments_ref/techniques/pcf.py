@@ -16,6 +16,10 @@ the reference of :mod:`moments_ref.report`.
 For a :class:`~moments_ref.techniques.LayeredSamples` map (translucent occluders)
 the test of a sample is ``Σ_k weight_k [z_k < zf]``, one minus the product of the
 transmittances in front of ``zf``: the reference for translucent occluders.
+
+References
+----------
+HPG17, Reeves et al. 1987 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..filtering import gaussian_weights
-from . import Technique, is_layered, register
+from ._interface import Technique, is_layered, register
 
 __all__ = ["pcf_filtered", "tap_weights", "PCF"]
 

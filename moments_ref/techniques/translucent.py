@@ -22,6 +22,10 @@ and take running products); ``translucent_msm`` stores their moments as
 shadow map") and shades them with Algorithm 1. Techniques without translucency
 support see only the opaque occluders (the default of
 :meth:`moments_ref.scene.Scene.shadow_map`).
+
+References
+----------
+Slides, Peters et al. 2016 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ import numpy as np
 
 from .._arrays import InputError, real_input
 from ..raster import rasterize_fragments
-from . import LayeredSamples, Technique, register
+from ._interface import LayeredSamples, Technique, register
 from .msm import msm64_lookup, msm64_steps
 
 __all__ = ["translucency_pass", "TRANSLUCENT_MSM"]

@@ -19,6 +19,10 @@ the sharp lower bound of the shadow intensity given two moments.
 rounding error of the second UNORM16 channel (1/65535 ≈ 1.5e-5): without it a
 lit surface whose rounded variance comes out zero or negative would be shadowed
 by its own depth bias.
+
+References
+----------
+HPG17, Donnelly and Lauritzen 2006 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..affine import float_to_unorm, unorm_to_float
-from . import Step, Technique, bilinear_filtered, register
+from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import moment_steps
 
 __all__ = ["VSM_MIN_VARIANCE", "vsm_from_moments", "cantelli_shadow", "VSM"]

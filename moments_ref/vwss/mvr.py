@@ -7,6 +7,10 @@ for every sample. Here each view is one call of
 coverage with the top-left rule), so the maps are directly comparable with the
 point-warped maps of :func:`moments_ref.vwss.warp.warp` (same views, same NDC
 depth convention, empty = 1).
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations

@@ -25,15 +25,19 @@ maps bit for bit (VWSS §3.2, Figure 2).
 The public maps are NDC depth in [−1, 1] (``z = 1 − 2 r``, empty = 1 = far), the
 convention of :func:`moments_ref.raster.rasterize_depth`, so that warped and
 rasterized maps compare directly.
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._arrays import InputError, first_index, real_input
+from .._arrays import InputError, first_index, positive_int, real_input
 
-__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes", "bench_entries"]
+__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes"]
 
 # Point-view pairs projected per vectorized chunk (bounds the temporaries).
 _CHUNK = 1 << 21
@@ -208,13 +212,7 @@ def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
     h, w = _check_resolution(resolution)
     nv = m.shape[0]
     k = nv if views_per_pass is None else views_per_pass
-    try:
-        ok = int(k) == k and int(k) >= 1
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InputError(f"views_per_pass: expected a positive integer, got {views_per_pass!r}")
-    k = min(int(k), nv)
+    k = min(positive_int(k, "views_per_pass"), nv)
     udt = _uint_of(p.dtype)
     starts = range(0, nv, k)
     if progress:
@@ -274,81 +272,3 @@ def warp(points, views, resolution, views_per_pass=None, progress=False):
     for sel, maps in warp_passes(p, m, (h, w), views_per_pass, progress):
         out[sel] = maps
     return out
-
-
-# ---------------------------------------------------------------------------
-# Benchmarks for `moments-ref bench`
-
-
-def _bench_zbuffer_setup(size, dtype):
-    rng = np.random.default_rng(3)
-    n = size * size
-    n_texels = 16 * 1024 * 1024 if size >= 1024 else 1 << 20
-    idx = rng.integers(0, n_texels, n).astype(np.intp)
-    z = rng.uniform(0, 1, n).astype(dtype)
-    return np.zeros(n_texels, _uint_of(dtype)), idx, z
-
-
-def _bench_zbuffer_fn(buf, idx, z):
-    buf[:] = 0
-    _zmax_into(buf, idx, z)
-
-
-def _bench_warp_setup(size, dtype):
-    """size² point-view updates: 16 views of 512², points on a tilted disc in front of them."""
-    from ..scene import AreaLight
-    from .lights import light_views
-
-    light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
-    views = light_views(light, 16, 1.0, 5.0, seed=0)
-    n = max(1, size * size // 16)
-    rng = np.random.default_rng(4)
-    a = rng.uniform(0, 2 * np.pi, n)
-    rad = 1.5 * np.sqrt(rng.uniform(0, 1, n))
-    pts = np.stack([rad * np.cos(a), 2.0 + 0.2 * rad * np.sin(a), rad * np.sin(a)], -1).astype(dtype)
-    return pts, views.view_proj, 512
-
-
-def _bench_warp_fn(pts, vp, res):
-    for _ in warp_passes(pts, vp, res, views_per_pass=8):
-        pass
-
-
-def _bench_mvr_setup(size, dtype):
-    """size² triangle-views: 4 views of 1024², size²/4 small triangles (about 4 pixels each)."""
-    from ..scene import AreaLight, torus_knot
-    from .lights import light_views
-
-    light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
-    views = light_views(light, 4, 1.0, 5.0, seed=0)
-    n_tri = max(64, size * size // 4)
-    sides = 32
-    segments = max(2, n_tri // (2 * sides))
-    knot = torus_knot(p=2, q=3, radius=1.1, tube=0.14, segments=segments, sides=sides)
-    v = knot.vertices + np.array([0.0, 1.5, 0.0])
-    return v, knot.triangles, views.view_proj, 1024, np.dtype(dtype)
-
-
-def _bench_mvr_fn(v, t, vp, res, dtype):
-    from .mvr import mvr
-
-    mvr(v, t, vp, res, dtype=dtype)
-
-
-def bench_entries():
-    """Benchmarks for ``moments-ref bench``: z-buffer atomics, full warp, MVR.
-
-    The bench's element count is ``size²``; here an element is one point-view
-    update (``zbuffer_max`` / ``warp``) or one triangle-view (``mvr``), so
-    ``Melem/s`` reads directly as warp updates or MVR triangles per second.
-    """
-    from ..bench import Benchmark
-
-    return [
-        Benchmark("vwss zbuffer_max (np.maximum.at)", "float32", _bench_zbuffer_setup, _bench_zbuffer_fn, 12,
-                  "element = 1 update: index 8 B + depth 4 B in, random texel of a 64 MB map"),
-        Benchmark("vwss warp (project+snap+zbuffer)", "float32", _bench_warp_setup, _bench_warp_fn, 8,
-                  "element = 1 point-view update; 16 views of 512^2, 8 per pass"),
-        Benchmark("vwss mvr (rasterize_depth)", "float32", _bench_mvr_setup, _bench_mvr_fn, 4,
-                  "element = 1 triangle-view; torus knot, 4 views of 1024^2"),
-    ]

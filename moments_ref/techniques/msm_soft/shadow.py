@@ -1,68 +1,13 @@
-"""Moment soft shadow mapping: PCSS with a summed-area table of moments (Slides, "Moment soft shadow mapping").
+"""Moment soft shadow mapping, the method: frustum, summed-area table of moments, blocker search, filtering.
 
-Percentage-closer soft shadows [Fernando 2005] in three steps (Slides,
-"Percentage-closer soft shadows"), each replaced by a constant-time query:
+See :mod:`moments_ref.techniques.msm_soft` for the derivation (Slides, "Moment
+soft shadow mapping"; "Moment-based blocker search"; "Penumbra estimation and
+filtering").
 
-1. **Blocker search** (Slides, "Moment-based blocker search"): one interpolated
-   query of the summed-area table (:mod:`moments_ref.sat`) over the search
-   region gives the moments of its depth distribution; Algorithm 1's canonical
-   representation ``(zf, z1, z2; w0, w1, w2)`` (:func:`moments_ref.msm.canonical_representation`)
-   reconstructs it with three depths, and the average blocker depth is
-
-       z_b = (Σ_{l: z_l < zf} w_l z_l + ε zf) / (Σ_{l: z_l < zf} w_l + ε),  ε = 10⁻³,
-
-   the support points in front of the fragment, with "a little bias towards the
-   depth of the pixel" for a small denominator.
-2. **Penumbra estimation** (Slides, "Penumbra estimation and filtering"), as in
-   PCSS with parallel planes: ``w_penumbra = (d_r − d_b)·l / d_b``.
-3. **Filtering**: a single interpolated SAT query over the filter region (a
-   rectangle: "rectangular filter → rectangular light source") gives the moments
-   for Algorithm 1 (:func:`moments_ref.msm.shadow_intensity`, lower bound) after
-   biasing ("The moment bias can be smaller here", see :func:`soft_bias`).
-
-Geometry and units
-------------------
-The single shadow map is the perspective view from the area light's centre
-along its normal (:meth:`moments_ref.scene.Scene.shadow_view_proj`, or
-:meth:`moments_ref.vwss.LightSamples.center_view_proj`); its samples and the
-fragments' depths arrive as NDC depths z ∈ [−1, 1] (design.md). Distances
-``d`` are view depths in world units along the light normal,
-``d = 2 f n / ((f + n) − z (f − n))`` (:meth:`LightFrustum.view_depth`).
-
-Stored depth. By default (``depth="linear"``) the texture holds the moments of
-the depth *linear in d*, remapped to [−1, 1]: ``z_lin = 2 (d − n)/(f − n) − 1``
-(empty texels, NDC 1, stay at 1). Perspective NDC depth crowds everything far
-from the near plane against 1, where the biased moments cannot separate an
-occluder from the receiver: on the ``column`` artifact scene (column at d = 3.6,
-receiver at 4, near 0.5, far 5: NDC 0.914 and 0.944) the blocker depth
-reconstructed from NDC moments comes out between 2.4 and 3.1 instead of 3.6.
-``depth="ndc"`` keeps the NDC depth for comparison. The blocker depth ``z_b``
-is averaged in the stored depth, as the slides average the stored depths, and
-then converted to ``d_b``.
-
-For a receiver at view depth ``d_r`` the light rectangle (extent ``l`` along a
-map axis) seen through the plane at depth ``d`` covers, in the map, a rectangle
-centred on the receiver's texel position with full extent ``l (1/d − 1/d_r)``
-in tan units, times ``k = W / (2 tan(fov/2))`` texels per tan unit:
-
-* search region: at the near plane, ``d = near`` (the largest region that can
-  hold a blocker, as :func:`moments_ref.vwss.pcss`);
-* filter region: at ``d = d_b``; this is the PCSS penumbra width
-  ``w_penumbra = (d_r − d_b) l / d_b`` on the receiver, projected (divided by
-  ``d_r``). For an occluder parallel to the light it is exactly the set of
-  occluder points between the receiver and the light, which makes the result
-  exact for one planar parallel occluder (up to texels and the bias).
-
-Regions are clamped (documented clamp, counted in the details) to at least one
-texel (the query is then bilinear filtering: a hard shadow) and at most
-``max_kernel`` texels per side, the SAT's largest kernel ``n = max_kernel²``;
-rectangles reaching over the map's border are intersected with the map
-(:func:`moments_ref.sat.interpolated_mean` with ``clamp=True``). Fragments
-outside the map or behind the light are lit.
-
-The texture stores the optimized basis (:func:`moments_ref.affine.to_optimized`)
-of the per-texel moments (MSAA resolved, unfiltered: the SAT is the filter) in
-four uint32 channels, 128 bits per texel.
+References
+----------
+Slides, HPG17 : see docs/bib.md.
+Fernando 2005 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -72,33 +17,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._arrays import InputError, real_input
-from ..affine import from_optimized, to_optimized
-from ..filtering import resolve_moments
-from ..moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments
-from ..msm import canonical_representation, shadow_intensity
-from .. import sat as _sat
-from . import Step, Technique, register
+from ..._arrays import InputError, real_input
+from ...affine import from_optimized, to_optimized
+from ...filtering import resolve_moments
+from ...moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments
+from ...msm import canonical_representation, shadow_intensity
+from ...raster import project_points
+from ... import sat as _sat
 
-__all__ = [
-    "EPSILON",
-    "MAX_AUTO_KERNEL",
-    "DEPTH_BIAS",
-    "soft_bias",
-    "LightFrustum",
-    "SoftShadowMap",
-    "prepare",
-    "prepare_moments",
-    "average_blocker_depth",
-    "penumbra_width",
-    "soft_shadow",
-    "shade_points",
-    "ray_cast_visibility",
-    "ARTIFACT_SCENES",
-    "artifact_measurements",
-    "artifact_images",
-    "MSM_SOFT",
-]
+__all__ = ["EPSILON", "MAX_AUTO_KERNEL", "DEPTH_BIAS", "soft_bias", "LightFrustum", "SoftShadowMap", "prepare",
+           "prepare_moments", "average_blocker_depth", "penumbra_width", "soft_shadow", "shade_points",
+           "precision_bits_text"]
+
 
 #: ε of the average blocker depth (Slides, "Moment-based blocker search": ε := 10⁻³).
 EPSILON = 1e-3
@@ -352,7 +282,7 @@ def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") ->
     z = np.asarray(depth_samples)
     if z.ndim == 2:
         z = z[..., None]
-    from ..filtering import check_depth_samples
+    from ...filtering import check_depth_samples
 
     z = check_depth_samples(z).astype(np.float64)
     if _check_depth(depth) == "linear":
@@ -560,8 +490,6 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
         ``1 − intensity``; 1 for points outside the map or behind the light
         (the convention of :func:`moments_ref.vwss.pcss`).
     """
-    from ..raster import project_points
-
     light, vp = _resolve_source(source, view_proj)
     if isinstance(depth_map, SoftShadowMap):
         tex = depth_map
@@ -583,264 +511,7 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
     return 1.0 - res
 
 
-# ---------------------------------------------------------------------------
-# The artifacts the slides name (Slides, "Results for soft shadows")
-
-#: The light of the artifact scenes: 1.0 × 0.6 (width along the map's columns), 60° maps.
-_ART_LIGHT = dict(center=(0.0, 0.0, 0.0), normal=(0.0, -1.0, 0.0), width=1.0, height=0.6, up=(0.0, 0.0, -1.0),
-                  fov=60.0)
-#: Receiver plane distance, near and far of the artifact scenes.
-_ART_RECEIVER, _ART_NEAR, _ART_FAR = 4.0, 0.5, 5.0
-#: Rectangles (x0, x1, y0, y1, d) in the light's frame (tangent, bitangent, distance).
-_HOLE = 0.08
-ARTIFACT_SCENES = {
-    # A plate at d = 3 with a small square hole at its centre.
-    "hole": ((-2.0, -_HOLE / 2, -2.0, 2.0, 3.0), (_HOLE / 2, 2.0, -2.0, 2.0, 3.0),
-             (-_HOLE / 2, _HOLE / 2, -2.0, -_HOLE / 2, 3.0), (-_HOLE / 2, _HOLE / 2, _HOLE / 2, 2.0, 3.0)),
-    # A column close to the receiver (d = 3.6) ...
-    "column": ((-1.0, -0.1, -2.0, 2.0, 3.6),),
-    # ... and the same with a wall nearer the light (d = 3) that shadows none of the
-    # receiver points left of x = 0 but lies in their blocker-search regions.
-    "column_wall": ((-1.0, -0.1, -2.0, 2.0, 3.6), (0.18, 2.0, -2.0, 2.0, 3.0)),
-}
-
-
-def _frame_points(light, x, y, d):
-    x, y, d = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(d, np.float64))
-    return (light.center + x[..., None] * light.tangent + y[..., None] * light.bitangent
-            + d[..., None] * light.normal)
-
-
-def _rect_mesh(light, rects):
-    """Two triangles per rectangle (x0, x1, y0, y1, d) of the light's frame."""
-    r = np.asarray(rects, np.float64).reshape(-1, 5)
-    xs = np.stack([r[:, 0], r[:, 1], r[:, 1], r[:, 0]], 1)
-    ys = np.stack([r[:, 2], r[:, 2], r[:, 3], r[:, 3]], 1)
-    v = _frame_points(light, xs, ys, np.repeat(r[:, 4:5], 4, 1)).reshape(-1, 3)
-    base = 4 * np.arange(r.shape[0])[:, None, None]
-    t = (base + np.array([[0, 1, 2], [0, 2, 3]])[None]).reshape(-1, 3)
-    return v, t
-
-
-def ray_cast_visibility(light, rects, points, samples=64):
-    """Reference visibility for rectangles parallel to the light, by a grid of light samples.
-
-    Parameters
-    ----------
-    light : AreaLight
-    rects : (R, 5) float array
-        ``(x0, x1, y0, y1, d)`` in the light's frame: ``x`` along the tangent
-        (width), ``y`` along the bitangent (height), ``d`` the distance along
-        the normal.
-    points : (P, 3) float array
-        Receiver points behind the rectangles.
-    samples : int
-        Light samples per side (midpoint grid).
-
-    Returns
-    -------
-    (P,) float64: the fraction of the ``samples²`` segments from the point to the
-    light samples that miss every rectangle.
-    """
-    r = np.asarray(rects, np.float64).reshape(-1, 5)
-    p = np.asarray(points, np.float64).reshape(-1, 3) - light.center
-    px, py, pd = p @ light.tangent, p @ light.bitangent, p @ light.normal
-    g = (np.arange(samples) + 0.5) / samples - 0.5
-    sx = (g[:, None] * light.width + 0 * g[None, :]).reshape(-1)
-    sy = (0 * g[:, None] + g[None, :] * light.height).reshape(-1)
-    vis = np.empty(p.shape[0])
-    for lo in range(0, p.shape[0], 2048):  # chunks of points
-        sl = slice(lo, lo + 2048)
-        hit = np.zeros((px[sl].shape[0], sx.size), bool)
-        for x0, x1, y0, y1, d in r:  # loop over rectangles
-            t = (d / pd[sl])[:, None]  # where the segment crosses the rectangle's plane
-            xx = sx + (px[sl, None] - sx) * t
-            yy = sy + (py[sl, None] - sy) * t
-            hit |= (t < 1) & (xx >= x0) & (xx <= x1) & (yy >= y0) & (yy <= y1)
-        vis[sl] = 1 - hit.mean(1)
-    return vis
-
-
-def _artifact_setup(size):
-    from ..raster import look_at, perspective
-    from ..scene import AreaLight
-
-    light = AreaLight(**_ART_LIGHT)
-    vp = perspective(light.fov, 1.0, _ART_NEAR, _ART_FAR) @ look_at(light.center, light.center + light.normal,
-                                                                     light.bitangent)
-    return light, vp
-
-
-def _transition_width(x, v, lo=0.1, hi=0.9):
-    """Distance between the first crossings of ``lo`` and ``hi`` of an increasing profile (NaN if not reached)."""
-    if not (v >= hi).any() or not (v >= lo).any():
-        return float("nan")
-    i_lo = np.argmax(v >= lo)
-    i_hi = np.argmax(v >= hi)
-    def cross(i, level):
-        if i == 0:
-            return x[0]
-        return x[i - 1] + (level - v[i - 1]) * (x[i] - x[i - 1]) / (v[i] - v[i - 1])
-    return float(cross(i_hi, hi) - cross(i_lo, lo))
-
-
-def artifact_measurements(size=256, max_kernel=64, grid=96, samples=64):
-    """Measure the two artifacts of the slides on synthetic scenes with exact references.
-
-    Scenes (:data:`ARTIFACT_SCENES`): a 1.0 × 0.6 light, receiver plane at
-    distance 4, a 60° map of ``size²`` texels with near 0.5 and far 5.
-
-    * ``hole``: a plate at distance 3 with a 0.08 × 0.08 hole. The light
-      through the hole is the light's image, a rectangle of aspect
-      ``width/height`` (Slides: "Rectangular light rather obvious").
-    * ``column`` / ``column_wall``: a column at distance 3.6, alone and with a
-      wall at distance 3 that does not shadow the measured receiver points but
-      lies in their blocker-search regions (Slides: "The shadow of the distant
-      wall makes the shadow of the nearby column softer").
-
-    Returns
-    -------
-    dict with the images (``hole_msm``, ``hole_reference``: (grid, grid)
-    visibility over [−0.5, 0.5]²), the column profiles (``profile_x`` and
-    ``profile_*``) and the measured numbers: ``hole_aspect_msm`` /
-    ``hole_aspect_reference`` (ratio of the lit spot's extents at half
-    maximum along x and y), ``hole_fill_msm`` (lit area at half maximum over
-    the product of those extents: 1 for a rectangle, π/4 for an ellipse),
-    ``width_column``, ``width_column_wall`` (10 %–90 % transition width of
-    msm_soft), ``width_reference`` (of the reference, which the wall does not
-    change: ``wall_changes_reference`` is its largest effect on the profile).
-    """
-    light, vp = _artifact_setup(size)
-    out = {}
-    # Small hole.
-    v, t = _rect_mesh(light, ARTIFACT_SCENES["hole"])
-    from ..raster import rasterize_depth
-
-    dm, _ = rasterize_depth(v, t, vp, size)
-    xs = np.linspace(-0.5, 0.5, grid)
-    gx, gy = np.meshgrid(xs, xs)
-    pts = _frame_points(light, gx, gy, _ART_RECEIVER).reshape(-1, 3)
-    tex = prepare(dm, light, vp, max_kernel)
-    vis = shade_points(light, tex, pts, view_proj=vp).reshape(grid, grid)
-    ref = ray_cast_visibility(light, ARTIFACT_SCENES["hole"], pts, samples).reshape(grid, grid)
-    step = xs[1] - xs[0]
-    for name, im in (("msm", vis), ("reference", ref)):
-        lit = im >= 0.5 * im.max()
-        ex = lit.any(0).sum() * step
-        ey = lit.any(1).sum() * step
-        out[f"hole_aspect_{name}"] = float(ex / ey)
-        out[f"hole_fill_{name}"] = float(lit.sum() * step * step / (ex * ey))
-        out[f"hole_{name}"] = im
-    # Column with and without the wall.
-    # The wall shadows no receiver point with x < 0.073 (s ≥ 0.72 − 3x > 0.5 for every light sample s).
-    px = np.linspace(-0.4, 0.07, 236)
-    prof = _frame_points(light, px, 0.0 * px, _ART_RECEIVER)
-    out["profile_x"] = px
-    for key in ("column", "column_wall"):
-        v, t = _rect_mesh(light, ARTIFACT_SCENES[key])
-        dm, _ = rasterize_depth(v, t, vp, size)
-        vis, info = shade_points(light, dm, prof, view_proj=vp, max_kernel=max_kernel, details=True)
-        out[f"profile_{key}"] = vis
-        out[f"profile_{key}_reference"] = ray_cast_visibility(light, ARTIFACT_SCENES[key], prof, samples)
-        out[f"width_{key}"] = _transition_width(px, vis)
-        out[f"blocker_depth_{key}"] = info["blocker_view_depth"]
-    out["width_reference"] = _transition_width(px, out["profile_column_reference"])
-    out["wall_changes_reference"] = float(np.abs(out["profile_column_wall_reference"]
-                                                 - out["profile_column_reference"]).max())
-    return out
-
-
-def artifact_images(out_dir, size=256, max_kernel=64):
-    """Write ``msm_soft_artifacts.png`` and ``msm_soft_artifacts.md`` (measured statements) to ``out_dir``.
-
-    Returns the measurements of :func:`artifact_measurements` and the paths written.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from pathlib import Path
-
-    from .._io import save_figure, write_text
-
-    m = artifact_measurements(size=size, max_kernel=max_kernel)
-    fig, ax = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
-    ext = (-0.5, 0.5, -0.5, 0.5)
-    ax[0].imshow(m["hole_msm"], cmap="gray", vmin=0, vmax=max(m["hole_msm"].max(), 1e-9), extent=ext,
-                 origin="lower")
-    ax[0].set_title(f"msm_soft: light through a 0.08² hole\naspect {m['hole_aspect_msm']:.2f}, "
-                    f"fill {m['hole_fill_msm']:.2f}", fontsize=9)
-    ax[1].imshow(m["hole_reference"], cmap="gray", vmin=0, vmax=max(m["hole_reference"].max(), 1e-9), extent=ext,
-                 origin="lower")
-    ax[1].set_title(f"reference (1.0 × 0.6 light)\naspect {m['hole_aspect_reference']:.2f}", fontsize=9)
-    x = m["profile_x"]
-    ax[2].plot(x, m["profile_column_reference"], "k-", label="reference (with or without wall)")
-    ax[2].plot(x, m["profile_column"], "b--", label=f"msm_soft, column only (width {m['width_column']:.3f})")
-    ax[2].plot(x, m["profile_column_wall"], "r-",
-               label=f"msm_soft, column + distant wall (width {m['width_column_wall']:.3f})")
-    ax[2].set_xlabel("receiver x (world units)")
-    ax[2].set_ylabel("visibility")
-    ax[2].legend(fontsize=7)
-    ax[2].set_title("a distant occluder softens a near shadow", fontsize=9)
-    out = Path(out_dir)
-    paths = [save_figure(fig, out / "msm_soft_artifacts.png", dpi=100)]
-    plt.close(fig)
-    text = "\n".join([
-        "# Moment soft shadow mapping: the artifacts of the slides, measured", "",
-        f"Map {size}², largest kernel {max_kernel}² ({precision_bits_text(max_kernel)}), light 1.0 × 0.6.", "",
-        f"- Light through a small hole is the light's rectangle: lit-spot aspect {m['hole_aspect_msm']:.3f} "
-        f"(reference {m['hole_aspect_reference']:.3f}, light 1.667), fill of its bounding box "
-        f"{m['hole_fill_msm']:.3f} (1 = rectangle, 0.785 = ellipse).",
-        f"- A distant wall softens the column's shadow: 10–90 % width {m['width_column']:.4f} without, "
-        f"{m['width_column_wall']:.4f} with the wall; reference {m['width_reference']:.4f} in both cases "
-        f"(the wall changes the reference profile by at most {m['wall_changes_reference']:.3g}).", ""])
-    paths.append(write_text(out / "msm_soft_artifacts.md", text))
-    return m, paths
-
-
 def precision_bits_text(max_kernel) -> str:
     """``"22.5 bits, alpha = 6.7e-07"`` for a kernel side."""
     n = int(max_kernel) ** 2
     return f"{_sat.precision_bits(n):.1f} bits, alpha = {soft_bias(n).alpha:.2g}"
-
-
-# ---------------------------------------------------------------------------
-# The shared technique interface (moments_ref.techniques)
-
-
-def _params_light(params):
-    scene = params.get("scene")
-    light = params.get("light", getattr(scene, "light", None))
-    vp = params.get("view_proj")
-    if vp is None and scene is not None:
-        vp = scene.shadow_view_proj()
-    if light is None or vp is None:
-        raise InputError("params: msm_soft needs the area light and its centre's view: pass params "
-                         "{'scene': scene} or {'light': AreaLight, 'view_proj': (4, 4)}")
-    return light, vp
-
-
-def _build_step(samples, params):
-    light, vp = _params_light(params)
-    return prepare(samples, light, vp, params.get("max_kernel"), params.get("msm_soft_depth", "linear"))
-
-
-def _steps(samples, layered):
-    """One step, ``msm_soft_sat``: linear depth, resolve, optimized basis, SAT (:func:`prepare`)."""
-    return (Step("msm_soft_sat", _build_step),)
-
-
-def _lookup(texture, uv, zf, noise):
-    # Technique.shadow subtracted DEPTH_BIAS; the receiver itself lies at zf + DEPTH_BIAS.
-    dr = texture.frustum.view_depth(np.asarray(zf, np.float64) + DEPTH_BIAS)
-    return soft_shadow(texture, uv, zf, receiver_depth=dr, dtype=np.float32)
-
-
-#: Moment soft shadow mapping: four uint32 SAT channels = 128 bits per texel.
-MSM_SOFT = register(Technique(
-    name="msm_soft", bits_per_texel=128, depth_bias=DEPTH_BIAS, make_steps=_steps, lookup=_lookup,
-    description="moment soft shadow mapping: uint32 summed-area table of optimized moments, moment-based "
-                "blocker search, PCSS penumbra, one interpolated query, Algorithm 1",
-    reference="Peters et al. 2017 (JCGT); Slides, 'Moment soft shadow mapping'",
-    four_moments=True, light_kinds=("area",),
-))

@@ -1,0 +1,70 @@
+"""Helpers shared by the four- and six-moment kernels (core-private).
+
+One home for what :mod:`moments_ref.msm`, :mod:`moments_ref.msm6` and
+:mod:`moments_ref.nonlinear` all use: the chunk size of the vectorized kernels,
+the singularity threshold of the Hankel matrix, the two-point distribution of
+HPG17 Algorithm 2 and a bit-level ``copysign``. Keeping them here lets msm6
+build on them without importing msm (which dispatches six-moment input to msm6).
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace"]
+
+#: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
+CHUNK = 1 << 14
+
+#: Multiple of the dtype's machine epsilon below which B(b) counts as singular
+#: (relative to b2 for σ², to max(b4, σ²) for ξ4); see :mod:`moments_ref.msm`.
+SINGULAR_RTOL = {"float32": 0.0, "float64": 8.0}
+
+
+def singular_thresholds(dtype):
+    """The relative singularity threshold ``SINGULAR_RTOL[dtype]·eps`` of float32 or float64."""
+    dt = np.dtype(dtype)
+    return SINGULAR_RTOL[dt.name] * np.finfo(dt).eps
+
+
+def two_point(b1, b2, b3, sigma2):
+    """Depths y1 ≤ y2 and weight v2 of the two-point distribution with moments b1..b3.
+
+    HPG17 Algorithm 2, steps (1)–(5): roots of ``σ² z² + q1 z + q0`` with
+    ``q1 = b1 b2 − b3`` and ``q0 = −b1 q1 − b2 σ²``; ``v2 = (b1 − y1)/(y2 − y1)``.
+    """
+    q1 = b1 * b2 - b3
+    q0 = -b1 * q1 - b2 * sigma2
+    disc = np.sqrt(np.maximum(q1 * q1 - 4 * sigma2 * q0, 0))
+    t = -0.5 * (q1 + np.copysign(disc, q1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ra = t / sigma2
+        rb = q0 / t
+    y1 = np.minimum(ra, rb)
+    y2 = np.maximum(ra, rb)
+    gap = y2 - y1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v2 = np.clip((b1 - y1) / gap, 0, 1)
+    bad = ~np.isfinite(v2)
+    if bad.any():  # no usable second depth: all mass at b1
+        y1 = np.where(bad, b1, y1)
+        y2 = np.where(bad, b1, y2)
+        v2 = np.where(bad, 0, v2).astype(b1.dtype)
+    return y1, y2, v2
+
+
+def copysign_inplace(d, h, sign):
+    """``d := copysign(d, h)`` for ``d ≥ 0``, by setting d's sign bit from h.
+
+    Same result as ``np.copysign`` (IEEE sign bit, so −0 counts as negative);
+    ``sign`` is an integer array holding only the sign bit (int32 for float32,
+    int64 for float64). Two integer passes are several times faster than
+    NumPy's float32 copysign loop.
+    """
+    it = sign.dtype
+    bits = np.bitwise_and(h.view(it), sign)
+    np.bitwise_or(d.view(it), bits, out=d.view(it))

@@ -1,0 +1,152 @@
+"""Receiver points seen by the camera: the G-buffer pass and its projection into the shadow map.
+
+:func:`camera_gbuffer` rasterizes the scene from the camera and keeps the nearest
+fragment per pixel; :func:`light_projection` gives each receiver point its texel
+coordinates and depth in the light's shadow map, with the receiver-slope bias
+every technique and reference share (:data:`SLOPE_BIAS_TEXELS`).
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .raster import project_points, rasterize_fragments
+
+__all__ = ["GBuffer", "camera_gbuffer", "light_projection", "SLOPE_BIAS_TEXELS", "BACKGROUND", "RECEIVER",
+           "OCCLUDER", "OUTSIDE_LIGHT"]
+
+#: kind image codes of :class:`GBuffer`.
+BACKGROUND, RECEIVER, OCCLUDER, OUTSIDE_LIGHT = 0, 1, 2, 3
+
+
+@dataclass
+class GBuffer:
+    """Receiver points seen by the camera.
+
+    Attributes
+    ----------
+    resolution : (width, height)
+    kind : (height, width) int8 image
+        0 background, 1 receiver (shaded, counted in the metrics), 2 occluder,
+        3 receiver outside the light's shadow map (left unshadowed, not counted).
+    pixel : (N,) int64
+        Flat index ``row * width + col`` of each pixel with ``kind == 1``.
+    position : (N, 3) float64 world positions
+    lambert : (N,) float64 ``|n · l|`` (two-sided surfaces)
+    normal : (N, 3) float64 unit face normals
+    uv : (N, 2) float64 texel coordinates in the shadow map (filled by ``light_projection``)
+    depth : (N,) float64 NDC depth in the light's view, minus the receiver-slope bias
+    slope : (N,) float64 depth change per shadow-map texel along the receiver surface
+    """
+
+    resolution: tuple
+    kind: np.ndarray
+    pixel: np.ndarray
+    position: np.ndarray
+    lambert: np.ndarray
+    normal: np.ndarray = None
+    uv: np.ndarray = None
+    depth: np.ndarray = None
+    slope: np.ndarray = None
+
+
+def camera_gbuffer(scene, resolution):
+    """Nearest fragment per camera pixel among receivers and opaque occluder-only objects."""
+    width, height = resolution
+    rec = scene.receiver
+    # Occluders that are not also receivers hide receivers; translucent ones do not
+    # (the receiver is seen through them).
+    role = np.array([scene.objects[i].role == "occluder" for i in scene.occluder_object], dtype=bool).reshape(-1)
+    keep = role & ~scene.occluder_translucent
+    occ_tri = scene.occluder.triangles[keep]
+    v = np.concatenate([rec.vertices, scene.occluder.vertices])
+    tri = np.concatenate([rec.triangles, occ_tri + rec.vertices.shape[0]])
+    frags, _ = rasterize_fragments(v, tri, scene.camera.view_proj(), (height, width), samples=1, dtype=np.float64)
+    kind = np.zeros(height * width, dtype=np.int8)
+    if len(frags):
+        order = np.lexsort((frags.depth, frags.texel))
+        texel = frags.texel[order]
+        first = np.ones(texel.shape[0], bool)
+        first[1:] = texel[1:] != texel[:-1]
+        sel = order[first]
+    else:
+        sel = np.zeros(0, np.intp)
+    texel, tri_id = frags.texel[sel], frags.triangle[sel]
+    is_rec = tri_id < rec.triangles.shape[0]
+    kind[texel] = np.where(is_rec, RECEIVER, OCCLUDER)
+    pixel = texel[is_rec]
+    pos = frags.position[sel][is_rec].astype(np.float64)
+    # Face normals of the receiver triangles (two-sided Lambert).
+    t = rec.triangles[tri_id[is_rec]]
+    p0, p1, p2 = (rec.vertices[t[:, k]] for k in range(3))
+    n = np.cross(p1 - p0, p2 - p0)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    if getattr(scene.light, "kind", "directional") == "directional":
+        to_light = np.broadcast_to(-scene.light.direction, pos.shape)
+    else:
+        d = scene.light.center - pos
+        to_light = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+    lambert = np.abs(np.einsum("ij,ij->i", n, to_light))
+    return GBuffer(resolution=(width, height), kind=kind.reshape(height, width), pixel=pixel,
+                   position=pos, lambert=lambert, normal=n)
+
+
+#: Receiver-slope bias in shadow-map texels (see :func:`light_projection`): the
+#: farthest a tap of the 9×9 footprint reaches along any direction (4√2 texels on
+#: the diagonal) plus half a texel diagonal for the fragment's position in its texel.
+SLOPE_BIAS_TEXELS = 4.5 * 2**0.5
+
+
+def _depth_slope(position, normal, view_proj, size):
+    """|∂depth/∂(texel)| along the receiver plane at each point (light-space depth per texel).
+
+    Two tangents of the surface are projected into the shadow map; the depth
+    gradient with respect to texel coordinates solves the 2×2 system of their
+    texel offsets. Grazing surfaces (singular system) get the largest finite slope.
+    """
+    a = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(normal, a)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(normal, t1)
+    scale = 1e-3 * max(1.0, float(np.abs(position).max()))
+    xy0, z0 = project_points(position, view_proj, size)
+    xy1, z1 = project_points(position + scale * t1, view_proj, size)
+    xy2, z2 = project_points(position + scale * t2, view_proj, size)
+    j = np.stack([xy1 - xy0, xy2 - xy0], axis=1)  # (N, 2 tangents, 2 texel axes)
+    dz = np.stack([z1 - z0, z2 - z0], axis=1)
+    det = j[:, 0, 0] * j[:, 1, 1] - j[:, 0, 1] * j[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gx = (dz[:, 0] * j[:, 1, 1] - dz[:, 1] * j[:, 0, 1]) / det
+        gy = (dz[:, 1] * j[:, 0, 0] - dz[:, 0] * j[:, 1, 0]) / det
+        slope = np.hypot(gx, gy)
+    finite = np.isfinite(slope)
+    return np.where(finite, slope, slope[finite].max() if finite.any() else 0.0)
+
+
+def light_projection(g, view_proj, size):
+    """Texel coordinates and depth of the receiver points in the shadow map.
+
+    The depth is lowered by a receiver-slope bias of ``SLOPE_BIAS_TEXELS`` (4.5√2)
+    texels times the depth change per texel along the receiver, applied alike to every
+    technique and to the reference (each then subtracts its own constant bias,
+    1e-3 for all here as HPG17 uses for NLQ). Without it, a plane lit at an angle
+    has half of a 9×9 filter footprint in front of its own fragment and the exact
+    filtered shadow (PCF) is 0.5 there: surface acne of the reference, not light
+    leaking of a technique (HPG17 §5: PCF "with a higher depth bias").
+    """
+    h, w = size
+    xy, depth = project_points(g.position, view_proj, (h, w))
+    inside = (np.isfinite(depth) & (depth >= -1) & (depth <= 1)
+              & (xy[:, 0] >= 0) & (xy[:, 0] <= w) & (xy[:, 1] >= 0) & (xy[:, 1] <= h))
+    kind = g.kind.reshape(-1).copy()
+    kind[g.pixel[~inside]] = OUTSIDE_LIGHT
+    slope = _depth_slope(g.position[inside], g.normal[inside], view_proj, (h, w))
+    return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
+                   position=g.position[inside], lambert=g.lambert[inside], normal=g.normal[inside],
+                   uv=xy[inside], depth=depth[inside] - SLOPE_BIAS_TEXELS * slope, slope=slope)

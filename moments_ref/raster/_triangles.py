@@ -1,0 +1,230 @@
+"""Triangle setup: validation, trivial rejection, clipping, snapping, culling, edge equations.
+
+Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._arrays import InputError, first_index, real_input
+from ._matrices import _SUB
+
+# Window coordinates stay within ±2^20 pixels (guard band): with 8 sub-pixel bits
+# edge-function products stay below 2^60 in int64.
+_GUARD_PIXELS = 1 << 20
+
+# ---------------------------------------------------------------------------
+# Triangle setup
+
+
+def _check_mesh(vertices, triangles):
+    v = real_input(vertices, "vertices", trailing=3, dtype=np.float64, finite=False)
+    if v.ndim != 2:
+        raise InputError(f"vertices: expected a (V, 3) array, got shape {v.shape}")
+    t = np.asarray(triangles)
+    if t.size == 0:
+        t = t.reshape(0, 3)
+    if t.dtype.kind not in "iu":
+        raise InputError(f"triangles: expected an integer (T, 3) index array, got dtype {t.dtype}")
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise InputError(f"triangles: expected a (T, 3) index array, got shape {t.shape}")
+    bad = (t < 0) | (t >= v.shape[0])
+    if bad.any():
+        idx = first_index(bad)
+        raise InputError(
+            f"triangles: expected indices in [0, {v.shape[0]}) (V = {v.shape[0]} vertices), "
+            f"got {int(t[idx])} at index {idx}"
+        )
+    return v, t.astype(np.int64, copy=False)
+
+
+def _clip_plane(attr, tid, dist):
+    """Clip triangles against one plane (keep ``dist >= 0``), Sutherland–Hodgman.
+
+    attr : (n, 3, k) per-vertex attributes, linear in clip space (clip xyzw, world xyz).
+    Returns the new (m, 3, k) attributes and (m,) triangle ids; winding is kept.
+    """
+    inside = dist >= 0
+    cnt = inside.sum(axis=1)
+    keep = cnt == 3
+    out_attr, out_tid = [attr[keep]], [tid[keep]]
+
+    def rotated(sel, first):
+        # Rotate the vertex order so that vertex `first` comes first (keeps winding).
+        order = (first[:, None] + np.arange(3)) % 3
+        a = np.take_along_axis(attr[sel], order[:, :, None], axis=1)
+        d = np.take_along_axis(dist[sel], order, axis=1)
+        return a, d
+
+    def cut(a, d, i, j):
+        # Intersection of edge (i, j) with the plane; d[i] and d[j] have opposite signs.
+        t = d[:, i] / (d[:, i] - d[:, j])
+        return a[:, i] + t[:, None] * (a[:, j] - a[:, i])
+
+    one = cnt == 1
+    if one.any():  # A inside, B and C outside: triangle (A, AB, AC)
+        a, d = rotated(one, np.argmax(inside[one], axis=1))
+        out_attr.append(np.stack([a[:, 0], cut(a, d, 0, 1), cut(a, d, 0, 2)], axis=1))
+        out_tid.append(tid[one])
+    two = cnt == 2
+    if two.any():  # A outside, B and C inside: quad (AB, B, C, CA) -> two triangles
+        a, d = rotated(two, np.argmin(inside[two], axis=1))
+        ab, ca = cut(a, d, 0, 1), cut(a, d, 2, 0)
+        out_attr.append(np.stack([ab, a[:, 1], a[:, 2]], axis=1))
+        out_attr.append(np.stack([ab, a[:, 2], ca], axis=1))
+        out_tid += [tid[two], tid[two]]
+    return np.concatenate(out_attr), np.concatenate(out_tid)
+
+
+def _all3(a):
+    return a[0] & a[1] & a[2]
+
+
+def _any3(a):
+    return a[0] | a[1] | a[2]
+
+
+def _count_ids(ids, lo, n) -> int:
+    """Number of distinct triangle ids in ``ids`` (all within [lo, lo + n))."""
+    if ids.size == 0:
+        return 0
+    mark = np.zeros(n, dtype=bool)
+    mark[ids - lo] = True
+    return int(np.count_nonzero(mark))
+
+
+def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
+    """Clip, snap and set up edge equations for one chunk of triangles.
+
+    Arrays are component-major ("structure of arrays"): vT (3, V) world and cvT
+    (4, V) clip-space vertices; per-triangle results are (3, n) (one row per
+    vertex or edge) or (n,). ``tri`` (n, 3) holds the chunk's indices, whose
+    triangle ids start at ``lo``. Returns None when nothing is left to rasterize.
+
+    Four steps, one function each (a call per chunk of ``_SETUP_CHUNK`` triangles:
+    no measurable cost, see the bench note in the module docstring):
+    :func:`_reject`, :func:`_clip`, :func:`_snap_and_cull`, :func:`_edge_equations`.
+    """
+    n = tri.shape[0]
+    attr, tid = _reject(vT, cvT, bad_v, tri, lo, stats, want_world)
+    attr, tid = _clip(attr, tid, h, w, lo, n, stats)
+    if tid.size == 0:
+        return None
+    snapped = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats)
+    if snapped is None:
+        return None
+    return _edge_equations(*snapped, want_world)
+
+
+def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
+    """Drop non-finite, degenerate and trivially outside triangles; (attributes (k, 3, n), ids)."""
+    n = tri.shape[0]
+    tid = np.arange(lo, lo + n)
+    triT = tri.T
+    bad = bad_v[triT[0]] | bad_v[triT[1]] | bad_v[triT[2]]
+    stats.nonfinite += int(np.count_nonzero(bad))
+    if bad.any():
+        triT, tid = triT[:, ~bad], tid[~bad]
+    # Zero area in world space: exactly collinear or repeated vertices.
+    p = vT[:, triT]  # (3 coords, 3 vertices, n)
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    nondeg = ((e1[1] * e2[2] != e1[2] * e2[1]) | (e1[2] * e2[0] != e1[0] * e2[2])
+              | (e1[0] * e2[1] != e1[1] * e2[0]))
+    stats.degenerate += int(nondeg.size - np.count_nonzero(nondeg))
+    if not nondeg.all():
+        triT, tid, p = triT[:, nondeg], tid[nondeg], p[:, :, nondeg]
+    c = cvT[:, triT]  # (4, 3, n) clip-space vertices
+    x, y, z, cw = c
+    # Trivial reject: all three vertices outside the same plane of the view volume.
+    out = (_all3(x > cw) | _all3(x < -cw) | _all3(y > cw) | _all3(y < -cw)
+           | _all3(z > cw) | _all3(z < -cw) | _all3(cw <= 0))
+    stats.outside += int(np.count_nonzero(out))
+    attr = np.concatenate([c, p]) if want_world else c  # (k, 3, n), linear in clip space
+    if out.any():
+        attr, tid = attr[:, :, ~out], tid[~out]
+    return attr, tid
+
+
+def _clip(attr, tid, h, w, lo, n, stats):
+    """Near plane z_clip >= -w_clip, then the guard band |x|, |y| <= G w (only where needed)."""
+    g = 2.0 * _GUARD_PIXELS / max(h, w) - 1.0
+    planes = [(0, 0, 1, 1)]
+    gw_ = g * attr[3]
+    if (np.abs(attr[0]) > gw_).any() or (np.abs(attr[1]) > gw_).any():
+        planes += [(-1, 0, 0, g), (1, 0, 0, g), (0, -1, 0, g), (0, 1, 0, g)]
+    for pl in planes:
+        dist = sum(k * attr[j] for j, k in enumerate(pl) if k != 0)
+        need = _any3(dist < 0)
+        if need.any():
+            ca, ct = _clip_plane(attr[:, :, need].transpose(2, 1, 0), tid[need], dist[:, need].T)
+            attr = np.concatenate([attr[:, :, ~need], ca.transpose(2, 1, 0)], axis=2)
+            tid = np.concatenate([tid[~need], ct])
+    pos_w = _all3(attr[3] > 0)  # a non-standard matrix may leave w <= 0
+    if not pos_w.all():
+        stats.outside += _count_ids(tid[~pos_w], lo, n)
+        attr, tid = attr[:, :, pos_w], tid[pos_w]
+    return attr, tid
+
+
+def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
+    """Perspective division, viewport transform, snapping to 1/256 pixel, culling; None if nothing is left."""
+    cw = attr[3]
+    X = np.rint((attr[0] / cw + 1.0) * (w / 2 * _SUB)).astype(np.int64)  # (3, n)
+    Y = np.rint((1.0 - attr[1] / cw) * (h / 2 * _SUB)).astype(np.int64)
+    zv = attr[2] / cw
+
+    area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
+    zero = area2 == 0
+    # Counter-clockwise in NDC (y up) is clockwise in window space (y down): area2 < 0.
+    if cull == "back":
+        culled = area2 > 0
+    elif cull == "front":
+        culled = area2 < 0
+    else:
+        culled = np.zeros_like(zero)
+    stats.zero_area += _count_ids(tid[zero], lo, n)
+    stats.culled += _count_ids(tid[culled], lo, n)
+    keep = ~(zero | culled)
+    if not keep.all():
+        X, Y, zv, area2, tid, attr = X[:, keep], Y[:, keep], zv[:, keep], area2[keep], tid[keep], attr[:, :, keep]
+    if tid.size == 0:
+        return None
+    stats.rasterized += _count_ids(tid, lo, n)
+    return X, Y, zv, area2, tid, attr
+
+
+def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
+    """Edge functions with the top-left rule and the depth plane of each (oriented) triangle."""
+    # Orient every triangle so that area2 > 0 (swap v1 and v2); edge functions are then
+    # positive inside.
+    flip = area2 < 0
+    if flip.any():
+        X, Y, zv = (np.where(flip, a[[0, 2, 1]], a) for a in (X, Y, zv))
+        area2 = np.abs(area2)
+        if want_world:
+            attr = np.where(flip, attr[:, [0, 2, 1]], attr)
+
+    # Edge e runs from vertex e to vertex e+1: E(p) = dx (py - ay) - dy (px - ax)
+    # = A px + B py + C. Top-left rule: a top edge has dy == 0 and dx > 0, a left
+    # edge dy < 0; F = E + tl - 1 >= 0 is "E > 0, or E == 0 on a top-left edge".
+    dx, dy = X[[1, 2, 0]] - X, Y[[1, 2, 0]] - Y
+    A, B = -dy, dx
+    tl = (dy < 0) | ((dy == 0) & (dx > 0))
+    C = dy * X - dx * Y
+    F0 = C + tl - 1
+
+    # Depth plane through the snapped vertices, relative to vertex 0:
+    # z = z0 + λ1 (z1 - z0) + λ2 (z2 - z0), λ1 = E_20 / area2, λ2 = E_01 / area2.
+    fa = area2.astype(np.float64)
+    dz1, dz2 = zv[1] - zv[0], zv[2] - zv[0]
+    za = (A[2] * dz1 + A[0] * dz2) / fa
+    zb = (B[2] * dz1 + B[0] * dz2) / fa
+
+    s = {"tid": tid, "X": X, "Y": Y, "A": A, "B": B, "F0": F0, "z0": zv[0], "za": za, "zb": zb}
+    if want_world:
+        s["C"] = C
+        s["area2"] = fa
+        s["q"] = 1.0 / attr[3]  # 1/w for perspective-correct interpolation
+        s["world"] = attr[4:7]  # (3 coords, 3 vertices, n)
+    return s

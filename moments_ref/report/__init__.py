@@ -1,0 +1,316 @@
+"""Error against run time: every technique on every scene, measured against the reference.
+
+``moments-ref report [--scene NAME|FILE]... [--full] --out DIR`` (:func:`main`)
+renders each scene's camera view, shades its receiver pixels with each
+technique (:mod:`moments_ref.pipeline`) and writes to DIR:
+
+* ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`;
+* ``stages.json``: per scene the stages that ran (:attr:`moments_ref.pipeline.RunResult.stages`);
+* ``report.md``: the table, the measured verdict on HPG17's headline claims,
+  the error-against-run-time scatter plot ``scatter.png`` and the error images
+  ``errors_<scene>.png``.
+
+Metrics over the receiver pixels inside the shadow map, with
+``e = shadow − reference`` (shadow intensities, 1 = fully shadowed; the
+reference is the 9×9-Gaussian PCF at the technique's own depth bias, the exact
+filtered hard shadow, or with translucent occluders the filtered product of
+transmittances): ``rmse``, ``max_error = max |e|``, ``p99_error`` (99th
+percentile of ``|e|``), ``leak_fraction`` (share of pixels lit more than 0.05
+above the reference, ``e < −0.05``) and ``flip_mean``, the mean of NVIDIA ꟻLIP
+(package ``flip-evaluator``, LDR) between the shaded image and the image shaded
+with the reference. ``texel_seconds`` is the wall-clock time of the technique's
+texture stages (shared stages counted fully for each technique: its cost
+alone), ``fragment_seconds`` that of its lookups for all receiver pixels, the
+split of HPG17 Figure 10. Both are NumPy times on this machine, not GPU times.
+
+Without ``--full`` each scene runs at reduced resolution
+(:func:`moments_ref.pipeline.reduced_settings`: shadow map halved per side,
+camera a quarter per side); ``--full`` uses 2048² maps with 4× MSAA and the
+scene's camera resolution (HPG17 §5). ``knot`` has an area light: the
+hard-shadow techniques here use its centre as a spot light (their reference is
+the filtered hard shadow of that spot).
+
+Every registered technique that can run on a scene (``Technique.refusal``) gets
+a row; the pipeline runs them all in one stage graph. Each row's error is its
+reference's metric (``Technique.truth``, :class:`~moments_ref.techniques.Reference`),
+and each reference used adds its figures and, where it has one, its section of
+report.md. Shipped: the filtered hard shadow above (``pcf``); multi-view
+rasterization with many light samples for the area-light rows ``msm_soft``,
+``pcss``, ``vwss`` and ``mvr`` (64 light samples reduced, 512 with ``--full``;
+shadow intensity ``1 − visibility``; ``soft_<scene>.png``); converged ray
+marching (4096 samples per ray) for the scattering rows of scenes with a
+participating medium, whose error is that of the scattering term normalized by
+``t_max`` (``scattering_<scene>.png``). Techniques with measured artifacts add
+them once (``msm_soft``: ``msm_soft_artifacts.png`` and ``.md``, the artifacts the
+slides name).
+
+Package layout: this module runs and writes; :mod:`._text` holds results.csv,
+the claims and report.md, :mod:`._plots` the error-against-run-time plot.
+
+References
+----------
+HPG17, VWSS, Slides, FLIP : see docs/bib.md.
+"""
+
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._arrays import InputError
+from .._io import save_figure, write_text
+from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
+from .. import pipeline
+from .. import techniques as _techniques
+from ..techniques import REFERENCES, get_reference
+from ..techniques.area import soft_statements
+from ._plots import plot_error_vs_runtime
+from ._text import CLEARLY_BELOW, CLOSE_REL, COLUMNS, csv_text, evaluate_claims, markdown, read_results
+
+__all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
+           "evaluate_claims", "soft_statements", "read_results", "plot_error_vs_runtime", "build_parser"]
+
+_ = (CLOSE_REL, CLEARLY_BELOW)  # re-exported
+#: Area-light outputs in the default run (those measured against reference ``mvr``).
+AREA_ROWS = pipeline.AREA_OUTPUTS
+_flip_available = flip_available
+
+
+def _check_names(requested, loaded):
+    """Refuse unknown technique names (listing every known one) and names no scene can run (with the reason)."""
+    known = _techniques.names()
+    for n in requested:
+        if n not in known:
+            raise InputError(f"technique: unknown technique {n!r}; known techniques: {', '.join(known)}")
+        reasons = [_techniques.get(n).refusal(sc) for sc in loaded]
+        if reasons and all(reasons):
+            raise InputError(f"technique: {reasons[0]}")
+
+
+def _check_overrides(overrides):
+    """Per reference option its overrides, each key checked against the reference's settings."""
+    out = {}
+    for option, values in overrides.items():
+        if not values:
+            continue
+        ref = next(r for r in REFERENCES.values() if r.option == option)
+        unknown = set(values) - set(ref.settings_keys)
+        if unknown:
+            raise InputError(f"{option}: unknown settings {sorted(unknown)}; known: {', '.join(ref.settings_keys)}")
+        out[option] = dict(values)
+    return out
+
+
+def _scene_techniques(scene, requested=None):
+    """The techniques of a scene: the registered (or requested) ones that can run on it."""
+    names = _techniques.names() if requested is None else list(requested)
+    return [n for n in names if _techniques.get(n).refusal(scene) is None]
+
+
+def _scene_settings(sc, full, given):
+    if full:
+        size, samples, res = (2048, 2048), 4, tuple(sc.camera.resolution)
+    else:
+        size, samples, res = pipeline.reduced_settings(sc)
+    if given["shadow_map_size"] is not None:
+        s = given["shadow_map_size"]
+        size = (s, s) if np.isscalar(s) else tuple(s)
+    samples = samples if given["msaa"] is None else int(given["msaa"])
+    res = res if given["resolution"] is None else tuple(given["resolution"])
+    return size, samples, res
+
+
+@dataclass
+class _Collected:
+    """What the scenes contributed, written at the end."""
+
+    rows: list = field(default_factory=list)
+    stages: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    references: dict = field(default_factory=dict)  # reference name -> scene -> settings
+    figures: dict = field(default_factory=dict)
+    images: dict = field(default_factory=dict)  # reference name -> [file names]
+
+
+def _run_scene(acc, sc, full, given, requested, overrides, noise_tiles, progress):
+    size, samples, res = _scene_settings(sc, full, given)
+    kind = getattr(sc.light, "kind", "directional")
+    acc.settings[sc.name] = {"size": size, "msaa": samples, "resolution": res,
+                             "light": "area (spot from its centre)" if kind == "area" else kind}
+    acc.stages[sc.name] = []
+    names = _scene_techniques(sc, requested)
+    if not names:
+        return
+    result = pipeline.run(sc, names, shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles,
+                          settings=overrides, full=full, given=given, progress=progress)
+    acc.stages[sc.name] += list(result.stages)
+    acc.rows += result.rows()
+    groups = {}
+    for n in result.techniques:
+        groups.setdefault(result.truth[n], []).append(n)
+    for ref_name, ref_names in groups.items():
+        ref = get_reference(ref_name)
+        acc.references.setdefault(ref_name, {})[sc.name] = result.settings[ref_name]
+        for fname, fig in (ref.figures(result, ref_names) if ref.figures else {}).items():
+            acc.figures[fname] = fig
+            acc.images.setdefault(ref_name, []).append(fname)
+
+
+@contextmanager
+def _bar(progress, total):
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, desc="report", unit="scene", file=sys.stderr, leave=False)
+    try:
+        yield bar
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _artifacts(rows, out):
+    """Each technique with rows and measured artifacts: (first measurements, markdown lines, paths)."""
+    first, lines, paths = None, [], {}
+    for n in dict.fromkeys(r["technique"] for r in rows):
+        t = _techniques.get(n)
+        if t.artifacts is None:
+            continue
+        # Synthetic scenes with exact references; writes its own files atomically.
+        m, more, written = t.artifacts(out)
+        first = m if first is None else first
+        lines += more
+        paths.update({Path(x).name: Path(x) for x in written})
+    return first, lines, paths
+
+
+def _write(acc, out, flip_ok):
+    import matplotlib.pyplot as plt
+
+    statements = {name: {s: get_reference(name).statements(acc.rows, s) for s in scenes}
+                  for name, scenes in acc.references.items() if get_reference(name).statements}
+    acc.figures["scatter.png"] = plot_error_vs_runtime(acc.rows)
+    claims = evaluate_claims(acc.rows)
+    refs = [(get_reference(n), cfg, statements.get(n, {})) for n, cfg in acc.references.items()]
+    try:
+        artifacts, lines, paths = _artifacts(acc.rows, out)
+        # Every text is complete before the report's own files are written; each file is
+        # written atomically (temporary file, then rename), so an interrupted run
+        # leaves no half-written file.
+        texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
+                 "report.md": markdown(acc.rows, acc.stages, acc.settings, claims,
+                                       {"scatter": "scatter.png", **acc.images}, flip_ok, refs, lines)}
+        for name, fig in acc.figures.items():
+            paths[name] = save_figure(fig, out / name, dpi=110)
+    finally:
+        for fig in acc.figures.values():
+            plt.close(fig)
+    for name, text in texts.items():
+        paths[name] = write_text(out / name, text)
+    return {"rows": acc.rows, "stages": acc.stages, "claims": claims, "soft": statements.get("mvr", {}),
+            "artifacts": artifacts, "paths": paths, "settings": acc.references}
+
+
+def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=None, shadow_map_size=None,
+        msaa=None, resolution=None, noise_tiles=64, area=None, scattering=None):
+    """Run the report and write its files to ``out_dir``.
+
+    Parameters
+    ----------
+    scenes : list of str or Path, optional
+        Shipped scene names or scene files; default all shipped scenes
+        (:func:`moments_ref.scene.list_scenes`).
+    full : bool
+        2048² maps with 4× MSAA and the scenes' camera resolution (HPG17 §5);
+        otherwise :func:`moments_ref.pipeline.reduced_settings`. The references
+        then use their paper-scale settings (area lights: the scene's map size, a
+        512-view MVR reference; scattering: the scene's own settings).
+    out_dir : path
+        Output folder (created).
+    progress : bool
+        tqdm progress bars (scenes, and stages per scene) on stderr.
+    techniques : list of str, optional
+        Only these techniques (default: every registered technique that can run
+        on the scene: its light kind, translucency, medium). A name no scene can
+        run is refused with the reason.
+    shadow_map_size, msaa, resolution : optional
+        Override the settings for every scene (tests, notebooks);
+        ``shadow_map_size`` also sets the maps of the area-light rows.
+    noise_tiles : int
+        Blue-noise tiles (HPG17: 64).
+    area : dict, optional
+        Overrides of the area-light settings (``map_size``, ``light_samples``,
+        ``reference_views``, ...: :func:`moments_ref.techniques.area.configure`).
+    scattering : dict, optional
+        Overrides of the scattering settings (``epipolar_size``,
+        ``reference_samples``, ``raymarch_samples``).
+
+    Returns
+    -------
+    dict with ``rows`` (list of dict, :data:`COLUMNS`), ``stages`` (scene -> list),
+    ``claims``, ``soft`` (scene -> measured soft-shadow statements),
+    ``artifacts`` (the measurements of ``msm_soft.artifact_images`` or None),
+    ``settings`` (reference -> scene -> its settings) and ``paths`` (name -> Path).
+
+    Raises
+    ------
+    InputError
+        Unknown scene or technique names (listing the known ones), a scene
+        without receiver or camera (with the reason).
+    """
+    from ..scene import list_scenes, load_scene
+
+    out = Path(out_dir)
+    loaded = [load_scene(s) for s in (list_scenes() if not scenes else list(scenes))]  # refuse bad names first
+    for sc in loaded:
+        pipeline.check_scene(sc)
+    if techniques is not None:
+        _check_names(techniques, loaded)
+    overrides = _check_overrides({"area": area, "scattering": scattering})
+    given = {"shadow_map_size": shadow_map_size, "msaa": msaa, "resolution": resolution}
+    flip_ok = flip_available()
+    acc = _Collected()
+    with _bar(progress, len(loaded)) as bar:
+        for sc in loaded:
+            _run_scene(acc, sc, full, given, techniques, overrides, noise_tiles, progress)
+            if bar is not None:
+                bar.update(1)
+    return _write(acc, out, flip_ok)
+
+
+def build_parser():
+    """The argument parser of ``moments-ref report``."""
+    p = argparse.ArgumentParser(prog="moments-ref report",
+                                description="Error against run time of the shadow techniques (HPG17 §5).")
+    p.add_argument("--scene", action="append", metavar="NAME|FILE",
+                   help="shipped scene name or scene file (repeatable; default: all shipped scenes)")
+    p.add_argument("--full", action="store_true", help="2048² shadow maps with 4× MSAA at the camera's resolution")
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return p
+
+
+def main(argv=None) -> int:
+    """``moments-ref report``; returns the exit code (0 done, 2 bad usage or input)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    try:
+        res = run(scenes=args.scene, full=args.full, out_dir=args.out, progress=not args.no_progress)
+    except InputError as exc:
+        print(f"moments-ref report: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {', '.join(str(p) for p in res['paths'].values())}")
+    for claim, verdict, evidence in res["claims"]:
+        print(f"{claim}: {({True: 'holds', False: 'does not hold', None: 'not measurable'})[verdict]} ({evidence})")
+    return 0

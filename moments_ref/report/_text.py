@@ -1,0 +1,202 @@
+"""The report's text: results.csv, the measured claims of HPG17 and report.md.
+
+References
+----------
+HPG17 : see docs/bib.md.
+FLIP : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+
+import numpy as np
+
+from .._arrays import InputError
+from ..gbuffer import SLOPE_BIAS_TEXELS
+from ..metrics import LEAK_THRESHOLD
+from .. import techniques as _techniques
+
+__all__ = ["COLUMNS", "CLOSE_REL", "CLEARLY_BELOW", "read_results", "evaluate_claims", "markdown", "csv_text"]
+
+#: Columns of results.csv, in order.
+COLUMNS = ("scene", "technique", "bits_per_texel", "rmse", "max_error", "p99_error", "leak_fraction",
+           "flip_mean", "texel_seconds", "fragment_seconds")
+#: Relative tolerances of the verdicts (stated in report.md).
+CLOSE_REL = 0.10
+CLEARLY_BELOW = 0.90
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else f"{v:.6g}"
+    return str(v)
+
+
+def csv_text(rows):
+    """results.csv: :data:`COLUMNS` and one line per row (numbers to 6 significant digits)."""
+    buf = io.StringIO()
+    wr = csv.writer(buf, lineterminator="\n")
+    wr.writerow(COLUMNS)
+    for r in rows:
+        wr.writerow([_fmt(r[c]) for c in COLUMNS])
+    return buf.getvalue()
+
+
+def read_results(path):
+    """Read a ``results.csv`` into a list of dicts (numbers as float, bits as int)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    if rows and set(COLUMNS) - set(rows[0]):
+        raise InputError(f"results: {path} lacks columns {sorted(set(COLUMNS) - set(rows[0]))}")
+    out = []
+    for r in rows:
+        d = {"scene": r["scene"], "technique": r["technique"], "bits_per_texel": int(r["bits_per_texel"])}
+        for c in COLUMNS[3:]:
+            d[c] = float(r[c])
+        out.append(d)
+    return out
+
+
+def _row(rows, scene, tech):
+    for r in rows:
+        if r["scene"] == scene and r["technique"] == tech:
+            return r
+    return None
+
+
+def evaluate_claims(rows, four_moment=None):
+    """HPG17's headline claims, measured on ``rows``.
+
+    Returns a list of ``(claim, verdict, evidence)`` with verdict True, False or
+    None (not measurable: a scene or technique missing, or a NaN).
+    Criteria: "close" = RMSE within 10 % (relative, plus 1e-3 absolute);
+    "clearly below" = RMSE at most 90 % of the other; "leaks" = leak_fraction > 0.
+    """
+    if four_moment is None:
+        four_moment = [n for n in _techniques.names() if _techniques.get(n).four_moments]
+    out = []
+
+    def close(a, b):
+        return abs(a - b) <= CLOSE_REL * b + 1e-3
+
+    # 1. railing: NLQ 64 close to MSM 128, clearly below MSM 64 and VSM.
+    claim = "railing: NLQ 64-bit error close to MSM 128-bit and clearly below MSM 64-bit and VSM"
+    r = {t: _row(rows, "railing", t) for t in ("nlq64", "msm128", "msm64", "vsm")}
+    if all(r.values()) and all(np.isfinite(v["rmse"]) for v in r.values()):
+        a, b, c, d = (r[t]["rmse"] for t in ("nlq64", "msm128", "msm64", "vsm"))
+        verdict = close(a, b) and a <= CLEARLY_BELOW * c and a <= CLEARLY_BELOW * d
+        out.append((claim, verdict, f"RMSE nlq64 {a:.4g}, msm128 {b:.4g}, msm64 {c:.4g} (ratio {a / c:.3f}), "
+                                    f"vsm {d:.4g} (ratio {a / d:.3f})"))
+    else:
+        out.append((claim, None, "railing with nlq64, msm128, msm64, vsm not measured (or NaN)"))
+
+    # 2. NLQ 32 close to NLQ 64 except banding on facade.
+    claim = "NLQ 32-bit close to NLQ 64-bit except banding on facade"
+    pairs = [(r["scene"], r["rmse"], _row(rows, r["scene"], "nlq64")) for r in rows if r["technique"] == "nlq32"]
+    pairs = [(s, a, b["rmse"]) for s, a, b in pairs if b is not None]
+    if pairs and any(s == "facade" for s, _, _ in pairs):
+        ok, notes, nan = True, [], False
+        for s, a, b in pairs:
+            if not (np.isfinite(a) and np.isfinite(b)):
+                nan = True
+                notes.append(f"{s}: NaN (nlq32 {a}, nlq64 {b})")
+                continue
+            notes.append(f"{s}: nlq32 {a:.4g} vs nlq64 {b:.4g}")
+            if s == "facade":
+                ok &= a > (1 + CLOSE_REL) * b  # banding: clearly worse there
+            else:
+                ok &= close(a, b)
+        out.append((claim, None if nan else ok, "; ".join(notes)))
+    else:
+        out.append((claim, None, "facade with nlq32 and nlq64 not measured"))
+
+    # 3. Every four-moment technique leaks on three-occluders.
+    claim = "every four-moment technique leaks on three-occluders"
+    rs = [r for r in rows if r["scene"] == "three-occluders" and r["technique"] in four_moment]
+    if rs:
+        leaks = {r["technique"]: r["leak_fraction"] for r in rs}
+        if not all(np.isfinite(v) for v in leaks.values()):
+            out.append((claim, None, f"NaN leak fractions {leaks}"))
+        else:
+            out.append((claim, all(v > 0 for v in leaks.values()),
+                        ", ".join(f"{k} {v:.3%}" for k, v in leaks.items())))
+    else:
+        out.append((claim, None, "three-occluders with four-moment techniques not measured"))
+    return out
+
+
+def _intro(flip_ok, sections):
+    text = ("Each technique shades the receiver pixels of each scene's camera view; errors are against the "
+            "reference at the technique's depth bias (9×9 Gaussian PCF over the MSAA samples = the exact "
+            "filtered hard shadow Z(z < zf); with translucent occluders, the filtered product of "
+            "transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
+            f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are wall-clock NumPy seconds "
+            "on this machine (texture stages / lookups, the split of HPG17 Figure 10), not GPU times. "
+            "Depth bias: each technique's constant (1e-3, as HPG17 uses for NLQ) plus a receiver-slope term "
+            f"of {SLOPE_BIAS_TEXELS:.3g} (4.5√2) texels times the receiver's depth change per texel, the same "
+            "for every technique and the reference (without it the exact 9×9 PCF shades a plane lit at an "
+            "angle as half shadowed, which would be charged to the techniques as error).")
+    if sections:
+        text += (" Exceptions, described in their sections below: the rows measured against another reference "
+                 "(" + "; ".join(sections) + ").")
+    lines = ["# Shadow techniques: error against run time", "", text, ""]
+    if not flip_ok:
+        lines += ["`flip_mean` is NaN: the package `flip-evaluator` (NVIDIA ꟻLIP) is not installed.", ""]
+    return lines
+
+
+def _settings(settings):
+    lines = ["## Settings", "", "| scene | shadow map | MSAA | camera | light |", "|---|---|---|---|---|"]
+    for s, v in settings.items():
+        lines.append(f"| {s} | {v['size'][0]}×{v['size'][1]} | {v['msaa']}× | {v['resolution'][0]}×"
+                     f"{v['resolution'][1]} | {v['light']} |")
+    lines.append("")
+    if any(v["light"].startswith("area") for v in settings.values()):
+        lines += ["Area lights: the hard-shadow techniques use the light's centre as a spot light "
+                  "(perspective shadow map), and their reference is the filtered hard shadow of that spot. "
+                  "The soft-shadow rows (msm_soft, pcss, vwss, mvr) are measured against multi-view "
+                  "rasterization (MVR) with many light samples instead; see below.", ""]
+    return lines
+
+
+def _claims(claims, rows):
+    lines = ["## Headline claims of HPG17 (measured)", "",
+             f"Criteria: close = RMSE within {CLOSE_REL:.0%} (+1e-3); clearly below = at most "
+             f"{CLEARLY_BELOW:.0%} of the other's RMSE; leaks = leak_fraction > 0.", ""]
+    for claim, verdict, evidence in claims:
+        word = {True: "**holds**", False: "**does not hold**", None: "**not measurable**"}[verdict]
+        lines.append(f"- {claim}: {word}. {evidence}")
+    lines += ["", "## Results", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines += ["| " + " | ".join(_fmt(r[c]) for c in COLUMNS) + " |" for r in rows]
+    return lines + [""]
+
+
+def markdown(rows, stages, settings, claims, images, flip_ok, references, artifacts=()):
+    """report.md.
+
+    ``references``: per reference used (in order) ``(reference, settings per scene,
+    statements per scene)``; ``images``: ``{"scatter": path, reference name: [paths]}``;
+    ``artifacts``: markdown lines of the techniques' measured artifacts.
+    """
+    sections = [r.label for r, _, _ in references if r.section is not None]
+    lines = _intro(flip_ok, sections) + _settings(settings)
+    lines += _claims(claims, rows)
+    plain = []
+    for ref, cfg, statements in references:
+        paths = images.get(ref.name, [])
+        if ref.section is None:
+            plain += paths
+            continue
+        lines += ref.section(cfg, statements, paths)
+    lines += list(artifacts)
+    lines += ["## Error against run time", "", f"![error against run time]({images['scatter']})", "",
+              "## Error images", ""]
+    for p in plain:
+        lines += [f"![{p}]({p})", ""]
+    lines += ["## Stages that ran", ""]
+    lines += [f"- {s}: " + ", ".join(f"`{x}`" for x in st) for s, st in stages.items()]
+    lines.append("")
+    return "\n".join(lines)

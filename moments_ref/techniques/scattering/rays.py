@@ -1,0 +1,193 @@
+"""View rays of the camera, ray marching through the shadow map, the scattering metric and figure.
+
+The ground truth of :mod:`moments_ref.techniques.scattering`: ray marching is a
+midpoint rule along each view ray through the MSAA shadow map (the slides' "ground
+truth" uses 128 samples; the report's reference 4096).
+
+References
+----------
+Slides : see docs/bib.md.
+FLIP : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._arrays import InputError
+from ...metrics import flip_mean
+from ...raster import rasterize_depth
+from .epipolar import AXIS_ANGLE, FAR_NDC, epipolar_depth
+
+__all__ = ["CameraRays", "camera_rays", "ray_march", "scattering_metric", "scattering_figure", "write_images"]
+
+
+@dataclass
+class CameraRays:
+    """Per-pixel view rays: directions (H, W, 3) unit, ``t_end`` (H, W), hit mask (H, W)."""
+
+    direction: np.ndarray
+    t_end: np.ndarray
+    hit: np.ndarray
+    resolution: tuple
+
+
+def camera_rays(scene, resolution=None, t_max=None):
+    """View rays through the pixel centres and their lengths (depth buffer of all geometry).
+
+    Parameters
+    ----------
+    scene : Scene
+    resolution : (width, height), default the camera's
+    t_max : float, optional
+        Length of background rays; default the distance from the eye to the farthest
+        corner of the scene's bounding box.
+
+    Returns
+    -------
+    CameraRays, t_max
+    """
+    cam = scene.camera
+    w, h = cam.resolution if resolution is None else (int(resolution[0]), int(resolution[1]))
+    from ...scene.camera import Camera
+
+    cam = Camera(cam.eye, cam.target, cam.up, cam.fov, (w, h), cam.near, cam.far)
+    vp = cam.view_proj()
+    verts = np.concatenate([scene.receiver.vertices, scene.occluder.vertices])
+    tris = np.concatenate([scene.receiver.triangles, scene.occluder.triangles + scene.receiver.vertices.shape[0]])
+    depth, _ = rasterize_depth(verts, tris, vp, (h, w), samples=1, dtype=np.float64)
+    depth = depth[..., 0]
+    col, row = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    xn, yn = col * (2.0 / w) - 1, 1 - row * (2.0 / h)
+    inv = np.linalg.inv(vp)
+
+    def unproject(zn):
+        p = np.stack([xn, yn, np.broadcast_to(zn, xn.shape), np.ones_like(xn)], axis=-1) @ inv.T
+        return p[..., :3] / p[..., 3:4]
+
+    far_pt = unproject(0.0)
+    d = far_pt - cam.eye
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    hit = depth < 1.0
+    t_hit = np.linalg.norm(unproject(depth) - cam.eye, axis=-1)
+    if t_max is None:
+        lo, hi = scene.bounds()
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        t_max = float(np.linalg.norm(corners - cam.eye, axis=1).max())
+    t_end = np.where(hit, np.minimum(t_hit, t_max), t_max)
+    return CameraRays(d, t_end, hit, (w, h)), t_max
+
+
+def _check_directional(scene):
+    if getattr(scene.light, "kind", None) != "directional":
+        raise InputError(f"scene {scene.name!r}: single scattering needs a directional light "
+                         f"(Slides, 'Integrate shadow along view ray'), got {getattr(scene.light, 'kind', '?')!r}")
+
+
+def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 21):
+    """Visibility integral by ray marching through the shadow map (midpoint rule).
+
+    Parameters
+    ----------
+    depth_samples : (H, W, S) float array
+        The light's MSAA depth map (cleared to 1 = no occluder).
+    view_proj : (4, 4) the light's matrix
+    eye : (3,) camera position
+    rays : CameraRays
+    n_samples : int ≥ 1
+        Samples per view ray, at ``t_k = (k + ½) t_end / N``.
+
+    Returns
+    -------
+    S : (H, W) float64, ``t_end · mean_k V(t_k)``; V is the share of the MSAA samples of
+        the nearest texel that do not occlude the point (1 outside the map).
+    """
+    if not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
+        raise InputError(f"n_samples: expected a positive integer, got {n_samples!r}")
+    d = np.asarray(depth_samples)
+    h, w, s = d.shape
+    flat = d.reshape(h * w, s)
+    dirs = rays.direction.reshape(-1, 3)
+    t_end = rays.t_end.reshape(-1)
+    out = np.empty(t_end.shape[0])
+    frac = (np.arange(n_samples) + 0.5) / n_samples
+    m = np.asarray(view_proj, dtype=np.float64)
+    per = max(1, chunk // n_samples)
+    for lo in range(0, t_end.shape[0], per):
+        hi = min(lo + per, t_end.shape[0])
+        t = t_end[lo:hi, None] * frac[None, :]
+        p = np.asarray(eye, dtype=np.float64) + t[..., None] * dirs[lo:hi, None, :]
+        clip = p @ m[:3, :3].T + m[:3, 3]  # orthographic: w = 1
+        x = (clip[..., 0] + 1) * (w / 2)
+        y = (1 - clip[..., 1]) * (h / 2)
+        col, row = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+        inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        idx = np.clip(row, 0, h - 1) * w + np.clip(col, 0, w - 1)
+        occ = flat[idx]  # (n, N, S)
+        vis = ((occ >= clip[..., 2:3]) | (occ >= FAR_NDC)).mean(axis=-1)
+        vis = np.where(inside, vis, 1.0)
+        out[lo:hi] = t_end[lo:hi] * vis.mean(axis=-1)
+    return out.reshape(rays.t_end.shape)
+
+
+def _pixel_epipolar(rays, frame):
+    """uv (columns, rows) and depth of every pixel's view ray; inclination clamped near the axis."""
+    rows, cols = frame.size
+    d = rays.direction
+    cos_t = np.clip(d @ frame.light, -1, 1)
+    theta = np.clip(np.arccos(cos_t), AXIS_ANGLE, np.pi - AXIS_ANGLE)
+    phi = np.mod(np.arctan2(d @ frame.e2, d @ frame.e1), 2 * np.pi)
+    rho_end = rays.t_end * np.sin(theta)
+    uv = np.stack([rho_end / frame.rho_max * cols, phi / (2 * np.pi) * rows], axis=-1)
+    return uv, epipolar_depth(theta)
+
+
+def _metrics(img, ref, t_max):
+    e = (np.asarray(img) - np.asarray(ref)) / t_max  # normalized scattering: 1 = a fully lit ray of t_max
+    a = np.abs(e)
+    return {"rmse": float(np.sqrt(np.mean(e * e))), "max_error": float(a.max()),
+            "p99_error": float(np.percentile(a, 99)),
+            # leaking light: scattering brighter than the reference by more than 0.05
+            "leak_fraction": float(np.mean(e > 0.05))}
+
+
+def _ldr(img, t_max):
+    x = np.clip(np.asarray(img, dtype=np.float64) / t_max, 0, 1)
+    return np.repeat(x[..., None], 3, axis=2).astype(np.float32)
+
+
+def scattering_metric(img, ref, t_max):
+    """Error columns of a scattering image against the reference (normalized by ``t_max``) and mean ꟻLIP."""
+    return {**_metrics(img, ref, t_max), "flip_mean": flip_mean(_ldr(ref, t_max), _ldr(img, t_max))}
+
+
+def scattering_figure(images, t_max):
+    """One figure with the normalized scattering term of each image (reference first)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    names = list(images)
+    fig, axes = plt.subplots(1, len(names), figsize=(4 * len(names), 3), squeeze=False)
+    for ax, name in zip(axes[0], names):
+        ax.imshow(np.clip(images[name] / t_max, 0, 1), cmap="magma", vmin=0, vmax=1)
+        ax.set_title(name)
+        ax.axis("off")
+    fig.tight_layout()
+    return fig
+
+
+def write_images(images, t_max, path):
+    """Write :func:`scattering_figure` to ``path`` (PNG, atomically); return ``path``."""
+    import matplotlib.pyplot as plt
+
+    from ..._io import save_figure
+
+    fig = scattering_figure(images, t_max)
+    save_figure(fig, path, dpi=100)
+    plt.close(fig)
+    return path
