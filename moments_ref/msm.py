@@ -90,6 +90,12 @@ def _kernel(b, zf, want, c):
     for every element and the result is selected by multiplying with 0/1 masks:
     in NumPy ``np.where``, masked ufuncs, ``np.clip`` with scalars and
     ``np.copysign`` each cost several arithmetic passes, so they are avoided here.
+
+    Kept in one function on purpose (a hot kernel over the 60-line limit): its
+    steps share a dozen in-place temporaries of one chunk. Measured with
+    ``moments-ref bench`` kernels, 1024², CPU time, best of 9 in 3 interleaved runs,
+    before and after moving ``CHUNK`` and the copysign to :mod:`moments_ref._kernels`:
+    float32 27.7 -> 24.8 ms, float64 54.8 -> 51.6 ms (no slowdown; noise ±20 %).
     """
     dt = b.dtype.type
     n = zf.shape[0]

@@ -102,7 +102,8 @@ def _iter_coverage(s, h, w, sx, sy):
 
     sx, sy : (S,) int64 sample offsets in 1/256 pixel. Small boxes are binned by
     their size (:func:`_cover_binned`), large ones cut into tiles
-    (:func:`_iter_large`); a generator call per chunk: no measurable cost.
+    (:func:`_iter_large`); a generator call per batch: no measurable cost (measured
+    with the triangle setup split, see :func:`moments_ref.raster._triangles._setup`).
     """
     c0, c1, r0, r1, small = _boxes(s, h, w, sx, sy)
     nonempty = (c0 <= c1) & (r0 <= r1)

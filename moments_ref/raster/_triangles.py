@@ -102,8 +102,10 @@ def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
     vertex or edge) or (n,). ``tri`` (n, 3) holds the chunk's indices, whose
     triangle ids start at ``lo``. Returns None when nothing is left to rasterize.
 
-    Four steps, one function each (a call per chunk of ``_SETUP_CHUNK`` triangles:
-    no measurable cost, see the bench note in the module docstring):
+    Four steps, one function each (a call per chunk of ``_SETUP_CHUNK`` triangles;
+    ``moments-ref bench`` rasterize_depth 1× MSAA, 262144 small triangles into 1024²,
+    CPU time, best of 9 in 3 interleaved runs: 310.5 ms as one function, 291.8 ms
+    split, i.e. no slowdown within the noise):
     :func:`_reject`, :func:`_clip`, :func:`_snap_and_cull`, :func:`_edge_equations`.
     """
     n = tri.shape[0]

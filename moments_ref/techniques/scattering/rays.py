@@ -12,7 +12,6 @@ FLIP : see docs/bib.md.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
