@@ -179,6 +179,10 @@ def _kernel(b, zf, want, c):
         d -= t
         np.maximum(d, c["zero"], out=d)
         np.sqrt(d, out=d)
+        # Overflow of h² or q2·q0 (ξ4 at the rounding level of b4 in float32): B(b) is
+        # numerically singular; the quadratic's roots would be ±inf or NaN.
+        finite = np.isfinite(d)
+        np.less_equal(finite, singular, out=singular)  # singular |= ~finite
         it = c["sign"].dtype
         np.bitwise_or(d.view(it), np.bitwise_and(h.view(it), c["sign"]), out=d.view(it))  # copysign
         d += h
@@ -206,6 +210,7 @@ def _kernel(b, zf, want, c):
         # Step (5): lower = [zf > z1]·(w1 + [zf > z2]·(w2)), w2 = 1 − w0 − w1.
         w2 = np.subtract(c["one"], w0, out=q1)
         w2 -= w1
+        np.maximum(w2, c["zero"], out=w2)  # w0 + w1 may round above 1 (−4.5e−6 seen in float32)
         lower = np.multiply(w2, zf > z2, out=t)
         lower += w1
         lower *= zf > z1
