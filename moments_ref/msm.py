@@ -278,7 +278,10 @@ def _six(b) -> bool:
     """True for a six-moment vector (trailing axis 6): dispatched to :mod:`moments_ref.msm6`."""
     shape = getattr(b, "shape", None)
     if shape is None:
-        shape = np.shape(b) if not isinstance(b, (str, bytes)) else ()
+        try:
+            shape = np.shape(b) if not isinstance(b, (str, bytes)) else ()
+        except ValueError:  # a ragged list: refused by the four-moment path's validation
+            return False
     return len(shape) > 0 and shape[-1] == 6
 
 
@@ -376,6 +379,11 @@ def reduce_light_leaking(intensity, factor=0.98):
     overestimation of the shadow, so the result is no longer a lower bound.
     """
     x = real_input(intensity, "intensity")
-    if not (0.0 < float(factor) <= 1.0):
-        raise InputError(f"factor: expected a value in (0, 1], got {factor!r}")
-    return np.clip(x / x.dtype.type(factor), 0, 1)
+    f = factor
+    if isinstance(f, (bool, str)) or not np.isscalar(f) or not np.isreal(f) or not np.isfinite(f):
+        raise InputError(f"factor: expected a number in (0, 1], got {factor!r}")
+    # Checked in the working dtype: 1e-46 is positive in float64 but 0 in float32.
+    f = x.dtype.type(f)
+    if not (0 < f <= 1):
+        raise InputError(f"factor: expected a value in (0, 1] (in {x.dtype}), got {factor!r}")
+    return np.clip(x / f, 0, 1)

@@ -106,7 +106,7 @@ import time
 
 import numpy as np
 
-from ._arrays import InputError, broadcast_pair, real_input
+from ._arrays import InputError, broadcast_pair, first_index, real_input
 from .moments import BiasPreset, power_moments
 from .msm import CHUNK, SINGULAR_RTOL, _two_point, singular_thresholds
 
