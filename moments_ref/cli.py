@@ -258,10 +258,15 @@ def build_parser():
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
     bk.add_argument("--out", type=Path, help="also write banks.md here")
     bk.set_defaults(func=_cmd_banks)
+    _add_common(sub)
+    return p
+
+
+def _add_common(sub):
+    """Options every subcommand takes."""
     for sp in sub.choices.values():
         sp.add_argument("--max-memory", type=_memory, default=None, metavar="SIZE",
                         help="refuse work estimated to need more memory than this (e.g. 8G; default 4G)")
-    return p
 
 
 def _fail(args, reason) -> int:

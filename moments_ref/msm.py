@@ -36,7 +36,14 @@ float32 ``τ = 0``: ``BIAS_FLOAT32`` lifts ξ4 only to about
 threshold would catch biased moments and replace the paper's bound by a hard step
 at a *rounded* support point (measured: up to 0.96 above the true Z when zf lies
 between the rounded and the true support point). float32 therefore takes the
-singular branch only for pivots that are zero or negative.
+singular branch only for pivots that are zero or negative, or where the regular
+branch overflows: unbiased moments of a cluster whose width is near float32's
+resolution (``b = (1.38889e-05, 1.92979e-10, 2.68242e-15, 3.73012e-20)``) have a ξ4
+of rounding noise (10⁻²⁵ here), the coefficients of step (3) reach 10²⁴ and their
+squares overflow, which gave NaN depths and 0 where the truth is 1. A non-finite
+discriminant marks such a texel singular; biased moments never get there
+(``ξ4 ≥ 6e-8`` keeps the coefficients below 10⁸). Rounding can also put
+``w0 + w1`` just above 1 (seen: ``w2 = −4.5e−6``); w2 is clamped at 0.
 
 Negative σ² or ξ4 (moments just outside the moment space after rounding)
 fall into the same branches: they are projected onto the boundary of the moment

@@ -344,6 +344,23 @@ def _camera(ctx, t):
         raise ctx.error("camera", str(exc)) from None
 
 
+def _shadow_settings(ctx, doc):
+    """``shadow_map_size`` as [H, W] and ``msaa``, checked, within the memory limit."""
+    size = doc.get("shadow_map_size", 1024)
+    hw = [size, size] if isinstance(size, int) and not isinstance(size, bool) else size
+    if (not isinstance(hw, list) or len(hw) != 2
+            or not all(isinstance(x, int) and not isinstance(x, bool) and 1 <= x <= MAX_SIZE for x in hw)):
+        raise ctx.error("shadow_map_size", f"expected an integer or [H, W] in [1, {MAX_SIZE}], got {size!r}")
+    msaa = doc.get("msaa", 1)
+    if isinstance(msaa, bool) or msaa not in SAMPLE_COUNTS:
+        raise ctx.error("msaa", f"expected one of the supported sample counts {SAMPLE_COUNTS}, got {msaa!r}")
+    try:
+        check_memory(shadow_map_memory(hw, msaa), f"shadow_map_size {hw[0]}×{hw[1]} with msaa {msaa}")
+    except InputError as exc:
+        raise ctx.error("shadow_map_size", str(exc)) from None
+    return hw, msaa
+
+
 def _scenes_dir():
     return resources.files("moments_ref.scene") / "scenes"
 
@@ -404,18 +421,7 @@ def load_scene(name_or_path) -> Scene:
     for key, v in (("name", name), ("description", desc)):
         if not isinstance(v, str):
             raise ctx.error(key, f"wrong type: expected a string, got {v!r}")
-    size = doc.get("shadow_map_size", 1024)
-    hw = [size, size] if isinstance(size, int) and not isinstance(size, bool) else size
-    if (not isinstance(hw, list) or len(hw) != 2
-            or not all(isinstance(x, int) and not isinstance(x, bool) and 1 <= x <= MAX_SIZE for x in hw)):
-        raise ctx.error("shadow_map_size", f"expected an integer or [H, W] in [1, {MAX_SIZE}], got {size!r}")
-    msaa = doc.get("msaa", 1)
-    if isinstance(msaa, bool) or msaa not in SAMPLE_COUNTS:
-        raise ctx.error("msaa", f"expected one of the supported sample counts {SAMPLE_COUNTS}, got {msaa!r}")
-    try:
-        check_memory(shadow_map_memory(hw, msaa), f"shadow_map_size {hw[0]}×{hw[1]} with msaa {msaa}")
-    except InputError as exc:
-        raise ctx.error("shadow_map_size", str(exc)) from None
+    hw, msaa = _shadow_settings(ctx, doc)
     outputs = doc.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
         raise ctx.error("outputs", f"wrong type: expected a list of strings, got {outputs!r}")
