@@ -47,7 +47,7 @@ def _int_in(lo, hi=None):
 def _memory(text):
     """argparse type of ``--max-memory``: ``8G``, ``512M`` or a byte count."""
     try:
-        return parse_bytes(text, "--max-memory")
+        return parse_bytes(text, "size")
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
@@ -92,6 +92,12 @@ def _cmd_verify(args):
 
 def _cmd_bench(args):
     from . import bench
+
+    if args.only:
+        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "conformance"]
+        unknown = [o for o in args.only if not any(o in n for n in names)]
+        if unknown:
+            raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
 
     rows = bench.run(size=args.size, quick=args.quick, only=args.only,
                      progress=lambda total: _progress(total, "bench"))
