@@ -14,6 +14,9 @@ The policy of design.md, in one place:
   (``np.ma.filled``) or drop the masked entries (``.compressed()``) first; a
   masked array with nothing masked is its data.
 
+Shapes. A 0-d array is refused where a vector (a trailing axis of 4 or 6) is
+required; empty arrays are valid and give empty results of the policy's dtype.
+
 Memory. Functions whose allocation follows from their parameters (scene
 generators, the camera image, OBJ files) estimate it first and refuse more than
 :func:`max_memory` bytes (default :data:`MAX_MEMORY_DEFAULT` = 4 GiB) with an
