@@ -5,7 +5,23 @@ The policy of design.md, in one place:
 * float32 in -> float32 arithmetic and float32 out (this emulates a GPU port);
 * float64 in -> float64 out;
 * integers, booleans, Python floats and other real floating types -> float64;
-* complex, object, string and other non-numeric dtypes are refused.
+* the byte order does not matter: ``'>f4'`` is float32 and comes back as native
+  float32, ``'>f8'`` as native float64;
+* complex, object, string and other non-numeric dtypes are refused, and so are
+  ragged nested lists;
+* masked arrays (:class:`numpy.ma.MaskedArray`) with any masked element are
+  refused rather than computed with the hidden values: fill them
+  (``np.ma.filled``) or drop the masked entries (``.compressed()``) first; a
+  masked array with nothing masked is its data.
+
+Shapes. A 0-d array is refused where a vector (a trailing axis of 4 or 6) is
+required; empty arrays are valid and give empty results of the policy's dtype.
+
+Memory. Functions whose allocation follows from their parameters (scene
+generators, the camera image, OBJ files) estimate it first and refuse more than
+:func:`max_memory` bytes (default :data:`MAX_MEMORY_DEFAULT` = 4 GiB) with an
+:class:`InputError`; :func:`set_max_memory` (the command line's ``--max-memory``)
+changes the limit.
 
 A function with several array arguments lets its *primary* argument (the moments
 or the representation) decide the working dtype; secondary arguments such as the
@@ -28,7 +44,17 @@ __all__ = [
     "broadcast_pair",
     "first_index",
     "real_input",
+    "MAX_MEMORY_DEFAULT",
+    "max_memory",
+    "set_max_memory",
+    "check_memory",
+    "format_bytes",
+    "parse_bytes",
 ]
+
+#: Default limit (bytes) for allocations estimated from parameters: 4 GiB.
+MAX_MEMORY_DEFAULT = 4 << 30
+_limit = {"bytes": MAX_MEMORY_DEFAULT}
 
 
 class InputError(ValueError):
@@ -55,9 +81,9 @@ def _describe(x: np.ndarray) -> str:
 
 
 def working_dtype(x) -> np.dtype:
-    """The dtype the policy assigns to ``x`` (float32 or float64)."""
-    dt = np.asarray(x).dtype if not isinstance(x, np.dtype) else x
-    return np.dtype(np.float32) if dt == np.float32 else np.dtype(np.float64)
+    """The dtype the policy assigns to ``x`` (native float32 or float64), whatever its byte order."""
+    dt = np.asarray(x).dtype if not isinstance(x, np.dtype) else np.dtype(x)
+    return np.dtype(np.float32) if (dt.kind == "f" and dt.itemsize == 4) else np.dtype(np.float64)
 
 
 def as_real(x, name: str, dtype=None) -> np.ndarray:
@@ -73,10 +99,17 @@ def as_real(x, name: str, dtype=None) -> np.ndarray:
         Force this working dtype (used for secondary arguments). By default the
         policy decides from ``x`` itself.
     """
+    if isinstance(x, np.ma.MaskedArray):
+        if np.ma.is_masked(x):
+            idx = first_index(np.ma.getmaskarray(x))
+            raise InputError(f"{name}: expected an array without masked values (fill them with np.ma.filled "
+                             f"or drop them with .compressed()), got a masked value at index {idx}")
+        x = np.ma.getdata(x)
     try:
         arr = np.asarray(x)
     except Exception as exc:  # ragged lists and the like
-        raise InputError(f"{name}: expected a real array, got {type(x).__name__} ({exc})") from None
+        raise InputError(f"{name}: expected a real array, got a ragged or non-numeric "
+                         f"{type(x).__name__} ({str(exc).split('.')[0]})") from None
     kind = arr.dtype.kind
     if kind not in "biuf":
         raise InputError(
@@ -143,3 +176,56 @@ def positive_int(value, name: str, context: str = None) -> int:
         where = f"{context}: expected {name} to be" if context else f"{name}: expected"
         raise InputError(f"{where} a positive integer, got {value!r}")
     return v
+
+
+def format_bytes(n) -> str:
+    """``n`` bytes as a short human-readable string (``'74.5 GiB'``)."""
+    n = float(n)
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.0f} B" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} TiB"  # pragma: no cover
+
+
+_UNITS = {"": 1, "b": 1, "k": 1 << 10, "kb": 1 << 10, "kib": 1 << 10, "m": 1 << 20, "mb": 1 << 20,
+          "mib": 1 << 20, "g": 1 << 30, "gb": 1 << 30, "gib": 1 << 30, "t": 1 << 40, "tb": 1 << 40, "tib": 1 << 40}
+
+
+def parse_bytes(text, name="max_memory") -> int:
+    """Parse ``'8G'``, ``'512MiB'``, ``'1.5 GB'`` or a plain byte count (binary units)."""
+    import re
+
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][0-9]+)?)\s*([A-Za-z]*)\s*", str(text))
+    if not m or m.group(2).lower() not in _UNITS:
+        raise InputError(f"{name}: expected a size such as 4G, 512M or a byte count, got {text!r}")
+    n = float(m.group(1)) * _UNITS[m.group(2).lower()]
+    if not (np.isfinite(n) and n >= 1):
+        raise InputError(f"{name}: expected a positive size, got {text!r}")
+    return int(n)
+
+
+def max_memory() -> int:
+    """The current limit (bytes) for allocations estimated from parameters."""
+    return _limit["bytes"]
+
+
+def set_max_memory(nbytes) -> int:
+    """Set the limit of :func:`check_memory` (bytes, or a string like ``'8G'``); return the old one."""
+    n = parse_bytes(nbytes) if isinstance(nbytes, str) else nbytes
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise InputError(f"max_memory: expected a positive number of bytes, got {nbytes!r}")
+    old, _limit["bytes"] = _limit["bytes"], int(n)
+    return old
+
+
+def check_memory(nbytes, what: str) -> None:
+    """Refuse (:class:`InputError`) an estimated allocation of ``nbytes`` above :func:`max_memory`.
+
+    ``what`` names the request and the parameters it follows from, e.g.
+    ``"plane(nx=100000, nz=100000)"``.
+    """
+    if nbytes > _limit["bytes"]:
+        raise InputError(f"{what}: needs about {format_bytes(nbytes)}, above the memory limit of "
+                         f"{format_bytes(_limit['bytes'])} (raise it with --max-memory or "
+                         "moments_ref.set_max_memory)")

@@ -7,28 +7,79 @@ An interrupted run never leaves a half-written file behind: either the old file
 from __future__ import annotations
 
 import contextlib
+import glob
 import io
 import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_bytes", "write_text", "save_npz", "save_figure"]
+__all__ = ["atomic_path", "clean_stale", "write_bytes", "write_text", "save_npz", "save_figure"]
+
+
+def _mode() -> int:
+    """0666 under the process umask (0644 with the usual 022), as ``open`` creates files."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def clean_stale(path) -> list[Path]:
+    """Remove temporaries of ``path`` left by a killed writer (``.<name>.<pid>.*``, pid gone).
+
+    Returns the removed paths. A temporary of a writer still running is kept.
+    """
+    path = Path(path)
+    removed = []
+    if not path.parent.is_dir():
+        return removed
+    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*"):
+        parts = tmp.name[len(path.name) + 2:].split(".", 1)
+        if not parts[0].isdigit() or _pid_alive(int(parts[0])):
+            continue
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+            removed.append(tmp)
+    return removed
 
 
 @contextlib.contextmanager
 def atomic_path(path, suffix=None):
     """Yield a temporary path beside ``path``; rename it over ``path`` on success.
 
-    The temporary file keeps ``path``'s suffix (or ``suffix``) so that libraries
-    choosing a format by extension (matplotlib) behave. On an exception the
-    temporary file is removed and ``path`` is left untouched.
+    The temporary file ``.<name>.<pid>.<random><suffix>`` keeps ``path``'s suffix
+    (or ``suffix``) so that libraries choosing a format by extension (matplotlib)
+    behave. On any exception (including KeyboardInterrupt) it is removed and
+    ``path`` is left untouched; temporaries of earlier writers that were killed
+    (SIGKILL leaves no chance to clean up) are removed first. The file is created
+    with the usual permissions (0666 under the umask: 0644) and fsynced before the
+    rename, so a crash leaves either the old or the complete new file.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
-    os.close(fd)
+    clean_stale(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=suffix or path.suffix,
+                               dir=path.parent)
+    try:
+        os.fchmod(fd, _mode())
+    finally:
+        os.close(fd)
     try:
         yield Path(tmp)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

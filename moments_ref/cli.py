@@ -2,15 +2,25 @@
 
 Exit codes: 0 done, 1 a verification found differences, 2 bad usage or bad
 input (one-line reason on stderr).
+
+Every expected failure ends in :func:`main`, the one place that turns it into
+exit 2 and one line: :class:`InputError`, an ``OSError`` on a path (missing,
+unreadable, a folder where a file was expected), a ``MemoryError`` (beyond the
+estimates that refuse large parameters up front), and a closed output pipe
+(``moments-ref bench | head -1``). Before any work starts, :func:`check_outputs`
+makes sure ``--out`` is a folder that can be written, and the numeric options are
+range-checked by argparse.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
 from pathlib import Path
 
-from ._arrays import InputError
+from ._arrays import InputError, format_bytes, parse_bytes, set_max_memory
 
 
 def _progress(total, desc):
@@ -18,6 +28,47 @@ def _progress(total, desc):
     from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, unit="step", file=sys.stderr, disable=None, leave=False)
+
+
+def _int_in(lo, hi=None):
+    """argparse type: an integer in ``lo..hi``."""
+    def parse(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < lo or (hi is not None and v > hi):
+            want = f">= {lo}" if hi is None else f"in {lo}..{hi}"
+            raise argparse.ArgumentTypeError(f"expected an integer {want}, got {v}")
+        return v
+    return parse
+
+
+def _memory(text):
+    """argparse type of ``--max-memory``: ``8G``, ``512M`` or a byte count."""
+    try:
+        return parse_bytes(text, "size")
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def check_outputs(out) -> None:
+    """Refuse an ``--out`` folder that is not a folder or cannot be written, before any work.
+
+    Creates the folder (as the command would) and writes and removes a probe file.
+    """
+    if out is None:
+        return
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: expected a folder, got the existing file {out}")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-probe.", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"--out: cannot write to folder {out} ({exc.strerror or exc})") from None
 
 
 def _cmd_golden(args):
@@ -41,6 +92,12 @@ def _cmd_verify(args):
 
 def _cmd_bench(args):
     from . import bench
+
+    if args.only:
+        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "conformance"]
+        unknown = [o for o in args.only if not any(o in n for n in names)]
+        if unknown:
+            raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
 
     rows = bench.run(size=args.size, quick=args.quick, only=args.only,
                      progress=lambda total: _progress(total, "bench"))
@@ -132,8 +189,15 @@ def _cmd_conformance(args):
     return conformance.main(args)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with bad usage reported in one line (exit 2), the usage left to ``--help``."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser():
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="moments-ref",
         description="Reference implementation and test oracle of moment shadow mapping.",
     )
@@ -148,7 +212,7 @@ def build_parser():
 
     vw = sub.add_parser("vwss", help="view-warped soft shadows against MVR and PCSS (VWSS Tables 1 and 2)")
     vw.add_argument("--scene", default="knot", help="scene name or file with an area light (default knot)")
-    vw.add_argument("--views", type=int, default=None, help="light samples (default: 24 and 128; --quick: fewer)")
+    vw.add_argument("--views", type=_int_in(1), default=None, help="light samples (default: 24 and 128; --quick: fewer)")
     vw.add_argument("--quick", action="store_true", help="reduced resolution, under a minute on knot")
     vw.add_argument("--out", required=True, type=Path, help="output folder")
     vw.set_defaults(func=_cmd_vwss)
@@ -162,13 +226,13 @@ def build_parser():
     v.add_argument("--golden", required=True, type=Path, help="folder written by 'golden'")
     v.add_argument("--results", required=True, type=Path, help=".npz with arrays '<case>.<output>'")
     v.add_argument("--dtype", choices=("float32", "float64"), help="the port's precision (default: each case's)")
-    v.add_argument("--worst", type=int, default=5, help="worst rows to print per failing case")
+    v.add_argument("--worst", type=_int_in(0), default=5, help="worst rows to print per failing case")
     v.add_argument("--out", type=Path, help="unused; accepted for uniformity")
     v.set_defaults(func=_cmd_verify)
 
     b = sub.add_parser("bench", help="throughput against a same-run memory copy")
     b.add_argument("--out", type=Path, help="also write bench.md here")
-    b.add_argument("--size", type=int, default=2048, help="square input side (default 2048)")
+    b.add_argument("--size", type=_int_in(1, 16384), default=2048, help="square input side, 1..16384 (default 2048)")
     b.add_argument("--quick", action="store_true", help="one repetition, small sizes")
     b.add_argument("--only", action="append", help="only benchmarks whose name contains this")
     b.set_defaults(func=_cmd_bench)
@@ -184,8 +248,8 @@ def build_parser():
     f4 = sub.add_parser("figure4", help="HPG17 Figure 4: histograms of xi4 and Psi4(xi4), CSV and PNG")
     f4.add_argument("--out", required=True, type=Path, help="output folder")
     f4.add_argument("--scene", default="railing", help="shipped scene name or scene file (default railing)")
-    f4.add_argument("--size", type=int, default=2048, help="shadow-map side (default 2048, as HPG17)")
-    f4.add_argument("--samples", type=int, default=4, help="MSAA samples (default 4)")
+    f4.add_argument("--size", type=_int_in(1, 16384), default=2048, help="shadow-map side (default 2048, as HPG17)")
+    f4.add_argument("--samples", type=int, choices=(1, 4, 8), default=4, help="MSAA samples (default 4)")
     f4.set_defaults(func=_cmd_figure4)
 
     cf = sub.add_parser("conformance", help="run a GLSL port on an OpenGL 4.3 compute context against a golden case")
@@ -200,20 +264,66 @@ def build_parser():
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
     bk.add_argument("--out", type=Path, help="also write banks.md here")
     bk.set_defaults(func=_cmd_banks)
+    _add_common(sub)
     return p
+
+
+def _add_common(sub):
+    """Options every subcommand takes."""
+    for sp in sub.choices.values():
+        sp.add_argument("--max-memory", type=_memory, default=None, metavar="SIZE",
+                        help="refuse work estimated to need more memory than this (e.g. 8G; default 4G)")
+
+
+def _fail(args, reason) -> int:
+    print(f"moments-ref {getattr(args, 'command', '')}: {reason}", file=sys.stderr)
+    return 2
+
+
+def _os_reason(exc: OSError) -> str:
+    where = f" {exc.filename}" if exc.filename else ""
+    return f"cannot use{where}: {exc.strerror or exc}"
+
+
+def _run(args) -> int:
+    """Set the memory limit, check the outputs and inputs, run the subcommand."""
+    if args.max_memory is not None:
+        set_max_memory(args.max_memory)
+    if args.command == "figure4":
+        from .scene.files import shadow_map_memory
+        from ._arrays import check_memory
+
+        check_memory(shadow_map_memory(args.size, args.samples), f"figure4 --size {args.size} --samples {args.samples}")
+    check_outputs(getattr(args, "out", None))
+    code = args.func(args)
+    sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at exit
+    return code
 
 
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
+    from ._arrays import max_memory
+
+    limit = max_memory()
     try:
-        return args.func(args)
+        return _run(args)
     except InputError as exc:
-        print(f"moments-ref {args.command}: {exc}", file=sys.stderr)
-        return 2
+        return _fail(args, exc)
+    except BrokenPipeError:
+        # The reader (``| head``) went away: no more output, one line, exit 2.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return _fail(args, "output closed before the command finished (broken pipe)")
+    except OSError as exc:
+        return _fail(args, _os_reason(exc))
+    except MemoryError:
+        return _fail(args, f"out of memory (limit {format_bytes(max_memory())}); use smaller parameters")
     except KeyboardInterrupt:
         print(f"moments-ref {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        set_max_memory(limit)
 
 
 if __name__ == "__main__":  # pragma: no cover

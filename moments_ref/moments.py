@@ -50,13 +50,23 @@ def power_moments(z, weights=None, axis=-1, n=4):
     HPG17 §2: ``b := E_Z(b) = sum_l w_l b(z_l)``. Depths are not restricted to
     [-1, 1] here; the algorithms that need that range check it themselves.
 
+    Domain: finite depths with ``N·|z|ⁿ`` below the largest finite value of the
+    working dtype (N samples per distribution; in float32 with n = 4 and
+    N = 16, |z| < 2.2e9), so that no moment overflows; larger depths raise
+    :class:`~moments_ref.InputError`. Weights are any finite non-negative
+    values with a positive sum per distribution: they are scaled by their
+    maximum before normalizing, so 3e38 or subnormal weights do not overflow or
+    vanish.
+
     Examples
     --------
     >>> power_moments([0.5, -0.5])
     array([0.    , 0.25  , 0.    , 0.0625])
     """
-    if n not in (4, 6):
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n not in (4, 6):
         raise InputError(f"n: expected 4 or 6, got {n!r}")
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+        raise InputError(f"axis: expected an integer axis, got {axis!r}")
     z = real_input(z, "z")
     if z.ndim == 0:
         raise InputError("z: expected at least one axis of samples, got a scalar")
@@ -79,11 +89,23 @@ def power_moments(z, weights=None, axis=-1, n=4):
         raise InputError(f"axis: expected an axis of z with shape {z.shape}, got {axis}") from None
     if z.shape[-1] == 0:
         raise InputError(f"z: expected at least one sample along axis {axis}, got none")
+    limit = (float(np.finfo(z.dtype).max) / z.shape[-1]) ** (1.0 / n)
+    big = np.abs(z) >= limit
+    if big.any():
+        idx = first_index(np.moveaxis(big, -1, axis))
+        raise InputError(f"z: expected |z| < {limit:.3g} (N·|z|^{n} finite in {z.dtype}), got "
+                         f"{np.moveaxis(z, -1, axis)[idx]!r} at index {idx}")
     if w is not None:
-        total = w.sum(axis=-1)
-        if (total <= 0).any():
-            idx = first_index(total <= 0)
+        # Scale by the largest weight first: sums of 3e38 (or of subnormals) stay finite and non-zero.
+        wmax = w.max(axis=-1)
+        if (wmax <= 0).any():
+            idx = first_index(wmax <= 0)
             raise InputError(f"weights: expected a positive sum per distribution, got 0 at distribution {idx}")
+        with np.errstate(over="ignore"):
+            total = w.sum(axis=-1)
+        if not np.all(np.isfinite(total) & (total >= np.finfo(w.dtype).tiny)):
+            w = w / wmax[..., None]
+            total = w.sum(axis=-1)
         w = w / total[..., None]
     out = np.empty(z.shape[:-1] + (n,), dtype=z.dtype)
     power = z.copy()
@@ -123,6 +145,21 @@ class BiasPreset:
     target: tuple[float, ...]
     name: str = "custom"
 
+    def __post_init__(self):
+        a = self.alpha
+        if isinstance(a, (bool, str)) or not np.isscalar(a) or not np.isreal(a) or not 0.0 <= float(a) <= 1.0:
+            raise InputError(f"alpha: expected a number in [0, 1], got {a!r}")
+        try:
+            target = tuple(float(t) for t in self.target)
+        except (TypeError, ValueError):
+            raise InputError(f"target: expected 4 or 6 numbers, got {self.target!r}") from None
+        if len(target) not in (4, 6) or not np.all(np.isfinite(target)):
+            raise InputError(f"target: expected finite numbers of length 4 or 6, got {self.target!r}")
+        if not isinstance(self.name, str):
+            raise InputError(f"name: expected a string, got {self.name!r}")
+        object.__setattr__(self, "alpha", float(a))
+        object.__setattr__(self, "target", target)
+
 
 #: Biasing for moments stored in single-precision floats (HPG17 §3.2, input of Alg. 2).
 BIAS_FLOAT32 = BiasPreset(3e-7, (0.0, 0.375, 0.0, 0.375), "float32")
@@ -135,11 +172,14 @@ def _as_preset(preset) -> BiasPreset:
         return preset
     try:
         alpha, target = preset
-        return BiasPreset(float(alpha), tuple(float(t) for t in target))
     except (TypeError, ValueError):
         raise InputError(
             f"preset: expected a BiasPreset or an (alpha, target) pair, got {preset!r}"
         ) from None
+    try:
+        return BiasPreset(alpha, target)
+    except InputError as exc:
+        raise InputError(f"preset: {exc}") from None
 
 
 def bias_moments(b, preset=BIAS_FLOAT32):

@@ -36,7 +36,14 @@ float32 ``τ = 0``: ``BIAS_FLOAT32`` lifts ξ4 only to about
 threshold would catch biased moments and replace the paper's bound by a hard step
 at a *rounded* support point (measured: up to 0.96 above the true Z when zf lies
 between the rounded and the true support point). float32 therefore takes the
-singular branch only for pivots that are zero or negative.
+singular branch only for pivots that are zero or negative, or where the regular
+branch overflows: unbiased moments of a cluster whose width is near float32's
+resolution (``b = (1.38889e-05, 1.92979e-10, 2.68242e-15, 3.73012e-20)``) have a ξ4
+of rounding noise (10⁻²⁵ here), the coefficients of step (3) reach 10²⁴ and their
+squares overflow, which gave NaN depths and 0 where the truth is 1. A non-finite
+discriminant marks such a texel singular; biased moments never get there
+(``ξ4 ≥ 6e-8`` keeps the coefficients below 10⁸). Rounding can also put
+``w0 + w1`` just above 1 (seen: ``w2 = −4.5e−6``); w2 is clamped at 0.
 
 Negative σ² or ξ4 (moments just outside the moment space after rounding)
 fall into the same branches: they are projected onto the boundary of the moment
@@ -155,6 +162,10 @@ def _kernel(b, zf, want, c):
         d -= t
         np.maximum(d, c["zero"], out=d)
         np.sqrt(d, out=d)
+        # Overflow of h² or q2·q0 (ξ4 at the rounding level of b4 in float32): B(b) is
+        # numerically singular; the quadratic's roots would be ±inf or NaN.
+        finite = np.isfinite(d)
+        np.less_equal(finite, singular, out=singular)  # singular |= ~finite
         copysign_inplace(d, h, c["sign"])
         d += h
         ra = np.divide(q2, d, out=q2)  # −1/root: keeps the sign bookkeeping in one place
@@ -181,6 +192,7 @@ def _kernel(b, zf, want, c):
         # Step (5): lower = [zf > z1]·(w1 + [zf > z2]·(w2)), w2 = 1 − w0 − w1.
         w2 = np.subtract(c["one"], w0, out=q1)
         w2 -= w1
+        np.maximum(w2, c["zero"], out=w2)  # w0 + w1 may round above 1 (−4.5e−6 seen in float32)
         lower = np.multiply(w2, zf > z2, out=t)
         lower += w1
         lower *= zf > z1
@@ -248,7 +260,10 @@ def _six(b) -> bool:
     """True for a six-moment vector (trailing axis 6): dispatched to :mod:`moments_ref.msm6`."""
     shape = getattr(b, "shape", None)
     if shape is None:
-        shape = np.shape(b) if not isinstance(b, (str, bytes)) else ()
+        try:
+            shape = np.shape(b) if not isinstance(b, (str, bytes)) else ()
+        except ValueError:  # a ragged list: refused by the four-moment path's validation
+            return False
     return len(shape) > 0 and shape[-1] == 6
 
 
@@ -346,6 +361,11 @@ def reduce_light_leaking(intensity, factor=0.98):
     overestimation of the shadow, so the result is no longer a lower bound.
     """
     x = real_input(intensity, "intensity")
-    if not (0.0 < float(factor) <= 1.0):
-        raise InputError(f"factor: expected a value in (0, 1], got {factor!r}")
-    return np.clip(x / x.dtype.type(factor), 0, 1)
+    f = factor
+    if isinstance(f, (bool, str)) or not np.isscalar(f) or not np.isreal(f) or not np.isfinite(f):
+        raise InputError(f"factor: expected a number in (0, 1], got {factor!r}")
+    # Checked in the working dtype: 1e-46 is positive in float64 but 0 in float32.
+    f = x.dtype.type(f)
+    if not (0 < f <= 1):
+        raise InputError(f"factor: expected a value in (0, 1] (in {x.dtype}), got {factor!r}")
+    return np.clip(x / f, 0, 1)

@@ -110,7 +110,7 @@ import time
 
 import numpy as np
 
-from ._arrays import InputError, broadcast_pair, real_input
+from ._arrays import InputError, broadcast_pair, first_index, real_input
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, singular_thresholds
 from ._kernels import two_point as _two_point
@@ -152,11 +152,13 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
 
     Parameters
     ----------
-    c0, c1, c2, c3 : (n,) float arrays of one dtype
-        Coefficients, highest power first; ``c0`` must be non-zero (in this
-        module it is ``1/w0 ≥ 1`` or 1).
+    c0, c1, c2, c3 : (n,) float arrays
+        Coefficients, highest power first, finite and broadcastable; ``c0``
+        decides the dtype (the others are cast to it) and must be non-zero (in
+        this module it is ``1/w0 ≥ 1`` or 1). Anything else raises
+        :class:`~moments_ref.InputError`.
     newton : int
-        Newton steps on the original polynomial after the closed form.
+        Newton steps (0..100) on the original polynomial after the closed form.
 
     Returns
     -------
@@ -172,6 +174,23 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
     clamped), ``θ = atan2(√disc, −(Δ1 − 2BΔ0))/3`` and roots
     ``2√(−Δ0)·(cos θ, cos(θ + 2π/3), cos(θ − 2π/3)) − B``.
     """
+    c0 = real_input(c0, "c0")
+    cs = [c0] + [real_input(c, name, dtype=c0.dtype) for c, name in ((c1, "c1"), (c2, "c2"), (c3, "c3"))]
+    try:
+        shape = np.broadcast_shapes(*(c.shape for c in cs))
+    except ValueError:
+        raise InputError(f"c0..c3: expected broadcastable shapes, got {[c.shape for c in cs]}") from None
+    zero = c0 == 0
+    if zero.any():
+        idx = first_index(zero)
+        raise InputError(f"c0: expected a non-zero leading coefficient, got 0 at index {idx}")
+    if isinstance(newton, bool) or not isinstance(newton, (int, np.integer)) or not 0 <= newton <= 100:
+        raise InputError(f"newton: expected an integer in 0..100, got {newton!r}")
+    return _solve_cubic(*(np.broadcast_to(c, shape) for c in cs), newton=int(newton))
+
+
+def _solve_cubic(c0, c1, c2, c3, newton=2):
+    """:func:`solve_cubic` without validation (the kernels' path)."""
     dt = c0.dtype.type
     B = c1 / (3 * c0)
     C = c2 / (3 * c0)
@@ -250,7 +269,7 @@ def _kernel(b, zf):
         p2 = q2 + 3 * q3 * zf
         ok = ~singular
         cf = [np.where(ok, x, y) for x, y in ((pz, one), (p1, zero), (p2, -one), (q3, zero))]
-        t = solve_cubic(*cf)  # (3, n); placeholder cubic t³ − t for singular rows
+        t = _solve_cubic(*cf)  # (3, n); placeholder cubic t³ − t for singular rows
         # (4) weights w = t⁶ / Σ (L⁻¹ g)_i² / D_i, g = t³ v(zf + 1/t) = (t³, t²(1 + zf t), t(1 + zf t)², (1 + zf t)³).
         s = 1 + zf * t
         g = (t * t * t, t * t * s, t * s * s, s * s * s)
@@ -294,7 +313,7 @@ def _singular(b, zf, single, two, three, singular, lower, w0, z, w, ldl):
     if th.any():
         a1, a2, a3, l21, l31, l32 = b1[th], b2[th], b3[th], L21[th], L31[th], L32[th]
         d1, d2 = D1[th], D2[th]
-        r = solve_cubic(np.ones_like(a1), -l32, l32 * l21 - l31, l31 * a1 + l32 * a2 - l32 * l21 * a1 - a3)
+        r = _solve_cubic(np.ones_like(a1), -l32, l32 * l21 - l31, l31 * a1 + l32 * a2 - l32 * l21 * a1 - a3)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             u0, u1, u2, _ = _forward(np.ones_like(r), r, r * r, r * r * r, a1, a2, a3, l21, l31, l32)
             lam = one / (u0 * u0 + u1 * u1 / d1 + u2 * u2 / d2)  # Christoffel numbers
@@ -316,24 +335,51 @@ def _prepare(b, zf):
     b = real_input(b, "b", trailing=6)
     zf = real_input(zf, "zf", dtype=b.dtype)
     shape = broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
-    bflat = np.ascontiguousarray(np.broadcast_to(b, shape + (6,))).reshape(-1, 6)
-    zflat = np.ascontiguousarray(np.broadcast_to(zf, shape)).reshape(-1)
-    return bflat, zflat, shape
+    return b, zf, shape
 
 
-def _run(b, zf):
-    bflat, zflat, shape = _prepare(b, zf)
-    n = zflat.size
-    dt = bflat.dtype
-    lower, upper, w0 = (np.empty(n, dtype=dt) for _ in range(3))
-    z = np.empty((n, 3), dtype=dt)
-    w = np.empty((n, 3), dtype=dt)
+def _flat_view(a, shape):
+    """``a`` reshaped to ``shape`` without copying, or None where that needs a copy."""
+    try:
+        return np.reshape(a, shape, copy=False)
+    except ValueError:
+        return None
+
+
+def _chunks(b, zf, shape):
+    """``(start, stop, b rows (6, m), zf (m,))`` over the broadcast shape, CHUNK at a time.
+
+    The broadcast inputs are never materialized: a flat view where one exists,
+    else a gather of the chunk's elements, so the peak memory of a call is its
+    outputs plus one chunk of temporaries.
+    """
+    n = int(np.prod(shape, dtype=np.int64))
+    bb, zz = np.broadcast_to(b, shape + (6,)), np.broadcast_to(zf, shape)
+    bflat, zflat = _flat_view(bb, (-1, 6)), _flat_view(zz, (-1,))
     for start in range(0, n, CHUNK):
         stop = min(start + CHUNK, n)
-        lo, up, ww0, zz, wl = _kernel(np.ascontiguousarray(bflat[start:stop].T), zflat[start:stop])
-        lower[start:stop], upper[start:stop], w0[start:stop] = lo, up, ww0
-        z[start:stop], w[start:stop] = zz.T, wl.T
-    return lower, upper, w0, z, w, zflat, shape
+        if bflat is None or zflat is None:
+            idx = np.unravel_index(np.arange(start, stop), shape)
+        bc = bflat[start:stop] if bflat is not None else bb[idx]
+        zc = zflat[start:stop] if zflat is not None else zz[idx]
+        yield start, stop, np.ascontiguousarray(bc.T), np.ascontiguousarray(zc)
+
+
+def _run(b, zf, want):
+    """The kernel over chunks; only the outputs named in ``want`` are allocated.
+
+    ``want`` is drawn from lower, upper, w0 (n,) and z, w (n, 3); returns
+    ``(dict, zf, shape)``.
+    """
+    b, zf, shape = _prepare(b, zf)
+    n = int(np.prod(shape, dtype=np.int64))
+    outs = {k: np.empty((n, 3) if k in ("z", "w") else n, dtype=b.dtype) for k in want}
+    for start, stop, bc, zc in _chunks(b, zf, shape):
+        lo, up, ww0, zz, wl = _kernel(bc, zc)
+        res = {"lower": lo, "upper": up, "w0": ww0, "z": zz.T, "w": wl.T}
+        for k in want:
+            outs[k][start:stop] = res[k]
+    return outs, zf, shape
 
 
 def shadow_bounds(b, zf):
@@ -352,8 +398,8 @@ def shadow_bounds(b, zf):
     lower, upper : (...) float arrays in [0, 1], dtype of ``b``
         Sharp lower bound of Z(z < zf) and sharp upper bound of Z(z ≤ zf).
     """
-    lower, upper, *_ , shape = _run(b, zf)
-    return lower.reshape(shape), upper.reshape(shape)
+    outs, _, shape = _run(b, zf, ("lower", "upper"))
+    return outs["lower"].reshape(shape), outs["upper"].reshape(shape)
 
 
 def shadow_intensity(b, zf, bound="lower"):
@@ -387,8 +433,8 @@ def shadow_intensity(b, zf, bound="lower"):
     """
     if bound not in ("lower", "upper"):
         raise InputError(f"bound: expected 'lower' or 'upper', got {bound!r}")
-    lower, upper = shadow_bounds(b, zf)
-    return lower if bound == "lower" else upper
+    outs, _, shape = _run(b, zf, (bound,))  # only the requested bound: peak ≈ output + one chunk
+    return outs[bound].reshape(shape)
 
 
 def canonical_representation(b, zf):
@@ -410,7 +456,9 @@ def canonical_representation(b, zf):
         ``Σ w_l z_l^k = b_k`` for k = 0..6 (k ≤ 5 for the root at infinity).
         Mass at a support point equal to zf is moved to w0.
     """
-    _, _, w0, z, w, zflat, shape = _run(b, zf)
+    outs, zf, shape = _run(b, zf, ("w0", "z", "w"))
+    w0, z, w = outs["w0"], outs["z"], outs["w"]
+    zflat = np.broadcast_to(zf, shape).reshape(-1)
     order = np.argsort(z, axis=-1, kind="stable")
     z = np.take_along_axis(z, order, axis=-1)
     w = np.take_along_axis(w, order, axis=-1)
@@ -420,10 +468,23 @@ def canonical_representation(b, zf):
 
 
 def pivots(b):
-    """The pivots ``(D1, D2, D3)`` of ``B(b) = L D Lᵀ`` (4×4 Hankel), dtype of b."""
+    """The pivots ``(D1, D2, D3)`` of ``B(b) = L D Lᵀ`` (4×4 Hankel), dtype of b.
+
+    After a pivot the kernel counts as singular (``D1 ≤ τ·b2``, ``D2 ≤ τ·max(b4, D1)``,
+    module docstring) the later pivots are 0, as for the moments of one or two
+    depths, instead of the 0/0 of the elimination.
+
+    >>> pivots(power_moments([0.5], n=6))
+    array([0., 0., 0.])
+    """
     b = real_input(b, "b", trailing=6)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        D1, D2, D3, *_ = _ldl(*np.moveaxis(b, -1, 0))
+    rtol = b.dtype.type(singular_thresholds(b.dtype))
+    b1, b2, b3, b4, b5, b6 = np.moveaxis(b, -1, 0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        D1, D2, D3, *_ = _ldl(b1, b2, b3, b4, b5, b6)
+    single = D1 <= rtol * b2
+    D2 = np.where(single, 0, D2).astype(b.dtype)
+    D3 = np.where(single | (D2 <= rtol * np.maximum(b4, D1)), 0, D3).astype(b.dtype)
     return np.stack([D1, D2, D3], axis=-1)
 
 

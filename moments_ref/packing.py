@@ -124,19 +124,51 @@ def _encoder_input(r):
 
 
 def _uint_input(q, name, dtype, trailing=None):
-    q = np.asarray(q)
-    if q.dtype != dtype:
-        raise InputError(f"{name}: expected an array of dtype {np.dtype(dtype)}, got dtype {q.dtype}")
+    """An unsigned array of exactly ``dtype``'s width (any byte order), native, or InputError."""
+    q = _integer_array(q, name)
+    want = np.dtype(dtype)
+    if q.dtype.kind != "u" or q.dtype.itemsize != want.itemsize:
+        raise InputError(f"{name}: expected an array of dtype {want}, got dtype {q.dtype}")
     if trailing is not None and (q.ndim == 0 or q.shape[-1] != trailing):
         raise InputError(f"{name}: expected a trailing axis of length {trailing}, got shape {q.shape}")
-    return q
+    return q.astype(want, copy=False)
+
+
+def _integer_array(x, name):
+    """``np.asarray(x)`` refusing masked values and ragged lists (as :func:`real_input` does)."""
+    if isinstance(x, np.ma.MaskedArray):
+        if np.ma.is_masked(x):
+            raise InputError(f"{name}: expected an array without masked values, got a masked value at index "
+                             f"{first_index(np.ma.getmaskarray(x))}")
+        x = np.ma.getdata(x)
+    try:
+        return np.asarray(x)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"{name}: expected an integer array, got a ragged or non-numeric "
+                         f"{type(x).__name__} ({str(exc).split('.')[0]})") from None
+
+
+def _codes(x, name, hi):
+    """Integer codes in ``0..hi`` as int64, or InputError (floats, NaN, strings, out of range)."""
+    a = _integer_array(x, name)
+    if a.dtype.kind not in "iu":
+        raise InputError(f"{name}: expected an integer array of codes in 0..{hi}, got dtype {a.dtype}")
+    bad = (a < 0) | (a > hi)
+    if bad.any():
+        idx = first_index(bad)
+        raise InputError(f"{name}: expected codes in 0..{hi}, got {a[idx]!r} at index {idx}")
+    return a.astype(np.int64)
 
 
 def _float_dtype(dtype):
-    dt = np.dtype(dtype)
-    if dt not in (np.float32, np.float64):
+    """float32 or float64 (any byte order) as a native dtype, or InputError."""
+    try:
+        dt = np.dtype(dtype)
+    except (TypeError, ValueError):
+        raise InputError(f"dtype: expected float32 or float64, got {dtype!r}") from None
+    if dt.kind != "f" or dt.itemsize not in (4, 8):
         raise InputError(f"dtype: expected float32 or float64, got {dt}")
-    return dt
+    return np.dtype(np.float32 if dt.itemsize == 4 else np.float64)
 
 
 def _xi_code_up(xi4, code, decode, cmax):
@@ -245,7 +277,8 @@ def fold(t1, t2):
 
     Parameters
     ----------
-    t1, t2 : (...) integer arrays with ``0 ≤ t1 ≤ t2 ≤ 1022``
+    t1, t2 : (...) integer arrays with ``0 ≤ t1 ≤ t2 ≤ 1022`` (other codes, float or
+        string arrays raise :class:`~moments_ref.InputError`)
 
     Returns
     -------
@@ -253,16 +286,31 @@ def fold(t1, t2):
         ``(t1, t2)`` if ``t1 < 512``, else ``(1023 − t1, 1022 − t2)``; always
         ``f1 ≤ 511`` (9 bits) and ``f2 ≤ 1022`` (10 bits).
     """
-    t1 = np.asarray(t1, dtype=np.int64)
-    t2 = np.asarray(t2, dtype=np.int64)
+    t1, t2 = _codes(t1, "t1", 1022), _codes(t2, "t2", 1022)
+    shape = _pair_shape(t1, t2)
+    bad = np.broadcast_to(t1 > t2, shape)
+    if bad.any():
+        idx = first_index(bad)
+        raise InputError(f"t2: expected t1 <= t2, got t1 = {np.broadcast_to(t1, shape)[idx]!r}, "
+                         f"t2 = {np.broadcast_to(t2, shape)[idx]!r} at index {idx}")
     flip = t1 >= 512
     return np.where(flip, 1023 - t1, t1), np.where(flip, 1022 - t2, t2)
 
 
+def _pair_shape(a, b):
+    try:
+        return np.broadcast_shapes(a.shape, b.shape)
+    except ValueError:
+        raise InputError(f"expected broadcastable code arrays, got shapes {a.shape} and {b.shape}") from None
+
+
 def unfold(f1, f2):
-    """Inverse of :func:`fold`: a pair with ``f2 < f1`` was folded."""
-    f1 = np.asarray(f1, dtype=np.int64)
-    f2 = np.asarray(f2, dtype=np.int64)
+    """Inverse of :func:`fold`: a pair with ``f2 < f1`` was folded.
+
+    ``f1`` takes 9 bits (0..511), ``f2`` 10 bits (0..1023); other codes are refused.
+    """
+    f1, f2 = _codes(f1, "f1", 511), _codes(f2, "f2", 1023)
+    _pair_shape(f1, f2)
     flipped = f2 < f1
     return np.where(flipped, 1023 - f1, f1), np.where(flipped, 1022 - f2, f2)
 

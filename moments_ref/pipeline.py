@@ -149,6 +149,8 @@ def check_scene(scene):
         raise InputError(f"scene {name!r}: no receiver (no object with role receiver or both): nothing to shade")
     if getattr(scene, "camera", None) is None:
         raise InputError(f"scene {name!r}: no camera: the report shades the camera's view")
+    if hasattr(scene.camera, "check_sees"):
+        scene.camera.check_sees(rec, f"scene {name!r}'s receivers")
     occ = getattr(scene, "occluder", None)
     if occ is None or occ.n_triangles == 0:
         raise InputError(f"scene {name!r}: no occluder: nothing casts a shadow")

@@ -44,6 +44,7 @@ import numpy as np
 
 from ._arrays import InputError, broadcast_pair, real_input
 from .moments import BiasPreset, _as_preset
+from .nonlinear import validate_representation
 
 __all__ = [
     "DPS",
@@ -237,6 +238,33 @@ def _classify(b1, b2, b3, b4, tol):
     return "regular", sigma2, xi4, B
 
 
+def _solve(A, rhs):
+    """``mpmath.lu_solve``, falling back to Cramer's rule where its norm-relative
+    singularity test trips on a regular but badly scaled system (b2 ≈ 1e-600)."""
+    try:
+        return mpmath.lu_solve(A, rhs)
+    except ZeroDivisionError:
+        d = _cofactor_det(A)
+        if d == 0:
+            raise
+        out = []
+        for i in range(A.rows):
+            Ai = A.copy()
+            for r in range(A.rows):
+                Ai[r, i] = rhs[r]
+            out.append(_cofactor_det(Ai) / d)
+        return mpmath.matrix(out)
+
+
+def _cofactor_det(A):
+    """Determinant by cofactor expansion (no pivoting test; 2×2 and 3×3)."""
+    if A.rows == 2:
+        return A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    return (A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
+            - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+            + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]))
+
+
 def _canonical_mp(b1, b2, b3, b4, zf, tol):
     """Canonical representation ((zf, z1, z2), (w0, w1, w2)) and the singular flag.
 
@@ -258,13 +286,13 @@ def _canonical_mp(b1, b2, b3, b4, zf, tol):
         w2 = mpmath.mpf(0) if at2 else v2
         return (zf, y1, y2), (mpmath.mpf(w0), w1, w2)
     # (1) Hankel matrix (built in _classify), (2) solve B q = (1, zf, zf²).
-    q = mpmath.lu_solve(B, mpmath.matrix([1, zf, zf * zf]))
+    q = _solve(B, mpmath.matrix([1, zf, zf * zf]))
     # (3) roots of q2 z² + q1 z + q0.
     z1, z2 = _roots(q[2], q[1], q[0])
     # (4) Vandermonde system for the weights.
     if mpmath.isinf(z2):  # q2 = 0 exactly: the second root sits at infinity with weight 0
         V = mpmath.matrix([[1, 1], [zf, z1]])
-        w = mpmath.lu_solve(V, mpmath.matrix([1, b1]))
+        w = _solve(V, mpmath.matrix([1, b1]))
         return (zf, z1, z2), (w[0], w[1], mpmath.mpf(0))
     # Columns scaled by 1/max(1, z_l²) (then unscaled): a root near infinity (zf next to
     # a support point of the two-point distribution) would otherwise trip mpmath's
@@ -273,7 +301,7 @@ def _canonical_mp(b1, b2, b3, b4, zf, tol):
     scale = [max(mpmath.mpf(1), z * z) for z in zs]
     V = mpmath.matrix([[1 / s for s in scale], [z / s for z, s in zip(zs, scale)],
                        [z * z / s for z, s in zip(zs, scale)]])
-    u = mpmath.lu_solve(V, mpmath.matrix([1, b1, b2]))
+    u = _solve(V, mpmath.matrix([1, b1, b2]))
     return zs, tuple(u[i] / scale[i] for i in range(3))
 
 
@@ -543,9 +571,14 @@ def shade(r, zf, dps=DPS):
     Algorithm 1; that is what this does, in mpmath, without rounding the moments.
     It is therefore an independent check of HPG17 Algorithm 3 and carries none of
     its clamps (1e-6 away from y1 = y2, v2 ∈ {0, 1}; ξ4 ≥ 1.2e-7 in Ψ4).
+
+    The domain is that of :func:`moments_ref.nonlinear.shade`
+    (:func:`~moments_ref.nonlinear.validate_representation`): ``y1 ≤ y2``,
+    ``v2 ∈ [0, 1]``, ``ξ4 ≥ 0`` up to rounding (which is clamped away), else
+    :class:`~moments_ref.InputError`.
     """
     dps = _check_dps(dps)
-    r = real_input(r, "r", trailing=4)
+    r = validate_representation(r, "r")  # the domain check of nonlinear.shade
     zf = real_input(zf, "zf", dtype=r.dtype)
     shape = broadcast_pair(r[..., 0], "r[..., 0]", zf, "zf")
     r = np.broadcast_to(r, shape + (4,))

@@ -38,6 +38,13 @@ shadowing is evaluated; "both" puts an object in both sets (HPG17 Figure 1: the
 banner receives the railing's shadow and shadows the ground).
 
 Errors name the file, the key (``objects[2].generator``) and the problem.
+
+Memory. A scene is refused at load, before anything is allocated, when its
+geometry (:data:`~moments_ref.scene.mesh.BYTES_PER_ELEMENT` per vertex and
+triangle), its camera image (:data:`~moments_ref.scene.camera.BYTES_PER_PIXEL`)
+or its shadow map (:data:`BYTES_PER_SAMPLE` per texel and sample) would exceed
+:func:`moments_ref._arrays.max_memory` (4 GiB unless raised, ``--max-memory`` on
+the command line).
 """
 
 from __future__ import annotations
@@ -49,13 +56,23 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, check_memory
 from ..raster import SAMPLE_COUNTS, MAX_SIZE, rasterize_depth
 from .camera import Camera
 from .lights import AreaLight, DirectionalLight
 from .mesh import GENERATORS, Mesh, merge, read_obj, rotate, scale, translate
 
-__all__ = ["Scene", "SceneObject", "load_scene", "list_scenes", "ROLES"]
+__all__ = ["Scene", "SceneObject", "load_scene", "list_scenes", "ROLES", "BYTES_PER_SAMPLE", "shadow_map_memory"]
+
+#: Memory estimate of a shadow map per texel and MSAA sample: the float32 depth,
+#: its float64 moments after the resolve and the filter's temporaries.
+BYTES_PER_SAMPLE = 64
+
+
+def shadow_map_memory(size, samples) -> int:
+    """Estimated bytes of a ``size`` (int or (H, W)) shadow map with ``samples`` MSAA samples."""
+    h, w = (size, size) if np.isscalar(size) else size
+    return BYTES_PER_SAMPLE * int(h) * int(w) * int(samples)
 
 ROLES = ("receiver", "occluder", "both")
 _TOP_KEYS = {"name", "description", "shadow_map_size", "msaa", "outputs", "params", "light", "camera", "objects"}
@@ -144,10 +161,13 @@ class Scene:
 
         Returns ``(depth (H, W, S) float32, stats)`` from :func:`moments_ref.raster.rasterize_depth`.
         """
+        size = self.shadow_map_size if size is None else size
+        samples = self.msaa if samples is None else samples
+        if np.isscalar(samples) and (np.isscalar(size) or len(size) == 2):
+            check_memory(shadow_map_memory(size, samples), f"shadow map {size} with {samples} samples")
         m = self.occluder_mesh(translucent=translucent, exclude=exclude)
         return rasterize_depth(m.vertices, m.triangles, self.shadow_view_proj(),
-                               self.shadow_map_size if size is None else size,
-                               samples=self.msaa if samples is None else samples, cull=cull)
+                               size, samples=samples, cull=cull)
 
 
 # ---------------------------------------------------------------------------
@@ -324,6 +344,23 @@ def _camera(ctx, t):
         raise ctx.error("camera", str(exc)) from None
 
 
+def _shadow_settings(ctx, doc):
+    """``shadow_map_size`` as [H, W] and ``msaa``, checked, within the memory limit."""
+    size = doc.get("shadow_map_size", 1024)
+    hw = [size, size] if isinstance(size, int) and not isinstance(size, bool) else size
+    if (not isinstance(hw, list) or len(hw) != 2
+            or not all(isinstance(x, int) and not isinstance(x, bool) and 1 <= x <= MAX_SIZE for x in hw)):
+        raise ctx.error("shadow_map_size", f"expected an integer or [H, W] in [1, {MAX_SIZE}], got {size!r}")
+    msaa = doc.get("msaa", 1)
+    if isinstance(msaa, bool) or msaa not in SAMPLE_COUNTS:
+        raise ctx.error("msaa", f"expected one of the supported sample counts {SAMPLE_COUNTS}, got {msaa!r}")
+    try:
+        check_memory(shadow_map_memory(hw, msaa), f"shadow_map_size {hw[0]}×{hw[1]} with msaa {msaa}")
+    except InputError as exc:
+        raise ctx.error("shadow_map_size", str(exc)) from None
+    return hw, msaa
+
+
 def _scenes_dir():
     return resources.files("moments_ref.scene") / "scenes"
 
@@ -338,7 +375,9 @@ def _resolve(name_or_path) -> Path:
     p = Path(s)
     if p.suffix == ".toml" or p.exists():
         if not p.is_file():
-            raise InputError(f"scene file {p}: not found")
+            kind = "a folder" if p.is_dir() else "not a regular file" if p.exists() else "not found"
+            raise InputError(f"scene file {p}: {kind} (expected a .toml file)")
+        check_memory(64 * p.stat().st_size, f"scene file {p}")
         return p
     if s in list_scenes():
         return Path(str(_scenes_dir() / f"{s}.toml"))
@@ -370,6 +409,9 @@ def load_scene(name_or_path) -> Scene:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"scene file {path}: not valid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"scene file {path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
+                         f"offset {exc.start})") from None
     except OSError as exc:
         raise InputError(f"scene file {path}: cannot read ({exc.strerror})") from None
     ctx.unknown(doc, _TOP_KEYS, "")
@@ -379,14 +421,7 @@ def load_scene(name_or_path) -> Scene:
     for key, v in (("name", name), ("description", desc)):
         if not isinstance(v, str):
             raise ctx.error(key, f"wrong type: expected a string, got {v!r}")
-    size = doc.get("shadow_map_size", 1024)
-    hw = [size, size] if isinstance(size, int) and not isinstance(size, bool) else size
-    if (not isinstance(hw, list) or len(hw) != 2
-            or not all(isinstance(x, int) and not isinstance(x, bool) and 1 <= x <= MAX_SIZE for x in hw)):
-        raise ctx.error("shadow_map_size", f"expected an integer or [H, W] in [1, {MAX_SIZE}], got {size!r}")
-    msaa = doc.get("msaa", 1)
-    if isinstance(msaa, bool) or msaa not in SAMPLE_COUNTS:
-        raise ctx.error("msaa", f"expected one of the supported sample counts {SAMPLE_COUNTS}, got {msaa!r}")
+    hw, msaa = _shadow_settings(ctx, doc)
     outputs = doc.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
         raise ctx.error("outputs", f"wrong type: expected a list of strings, got {outputs!r}")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, check_memory, first_index
 
 __all__ = [
     "Mesh",
@@ -35,7 +35,15 @@ __all__ = [
     "torus_knot",
     "read_obj",
     "GENERATORS",
+    "BYTES_PER_ELEMENT",
 ]
+
+#: Memory estimate of the generators and the OBJ reader: bytes per vertex and per
+#: triangle (24 B stored each, the rest index grids and temporaries), checked
+#: against :func:`moments_ref._arrays.max_memory` before allocating.
+BYTES_PER_ELEMENT = 160
+#: Memory of reading an OBJ file, per byte of the file (Python lists of floats).
+OBJ_BYTES_PER_FILE_BYTE = 16
 
 
 @dataclass(frozen=True)
@@ -54,6 +62,10 @@ class Mesh:
     def __post_init__(self):
         v = np.asarray(self.vertices, dtype=np.float64).reshape(-1, 3)
         t = np.asarray(self.triangles, dtype=np.int64).reshape(-1, 3)
+        bad = ~np.isfinite(v)
+        if bad.any():
+            idx = first_index(bad)
+            raise InputError(f"vertices: expected finite coordinates, got {v[idx]!r} at index {idx}")
         if t.size and (t.min() < 0 or t.max() >= v.shape[0]):
             raise InputError(f"triangles: expected indices in [0, {v.shape[0]}), got range [{t.min()}, {t.max()}]")
         object.__setattr__(self, "vertices", v)
@@ -187,6 +199,11 @@ def _count(name, value, lo=1):
     return int(value)
 
 
+def _budget(what, n_vertices, n_triangles):
+    """Refuse a generator call whose mesh would exceed the memory limit, before allocating."""
+    check_memory(BYTES_PER_ELEMENT * (int(n_vertices) + int(n_triangles)), what)
+
+
 def _grid(nu, nv, closed_u=False):
     """Triangles of a (nv+1) × (nu+1) vertex grid (row-major, u fastest), CCW for u × v."""
     cols = nu if closed_u else nu + 1
@@ -217,6 +234,7 @@ def cylinder(radius=0.5, height=1.0, segments=16, caps=True) -> Mesh:
     """Cylinder around the y axis from y = 0 to ``height``."""
     r, h = _positive("radius", radius), _positive("height", height)
     n = _count("segments", segments, 3)
+    _budget(f"cylinder(segments={n})", 2 * n + 2, 4 * n)
     phi = 2 * np.pi * np.arange(n) / n
     ring = np.stack([r * np.cos(phi), np.zeros(n), -r * np.sin(phi)], -1)  # CCW seen from +y
     v = np.concatenate([ring, ring + [0, h, 0]])
@@ -233,6 +251,7 @@ def plane(width=1.0, depth=1.0, nx=1, nz=1) -> Mesh:
     """Rectangle in the xz plane at y = 0, centred at the origin, facing +y."""
     w, d = _positive("width", width), _positive("depth", depth)
     nx, nz = _count("nx", nx), _count("nz", nz)
+    _budget(f"plane(nx={nx}, nz={nz})", (nx + 1) * (nz + 1), 2 * nx * nz)
     x = np.linspace(-w / 2, w / 2, nx + 1)
     z = np.linspace(d / 2, -d / 2, nz + 1)  # u = +x, v = -z: u × v = +y
     X, Z = np.meshgrid(x, z)
@@ -254,6 +273,7 @@ def railing(length=3.0, height=1.0, bars=16, bar_width=0.035, rail_height=0.06, 
     under a hand rail (boxes)."""
     L, H = _positive("length", length), _positive("height", height)
     n = _count("bars", bars, 2)
+    _budget(f"railing(bars={n})", 8 * (n + 2), 12 * (n + 2))
     bw, rh, rd = _positive("bar_width", bar_width), _positive("rail_height", rail_height), _positive("rail_depth", rail_depth)
     x = np.linspace(-L / 2 + bw, L / 2 - bw, n)
     bar_h = H - rh
@@ -269,6 +289,7 @@ def banner(width=2.0, height=1.0, nx=32, ny=16, wave_amplitude=0.03, wave_length
     facing +z, displaced in z by a gentle wave ``A sin(2π x / λ) (1 − y/height)``."""
     w, h = _positive("width", width), _positive("height", height)
     nx, ny = _count("nx", nx), _count("ny", ny)
+    _budget(f"banner(nx={nx}, ny={ny})", (nx + 1) * (ny + 1), 2 * nx * ny)
     amp = _real("wave_amplitude", wave_amplitude)
     lam = _positive("wave_length", wave_length)
     x = np.linspace(-w / 2, w / 2, nx + 1)
@@ -284,6 +305,7 @@ def umbrella(radius=1.0, height=2.0, segments=24, rings=6, droop=0.3, pole_radiu
     R, H = _positive("radius", radius), _positive("height", height)
     n, m = _count("segments", segments, 3), _count("rings", rings, 1)
     d, pr = _real("droop", droop), _positive("pole_radius", pole_radius)
+    _budget(f"umbrella(segments={n}, rings={m})", 1 + n * m + 18, 2 * n * m + 32)
     phi = 2 * np.pi * np.arange(n) / n
     s = np.arange(1, m + 1) / m
     rr = R * s
@@ -311,6 +333,7 @@ def torus_knot(p=2, q=3, radius=1.0, tube=0.1, segments=1600, sides=64) -> Mesh:
     p, q = _count("p", p), _count("q", q)
     R, r = _positive("radius", radius), _positive("tube", tube)
     n, k = _count("segments", segments, 3), _count("sides", sides, 3)
+    _budget(f"torus_knot(segments={n}, sides={k})", n * k, 2 * n * k)
 
     def curve(u):
         c = 2 + np.cos(q * u)
@@ -363,7 +386,7 @@ GENERATORS = {
 def read_obj(path) -> Mesh:
     """Read the geometry of a Wavefront OBJ file.
 
-    Reads ``v`` (x y z [w]; w divides) and ``f`` lines; a face's indices may be
+    Reads ``v`` (x y z [w]; w divides and must be non-zero; coordinates finite) and ``f`` lines; a face's indices may be
     ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, 1-based, or negative (relative to
     the vertices read so far). Polygons are triangulated as fans (v0, vi, vi+1),
     which is exact for convex polygons. Other statements (vn, vt, o, g, usemtl,
@@ -375,7 +398,10 @@ def read_obj(path) -> Mesh:
         Naming the file and line of a malformed vertex or face or an index out of range.
     """
     path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: expected a regular OBJ file, got {'a folder' if path.is_dir() else 'no file' if not path.exists() else 'a special file'}")
     try:
+        check_memory(OBJ_BYTES_PER_FILE_BYTE * path.stat().st_size, f"OBJ file {path}")
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise InputError(f"{path}: cannot read OBJ file ({exc.strerror})") from None
@@ -391,7 +417,12 @@ def read_obj(path) -> Mesh:
                 raise InputError(f"{path}:{lineno}: expected 'v x y z [w]' with numbers, got {line.strip()!r}") from None
             if len(xyz) < 3:
                 raise InputError(f"{path}:{lineno}: expected 'v x y z [w]', got {line.strip()!r}")
+            if not all(np.isfinite(xyz)):
+                raise InputError(f"{path}:{lineno}: expected finite coordinates, got {line.strip()!r}")
             if len(xyz) == 4:
+                if xyz[3] == 0:
+                    raise InputError(f"{path}:{lineno}: expected a non-zero w (a point, not a direction), "
+                                     f"got {line.strip()!r}")
                 xyz = [c / xyz[3] for c in xyz[:3]]
             verts.append(xyz)
         elif parts[0] == "f":
