@@ -46,6 +46,8 @@ class Case:
     metric: str = "abs"  # "abs", "ulps" or "exact" (integer outputs)
     value_range: tuple | None = None  # (lo, hi) every output value must lie in, if any
     perturb: bool = True  # measure the spread on inputs scaled by 1 ± 3 ulps (off for biasing)
+    floor_scale: tuple | float = 1.0  # tolerance floors are ulps of max(|value|, scale), per component
+    spread_hook: Callable | None = None  # (inputs, dtype) -> extra legitimate outputs (decoders' constants)
 
     @property
     def integer_output(self):
@@ -83,6 +85,36 @@ def _shade_truth(r, zf):
 
 def _preset_kwargs(preset):
     return {"preset": {"alpha": preset.alpha, "target": list(preset.target)}}
+
+
+#: Floors of (y1, y2, v2, ξ4): ulps of 1 for the O(1) quantities, of ξ4 itself for ξ4.
+_R_SCALE = (1.0, 1.0, 1.0, 0.0)
+
+
+def _xi_decode_spread(fmt):
+    """Decoders: ξ4 with the Ψ4⁻¹ constants off by 3 ulps (c1 from float32 end points is 1 ulp off)."""
+
+    def hook(inputs, dt):
+        from ..nonlinear import _PSI_C0, _PSI_C1, psi4_inverse
+        from ..packing import unpack32, unpack64
+
+        code = inputs["q"] if fmt == "64" else inputs["p"]
+        r = unpack64(code, dtype=dt) if fmt == "64" else unpack32(code, dtype=dt)
+        if fmt == "64":
+            u = code[..., 3].astype(np.float64) / 65535
+        else:
+            u = np.minimum(((code.astype(np.int64) >> 26) & 63) / 63 + 0.5 / 63, 1)
+        eps = 3 * float(np.finfo(dt).eps)
+        out = []
+        for s1, s0 in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+            v = r.copy()
+            shifted = (u * (1 + s1 * eps) + s0 * eps * abs(_PSI_C0) / _PSI_C1).astype(dt)
+            with np.errstate(over="ignore"):
+                v[..., 3] = psi4_inverse(np.clip(shifted, 0, 1))
+            out.append((v,))
+        return out
+
+    return hook
 
 
 def _float_cases(dt):
@@ -125,7 +157,8 @@ def _float_cases(dt):
                            "expected from the mpmath twin")
           for bound in ("lower", "upper")],
         Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
-             _precise("phi"), description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
+             _precise("phi"), floor_scale=_R_SCALE,
+             description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
         Case(f"phi_inverse-{dt}", "nonlinear.phi_inverse", dt, ("r",), ("b",), _representation_rows,
              _wrap("nonlinear.phi_inverse"), _precise("phi_inverse"), description="HPG17 Eq. (4)"),
         Case(f"psi4-{dt}", "nonlinear.psi4", dt, ("xi4",), ("u",), _psi4_rows, _wrap("nonlinear.psi4"),
@@ -140,13 +173,15 @@ def _float_cases(dt):
         Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
              _wrap("packing.pack64"), metric="exact", description="64-bit texel, docs/formats.md"),
         Case(f"unpack64-{dt}", "packing.unpack64", dt, ("q",), ("r",), _pack64_input_rows,
-             _wrap("packing.unpack64"), integer_inputs={"q": "uint16"},
+             _wrap("packing.unpack64"), integer_inputs={"q": "uint16"}, floor_scale=_R_SCALE,
+             spread_hook=_xi_decode_spread("64"),
              description="64-bit texel decode, docs/formats.md"),
         Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
              _wrap("packing.pack32"), metric="exact",
              description="32-bit texel with the triangle fold, docs/formats.md"),
         Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
-             _wrap("packing.unpack32"), integer_inputs={"p": "uint32"},
+             _wrap("packing.unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,
+             spread_hook=_xi_decode_spread("32"),
              description="32-bit texel decode (ξ4 rounded up), docs/formats.md"),
     ]
     return cases

@@ -7,7 +7,7 @@ its *effect* on the verdict, as Project Wycheproof's test vectors do.
 
 from __future__ import annotations
 
-__all__ = ["NOTES", "RESULTS", "UNGATED"]
+__all__ = ["NOTES", "RESULTS", "UNGATED", "UNGATED32"]
 
 #: Values of a row's ``result``.
 RESULTS = {
@@ -27,6 +27,11 @@ NOTES = {
         "description": "zf exactly at a support point of the distribution: Z(z < zf) jumps there; the stored "
                        "float inputs are exact, so the comparison zf <= y (or z < zf) decides the branch",
         "effect": "gated with the row's measured tolerance",
+    },
+    "near_support_point": {
+        "description": "zf at a depth of the distribution whose moments were biased: the support point of the "
+                       "biased moments lies within float32 rounding of zf, on either side",
+        "effect": "float32 column ungated (the side of the jump is decided by rounding); float64 gated",
     },
     "singular_hankel": {
         "description": "B(b) exactly singular (unbiased moments of one or two depths): the distribution is unique "
@@ -67,3 +72,6 @@ NOTES = {
 
 #: Flags whose rows are not gated against the expected value (value undefined).
 UNGATED = ("outside_moment_space",)
+
+#: Flags whose rows are not gated for float32 ports (undefined at float32 resolution).
+UNGATED32 = ("near_support_point",)

@@ -61,6 +61,14 @@ def _two_point(z1, z2, v2):
     return power_moments(z, w)
 
 
+def _at_support(zf, support):
+    """Flags of a row whose zf is a support point: exact (y = b1, no arithmetic) or computed."""
+    kind, points = support
+    if zf not in points:
+        return ()
+    return ("support_point",) if kind == "exact" else ("near_support_point",)
+
+
 def _msm_rows(rng, dtype):
     """Rows for Algorithm 1: (b, zf)."""
     parts = []
@@ -71,6 +79,9 @@ def _msm_rows(rng, dtype):
     bb = bias_moments(power_moments(*_random_distributions(rng, 40)), BIAS_UNORM16)
     parts.append(_rows({"b": bb, "zf": rng.uniform(-1, 1, 40)}, "random",
                        "3 to 8 random depths, BIAS_UNORM16 applied"))
+    bf = bias_moments(power_moments(*_random_distributions(rng, 40)), BIAS_FLOAT32)
+    parts.append(_rows({"b": bf, "zf": rng.uniform(-1, 1, 40)}, "random",
+                       "3 to 8 random depths, BIAS_FLOAT32 applied (float moments, HPG17 §3.2)"))
     # Stiff: one depth after the float32 bias (variance at the bias floor).
     offsets = np.array([0.0, 1e-6, -1e-6, 1e-3, -1e-3, 0.1, -0.1])
     for d in (-1.0, -0.5, 0.0, 0.3, 1.0):
@@ -85,7 +96,7 @@ def _msm_rows(rng, dtype):
         zf = np.array([z1, z2, z1 + 1e-6, z2 - 1e-6, z1 + 1e-4, z2 + 1e-4, 0.5 * (z1 + z2)])
         parts.append(_rows({"b": np.repeat(b2[None], len(zf), 0), "zf": zf}, "stiff",
                            [f"depths {z1}, {z2} (v2 = {v2}) after BIAS_FLOAT32, zf = {x:.9g}" for x in zf],
-                           [("support_point",)] * 4 + [()] * 3))
+                           [("near_support_point",)] * 4 + [()] * 3))
     # Stiff: all mass near +-1.
     for zs in ((1 - 1e-4, 1.0, 1 - 5e-5), (-1.0, -1 + 1e-4, -1 + 3e-5)):
         bm = bias_moments(power_moments(np.array(zs)), BIAS_FLOAT32)
@@ -105,11 +116,12 @@ def _msm_rows(rng, dtype):
                             f"{', then BIAS_FLOAT32' if biased else ', unbiased'}, zf = {x}" for x in zf],
                            ("outside_moment_space",) if not biased else ()))
     # Stiff: exactly singular unbiased input (ports are expected to bias first).
-    for bs, what in ((power_moments([0.25]), "one depth 0.25"), (_two_point(-0.5, 0.5, 0.5), "depths -0.5, 0.5")):
+    for bs, what, support in ((power_moments([0.25]), "one depth 0.25", ("exact", [0.25])),
+                              (_two_point(-0.5, 0.5, 0.5), "depths -0.5, 0.5", ("near", [-0.5, 0.5]))):
         zf = np.array([-0.6, -0.5, 0.0, 0.25, 0.5, 0.9])
         parts.append(_rows({"b": np.repeat(bs[None], len(zf), 0), "zf": zf}, "stiff",
                            [f"{what}, unbiased: singular Hankel matrix, exact answer expected, zf = {x}" for x in zf],
-                           ("singular_hankel",)))
+                           [("singular_hankel",) + _at_support(x, support) for x in zf]))
     # Edge: fragment depths at and beyond the depth range; depths at the range ends.
     z, w = _random_distributions(rng, 6)
     be = power_moments(z, w)
@@ -123,7 +135,8 @@ def _msm_rows(rng, dtype):
         bends = power_moments(np.array(zends))
         parts.append(_rows({"b": np.repeat(bends[None], len(zf), 0), "zf": zf}, cat,
                            [f"depths {zends} ({why}), zf = {x}" for x in zf],
-                           ("singular_hankel",) if cat == "stiff" else ()))
+                           [("singular_hankel",) + _at_support(x, ("near", zends)) if cat == "stiff" else ()
+                            for x in zf]))
     return Rows.concat(parts)
 
 
@@ -229,7 +242,8 @@ def _msm6_rows(rng, dtype):
     b3 = bias_moments(power_moments(zs, n=6), bias)
     zf = np.array([-1.0, 0.0, 1.0, 1e-6, -0.5])
     parts.append(_rows({"b": np.repeat(b3[None], len(zf), 0), "zf": zf}, "stiff",
-                       [f"three depths -1, 0, 1 (nearly singular 4×4 Hankel matrix), zf = {x:g}" for x in zf]))
+                       [f"three depths -1, 0, 1 (nearly singular 4×4 Hankel matrix), zf = {x:g}" for x in zf],
+                       [("near_support_point",) if x in (-1.0, 0.0, 1.0) else () for x in zf]))
     z, w = _random_distributions(rng, 4, 5, 8)
     be = bias_moments(power_moments(z, w, n=6), bias)
     zf = np.array([-1.0, 1.0, -3.0, 3.0])

@@ -65,6 +65,20 @@ def _decoded_representations():
         [f"unpack64 output: {w}" for w in what]
 
 
+def _bump_xi(count=8):
+    """float32 ξ4 whose rounded-up 16-bit Ψ4 code still decodes below ξ4 (found by search)."""
+    from ..nonlinear import psi4, psi4_inverse
+
+    f = np.float32
+    k = np.arange(1, 65535, dtype=np.int64)
+    xi = np.nextafter(psi4_inverse(k.astype(f) / f(65535)), f(1))
+    code = np.ceil(psi4(xi) * f(65535))
+    low = psi4_inverse(code.astype(f) / f(65535)) < xi
+    idx = np.flatnonzero(low)
+    pick = idx[np.linspace(0, len(idx) - 1, min(count, len(idx))).astype(int)] if len(idx) else idx
+    return [(xi[i], int(k[i])) for i in pick]
+
+
 def _psi4_boundary_xi(dtype=np.float64):
     """ξ4 on the rounding boundaries of the 6-bit Ψ4 code (Ψ4 · 63 = k + 1/2)."""
     from ..nonlinear import psi4_inverse
@@ -81,6 +95,16 @@ def _representation_table():
     dec, what = _decoded_representations()
     for r, w in zip(dec, what):
         rs.append(tuple(r)), cats.append("edge"), comments.append(w), flags.append(("clamp",))
+    from ..nonlinear import psi4_inverse
+
+    for k in (1, 2, 7, 100, 3000, 40000, 65534):
+        xi = float(psi4_inverse(np.float32(k) / np.float32(65535)))
+        rs.append((-0.3, 0.4, 0.5, xi)), cats.append("edge"), flags.append(("code_boundary",))
+        comments.append(f"ξ4 = {xi:.9g}, the float32 decode of the 16-bit Ψ4 code {k} (re-encoding a texel)")
+    for xi, k in _bump_xi():
+        rs.append((-0.3, 0.4, 0.5, float(xi))), cats.append("edge"), flags.append(("code_boundary",))
+        comments.append(f"ξ4 = {xi:.9g}, one float32 ulp above the decode of 16-bit code {k}: ceil(65535 Ψ4) "
+                        "alone decodes below ξ4, the encoder's decode check must bump the code")
     for xi in _psi4_boundary_xi():
         rs.append((-0.3, 0.4, 0.5, float(xi))), cats.append("edge")
         comments.append(f"ξ4 = {xi:.9g} on a 6-bit Ψ4 rounding boundary"), flags.append(("code_boundary",))
@@ -102,8 +126,10 @@ def _shade_rows(rng, dtype):
     table, cats, comments, flags = _representation_table()
     for rep, cat, what, fl in zip(table, cats, comments, flags):
         y1, y2 = rep[0], rep[1]
-        zf = np.array([y1, y2, y1 + 1e-6, y2 + 1e-6, y2 - 1e-7, 0.5 * (y1 + y2), min(1.0, y2 + 0.1)])
-        why = ["zf = y1 (exactly: 0)", "zf = y2 exactly", "zf = y1 + 1e-6", "zf = y2 + 1e-6", "zf just below y2",
+        # "Just below y2": 2e-6 below (16 float32 ulps or more), so that z'f = (zf - y1)/(y2 - y1) < 1
+        # survives a division 3 ulps off; closer than that the side of z'f = 1 is decided by rounding.
+        zf = np.array([y1, y2, y1 + 1e-6, y2 + 1e-6, y2 - 2e-6, 0.5 * (y1 + y2), min(1.0, y2 + 0.1)])
+        why = ["zf = y1 (exactly: 0)", "zf = y2 exactly", "zf = y1 + 1e-6", "zf = y2 + 1e-6", "zf = y2 - 2e-6",
                "zf midway", "zf = y2 + 0.1"]
         parts.append(Rows({"r": np.repeat(rep[None], len(zf), 0), "zf": zf}, [cat] * len(zf),
                           [f"{what}, {w} = {x:.9g}" for w, x in zip(why, zf)],
