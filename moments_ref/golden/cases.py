@@ -22,7 +22,7 @@ from . import endtoend
 from .rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from .rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
-                             _representation_rows, _shade_rows)
+                             _reencode_rows, _representation_rows, _shade_rows)
 from .truth import shade_clamped
 
 __all__ = ["Case", "CASES", "case_rows", "case_table", "evaluate_reference", "expected_outputs"]
@@ -172,6 +172,10 @@ def _float_cases(dt):
                          "expected: Algorithm 3 with the clamps in mpmath"),
         Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
              _wrap("packing.pack64"), metric="exact", description="64-bit texel, docs/formats.md"),
+        Case(f"reencode64-{dt}", "packing.pack64", dt, ("r",), ("q",), _reencode_rows,
+             _wrap("packing.pack64"), metric="exact",
+             description="64-bit texel of representations whose ξ4 is a decoded code, or one ulp above one "
+                         "(the encoder's decode check of docs/formats.md)"),
         Case(f"unpack64-{dt}", "packing.unpack64", dt, ("q",), ("r",), _pack64_input_rows,
              _wrap("packing.unpack64"), integer_inputs={"q": "uint16"}, floor_scale=_R_SCALE,
              spread_hook=_xi_decode_spread("64"),
@@ -179,6 +183,9 @@ def _float_cases(dt):
         Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
              _wrap("packing.pack32"), metric="exact",
              description="32-bit texel with the triangle fold, docs/formats.md"),
+        Case(f"reencode32-{dt}", "packing.pack32", dt, ("r",), ("p",), _reencode_rows,
+             _wrap("packing.pack32"), metric="exact",
+             description="32-bit texel of decoded representations and of ξ4 on 6-bit Ψ4 rounding boundaries"),
         Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
              _wrap("packing.unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,
              spread_hook=_xi_decode_spread("32"),

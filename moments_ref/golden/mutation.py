@@ -128,3 +128,12 @@ def format_table(results):
                  f"{s['legit_passing']}/{s['legit']}, equivalent mutants passing "
                  f"{s['equivalent_passing']}/{s['equivalent']}")
     return "\n".join(lines)
+
+
+def report(corpus=None, progress=None):
+    """``(table text, all verdicts right)`` for the corpus at ``corpus`` (default :func:`default_corpus`)."""
+    path = corpus if corpus is not None else default_corpus()
+    if path is None:
+        raise InputError("corpus: no mutant corpus found; pass --corpus DIR (a folder with corpus.py)")
+    results = run_corpus(load_corpus(path), progress=progress)
+    return format_table(results), all(r.correct for r in results)

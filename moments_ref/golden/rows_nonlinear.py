@@ -86,29 +86,46 @@ def _psi4_boundary_xi(dtype=np.float64):
     return psi4_inverse((np.array([0, 10, 31, 62]) + 0.5) / 63)
 
 
-def _representation_table():
-    """(r (n, 4), category, comment, flags) of the hand-picked representations."""
+def _representation_table(decoded=False):
+    """(r (n, 4), category, comment, flags) of the hand-picked representations.
+
+    ``decoded``: also the outputs of the decoders (y1 = y2, v2 = 0 or 1 exactly) for
+    Algorithm 3; the encoders get those in case ``reencode64`` (they sit on ties).
+    """
     rs, cats, comments, flags = [], [], [], []
     for cat, table in (("stiff", _STIFF_REPRESENTATIONS), ("edge", _EDGE_REPRESENTATIONS)):
         for r, what, fl in table:
             rs.append(r), cats.append(cat), comments.append(what), flags.append(fl)
-    dec, what = _decoded_representations()
+    dec, what = _decoded_representations() if decoded else ([], [])
     for r, w in zip(dec, what):
         rs.append(tuple(r)), cats.append("edge"), comments.append(w), flags.append(("clamp",))
+    return np.array(rs, dtype=np.float64), cats, comments, flags
+
+
+def _reencode_rows(rng, dtype):
+    """Representations whose ξ4 is a decoded 16-bit code (re-encoding a texel) or needs the decode check."""
     from ..nonlinear import psi4_inverse
 
+    rs, comments = [], []
     for k in (1, 2, 7, 100, 3000, 40000, 65534):
         xi = float(psi4_inverse(np.float32(k) / np.float32(65535)))
-        rs.append((-0.3, 0.4, 0.5, xi)), cats.append("edge"), flags.append(("code_boundary",))
+        rs.append((-0.3, 0.45, 0.5, xi))
         comments.append(f"ξ4 = {xi:.9g}, the float32 decode of the 16-bit Ψ4 code {k} (re-encoding a texel)")
     for xi, k in _bump_xi():
-        rs.append((-0.3, 0.4, 0.5, float(xi))), cats.append("edge"), flags.append(("code_boundary",))
+        rs.append((-0.3, 0.45, 0.5, float(xi)))
         comments.append(f"ξ4 = {xi:.9g}, one float32 ulp above the decode of 16-bit code {k}: ceil(65535 Ψ4) "
                         "alone decodes below ξ4, the encoder's decode check must bump the code")
+    dec, what = _decoded_representations()
+    rs += [tuple(x) for x in dec]
+    comments += what
     for xi in _psi4_boundary_xi():
-        rs.append((-0.3, 0.4, 0.5, float(xi))), cats.append("edge")
-        comments.append(f"ξ4 = {xi:.9g} on a 6-bit Ψ4 rounding boundary"), flags.append(("code_boundary",))
-    return np.array(rs, dtype=np.float64), cats, comments, flags
+        rs.append((-0.3, 0.45, 0.5, float(xi)))
+        comments.append(f"ξ4 = {xi:.9g} on a 6-bit Ψ4 rounding boundary")
+    r = _random_representations(rng, 40)
+    return Rows.concat([
+        Rows({"r": np.array(rs)}, ["edge"] * len(rs), comments, [("code_boundary",)] * len(rs)),
+        _rows({"r": r}, "random", "random representation (see case phi_inverse)"),
+    ])
 
 
 def _representation_rows(rng, dtype):
@@ -123,7 +140,7 @@ def _shade_rows(rng, dtype):
     r = _random_representations(rng, 200)
     parts = [_rows({"r": r, "zf": rng.uniform(-1, 1, 200)}, "random",
                    "random representation (see case phi_inverse) and zf uniform in [-1, 1]")]
-    table, cats, comments, flags = _representation_table()
+    table, cats, comments, flags = _representation_table(decoded=True)
     for rep, cat, what, fl in zip(table, cats, comments, flags):
         y1, y2 = rep[0], rep[1]
         # "Just below y2": 2e-6 below (16 float32 ulps or more), so that z'f = (zf - y1)/(y2 - y1) < 1

@@ -27,9 +27,9 @@ PORT_CASES = {
     "alg3": ["shade-float32"],
     "psi4": ["psi4-float32"],
     "psi4_inverse": ["psi4_inverse-float32"],
-    "pack64": ["pack64-float32"],
+    "pack64": ["pack64-float32", "reencode64-float32"],
     "unpack64": ["unpack64-float32"],
-    "pack32": ["pack32-float32"],
+    "pack32": ["pack32-float32", "reencode32-float32"],
     "unpack32": ["unpack32-float32"],
     "msm6": ["shadow_intensity6-lower-float32", "shadow_intensity6-upper-float32"],
 }
