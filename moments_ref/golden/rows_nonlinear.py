@@ -79,6 +79,25 @@ def _bump_xi(count=8):
     return [(xi[i], int(k[i])) for i in pick]
 
 
+def _ceil_xi(rng, count=6, n=200000):
+    """float32 ξ4 whose 16-bit code is ceil(65535 Ψ4) = k + 1 although code k already decodes to ≥ ξ4.
+
+    Rounding to nearest plus the decode check would store k there: the rows tell the
+    prescribed rounding (up) from that alternative; found by a seeded search.
+    """
+    from ..nonlinear import psi4, psi4_inverse
+
+    f = np.float32
+    xi = (10 ** rng.uniform(-6.9, np.log10(0.25), n)).astype(f)
+    u = psi4(xi) * f(65535)
+    up, near = np.ceil(u), np.rint(u)
+    keeps = (near < up) & (psi4_inverse(near.astype(f) / f(65535)) >= xi)
+    for g in (1 + 8 * 2.0**-23, 1 - 8 * 2.0**-23):  # not a tie: stable under 8-ulp nudges
+        keeps &= np.ceil(psi4((xi.astype(np.float64) * g).astype(f)) * f(65535)) == up
+    idx = np.flatnonzero(keeps)[:count]
+    return [(xi[i], int(near[i])) for i in idx]
+
+
 def _psi4_boundary_xi(dtype=np.float64):
     """ξ4 on the rounding boundaries of the 6-bit Ψ4 code (Ψ4 · 63 = k + 1/2)."""
     from ..nonlinear import psi4_inverse
@@ -115,6 +134,10 @@ def _reencode_rows(rng, dtype):
         rs.append((-0.3, 0.45, 0.5, float(xi)))
         comments.append(f"ξ4 = {xi:.9g}, one float32 ulp above the decode of 16-bit code {k}: ceil(65535 Ψ4) "
                         "alone decodes below ξ4, the encoder's decode check must bump the code")
+    for xi, k in _ceil_xi(rng):
+        rs.append((-0.3, 0.45, 0.5, float(xi)))
+        comments.append(f"ξ4 = {xi:.9g}: ceil(65535 Ψ4) = {k + 1}, although code {k} decodes to at least ξ4 "
+                        f"(the format rounds up; rounding to nearest plus the check would keep {k})")
     dec, what = _decoded_representations()
     rs += [tuple(x) for x in dec]
     comments += what
