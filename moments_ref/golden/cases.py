@@ -19,9 +19,9 @@ import numpy as np
 from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import endtoend
-from .rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
+from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
-from .rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
+from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
                              _reencode_rows, _representation_rows, _shade_rows)
 from .truth import shade_clamped
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
-from .rows import Rows, _msm_rows
+from ._rows import Rows, _msm_rows
 
 __all__ = ["case_specs", "BLOCK", "GUARD"]
 

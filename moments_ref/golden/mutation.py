@@ -21,7 +21,7 @@ from .cases import CASES
 from .compare import compare
 from .writer import golden_arrays, manifest_entry
 
-__all__ = ["load_corpus", "run_corpus", "format_table", "MutantResult", "default_corpus"]
+__all__ = ["load_corpus", "run_corpus", "format_table", "score", "report", "MutantResult", "default_corpus"]
 
 
 @dataclass

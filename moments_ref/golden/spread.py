@@ -33,7 +33,8 @@ import numpy as np
 from .cases import evaluate_reference, expected_outputs
 from .notes import UNGATED, UNGATED32
 
-__all__ = ["derive", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "ulp", "PORT_DTYPES"]
+__all__ = ["derive", "gated_summary", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS", "STRUCTURED", "ulp",
+           "PORT_DTYPES"]
 
 SAFETY = 16.0
 FLOOR_ULPS = 4

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rows import Rows, _rows
+from ._rows import Rows, _rows
 
 def _random_representations(rng, n):
     y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
