@@ -104,6 +104,7 @@ PROBES = {
     "manifest_is_link": lambda g: ((g / "manifest.json").rename(g / "m.json"),
                                    os.symlink(g / "m.json", g / "manifest.json")),
     "no_manifest": lambda g: (g / "manifest.json").unlink(),
+    "bad_shape": lambda g: _edit(g, lambda m: m["cases"][CASE]["outputs"]["u"].__setitem__("shape", ["x"])),
 }
 
 
@@ -123,6 +124,7 @@ RESULT_PROBES = {
     "object_array": lambda p: np.savez(p, **{f"{CASE}.u": np.array([None, 1], dtype=object)}),
     "missing": lambda p: None,
     "fifo": lambda p: os.mkfifo(p),
+    "larger_than_the_cases_imply": lambda p: np.savez(p, **{f"{CASE}.u": np.zeros(400000, np.float32)}),
 }
 
 

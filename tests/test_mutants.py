@@ -37,11 +37,21 @@ def test_equivalent_mutants_are_shown_equivalent(name):
     assert corpus.fuzz_equivalent(mutant) == 0
 
 
-def test_cli_prints_the_table(capsys):
-    assert main(["mutants"]) == 0
+def test_cli_prints_the_table(tmp_path, capsys):
+    # A corpus file with the Algorithm 3 mutants (the whole table is asserted above, not re-run here).
+    (tmp_path / "corpus.py").write_text("from mutants.corpus import MUTANTS as _ALL\n"
+                                        "MUTANTS = [m for m in _ALL if m.port == 'alg3']\n")
+    assert main(["mutants", "--corpus", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "| alg3-literal-root | bug | killed |" in out
-    assert "bugs killed" in out and "(WRONG)" not in out
+    assert "| alg3-literal-root | bug | killed | shade-float32:" in out
+    assert "bugs killed 12/12, legitimate variants passing 7/7" in out and "(WRONG)" not in out
+
+
+def test_table_of_the_default_corpus_is_right(results):
+    text = mutation.format_table(results)
+    assert "(WRONG)" not in text
+    s = mutation.score(results)
+    assert s["bugs_killed"] == s["bugs"] and s["legit_passing"] == s["legit"]
 
 
 def test_cli_refuses_a_missing_corpus(tmp_path, capsys):

@@ -69,6 +69,31 @@ def _at_support(zf, support):
     return ("support_point",) if kind == "exact" else ("near_support_point",)
 
 
+def _msm_unbiased_rows():
+    """Algorithm 1 rows outside the moment space and with exactly singular B(b)."""
+    parts = []
+    # Stiff: outside the moment space (b4 lowered), before and after biasing.
+    bo = _two_point(-0.3, 0.6, 0.4)
+    for delta, biased in ((1e-7, True), (1e-9, False), (1e-5, True)):
+        bx = bo.copy()
+        bx[3] -= delta
+        if biased:
+            bx = bias_moments(bx, BIAS_FLOAT32)
+        zf = np.array([-0.5, -0.3, 0.0, 0.6, 0.8])
+        parts.append(_rows({"b": np.repeat(bx[None], len(zf), 0), "zf": zf}, "stiff",
+                           [f"two depths -0.3, 0.6 with b4 lowered by {delta:g} (outside the moment space)"
+                            f"{', then BIAS_FLOAT32' if biased else ', unbiased'}, zf = {x}" for x in zf],
+                           ("outside_moment_space",) if not biased else ()))
+    # Stiff: exactly singular unbiased input (ports are expected to bias first).
+    for bs, what, support in ((power_moments([0.25]), "one depth 0.25", ("exact", [0.25])),
+                              (_two_point(-0.5, 0.5, 0.5), "depths -0.5, 0.5", ("near", [-0.5, 0.5]))):
+        zf = np.array([-0.6, -0.5, 0.0, 0.25, 0.5, 0.9])
+        parts.append(_rows({"b": np.repeat(bs[None], len(zf), 0), "zf": zf}, "stiff",
+                           [f"{what}, unbiased: singular Hankel matrix, exact answer expected, zf = {x}" for x in zf],
+                           [("singular_hankel",) + _at_support(x, support) for x in zf]))
+    return parts
+
+
 def _msm_rows(rng, dtype):
     """Rows for Algorithm 1: (b, zf)."""
     parts = []
@@ -103,25 +128,7 @@ def _msm_rows(rng, dtype):
         zf = np.array([zs[0], zs[1], zs[2], np.mean(zs), 1.0, -1.0])
         parts.append(_rows({"b": np.repeat(bm[None], len(zf), 0), "zf": zf}, "stiff",
                            [f"three depths within 1e-4 of {round(zs[1])} after BIAS_FLOAT32, zf = {x:.9g}" for x in zf]))
-    # Stiff: outside the moment space (b4 lowered), before and after biasing.
-    bo = _two_point(-0.3, 0.6, 0.4)
-    for delta, biased in ((1e-7, True), (1e-9, False), (1e-5, True)):
-        bx = bo.copy()
-        bx[3] -= delta
-        if biased:
-            bx = bias_moments(bx, BIAS_FLOAT32)
-        zf = np.array([-0.5, -0.3, 0.0, 0.6, 0.8])
-        parts.append(_rows({"b": np.repeat(bx[None], len(zf), 0), "zf": zf}, "stiff",
-                           [f"two depths -0.3, 0.6 with b4 lowered by {delta:g} (outside the moment space)"
-                            f"{', then BIAS_FLOAT32' if biased else ', unbiased'}, zf = {x}" for x in zf],
-                           ("outside_moment_space",) if not biased else ()))
-    # Stiff: exactly singular unbiased input (ports are expected to bias first).
-    for bs, what, support in ((power_moments([0.25]), "one depth 0.25", ("exact", [0.25])),
-                              (_two_point(-0.5, 0.5, 0.5), "depths -0.5, 0.5", ("near", [-0.5, 0.5]))):
-        zf = np.array([-0.6, -0.5, 0.0, 0.25, 0.5, 0.9])
-        parts.append(_rows({"b": np.repeat(bs[None], len(zf), 0), "zf": zf}, "stiff",
-                           [f"{what}, unbiased: singular Hankel matrix, exact answer expected, zf = {x}" for x in zf],
-                           [("singular_hankel",) + _at_support(x, support) for x in zf]))
+    parts += _msm_unbiased_rows()
     # Edge: fragment depths at and beyond the depth range; depths at the range ends.
     z, w = _random_distributions(rng, 6)
     be = power_moments(z, w)

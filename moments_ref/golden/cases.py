@@ -156,6 +156,13 @@ def _float_cases(dt):
                description=f"six-moment {bound} bound (slides, 'Prefiltered single scattering'); b (n, 6); "
                            "expected from the mpmath twin")
           for bound in ("lower", "upper")],
+    ]
+    return cases + _nonlinear_cases(dt)
+
+
+def _nonlinear_cases(dt):
+    """Cases of HPG17 §3: Φ, Φ⁻¹, Ψ4, Ψ4⁻¹, Algorithm 3 and the texel formats."""
+    return [
         Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
              _precise("phi"), floor_scale=_R_SCALE,
              description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
@@ -191,7 +198,6 @@ def _float_cases(dt):
              spread_hook=_xi_decode_spread("32"),
              description="32-bit texel decode (ξ4 rounded up), docs/formats.md"),
     ]
-    return cases
 
 
 def _cases():

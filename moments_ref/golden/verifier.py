@@ -124,8 +124,20 @@ def load_case_arrays(golden_dir, name, meta):
     return arrays
 
 
-def _load_results(path):
-    blob = read_regular(path, 1 << 31, "results")
+def _results_limit(manifest):
+    """Bytes a results file may have: every compared output at 8 bytes a value, twice, plus 1 MiB."""
+    total = 0
+    try:
+        for meta in manifest["cases"].values():
+            for o in meta["compare"]:
+                total += 8 * int(np.prod([int(x) for x in meta["outputs"][o]["shape"]], dtype=np.int64))
+    except (TypeError, ValueError):
+        raise InputError("manifest: an output shape is malformed (expected a list of integers)") from None
+    return 2 * total + (1 << 20)
+
+
+def _load_results(path, limit):
+    blob = read_regular(path, limit, "results")
     try:
         with np.load(io.BytesIO(blob), allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
@@ -258,7 +270,7 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None):
     if port_dtype not in (None, "float32", "float64"):
         raise InputError(f"port_dtype: expected float32 or float64, got {port_dtype!r}")
     manifest = load_manifest(golden_dir)
-    results = _load_results(results_path)
+    results = _load_results(results_path, _results_limit(manifest))
     known = {f"{n}.{o}" for n, m in manifest["cases"].items() for o in m["compare"]}
     stray = sorted(set(results) - known)
     if stray:

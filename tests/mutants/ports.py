@@ -174,7 +174,8 @@ def _psi_constants(m):
         c0 = np.log(np.log(f(lo) * f(1e7)))
         c1 = np.log(np.log(f(hi) * f(1e7))) - c0
         return f(lo), f(hi), f(c0), f(c1)
-    c0 = np.log(np.log(lo * 1e7))
+    with np.errstate(divide="ignore"):  # the mutant lo = 1e-7 gives ln ln 1 = -inf
+        c0 = np.log(np.log(lo * 1e7))
     return lo, hi, c0, np.log(np.log(hi * 1e7)) - c0
 
 
