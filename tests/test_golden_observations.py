@@ -146,3 +146,51 @@ def test_oracle_gates_hypothesis_rows_per_row():
     assert not rep.passed and rep.failures >= 20, str(rep)
     assert oracle.check(lambda b, zf: shadow_intensity(b, zf), "shadow_intensity-lower", dtype="float32",
                         n_hypothesis=60).passed
+
+
+# --------------------------------------------------------------------------
+# End-to-end cases: a whole float32 chain of independent ports, and one bug in it
+# --------------------------------------------------------------------------
+
+
+def _chain(b, zf, fmt, m):
+    from moments_ref.nonlinear import phi  # Algorithm 2 has no independent port here
+
+    r = phi(ports.bias(b, 3e-7, [0.0, 0.375, 0.0, 0.375], {}))
+    if fmt == "64":
+        r = ports.unpack64(ports.pack64(r, {}), m.get("unpack", {}))
+    else:
+        r = ports.unpack32(ports.pack32(r, {}), m.get("unpack", {}))
+    return ports.alg3(r, zf, {})
+
+
+def _filter_block(depth):
+    """MSAA resolve of b(z), 9-tap Gaussian (sigma 2.4) with clamp-to-edge, guard band 4 cropped (numpy)."""
+    b = np.stack([depth ** k for k in range(1, 5)], axis=-1).mean(axis=2, dtype=np.float64)
+    w = np.exp(-np.arange(-4, 5) ** 2 / (2 * 2.4 ** 2))
+    w /= w.sum()
+    for axis in (1, 0):
+        pad = [(0, 0)] * 3
+        pad[axis] = (4, 4)
+        p = np.pad(b, pad, mode="edge")
+        b = sum(wk * np.take(p, np.arange(k, k + b.shape[axis]), axis=axis) for k, wk in enumerate(w))
+    return b[4:-4, 4:-4].astype(np.float32)
+
+
+@pytest.mark.parametrize("fmt", ["64", "32"])
+def test_end_to_end_chain_of_ports_passes_and_a_decode_bug_fails(tmp_path, fmt):
+    case = f"e2e-nlq{fmt}-float32"
+    g = tmp_path / "g"
+    golden.write(g, [case, f"e2e-block-nlq{fmt}-float32"])
+    with np.load(g / f"{case}.npz") as z:
+        b, zf = z["b"], z["zf"]
+    ok = _chain(b, zf, fmt, {})
+    bug = _chain(b, zf, fmt, {"unpack": {"y_half": True} if fmt == "64" else {"corner": True}})
+    assert _verify(g, tmp_path, {f"{case}.intensity": ok}) == 0
+    assert _verify(g, tmp_path, {f"{case}.intensity": bug}) == 1
+    block = f"e2e-block-nlq{fmt}-float32"
+    with np.load(g / f"{block}.npz") as z:
+        depth, zfb = z["depth"], z["zf"]
+    out = np.stack([_chain(_filter_block(d).reshape(-1, 4), f.reshape(-1), fmt, {}).reshape(f.shape)
+                    for d, f in zip(depth, zfb)])
+    assert _verify(g, tmp_path, {f"{block}.intensity": out}) == 0
