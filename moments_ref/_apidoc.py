@@ -15,7 +15,9 @@ MODULES = (
     "techniques", "techniques.references", "techniques.area", "techniques.soft", "techniques.msm_soft",
     "techniques.scattering", "pipeline", "report",
     "vwss.lights", "vwss.points", "vwss.warp", "vwss.mvr", "vwss.shading", "vwss.compare",
-    "golden", "oracle", "conformance", "strategies", "figures", "stability", "bench",
+    "golden", "golden.cases", "golden.endtoend", "golden.truth", "golden.notes", "golden.spread", "golden.compare",
+    "golden.writer", "golden.verifier", "golden.mutation",
+    "oracle", "conformance", "strategies", "figures", "stability", "bench",
 )
 
 

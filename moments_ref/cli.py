@@ -90,6 +90,14 @@ def _cmd_verify(args):
     return 1 if report.failed else 0
 
 
+def _cmd_mutants(args):
+    from .golden import mutation
+
+    text, ok = mutation.report(args.corpus)
+    print(text)
+    return 0 if ok else 1
+
+
 def _cmd_bench(args):
     from . import bench
 
@@ -229,6 +237,11 @@ def build_parser():
     v.add_argument("--worst", type=_int_in(0), default=5, help="worst rows to print per failing case")
     v.add_argument("--out", type=Path, help="unused; accepted for uniformity")
     v.set_defaults(func=_cmd_verify)
+
+    mu = sub.add_parser("mutants", help="mutation score of the oracle: which golden rows kill which port mutant")
+    mu.add_argument("--corpus", type=Path, help="folder with corpus.py (default: tests/mutants of the source tree)")
+    mu.add_argument("--out", type=Path, help="unused; accepted for uniformity")
+    mu.set_defaults(func=_cmd_mutants)
 
     b = sub.add_parser("bench", help="throughput against a same-run memory copy")
     b.add_argument("--out", type=Path, help="also write bench.md here")

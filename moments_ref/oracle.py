@@ -1,9 +1,12 @@
 """Check a foreign Python implementation against the reference.
 
-``check(candidate, case, dtype=...)`` runs a callable on the golden inputs of a
-case (the same rows ``moments-ref golden`` writes, built in memory) and on inputs
-drawn by hypothesis, compares with the expected values of the reference and
-returns the worst absolute and relative error and the input that produced them.
+``check(candidate, case, dtype=...)`` runs a callable on the golden rows of a case
+(the rows ``moments-ref golden`` writes, built in memory) and on rows drawn by
+hypothesis, and judges its outputs with the same comparator as ``moments-ref
+verify`` (:mod:`moments_ref.golden.compare`): hypothesis rows get per-row
+tolerances by the same rule as golden rows (:mod:`moments_ref.golden.spread`) and
+are classified like them (``stiff`` where legitimate implementations differ by
+1e-3 or more, ``edge`` where an input sits at a domain end, else ``random``).
 
 Example
 -------
@@ -22,7 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._arrays import InputError
-from .golden import CASES, CATEGORIES, _evaluate, case_rows, expected_outputs
+from .golden.cases import CASES, case_table
+from .golden.compare import compare
+from .golden.spread import derive
+from .golden.writer import golden_arrays, manifest_entry
+from .strategies import input_strategy
 
 __all__ = ["check", "OracleReport", "input_strategy"]
 
@@ -34,61 +41,35 @@ class OracleReport:
     case: str
     dtype: str
     rows: int
+    failures: int
+    worst_score: float  # error / tolerance of the worst row (> 1 fails)
     worst_abs: float
     worst_rel: float
     worst_input: dict
     worst_category: str
     worst_got: object
     worst_expected: object
-    per_category: dict = field(default_factory=dict)  # category -> dict(abs, rel, rows, tolerance)
+    per_category: dict = field(default_factory=dict)  # category -> dict(rows, failures, score, abs)
     passed: bool = True
 
     def __str__(self):
-        lines = [f"{'PASS' if self.passed else 'FAIL'} {self.case} ({self.dtype}, {self.rows} rows): "
-                 f"worst abs {self.worst_abs:.3g}, worst rel {self.worst_rel:.3g} [{self.worst_category}]"]
+        lines = [f"{'PASS' if self.passed else 'FAIL'} {self.case} ({self.dtype}, {self.rows} rows, "
+                 f"{self.failures} fail): worst error/tolerance {self.worst_score:.3g}, worst abs "
+                 f"{self.worst_abs:.3g}, rel {self.worst_rel:.3g} [{self.worst_category}]"]
         for c, d in self.per_category.items():
-            lines.append(f"  {c:10} rows {d['rows']:5d}  abs {d['abs']:.3g}  rel {d['rel']:.3g}  "
-                         f"tolerance {d['tolerance']:.3g}")
+            lines.append(f"  {c:10} rows {d['rows']:5d}  failures {d['failures']:4d}  "
+                         f"error/tolerance {d['score']:.3g}  abs {d['abs']:.3g}")
         lines.append(f"  worst input: {self.worst_input}; got {self.worst_got}, expected {self.worst_expected}")
         return "\n".join(lines)
 
 
-def input_strategy(case):
-    """A hypothesis strategy of one input row (dict of arrays) for ``case``."""
-    from hypothesis import strategies as st
-
-    from .strategies import depth_distributions, depths, moment_vectors
-
-    c = CASES[case]
-    stem = c.name.split("-")[0]
-    n6 = stem.endswith("6") or "r10g10b10a2" in stem
-    parts = {}
-    for name in c.inputs:
-        if name == "b":
-            parts[name] = moment_vectors(n=6 if n6 else 4, distributions=depth_distributions())
-        elif name == "zf":
-            parts[name] = depths(-1.5, 1.5).map(np.float64)
-        elif name == "q":
-            from .affine import to_optimized
-
-            parts[name] = moment_vectors().map(to_optimized)
-        elif name == "u":
-            parts[name] = st.lists(st.integers(0, 65535), min_size=4, max_size=4).map(np.array)
-        elif name == "p":
-            parts[name] = st.lists(st.integers(0, (1 << 30) - 1), min_size=2, max_size=2).map(np.array)
-        else:
-            raise InputError(f"case: no input strategy for argument {name!r} of {case!r}")
-    return st.fixed_dictionaries(parts)
-
-
-def _hypothesis_rows(case, n, seed):
+def _hypothesis_rows(case, n):
     from hypothesis import HealthCheck, Phase, given, settings
 
     drawn = []
 
     @settings(max_examples=n, derandomize=True, database=None, deadline=None,
-              suppress_health_check=list(HealthCheck),
-              phases=[Phase.explicit, Phase.reuse, Phase.generate])
+              suppress_health_check=list(HealthCheck), phases=[Phase.explicit, Phase.reuse, Phase.generate])
     @given(input_strategy(case))
     def collect(row):
         drawn.append(row)
@@ -97,24 +78,82 @@ def _hypothesis_rows(case, n, seed):
     return drawn[:n]
 
 
+def _classify(c, inputs, arrays):
+    """Categories of hypothesis rows, by the golden rule (see the module docstring)."""
+    n = len(arrays["category"])
+    cat = np.full(n, "random", dtype="U10")
+    for k, v in inputs.items():
+        if k in c.integer_inputs:
+            continue
+        v = np.asarray(v, np.float64).reshape(n, -1)
+        cat[np.any((np.abs(v) == 1) | (v == 0), axis=1)] = "edge"
+    if not c.integer_output:
+        t = np.max([arrays[f"{o}_tolerance_{c.dtype}"].reshape(n, -1).max(axis=1) for o in c.outputs], axis=0)
+        cat[t >= 1e-3] = "stiff"
+    return cat
+
+
+def _hypothesis_arrays(c, n):
+    extra = _hypothesis_rows(c.name, n)
+    inputs = {}
+    for k in c.inputs:
+        dt = c.integer_inputs.get(k, c.dtype)
+        inputs[k] = np.stack([np.asarray(r[k]) for r in extra]).astype(dt)
+    m = len(extra)
+    arrays = dict(inputs)
+    arrays.update(derive(c, inputs, ["random"] * m, ["drawn by hypothesis"] * m, [()] * m))
+    arrays["category"] = _classify(c, inputs, arrays)
+    return arrays
+
+
+def _concat(a, b):
+    out = {}
+    for k in a:
+        x, y = np.asarray(a[k]), np.asarray(b[k])
+        if x.dtype.kind == "U":
+            width = max(x.dtype.itemsize, y.dtype.itemsize) // 4
+            x, y = x.astype(f"U{width}"), y.astype(f"U{width}")
+        if x.ndim >= 2 and x.shape[1:] != y.shape[1:]:  # acceptable sets of different sizes
+            k_max = max(x.shape[1], y.shape[1])
+            pad = lambda z: np.concatenate([z] + [z[:, :1]] * (k_max - z.shape[1]), axis=1)  # noqa: E731
+            x, y = pad(x), pad(y)
+        out[k] = np.concatenate([x, y])
+    return out
+
+
+def _call(candidate, c, arrays, vectorized):
+    args = [arrays[k] for k in c.inputs]
+    if vectorized:
+        got = candidate(*args)
+    else:
+        rows = [candidate(*[a[i] for a in args]) for i in range(len(args[0]))]
+        got = (tuple(np.stack([np.asarray(r[j]) for r in rows]) for j in range(len(c.outputs)))
+               if len(c.outputs) > 1 else np.stack([np.asarray(r) for r in rows]))
+    got = tuple(got) if isinstance(got, (tuple, list)) else (got,)
+    if len(got) != len(c.outputs):
+        raise InputError(f"candidate: expected {len(c.outputs)} output(s) {c.outputs}, got {len(got)}")
+    return dict(zip(c.outputs, (np.asarray(g) for g in got)))
+
+
 def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized=True):
-    """Run ``candidate`` on golden and hypothesis inputs and compare with the reference.
+    """Run ``candidate`` on golden and hypothesis rows and judge it like ``verify``.
 
     Parameters
     ----------
     candidate : callable
         Called as ``candidate(*inputs)`` with the case's input arrays in order
-        (for example ``(b, zf)`` with ``b`` (n, 4) and ``zf`` (n,)); returns the
-        output array (or a tuple when the function has several outputs).
+        (``b`` (n, 4) and ``zf`` (n,) for Algorithm 1); returns the output array
+        (or a tuple for several outputs) with the dtype ``verify`` demands.
         ``vectorized=False`` calls it once per row instead.
     case : str
-        A golden case without its dtype suffix (``"shadow_intensity-lower"``) or
-        with it (``"shadow_intensity-lower-float32"``).
+        A golden case without its dtype suffix (``"shadow_intensity-lower"``) or with it.
     dtype : {"float32", "float64"}
-        The candidate's precision: inputs are given in this dtype and the case's
-        tolerances for this dtype apply.
+        The candidate's precision: the case of that dtype is used, inputs come in
+        it and its tolerance column applies.
     n_hypothesis : int
         Extra rows drawn by hypothesis (derandomized: reproducible).
+    seed : int
+        Unused (kept for compatibility; the draws are derandomized).
 
     Returns
     -------
@@ -127,57 +166,31 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         stems = sorted({n.rsplit("-", 1)[0] for n in CASES})
         raise InputError(f"case: unknown case {case!r}; known: {', '.join(stems)}")
     c = CASES[name]
-    inputs, category, comment = case_rows(c)
+    arrays = golden_arrays(c)
     if n_hypothesis:
-        extra = _hypothesis_rows(name, n_hypothesis, seed)
-        for k in c.inputs:
-            add = np.stack([np.asarray(r[k]) for r in extra]).astype(inputs[k].dtype)
-            inputs[k] = np.concatenate([inputs[k], add])
-        category = np.concatenate([category, np.full(len(extra), "hypothesis")])
-    inputs = {k: (v if k in c.integer_inputs else v.astype(dtype)) for k, v in inputs.items()}
-    expected = expected_outputs(c, inputs)
-    args = [inputs[k] for k in c.inputs]
-    if vectorized:
-        got = candidate(*args)
-    else:
-        rows = [candidate(*[a[i] for a in args]) for i in range(len(category))]
-        got = tuple(np.stack([np.asarray(r[j]) for r in rows]) for j in range(len(c.outputs))) \
-            if len(c.outputs) > 1 else np.stack([np.asarray(r) for r in rows])
-    got = got if isinstance(got, tuple) else (got,)
-    if len(got) != len(c.outputs):
-        raise InputError(f"candidate: expected {len(c.outputs)} output(s) {c.outputs}, got {len(got)}")
-    n = len(category)
-    abs_err = np.zeros(n)
-    rel_err = np.zeros(n)
-    for g, e, out in zip(got, expected, c.outputs):
-        g = np.asarray(g)
-        e = np.asarray(e)
-        if g.shape != e.shape:
-            raise InputError(f"candidate: output {out!r} expected shape {e.shape}, got {g.shape}")
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d = np.abs(g.astype(np.float64) - e.astype(np.float64)).reshape(n, -1)
-            d = np.where(np.isnan(d), np.inf, d)
-            r = d / np.maximum(np.abs(e.astype(np.float64)).reshape(n, -1), np.finfo(np.float64).tiny)
-        abs_err = np.maximum(abs_err, d.max(axis=1))
-        rel_err = np.maximum(rel_err, r.max(axis=1))
-    _, _, _, _, tolerances = _evaluate(c)
-    tol = tolerances[dtype]
-    per_cat = {}
-    passed = True
-    for cat in list(CATEGORIES) + ["hypothesis"]:
-        sel = category == cat
-        if not sel.any():
-            continue
-        # Hypothesis rows include singular and clustered distributions: the stiff tolerance.
-        t = tol.get(cat, max(tol["random"], tol["stiff"]))
-        a = float(abs_err[sel].max())
-        per_cat[cat] = {"abs": a, "rel": float(rel_err[sel].max()), "rows": int(sel.sum()),
-                        "tolerance": t}
-        passed &= a <= t
-    i = int(np.argmax(abs_err))
+        arrays = _concat(arrays, _hypothesis_arrays(c, n_hypothesis))
+    got = _call(candidate, c, arrays, vectorized)
+    verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name)
+    return _report(c, name, dtype, arrays, got, verdict)
+
+
+def _report(c, name, dtype, arrays, got, verdict):
+    o = c.outputs[0]
+    n = len(arrays["category"])
+    e = np.asarray(arrays[o], np.float64).reshape(n, -1)
+    g = np.asarray(got[o], np.float64).reshape(n, -1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a = np.abs(g - e)
+        a = np.where(np.isnan(a), np.inf, a).max(axis=1)
+        r = np.where(a == 0, 0.0, a / np.maximum(np.abs(e).max(axis=1), np.finfo(np.float64).tiny))
+    i = int(np.argmax(verdict.score)) if verdict.score.max() > 0 else int(np.argmax(a))
+    per = {}
+    for cat in dict.fromkeys(arrays["category"]):
+        sel = arrays["category"] == cat
+        per[str(cat)] = {"rows": int(sel.sum()), "failures": int((~verdict.row_pass[sel]).sum()),
+                         "score": float(verdict.score[sel].max()), "abs": float(a[sel].max())}
     return OracleReport(
-        case=name, dtype=dtype, rows=n, worst_abs=float(abs_err[i]), worst_rel=float(rel_err[i]),
-        worst_input={k: inputs[k][i] for k in c.inputs}, worst_category=str(category[i]),
-        worst_got=[np.asarray(g)[i] for g in got], worst_expected=[np.asarray(e)[i] for e in expected],
-        per_category=per_cat, passed=passed,
-    )
+        case=name, dtype=dtype, rows=n, failures=verdict.failures, worst_score=float(verdict.score[i]),
+        worst_abs=float(a[i]), worst_rel=float(r[i]), worst_input={k: arrays[k][i] for k in c.inputs},
+        worst_category=str(arrays["category"][i]), worst_got=np.asarray(got[o])[i],
+        worst_expected=np.asarray(arrays[o])[i], per_category=per, passed=verdict.passed)

@@ -27,6 +27,8 @@ __all__ = [
     "two_point_distributions",
     "moment_vectors",
     "exact_shadow",
+    "representations",
+    "input_strategy",
 ]
 
 
@@ -106,3 +108,68 @@ def exact_shadow(z, w, zf, strict=True):
     zf = np.asarray(zf)[..., None]
     hit = z < zf if strict else z <= zf
     return (w * hit).sum(axis=-1)
+
+
+@st.composite
+def representations(draw):
+    """A non-linear representation ``(y1, y2, v2, ξ4)`` (HPG17 §3.1): y1 ≤ y2 in [-1, 1],
+    v2 in [0, 1], ξ4 in [0, 0.25], with the clamp values of Algorithm 3 and Ψ4 drawn often."""
+    y = sorted(draw(st.lists(depths(), min_size=2, max_size=2)))
+    if draw(st.booleans()):
+        y[1] = y[0] + draw(st.sampled_from([0.0, 5e-7, 1e-6, 1e-4]))
+        y[1] = min(y[1], 1.0)
+    v2 = draw(st.sampled_from([0.0, 1.0, 1e-6, 0.5]) | st.floats(0, 1))
+    xi4 = draw(st.sampled_from([0.0, 1.2e-7, 0.25]) | st.floats(0, 0.25))
+    return np.array([y[0], y[1], v2, xi4])
+
+
+def _block(seed):
+    from .golden.endtoend import BLOCK, GUARD
+
+    rng = np.random.default_rng(seed)
+    h, w = BLOCK
+    depth = np.clip(rng.uniform(-1, 1) + rng.uniform(-1, 1, (h, w, 4)) * 10 ** rng.uniform(-5, 0), -1, 1)
+    zf = rng.uniform(-1, 1, (h - 2 * GUARD, w - 2 * GUARD))
+    return {"depth": depth, "zf": zf}
+
+
+def input_strategy(case):
+    """A strategy of one input row (dict of arrays) for the golden case named ``case``.
+
+    Every case has one, chosen by the function the case tests (the input names are
+    those of the case, in its order).
+    """
+    from .golden.cases import CASES
+    from .moments import BIAS_FLOAT32, bias_moments
+
+    c = CASES[case]
+    fn = c.function.split(".")[-1]
+    if fn.startswith("block"):
+        return st.integers(0, 2**32 - 1).map(_block)
+    six = c.name.startswith(("shadow_intensity6", "to_optimized6", "encode_r10g10b10a2"))
+    b = moment_vectors(n=6 if six else 4)
+    zf = depths(-1.5, 1.5).map(np.float64)
+    u16 = st.lists(st.integers(0, 65535), min_size=4, max_size=4).map(lambda x: np.array(x, np.uint16))
+    table = {
+        "b": b.map(lambda v: bias_moments(v, BIAS_FLOAT32)) if fn == "phi" else b,
+        "zf": zf,
+        "r": representations(),
+        "xi4": st.sampled_from([0.0, 1.2e-7, 0.25]) | st.floats(0, 0.25),
+        "u": u16 if c.integer_inputs.get("u") else st.floats(0, 1),
+        "q": u16 if c.integer_inputs.get("q") else moment_vectors().map(_optimized),
+        "p": (st.lists(st.integers(0, (1 << 30) - 1), min_size=2, max_size=2).map(lambda x: np.array(x, np.uint32))
+              if fn.startswith("decode_r10") else representations().map(_pack32)),
+    }
+    return st.fixed_dictionaries({k: table[k] for k in c.inputs})
+
+
+def _optimized(b):
+    from .affine import to_optimized
+
+    return to_optimized(b)
+
+
+def _pack32(r):
+    from .packing import pack32
+
+    return pack32(r)

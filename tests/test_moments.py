@@ -154,3 +154,14 @@ def test_bad_input_names_argument_and_index(call, words):
         call()
     for word in words:
         assert word in str(info.value)
+
+
+def test_reduce_light_leaking_default_factor_is_98_percent():
+    """Slides: 'divide by ~98%'; the default factor, exercised (a wrong default would pass otherwise)."""
+    from moments_ref.msm import reduce_light_leaking
+
+    assert reduce_light_leaking(0.49) == pytest.approx(0.5, abs=1e-15)
+    assert reduce_light_leaking(np.float32(0.49)) == pytest.approx(0.5, abs=1e-7)
+    assert reduce_light_leaking(np.float32(0.49)).dtype == np.float32
+    assert reduce_light_leaking(0.99) == 1.0  # clamped
+    assert reduce_light_leaking(0.0) == 0.0

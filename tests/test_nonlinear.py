@@ -386,3 +386,31 @@ def test_shade_never_nan_below_y1_in_float32():
         out = nl.shade(rr, zf)
         assert np.isfinite(out).all() and out.min() >= 0 and out.max() <= 1
         assert (out[zf <= rr[:, 0]] == 0).all()
+
+
+# ---------------------------------------------------------------------------
+# Gaps found by mutating the library (the suite's own power)
+
+
+def test_validate_representation_clamps_rounding_and_refuses_the_rest():
+    tol = nl.rounding_tolerance(np.float32)  # 64 ulps: 7.6e-6
+    r = np.array([[0.5, 0.5 - 1e-6, -1e-6, -1e-6], [-0.2, 0.3, 1 + 1e-6, 0.01]], np.float32)
+    out = nl.validate_representation(r)
+    assert out.dtype == np.float32 and out is not r
+    assert np.array_equal(out, np.array([[0.5, 0.5, 0.0, 0.0], [-0.2, 0.3, 1.0, 0.01]], np.float32))
+    assert r[0, 1] == np.float32(0.5 - 1e-6)  # the input is not modified
+    for bad, what in (([0.5, 0.5 - 2 * tol, 0.5, 0.1], "y1 <= y2"), ([0.0, 0.1, -2 * tol, 0.1], "v2 in"),
+                      ([0.0, 0.1, 1 + 2 * tol, 0.1], "v2 in"), ([0.0, 0.1, 0.5, -2 * tol], "xi4 >= 0")):
+        rows = np.array([[0.0, 0.1, 0.5, 0.1], bad], np.float32)
+        with pytest.raises(InputError, match=rf"{what}.*at index \(1,\)"):
+            nl.validate_representation(rows, name="texels")
+
+
+def test_shade_upper_v2_clamp_is_one_minus_1e6():
+    """v2 = 1 is shaded as v2 = 1 - 1e-6 (HPG17 §3.4), compared with the mpmath bound at that v2."""
+    r = np.array([-0.5, 0.5, 1.0, 1e-5])
+    for zf in (0.0, 0.3, 0.49):
+        clamped = precise.shade([-0.5, 0.5, 1 - 1e-6, 1e-5], zf)
+        assert float(nl.shade(r, zf)) == pytest.approx(clamped, rel=1e-9)
+        # The clamp constant matters here: 1 - 2e-6 gives an intensity 10 times larger.
+        assert precise.shade([-0.5, 0.5, 1 - 2e-6, 1e-5], zf) > 5 * clamped

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from moments_ref import oracle
+from moments_ref import golden, oracle
 from moments_ref._arrays import InputError
 from moments_ref.msm import shadow_intensity
 
@@ -13,8 +13,9 @@ def test_reference_passes(dtype):
     rep = oracle.check(lambda b, zf: shadow_intensity(b, zf), "shadow_intensity-lower", dtype=dtype,
                        n_hypothesis=30)
     assert rep.passed, str(rep)
-    assert rep.rows > 300
-    assert "hypothesis" in rep.per_category
+    n_golden = len(golden.case_rows(golden.CASES[f"shadow_intensity-lower-{dtype}"])[1])
+    assert rep.rows == n_golden + 30 > 300
+    assert set(rep.per_category) <= {"random", "stiff", "edge"}
 
 
 def test_mutant_upper_for_lower_fails_and_names_the_input():
@@ -56,3 +57,11 @@ def test_six_moment_case_with_hypothesis_rows():
                        n_hypothesis=10)
     assert rep.passed, str(rep)
     assert rep.worst_input["b"].shape == (6,)
+
+
+@pytest.mark.parametrize("case", sorted({n.rsplit("-", 1)[0] for n in golden.CASES}))
+def test_every_case_has_strategies_and_the_reference_passes(case):
+    c = golden.CASES[f"{case}-float32"]
+    rep = oracle.check(lambda *a: golden.evaluate_reference(c, dict(zip(c.inputs, a)), "float32"), case,
+                       dtype="float32", n_hypothesis=3)
+    assert rep.passed, str(rep)

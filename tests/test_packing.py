@@ -282,3 +282,16 @@ def test_shapes_and_dtypes():
     assert pk.pack32(r).shape == (2, 3)
     assert pk.unpack32(pk.pack32(r)).shape == (2, 3, 4)
     assert pk.unpack64(pk.pack64(r.astype(np.float32)), dtype=np.float32).dtype == np.float32
+
+
+def test_depth_steps_by_value():
+    """DEPTH_STEP32 is the 32-bit cell width 1/511.5 (used as slack elsewhere; a wrong value weakens them)."""
+    assert pk.DEPTH_STEP32 == 1 / 511.5 and pk.DEPTH_STEP64 == 2 / 65535
+    # Every cell centre decodes within half a step of every depth packed into that cell.
+    y = np.linspace(-1, 1, 20001)
+    r = np.stack([y, y, np.full_like(y, 0.5), np.full_like(y, 1e-3)], axis=-1)
+    d = pk.unpack32(pk.pack32(r))[:, 0]
+    assert np.abs(d - y).max() <= pk.DEPTH_STEP32 / 2 + 1e-12
+    assert np.abs(d - y).max() > 0.45 * pk.DEPTH_STEP32
+    d64 = pk.unpack64(pk.pack64(r))[:, 0]
+    assert np.abs(d64 - y).max() <= pk.DEPTH_STEP64 / 2 + 1e-12

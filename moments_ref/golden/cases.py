@@ -1,0 +1,253 @@
+"""The golden cases: one public function at one dtype on labelled rows.
+
+A :class:`Case` names the function, its inputs in the order a port receives them,
+its outputs, the rows, the reference (this package's own implementation, run in the
+case's dtype) and the ground truth (the mpmath twin where one exists). ``kwargs``
+are plain values a port can use (``{"bound": "lower"}``, a bias preset's α and b*),
+never Python names.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .. import precise
+from ..moments import BIAS_FLOAT32, BIAS_UNORM16
+from . import endtoend
+from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
+                   _unorm16_rows)
+from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
+                             _reencode_rows, _representation_rows, _shade_rows)
+from .truth import shade_clamped
+
+__all__ = ["Case", "CASES", "case_rows", "case_table", "evaluate_reference", "expected_outputs"]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One golden case: a public function evaluated at one dtype on labelled rows."""
+
+    name: str
+    function: str
+    dtype: str
+    inputs: tuple
+    outputs: tuple
+    rows: Callable  # (rng, dtype) -> Rows (inputs in float64 or int, cast later)
+    reference: Callable  # (**inputs) -> tuple of outputs, in the inputs' dtype
+    truth: Callable | None = None  # (**inputs) -> tuple of float64 outputs
+    kwargs: dict = field(default_factory=dict)  # plain JSON values
+    integer_inputs: dict = field(default_factory=dict)  # input name -> unsigned dtype
+    description: str = ""
+    metric: str = "abs"  # "abs", "ulps" or "exact" (integer outputs)
+    value_range: tuple | None = None  # (lo, hi) every output value must lie in, if any
+    perturb: bool = True  # measure the spread on inputs scaled by 1 ± 3 ulps (off for biasing)
+    floor_scale: tuple | float = 1.0  # tolerance floors are ulps of max(|value|, scale), per component
+    spread_hook: Callable | None = None  # (inputs, dtype) -> extra legitimate outputs (decoders' constants)
+
+    @property
+    def integer_output(self):
+        return self.metric == "exact"
+
+
+_U16, _U32 = {"u": "uint16"}, {"p": "uint32"}
+
+
+def _tuple(out):
+    return out if isinstance(out, tuple) else (out,)
+
+
+def _precise(name, **kwargs):
+    def truth(*args, **kw):
+        return _tuple(getattr(precise, name)(*args, **kw, **kwargs))
+
+    return truth
+
+
+def _wrap(path, **kwargs):
+    """A reference calling ``moments_ref.<path>`` and returning a tuple."""
+    module, name = path.rsplit(".", 1)
+
+    def ref(*args, **kw):
+        fn = getattr(importlib.import_module(f"moments_ref.{module}"), name)
+        return _tuple(fn(*args, **kw, **kwargs))
+
+    return ref
+
+
+def _shade_truth(r, zf):
+    return (shade_clamped(r, zf),)
+
+
+def _preset_kwargs(preset):
+    return {"preset": {"alpha": preset.alpha, "target": list(preset.target)}}
+
+
+#: Floors of (y1, y2, v2, ξ4): ulps of 1 for the O(1) quantities, of ξ4 itself for ξ4.
+_R_SCALE = (1.0, 1.0, 1.0, 0.0)
+
+
+def _xi_decode_spread(fmt):
+    """Decoders: ξ4 with the Ψ4⁻¹ constants off by 3 ulps (c1 from float32 end points is 1 ulp off)."""
+
+    def hook(inputs, dt):
+        from ..nonlinear import _PSI_C0, _PSI_C1, psi4_inverse
+        from ..packing import unpack32, unpack64
+
+        code = inputs["q"] if fmt == "64" else inputs["p"]
+        r = unpack64(code, dtype=dt) if fmt == "64" else unpack32(code, dtype=dt)
+        if fmt == "64":
+            u = code[..., 3].astype(np.float64) / 65535
+        else:
+            u = np.minimum(((code.astype(np.int64) >> 26) & 63) / 63 + 0.5 / 63, 1)
+        eps = 3 * float(np.finfo(dt).eps)
+        out = []
+        for s1, s0 in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+            v = r.copy()
+            shifted = (u * (1 + s1 * eps) + s0 * eps * abs(_PSI_C0) / _PSI_C1).astype(dt)
+            with np.errstate(over="ignore"):
+                v[..., 3] = psi4_inverse(np.clip(shifted, 0, 1))
+            out.append((v,))
+        return out
+
+    return hook
+
+
+def _float_cases(dt):
+    cases = []
+    for bound in ("lower", "upper"):
+        cases.append(Case(
+            f"shadow_intensity-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
+            _msm_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity", bound=bound),
+            {"bound": bound}, description=f"HPG17 Algorithm 1, {bound} bound; expected values from the mpmath twin",
+            value_range=(0, 1)))
+    for preset in (BIAS_FLOAT32, BIAS_UNORM16):
+        cases.append(Case(
+            f"bias_moments-{preset.name}-{dt}", "moments.bias_moments", dt, ("b",), ("b_biased",),
+            _moment_rows, _wrap("moments.bias_moments", preset=preset), _precise("bias_moments", preset=preset),
+            _preset_kwargs(preset), metric="ulps", perturb=False,
+            description=f"HPG17 §3.2 biasing b' = (1 - alpha) b + alpha b*, alpha = {preset.alpha:g}, "
+                        f"b* = {list(preset.target)}; gated in ulps (the change is a few ulps)"))
+    cases += [
+        Case(f"to_optimized-{dt}", "affine.to_optimized", dt, ("b",), ("q",), _moment_rows,
+             _wrap("affine.to_optimized"), description="Slides, 'Compute moments in resolve'"),
+        Case(f"from_optimized-{dt}", "affine.from_optimized", dt, ("q",), ("b",), _optimized_rows,
+             _wrap("affine.from_optimized"), description="Slides, 'Retrieve moments'"),
+        Case(f"encode_unorm16-{dt}", "affine.encode_unorm16", dt, ("b",), ("u",), _moment_rows,
+             _wrap("affine.encode_unorm16"), metric="exact",
+             description="64-bit affine texel: four UNORM16 of the optimized basis"),
+        Case(f"decode_unorm16-{dt}", "affine.decode_unorm16", dt, ("u",), ("b",), _unorm16_rows,
+             _wrap("affine.decode_unorm16"), integer_inputs=_U16, description="64-bit affine texel decode"),
+        Case(f"to_optimized6-{dt}", "affine.to_optimized6", dt, ("b",), ("q",), _moment6_rows,
+             _wrap("affine.to_optimized6"), description="Slides, six-moment 'Quantization transform'"),
+        Case(f"encode_r10g10b10a2-{dt}", "affine.encode_r10g10b10a2", dt, ("b",), ("p",), _moment6_rows,
+             _wrap("affine.encode_r10g10b10a2"), metric="exact",
+             description="six moments in 2×R10G10B10A2_UNORM"),
+        Case(f"decode_r10g10b10a2-{dt}", "affine.decode_r10g10b10a2", dt, ("p",), ("b",), _r10_rows,
+             _wrap("affine.decode_r10g10b10a2"), integer_inputs=_U32,
+             description="six moments from 2×R10G10B10A2_UNORM"),
+        *[Case(f"shadow_intensity6-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
+               _msm6_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity6", bound=bound),
+               {"bound": bound}, value_range=(0, 1),
+               description=f"six-moment {bound} bound (slides, 'Prefiltered single scattering'); b (n, 6); "
+                           "expected from the mpmath twin")
+          for bound in ("lower", "upper")],
+    ]
+    return cases + _nonlinear_cases(dt)
+
+
+def _nonlinear_cases(dt):
+    """Cases of HPG17 §3: Φ, Φ⁻¹, Ψ4, Ψ4⁻¹, Algorithm 3 and the texel formats."""
+    return [
+        Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
+             _precise("phi"), floor_scale=_R_SCALE,
+             description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
+        Case(f"phi_inverse-{dt}", "nonlinear.phi_inverse", dt, ("r",), ("b",), _representation_rows,
+             _wrap("nonlinear.phi_inverse"), _precise("phi_inverse"), description="HPG17 Eq. (4)"),
+        Case(f"psi4-{dt}", "nonlinear.psi4", dt, ("xi4",), ("u",), _psi4_rows, _wrap("nonlinear.psi4"),
+             _precise("psi4"), description="HPG17 §3.3 warp of ξ4, clamped at 1.2e-7", value_range=(0, 1)),
+        Case(f"psi4_inverse-{dt}", "nonlinear.psi4_inverse", dt, ("u",), ("xi4",), _psi4_inverse_rows,
+             _wrap("nonlinear.psi4_inverse"), _precise("psi4_inverse"), metric="ulps",
+             description="inverse of Ψ4; gated in ulps (ξ4 spans six decades)"),
+        Case(f"shade-{dt}", "nonlinear.shade", dt, ("r", "zf"), ("intensity",), _shade_rows,
+             _wrap("nonlinear.shade"), _shade_truth, value_range=(0, 1),
+             description="HPG17 Algorithm 3 with its §3.4 clamps (v2 in [1e-6, 1 - 1e-6], y2 - y1 >= 1e-6); "
+                         "expected: Algorithm 3 with the clamps in mpmath"),
+        Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
+             _wrap("packing.pack64"), metric="exact", description="64-bit texel, docs/formats.md"),
+        Case(f"reencode64-{dt}", "packing.pack64", dt, ("r",), ("q",), _reencode_rows,
+             _wrap("packing.pack64"), metric="exact",
+             description="64-bit texel of representations whose ξ4 is a decoded code, or one ulp above one "
+                         "(the encoder's decode check of docs/formats.md)"),
+        Case(f"unpack64-{dt}", "packing.unpack64", dt, ("q",), ("r",), _pack64_input_rows,
+             _wrap("packing.unpack64"), integer_inputs={"q": "uint16"}, floor_scale=_R_SCALE,
+             spread_hook=_xi_decode_spread("64"),
+             description="64-bit texel decode, docs/formats.md"),
+        Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
+             _wrap("packing.pack32"), metric="exact",
+             description="32-bit texel with the triangle fold, docs/formats.md"),
+        Case(f"reencode32-{dt}", "packing.pack32", dt, ("r",), ("p",), _reencode_rows,
+             _wrap("packing.pack32"), metric="exact",
+             description="32-bit texel of decoded representations and of ξ4 on 6-bit Ψ4 rounding boundaries"),
+        Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
+             _wrap("packing.unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,
+             spread_hook=_xi_decode_spread("32"),
+             description="32-bit texel decode (ξ4 rounded up), docs/formats.md"),
+    ]
+
+
+def _cases():
+    cases = []
+    for dt in ("float32", "float64"):
+        cases += _float_cases(dt)
+        cases += [Case(**spec) for spec in endtoend.case_specs(dt)]
+    return cases
+
+
+CASES = {c.name: c for c in _cases()}
+
+
+def _seed(name):
+    return int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "little")
+
+
+def case_table(case: Case):
+    """The rows of ``case``: (inputs cast to the case's dtypes, category, comment, flags)."""
+    rng = np.random.default_rng(_seed(case.name))
+    rows = case.rows(rng, np.dtype(case.dtype))
+    inputs = {}
+    for k in case.inputs:
+        v = np.asarray(rows.inputs[k])
+        inputs[k] = v.astype(case.integer_inputs[k] if k in case.integer_inputs else case.dtype)
+    return inputs, np.asarray(rows.category), np.asarray(rows.comment), list(rows.flags)
+
+
+def case_rows(case: Case):
+    """The rows of ``case``: (inputs dict cast to the case's dtypes, category, comment)."""
+    inputs, category, comment, _ = case_table(case)
+    return inputs, category, comment
+
+
+def evaluate_reference(case, inputs, dtype):
+    """The reference's outputs (tuple) for ``inputs`` evaluated in ``dtype``.
+
+    Float inputs are cast to ``dtype``; decoders (integer inputs) get ``dtype=``.
+    """
+    args = {k: (v if k in case.integer_inputs else np.asarray(v).astype(dtype)) for k, v in inputs.items()}
+    if case.integer_inputs:
+        return case.reference(**args, dtype=np.dtype(dtype))
+    return case.reference(**args)
+
+
+def expected_outputs(case, inputs):
+    """Expected values: exact codes for encoders (in the case's dtype), else the ground truth."""
+    if case.integer_output:
+        return evaluate_reference(case, inputs, case.dtype)
+    if case.truth is not None:
+        as64 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.float64)) for k, v in inputs.items()}
+        return case.truth(**as64)
+    return evaluate_reference(case, inputs, np.float64)

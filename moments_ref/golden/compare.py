@@ -1,0 +1,191 @@
+"""The one comparator of golden rows: ``verify``, ``oracle.check`` and ``conformance`` use it.
+
+Entry point: :func:`compare(entry, expected, candidate, port_dtype=None)
+<compare>` with
+
+* ``entry``: the case's manifest entry (``compare``, ``outputs``, ``dtype``,
+  ``metric``, ``value_range``);
+* ``expected``: the arrays of the case's golden ``.npz`` (expected outputs,
+  ``<output>_tolerance_<float32|float64>``, ``<output>_acceptable``, ``result``,
+  ``tc_id``);
+* ``candidate``: ``{output name: array}`` from the port.
+
+It returns a :class:`Verdict`: per row pass/fail (``row_pass``), a per-row score
+(worst error over tolerance, ``inf`` for NaN or a wrong code) and per-output
+summaries. The rule, the same for every harness:
+
+* the candidate's dtype must have the manifest's kind and width: integer outputs
+  an integer dtype of the expected width, float outputs a real float dtype of the
+  port's precision (``port_dtype``, default the case's dtype); anything else is an
+  :class:`~moments_ref.InputError` naming the array, the expected and the found dtype;
+* integer outputs: every component equals the expected code or, on rows whose
+  ``result`` is ``acceptable``, one of the codes stored for it in
+  ``<output>_acceptable`` (rounding ties);
+* float outputs: every value is finite and within its tolerance of the expected
+  value, measured as the case's ``metric`` says: ``abs`` (absolute difference) or
+  ``ulps`` (units in the last place of the port's precision at the expected
+  value). Rows with an infinite tolerance (``result`` acceptable: the value is
+  undefined there) need only a finite value within the case's ``value_range``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._arrays import InputError
+from .spread import ulp
+
+__all__ = ["compare", "Verdict", "OutputSummary", "check_dtypes", "port_precision"]
+
+
+@dataclass
+class OutputSummary:
+    """How one output of a case fared."""
+
+    name: str
+    metric: str
+    rows: int
+    gated: int
+    failures: int
+    worst_row: int  # index of the row with the largest score
+    worst_score: float  # error / tolerance there (0 = exact, > 1 fails)
+    worst_error: float  # in the metric's unit
+    worst_tolerance: float
+
+
+@dataclass
+class Verdict:
+    """Result of :func:`compare` for one case."""
+
+    case: str
+    port_dtype: str
+    row_pass: np.ndarray  # (n,) bool
+    score: np.ndarray  # (n,) float: max error / tolerance over the row's values
+    outputs: dict = field(default_factory=dict)  # name -> OutputSummary
+
+    @property
+    def passed(self):
+        return bool(self.row_pass.all())
+
+    @property
+    def failures(self):
+        return int((~self.row_pass).sum())
+
+    def worst_rows(self, k):
+        """Indices of the ``k`` failing rows with the largest score (all failing rows if k is None)."""
+        bad = np.flatnonzero(~self.row_pass)
+        order = bad[np.argsort(-self.score[bad], kind="stable")]
+        return [int(i) for i in (order if k is None else order[:k])]
+
+
+def port_precision(entry, port_dtype=None):
+    """The precision a port is judged in: ``port_dtype`` or the case's dtype."""
+    dt = port_dtype or entry["dtype"]
+    if dt not in ("float32", "float64"):
+        raise InputError(f"port_dtype: expected float32 or float64, got {dt!r}")
+    return dt
+
+
+def check_dtypes(entry, candidate, port_dtype=None, prefix=""):
+    """Raise :class:`InputError` unless every compared output has the manifest's kind and width."""
+    dt = port_precision(entry, port_dtype)
+    for o in entry["compare"]:
+        name = f"{prefix}{o}"
+        if o not in candidate:
+            raise InputError(f"results: output {name!r} is missing (the case compares {', '.join(entry['compare'])})")
+        got = np.asarray(candidate[o]).dtype
+        want = np.dtype(entry["outputs"][o]["dtype"])
+        if entry["metric"] == "exact":
+            ok = got.kind in "ui" and got.itemsize == want.itemsize
+            expect = f"an integer dtype of {want.itemsize * 8} bits ({want})"
+        else:
+            ok = got.kind == "f" and got.itemsize == np.dtype(dt).itemsize
+            expect = f"a real {dt} array (the port's precision)"
+        if not ok:
+            raise InputError(f"results: {name!r} expected {expect}, found dtype {got}")
+
+
+def _exact(o, expected, cand, n, acceptable_rows):
+    e = np.asarray(expected[o]).astype(np.int64)
+    c = np.asarray(cand).astype(np.int64)
+    ok = c == e
+    alts = expected.get(f"{o}_acceptable")
+    if alts is not None:
+        a = np.asarray(alts).astype(np.int64)
+        alt_ok = (a == c[:, None]).any(axis=1)
+        ok |= alt_ok & acceptable_rows.reshape((n,) + (1,) * (c.ndim - 1))
+    err = np.abs(c - e).astype(np.float64).reshape(n, -1).max(axis=1)
+    row_ok = ok.reshape(n, -1).all(axis=1)
+    score = np.where(row_ok, 0.0, np.inf)
+    return row_ok, score, err, np.zeros(n)
+
+
+def _float(o, entry, expected, cand, n, dt):
+    e = np.asarray(expected[o], np.float64)
+    tol = np.asarray(expected[f"{o}_tolerance_{dt}"], np.float64)
+    c = np.asarray(cand, np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        err = np.abs(c - e)
+        if entry["metric"] == "ulps":
+            err = err / ulp(e, dt)
+    finite = np.isfinite(c)
+    rng = entry.get("value_range")
+    inside = np.ones(c.shape, bool) if rng is None else (c >= rng[0]) & (c <= rng[1])
+    gated = np.isfinite(tol)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(gated, err / np.where(gated, tol, 1), 0.0)  # tolerances are > 0 (floor)
+    ok = finite & np.where(gated, err <= tol, inside)
+    ratio = np.where(~finite | (~gated & ~inside), np.inf, ratio)
+    flat = lambda x: x.reshape(n, -1)  # noqa: E731
+    k = np.argmax(flat(ratio), axis=1)
+    rows = np.arange(n)
+    return (flat(ok).all(axis=1), flat(ratio).max(axis=1), flat(err)[rows, k], flat(tol)[rows, k])
+
+
+def compare(entry, expected, candidate, port_dtype=None, case=""):
+    """Judge a port's outputs on one golden case; see the module docstring.
+
+    Parameters
+    ----------
+    entry : dict
+        The case's manifest entry.
+    expected : mapping of str to array
+        The arrays of the case's golden file.
+    candidate : mapping of str to array
+        The port's outputs by name (each with the expected shape).
+    port_dtype : {"float32", "float64"}, optional
+        The port's precision (which tolerance column applies); default the case's.
+    case : str
+        The case name, for messages.
+
+    Returns
+    -------
+    Verdict
+    """
+    dt = port_precision(entry, port_dtype)
+    check_dtypes(entry, candidate, dt, prefix=f"{case}." if case else "")
+    n = len(expected["result"])
+    acceptable_rows = np.asarray(expected["result"]) == "acceptable"
+    row_pass = np.ones(n, bool)
+    score = np.zeros(n)
+    outputs = {}
+    for o in entry["compare"]:
+        cand = np.asarray(candidate[o])
+        want = np.asarray(expected[o]).shape
+        if cand.shape != want:
+            raise InputError(f"results: {case + '.' if case else ''}{o!r} has shape {cand.shape}, expected {want}")
+        if entry["metric"] == "exact":
+            ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows)
+            gated = int((~acceptable_rows).sum())
+        else:
+            ok, s, err, tol = _float(o, entry, expected, cand, n, dt)
+            gated = int((~acceptable_rows & np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1))
+                         .all(axis=1)).sum())
+        row_pass &= ok
+        score = np.maximum(score, s)
+        w = int(np.argmax(s)) if n else 0
+        outputs[o] = OutputSummary(o, entry["metric"], n, gated, int((~ok).sum()), w, float(s[w]) if n else 0.0,
+                                   float(err[w]) if n else 0.0, float(tol[w]) if n else 0.0)
+    return Verdict(case, dt, row_pass, score, outputs)

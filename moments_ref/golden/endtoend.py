@@ -1,0 +1,115 @@
+"""End-to-end golden cases: a port's whole chain, compared where a user sees it.
+
+Texel codes are not a stable thing to compare (Φ is ill-conditioned on nearly
+singular moments: two correct implementations agreeing to 2e-7 in the moments can
+store different codes), so these cases compare *shadow intensities*:
+
+* ``e2e-nlq64-*``, ``e2e-nlq32-*``: filtered moments b and a fragment depth zf ->
+  ``bias_moments(b, BIAS_FLOAT32)`` -> Φ (Algorithm 2) -> pack64 / pack32 ->
+  unpack -> Algorithm 3;
+* ``e2e-msm64-*``: b, zf -> ``encode_unorm16`` -> ``decode_unorm16`` ->
+  ``bias_moments(·, BIAS_UNORM16)`` -> Algorithm 1 (the 64-bit affine MSM);
+* ``e2e-block-nlq64-*``, ``e2e-block-nlq32-*``: one row is a 40×32 block of 4×
+  MSAA depth samples (``depth`` (n, 32, 40, 4), the 32×24 texels of HPG17 §4.1 with
+  a guard band of 4 on each side) and ``zf`` (n, 24, 32) -> MSAA resolve of
+  b(z) -> 9² Gaussian blur (σ = 2.4) -> crop the guard band -> the NLQ chain
+  above, so a compute-shader port of HPG17 §4.1 is checked as a whole.
+
+The expected value is the same chain evaluated in float64 (quantization has no
+exact "truth"); per-row tolerances come from the spread of the float32 chain and
+of perturbed inputs (:mod:`moments_ref.golden.spread`), so a row whose code flips
+between legitimate implementations carries the resulting intensity difference.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..filtering import blur, resolve_moments
+from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
+from ._rows import Rows, _msm_rows
+
+__all__ = ["case_specs", "BLOCK", "GUARD"]
+
+#: HPG17 §4.1: a thread group filters 32×24 texels from a 40×32 block (guard band 4).
+BLOCK = (32, 40)
+GUARD = 4
+
+
+def _nlq(fmt):
+    def chain(b, zf):
+        from ..nonlinear import phi, shade
+        from ..packing import pack32, pack64, unpack32, unpack64
+
+        dt = np.asarray(b).dtype
+        r = phi(bias_moments(b, BIAS_FLOAT32))
+        r = unpack64(pack64(r), dtype=dt) if fmt == "64" else unpack32(pack32(r), dtype=dt)
+        return (shade(r, zf),)
+
+    return chain
+
+
+def _msm64(b, zf):
+    from ..affine import decode_unorm16, encode_unorm16
+    from ..msm import shadow_intensity
+
+    dt = np.asarray(b).dtype
+    bq = bias_moments(decode_unorm16(encode_unorm16(b), dtype=dt), BIAS_UNORM16)
+    return (shadow_intensity(bq, zf),)
+
+
+def _block(fmt):
+    inner = _nlq(fmt)
+
+    def chain(depth, zf):
+        dt = np.asarray(depth).dtype
+        g = GUARD
+        out = np.empty(zf.shape, dtype=dt)
+        for i in range(len(depth)):  # one block per row (loop over blocks, not texels)
+            b = blur(resolve_moments(depth[i]))[g:-g, g:-g].astype(dt)
+            out[i] = inner(b, zf[i])[0]
+        return (out,)
+
+    return chain
+
+
+def _block_rows(rng, dtype):
+    h, w = BLOCK
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    blocks, comments = [], []
+    plane = -0.2 + 0.01 * x + 0.004 * y
+    step = np.where(x + 0.5 * y > 24, plane - 0.5, plane)  # an occluder edge crossing the block
+    jitter = rng.uniform(-1, 1, (h, w, 4)) * 2e-3
+    blocks.append(np.clip(step[..., None] + jitter, -1, 1))
+    comments.append("tilted receiver with an occluder edge, 4 jittered samples per texel")
+    blocks.append(rng.uniform(-1, 1, (h, w, 4)))
+    comments.append("independent uniform depths (foliage-like), 4 samples per texel")
+    blocks.append(np.clip(0.3 + rng.uniform(-1, 1, (h, w, 4)) * 1e-5, -1, 1))
+    comments.append("nearly constant depth 0.3 (variance near zero: Φ ill-conditioned)")
+    blocks.append(np.where(rng.uniform(0, 1, (h, w, 4)) < 0.5, -0.9, 0.95))
+    comments.append("two layers at -0.9 and 0.95 mixed per sample (strong light-leaking setup)")
+    depth = np.stack(blocks)
+    g = GUARD
+    mean = depth.mean(axis=-1)[:, g:-g, g:-g]
+    zf = np.clip(mean + rng.choice([-0.05, 0.002, 0.05, 0.3], mean.shape), -1, 1)
+    return Rows({"depth": depth, "zf": zf}, ["random", "random", "stiff", "stiff"], comments)
+
+
+def case_specs(dt):
+    """Keyword dicts for :class:`moments_ref.golden.cases.Case`, one per end-to-end case."""
+    chain = ("filtered moments b -> bias_moments(BIAS_FLOAT32) -> phi -> pack{0} -> unpack{0} -> shade "
+             "(HPG17 Alg. 2, §3.3/§3.5, Alg. 3); compared as shadow intensities")
+    specs = [dict(name=f"e2e-nlq{f}-{dt}", function=f"endtoend.nlq{f}", dtype=dt, inputs=("b", "zf"),
+                  outputs=("intensity",), rows=_msm_rows, reference=_nlq(f), truth=None,
+                  description=chain.format(f), value_range=(0, 1)) for f in ("64", "32")]
+    specs.append(dict(name=f"e2e-msm64-{dt}", function="endtoend.msm64", dtype=dt, inputs=("b", "zf"),
+                      outputs=("intensity",), rows=_msm_rows, reference=_msm64, truth=None, value_range=(0, 1),
+                      description="filtered moments b -> encode_unorm16 -> decode_unorm16 -> "
+                                  "bias_moments(BIAS_UNORM16) -> Algorithm 1; compared as shadow intensities"))
+    for f in ("64", "32"):
+        specs.append(dict(
+            name=f"e2e-block-nlq{f}-{dt}", function=f"endtoend.block_nlq{f}", dtype=dt, inputs=("depth", "zf"),
+            outputs=("intensity",), rows=_block_rows, reference=_block(f), truth=None, value_range=(0, 1),
+            description="40×32 block of 4× MSAA depths (HPG17 §4.1, guard band 4) -> resolve b(z) -> "
+                        f"9² Gaussian blur (sigma 2.4) -> crop to 32×24 -> " + chain.format(f)))
+    return specs

@@ -1,0 +1,259 @@
+"""Per-row tolerances from the measured spread of legitimate implementations.
+
+For every row, the expected value (mpmath twin, else float64 reference) is compared
+with *legitimate* evaluations of the same equation:
+
+* this reference run in the port's precision (float32 emulates a GPU) and in float64;
+* the same with every float input scaled by ``1 ± PERTURB_ULPS`` ulps of the port's
+  precision (jointly, so exact equalities such as ``zf = y1`` survive): a backward
+  error of that size is what operations up to 3 ulps off (GLSL/HLSL division and
+  square root, fused multiply-add, rearranged formulas) produce.
+
+The tolerance of a row (per output component) is ``SAFETY`` times the largest
+deviation among them, and never below a floor of ``FLOOR_ULPS`` ulps of the expected
+value in the port's precision: a floor measured in ulps never exceeds the effect of
+a function that changes its input by a few ulps (biasing). Metric ``"abs"``
+tolerances are absolute, ``"ulps"`` tolerances count units in the last place of the
+port's precision. Rows whose value is undefined (flags in
+:data:`moments_ref.golden.notes.UNGATED`) get an infinite tolerance and result
+``acceptable``.
+
+Integer outputs are exact. A row whose code differs between the reference in float32,
+in float64 and on inputs nudged by ``8 eps(float32)`` sits on a rounding tie: the
+codes seen are stored as the row's acceptable set, the row is ``acceptable`` and
+carries the flag ``rounding_tie``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .cases import evaluate_reference, expected_outputs
+from .notes import UNGATED, UNGATED32
+
+__all__ = ["derive", "gated_summary", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS", "STRUCTURED", "ulp",
+           "PORT_DTYPES"]
+
+SAFETY = 16.0
+FLOOR_ULPS = 4
+PERTURB_ULPS = 3
+#: Component-wise perturbation: one ulp, the rounding of one operation on an input.
+INDEPENDENT_ULPS = 1
+PORT_DTYPES = ("float32", "float64")
+_NUDGE = 8 * float(np.finfo(np.float32).eps)
+_WIDE = 0.1
+
+
+def ulp(x, dtype):
+    """Spacing of ``dtype`` at ``|x|`` (float64 array; at least the smallest normal's spacing)."""
+    fi = np.finfo(dtype)
+    x = np.abs(np.asarray(x, np.float64))
+    with np.errstate(over="ignore"):
+        return np.spacing(np.maximum(x, fi.tiny).astype(dtype)).astype(np.float64)
+
+
+def _scaled(case, inputs, factor):
+    """Float inputs times ``factor`` (a number, or per input an array broadcasting to it)."""
+    out = {}
+    for k, v in inputs.items():
+        if k in case.integer_inputs:
+            out[k] = v
+            continue
+        v = np.asarray(v, np.float64)
+        f = factor[k] if isinstance(factor, dict) else factor
+        # Values stay in [-1, 1] if they were (depths, weights, Ψ4 codes).
+        out[k] = np.where((np.abs(v * f) > 1) & (np.abs(v) <= 1), v, v * f)
+    return out
+
+
+def _independent(case, inputs, eps, sign, free):
+    """Per-component factors ``1 ± INDEPENDENT_ULPS eps`` (alternating signs) on the ``free`` rows."""
+    factors, offset = {}, 0
+    for k, v in inputs.items():
+        if k in case.integer_inputs:
+            continue
+        v = np.asarray(v)
+        m = int(np.prod(v.shape[1:], dtype=np.int64))
+        s = np.where((np.arange(m) + offset) % 2 == 0, sign, -sign).reshape(v.shape[1:])
+        offset += m
+        f = 1 + INDEPENDENT_ULPS * eps * s[None] * free.reshape((-1,) + (1,) * (v.ndim - 1))
+        factors[k] = f
+    return factors
+
+
+def _variants(case, inputs, dt, free):
+    """Outputs of legitimate evaluations for a port of precision ``dt``.
+
+    ``free``: rows whose inputs may be perturbed component by component (rows with
+    exact equalities between inputs, such as zf = y1, are only scaled jointly).
+    """
+    eps = float(np.finfo(dt).eps)
+    found = [evaluate_reference(case, inputs, dt), evaluate_reference(case, inputs, np.float64)]
+    if case.perturb and any(k not in case.integer_inputs for k in inputs):
+        for f in (1 + PERTURB_ULPS * eps, 1 - PERTURB_ULPS * eps):
+            found.append(evaluate_reference(case, _scaled(case, inputs, f), dt))
+        if free.any():
+            for sign in (1, -1):
+                found.append(evaluate_reference(case, _scaled(case, inputs, _independent(
+                    case, inputs, eps, sign, free)), dt))
+    if case.spread_hook is not None:
+        found += case.spread_hook(inputs, np.dtype(dt))
+    return found
+
+
+def _ceil2(t):
+    """Round a tolerance array up to two significant digits (reads well, stays above)."""
+    t = np.asarray(t, np.float64)
+    out = t.copy()
+    ok = np.isfinite(t) & (t > 1e-290)
+    e = np.floor(np.log10(t[ok])) - 1
+    out[ok] = np.ceil(t[ok] / 10**e * (1 - 1e-12)) * 10**e
+    return out
+
+
+#: Rows whose meaning rests on exact relations between inputs: perturbed only jointly.
+STRUCTURED = ("support_point", "fold", "code_boundary", "singular_hankel")
+
+
+def _equal_inputs(case, inputs, n):
+    """Rows where two nonzero float inputs are exactly equal (zf = y1, y1 = y2, ...)."""
+    cols = [np.asarray(v, np.float64).reshape(n, -1) for k, v in inputs.items() if k not in case.integer_inputs]
+    if not cols:
+        return np.zeros(n, bool)
+    x = np.sort(np.abs(np.concatenate(cols, axis=1)), axis=1)
+    if x.shape[1] < 2:
+        return np.zeros(n, bool)
+    return np.any((np.diff(x, axis=1) == 0) & (x[:, 1:] != 0) & (x[:, 1:] != 1), axis=1)
+
+
+def _float_tolerances(case, inputs, expected, n, flags, category):
+    """``{output: {port dtype: tolerance array (output's shape)}}``."""
+    random_rows = np.asarray(category) == "random"
+    if not random_rows.any():
+        random_rows = np.ones(n, bool)
+    tol = {o: {} for o in case.outputs}
+    free = np.array([not any(f in STRUCTURED for f in fl) for fl in flags], bool) & ~_equal_inputs(case, inputs, n)
+    for dt in PORT_DTYPES:
+        variants = _variants(case, inputs, np.dtype(dt), free)
+        for i, o in enumerate(case.outputs):
+            e = np.asarray(expected[i], np.float64)
+            dev = np.zeros(e.shape)
+            for v in variants:
+                with np.errstate(invalid="ignore"):
+                    d = np.abs(np.asarray(v[i], np.float64) - e)
+                dev = np.maximum(dev, np.where(np.isnan(d), np.inf, d))
+            u = ulp(e, dt)
+            if case.metric == "ulps":
+                t = np.ceil(np.maximum(SAFETY * dev / u, FLOOR_ULPS))
+            else:
+                # Floor: FLOOR_ULPS ulps of max(|value|, scale): of 1 for O(1) quantities.
+                scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
+                # Case floor: the typical rounding noise of the equation (90th percentile of the
+                # deviations over the case's rows), which a legitimate port's own rounding reaches.
+                finite = dev[random_rows]
+                finite = finite[np.isfinite(finite)]
+                noise = float(np.quantile(finite, 0.9)) if finite.size else 0.0
+                t = _ceil2(np.maximum(SAFETY * np.maximum(dev, noise),
+                                      FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)))
+            tol[o][dt] = t
+    return tol
+
+
+def _ties(case, inputs, expected, n, category, comment, flags):
+    """Acceptable code sets of integer outputs: ``{output: (n, K, ...) array}``."""
+    variants = [evaluate_reference(case, inputs, np.float64), evaluate_reference(case, inputs, np.float32)]
+    for f in (1 + _NUDGE, 1 - _NUDGE):
+        nudged = {}
+        for k, v in inputs.items():
+            v = np.asarray(v, np.float64)
+            # Values stay in [-1, 1] if they were (every input domain here is inside it).
+            nudged[k] = np.where((np.abs(v * f) > 1) & (np.abs(v) <= 1), v, v * f)
+        variants.append(evaluate_reference(case, nudged, np.float64))
+    acceptable = {}
+    tie = np.zeros(n, bool)
+    for i, o in enumerate(case.outputs):
+        e = np.asarray(expected[i])
+        alts = [e] + [np.asarray(v[i]).astype(e.dtype) for v in variants]
+        stack = np.stack(alts, axis=1)  # (n, K, ...)
+        tie |= np.any((stack != e[:, None]).reshape(n, -1), axis=1)
+        acceptable[o] = stack
+    for r in np.flatnonzero(tie):
+        flags[r] = tuple(flags[r]) + ("rounding_tie",)
+        if category[r] != "stiff":
+            category[r] = "stiff"
+            comment[r] = comment[r] + " [on a rounding boundary: the code changes within float32 rounding of the inputs]"
+    return acceptable, tie
+
+
+def derive(case, inputs, category, comment, flags):
+    """Expected outputs, per-row tolerances, flags and results for rows of ``case``.
+
+    Returns
+    -------
+    arrays : dict
+        ``<output>`` (expected), for float outputs ``<output>_tolerance_<port dtype>``
+        (output's shape) and for float32 cases ``<output>_float32`` (the
+        reference's own float32 result, informational); for integer outputs
+        ``<output>_acceptable`` ``(n, K, ...)``; ``tc_id``, ``category``,
+        ``comment``, ``flags`` (comma-separated names), ``result``.
+    """
+    n = len(category)
+    category = np.asarray(category).astype("U6").copy()
+    comment = list(comment)
+    flags = [tuple(f) for f in flags]
+    expected = expected_outputs(case, inputs)
+    arrays = {}
+    ungated = np.array([any(f in UNGATED for f in fl) for fl in flags], bool)
+    ungated32 = np.array([any(f in UNGATED32 for f in fl) for fl in flags], bool)
+    result = np.where(ungated, "acceptable", "valid").astype("U10")
+    if case.integer_output:
+        acceptable, tie = _ties(case, inputs, expected, n, category, comment, flags)
+        for i, o in enumerate(case.outputs):
+            arrays[o] = np.asarray(expected[i])
+            arrays[f"{o}_acceptable"] = acceptable[o]
+        result = np.where(tie, "acceptable", result).astype("U10")
+    else:
+        tol = _float_tolerances(case, inputs, expected, n, flags, category)
+        ref = evaluate_reference(case, inputs, case.dtype) if case.dtype == "float32" else None
+        for i, o in enumerate(case.outputs):
+            arrays[o] = np.asarray(expected[i], np.float64)
+            for dt in PORT_DTYPES:
+                t = tol[o][dt]
+                t[ungated] = np.inf
+                if dt == "float32":
+                    t[ungated32] = np.inf
+                arrays[f"{o}_tolerance_{dt}"] = t
+            if ref is not None:
+                arrays[f"{o}_float32"] = np.asarray(ref[i])
+            if case.metric == "abs":
+                wide = np.asarray(tol[o]["float32"]).reshape(n, -1).max(axis=1) >= _WIDE
+                for r in np.flatnonzero(wide & ~ungated):
+                    flags[r] = flags[r] + ("wide_spread",)
+    arrays["tc_id"] = np.arange(1, n + 1, dtype=np.int32)
+    arrays["category"] = category
+    arrays["comment"] = np.asarray(comment).astype(f"U{max(1, max(len(c) for c in comment))}")
+    joined = [",".join(dict.fromkeys(f)) for f in flags]
+    arrays["flags"] = np.asarray(joined).astype(f"U{max(1, max(len(f) for f in joined))}")
+    arrays["result"] = result
+    return arrays
+
+
+def gated_summary(case, arrays):
+    """Per port dtype: rows gated (finite tolerance, result valid), and rows gated below 0.1 (abs metric)."""
+    n = len(arrays["category"])
+    valid = arrays["result"] == "valid"
+    out = {"rows": int(n)}
+    for dt in PORT_DTYPES:
+        if case.integer_output:
+            out[dt] = {"gated": int(valid.sum()), "exact": int(valid.sum())}
+            continue
+        t = np.max([arrays[f"{o}_tolerance_{dt}"].reshape(n, -1).max(axis=1) for o in case.outputs], axis=0)
+        entry = {"gated": int((valid & np.isfinite(t)).sum())}
+        if case.metric == "abs":
+            entry["gated_below_0.1"] = int((valid & (t < _WIDE)).sum())
+        tmax = t[np.isfinite(t)]
+        entry["median_tolerance"] = float(np.median(tmax)) if tmax.size else math.inf
+        out[dt] = entry
+    return out

@@ -1,0 +1,131 @@
+"""Write the golden vectors: one ``.npz`` per case and ``manifest.json``.
+
+Deterministic: the same version writes the same bytes (seeded rows, deterministic
+zip entries, sorted JSON). Every file is written atomically (temporary file, fsync,
+rename), so an interrupted run never leaves a half-written file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from .._arrays import InputError
+from .._io import save_npz, write_text
+from .cases import CASES, case_table
+from .notes import NOTES, RESULTS
+from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, derive, gated_summary, ulp
+
+__all__ = ["write", "SCHEMA_VERSION", "CATEGORIES", "golden_arrays", "manifest_entry"]
+
+SCHEMA_VERSION = 2
+CATEGORIES = ("random", "stiff", "edge")
+
+
+def golden_arrays(case):
+    """All arrays of ``case``'s golden file (inputs, expected outputs, tolerances, row labels)."""
+    inputs, category, comment, flags = case_table(case)
+    arrays = dict(inputs)
+    arrays.update(derive(case, inputs, category, comment, flags))
+    return arrays
+
+
+def _legacy_tolerances(case, arrays):
+    """Per category, the largest finite absolute tolerance (a summary; the gate is per row)."""
+    out = {}
+    cat = arrays["category"]
+    n = len(cat)
+    for dt in ("float32", "float64"):
+        out[dt] = {}
+        for c in CATEGORIES:
+            sel = cat == c
+            if case.integer_output or not sel.any():
+                out[dt][c] = 0.0 if case.integer_output else 1e-6
+                continue
+            worst = 0.0
+            for o in case.outputs:
+                t = arrays[f"{o}_tolerance_{dt}"]
+                if case.metric == "ulps":
+                    t = t * ulp(arrays[o], dt)
+                t = t.reshape(n, -1)[sel]
+                t = t[np.isfinite(t)]
+                worst = max(worst, float(t.max()) if t.size else 0.0)
+            out[dt][c] = min(worst, 1.0) if worst > 0 else 1e-6
+    return out
+
+
+def manifest_entry(case, arrays, data=None):
+    """The manifest entry of ``case`` (``data``: the file's bytes, for size and sha256)."""
+    n = len(arrays["category"])
+    entry = {
+        "file": f"{case.name}.npz",
+        "function": f"moments_ref.{case.function}",
+        "kwargs": case.kwargs,
+        "description": case.description,
+        "dtype": case.dtype,
+        "input_order": list(case.inputs),
+        "inputs": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.inputs},
+        "outputs": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.outputs},
+        "compare": list(case.outputs),
+        "metric": case.metric,
+        "value_range": list(case.value_range) if case.value_range else None,
+        "exact": bool(case.integer_output),
+        "count": int(n),
+        "categories": {c: int((arrays["category"] == c).sum()) for c in CATEGORIES},
+        "results": {r: int((arrays["result"] == r).sum()) for r in RESULTS},
+        "gated": gated_summary(case, arrays),
+        "tolerances": _legacy_tolerances(case, arrays),
+    }
+    if data is not None:
+        entry["sha256"] = hashlib.sha256(data).hexdigest()
+        entry["size"] = len(data)
+    return entry
+
+
+def write(out_dir, cases=None, progress=None):
+    """Write the golden vectors and ``manifest.json`` to ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : path
+        Target folder (created). Every file is written atomically.
+    cases : iterable of str, optional
+        Case names (default: all of :data:`CASES`).
+    progress : callable, optional
+        Called with each case name as it is written (the CLI's progress bar).
+
+    Returns
+    -------
+    manifest : dict
+    """
+    out_dir = Path(out_dir)
+    names = list(CASES) if cases is None else list(cases)
+    unknown = [n for n in names if n not in CASES]
+    if unknown:
+        raise InputError(f"cases: unknown case {unknown[0]!r}; known: {', '.join(CASES)}")
+    manifest = {
+        "schema_version": SCHEMA_VERSION,
+        "package": "moments_ref",
+        "package_version": __version__,
+        "numpy_version": np.__version__,
+        "tolerance_rule": f"per row and output component: {SAFETY:g} x the largest deviation of legitimate "
+                          f"implementations (reference in float32 and float64, inputs scaled by 1 +- "
+                          f"{PERTURB_ULPS} ulps), at least {FLOOR_ULPS} ulps; metric per case (abs or ulps); "
+                          "integer outputs exact, ties accept the stored acceptable codes",
+        "notes": NOTES,
+        "results": RESULTS,
+        "cases": {},
+    }
+    for name in names:
+        case = CASES[name]
+        arrays = golden_arrays(case)
+        data = save_npz(out_dir / f"{name}.npz", arrays)
+        manifest["cases"][name] = manifest_entry(case, arrays, data)
+        if progress is not None:
+            progress(name)
+    write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    return manifest

@@ -1,0 +1,240 @@
+"""The mutant corpus: one-change mutants of the independent ports in ``ports.py``.
+
+``kind`` is ``bug`` (a mistake porters make: the oracle must kill it),
+``legit`` (a legitimate implementation choice: it must pass) or ``equivalent``
+(a change that cannot alter any output: shown so by :func:`fuzz_equivalent`, an
+exhaustive or fuzzed bitwise comparison with the unchanged port, not assumed).
+
+``moments-ref mutants --corpus tests/mutants`` prints the table; the suite
+(tests/test_mutants.py) asserts the score.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+try:  # imported as a package (tests) or by path (moments-ref mutants)
+    from . import ports
+except ImportError:  # pragma: no cover
+    import ports  # type: ignore
+
+#: Golden cases (float32) each port is checked on.
+PORT_CASES = {
+    "alg1": ["shadow_intensity-lower-float32", "shadow_intensity-upper-float32"],
+    "bias": ["bias_moments-float32-float32", "bias_moments-unorm16-float32"],
+    "alg3": ["shade-float32"],
+    "psi4": ["psi4-float32"],
+    "psi4_inverse": ["psi4_inverse-float32"],
+    "pack64": ["pack64-float32", "reencode64-float32"],
+    "unpack64": ["unpack64-float32"],
+    "pack32": ["pack32-float32", "reencode32-float32"],
+    "unpack32": ["unpack32-float32"],
+    "msm6": ["shadow_intensity6-lower-float32", "shadow_intensity6-upper-float32"],
+}
+
+
+def run_port(port, case, inputs, kwargs, m):
+    """Outputs ``{name: array}`` of ``port`` with mutation ``m`` on a case's inputs."""
+    if port == "alg1":
+        return {"intensity": ports.alg1(inputs["b"], inputs["zf"], m, bound=kwargs["bound"])}
+    if port == "msm6":
+        return {"intensity": ports.msm6(inputs["b"], inputs["zf"], m, bound=kwargs["bound"])}
+    if port == "bias":
+        p = kwargs["preset"]
+        return {"b_biased": ports.bias(inputs["b"], p["alpha"], p["target"], m)}
+    if port == "alg3":
+        return {"intensity": ports.alg3(inputs["r"], inputs["zf"], m)}
+    if port == "psi4":
+        return {"u": ports.psi4(inputs["xi4"], m)}
+    if port == "psi4_inverse":
+        return {"xi4": ports.psi4_inverse(inputs["u"], m)}
+    if port in ("pack64", "pack32"):
+        key = "q" if port == "pack64" else "p"
+        return {key: getattr(ports, port)(inputs["r"], m)}
+    if port == "unpack64":
+        return {"r": ports.unpack64(inputs["q"], m)}
+    if port == "unpack32":
+        return {"r": ports.unpack32(inputs["p"], m)}
+    raise KeyError(port)
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    kind: str  # "bug", "legit", "equivalent"
+    port: str
+    change: dict
+    why: str
+    cases: tuple = field(default=())
+
+    def case_names(self):
+        return list(self.cases) or PORT_CASES[self.port]
+
+    def run(self, case, inputs, kwargs):
+        return run_port(self.port, case, inputs, kwargs, dict(self.change))
+
+
+def _m(name, kind, port, change, why, cases=()):
+    return Mutant(name, kind, port, change, why, tuple(cases))
+
+
+_LEGIT_ARITH = [("fma", {"fma": True}, "fused multiply-add"), ("f64", {"f64": True}, "float64 arithmetic"),
+                ("div+3", {"div_ulps": 3}, "every division 3 ulps high"),
+                ("div-3", {"div_ulps": -3}, "every division 3 ulps low"),
+                ("sqrt+3", {"sqrt_ulps": 3}, "square roots 3 ulps high")]
+
+MUTANTS = [
+    _m("port-alg1", "legit", "alg1", {}, "the port as written from HPG17 Algorithm 1"),
+    *[_m(f"alg1-{n}", "legit", "alg1", c, w) for n, c, w in _LEGIT_ARITH],
+    _m("alg1-recip", "legit", "alg1", {"recip": True}, "p, q by one reciprocal of c2 and two products"),
+    _m("alg1-sum-weights", "legit", "alg1", {"sum_weights": True}, "lower bound as w1 + w2 instead of 1 - w0"),
+    _m("alg1-swap-bound", "bug", "alg1", {"swap_bound": True}, "upper bound returned for the lower and vice versa"),
+    _m("alg1-no-singular", "bug", "alg1", {"no_singular": True},
+       "no singular branch: divides by zero on singular B(b), saturate turns NaN into 0"),
+    _m("alg1-literal-root", "bug", "alg1", {"literal_root": True},
+       "roots as -p/2 ∓ sqrt(p²/4 - q) literally (cancels at the bias floor)"),
+    _m("alg1-swap-roots", "bug", "alg1", {"swap_roots": True}, "z1 and z2 swapped (z1 > z2)"),
+    _m("alg1-d22-sign", "bug", "alg1", {"d22_sign": True}, "D22 = b2 + b1² (sign error)"),
+    _m("alg1-no-l32", "bug", "alg1", {"no_l32": True}, "forward substitution forgets L32 c1"),
+    _m("alg1-quarter", "bug", "alg1", {"quarter": True}, "discriminant p²/2 - q instead of p²/4 - q"),
+    _m("alg1-le", "bug", "alg1", {"le": True}, "z_l <= zf in the lower bound (strict < expected)"),
+    _m("alg1-half", "bug", "alg1", {"half": True}, "moments read as float16"),
+    _m("alg1-depth01", "bug", "alg1", {"depth01": True}, "fragment depth mapped to [0, 1] (the papers use [-1, 1])"),
+    _m("alg1-bias-inside", "bug", "alg1", {"bias_inside": True}, "biases inside Algorithm 1 although the caller did"),
+
+    _m("port-bias", "legit", "bias", {}, "the port as written from HPG17 §3.2"),
+    _m("bias-rearranged", "legit", "bias", {"rearranged": True}, "b + alpha (b* - b)"),
+    _m("bias-fma", "legit", "bias", {"fma": True}, "fused multiply-add"),
+    _m("bias-f64", "legit", "bias", {"f64": True}, "float64 arithmetic"),
+    _m("bias-missing", "bug", "bias", {"missing": True}, "biasing left out"),
+    _m("bias-target-0628", "bug", "bias", {"target": [0.0, 0.628, 0.0, 0.628]},
+       "float32 preset with the 16-bit target 0.628", ["bias_moments-float32-float32"]),
+    _m("bias-target-0375", "bug", "bias", {"target": [0.0, 0.375, 0.0, 0.375]},
+       "16-bit preset with the float32 target 0.375", ["bias_moments-unorm16-float32"]),
+    _m("bias-alpha-6e-5", "bug", "bias", {"alpha": 6e-5}, "alpha of the 16-bit preset for float32 moments",
+       ["bias_moments-float32-float32"]),
+    _m("bias-sign", "bug", "bias", {"sign": True}, "(1 + alpha) b - alpha b*"),
+    _m("bias-odd-target", "bug", "bias", {"target": [0.375, 0.0, 0.375, 0.0]}, "target shifted by one moment"),
+    _m("bias-neg-zero-target", "equivalent", "bias", {"target": [-0.0, 0.375, -0.0, 0.375]},
+       "target with -0 in the odd moments", ["bias_moments-float32-float32"]),
+
+    _m("port-alg3", "legit", "alg3", {}, "the port as written from HPG17 Algorithm 3 and §3.4"),
+    *[_m(f"alg3-{n}", "legit", "alg3", c, w) for n, c, w in _LEGIT_ARITH],
+    _m("alg3-gap-pow", "legit", "alg3", {"gap_pow": True}, "(y2 - y1)^4 as four products instead of two squares"),
+    _m("alg3-literal-root", "bug", "alg3", {"literal_root": True},
+       "z_l = -q1/2 - sqrt(q1²/4 - q0) literally (cancels for q1 << 0)"),
+    _m("alg3-no-v2-clamp", "bug", "alg3", {"no_v2_clamp": True}, "v2 not clamped to [1e-6, 1 - 1e-6]"),
+    _m("alg3-no-upper-v2-clamp", "bug", "alg3", {"no_upper_v2_clamp": True}, "v2 clamped below only"),
+    _m("alg3-no-gap-clamp", "bug", "alg3", {"no_gap_clamp": True}, "y2 - y1 not clamped to 1e-6"),
+    _m("alg3-clamp-1e-5", "bug", "alg3", {"clamp": 1e-5}, "clamp constant 1e-5 instead of 1e-6"),
+    _m("alg3-xi-times", "bug", "alg3", {"xi_times": True}, "xi'4 (1 - z)² z² instead of xi'4⁻¹ (the misprint)"),
+    _m("alg3-gap-cubed", "bug", "alg3", {"gap_cubed": True}, "xi'4 = xi4 / (y2 - y1)³"),
+    _m("alg3-no-early-return", "bug", "alg3", {"no_early_return": True}, "no 'return 0 if zf <= y1'"),
+    _m("alg3-lt-y2", "bug", "alg3", {"lt_y2": True}, "case test zf < y2 instead of zf <= y2"),
+    _m("alg3-half", "bug", "alg3", {"half": True}, "z'f in float16"),
+    _m("alg3-depth01", "bug", "alg3", {"depth01": True}, "fragment depth mapped to [0, 1]"),
+    _m("alg3-swap-weights", "bug", "alg3", {"swap_weights": True}, "(1 - v2) and v2 swapped in w_l"),
+
+    _m("port-psi4", "legit", "psi4", {}, "the port as written from HPG17 §3.3"),
+    _m("psi4-const32", "legit", "psi4", {"const32": True}, "constants from float32 end points"),
+    _m("psi4-f64", "legit", "psi4", {"f64": True}, "float64 arithmetic"),
+    _m("psi4-log-sum", "legit", "psi4", {"log_sum": True}, "ln(xi·1e7) as ln xi + ln 1e7"),
+    _m("psi4-clamp-1e-7", "equivalent", "psi4", {"clamp": 1e-7},
+       "xi4 clamped at 1e-7 instead of 1.2e-7: Psi4 < 0 below 1.2e-7 and the output is clipped to [0, 1]"),
+    _m("psi4-log10", "bug", "psi4", {"log10": True}, "outer logarithm base 10"),
+    _m("psi4-hi-0.5", "bug", "psi4", {"psi_hi": 0.5}, "upper end 0.5 instead of the proved bound 0.25"),
+    _m("psi4-half", "bug", "psi4", {"half": True}, "xi4 in float16"),
+    _m("psi4-clamp-order", "equivalent", "psi4", {"clamp_order": True},
+       "clamp of xi4 as min(max(.)) instead of max(min(.)) (lo < hi, so the order cannot matter)"),
+    _m("port-psi4-inverse", "legit", "psi4_inverse", {}, "the port as written"),
+    _m("psi4-inverse-const32", "legit", "psi4_inverse", {"const32": True}, "constants from float32 end points"),
+    _m("psi4-inverse-f64", "legit", "psi4_inverse", {"f64": True}, "float64 arithmetic"),
+    _m("psi4-inverse-fma", "legit", "psi4_inverse", {"fma": True}, "fused multiply-add"),
+    _m("psi4-inverse-exp-once", "bug", "psi4_inverse", {"exp_once": True}, "one exp instead of two"),
+    _m("psi4-inverse-swap-c", "bug", "psi4_inverse", {"swap_c": True}, "c0 and c1 swapped"),
+    _m("psi4-inverse-lo-1e-7", "bug", "psi4_inverse", {"psi_lo": 1e-7}, "lower end 1e-7 instead of 1.2e-7"),
+
+    _m("port-pack64", "legit", "pack64", {}, "the port as written from HPG17 §3.3"),
+    _m("pack64-f64", "legit", "pack64", {"f64": True}, "float64 arithmetic"),
+    _m("pack64-floor-depth", "bug", "pack64", {"floor_depth": True}, "depths truncated instead of rounded"),
+    _m("pack64-round-xi", "bug", "pack64", {"round_xi": True},
+       "Psi4 code rounded to nearest plus the decode check, not rounded up as the format prescribes"),
+    _m("pack64-no-bump", "bug", "pack64", {"no_bump": True},
+       "no decode check: float rounding can leave the decoded xi4 below the stored one"),
+    _m("pack64-swap-y", "bug", "pack64", {"swap_y": True}, "y1 and y2 channels swapped"),
+    _m("pack64-depth01", "bug", "pack64", {"depth01": True}, "depths stored as if in [0, 1]"),
+    _m("port-unpack64", "legit", "unpack64", {}, "the port as written"),
+    _m("unpack64-f64", "legit", "unpack64", {"f64": True}, "float64 arithmetic"),
+    _m("unpack64-recip", "legit", "unpack64", {"recip": True}, "codes times 1/65535"),
+    _m("unpack64-const32", "legit", "unpack64", {"const32": True}, "Psi4 constants from float32 end points"),
+    _m("unpack64-scale-65536", "bug", "unpack64", {"scale_65536": True}, "codes divided by 65536"),
+    _m("unpack64-y-half", "bug", "unpack64", {"y_half": True}, "y = u - 1 instead of 2u - 1"),
+    _m("unpack64-v2-square", "bug", "unpack64", {"v2_square": True}, "v2 squared as in the 32-bit format"),
+
+    _m("port-pack32", "legit", "pack32", {}, "the port as written from HPG17 §3.5"),
+    _m("pack32-f64", "legit", "pack32", {"f64": True}, "float64 arithmetic"),
+    _m("pack32-fold-511", "bug", "pack32", {"fold_511": True}, "fold at 511 instead of 512 (off by one)"),
+    _m("pack32-fold-1023", "bug", "pack32", {"fold_1023": True}, "folded y2 = 1023 - y2 instead of 1022 - y2"),
+    _m("pack32-round-depth", "bug", "pack32", {"round_depth": True}, "depth cells rounded instead of floored"),
+    _m("pack32-no-clip-1023", "bug", "pack32", {"no_clip_1023": True}, "y = 1 stored as cell 1023"),
+    _m("pack32-v-linear", "bug", "pack32", {"v_linear": True}, "v2 stored instead of sqrt(v2)"),
+    _m("pack32-xi-64", "bug", "pack32", {"xi_64": True}, "Psi4 scaled by 64 instead of 63"),
+    _m("port-unpack32", "legit", "unpack32", {}, "the port as written"),
+    _m("unpack32-f64", "legit", "unpack32", {"f64": True}, "float64 arithmetic"),
+    _m("unpack32-recip", "legit", "unpack32", {"recip": True}, "cell centres times 1/511.5"),
+    _m("unpack32-const32", "legit", "unpack32", {"const32": True},
+       "Psi4⁻¹ slope from float32 end points (1 ulp off)"),
+    _m("unpack32-div+3", "legit", "unpack32", {"div_ulps": 3}, "divisions 3 ulps high"),
+    _m("unpack32-no-unfold", "bug", "unpack32", {"no_unfold": True}, "fold not undone"),
+    _m("unpack32-unfold-le", "bug", "unpack32", {"unfold_le": True}, "unfold if f2 <= f1 (off by one)"),
+    _m("unpack32-corner", "bug", "unpack32", {"corner": True}, "depth at the cell corner, not its centre"),
+    _m("unpack32-xi-no-roundup", "bug", "unpack32", {"xi_no_roundup": True}, "xi4 code read at c/63, not rounded up"),
+    _m("unpack32-v-linear", "bug", "unpack32", {"v_linear": True}, "v2 = c/127 (not squared)"),
+    _m("unpack32-step-511", "bug", "unpack32", {"step_511": True}, "cell width 1/511 instead of 1/511.5"),
+
+    _m("port-msm6", "legit", "msm6", {}, "the port as written from the slides (six moments)"),
+    _m("msm6-f64", "legit", "msm6", {"f64": True}, "float64 arithmetic"),
+    _m("msm6-inverse", "legit", "msm6", {"inverse": True}, "B⁻¹ times the right-hand side instead of a solve"),
+    _m("msm6-swap-bound", "bug", "msm6", {"swap_bound": True}, "upper bound for the lower and vice versa"),
+    _m("msm6-rhs-zf2", "bug", "msm6", {"rhs_zf2": True}, "right-hand side (1, zf, zf², zf²)"),
+    _m("msm6-rhs-sign", "bug", "msm6", {"rhs_sign": True}, "right-hand side (1, -zf, zf², -zf³)"),
+    _m("msm6-hankel-shift", "bug", "msm6", {"hankel_shift": True}, "Hankel matrix shifted by one moment"),
+]
+
+
+def fuzz_equivalent(mutant, n=20000, seed=0):
+    """Largest bitwise difference between an ``equivalent`` mutant and its unchanged port on fuzzed inputs.
+
+    Inputs cover the port's whole domain (and beyond it for clamps); 0 means no
+    output differs in any bit.
+    """
+    rng = np.random.default_rng(seed)
+    if mutant.port == "bias":
+        z = rng.uniform(-1, 1, (n, 4))
+        b = np.stack([z, z**2, z**3, z**4], axis=-1).mean(axis=1).astype(np.float32)
+        kw = {"preset": {"alpha": 3e-7, "target": [0.0, 0.375, 0.0, 0.375]}}
+        inputs = {"b": b}
+    elif mutant.port == "pack64":
+        y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
+        xi = np.concatenate([10 ** rng.uniform(-8, np.log10(0.25), n - 2000), rng.uniform(0, 0.25, 2000)])
+        inputs = {"r": np.column_stack([y, rng.uniform(0, 1, n), xi]).astype(np.float32)}
+        kw = {}
+    elif mutant.port == "psi4":
+        inputs = {"xi4": np.concatenate([rng.uniform(0, 1, n), 10 ** rng.uniform(-9, 0, n)]).astype(np.float32)}
+        kw = {}
+    else:
+        raise KeyError(mutant.port)
+    a = run_port(mutant.port, None, inputs, kw, {})
+    b = mutant.run(None, inputs, kw)
+    if mutant.port == "pack64":
+        # Up to rounding ties: only rows whose code is stable when xi4 moves by 8 float32 ulps count
+        # (the golden accepts either code on a tie, by the same 8-ulp rule).
+        stable = np.ones(n, bool)
+        for f in (1 + 8 * 2.0**-23, 1 - 8 * 2.0**-23):
+            r = inputs["r"].copy()
+            r[:, 3] = (r[:, 3].astype(np.float64) * f).astype(np.float32)
+            stable &= (run_port("pack64", None, {"r": r}, kw, {})["q"] == a["q"]).all(axis=1)
+        return int(np.count_nonzero((a["q"] != b["q"]).any(axis=1) & stable))
+    return max(int(np.count_nonzero(a[k].view(np.uint32) != b[k].view(np.uint32))) for k in a)

@@ -1,0 +1,59 @@
+"""The oracle's power, measured: every bug of the mutant corpus killed, no legitimate variant rejected."""
+
+import pytest
+
+from moments_ref.cli import main
+from moments_ref.golden import mutation
+from mutants import corpus
+
+
+@pytest.fixture(scope="module")
+def results():
+    return mutation.run_corpus(corpus.MUTANTS)
+
+
+def test_corpus_is_large_and_independent():
+    kinds = [m.kind for m in corpus.MUTANTS]
+    assert len(kinds) >= 60 and kinds.count("bug") >= 50 and kinds.count("legit") >= 20
+    assert len({m.name for m in corpus.MUTANTS}) == len(kinds)
+    # The ports do not import the package they port.
+    src = (corpus.__file__.replace("corpus.py", "ports.py"))
+    assert "moments_ref" not in open(src).read()
+
+
+def test_every_bug_is_killed(results):
+    survivors = [r.name for r in results if r.kind == "bug" and not r.killed]
+    assert not survivors, survivors
+
+
+def test_no_false_alarm(results):
+    alarms = [(r.name, r.killed_by, r.error) for r in results if r.kind != "bug" and r.killed]
+    assert not alarms, alarms
+
+
+@pytest.mark.parametrize("name", [m.name for m in corpus.MUTANTS if m.kind == "equivalent"])
+def test_equivalent_mutants_are_shown_equivalent(name):
+    mutant = next(m for m in corpus.MUTANTS if m.name == name)
+    assert corpus.fuzz_equivalent(mutant) == 0
+
+
+def test_cli_prints_the_table(tmp_path, capsys):
+    # A corpus file with the Algorithm 3 mutants (the whole table is asserted above, not re-run here).
+    (tmp_path / "corpus.py").write_text("from mutants.corpus import MUTANTS as _ALL\n"
+                                        "MUTANTS = [m for m in _ALL if m.port == 'alg3']\n")
+    assert main(["mutants", "--corpus", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "| alg3-literal-root | bug | killed | shade-float32:" in out
+    assert "bugs killed 12/12, legitimate variants passing 7/7" in out and "(WRONG)" not in out
+
+
+def test_table_of_the_default_corpus_is_right(results):
+    text = mutation.format_table(results)
+    assert "(WRONG)" not in text
+    s = mutation.score(results)
+    assert s["bugs_killed"] == s["bugs"] and s["legit_passing"] == s["legit"]
+
+
+def test_cli_refuses_a_missing_corpus(tmp_path, capsys):
+    assert main(["mutants", "--corpus", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
