@@ -63,7 +63,8 @@ def get_context():
 
 def renderer(ctx):
     """``'llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 (Core Profile) Mesa 22.3.6'``."""
-    info = ctx.info
+    with ctx:  # wgpu's OpenGL adapter may have made its own context current
+        info = ctx.info
     return f"{info.get('GL_RENDERER', '?')}, OpenGL {info.get('GL_VERSION', '?')}"
 
 

@@ -4,7 +4,7 @@
 language   Vulkan (wgpu; lavapipe without a GPU)            OpenGL (EGL; llvmpipe)
 =========  ===============================================  ===============================
 GLSL       glslang → SPIR-V → wgpu                          moderngl (the default)
-HLSL       glslang HLSL → SPIR-V → wgpu (the default)       SPIR-V → SPIRV-Cross → moderngl
+HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V → SPIRV-Cross → moderngl (the default)
 WGSL       wgpu (the default)                               wgpu's OpenGL adapter
 =========  ===============================================  ===============================
 """
@@ -32,7 +32,7 @@ __all__ = ["LANGUAGES", "DRIVERS", "Target", "parse_adapter", "language_of", "ru
 LANGUAGES = ("glsl", "hlsl", "wgsl")
 DRIVERS = ("gl", "vulkan")
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
-DEFAULT_DRIVER = {"glsl": "gl", "hlsl": "vulkan", "wgsl": "vulkan"}
+DEFAULT_DRIVER = {"glsl": "gl", "hlsl": "gl", "wgsl": "vulkan"}
 _SUFFIX = {".glsl": "glsl", ".comp": "glsl", ".hlsl": "hlsl", ".hlsli": "hlsl", ".fx": "hlsl", ".wgsl": "wgsl"}
 _SPIRV = {}
 

@@ -2,8 +2,9 @@
 
 GLSL and WGSL have no include in their core languages; engines resolve
 ``#include "file"`` with their own preprocessors, and so does the harness: relative
-to the including file, each file once (like ``#pragma once``). HLSL includes are
-resolved by glslang itself. Compiler messages are rewritten to ``file:line:col``
+to the including file, then among the shipped ports of the language (``#include
+"msm.glsl"``), each file once (like ``#pragma once``). HLSL includes are resolved
+by glslang itself, with the same two folders. Compiler messages are rewritten to ``file:line:col``
 of the user's files, one line per error.
 """
 
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._arrays import InputError
+from ..ports import PORTS_DIR
 
 __all__ = ["ShaderError", "ShaderSource", "load_source", "defined_functions", "strip_comments", "one_line_errors"]
 
@@ -90,7 +92,10 @@ def load_source(path, language="glsl"):
         for no, line in enumerate(p.read_text().splitlines(), 1):
             m = _INCLUDE.match(line)
             if m:
-                visit(p.parent / m.group(1), f", included from {p.name}:{no}")
+                inc = p.parent / m.group(1)
+                if not inc.is_file() and (PORTS_DIR / language / m.group(1)).is_file():
+                    inc = PORTS_DIR / language / m.group(1)  # a shipped port by name
+                visit(inc, f", included from {p.name}:{no}")
                 emit(f"#line {no + 1} {k}" if glsl else "", None)
                 continue
             m = _VERSION.match(line) if glsl else None
@@ -134,4 +139,8 @@ def one_line_errors(log, pattern, rename):
         if "error" not in low or re.search(r"\d+ compilation errors|no code generated", low):
             continue
         out.append(re.sub(pattern, rename, line.replace("ERROR: ", "").strip()))
-    return out or [re.sub(pattern, rename, log.strip())]
+    if not out:
+        return [re.sub(pattern, rename, log.strip())]
+    # Errors in the user's files make the harness's own lines fail too: drop those echoes.
+    own = [x for x in out if "<harness wrapper>" not in x and not x.startswith("Linking")]
+    return own or out

@@ -14,6 +14,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from ..ports import PORTS_DIR
 from ._source import ShaderError, one_line_errors
 
 __all__ = ["ToolError", "glslang_glsl", "glslang_hlsl", "spirv_to_glsl", "tool_versions"]
@@ -62,7 +63,7 @@ def glslang_hlsl(path, wrapper_text, signature):
     with tempfile.TemporaryDirectory(prefix="moments-ref-hlsl-") as tmp:
         src, out = Path(tmp) / "mr_wrapper.hlsl", Path(tmp) / "out.spv"
         src.write_text(wrapper_text)
-        cmd = [_tool("glslangValidator"), "-D", "-V", "-S", "comp", "-e", "mr_main", f"-I{path.parent}",
+        cmd = [_tool("glslangValidator"), "-D", "-V", "-S", "comp", "-e", "mr_main", f"-I{path.parent}", f"-I{PORTS_DIR / 'hlsl'}",
                "-o", str(out), str(src)]
         code, log = _run(cmd)
         if code != 0 or not out.is_file():

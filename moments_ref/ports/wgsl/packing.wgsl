@@ -61,16 +61,16 @@ fn unpack64(q: vec4<u32>) -> vec4<f32> {
 // ---------------------------------------------------------------------------------------
 //   bits  0.. 9  y~2 (folded)     bits 10..18  y~1 (folded)
 //   bits 19..25  round(127 sqrt(v2))      bits 26..31  round(63 Psi4(xi4)) (+1, see below)
-// Depth code y~ = floor(511.5 (y + 1)), clamped to 0..1022 (y = 1 joins the top cell).
-// The 6-bit Psi4 code c decodes at the upper end of its rounding interval,
-// Psi4^-1(min(1, (c + 0.5) / 63)): "during loading ... rounded up to guarantee a lower
-// bound to the shadow intensity" (HPG17 §3.5).
 
+// Depth code y~ = floor(511.5 (y + 1)), clamped to 0..1022 (y = 1 joins the top cell).
 fn packing_depth_code(y: f32) -> u32 {
     let s = 511.5 * (y + 1.0);
     return u32(clamp(floor(s), 0.0, 1022.0));
 }
 
+// The 6-bit Psi4 code c decodes at the upper end of its rounding interval,
+// Psi4^-1(min(1, (c + 0.5) / 63)): "during loading ... rounded up to guarantee a lower
+// bound to the shadow intensity" (HPG17 §3.5).
 fn packing_decode_xi32(c: u32) -> f32 {
     let u = min((f32(c) + 0.5) / 63.0, 1.0);
     return psi4_inverse(u);
