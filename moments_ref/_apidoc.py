@@ -14,7 +14,7 @@ MODULES = (
     "filtering", "onchip", "banks", "bluenoise", "sat", "raster", "scene",
     "techniques", "techniques.msm_soft", "techniques.scattering", "pipeline", "report",
     "vwss.lights", "vwss.points", "vwss.warp", "vwss.mvr", "vwss.shading", "vwss.compare",
-    "golden", "oracle", "conformance", "strategies", "figures", "stability", "bench",
+    "golden", "oracle", "conformance", "conformance.verdict", "strategies", "figures", "stability", "bench",
 )
 
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from moments_ref import InputError, cli, conformance, golden
-from moments_ref.conformance import ContextError, ShaderError, ToolError, _run, _wgpu, _wrap
+from moments_ref.conformance import ContextError, ToolError, _run, _wgpu, _wrap
 from moments_ref.conformance._source import load_source
 
 COMBOS = [(lang, drv) for lang in conformance.LANGUAGES for drv in conformance.DRIVERS]

@@ -9,6 +9,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .._arrays import InputError
 from ..ports import PORTS_DIR
 from ._cases import load_case
@@ -72,33 +74,62 @@ def _cells(rep):
 
 
 def _run_all(golden_dir, adapter, progress):
-    """Per target: renderer, rows of the table, wall times of each run."""
+    """Per target: renderer, rows of the table, wall times, outputs per case."""
     cases = shipped_cases()
     results = []
     for language, spec in _targets(adapter):
-        rows, times, renderer = [], [], None
+        rows, times, renderer, outputs = [], [], None, {}
         for name in cases:
             path, function = shipped_port(name, language)
             t0 = time.perf_counter()
             rep = run_case(path, function, name, golden_dir, language, spec, gc=load_case(name, golden_dir))
             times.append(time.perf_counter() - t0)
-            renderer = rep.renderer
+            renderer, outputs[name] = rep.renderer, rep.outputs
             rows.append(f"| {name} | `{function}` | {' | '.join(_cells(rep))} | {'pass' if rep.passed else 'FAIL'} |")
-        results.append((language, parse_adapter(spec, language).driver, renderer, rows, times))
+        results.append((language, parse_adapter(spec, language).driver, renderer, rows, times, outputs))
         if progress:
             print(f"  {language} on {results[-1][1]}: {len(cases)} cases in {sum(times):.1f} s", file=sys.stderr)
     return results
 
 
+def _differing_rows(a, b):
+    """Rows whose outputs differ in any bit between two runs of the same cases."""
+    counts = {}
+    for name in a:
+        for o in a[name]:
+            x, y = np.asarray(a[name][o]), np.asarray(b[name][o])
+            n = len(x)
+            d = int((x.reshape(n, -1).view(np.uint32) != y.reshape(n, -1).view(np.uint32)).any(axis=1).sum())
+            if d:
+                counts[name] = counts.get(name, 0) + d
+    return counts
+
+
+def _agreement_table(results):
+    """Per language: how many golden rows the two drivers compute bit-identically."""
+    by = {(lang, drv): out for lang, drv, _, _, _, out in results}
+    lines = ["| language | rows | differing between gl and vulkan | in cases |", "|---|---:|---:|---|"]
+    for lang in LANGUAGES:
+        if (lang, "gl") not in by or (lang, "vulkan") not in by:
+            continue
+        gl = by[(lang, "gl")]
+        total = sum(len(next(iter(v.values()))) for v in gl.values())
+        d = _differing_rows(gl, by[(lang, "vulkan")])
+        cells = ", ".join(f"{k} ({v})" for k, v in d.items()) or "–"
+        lines.append(f"| {lang} | {total} | {sum(d.values())} | {cells} |")
+    return lines
+
+
 def _timing_table(results, total):
     lines = ["| language | driver | renderer | cases | failed | first run s | later runs: median s | max s |",
              "|---|---|---|---:|---:|---:|---:|---:|"]
-    for language, driver, renderer, rows, times in results:
+    for language, driver, renderer, rows, times, _ in results:
         failed = sum(r.endswith("| FAIL |") for r in rows)
         later = times[1:] or times
         lines.append(f"| {language} | {driver} | {renderer} | {len(rows)} | {failed} | {times[0]:.3f} | "
                      f"{statistics.median(later):.3f} | {max(later):.3f} |")
-    lines += ["", f"Whole run (golden generation included): {total:.1f} s."]
+    lines += ["", f"Whole run (golden generation included): {total:.1f} s. The first run on a driver "
+              "creates its context or adapter; HLSL on Vulkan reuses the SPIR-V compiled for OpenGL."]
     return lines
 
 
@@ -116,6 +147,11 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
             golden.write(tmp, shipped_cases())
             golden_dir = tmp
         results = _run_all(golden_dir, adapter, progress)
+    probe_lines = []
+    if probes:
+        from ._probes import probe_markdown
+
+        probe_lines = ["", probe_markdown()]
     total = time.perf_counter() - t0
     tools = ", ".join(f"{k}: {v}" for k, v in tool_versions().items()) or "none found"
     lines = ["# Conformance of the shipped ports", "",
@@ -129,11 +165,12 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
              "Wall time of one `run_case` (compile, upload, dispatch, readback, compare); compiled",
              "programs are cached per process, so a later run of the same function skips the compile.", ""]
     lines += _timing_table(results, total)
-    if probes:
-        from ._probes import probe_markdown
-
-        lines += ["", probe_markdown()]
-    for language, driver, renderer, rows, _ in results:
+    lines += ["", "## The two drivers agree", "",
+              "Golden rows whose outputs differ in any bit between OpenGL and Vulkan (same source file; both",
+              "pass). For HLSL this compares the two toolchains: SPIRV-Cross to GLSL, and wgpu's SPIR-V reader.", ""]
+    lines += _agreement_table(results)
+    lines += probe_lines
+    for language, driver, renderer, rows, _, _ in results:
         lines += ["", f"## {language.upper()} on {driver}", "", f"Renderer: {renderer}.", "",
                   "| case | function | random | edge | stiff | ulps to reference (random) | result |",
                   "|---|---|---|---|---|---|---|", *rows]

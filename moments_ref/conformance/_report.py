@@ -47,6 +47,7 @@ class ConformanceReport:
     components: dict | None = None  # vector outputs: per-component worst ulps / mismatch counts
     language: str = "glsl"
     driver: str = "gl"
+    outputs: dict = field(default_factory=dict, repr=False)  # the port's outputs, by name
 
     @property
     def passed(self):

@@ -191,4 +191,4 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
     v = compare_case(case, gc.meta, gc.arrays, got, worst_rows)
     return ConformanceReport(case, function, str(path), renderer, len(gc.category), v.exact, v.categories, v.worst,
-                             timings, v.notes, v.components, language, target.driver)
+                             timings, v.notes, v.components, language, target.driver, got)
