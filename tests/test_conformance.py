@@ -43,10 +43,10 @@ SHIPPED_CASES = conformance.shipped_cases()
 
 
 @pytest.fixture(scope="module")
-def golden_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("golden")
-    golden.write(d, SHIPPED_CASES)
-    return d
+def golden_dir():
+    from test_conformance_languages import shipped_golden_folder
+
+    return shipped_golden_folder()
 
 
 def _run(ctx, golden_dir, path, function, case, **kw):

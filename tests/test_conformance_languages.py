@@ -7,11 +7,14 @@ where a missing driver or compiler is a failure (.ci/run installs them).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import os
 import re
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -43,11 +46,17 @@ def drivers():
         _need(lambda: conformance._toolchain._tool(tool), tool)
 
 
-@pytest.fixture(scope="module")
-def golden_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("golden")
+@functools.lru_cache(maxsize=None)
+def shipped_golden_folder():
+    """Goldens of every shipped case, written once per test process (shared by the conformance tests)."""
+    d = tempfile.mkdtemp(prefix="moments-ref-test-golden-")
     golden.write(d, CASES)
-    return d
+    return Path(d)
+
+
+@pytest.fixture(scope="module")
+def golden_dir():
+    return shipped_golden_folder()
 
 
 # --------------------------------------------------------------------------

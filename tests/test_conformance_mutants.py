@@ -16,23 +16,21 @@ from pathlib import Path
 
 import pytest
 
-from moments_ref import conformance, golden
+from moments_ref import conformance
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 sys.path.insert(0, str(FIXTURES))
 import make_mutants  # noqa: E402
 
-from test_conformance_languages import COMBOS, drivers  # noqa: E402,F401  (the fixture)
+from test_conformance_languages import COMBOS, drivers, shipped_golden_folder  # noqa: E402,F401  (drivers: the fixture)
 
 CASE = {"shade": "shade-float32", "unpack64": "unpack64-float32"}
 CAUGHT = [m for m in make_mutants.MUTANTS if m != "shade_missing_clamp"]
 
 
 @pytest.fixture(scope="module")
-def golden_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("golden")
-    golden.write(d, sorted(set(CASE.values())))
-    return d
+def golden_dir():
+    return shipped_golden_folder()
 
 
 def _run(name, language, driver, golden_dir, **kw):
