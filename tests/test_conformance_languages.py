@@ -295,3 +295,38 @@ def test_one_case_under_two_seconds_after_the_first_on_lavapipe(drivers, golden_
         t0 = time.perf_counter()
         report = conformance.run_case(path, function, case, golden_dir, "wgsl", "vulkan")
         assert report.passed and time.perf_counter() - t0 < 2.0
+
+
+@pytest.mark.parametrize("language", ["hlsl", "wgsl"])
+def test_error_in_an_included_file_names_that_file(drivers, tmp_path, language):
+    helper = {"hlsl": "float helper(float x)\n{\n    return x + undefined_thing;\n}\n",
+              "wgsl": "fn helper(x: f32) -> f32 {\n    let a = 1.0;\n    return x + undefined_thing;\n}\n"}[language]
+    main = {"hlsl": '// main\n#include "h.hlsl"\nfloat f(float x) { return helper(x); }\n',
+            "wgsl": '// main\n#include "h.wgsl"\nfn f(x: f32) -> f32 { return helper(x); }\n'}[language]
+    (tmp_path / f"h.{language}").write_text(helper)
+    (tmp_path / f"m.{language}").write_text(main)
+    with pytest.raises(conformance.ShaderError) as exc:
+        conformance.run_case(tmp_path / f"m.{language}", "f", "psi4-float32", language=language)
+    lines = str(exc.value).splitlines()[1:]
+    assert lines and all(x.startswith(f"{tmp_path / f'h.{language}'}:3") for x in lines), lines
+
+
+# --------------------------------------------------------------------------
+# Measured floating-point behaviour (docs/ports.md states it)
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("language,driver", COMBOS)
+def test_llvmpipe_never_fuses_and_clamps_nan_to_zero(drivers, language, driver):
+    from moments_ref.conformance import _probes
+
+    found = _probes.measure(language, driver)
+    assert found["p_fma"] == "unfused" and found["p_contract"] == "unfused"
+    assert found["p_clamp"] == "0"
+    assert found["p_div"].startswith("0 of") and found["p_sqrt"].startswith("0 of")
+
+
+def test_glslang_contracts_hlsl_unless_precise(drivers):
+    from moments_ref.conformance import _probes
+
+    assert _probes.hlsl_contraction() == {"p_contract": (1, 0), "p_precise": (0, 2)}

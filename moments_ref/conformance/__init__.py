@@ -10,10 +10,10 @@ float32 tolerance; relative error and ulps, and the same against the reference's
 own float32 emulation, for information; integer outputs exact with the tie rule.
 
 Drivers (:mod:`._run`): GLSL runs on OpenGL through moderngl (EGL, Mesa llvmpipe
-without a GPU) or on Vulkan (glslang to SPIR-V, then wgpu); HLSL goes through
-glslang's HLSL front end to SPIR-V and runs on Vulkan through wgpu (Mesa lavapipe
-without a GPU), or on OpenGL after SPIRV-Cross; WGSL runs through wgpu on Vulkan or
-on wgpu's OpenGL adapter. ``--adapter`` picks the driver (``gl``, ``vulkan``) or an
+without a GPU) or on Vulkan (glslang to SPIR-V, then wgpu; Mesa lavapipe without a
+GPU); HLSL goes through glslang's HLSL front end to SPIR-V and runs on OpenGL after
+SPIRV-Cross (the default: it keeps ``precise``, docs/ports.md) or on Vulkan through
+wgpu; WGSL runs through wgpu on Vulkan (the default) or on wgpu's OpenGL adapter. ``--adapter`` picks the driver (``gl``, ``vulkan``) or an
 adapter by name; the report names renderer and driver.
 
 Function contract (:mod:`._slots`): the GLSL one in each language's types, e.g.

@@ -18,7 +18,7 @@ from ._run import DRIVERS, LANGUAGES, run_function
 from ._toolchain import ToolError
 from .verdict import ulp_distance
 
-__all__ = ["PROBES", "measure", "probe_markdown"]
+__all__ = ["PROBES", "measure", "spirv_counts", "hlsl_contraction", "probe_markdown"]
 
 _GLSL = """float p_fma(vec4 x) { return fma(x.x, x.y, x.z); }
 float p_contract(vec4 x) { return x.x * x.y + x.z; }
@@ -83,6 +83,37 @@ def measure(language, adapter):
     return found
 
 
+def spirv_counts(spirv):
+    """``(Fma instructions, NoContraction decorations)`` in a SPIR-V module."""
+    words = np.frombuffer(spirv, np.uint32)
+    i, fma, exact = 5, 0, 0
+    while i < len(words):
+        count, op = int(words[i] >> 16), int(words[i] & 0xFFFF)
+        if op == 12 and count >= 5 and words[i + 4] == 50:  # OpExtInst GLSL.std.450 Fma
+            fma += 1
+        if op == 71 and count >= 3 and words[i + 2] == 42:  # OpDecorate NoContraction
+            exact += 1
+        i += max(count, 1)
+    return fma, exact
+
+
+def hlsl_contraction():
+    """What glslang's HLSL front end makes of ``a*b + c``, plain and ``precise``."""
+    from ._slots import Slot, signature
+    from ._toolchain import glslang_hlsl
+    from ._wrap import wrap_hlsl
+
+    ins, outs = [Slot.of("x", np.float32, (1, 4))], [Slot.of("y", np.float32, (1,))]
+    with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
+        path = Path(tmp) / "probe.hlsl"
+        path.write_text(_HLSL)
+        found = {}
+        for fn in ("p_contract", "p_precise"):
+            wrapper = wrap_hlsl(path.name, fn, ins, outs)
+            found[fn] = spirv_counts(glslang_hlsl(path, wrapper, signature("hlsl", fn, ins, outs)))
+        return found
+
+
 def probe_markdown():
     """The measured table for docs/conformance.md."""
     lines = ["## Floating-point behaviour of the drivers (measured)", "",
@@ -100,4 +131,12 @@ def probe_markdown():
                 continue
             lines.append(f"| {language} | {driver} | {f['p_fma']} | {f['p_contract']} | {f['p_precise']} | "
                          f"{f['p_clamp']} | {f['p_div']} | {f['p_sqrt']} |")
+    try:
+        c = hlsl_contraction()
+        lines += ["", "In the SPIR-V glslang makes of the HLSL probe, `a*b + c` holds "
+                  f"{c['p_contract'][0]} `Fma` and {c['p_contract'][1]} `NoContraction`; the `precise` one "
+                  f"{c['p_precise'][0]} `Fma` and {c['p_precise'][1]} `NoContraction`: glslang contracts, "
+                  "llvmpipe and lavapipe evaluate the `Fma` unfused, a GPU fuses it."]
+    except (ToolError, ContextError) as exc:
+        lines += ["", f"glslang's contraction of HLSL: not measured ({exc})."]
     return "\n".join(lines)
