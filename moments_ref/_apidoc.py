@@ -17,7 +17,7 @@ MODULES = (
     "vwss.lights", "vwss.points", "vwss.warp", "vwss.mvr", "vwss.shading", "vwss.compare",
     "golden", "golden.cases", "golden.endtoend", "golden.truth", "golden.notes", "golden.spread", "golden.compare",
     "golden.writer", "golden.verifier", "golden.mutation",
-    "oracle", "conformance", "strategies", "figures", "stability", "bench",
+    "oracle", "conformance", "conformance.verdict", "strategies", "figures", "stability", "bench",
 )
 
 

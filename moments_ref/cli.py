@@ -183,17 +183,6 @@ def _cmd_vwss(args):
 def _cmd_conformance(args):
     from . import conformance
 
-    if args.all:
-        from ._io import write_text
-
-        text = conformance.summary_markdown(golden_dir=args.golden)
-        print(text)
-        if args.out:
-            print(f"wrote {write_text(Path(args.out) / 'conformance.md', text)}")
-        return 1 if "| FAIL |" in text else 0
-    missing = [a for a in ("glsl", "function", "case") if getattr(args, a) is None]
-    if missing:
-        raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
     return conformance.main(args)
 
 
@@ -265,12 +254,16 @@ def build_parser():
     f4.add_argument("--samples", type=int, choices=(1, 4, 8), default=4, help="MSAA samples (default 4)")
     f4.set_defaults(func=_cmd_figure4)
 
-    cf = sub.add_parser("conformance", help="run a GLSL port on an OpenGL 4.3 compute context against a golden case")
-    cf.add_argument("--glsl", help="GLSL file, or the name of a shipped port (msm.glsl, nonlinear.glsl, packing.glsl)")
-    cf.add_argument("--function", help="the GLSL function to test")
+    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port on a real driver against a golden case")
+    lang = cf.add_mutually_exclusive_group()
+    lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
+    lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
+    lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
+    cf.add_argument("--function", help="the function to test")
     cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--all", action="store_true", help="run every shipped port on every case it covers (a table)")
+    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME or an adapter name (default per language)")
+    cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
     cf.set_defaults(func=_cmd_conformance)
 

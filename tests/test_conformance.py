@@ -2,7 +2,8 @@
 
 The tests need an EGL driver and moderngl. Without them they are skipped with the
 reason, except under CI (``CI=true``), where a missing context is a failure: .ci/run
-installs the Mesa packages so that the ports are really exercised.
+installs the Mesa packages so that the ports are really exercised. HLSL, WGSL and the
+Vulkan driver: tests/test_conformance_languages.py (same rule).
 """
 
 from __future__ import annotations
@@ -38,18 +39,18 @@ def ctx():
 
 
 # Every case a shipped port covers, at both dtypes (float64 cases: inputs rounded to float32).
-SHIPPED_CASES = [n for n in golden.CASES if conformance.shipped_port(n) is not None]
+SHIPPED_CASES = conformance.shipped_cases()
 
 
 @pytest.fixture(scope="module")
-def golden_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("golden")
-    golden.write(d, SHIPPED_CASES)
-    return d
+def golden_dir():
+    from test_conformance_languages import shipped_golden_folder
+
+    return shipped_golden_folder()
 
 
 def _run(ctx, golden_dir, path, function, case, **kw):
-    return conformance.run_case(path, function, case, golden_dir, ctx=ctx, **kw)
+    return conformance.run_case(path, function, case, golden_dir, "glsl", "gl", **kw)
 
 
 # --------------------------------------------------------------------------
@@ -65,8 +66,8 @@ def test_every_shipped_entry_names_a_defined_function():
 
 def test_shipped_ports_cover_the_issue_functions():
     covered = {n.rsplit("-", 1)[0].split("-")[0] for n in SHIPPED_CASES}
-    assert {"shadow_intensity", "from_optimized", "bias_moments", "phi", "phi_inverse", "psi4",
-            "psi4_inverse", "shade", "pack64", "unpack64", "pack32", "unpack32"} <= covered
+    assert {"shadow_intensity", "shadow_intensity6", "from_optimized", "bias_moments", "phi", "phi_inverse",
+            "psi4", "psi4_inverse", "shade", "pack64", "unpack64", "pack32", "unpack32"} <= covered
 
 
 @pytest.mark.parametrize("case", SHIPPED_CASES)
@@ -153,23 +154,6 @@ def test_unpack_exhaustive_depth_and_weight_codes(ctx):
 # --------------------------------------------------------------------------
 
 
-def _shipped_function(name):
-    src = (GLSL_DIR / "nonlinear.glsl").read_text()
-    start = src.index(f"float {name}(")
-    return src[start: src.index("\n}\n", start) + 3]
-
-
-@pytest.mark.parametrize("mutant", ["shade_root_sign_flipped", "shade_xi_multiplied"])
-def test_mutant_fixture_differs_from_shipped_shade_in_one_line(mutant):
-    text = open(fixture(f"{mutant}.glsl")).read()
-    body = text[text.index(f"float {mutant}("):].replace(mutant, "shade")
-    a = _shipped_function("shade").splitlines()
-    b = body.rstrip("\n").splitlines() + [""]
-    a = a + [""] * (len(b) - len(a))
-    assert len(a) == len(b), "regenerate the mutant from the shipped shade()"
-    assert sum(x != y for x, y in zip(a, b)) == 1
-
-
 @pytest.mark.parametrize("mutant", ["shade_root_sign_flipped", "shade_xi_multiplied"])
 def test_algorithm3_mutants_are_caught(ctx, golden_dir, mutant):
     report = _run(ctx, golden_dir, fixture(f"{mutant}.glsl"), mutant, "shade-float32")
@@ -237,7 +221,10 @@ def test_type_mapping():
     s = conformance.Slot.of("u", np.uint16, (5, 4))
     assert (s.glsl, s.upload) == ("uvec4", np.dtype(np.uint32))
     assert conformance.Slot.of("p", np.uint32, (5,)).glsl == "uint"
-    assert conformance.Slot.of("v", np.float32, (5, 3)).element == "vec4"  # std430 pads vec3
+    assert conformance.Slot.of("v", np.float32, (5, 3)).element("glsl") == "vec4"  # std430 pads vec3
+    b6 = conformance.Slot.of("b", np.float32, (5, 6))
+    assert (b6.declare("glsl"), b6.declare("hlsl"), b6.declare("wgsl")) == (
+        "float b[6]", "float b[6]", "b: array<f32, 6>")
     with pytest.raises(InputError, match="shape"):
         conformance.Slot.of("m", np.float32, (5, 4, 4))
     sig = conformance.glsl_signature("f", [conformance.Slot.of("b", np.float32, (5, 4)),
@@ -302,7 +289,7 @@ def test_cli_exit_codes_and_messages(ctx, golden_dir, monkeypatch):
     def no_context():
         raise ContextError("EGL: no display (test)")
 
-    monkeypatch.setattr(conformance, "get_context", no_context)
+    monkeypatch.setattr(conformance._gl, "get_context", no_context)
     err = io.StringIO()
     assert conformance.run_cli("msm.glsl", "shadow_intensity_lower", "shadow_intensity-lower-float32",
                                golden_dir, out=io.StringIO(), err=err) == 2
@@ -310,8 +297,8 @@ def test_cli_exit_codes_and_messages(ctx, golden_dir, monkeypatch):
 
 
 def test_golden_dir_checked_and_generated_when_absent(ctx, golden_dir, tmp_path):
-    a = conformance.run_case(GLSL_DIR / "nonlinear.glsl", "psi4", "psi4-float32", None, ctx=ctx)
-    b = conformance.run_case(GLSL_DIR / "nonlinear.glsl", "psi4", "psi4-float32", golden_dir, ctx=ctx)
+    a = conformance.run_case(GLSL_DIR / "nonlinear.glsl", "psi4", "psi4-float32", None)
+    b = conformance.run_case(GLSL_DIR / "nonlinear.glsl", "psi4", "psi4-float32", golden_dir)
     assert a.categories == b.categories
     golden.write(tmp_path, ["psi4-float32"])
     f = tmp_path / "psi4-float32.npz"
@@ -319,7 +306,7 @@ def test_golden_dir_checked_and_generated_when_absent(ctx, golden_dir, tmp_path)
     data[len(data) // 2] ^= 0xFF
     f.write_bytes(bytes(data))
     with pytest.raises(InputError, match="sha256"):
-        conformance.run_case(GLSL_DIR / "nonlinear.glsl", "psi4", "psi4-float32", tmp_path, ctx=ctx)
+        conformance.run_case(GLSL_DIR / "nonlinear.glsl", "psi4", "psi4-float32", tmp_path)
 
 
 def test_bench_conformance(ctx):

@@ -1,13 +1,21 @@
 """Ports of the core functions to shading languages, shipped as package data.
 
-``glsl/`` holds GLSL compute-shader ports written from the papers (HPG17, the
-slides); :mod:`moments_ref.conformance` runs any of their functions on an OpenGL
-4.3 context against the golden vectors. See docs/ports.md.
+``glsl/``, ``hlsl/`` and ``wgsl/`` hold compute-shader ports written from the
+papers (HPG17, the slides), one file per concept (``msm``, ``msm6``,
+``nonlinear``, ``packing``) with the same function names in every language;
+:mod:`moments_ref.conformance` runs any of their functions on a real driver
+against the golden vectors. See docs/ports.md.
 """
 
 from pathlib import Path
 
-#: Folder of the shipped GLSL ports (``msm.glsl``, ``nonlinear.glsl``, ``packing.glsl``).
-GLSL_DIR = Path(__file__).resolve().parent / "glsl"
+#: Folder holding ``glsl/``, ``hlsl/`` and ``wgsl/``.
+PORTS_DIR = Path(__file__).resolve().parent
+#: Folder of the shipped GLSL ports (``msm.glsl``, ``msm6.glsl``, ``nonlinear.glsl``, ``packing.glsl``).
+GLSL_DIR = PORTS_DIR / "glsl"
+#: Folder of the shipped HLSL ports.
+HLSL_DIR = PORTS_DIR / "hlsl"
+#: Folder of the shipped WGSL ports.
+WGSL_DIR = PORTS_DIR / "wgsl"
 
-__all__ = ["GLSL_DIR"]
+__all__ = ["PORTS_DIR", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR"]

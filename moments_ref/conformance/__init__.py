@@ -1,0 +1,69 @@
+"""Run a GLSL, HLSL or WGSL port on a real driver against the golden vectors.
+
+``moments-ref conformance (--glsl | --hlsl | --wgsl) FILE --function NAME --case CASE
+[--golden DIR] [--adapter NAME]`` wraps the function ``NAME`` of the file, unchanged,
+in the harness's own compute entry point (:mod:`._wrap`), uploads the case's
+inputs, runs one dispatch, reads the outputs back and compares them with the
+golden case through the one shared verdict (:mod:`.verdict`): per row category
+the worst absolute error against the float64 ground truth, gated by the manifest's
+float32 tolerance; relative error and ulps, and the same against the reference's
+own float32 emulation, for information; integer outputs exact with the tie rule.
+
+Drivers (:mod:`._run`): GLSL runs on OpenGL through moderngl (EGL, Mesa llvmpipe
+without a GPU) or on Vulkan (glslang to SPIR-V, then wgpu; Mesa lavapipe without a
+GPU); HLSL goes through glslang's HLSL front end to SPIR-V and runs on OpenGL after
+SPIRV-Cross (the default: it keeps ``precise``, docs/ports.md) or on Vulkan through
+wgpu; WGSL runs through wgpu on Vulkan (the default) or on wgpu's OpenGL adapter. ``--adapter`` picks the driver (``gl``, ``vulkan``) or an
+adapter by name; the report names renderer and driver.
+
+Function contract (:mod:`._slots`): the GLSL one in each language's types, e.g.
+``float NAME(vec4 b, float zf)``, ``float NAME(float4 b, float zf)``,
+``fn NAME(b: vec4<f32>, zf: f32) -> f32``; six moments as ``float b[6]`` /
+``array<f32, 6>``. Files may ``#include "file"`` (GLSL, WGSL: resolved by the
+harness; HLSL: by glslang) and define their own entry point and resources.
+
+Exit codes of :func:`run_cli`: 0 every row within its tolerance, 1 a tolerance
+exceeded, 2 bad usage, a file that does not compile (the compiler's messages, one
+line per error, with the user's file and line numbers), or no driver.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..ports import GLSL_DIR, HLSL_DIR, PORTS_DIR, WGSL_DIR
+from ._cases import GoldenCase, load_case
+from ._cli import bench_conformance, main, run_cli, summary_markdown
+from ._gl import ContextError, create_context, get_context, renderer
+from ._report import ConformanceReport
+from ._run import DEFAULT_DRIVER, DRIVERS, LANGUAGES, run_case, run_function
+from ._shipped import SHIPPED, SHIPPED_FUNCTIONS, shipped_cases, shipped_port
+from ._slots import Slot, signature
+from ._source import ShaderError, defined_functions, load_source
+from ._toolchain import ToolError
+from .verdict import ulp_distance
+
+__all__ = [
+    "ContextError", "ToolError", "ShaderError", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR", "PORTS_DIR",
+    "LANGUAGES", "DRIVERS", "DEFAULT_DRIVER", "SHIPPED", "SHIPPED_FUNCTIONS",
+    "create_context", "get_context", "renderer", "load_source", "defined_functions",
+    "shipped_port", "shipped_cases", "Slot", "signature", "glsl_signature", "run_glsl", "run_function",
+    "GoldenCase", "load_case", "run_case", "ConformanceReport", "ulp_distance",
+    "run_cli", "main", "summary_markdown", "bench_conformance",
+]
+
+
+def glsl_signature(function, inputs, outputs):
+    """The GLSL signature the wrapper calls, e.g. ``float f(vec4 b, float zf)``."""
+    return signature("glsl", function, inputs, outputs)
+
+
+def run_glsl(glsl, function, inputs, outputs, ctx=None):
+    """Evaluate a GLSL function once per row on OpenGL (llvmpipe without a GPU).
+
+    ``ctx`` is accepted for compatibility (the process-wide context is used).
+    See :func:`run_function` for the other languages and drivers.
+    """
+    path = glsl.files[0] if hasattr(glsl, "files") else glsl
+    outputs = {k: (np.dtype(dt), shape) for k, (dt, shape) in outputs.items()}
+    return run_function(path, function, inputs, outputs, "glsl", "gl")

@@ -1,0 +1,238 @@
+"""``moments-ref conformance``: one case, or ``--all`` shipped ports on every driver."""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .._arrays import InputError
+from ..ports import PORTS_DIR
+from ._cases import load_case
+from ._gl import ContextError
+from ._report import fmt
+from ._run import DRIVERS, LANGUAGES, language_of, parse_adapter, run_case, run_function
+from ._shipped import shipped_cases, shipped_port
+from ._toolchain import ToolError, tool_versions
+
+__all__ = ["resolve_port", "run_cli", "main", "summary_markdown", "bench_conformance"]
+
+
+def resolve_port(path, language):
+    """A path as given, or the name of a shipped port (``msm.hlsl``) when no such file exists."""
+    p = Path(path)
+    shipped = PORTS_DIR / language / p.name
+    if not p.exists() and p.parent == Path(".") and shipped.is_file():
+        return shipped
+    return p
+
+
+def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None):
+    """Run one case, print the report, return the exit code.
+
+    Returns
+    -------
+    int
+        0 every row within its tolerance; 1 a tolerance exceeded; 2 no driver or
+        compiler (reason on stderr) or bad usage (unknown case, missing function,
+        a file that does not compile: the compiler's messages, one line per error).
+    """
+    out, err = out or sys.stdout, err or sys.stderr
+    try:
+        language = language_of(path, language)
+        report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter)
+    except (ContextError, ToolError, InputError) as exc:
+        print(f"moments-ref conformance: {exc}", file=err)
+        return 2
+    print(report.format(), file=out)
+    return 0 if report.passed else 1
+
+
+def _targets(adapter):
+    """``[(language, adapter spec)]`` for ``--all``: every language on every driver, or on ``adapter``."""
+    return [(lang, adapter or driver) for lang in LANGUAGES for driver in ((adapter,) if adapter else DRIVERS)]
+
+
+def _cells(rep):
+    cells = []
+    for cat in ("random", "edge", "stiff"):
+        c = rep.categories.get(cat)
+        if c is None or c.rows == 0:
+            cells.append("–")
+        elif rep.exact:
+            cells.append(f"{c.mismatches} differ, {c.ties} ties ({c.rows})")
+        else:
+            cells.append(f"{fmt(c.worst_abs)} ({fmt(c.tolerance)})")
+    rnd = rep.categories.get("random")
+    cells.append("–" if rep.exact or rnd is None or rnd.ref_ulps is None else fmt(rnd.ref_ulps))
+    return cells
+
+
+def _run_all(golden_dir, adapter, progress):
+    """Per target: renderer, rows of the table, wall times, outputs per case."""
+    cases = shipped_cases()
+    results = []
+    for language, spec in _targets(adapter):
+        rows, times, renderer, outputs = [], [], None, {}
+        for name in cases:
+            path, function = shipped_port(name, language)
+            t0 = time.perf_counter()
+            rep = run_case(path, function, name, golden_dir, language, spec, gc=load_case(name, golden_dir))
+            times.append(time.perf_counter() - t0)
+            renderer, outputs[name] = rep.renderer, rep.outputs
+            rows.append(f"| {name} | `{function}` | {' | '.join(_cells(rep))} | {'pass' if rep.passed else 'FAIL'} |")
+        results.append((language, parse_adapter(spec, language).driver, renderer, rows, times, outputs))
+        if progress:
+            print(f"  {language} on {results[-1][1]}: {len(cases)} cases in {sum(times):.1f} s", file=sys.stderr)
+    return results
+
+
+def _differing_rows(a, b):
+    """Rows whose outputs differ in any bit between two runs of the same cases."""
+    counts = {}
+    for name in a:
+        for o in a[name]:
+            x, y = np.asarray(a[name][o]), np.asarray(b[name][o])
+            n = len(x)
+            d = int((x.reshape(n, -1).view(np.uint32) != y.reshape(n, -1).view(np.uint32)).any(axis=1).sum())
+            if d:
+                counts[name] = counts.get(name, 0) + d
+    return counts
+
+
+def _agreement_table(results):
+    """Per language: how many golden rows the two drivers compute bit-identically."""
+    by = {(lang, drv): out for lang, drv, _, _, _, out in results}
+    lines = ["| language | rows | differing between gl and vulkan | in cases |", "|---|---:|---:|---|"]
+    for lang in LANGUAGES:
+        if (lang, "gl") not in by or (lang, "vulkan") not in by:
+            continue
+        gl = by[(lang, "gl")]
+        total = sum(len(next(iter(v.values()))) for v in gl.values())
+        d = _differing_rows(gl, by[(lang, "vulkan")])
+        cells = ", ".join(f"{k} ({v})" for k, v in d.items()) or "–"
+        lines.append(f"| {lang} | {total} | {sum(d.values())} | {cells} |")
+    return lines
+
+
+def _timing_table(results, total):
+    lines = ["| language | driver | renderer | cases | failed | first run s | later runs: median s | max s |",
+             "|---|---|---|---:|---:|---:|---:|---:|"]
+    for language, driver, renderer, rows, times, _ in results:
+        failed = sum(r.endswith("| FAIL |") for r in rows)
+        later = times[1:] or times
+        lines.append(f"| {language} | {driver} | {renderer} | {len(rows)} | {failed} | {times[0]:.3f} | "
+                     f"{statistics.median(later):.3f} | {max(later):.3f} |")
+    later = [t for r in results if r[1] == "vulkan" for t in r[4][1:]]
+    lines += ["", f"Whole run (golden generation included): {total:.1f} s (target: under 60 s). One case after "
+              f"the first on lavapipe: at most {max(later, default=math.nan):.3f} s (target: under 2 s). The first "
+              "run on a driver creates its context or adapter; HLSL on Vulkan reuses the SPIR-V compiled for OpenGL."]
+    return lines
+
+
+def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True):
+    """Run every shipped port of every language on every driver; docs/conformance.md as text.
+
+    ``moments-ref conformance --all --out docs/`` writes it, so that the numbers are
+    regenerated, never typed.
+    """
+    from .. import golden
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="moments-ref-all-") as tmp:
+        if golden_dir is None:
+            golden.write(tmp, shipped_cases())
+            golden_dir = tmp
+        results = _run_all(golden_dir, adapter, progress)
+    probe_lines = []
+    if probes:
+        from ._probes import probe_markdown
+
+        probe_lines = ["", probe_markdown()]
+    total = time.perf_counter() - t0
+    tools = ", ".join(f"{k}: {v}" for k, v in tool_versions().items()) or "none found"
+    lines = ["# Conformance of the shipped ports", "",
+             "Generated by `moments-ref conformance --all --out docs/`; do not edit by hand. Every shipped",
+             "port (`moments_ref/ports/glsl|hlsl|wgsl/`) runs on every golden case it covers, on every driver.",
+             "Per row category the worst absolute error against the expected values with the case's float32",
+             "tolerance in parentheses (integer outputs: rows differing from the golden code, and rounding",
+             "ties accepted), and the worst float32 ulps to the reference's own float32 emulation on random",
+             "rows. docs/ports.md explains the toolchain and what these drivers do not show.", "",
+             f"Compilers: {tools}.", "", "## Timings", "",
+             "Wall time of one `run_case` (compile, upload, dispatch, readback, compare); compiled",
+             "programs are cached per process, so a later run of the same function skips the compile.", ""]
+    lines += _timing_table(results, total)
+    lines += ["", "## The two drivers agree", "",
+              "Golden rows whose outputs differ in any bit between OpenGL and Vulkan (same source file; both",
+              "pass). For HLSL this compares the two toolchains: SPIRV-Cross to GLSL, and wgpu's SPIR-V reader.", ""]
+    lines += _agreement_table(results)
+    lines += probe_lines
+    for language, driver, renderer, rows, _, _ in results:
+        lines += ["", f"## {language.upper()} on {driver}", "", f"Renderer: {renderer}.", "",
+                  "| case | function | random | edge | stiff | ulps to reference (random) | result |",
+                  "|---|---|---|---|---|---|---|", *rows]
+    return "\n".join(lines) + "\n"
+
+
+def main(args):
+    """Entry for the CLI: ``args`` has ``glsl``/``hlsl``/``wgsl``, ``function``, ``case``,
+    ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None)."""
+    get = lambda k: getattr(args, k, None)  # noqa: E731
+    if get("all"):
+        from .._io import write_text
+
+        try:
+            text = summary_markdown(golden_dir=get("golden"), adapter=get("adapter"), progress=True)
+        except (ContextError, ToolError) as exc:
+            print(f"moments-ref conformance: {exc}", file=sys.stderr)
+            return 2
+        print(text)
+        if get("out"):
+            print(f"wrote {write_text(Path(get('out')) / 'conformance.md', text)}")
+        return 1 if "| FAIL |" in text else 0
+    files = [(lang, get(lang)) for lang in LANGUAGES if get(lang) is not None]
+    if len(files) != 1:
+        raise InputError("conformance: expected one of --glsl, --hlsl or --wgsl FILE (or --all), "
+                         f"got {len(files)}")
+    missing = [a for a in ("function", "case") if get(a) is None]
+    if missing:
+        raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
+    language, path = files[0]
+    return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"))
+
+
+def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):
+    """Time the shipped ports on their golden cases: compile, upload, dispatch, readback.
+
+    Returns
+    -------
+    list of dict
+        Per case ``case``, ``function``, ``rows``, ``compile_s``, ``upload_s``,
+        ``dispatch_s``, ``readback_s`` (seconds, best of ``repeat``) and
+        ``renderer``. Raises :class:`ContextError` without a driver.
+    """
+    from .. import golden
+
+    names = list(cases) if cases is not None else shipped_cases(("float32",))
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="moments-ref-bench-") as tmp:
+        golden.write(tmp, names)
+        for name in names:
+            port = shipped_port(name, language)
+            if port is None:
+                raise InputError(f"cases: no shipped {language.upper()} port for {name!r}")
+            gc = load_case(name, tmp)
+            best = {}
+            for _ in range(max(1, repeat)):
+                _, t = run_function(port[0], port[1], gc.inputs, gc.output_specs(), language, adapter)
+                for k, v in t.items():
+                    best[k] = min(best.get(k, math.inf), v)
+            rep = run_case(port[0], port[1], name, tmp, language, adapter, gc=gc)
+            rows.append({"case": name, "function": port[1], "rows": len(gc.category),
+                         **{f"{k}_s": v for k, v in best.items()}, "renderer": rep.renderer})
+    return rows

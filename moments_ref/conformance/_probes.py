@@ -1,0 +1,130 @@
+"""Floating-point behaviour of the drivers, measured (docs/ports.md, "GPUs are not llvmpipe").
+
+Each probe is a one-line function in each language, run through the same harness
+as the ports: is ``fma`` fused, is ``a*b + c`` contracted into a fused
+multiply-add, does ``precise`` stop that, what ``clamp`` makes of NaN, and whether
+division and ``sqrt`` round correctly (against NumPy's float32 on random inputs).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ._gl import ContextError
+from ._run import DRIVERS, LANGUAGES, run_function
+from ._toolchain import ToolError
+from .verdict import ulp_distance
+
+__all__ = ["PROBES", "measure", "spirv_counts", "hlsl_contraction", "probe_markdown"]
+
+_GLSL = """vec4 p_round(vec4 x) { precise float r = x.x * x.y + x.z;
+    return vec4(fma(x.x, x.y, x.z), x.x * x.y + x.z, r, clamp(x.w, 0.0, 1.0)); }
+vec2 p_ops(vec4 x) { return vec2(x.x / x.y, sqrt(x.x)); }
+"""
+_HLSL = """float4 p_round(float4 x) { precise float r = x.x * x.y + x.z;
+    return float4(mad(x.x, x.y, x.z), x.x * x.y + x.z, r, clamp(x.w, 0.0, 1.0)); }
+float2 p_ops(float4 x) { return float2(x.x / x.y, sqrt(x.x)); }
+float p_contract(float4 x) { return x.x * x.y + x.z; }
+float p_precise(float4 x) { precise float r = x.x * x.y + x.z; return r; }
+"""
+_WGSL = """fn p_round(x: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(fma(x.x, x.y, x.z), x.x * x.y + x.z, 0.0, clamp(x.w, 0.0, 1.0)); }
+fn p_ops(x: vec4<f32>) -> vec2<f32> { return vec2<f32>(x.x / x.y, sqrt(x.x)); }
+"""
+#: Probe sources per language (HLSL ``mad`` for ``fma``; WGSL has no ``precise``;
+#: HLSL's ``p_contract``/``p_precise`` are compiled alone to count glslang's ``Fma``).
+PROBES = {"glsl": _GLSL, "hlsl": _HLSL, "wgsl": _WGSL}
+
+
+def _fma_row():
+    # a = b = 1 + 2^-12, c = -(1 + 2^-11): a*b = 1 + 2^-11 + 2^-24 exactly, rounded to
+    # 1 + 2^-11 (a tie to even); fused: 2^-24 = 5.96e-8, unfused: 0.
+    a = np.float32(1 + 2.0 ** -12)
+    return np.array([[a, a, -(1 + 2.0 ** -11), np.nan]], np.float32)
+
+
+def _random_rows(n=20000, seed=3):
+    rng = np.random.default_rng(seed)
+    x = (10.0 ** rng.uniform(-6, 6, (n, 2)) * rng.choice([-1, 1], (n, 2))).astype(np.float32)
+    return np.column_stack([np.abs(x[:, 0]), x[:, 1], x[:, 1], x[:, 1]]).astype(np.float32)
+
+
+def measure(language, adapter):
+    """``{probe: finding}`` of one language on one driver (strings for the table)."""
+    with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
+        path = Path(tmp) / f"probe.{language}"
+        path.write_text(PROBES[language])
+        got, _ = run_function(path, "p_round", {"x": _fma_row()}, {"y": (np.float32, (1, 4))}, language, adapter)
+        y = got["y"][0]
+        found = {fn: "fused" if float(v) != 0 else "unfused" for fn, v in zip(("p_fma", "p_contract", "p_precise"), y)}
+        if language == "wgsl":
+            found["p_precise"] = "n/a"
+        found["p_clamp"] = f"{float(y[3]):g}"
+        x = _random_rows()
+        got, _ = run_function(path, "p_ops", {"x": x}, {"y": (np.float32, (len(x), 2))}, language, adapter)
+        for k, (fn, ref) in enumerate((("p_div", x[:, 0] / x[:, 1]), ("p_sqrt", np.sqrt(x[:, 0])))):
+            u = ulp_distance(got["y"][:, k], ref)
+            found[fn] = f"{int((u > 0).sum())} of {len(x)} (max {int(u.max())} ulp)"
+    return found
+
+
+def spirv_counts(spirv):
+    """``(Fma instructions, NoContraction decorations)`` in a SPIR-V module."""
+    words = np.frombuffer(spirv, np.uint32)
+    i, fma, exact = 5, 0, 0
+    while i < len(words):
+        count, op = int(words[i] >> 16), int(words[i] & 0xFFFF)
+        if op == 12 and count >= 5 and words[i + 4] == 50:  # OpExtInst GLSL.std.450 Fma
+            fma += 1
+        if op == 71 and count >= 3 and words[i + 2] == 42:  # OpDecorate NoContraction
+            exact += 1
+        i += max(count, 1)
+    return fma, exact
+
+
+def hlsl_contraction():
+    """What glslang's HLSL front end makes of ``a*b + c``, plain and ``precise``."""
+    from ._slots import Slot, signature
+    from ._toolchain import glslang_hlsl
+    from ._wrap import wrap_hlsl
+
+    ins, outs = [Slot.of("x", np.float32, (1, 4))], [Slot.of("y", np.float32, (1,))]
+    with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
+        path = Path(tmp) / "probe.hlsl"
+        path.write_text(_HLSL)
+        found = {}
+        for fn in ("p_contract", "p_precise"):
+            wrapper = wrap_hlsl(path.name, fn, ins, outs)
+            found[fn] = spirv_counts(glslang_hlsl(path, wrapper, signature("hlsl", fn, ins, outs)))
+        return found
+
+
+def probe_markdown():
+    """The measured table for docs/conformance.md."""
+    lines = ["## Floating-point behaviour of the drivers (measured)", "",
+             "`fma`: the built-in (HLSL `mad`); `a*b + c`: contracted into one rounding or not; `precise`:",
+             "the same expression marked `precise` (WGSL has none); `clamp(NaN, 0, 1)`; division and `sqrt`:",
+             "results differing from correctly rounded float32 on 20 000 random inputs.", "",
+             "| language | driver | fma | a*b + c | precise a*b + c | clamp(NaN, 0, 1) | x / y not correctly rounded |"
+             " sqrt not correctly rounded |", "|---|---|---|---|---|---|---|---|"]
+    for language in LANGUAGES:
+        for driver in DRIVERS:
+            try:
+                f = measure(language, driver)
+            except (ContextError, ToolError) as exc:
+                lines.append(f"| {language} | {driver} | skipped: {exc} ||||||")
+                continue
+            lines.append(f"| {language} | {driver} | {f['p_fma']} | {f['p_contract']} | {f['p_precise']} | "
+                         f"{f['p_clamp']} | {f['p_div']} | {f['p_sqrt']} |")
+    try:
+        c = hlsl_contraction()
+        lines += ["", "In the SPIR-V glslang makes of the HLSL probe, `a*b + c` holds "
+                  f"{c['p_contract'][0]} `Fma` and {c['p_contract'][1]} `NoContraction`; the `precise` one "
+                  f"{c['p_precise'][0]} `Fma` and {c['p_precise'][1]} `NoContraction`: glslang contracts, "
+                  "llvmpipe and lavapipe evaluate the `Fma` unfused, a GPU fuses it."]
+    except (ToolError, ContextError) as exc:
+        lines += ["", f"glslang's contraction of HLSL: not measured ({exc})."]
+    return "\n".join(lines)

@@ -1,0 +1,70 @@
+"""docs/ports.md: every adapter example runs, as printed, on both drivers; docs/conformance.md is sane.
+
+Drivers absent: skipped, or failed under CI (see test_conformance_languages.py).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from moments_ref import conformance
+from moments_ref.conformance import _cli
+
+from test_conformance_languages import COMBOS, drivers  # noqa: F401  (the fixture)
+
+ROOT = Path(__file__).resolve().parents[1]
+PORTS_MD = (ROOT / "docs" / "ports.md").read_text()
+EXAMPLES = re.findall(r"<!-- example: (\S+) function=(\S+) case=(\S+) -->\s*```\w+\n(.*?)```", PORTS_MD, re.S)
+
+
+def test_the_four_conventions_each_have_an_example():
+    names = [e[0] for e in EXAMPLES]
+    assert names == ["bias_inside.hlsl", "depth01.wgsl", "visibility.glsl", "out_params.wgsl"]
+    hlsl = dict((e[0], e[3]) for e in EXAMPLES)["bias_inside.hlsl"]
+    # In the style of the slides' "Compute the shadow intensity": its names and steps.
+    for word in ("ComputeMSMShadowIntensity", "L32D22", "D33D22", "InvD22", "float4 Switch", "Quotient", "saturate"):
+        assert word in hlsl
+
+
+@pytest.mark.parametrize("driver", ["gl", "vulkan"])
+@pytest.mark.parametrize("name,function,case,code", EXAMPLES, ids=[e[0] for e in EXAMPLES])
+def test_adapter_example_passes(drivers, tmp_path, name, function, case, code, driver):
+    path = tmp_path / name
+    path.write_text(code)
+    report = conformance.run_case(path, function, case, None, None, driver)
+    assert report.passed, report.format()
+
+
+@pytest.mark.parametrize("name,engine,case", [("bias_inside.hlsl", "ComputeMSMShadowIntensity",
+                                                "shadow_intensity-lower-float32"),
+                                               ("depth01.wgsl", "engine_unpack64", "unpack64-float32")])
+def test_engine_function_without_its_adapter_fails(drivers, tmp_path, name, engine, case):
+    # The adapters matter: the unchanged engine function alone is told apart.
+    code = dict((e[0], e[3]) for e in EXAMPLES)[name]
+    path = tmp_path / name
+    path.write_text(code)
+    report = conformance.run_case(path, engine, case)
+    assert not report.passed and report.categories["random"].failures > 0
+
+
+def test_generated_conformance_md_passes_everywhere_within_the_time_limits():
+    text = (ROOT / "docs" / "conformance.md").read_text()
+    assert "| FAIL |" not in text
+    rows = re.findall(r"^\| (glsl|hlsl|wgsl) \| (gl|vulkan) \| .*? \| (\d+) \| (\d+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \|$",
+                      text, re.M)
+    assert {(r[0], r[1]) for r in rows} == set(COMBOS)
+    for lang, drv, cases, failed, first, median, worst in rows:
+        assert int(cases) == len(conformance.shipped_cases()) and int(failed) == 0
+        assert float(worst) < 2.0  # one case after the first: under 2 s
+    total = float(re.search(r"Whole run \(golden generation included\): ([\d.]+) s", text).group(1))
+    assert total < 60
+
+
+def test_summary_markdown_on_two_cases(drivers, monkeypatch):
+    monkeypatch.setattr(_cli, "shipped_cases", lambda: ["psi4-float32", "pack32-float32"])
+    text = _cli.summary_markdown(probes=False)
+    assert text.count("| psi4-float32 | `psi4` |") == 6 and "| FAIL |" not in text
+    assert "## The two drivers agree" in text and "Whole run" in text
