@@ -150,6 +150,9 @@ def build_parser():
     vw.add_argument("--scene", default="knot", help="scene name or file with an area light (default knot)")
     vw.add_argument("--views", type=int, default=None, help="light samples (default: 24 and 128; --quick: fewer)")
     vw.add_argument("--quick", action="store_true", help="reduced resolution, under a minute on knot")
+    vw.add_argument("--near", type=float, default=None,
+                    help="the light's near plane z_n in world units (VWSS Listing 1 light.nearZ; default: the "
+                         "scene's params.light_near)")
     vw.add_argument("--out", required=True, type=Path, help="output folder")
     vw.set_defaults(func=_cmd_vwss)
 

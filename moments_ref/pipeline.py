@@ -410,7 +410,7 @@ def _add_area_stages(g, scene, names, size, area, reference):
     """Add the area-light stages (module docstring) for ``names`` ⊆ AREA_OUTPUTS; return (info, cfg)."""
     from .raster import rasterize_depth
     from .techniques import msm_soft
-    from .vwss import depth_range, generate_points, light_views, multiview_visibility, pcss, source_view
+    from .vwss import depth_range, generate_points, light_near, light_views, multiview_visibility, pcss, source_view
     from .vwss.compare import _mvr_iter, _shade_multiview
     from .vwss.mvr import mvr
     from .vwss.warp import warp
@@ -425,7 +425,7 @@ def _add_area_stages(g, scene, names, size, area, reference):
         cfg[key] = _positive_int(cfg[key], key)
     light = scene.light
     occ = scene.occluder_mesh(translucent=False)
-    near, far = depth_range(light, occ.vertices, scene.receiver.vertices)
+    near, far = depth_range(light, occ.vertices, scene.receiver.vertices, near=light_near(scene))
     # World-space depth bias along the light normal: the default of `moments-ref vwss`.
     bias = 0.002 * far if cfg["bias"] is None else float(cfg["bias"])
     cfg.update({"near": near, "far": far, "bias": bias})

@@ -12,14 +12,14 @@ The functions ``warp`` and ``mvr`` are not re-exported here, so that
 import them as ``from moments_ref.vwss.warp import warp``.
 """
 
-from .lights import LightSamples, depth_range, light_views, poisson_disk
+from .lights import LIGHT_NEAR_PARAM, LightSamples, depth_range, light_near, light_views, poisson_disk
 from .mvr import mvr_passes
 from .points import PointCloud, SourceView, center_view, enlarged_view, generate_points, naive_points, source_view
 from .shading import GBuffer, gbuffer, linear_depth, multiview_visibility, pcf_sum, pcss
 from .warp import project_to_texels, warp_passes, zbuffer_max
 
 __all__ = [
-    "LightSamples", "depth_range", "light_views", "poisson_disk",
+    "LIGHT_NEAR_PARAM", "LightSamples", "depth_range", "light_near", "light_views", "poisson_disk",
     "mvr_passes",
     "PointCloud", "SourceView", "center_view", "enlarged_view", "generate_points", "naive_points", "source_view",
     "GBuffer", "gbuffer", "linear_depth", "multiview_visibility", "pcf_sum", "pcss",
