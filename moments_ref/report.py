@@ -6,6 +6,8 @@ technique (:mod:`moments_ref.pipeline`) and writes to DIR:
 
 * ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`;
 * ``stages.json``: per scene the stages that ran (:attr:`moments_ref.pipeline.RunResult.stages`);
+* ``claims.json``: the paper claims measured on the scenes that ran
+  (:mod:`moments_ref.paper_claims`), also appended to report.md as a table;
 * ``report.md``: the table, the measured verdict on HPG17's headline claims,
   the error-against-run-time scatter plot ``scatter.png`` and the error images
   ``errors_<scene>.png``.
@@ -65,7 +67,7 @@ import numpy as np
 
 from ._arrays import InputError
 from ._io import save_figure, write_text
-from . import pipeline
+from . import paper_claims, pipeline
 from . import techniques as _techniques
 
 __all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
@@ -625,7 +627,7 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         raise InputError(f"area: unknown settings {sorted(unknown)}; known: map_size, light_samples, reference_views")
     flip_ok = _flip_available()
     rows, stages, settings, images = [], {}, {}, {"errors": {}, "soft": {}, "scattering": {}}
-    figs, deferred, soft, area_settings, scat_settings = {}, [], {}, {}, {}
+    figs, deferred, soft, area_settings, scat_settings, measured = {}, [], {}, {}, {}, {}
     bar = None
     if progress:
         from tqdm import tqdm
@@ -655,6 +657,7 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
                 result = pipeline.run(sc, techs, shadow_map_size=size, msaa=samples, resolution=res,
                                       noise_tiles=noise_tiles, area=acfg, progress=progress)
                 stages[sc.name] += list(result.stages)
+                measured[sc.name] = paper_claims.scene_measurements(result)
                 for n in result.techniques:
                     m = metrics(result.shadow[n], result.reference[n])
                     fl = math.nan
@@ -712,6 +715,7 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         texts = {"results.csv": _csv_text(rows), "stages.json": json.dumps(stages, indent=2) + "\n",
                  "report.md": _markdown(rows, stages, settings, claims, images, flip_ok, area_settings, soft,
                                         scat_settings, artifacts)}
+        texts["claims.json"], texts["report.md"] = paper_claims.gather(rows, measured, texts["report.md"], full)
         for name, fig in figs.items():
             paths[name] = save_figure(fig, out / name, dpi=110)
     finally:
