@@ -12,7 +12,7 @@ import inspect
 MODULES = (
     "moments", "msm", "msm6", "affine", "nonlinear", "packing", "precise",
     "filtering", "onchip", "banks", "bluenoise", "sat", "raster", "scene",
-    "techniques", "techniques.msm_soft", "techniques.scattering", "pipeline", "report", "claims", "paper_claims",
+    "techniques", "techniques.msm_soft", "techniques.scattering", "pipeline", "report", "claims", "paper_claims", "scattering_temporal",
     "vwss.lights", "vwss.points", "vwss.warp", "vwss.mvr", "vwss.shading", "vwss.compare", "vwss.paper",
     "golden", "oracle", "conformance", "strategies", "figures", "stability", "bench",
 )

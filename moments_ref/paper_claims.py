@@ -34,6 +34,9 @@ Claims (HPG17 §5 unless stated):
   (reference ≥ 0.999) of ``three-occluders``: the largest leak where the 9×9
   footprint holds three or more distinct occluder depths against the largest
   where it holds one or two (no threshold: the paper gives none).
+* ``slides-scattering-filtered-temporal`` (Slides, "Prefiltered single
+  scattering"), measured by :mod:`moments_ref.scattering_temporal` when the
+  ``scattering`` scene ran.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from .claims import Claim, markdown_table, to_json, verdict_of
+from . import scattering_temporal
 from . import techniques as _techniques
 
 __all__ = ["PAPER_PIXELS", "scene_measurements", "pixel_statistic", "claims", "gather"]
@@ -248,10 +252,26 @@ def _three_occluder_claim(measured, full):
                      "footprint), so the situation of Figure 9 does not occur at these settings"))
 
 
-def claims(rows, measured, full=False, extra=()):
-    """Claims of the scenes that ran: ``rows`` of results.csv, ``measured`` scene -> :func:`scene_measurements`."""
+def _temporal_claim(rows, full):
+    """The slides' temporal claim, measured on the first scattering scene that ran (a shipped one)."""
+    from .scene import list_scenes, load_scene
+
+    names = [s for s in dict.fromkeys(r["scene"] for r in rows if r["technique"] == "scattering_6m")
+             if s in list_scenes()]
+    if not names:
+        return None
+    return scattering_temporal.claim(scattering_temporal.measure(load_scene(names[0]), "full" if full else "default"))
+
+
+def claims(rows, measured, full=False, extra=(), temporal=True):
+    """Claims of the scenes that ran: ``rows`` of results.csv, ``measured`` scene -> :func:`scene_measurements`.
+
+    ``temporal``: also measure the slides' temporal claim when a shipped scattering
+    scene ran (:mod:`moments_ref.scattering_temporal`, 17 frames).
+    """
     out = [_pixels_claim(measured, full), _evsm_claim(rows, full), _nlq64_claim(rows, measured, full),
-           _nlq32_claim(rows, full), _three_occluder_claim(measured, full), *extra]
+           _nlq32_claim(rows, full), _three_occluder_claim(measured, full),
+           _temporal_claim(rows, full) if temporal else None, *extra]
     return [c for c in out if c is not None]
 
 
