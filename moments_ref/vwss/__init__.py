@@ -6,6 +6,7 @@
 * :mod:`.mvr`: multi-view rasterization, the baseline and the reference.
 * :mod:`.shading`: G-buffer, 5-tap multi-view PCF and PCSS (§4).
 * :mod:`.compare`: the ``moments-ref vwss`` comparison.
+* :mod:`.paper`: the paper's figures (Tables 1 and 2) and the claims measured against them.
 
 The functions ``warp`` and ``mvr`` are not re-exported here, so that
 ``moments_ref.vwss.warp`` and ``moments_ref.vwss.mvr`` stay the modules:

@@ -214,6 +214,42 @@ def _scaling(sc, near, far, m, n_views, vpp, seed, progress):
     return out
 
 
+def _one_view_count(ls, src, cen, c):
+    """VWSS (culled, not culled), naive warping and MVR with the light samples ``ls``.
+
+    Returns ``(rows, visibility, first maps, covered texels, holes)``; holes and bloat
+    compare the maps of the first warp pass's views and of the outermost sample with MVR's.
+    """
+    n, m, vpp = len(ls), c["m"], c["vpp"]
+    outer = int(np.argmax(np.linalg.norm(ls.uv - 0.5, axis=1)))
+    wanted = sorted(set(range(min(vpp, n))) | {outer})
+    rows, vis, first, coverage, holes, kept = [], {}, {}, {}, {}, {}
+    for tech, make in (("vwss", lambda: generate_points(c["occ_v"], c["occ_t"], src, cull_back_faces=True)),
+                       ("vwss_nocull", lambda: generate_points(c["occ_v"], c["occ_t"], src, cull_back_faces=False)),
+                       ("vwss_naive", lambda: naive_points(c["occ_v"], c["occ_t"], cen, cull_back_faces=True)),
+                       ("mvr", None)):
+        store, kept[tech] = [], dict.fromkeys(wanted)
+        if make is not None:
+            t0 = time.perf_counter()
+            pc = make()
+            t_pts, n_pts = time.perf_counter() - t0, len(pc)
+            it = warp_passes(pc.positions, ls, m, vpp, progress=c["progress"])
+        else:
+            t_pts, n_pts = 0.0, 0
+            it = _mvr_iter(c["occ_v"], c["occ_t"], ls, m, c["progress"])
+        v_, t_d, t_l, cov = _shade_multiview(it, c["P"], ls, c["bias"], store, kept[tech])
+        rows.append({"technique": tech, "views": n, "points": n_pts, "triangles": c["n_tri"],
+                     "rmse": _rmse(v_, c["vis_ref"]), "seconds_points": t_pts, "seconds_depth": t_d,
+                     "seconds_lighting": t_l, "seconds_total": t_pts + t_d + t_l})
+        coverage[(tech, n)] = cov
+        vis[tech], first[tech] = v_, (store[0] if store else None)
+    ras = np.stack([kept["mvr"][i] for i in wanted])
+    for w in ("vwss", "vwss_nocull", "vwss_naive"):
+        d = coverage_difference(np.stack([kept[w][i] for i in wanted]), ras, c["near"], c["far"], c["bias"])
+        holes[(w, n)] = {"views": wanted, "outermost": outer, **{k: v.tolist() for k, v in d.items()}}
+    return rows, vis, first, coverage, holes
+
+
 def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=True, map_size=None,
                  reference_views=None, camera_size=None, bias=None, seed=0, scaling=True,
                  views_per_pass=None, near=None) -> Comparison:
@@ -289,45 +325,21 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
     ls_ref = light_views(sc.light, int(cfg["reference_views"]), near, far, seed=seed + 1000)
     vis_ref, _, _, _ = _shade_multiview(_mvr_iter(occ_v, occ_t, ls_ref, m, progress), P, ls_ref, bias, None)
 
+    ctx = {"occ_v": occ_v, "occ_t": occ_t, "near": near, "far": far, "m": m, "vpp": vpp, "bias": bias,
+           "P": P, "progress": progress, "vis_ref": vis_ref, "n_tri": n_tri}
     rows, vis, first_maps, coverage, leaks, holes = [], {}, {}, {}, {}, {}
     n_max = max(cfg["views"])
     for n in cfg["views"]:
         ls = light_views(sc.light, n, near, far, seed=seed)
         src = source_view(ls, m)
-        cen = center_view(ls, m)
         cfg["source_resolution"], cfg["source_distance"] = src.resolution, src.distance
-        # Views whose maps are compared texel by texel with MVR: the first pass and the outermost sample.
-        outer = int(np.argmax(np.linalg.norm(ls.uv - 0.5, axis=1)))
-        kept = {}
-        for tech, make in (("vwss", lambda: generate_points(occ_v, occ_t, src, cull_back_faces=True)),
-                           ("vwss_nocull", lambda: generate_points(occ_v, occ_t, src, cull_back_faces=False)),
-                           ("vwss_naive", lambda: naive_points(occ_v, occ_t, cen, cull_back_faces=True)),
-                           ("mvr", None)):
-            store = []
-            kept[tech] = dict.fromkeys(sorted(set(range(min(vpp, n))) | {outer}))
-            if make is not None:
-                t0 = time.perf_counter()
-                pc = make()
-                t_pts = time.perf_counter() - t0
-                it = warp_passes(pc.positions, ls, m, vpp, progress=progress)
-                n_pts = len(pc)
-            else:
-                t_pts, n_pts = 0.0, 0
-                it = _mvr_iter(occ_v, occ_t, ls, m, progress)
-            v_, t_d, t_l, cov = _shade_multiview(it, P, ls, bias, store, kept[tech])
-            rows.append({"technique": tech, "views": n, "points": n_pts, "triangles": n_tri,
-                         "rmse": _rmse(v_, vis_ref), "seconds_points": t_pts, "seconds_depth": t_d,
-                         "seconds_lighting": t_l, "seconds_total": t_pts + t_d + t_l})
-            coverage[(tech, n)] = cov
-            if tech == "mvr":
-                idx = list(kept["mvr"])
-                for w in ("vwss", "vwss_nocull", "vwss_naive"):
-                    d = coverage_difference(np.stack([kept[w][i] for i in idx]),
-                                            np.stack([kept["mvr"][i] for i in idx]), near, far, bias)
-                    holes[(w, n)] = {"views": idx, "outermost": outer, **{k: v.tolist() for k, v in d.items()}}
-            if n == n_max:
-                vis[tech] = v_
-                first_maps[tech] = store[0] if store else None
+        r_, v_, f_, c_, h_ = _one_view_count(ls, src, center_view(ls, m), ctx)
+        rows += r_
+        coverage.update(c_)
+        holes.update(h_)
+        if n == n_max:
+            vis.update(v_)
+            first_maps.update(f_)
     # PCSS from the light-centre map.
     ls = light_views(sc.light, 1, near, far, seed=seed)
     t0 = time.perf_counter()

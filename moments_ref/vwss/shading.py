@@ -246,6 +246,11 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     projected (tan) units: the cross-section of the pyramid from the receiver to
     the light. Steps:
 
+    The near plane is the light's own ``z_n`` (``samples.near``, VWSS Listing 1's
+    ``light.nearZ``, :func:`moments_ref.vwss.lights.light_near`), the value that
+    also sets VWSS's source resolution (Eq. (3)): a smaller ``z_n`` widens the
+    search rectangle and spreads the 64 taps thinner.
+
     1. Blocker search over that rectangle at the near plane (the largest one):
        mean depth ``z_b`` of the taps nearer than ``z_r − bias``. No blocker: lit.
     2. Penumbra estimate by parallel planes, ``w = l (z_r − z_b) / z_b`` on the
