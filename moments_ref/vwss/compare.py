@@ -214,6 +214,47 @@ def _scaling(sc, near, far, m, n_views, vpp, seed, progress):
     return out
 
 
+def _prepare(scene, views, quick, map_size, reference_views, camera_size, bias, seed, views_per_pass, near):
+    """Load and check the scene; the settings, the light's near plane (and its rule), far and bias."""
+    from ..scene import AreaLight, load_scene
+
+    cfg = dict(SETTINGS["quick" if quick else "full"])
+    if views is not None:
+        cfg["views"] = (int(views),) if np.ndim(views) == 0 else tuple(int(v) for v in views)
+    if any(v < 1 for v in cfg["views"]):
+        raise InputError(f"views: expected positive light-sample counts, got {cfg['views']}")
+    for key, val in (("map_size", map_size), ("reference_views", reference_views), ("camera", camera_size),
+                     ("views_per_pass", views_per_pass)):
+        if val is not None:
+            cfg[key] = val
+    sc = load_scene(scene)
+    if not isinstance(sc.light, AreaLight):
+        raise InputError(f"scene: expected a scene with an area light (type = \"area\"), "
+                         f"got a {type(sc.light).__name__} in {sc.name!r}")
+    if sc.occluder.n_triangles == 0:
+        raise InputError(f"scene: {sc.name!r} has no occluder")
+    zn = light_near(sc) if near is None else near
+    rule = ("the scene's params.light_near" if near is None and zn is not None else
+            "given (--near)" if near is not None else "just in front of the nearest occluder (the scene names no "
+            "params.light_near)")
+    near, far = depth_range(sc.light, sc.occluder.vertices, sc.receiver.vertices, near=zn)
+    bias = 0.002 * far if bias is None else float(bias)
+    cfg.update({"scene": sc.name, "near": near, "near_rule": rule, "far": far, "bias": bias, "seed": seed,
+                "triangles": sc.occluder.n_triangles})
+    return sc, cfg, near, far, bias
+
+
+def _pcss_row(ls, c):
+    """PCSS (64-tap blocker search, 96-tap PCF) from the light-centre map: its row and visibility."""
+    t0 = time.perf_counter()
+    dmap, _ = rasterize_depth(c["occ_v"], c["occ_t"], ls.center_view_proj(), c["m"])
+    t_d = time.perf_counter() - t0
+    vis = pcss(c["P"], dmap[..., 0], ls, c["bias"])
+    t_l = time.perf_counter() - t0 - t_d
+    return {"technique": "pcss", "views": 1, "points": 0, "triangles": c["n_tri"], "rmse": _rmse(vis, c["vis_ref"]),
+            "seconds_points": 0.0, "seconds_depth": t_d, "seconds_lighting": t_l, "seconds_total": t_d + t_l}, vis
+
+
 def _one_view_count(ls, src, cen, c):
     """VWSS (culled, not culled), naive warping and MVR with the light samples ``ls``.
 
@@ -280,33 +321,9 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
         ``light.nearZ``); default the scene's ``params.light_near``, else just in
         front of the nearest occluder (:func:`moments_ref.vwss.lights.depth_range`).
     """
-    from ..scene import AreaLight, load_scene
-
-    cfg = dict(SETTINGS["quick" if quick else "full"])
-    if views is not None:
-        cfg["views"] = (int(views),) if np.ndim(views) == 0 else tuple(int(v) for v in views)
-    if any(v < 1 for v in cfg["views"]):
-        raise InputError(f"views: expected positive light-sample counts, got {cfg['views']}")
-    for key, val in (("map_size", map_size), ("reference_views", reference_views), ("camera", camera_size),
-                     ("views_per_pass", views_per_pass)):
-        if val is not None:
-            cfg[key] = val
-    sc = load_scene(scene)
-    if not isinstance(sc.light, AreaLight):
-        raise InputError(f"scene: expected a scene with an area light (type = \"area\"), "
-                         f"got a {type(sc.light).__name__} in {sc.name!r}")
-    if sc.occluder.n_triangles == 0:
-        raise InputError(f"scene: {sc.name!r} has no occluder")
-    m = int(cfg["map_size"])
-    vpp = int(cfg["views_per_pass"])
-    zn = light_near(sc) if near is None else near
-    rule = ("the scene's params.light_near" if near is None and zn is not None else
-            "given (--near)" if near is not None else "just in front of the nearest occluder (the scene names no "
-            "params.light_near)")
-    near, far = depth_range(sc.light, sc.occluder.vertices, sc.receiver.vertices, near=zn)
-    bias = 0.002 * far if bias is None else float(bias)
-    cfg.update({"scene": sc.name, "near": near, "near_rule": rule, "far": far, "bias": bias, "seed": seed,
-                "triangles": sc.occluder.n_triangles})
+    sc, cfg, near, far, bias = _prepare(scene, views, quick, map_size, reference_views, camera_size, bias, seed,
+                                        views_per_pass, near)
+    m, vpp = int(cfg["map_size"]), int(cfg["views_per_pass"])
     occ_v, occ_t = sc.occluder.vertices, sc.occluder.triangles
     n_tri = int(occ_t.shape[0])
 
@@ -340,16 +357,9 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
         if n == n_max:
             vis.update(v_)
             first_maps.update(f_)
-    # PCSS from the light-centre map.
-    ls = light_views(sc.light, 1, near, far, seed=seed)
-    t0 = time.perf_counter()
-    dmap, _ = rasterize_depth(occ_v, occ_t, ls.center_view_proj(), m)
-    t_d = time.perf_counter() - t0
-    vis["pcss"] = pcss(P, dmap[..., 0], ls, bias)
-    t_l = time.perf_counter() - t0 - t_d
-    rows.append({"technique": "pcss", "views": 1, "points": 0, "triangles": n_tri,
-                 "rmse": _rmse(vis["pcss"], vis_ref), "seconds_points": 0.0, "seconds_depth": t_d,
-                 "seconds_lighting": t_l, "seconds_total": t_d + t_l})
+    # PCSS from the light-centre map, with the same near plane.
+    row, vis["pcss"] = _pcss_row(light_views(sc.light, 1, near, far, seed=seed), ctx)
+    rows.append(row)
     vis["reference"] = vis_ref
 
     # Leaks against MVR with the same light samples (isolates warping from sampling).
