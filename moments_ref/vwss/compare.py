@@ -180,38 +180,36 @@ def _times(fn, repeat):
 
 
 def _scaling(sc, near, far, m, n_views, vpp, seed, progress):
-    """Depth-map time over 2 view counts × 2 triangle counts (original, subdivided once)."""
+    """Depth-map time over 2 view counts × 2 triangle counts (original, subdivided once).
+
+    The three warp repeats alternate between the two meshes, so that a change of the
+    machine's load during the experiment reaches both alike.
+    """
     out = []
     meshes = [(sc.occluder.vertices, sc.occluder.triangles)]
     meshes.append(subdivide(*meshes[0]))
-    levels = [(0, *meshes[0]), (1, *meshes[1])]
+    counts = (n_views, 2 * n_views)
     if progress:
         from tqdm import tqdm
 
-        levels = tqdm(levels, desc="scaling", unit="mesh", file=sys.stderr, disable=None, leave=False)
-    for level, v, t in levels:
-        for n in (n_views, 2 * n_views):
-            ls = light_views(sc.light, n, near, far, seed=seed)
-            src = source_view(ls, m)
+        counts = tqdm(counts, desc="scaling", unit="count", file=sys.stderr, disable=None, leave=False)
+    for n in counts:
+        ls = light_views(sc.light, n, near, far, seed=seed)
+        src = source_view(ls, m)
+        pcs, t_pts, warp_times = [], [], [[], []]
+        for v, t in meshes:
             t0 = time.perf_counter()
-            pc = generate_points(v, t, src)
-            t_pts = time.perf_counter() - t0
-
-            def do_warp():
-                for _ in warp_passes(pc.positions, ls, m, vpp):
-                    pass
-
-            warp_times = _times(do_warp, 3)
-
-            def do_mvr():
-                for _ in mvr_passes(v, t, ls, m):
-                    pass
-
-            t_mvr = min(_times(do_mvr, 1))
-            out.append({"level": level, "triangles": int(t.shape[0]), "views": n, "points": len(pc),
-                        "seconds_points": t_pts, "seconds_warp": min(warp_times),
-                        "seconds_warp_max": max(warp_times), "seconds_mvr": t_mvr})
-    return out
+            pcs.append(generate_points(v, t, src))
+            t_pts.append(time.perf_counter() - t0)
+        for _ in range(3):  # alternate the meshes
+            for level, pc in enumerate(pcs):
+                warp_times[level] += _times(lambda: [None for _ in warp_passes(pc.positions, ls, m, vpp)], 1)
+        for level, (v, t) in enumerate(meshes):
+            t_mvr = min(_times(lambda: [None for _ in mvr_passes(v, t, ls, m)], 1))
+            out.append({"level": level, "triangles": int(t.shape[0]), "views": n, "points": len(pcs[level]),
+                        "seconds_points": t_pts[level], "seconds_warp": min(warp_times[level]),
+                        "seconds_warp_max": max(warp_times[level]), "seconds_mvr": t_mvr})
+    return sorted(out, key=lambda x: (x["level"], x["views"]))
 
 
 def _prepare(scene, views, quick, map_size, reference_views, camera_size, bias, seed, views_per_pass, near):
