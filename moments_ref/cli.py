@@ -10,6 +10,10 @@ estimates that refuse large parameters up front), and a closed output pipe
 (``moments-ref bench | head -1``). Before any work starts, :func:`check_outputs`
 makes sure ``--out`` is a folder that can be written, and the numeric options are
 range-checked by argparse.
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -200,6 +204,15 @@ def build_parser():
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
+    _add_jobs(sub)
+    _add_oracle(sub)
+    _add_measurements(sub)
+    _add_common(sub)
+    return p
+
+
+def _add_jobs(sub):
+    """The main jobs: the report and the VWSS comparison."""
     rp = sub.add_parser("report", help="error against run time of every technique on the shipped scenes (main job)")
     rp.add_argument("--scene", action="append", help="scene name or file (repeatable; default: all shipped scenes)")
     rp.add_argument("--full", action="store_true", help="2048² 4× MSAA shadow maps and full camera resolution")
@@ -211,9 +224,15 @@ def build_parser():
     vw.add_argument("--scene", default="knot", help="scene name or file with an area light (default knot)")
     vw.add_argument("--views", type=_int_in(1), default=None, help="light samples (default: 24 and 128; --quick: fewer)")
     vw.add_argument("--quick", action="store_true", help="reduced resolution, under a minute on knot")
+    vw.add_argument("--near", type=float, default=None,
+                    help="the light's near plane z_n in world units (VWSS Listing 1 light.nearZ; default: the "
+                         "scene's params.light_near)")
     vw.add_argument("--out", required=True, type=Path, help="output folder")
     vw.set_defaults(func=_cmd_vwss)
 
+
+def _add_oracle(sub):
+    """Golden vectors, verification, the mutation score and the driver harness."""
     g = sub.add_parser("golden", help="write golden vectors and manifest.json")
     g.add_argument("--out", required=True, type=Path, help="output folder")
     g.add_argument("--case", action="append", help="only this case (repeatable)")
@@ -232,6 +251,22 @@ def build_parser():
     mu.add_argument("--out", type=Path, help="unused; accepted for uniformity")
     mu.set_defaults(func=_cmd_mutants)
 
+    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port on a real driver against a golden case")
+    lang = cf.add_mutually_exclusive_group()
+    lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
+    lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
+    lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
+    cf.add_argument("--function", help="the function to test")
+    cf.add_argument("--case", help="golden case, e.g. shade-float32")
+    cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
+    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME or an adapter name (default per language)")
+    cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
+    cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
+    cf.set_defaults(func=_cmd_conformance)
+
+
+def _add_measurements(sub):
+    """Benchmarks, numerical-honesty tables and the paper figures."""
     b = sub.add_parser("bench", help="throughput against a same-run memory copy")
     b.add_argument("--out", type=Path, help="also write bench.md here")
     b.add_argument("--size", type=_int_in(1, 16384), default=2048, help="square input side, 1..16384 (default 2048)")
@@ -254,24 +289,9 @@ def build_parser():
     f4.add_argument("--samples", type=int, choices=(1, 4, 8), default=4, help="MSAA samples (default 4)")
     f4.set_defaults(func=_cmd_figure4)
 
-    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port on a real driver against a golden case")
-    lang = cf.add_mutually_exclusive_group()
-    lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
-    lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
-    lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
-    cf.add_argument("--function", help="the function to test")
-    cf.add_argument("--case", help="golden case, e.g. shade-float32")
-    cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME or an adapter name (default per language)")
-    cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
-    cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
-    cf.set_defaults(func=_cmd_conformance)
-
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
     bk.add_argument("--out", type=Path, help="also write banks.md here")
     bk.set_defaults(func=_cmd_banks)
-    _add_common(sub)
-    return p
 
 
 def _add_common(sub):

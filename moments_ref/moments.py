@@ -4,6 +4,10 @@ HPG17 §2 defines the depth distribution of a filter region as
 ``Z = sum_l w_l δ_{z_l}`` and its power moments ``b = E_Z(b(z))`` with
 ``b(z) = (1, z, z², z³, z⁴)``. Moment vectors here hold ``b1..bn`` on the trailing
 axis; ``b0 = 1`` is implicit.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

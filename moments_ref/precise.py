@@ -35,6 +35,10 @@ Both bounds then return Z of that distribution (``lower = Z(z < zf)``,
 into the same branches, i.e. they are projected onto the boundary of the moment
 space exactly as :mod:`moments_ref.msm` documents. In the regular case
 ``upper = lower + w0``, the sharp upper bound of ``Z(z ≤ zf)``.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

@@ -12,6 +12,10 @@ Example
 ... def test_weights_sum_to_one(dist):
 ...     z, w = dist
 ...     assert abs(w.sum() - 1) < 1e-12
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

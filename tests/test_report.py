@@ -24,7 +24,7 @@ def tiny(tmp_path_factory):
 def test_files_columns_and_plot(tiny):
     out, res = tiny
     assert {p.name for p in out.iterdir()} == {"results.csv", "stages.json", "report.md", "scatter.png",
-                                               "errors_translucent.png"}
+                                               "errors_translucent.png", "claims.json"}
     with open(out / "results.csv", newline="") as f:
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == report.COLUMNS
@@ -94,7 +94,7 @@ def test_claims_verdicts():
 def test_unknown_names_list_known_ones(tmp_path, capsys):
     from moments_ref import InputError
 
-    with pytest.raises(InputError, match="known scenes: facade"):
+    with pytest.raises(InputError, match="known scenes: chair, facade"):
         report.run(scenes=["nope"], out_dir=tmp_path / "a", **TINY)
     with pytest.raises(InputError, match="known techniques"):
         report.run(scenes=["facade"], out_dir=tmp_path / "b", techniques=["zzz"], **TINY)

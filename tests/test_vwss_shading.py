@@ -1,6 +1,7 @@
 """VWSS shading: multi-view 5-tap PCF visibility, PCSS, MVR convergence and the comparison command."""
 
 import csv
+import json
 import math
 import types
 
@@ -165,12 +166,24 @@ def test_compare_quick_on_tiny_scene(tmp_path):
     assert {"vwss", "vwss_naive", "mvr", "pcss"} <= techs
     for r in rows:
         assert 0 <= float(r["rmse"]) <= 1 and math.isfinite(float(r["seconds_total"]))
-    for name in ("vwss.md", "vwss.png", "vwss_depth.png"):
+    for name in ("vwss.md", "vwss.png", "vwss_depth.png", "claims.json"):
         assert (tmp_path / "out" / name).stat().st_size > 0
-    # the claims are computed (each holds or not) and written
-    assert len(res.statements) >= 5 and all(isinstance(h, bool) for _, h, _ in res.statements)
+    # the claims are written with the paper's figure beside ours
+    claims = json.loads((tmp_path / "out" / "claims.json").read_text())
+    ids = [c["id"] for c in claims]
+    assert ids == ["vwss-below-pcss-24", "vwss-below-pcss-128", "vwss-hole-free", "vwss-naive-leaks",
+                   "vwss-depth-speedup", "vwss-warp-triangle-independent"]
+    for c in claims:
+        assert set(c) == {"id", "source", "statement", "paper", "measured", "settings", "verdict", "why"}
+        assert c["paper"] and c["why"] and c["verdict"] in ("holds", "does not hold", "not measurable here")
+    # 4 and 8 light samples: the paper's 24 and 128 are not measurable here
+    assert claims[0]["verdict"] == claims[1]["verdict"] == "not measurable here"
+    assert claims[2]["verdict"] != "not measurable here"
     md = (tmp_path / "out" / "vwss.md").read_text()
-    assert "qualitative" in md and all(c in md for c, _, _ in res.statements)
+    assert all(i in md for i in ids)
+    # the naive warp's source is the light centre's view at the samples' resolution
+    assert res.settings["near_rule"].startswith("just in front")
+    assert set(res.holes) == {(t, n) for t in ("vwss", "vwss_nocull", "vwss_naive") for n in (4, 8)}
     # a scene with a directional light is refused
     with pytest.raises(InputError, match="area light"):
         compare.run(scene="railing", quick=True, progress=False)

@@ -4,6 +4,10 @@ Each generator returns :class:`Rows`: inputs with a leading row axis (float64 or
 integer, cast to the case's dtype later), and per row a category (``random``,
 ``stiff``, ``edge``), a comment saying why the row is there, and flags (names from
 :data:`moments_ref.golden.notes.NOTES`) that say what is special about it.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

@@ -3,6 +3,10 @@
 Rows follow HPG17 §3.3–§3.5: random representations, the clamps of Algorithm 3
 (§3.4) exactly as the 32-bit decoder produces them (y1 = y2, v2 = 0, v2 = 1), the
 fold boundaries of Figure 5 and the Ψ4 code boundaries.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

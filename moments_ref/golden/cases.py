@@ -5,6 +5,10 @@ its outputs, the rows, the reference (this package's own implementation, run in 
 case's dtype) and the ground truth (the mpmath twin where one exists). ``kwargs``
 are plain values a port can use (``{"bound": "lower"}``, a bias preset's α and b*),
 never Python names.
+
+References
+----------
+HPG17, Slides : see docs/bib.md.
 """
 
 from __future__ import annotations

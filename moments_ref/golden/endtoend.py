@@ -19,6 +19,10 @@ The expected value is the same chain evaluated in float64 (quantization has no
 exact "truth"); per-row tolerances come from the spread of the float32 chain and
 of perturbed inputs (:mod:`moments_ref.golden.spread`), so a row whose code flips
 between legitimate implementations carries the resulting intensity difference.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

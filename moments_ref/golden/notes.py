@@ -3,6 +3,10 @@
 Every flag a row carries (the ``flags`` array of a golden file, comma separated)
 is a key of :data:`NOTES`, with a description of what is special about the row and
 its *effect* on the verdict, as Project Wycheproof's test vectors do.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

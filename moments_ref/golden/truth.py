@@ -5,6 +5,10 @@ mpmath: the clamps are part of the specification (a port must apply them), so th
 expected value of a row at v2 = 0 or y1 = y2 is the clamped one. Away from the
 clamps it equals :func:`moments_ref.precise.shade` (Algorithm 1 on Eq. (4)); the
 tests check that.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

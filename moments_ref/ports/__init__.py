@@ -5,6 +5,10 @@ papers (HPG17, the slides), one file per concept (``msm``, ``msm6``,
 ``nonlinear``, ``packing``) with the same function names in every language;
 :mod:`moments_ref.conformance` runs any of their functions on a real driver
 against the golden vectors. See docs/ports.md.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from pathlib import Path

@@ -6,6 +6,8 @@ technique (:mod:`moments_ref.pipeline`) and writes to DIR:
 
 * ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`;
 * ``stages.json``: per scene the stages that ran (:attr:`moments_ref.pipeline.RunResult.stages`);
+* ``claims.json``: the paper claims measured on the scenes that ran
+  (:mod:`moments_ref.paper_claims`), also appended to report.md as a table;
 * ``report.md``: the table, the measured verdict on HPG17's headline claims,
   the error-against-run-time scatter plot ``scatter.png`` and the error images
   ``errors_<scene>.png``.
@@ -67,7 +69,7 @@ import numpy as np
 from .._arrays import InputError
 from .._io import save_figure, write_text
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
-from .. import pipeline
+from .. import paper_claims, pipeline
 from .. import techniques as _techniques
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
@@ -131,11 +133,13 @@ def _scene_settings(sc, full, given):
 class _Collected:
     """What the scenes contributed, written at the end."""
 
+    full: bool = False
     rows: list = field(default_factory=list)
     stages: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     references: dict = field(default_factory=dict)  # reference name -> scene -> settings
     figures: dict = field(default_factory=dict)
+    measured: dict = field(default_factory=dict)  # scene -> numbers the paper claims need
     images: dict = field(default_factory=dict)  # reference name -> [file names]
 
 
@@ -151,6 +155,7 @@ def _run_scene(acc, sc, full, given, requested, overrides, noise_tiles, progress
     result = pipeline.run(sc, names, shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles,
                           settings=overrides, full=full, given=given, progress=progress)
     acc.stages[sc.name] += list(result.stages)
+    acc.measured[sc.name] = paper_claims.scene_measurements(result)
     acc.rows += result.rows()
     groups = {}
     for n in result.techniques:
@@ -208,6 +213,8 @@ def _write(acc, out, flip_ok):
         texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
                  "report.md": markdown(acc.rows, acc.stages, acc.settings, claims,
                                        {"scatter": "scatter.png", **acc.images}, flip_ok, refs, lines)}
+        texts["claims.json"], texts["report.md"] = paper_claims.gather(acc.rows, acc.measured, texts["report.md"],
+                                                                       acc.full)
         for name, fig in acc.figures.items():
             paths[name] = save_figure(fig, out / name, dpi=110)
     finally:
@@ -277,7 +284,7 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     overrides = _check_overrides({"area": area, "scattering": scattering})
     given = {"shadow_map_size": shadow_map_size, "msaa": msaa, "resolution": resolution}
     flip_ok = flip_available()
-    acc = _Collected()
+    acc = _Collected(full=full)
     with _bar(progress, len(loaded)) as bar:
         for sc in loaded:
             _run_scene(acc, sc, full, given, techniques, overrides, noise_tiles, progress)

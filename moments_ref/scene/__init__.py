@@ -10,6 +10,10 @@
 Shipped scenes (``scenes/*.toml``): ``railing`` (HPG17 Figure 1), ``facade``
 (Figure 8), ``three-occluders`` (Figure 9), ``knot`` (a torus knot of about 200k
 triangles under a rectangular area light, for VWSS) and ``translucent``.
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from .camera import Camera

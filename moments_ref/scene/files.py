@@ -45,6 +45,10 @@ triangle), its camera image (:data:`~moments_ref.scene.camera.BYTES_PER_PIXEL`)
 or its shadow map (:data:`BYTES_PER_SAMPLE` per texel and sample) would exceed
 :func:`moments_ref._arrays.max_memory` (4 GiB unless raised, ``--max-memory`` on
 the command line).
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

@@ -8,6 +8,10 @@
 
 The matrix builders live in :mod:`moments_ref.raster` (OpenGL conventions, NDC
 depth in [−1, 1]).
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations

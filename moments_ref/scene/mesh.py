@@ -9,6 +9,10 @@ Generators build the geometry of the test scenes of HPG17 (Figure 1: a railing,
 a banner and the ground; Figure 8: a facade with a protrusion; Figure 9: an
 umbrella, a roof and a railing) and a torus knot of 100k–500k triangles as the
 complex occluder of VWSS §5 (Table 1 lists scenes of that size).
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations

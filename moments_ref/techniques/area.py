@@ -45,7 +45,7 @@ import numpy as np
 
 from .._arrays import positive_int
 from ..raster import rasterize_depth
-from ..vwss import depth_range, light_views
+from ..vwss import depth_range, light_near, light_views
 from ..vwss.compare import _mvr_iter, _shade_multiview
 from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
 from .references import intensity_metric
@@ -104,7 +104,7 @@ def configure(ctx, overrides):
     for key in ("map_size", "light_samples", "reference_views", "views_per_pass"):
         cfg[key] = positive_int(cfg[key], key, "area")
     occ = scene.occluder_mesh(translucent=False)
-    near, far = depth_range(scene.light, occ.vertices, scene.receiver.vertices)
+    near, far = depth_range(scene.light, occ.vertices, scene.receiver.vertices, near=light_near(scene))
     # World-space depth bias along the light normal: the default of `moments-ref vwss`.
     bias = 0.002 * far if cfg["bias"] is None else float(cfg["bias"])
     cfg.update({"near": near, "far": far, "bias": bias})

@@ -6,20 +6,25 @@
 * :mod:`.mvr`: multi-view rasterization, the baseline and the reference.
 * :mod:`.shading`: G-buffer, 5-tap multi-view PCF and PCSS (§4).
 * :mod:`.compare`: the ``moments-ref vwss`` comparison.
+* :mod:`.paper`: the paper's figures (Tables 1 and 2) and the claims measured against them.
 
 The functions ``warp`` and ``mvr`` are not re-exported here, so that
 ``moments_ref.vwss.warp`` and ``moments_ref.vwss.mvr`` stay the modules:
 import them as ``from moments_ref.vwss.warp import warp``.
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
-from .lights import LightSamples, depth_range, light_views, poisson_disk
+from .lights import LIGHT_NEAR_PARAM, LightSamples, depth_range, light_near, light_views, poisson_disk
 from .mvr import mvr_passes
 from .points import PointCloud, SourceView, center_view, enlarged_view, generate_points, naive_points, source_view
 from .shading import GBuffer, gbuffer, linear_depth, multiview_visibility, pcf_sum, pcss
 from .warp import project_to_texels, warp_passes, zbuffer_max
 
 __all__ = [
-    "LightSamples", "depth_range", "light_views", "poisson_disk",
+    "LIGHT_NEAR_PARAM", "LightSamples", "depth_range", "light_near", "light_views", "poisson_disk",
     "mvr_passes",
     "PointCloud", "SourceView", "center_view", "enlarged_view", "generate_points", "naive_points", "source_view",
     "GBuffer", "gbuffer", "linear_depth", "multiview_visibility", "pcf_sum", "pcss",

@@ -6,9 +6,10 @@ with
 * ``vwss``: layered points from the enlarged source view (back faces culled, the
   paper's setting), warped into N light-sample maps;
 * ``vwss_nocull``: the same with back-face culling off (§3.1's "to increase accuracy");
-* ``vwss_naive``: only the nearest fragment per source texel (plain image
-  warping, Figure 4 left), warped from the same enlarged source view, so that
-  the only difference to ``vwss`` is the missing layers (disocclusions);
+* ``vwss_naive``: plain image warping (VWSS Figure 4 left, Figure 5 left): the
+  nearest fragment per texel of the light's *centre* view at the samples'
+  resolution, warped into every sample view; it misses data at disocclusions
+  and beyond the centre view's field of view;
 * ``mvr``: N rasterized maps with the same light samples;
 * ``pcss``: one rasterized map from the light centre, 64-tap blocker search,
   96-tap PCF;
@@ -18,17 +19,30 @@ the camera) against a reference: MVR with many light samples (its own Poisson
 set). Times are wall-clock seconds of this NumPy implementation on one core,
 not GPU times: they show how the costs scale, not the paper's milliseconds.
 
+Near plane. All views use the light's own near plane ``z_n`` (VWSS Listing 1,
+``light.nearZ``): the scene's ``params.light_near``
+(:func:`moments_ref.vwss.lights.light_near`), or ``near=`` / ``--near``. It sets
+the source view's resolution by Eq. (3) and PCSS's blocker-search region alike.
+
+Holes and bloat (VWSS §3.2, Figure 6) are measured per light sample against the
+MVR map of the same view (:func:`coverage_difference`) on the first warp pass's
+views and the outermost light sample.
+
 Outputs (written atomically): ``vwss.csv``, ``vwss.md`` (table, parameters and
-the paper's qualitative claims, each measured and marked as holding or not),
-``vwss.png`` (visibility and error images) and ``vwss_depth.png`` (one light
-sample's depth maps and the coverage difference of Figure 6).
+the claims table), ``claims.json`` (:mod:`moments_ref.claims` records built by
+:mod:`moments_ref.vwss.paper`, the paper's figure beside ours), ``vwss.png``
+(visibility and error images) and ``vwss_depth.png`` (one light sample's depth
+maps and the coverage difference of Figure 6).
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -37,14 +51,16 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError
+from ..claims import markdown_table, write_json
 from ..raster import rasterize_depth
-from .lights import depth_range, light_views
+from .lights import depth_range, light_near, light_views
 from .mvr import mvr_passes
-from .points import generate_points, naive_points, source_view
-from .shading import gbuffer, pcf_sum, pcss
+from .points import center_view, generate_points, naive_points, source_view
+from .shading import gbuffer, linear_depth, pcf_sum, pcss
 from .warp import warp_passes
+from . import paper
 
-__all__ = ["COLUMNS", "SETTINGS", "subdivide", "Comparison", "run_detailed", "run", "main"]
+__all__ = ["COLUMNS", "SETTINGS", "subdivide", "Comparison", "coverage_difference", "run_detailed", "run", "main"]
 
 COLUMNS = ("technique", "views", "points", "triangles", "rmse", "seconds_points", "seconds_depth",
            "seconds_lighting", "seconds_total")
@@ -90,14 +106,20 @@ class Comparison:
     images: dict = field(default_factory=dict)
     depth_images: dict = field(default_factory=dict)
     mask: np.ndarray = None
+    holes: dict = field(default_factory=dict)
+    claims: list = field(default_factory=list)
 
 
 def _rmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2))) if a.size else float("nan")
 
 
-def _shade_multiview(maps_iter, P, ls, bias, first_store):
-    """Consume (sel, maps) passes; return (visibility, depth seconds, lighting seconds, covered texels)."""
+def _shade_multiview(maps_iter, P, ls, bias, first_store, keep=None):
+    """Consume (sel, maps) passes; return (visibility, depth seconds, lighting seconds, covered texels).
+
+    ``first_store`` (a list) receives light sample 0's map; ``keep`` (a dict whose
+    keys are view indices) receives the maps of those views.
+    """
     acc = np.zeros(P.shape[0])
     t_depth = t_light = 0.0
     covered = 0
@@ -108,10 +130,43 @@ def _shade_multiview(maps_iter, P, ls, bias, first_store):
         covered += int(np.count_nonzero(maps < 1))
         if 0 in sel and first_store is not None:
             first_store.append(maps[list(sel).index(0)].copy())
+        for j, i in enumerate(sel):
+            if keep is not None and int(i) in keep:
+                keep[int(i)] = maps[j].copy()
         acc += pcf_sum(P, maps, ls.view_proj[sel], ls.near, ls.far, bias)
         t0 = time.perf_counter()
         t_light += t0 - t1
     return acc / len(ls), t_depth, t_light, covered
+
+
+def coverage_difference(warped, rasterized, near, far, bias):
+    """Holes and bloat of warped maps against rasterized maps of the same views (VWSS §3.2, Figure 6).
+
+    Parameters
+    ----------
+    warped, rasterized : (K, H, W) float arrays
+        NDC depth maps (1 = empty) of the same K views.
+    near, far : float
+        The views' near and far distances.
+    bias : float
+        Depth tolerance in world units (the shading bias).
+
+    Returns
+    -------
+    dict of (K,) float64 arrays, fractions of the texels the rasterized map covers:
+    ``holes`` (the rasterized map has a surface, the warped map none or one more
+    than ``bias`` farther: light would leak there) and ``bloat`` (the warped map
+    has a surface more than ``bias`` nearer than the rasterized one, or where it
+    has none: the shadow grows).
+    """
+    w = np.asarray(warped, np.float64)
+    r = np.asarray(rasterized, np.float64)
+    lw, lr = linear_depth(w, near, far), linear_depth(r, near, far)
+    cov_r, cov_w = r < 1, w < 1
+    holes = cov_r & (~cov_w | (lw > lr + bias))
+    bloat = cov_w & (~cov_r | (lw < lr - bias))
+    n = np.maximum(cov_r.sum(axis=(1, 2)), 1)
+    return {"holes": holes.sum(axis=(1, 2)) / n, "bloat": bloat.sum(axis=(1, 2)) / n}
 
 
 def _mvr_iter(v, t, ls, m, progress):
@@ -119,58 +174,128 @@ def _mvr_iter(v, t, ls, m, progress):
         yield np.array([i]), d[None]
 
 
-def _best(fn, repeat):
-    best = math.inf
+def _times(fn, repeat):
+    out = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
-def _scaling(sc, near, far, m, n_views, vpp, seed, progress):
-    """Depth-map time over 2 view counts × 2 triangle counts (original, subdivided once)."""
-    out = []
-    meshes = [(sc.occluder.vertices, sc.occluder.triangles)]
-    meshes.append(subdivide(*meshes[0]))
-    levels = [(0, *meshes[0]), (1, *meshes[1])]
-    if progress:
-        from tqdm import tqdm
-
-        levels = tqdm(levels, desc="scaling", unit="mesh", file=sys.stderr, disable=None, leave=False)
-    for level, v, t in levels:
-        for n in (n_views, 2 * n_views):
-            ls = light_views(sc.light, n, near, far, seed=seed)
-            src = source_view(ls, m)
-            t0 = time.perf_counter()
-            pc = generate_points(v, t, src)
-            t_pts = time.perf_counter() - t0
-
-            def do_warp():
-                for _ in warp_passes(pc.positions, ls, m, vpp):
-                    pass
-
-            t_warp = _best(do_warp, 3)
-
-            def do_mvr():
-                for _ in mvr_passes(v, t, ls, m):
-                    pass
-
-            t_mvr = _best(do_mvr, 1)
-            out.append({"level": level, "triangles": int(t.shape[0]), "views": n, "points": len(pc),
-                        "seconds_points": t_pts, "seconds_warp": t_warp, "seconds_mvr": t_mvr})
+        out.append(time.perf_counter() - t0)
     return out
 
 
-def _exponent(t1, t2, x1, x2):
-    if t1 <= 0 or t2 <= 0 or x1 == x2:
-        return float("nan")
-    return math.log(t2 / t1) / math.log(x2 / x1)
+def _scaling(sc, near, far, m, n_views, vpp, seed, progress):
+    """Depth-map time over 2 view counts × 2 triangle counts (original, subdivided once).
+
+    The three warp repeats alternate between the two meshes, so that a change of the
+    machine's load during the experiment reaches both alike.
+    """
+    out = []
+    meshes = [(sc.occluder.vertices, sc.occluder.triangles)]
+    meshes.append(subdivide(*meshes[0]))
+    counts = (n_views, 2 * n_views)
+    if progress:
+        from tqdm import tqdm
+
+        counts = tqdm(counts, desc="scaling", unit="count", file=sys.stderr, disable=None, leave=False)
+    for n in counts:
+        ls = light_views(sc.light, n, near, far, seed=seed)
+        src = source_view(ls, m)
+        pcs, t_pts, warp_times = [], [], [[], []]
+        for v, t in meshes:
+            t0 = time.perf_counter()
+            pcs.append(generate_points(v, t, src))
+            t_pts.append(time.perf_counter() - t0)
+        for _ in range(3):  # alternate the meshes
+            for level, pc in enumerate(pcs):
+                warp_times[level] += _times(lambda: [None for _ in warp_passes(pc.positions, ls, m, vpp)], 1)
+        for level, (v, t) in enumerate(meshes):
+            t_mvr = min(_times(lambda: [None for _ in mvr_passes(v, t, ls, m)], 1))
+            out.append({"level": level, "triangles": int(t.shape[0]), "views": n, "points": len(pcs[level]),
+                        "seconds_points": t_pts[level], "seconds_warp": min(warp_times[level]),
+                        "seconds_warp_max": max(warp_times[level]), "seconds_mvr": t_mvr})
+    return sorted(out, key=lambda x: (x["level"], x["views"]))
+
+
+def _prepare(scene, views, quick, map_size, reference_views, camera_size, bias, seed, views_per_pass, near):
+    """Load and check the scene; the settings, the light's near plane (and its rule), far and bias."""
+    from ..scene import AreaLight, load_scene
+
+    cfg = dict(SETTINGS["quick" if quick else "full"])
+    if views is not None:
+        cfg["views"] = (int(views),) if np.ndim(views) == 0 else tuple(int(v) for v in views)
+    if any(v < 1 for v in cfg["views"]):
+        raise InputError(f"views: expected positive light-sample counts, got {cfg['views']}")
+    for key, val in (("map_size", map_size), ("reference_views", reference_views), ("camera", camera_size),
+                     ("views_per_pass", views_per_pass)):
+        if val is not None:
+            cfg[key] = val
+    sc = load_scene(scene)
+    if not isinstance(sc.light, AreaLight):
+        raise InputError(f"scene: expected a scene with an area light (type = \"area\"), "
+                         f"got a {type(sc.light).__name__} in {sc.name!r}")
+    if sc.occluder.n_triangles == 0:
+        raise InputError(f"scene: {sc.name!r} has no occluder")
+    zn = light_near(sc) if near is None else near
+    rule = ("the scene's params.light_near" if near is None and zn is not None else
+            "given (--near)" if near is not None else "just in front of the nearest occluder (the scene names no "
+            "params.light_near)")
+    near, far = depth_range(sc.light, sc.occluder.vertices, sc.receiver.vertices, near=zn)
+    bias = 0.002 * far if bias is None else float(bias)
+    cfg.update({"scene": sc.name, "near": near, "near_rule": rule, "far": far, "bias": bias, "seed": seed,
+                "triangles": sc.occluder.n_triangles})
+    return sc, cfg, near, far, bias
+
+
+def _pcss_row(ls, c):
+    """PCSS (64-tap blocker search, 96-tap PCF) from the light-centre map: its row and visibility."""
+    t0 = time.perf_counter()
+    dmap, _ = rasterize_depth(c["occ_v"], c["occ_t"], ls.center_view_proj(), c["m"])
+    t_d = time.perf_counter() - t0
+    vis = pcss(c["P"], dmap[..., 0], ls, c["bias"])
+    t_l = time.perf_counter() - t0 - t_d
+    return {"technique": "pcss", "views": 1, "points": 0, "triangles": c["n_tri"], "rmse": _rmse(vis, c["vis_ref"]),
+            "seconds_points": 0.0, "seconds_depth": t_d, "seconds_lighting": t_l, "seconds_total": t_d + t_l}, vis
+
+
+def _one_view_count(ls, src, cen, c):
+    """VWSS (culled, not culled), naive warping and MVR with the light samples ``ls``.
+
+    Returns ``(rows, visibility, first maps, covered texels, holes)``; holes and bloat
+    compare the maps of the first warp pass's views and of the outermost sample with MVR's.
+    """
+    n, m, vpp = len(ls), c["m"], c["vpp"]
+    outer = int(np.argmax(np.linalg.norm(ls.uv - 0.5, axis=1)))
+    wanted = sorted(set(range(min(vpp, n))) | {outer})
+    rows, vis, first, coverage, holes, kept = [], {}, {}, {}, {}, {}
+    for tech, make in (("vwss", lambda: generate_points(c["occ_v"], c["occ_t"], src, cull_back_faces=True)),
+                       ("vwss_nocull", lambda: generate_points(c["occ_v"], c["occ_t"], src, cull_back_faces=False)),
+                       ("vwss_naive", lambda: naive_points(c["occ_v"], c["occ_t"], cen, cull_back_faces=True)),
+                       ("mvr", None)):
+        store, kept[tech] = [], dict.fromkeys(wanted)
+        if make is not None:
+            t0 = time.perf_counter()
+            pc = make()
+            t_pts, n_pts = time.perf_counter() - t0, len(pc)
+            it = warp_passes(pc.positions, ls, m, vpp, progress=c["progress"])
+        else:
+            t_pts, n_pts = 0.0, 0
+            it = _mvr_iter(c["occ_v"], c["occ_t"], ls, m, c["progress"])
+        v_, t_d, t_l, cov = _shade_multiview(it, c["P"], ls, c["bias"], store, kept[tech])
+        rows.append({"technique": tech, "views": n, "points": n_pts, "triangles": c["n_tri"],
+                     "rmse": _rmse(v_, c["vis_ref"]), "seconds_points": t_pts, "seconds_depth": t_d,
+                     "seconds_lighting": t_l, "seconds_total": t_pts + t_d + t_l})
+        coverage[(tech, n)] = cov
+        vis[tech], first[tech] = v_, (store[0] if store else None)
+    ras = np.stack([kept["mvr"][i] for i in wanted])
+    for w in ("vwss", "vwss_nocull", "vwss_naive"):
+        d = coverage_difference(np.stack([kept[w][i] for i in wanted]), ras, c["near"], c["far"], c["bias"])
+        holes[(w, n)] = {"views": wanted, "outermost": outer, **{k: v.tolist() for k, v in d.items()}}
+    return rows, vis, first, coverage, holes
 
 
 def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=True, map_size=None,
                  reference_views=None, camera_size=None, bias=None, seed=0, scaling=True,
-                 views_per_pass=None) -> Comparison:
+                 views_per_pass=None, near=None) -> Comparison:
     """Run the comparison and return all measurements (:func:`run` returns only the rows).
 
     Parameters
@@ -193,30 +318,14 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
         Seed of the light samples (the reference uses ``seed + 1000``).
     scaling : bool
         Run the 2 × 2 view-count × triangle-count timing experiment.
+    near : float, optional
+        The light's near plane ``z_n`` in world units (VWSS Listing 1's
+        ``light.nearZ``); default the scene's ``params.light_near``, else just in
+        front of the nearest occluder (:func:`moments_ref.vwss.lights.depth_range`).
     """
-    from ..scene import AreaLight, load_scene
-
-    cfg = dict(SETTINGS["quick" if quick else "full"])
-    if views is not None:
-        cfg["views"] = (int(views),) if np.ndim(views) == 0 else tuple(int(v) for v in views)
-    if any(v < 1 for v in cfg["views"]):
-        raise InputError(f"views: expected positive light-sample counts, got {cfg['views']}")
-    for key, val in (("map_size", map_size), ("reference_views", reference_views), ("camera", camera_size),
-                     ("views_per_pass", views_per_pass)):
-        if val is not None:
-            cfg[key] = val
-    sc = load_scene(scene)
-    if not isinstance(sc.light, AreaLight):
-        raise InputError(f"scene: expected a scene with an area light (type = \"area\"), "
-                         f"got a {type(sc.light).__name__} in {sc.name!r}")
-    if sc.occluder.n_triangles == 0:
-        raise InputError(f"scene: {sc.name!r} has no occluder")
-    m = int(cfg["map_size"])
-    vpp = int(cfg["views_per_pass"])
-    near, far = depth_range(sc.light, sc.occluder.vertices, sc.receiver.vertices)
-    bias = 0.002 * far if bias is None else float(bias)
-    cfg.update({"scene": sc.name, "near": near, "far": far, "bias": bias, "seed": seed,
-                "triangles": sc.occluder.n_triangles})
+    sc, cfg, near, far, bias = _prepare(scene, views, quick, map_size, reference_views, camera_size, bias, seed,
+                                        views_per_pass, near)
+    m, vpp = int(cfg["map_size"]), int(cfg["views_per_pass"])
     occ_v, occ_t = sc.occluder.vertices, sc.occluder.triangles
     n_tri = int(occ_t.shape[0])
 
@@ -235,44 +344,24 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
     ls_ref = light_views(sc.light, int(cfg["reference_views"]), near, far, seed=seed + 1000)
     vis_ref, _, _, _ = _shade_multiview(_mvr_iter(occ_v, occ_t, ls_ref, m, progress), P, ls_ref, bias, None)
 
-    rows, vis, first_maps, coverage, leaks = [], {}, {}, {}, {}
+    ctx = {"occ_v": occ_v, "occ_t": occ_t, "near": near, "far": far, "m": m, "vpp": vpp, "bias": bias,
+           "P": P, "progress": progress, "vis_ref": vis_ref, "n_tri": n_tri}
+    rows, vis, first_maps, coverage, leaks, holes = [], {}, {}, {}, {}, {}
     n_max = max(cfg["views"])
     for n in cfg["views"]:
         ls = light_views(sc.light, n, near, far, seed=seed)
         src = source_view(ls, m)
         cfg["source_resolution"], cfg["source_distance"] = src.resolution, src.distance
-        for tech, make in (("vwss", lambda: generate_points(occ_v, occ_t, src, cull_back_faces=True)),
-                           ("vwss_nocull", lambda: generate_points(occ_v, occ_t, src, cull_back_faces=False)),
-                           ("vwss_naive", lambda: naive_points(occ_v, occ_t, src, cull_back_faces=True)),
-                           ("mvr", None)):
-            store = []
-            if make is not None:
-                t0 = time.perf_counter()
-                pc = make()
-                t_pts = time.perf_counter() - t0
-                it = warp_passes(pc.positions, ls, m, vpp, progress=progress)
-                n_pts = len(pc)
-            else:
-                t_pts, n_pts = 0.0, 0
-                it = _mvr_iter(occ_v, occ_t, ls, m, progress)
-            v_, t_d, t_l, cov = _shade_multiview(it, P, ls, bias, store)
-            rows.append({"technique": tech, "views": n, "points": n_pts, "triangles": n_tri,
-                         "rmse": _rmse(v_, vis_ref), "seconds_points": t_pts, "seconds_depth": t_d,
-                         "seconds_lighting": t_l, "seconds_total": t_pts + t_d + t_l})
-            coverage[(tech, n)] = cov
-            if n == n_max:
-                vis[tech] = v_
-                first_maps[tech] = store[0] if store else None
-    # PCSS from the light-centre map.
-    ls = light_views(sc.light, 1, near, far, seed=seed)
-    t0 = time.perf_counter()
-    dmap, _ = rasterize_depth(occ_v, occ_t, ls.center_view_proj(), m)
-    t_d = time.perf_counter() - t0
-    vis["pcss"] = pcss(P, dmap[..., 0], ls, bias)
-    t_l = time.perf_counter() - t0 - t_d
-    rows.append({"technique": "pcss", "views": 1, "points": 0, "triangles": n_tri,
-                 "rmse": _rmse(vis["pcss"], vis_ref), "seconds_points": 0.0, "seconds_depth": t_d,
-                 "seconds_lighting": t_l, "seconds_total": t_d + t_l})
+        r_, v_, f_, c_, h_ = _one_view_count(ls, src, center_view(ls, m), ctx)
+        rows += r_
+        coverage.update(c_)
+        holes.update(h_)
+        if n == n_max:
+            vis.update(v_)
+            first_maps.update(f_)
+    # PCSS from the light-centre map, with the same near plane.
+    row, vis["pcss"] = _pcss_row(light_views(sc.light, 1, near, far, seed=seed), ctx)
+    rows.append(row)
     vis["reference"] = vis_ref
 
     # Leaks against MVR with the same light samples (isolates warping from sampling).
@@ -284,8 +373,9 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
     scal = _scaling(sc, near, far, m, int(cfg["scaling_views"]), vpp, seed, progress) if scaling else []
     conv = [(r["views"], r["rmse"]) for r in rows if r["technique"] == "mvr"]
     res = Comparison(rows=rows, statements=[], settings=cfg, scaling=scal, convergence=conv,
-                     coverage=coverage, leaks=leaks, mask=gb.receiver)
-    res.statements = _statements(res)
+                     coverage=coverage, leaks=leaks, mask=gb.receiver, holes=holes)
+    res.claims = paper.claims(res)
+    res.statements = [(c.statement, c.verdict == "holds", c.why) for c in res.claims]
     img = np.full(gb.receiver.shape, np.nan)
     for k, v_ in vis.items():
         im = img.copy()
@@ -296,66 +386,6 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
     if out_dir is not None:
         write_outputs(res, out_dir)
     return res
-
-
-def _statements(res):
-    """The paper's qualitative claims, measured: list of (claim, holds: bool or None, evidence)."""
-    rows = {(r["technique"], r["views"]): r for r in res.rows}
-    views = sorted({r["views"] for r in res.rows if r["technique"] == "vwss"})
-    out = []
-    pc = rows[("pcss", 1)]["rmse"]
-    ratios = [rows[("vwss", n)]["rmse"] / pc for n in views]
-    out.append(("VWSS error well below PCSS (RMSE ratio VWSS/PCSS <= 0.5)",
-                all(r <= 0.5 for r in ratios),
-                ", ".join(f"N={n}: {rows[('vwss', n)]['rmse']:.4f} vs {pc:.4f} (ratio {r:.2f})"
-                          for n, r in zip(views, ratios))))
-    if res.scaling:
-        s = {(x["level"], x["views"]): x for x in res.scaling}
-        lv = sorted({x["views"] for x in res.scaling})
-        tr = sorted({x["triangles"] for x in res.scaling})
-        e_vw_v = _exponent(s[(0, lv[0])]["seconds_warp"], s[(0, lv[1])]["seconds_warp"], lv[0], lv[1])
-        e_mv_v = _exponent(s[(0, lv[0])]["seconds_mvr"], s[(0, lv[1])]["seconds_mvr"], lv[0], lv[1])
-        vw_t = [s[(lev, lv[1])]["seconds_warp"] + s[(lev, lv[1])]["seconds_points"] for lev in (0, 1)]
-        e_vw_t = _exponent(vw_t[0], vw_t[1], tr[0], tr[1])
-        e_warp_t = _exponent(s[(0, lv[1])]["seconds_warp"], s[(1, lv[1])]["seconds_warp"], tr[0], tr[1])
-        e_mv_t = _exponent(s[(0, lv[1])]["seconds_mvr"], s[(1, lv[1])]["seconds_mvr"], tr[0], tr[1])
-        p0, p1 = s[(0, lv[1])]["points"], s[(1, lv[1])]["points"]
-        holds_v = 0.6 <= e_vw_v <= 1.4
-        out.append(("VWSS depth-map (warp) time grows with points x views (exponent in views 0.6-1.4)", holds_v,
-                    f"warp time ~ views^{e_vw_v:.2f} at {p0} points; per point-view "
-                    f"{1e9 * s[(0, lv[1])]['seconds_warp'] / (p0 * lv[1]):.1f} ns"))
-        out.append(("VWSS depth-map time grows only weakly with triangles (exponent < 0.5, points + warp)",
-                    e_vw_t < 0.5,
-                    f"4x triangles ({tr[0]} -> {tr[1]}): points {p0} -> {p1}; warp ~ tris^{e_warp_t:.2f}, "
-                    f"points+warp ~ tris^{e_vw_t:.2f}"))
-        out.append(("MVR time grows with triangles x views (exponents > 0.5)",
-                    e_mv_v > 0.5 and e_mv_t > 0.5,
-                    f"MVR ~ views^{e_mv_v:.2f}, ~ tris^{e_mv_t:.2f}"))
-    n = max(views)
-    lk = res.leaks
-    holds = (lk["vwss_naive"]["mean_excess"] > 2 * lk["vwss"]["mean_excess"]
-             and lk["vwss_naive"]["pixels_over_0.1"] > lk["vwss"]["pixels_over_0.1"])
-    out.append(("Naive single-layer warp leaks light at disocclusions where layered points do not "
-                "(mean excess visibility over MVR with the same samples, naive > 2x vwss)", holds,
-                f"N={n}: naive excess {lk['vwss_naive']['mean_excess']:.4f} "
-                f"({100 * lk['vwss_naive']['pixels_over_0.1']:.2f}% pixels > 0.1), vwss "
-                f"{lk['vwss']['mean_excess']:.4f} ({100 * lk['vwss']['pixels_over_0.1']:.2f}%)"))
-    cov = res.coverage
-    ratio = cov[("vwss", n)] / max(cov[("mvr", n)], 1)
-    ratio_nc = cov[("vwss_nocull", n)] / max(cov[("mvr", n)], 1)
-    out.append(("Slight bloat of point splatting against rasterization (Figure 6): covered texels "
-                "warp / MVR in (1, 1.15]", 1 < ratio <= 1.15,
-                f"N={n}: back faces culled {ratio:.4f}, no culling {ratio_nc:.4f}; mean visibility "
-                f"difference to MVR: vwss {lk['vwss']['mean_difference']:+.4f}, "
-                f"nocull {lk['vwss_nocull']['mean_difference']:+.4f}"))
-    conv = res.convergence
-    if len(conv) >= 2:
-        (n1, r1), (n2, r2) = conv[0], conv[-1]
-        out.append(("MVR converges to the reference with the view count (RMSE decreasing)", r2 < r1,
-                    f"RMSE {r1:.4f} at N={n1}, {r2:.4f} at N={n2}: ~ N^{_exponent(r1, r2, n1, n2):.2f} "
-                    "(Monte Carlo would be N^-0.5; Poisson-disk samples converge faster while N is "
-                    "far below the reference count)"))
-    return out
 
 
 def _csv(rows):
@@ -383,11 +413,20 @@ def markdown(res) -> str:
     for r in res.rows:
         lines.append("| " + " | ".join(f"{r[k]:.4g}" if isinstance(r[k], float) else str(r[k])
                                        for k in COLUMNS) + " |")
-    lines += ["", "`vwss_nocull` is an extra row: VWSS with back-face culling off (VWSS §3.1).", "",
-              "## The paper's qualitative results, measured here", ""]
-    for claim, holds, ev in res.statements:
-        mark = "holds" if holds else "**does not hold**"
-        lines.append(f"- {claim}: {mark}. {ev}.")
+    lines += ["", "`vwss_nocull` is an extra row: VWSS with back-face culling off (VWSS §3.1). `vwss_naive` "
+              "warps the nearest surface of the light's centre view (VWSS Figure 5, left).", "",
+              f"Near plane z_n = {c['near']:.4g} ({c['near_rule']}): the light-sample views, Eq. (3) and PCSS's "
+              "blocker search use the same value.", "",
+              "## The paper's claims, measured here (also `claims.json`)", "", markdown_table(res.claims)]
+    if res.holes:
+        lines += ["## Holes and bloat against MVR (same light samples)", "",
+                  "Fractions of the texels MVR covers; views of the first warp pass and the outermost light sample.",
+                  "", "| technique | N | views | holes mean | holes outermost | bloat mean | bloat outermost |",
+                  "|---|---|---|---|---|---|---|"]
+        for (tech, n), h in res.holes.items():
+            o = h["views"].index(h["outermost"])
+            lines.append(f"| {tech} | {n} | {len(h['views'])} | {np.mean(h['holes']):.4f} | {h['holes'][o]:.4f} | "
+                         f"{np.mean(h['bloat']):.4f} | {h['bloat'][o]:.4f} |")
     if res.scaling:
         lines += ["", "## Depth-map time against views and triangles", "",
                   "| subdivision | triangles | views | points | points s | warp s | MVR s |", "|---|---|---|---|---|---|---|"]
@@ -409,7 +448,8 @@ def write_outputs(res, out_dir):
     from .._io import save_figure, write_text
 
     out = Path(out_dir)
-    paths = [write_text(out / "vwss.csv", _csv(res.rows)), write_text(out / "vwss.md", markdown(res))]
+    paths = [write_text(out / "vwss.csv", _csv(res.rows)), write_text(out / "vwss.md", markdown(res)),
+             write_json(res.claims, out / "claims.json")]
     names = ["reference", "vwss", "vwss_naive", "mvr", "pcss"]
     fig, axes = plt.subplots(2, len(names), figsize=(3.2 * len(names), 4.6), constrained_layout=True)
     occ = res.images["_occluder"]
@@ -453,10 +493,11 @@ def run(scene="knot", views=None, quick=False, out_dir=None, progress=True, **kw
 
 def main(args) -> int:
     """``moments-ref vwss``: ``args`` has ``scene`` (name or file), ``views`` (int or None),
-    ``quick`` (bool) and ``out`` (folder). Returns exit code 0."""
+    ``quick`` (bool), ``near`` (float or None) and ``out`` (folder). Returns exit code 0."""
     res = run_detailed(scene=getattr(args, "scene", None) or "knot", views=getattr(args, "views", None),
-                       quick=bool(getattr(args, "quick", False)), out_dir=args.out, progress=True)
-    for claim, holds, ev in res.statements:
-        print(f"[{'holds' if holds else 'FAILS'}] {claim}: {ev}")
-    print(f"wrote {Path(args.out) / 'vwss.csv'}, vwss.md, vwss.png, vwss_depth.png")
+                       quick=bool(getattr(args, "quick", False)), out_dir=args.out, progress=True,
+                       near=getattr(args, "near", None))
+    for c in res.claims:
+        print(f"[{c.verdict}] {c.id}: paper {c.paper}; measured {c.measured}. {c.why}")
+    print(f"wrote {Path(args.out) / 'vwss.csv'}, vwss.md, claims.json, vwss.png, vwss_depth.png")
     return 0

@@ -6,16 +6,26 @@ perspective view from that point looking along the light normal ``l̂n``. All
 samples share one field of view, one orientation and one near/far pair, so the
 views differ only by a translation in the light's plane (VWSS Figure 5).
 
-Near plane. The issue asks for views "with the near plane in the light's plane".
-For an eye *on* the light that is a near distance of zero, which a perspective
-projection cannot have; the sample views therefore have near planes *parallel*
-to the light's plane at the shared distance ``near`` > 0 in front of it (Listing
-1's ``light.nearZ``, the ``z_n`` of VWSS Eq. (3)). The enlarged source view of
-:mod:`.points`, whose eye lies behind the light, puts its near plane exactly in
-the light's plane (VWSS §3.1).
+Near plane. Every light-sample view and PCSS's light-centre view share the
+light's own near plane ``z_n`` (VWSS Listing 1, ``light.nearZ``): a distance in
+front of the light's plane, a property of the light like its size. It is a scene
+parameter, ``params.light_near`` (:data:`LIGHT_NEAR_PARAM`, world units), read by
+:func:`light_near`. It enters VWSS Eq. (3) (the enlarged source view is
+``(z_n + d) / z_n`` times the samples' resolution per side, :mod:`.points`) and
+PCSS's blocker search (the search rectangle lies on the near plane,
+:func:`moments_ref.vwss.shading.pcss`), so both methods see the same value. A
+scene without ``light_near`` gets the older rule of :func:`depth_range`: just in
+front of the nearest occluder (the largest near plane that clips nothing, and
+then the smallest source view), and reports say which rule was used. The
+enlarged source view of :mod:`.points`, whose eye lies behind the light, puts its
+near plane exactly in the light's plane (VWSS §3.1).
 
 Angles are in radians in this package (``fov`` in (0, π));
 :class:`moments_ref.scene.AreaLight` stores degrees.
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -27,7 +37,11 @@ import numpy as np
 from .._arrays import InputError, real_input
 from ..raster import look_at, perspective
 
-__all__ = ["poisson_disk", "LightSamples", "check_fov", "check_light", "depth_range", "light_views"]
+__all__ = ["poisson_disk", "LightSamples", "check_fov", "check_light", "depth_range", "light_views",
+           "LIGHT_NEAR_PARAM", "light_near"]
+
+#: Scene parameter holding the light's near plane z_n (Listing 1's ``light.nearZ``).
+LIGHT_NEAR_PARAM = "light_near"
 
 
 def check_fov(fov, name="fov") -> float:
@@ -135,25 +149,43 @@ def _view_from(light, eye):
     return look_at(eye, eye + light.normal, light.bitangent)
 
 
-def depth_range(light, occluder_vertices, receiver_vertices=None, margin=0.02):
+def light_near(scene):
+    """The light's near plane ``z_n`` of a scene (``params.light_near``), or None if it names none.
+
+    Raises :class:`InputError` for a value that is not a positive finite number.
+    """
+    v = (getattr(scene, "params", None) or {}).get(LIGHT_NEAR_PARAM)
+    if v is None:
+        return None
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v > 0
+    if not ok:
+        raise InputError(f"params.{LIGHT_NEAR_PARAM}: expected the light's near plane, a positive distance in "
+                         f"world units, got {v!r}")
+    return float(v)
+
+
+def depth_range(light, occluder_vertices, receiver_vertices=None, margin=0.02, near=None):
     """Shared near and far distances that enclose a scene in front of the light.
 
     Parameters
     ----------
     light : AreaLight
     occluder_vertices : (V, 3) float array
-        The near plane lies just before the nearest occluder vertex in front of
-        the light's plane (so no occluder is clipped, and Eq. (3)'s ``z_n`` is as
-        large as possible, keeping the source resolution small).
     receiver_vertices : (V', 3) float array, optional
         Included in the far plane.
     margin : float
         Relative safety margin on both planes.
+    near : float, optional
+        The light's own near plane ``z_n`` (Listing 1's ``light.nearZ``,
+        :func:`light_near`). Refused if an occluder vertex in front of the light
+        lies nearer (it would be clipped). Without it the near plane lies just
+        before the nearest occluder vertex in front of the light's plane (no
+        occluder is clipped, and Eq. (3)'s ``z_n`` is as large as possible).
 
     Returns
     -------
     near, far : float
-        ``0 < near < far``; ``near >= 1e-3 far``.
+        ``0 < near < far``; without ``near``, ``near >= 1e-3 far``.
     """
     check_light(light)
     occ = real_input(occluder_vertices, "occluder_vertices", trailing=3, dtype=np.float64).reshape(-1, 3)
@@ -167,8 +199,17 @@ def depth_range(light, occluder_vertices, receiver_vertices=None, margin=0.02):
     far = float(dist.max()) * (1 + margin)
     docc = (occ - light.center) @ light.normal
     front = docc[docc > 0]
-    near = float(front.min()) * (1 - margin) if front.size else 1e-3 * far
-    return max(near, 1e-3 * far), far
+    if near is not None:
+        zn = float(near)
+        if not (np.isfinite(zn) and 0 < zn < far):
+            raise InputError(f"near: expected the light's near plane in (0, far = {far:.6g}), got {near!r}")
+        if front.size and front.min() < zn:
+            i = int(np.flatnonzero((docc > 0) & (docc < zn))[0])
+            raise InputError(f"near: the light's near plane {zn:.6g} clips occluder vertex {i} at distance "
+                             f"{docc[i]:.6g} in front of the light; expected a near plane below {front.min():.6g}")
+        return zn, far
+    zn = float(front.min()) * (1 - margin) if front.size else 1e-3 * far
+    return max(zn, 1e-3 * far), far
 
 
 def light_views(light, n_views, near, far, seed=0, fov=None) -> LightSamples:

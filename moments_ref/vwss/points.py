@@ -21,6 +21,10 @@ where ``z_n`` is the near distance of the light-sample views (Listing 1's
 ``light.nearZ``): there the source view then has the texel density of a sample
 view. Eq. (3) is printed squared because it counts texels; we round the side up
 (ceil) so the density never falls below the samples'.
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations

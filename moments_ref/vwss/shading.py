@@ -17,6 +17,10 @@ Depth comparisons use the distance along the light normal (view-space depth),
 recovered from NDC map depth by ``d = 2 f n / ((f + n) − z (f − n))``, so that
 the bias is in world units. A tap outside a map, an empty texel (z = 1) or a
 point behind a view counts as lit.
+
+References
+----------
+VWSS, Fernando 2005 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -245,6 +249,11 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     projection with half-extents ``(l_w / 2, l_h / 2) (1/z − 1/z_r)`` in
     projected (tan) units: the cross-section of the pyramid from the receiver to
     the light. Steps:
+
+    The near plane is the light's own ``z_n`` (``samples.near``, VWSS Listing 1's
+    ``light.nearZ``, :func:`moments_ref.vwss.lights.light_near`), the value that
+    also sets VWSS's source resolution (Eq. (3)): a smaller ``z_n`` widens the
+    search rectangle and spreads the 64 taps thinner.
 
     1. Blocker search over that rectangle at the near plane (the largest one):
        mean depth ``z_b`` of the taps nearer than ``z_r − bias``. No blocker: lit.
