@@ -312,18 +312,22 @@ def _pixel_notes(measured):
         r = p and p.get("as_rendered")
         if not r:
             continue
-        w = r["worst"] or {}
-        lines += ["", f"On `{s}` the nearest-neighbour comparison of the paper finds {p['above_3pct']} pixels above 3 % "
-                  f"and {p['above_10pct']} at 10 % or more (max {p['max']:.4f}): the non-linear quantization itself "
-                  "changes the reconstruction very little. The report's own lookups differ more "
-                  f"({r['above_3pct']} pixels above 3 %, {r['above_10pct']} at 10 % or more, max {r['max']:.3f}) "
-                  "because they interpolate different things: NLQ64 reconstructs the four nearest texels and "
-                  "interpolates the intensities (HPG17 §4.2), MSM128 interpolates the moments and reconstructs once. "
-                  "Interpolated moments of neighbouring texels describe a mixture of their depth distributions, "
-                  "with more distinct depths than four moments can represent, so MSM128 leaks there. The largest "
-                  f"such difference is at {w.get('position')}: NLQ64 {w.get('nlq64', float('nan')):.3f}, MSM128 "
-                  f"{w.get('msm128', float('nan')):.3f}, reference "
-                  f"{w.get('reference') if w.get('reference') is None else round(w['reference'], 3)}."]
+        head = (f"On `{s}` the paper's nearest-neighbour comparison finds {p['above_3pct']} pixels above 3 % and "
+                f"{p['above_10pct']} at 10 % or more (max {p['max']:.4f})")
+        if r["above_3pct"] == 0:
+            lines += ["", head + f"; the report's own lookups differ by at most {r['max']:.3f}."]
+            continue
+        w = r["worst"]
+        lower = "MSM128 is the lighter one there: it leaks" if w["msm128"] < w["nlq64"] else "NLQ64 is the lighter one there"
+        ref = "n/a" if w["reference"] is None else f"{w['reference']:.3f}"
+        lines += ["", head + ": the non-linear quantization itself changes the reconstruction very little. The "
+                  f"report's own lookups differ more ({r['above_3pct']} pixels above 3 %, {r['above_10pct']} at 10 % "
+                  f"or more, max {r['max']:.3f}) because they interpolate different things: NLQ64 reconstructs the "
+                  "four nearest texels and interpolates the intensities (HPG17 §4.2), MSM128 interpolates the "
+                  "moments and reconstructs once. Interpolated moments of neighbouring texels describe a mixture "
+                  "of their depth distributions, with more distinct depths than four moments represent exactly. "
+                  f"The largest such difference is at {w['position']}: NLQ64 {w['nlq64']:.3f}, MSM128 "
+                  f"{w['msm128']:.3f}, reference {ref}; {lower}."]
     return lines
 
 
