@@ -146,9 +146,10 @@ def _full_shadow_leaks(result):
 def scene_measurements(result):
     """The numbers the claims need from one scene's :class:`~moments_ref.pipeline.RunResult`."""
     kind = getattr(result.scene.light, "kind", "directional")
-    w, h = result.gbuffer.resolution
-    m = {"light": kind, "settings": {"shadow_map_size": list(result.shadow_map_size), "msaa": result.msaa,
-                                     "resolution": [w, h]}}
+    m = {"light": kind, "settings": {"shadow_map_size": list(result.shadow_map_size), "msaa": result.msaa}}
+    if result.gbuffer is None:  # only scattering ran: no receiver pixels to compare
+        return m
+    m["settings"]["resolution"] = list(result.gbuffer.resolution)
     if kind == "directional" and {"nlq64", "msm128"} <= set(result.techniques):
         m["pixels"] = pixel_statistic(result)
     m["full_shadow_leaks"] = _full_shadow_leaks(result)
