@@ -82,8 +82,11 @@ def ulp_distance(got, expected):
 
 
 def select_worst(category, score, row_pass, keep, extra=()):
-    """Row indices to print: per category its ``keep`` worst failing rows (largest score
-    first), or, when it passes, its closest row (three for ``stiff``); then ``extra``."""
+    """Row indices to print: per category the worst failing rows, or its closest passing row.
+
+    Failing rows: up to ``keep``, largest ``score`` first; a passing category shows
+    its largest score (three rows for ``stiff``); then the rows ``extra``.
+    """
     picked = []
     for c in _CATEGORIES:
         idx = np.flatnonzero(category == c)
