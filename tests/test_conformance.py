@@ -162,7 +162,7 @@ def test_algorithm3_mutants_are_caught(ctx, golden_dir, mutant):
     text = report.format()
     assert text.startswith(f"FAIL  {mutant}")
     # The worst rows carry their inputs, the expected values and the row's reason.
-    first = next(r for r in report.worst if r["error"] > r["tolerance"])
+    first = next(r for r in report.worst if not r["passed"])
     line = f"FAIL row {first['index']} [{first['category']}]"
     assert line in text
     assert "r=[" in text and "zf=" in text and "random representation" in text
@@ -183,16 +183,18 @@ def test_packing_mutant_is_caught(ctx, golden_dir):
 
 def test_paper_literal_algorithm3_is_nan_only_at_zf_equal_y2(ctx, golden_dir):
     # The printed formula: q1 = +-inf at zf = y2 and z_l = inf - inf. Random rows pass
-    # (the tolerances do not demand more than float32 gives); each failure is such a NaN.
+    # (the tolerances do not demand more than float32 gives); each failure is such a NaN,
+    # or the cancellation of the literal root where the gap y2 - y1 is small (the decoders'
+    # one-cell rows, the fold, the §3.4 gap clamp), which the per-row tolerances gate.
     report = _run(ctx, golden_dir, fixture("shade_paper_literal.glsl"), "shade_paper_literal", "shade-float32",
                   worst_rows=100)
     assert report.categories["random"].failures == 0
-    failing = [r for r in report.worst if r["error"] > r["tolerance"]]
+    failing = [r for r in report.worst if not r["passed"]]
     assert failing and len(failing) == report.failures
     for r in failing:
-        # NaN at zf = y2, or (golden rows at the §3.4 gap clamp) cancellation where y2 - y1 <= 1e-5.
+        # NaN at zf = y2, or cancellation where y2 - y1 is at most two 32-bit cells (1 / 511.5).
         y1, y2 = np.float32(r["inputs"]["r"][0]), np.float32(r["inputs"]["r"][1])
-        assert (np.isnan(r["got"]) and np.float32(r["inputs"]["zf"]) == y2) or y2 - y1 <= 1.1e-5
+        assert (np.isnan(r["got"]) and np.float32(r["inputs"]["zf"]) == y2) or y2 - y1 <= 2 / 511.5, r
     assert "got nan" in report.format()
 
 
@@ -204,7 +206,7 @@ def test_slides_verbatim_algorithm1_fails_only_on_singular_rows(ctx, golden_dir)
                   "shadow_intensity-lower-float32", worst_rows=100)
     assert report.categories["random"].failures == 0
     for r in report.worst:
-        if r["error"] > r["tolerance"]:
+        if not r["passed"]:
             b = np.asarray(r["inputs"]["b"], np.float64)
             hankel = np.array([[1, b[0], b[1]], [b[0], b[1], b[2]], [b[1], b[2], b[3]]])
             assert abs(np.linalg.det(hankel)) < 1e-6, r

@@ -25,7 +25,11 @@ import make_mutants  # noqa: E402
 from test_conformance_languages import COMBOS, drivers, shipped_golden_folder  # noqa: E402,F401  (drivers: the fixture)
 
 CASE = {"shade": "shade-float32", "unpack64": "unpack64-float32"}
-CAUGHT = [m for m in make_mutants.MUTANTS if m != "shade_missing_clamp"]
+CAUGHT = list(make_mutants.MUTANTS)
+#: Hand-written GLSL fixtures (not generated): file stem -> (function, case).
+GLSL_ONLY = {"msm_slides_verbatim": ("ComputeMSMShadowIntensity", "shadow_intensity-lower-float32"),
+             "pack64_xi_rounded": ("pack64_xi_rounded", "pack64-float32"),
+             "shade_paper_literal": ("shade_paper_literal", "shade-float32")}
 
 
 @pytest.fixture(scope="module")
@@ -56,14 +60,30 @@ def test_fixture_is_the_shipped_function_with_one_change(language, name):
 @pytest.mark.parametrize("name", CAUGHT)
 def test_mutant_fails_with_a_readable_report(drivers, golden_dir, name, language, driver):
     report = _run(name, language, driver, golden_dir)
+    _assert_readable_failure(report, name)
+
+
+@pytest.mark.parametrize("driver", ["gl", "vulkan"])
+@pytest.mark.parametrize("name", list(GLSL_ONLY))
+def test_glsl_fixture_mutant_fails_on_both_drivers(drivers, golden_dir, name, driver):
+    if ("glsl", driver) not in COMBOS:
+        pytest.skip(f"no {driver} driver")
+    function, case = GLSL_ONLY[name]
+    report = conformance.run_case(FIXTURES / "glsl" / f"{name}.glsl", function, case, golden_dir, "glsl", driver)
+    _assert_readable_failure(report, function)
+
+
+def _assert_readable_failure(report, function):
     text = report.format()
     assert not report.passed and report.failures > 0
-    assert text.startswith(f"FAIL  {name}") and f"{report.failures} exceed the tolerance" in text
-    first = next(r for r in report.worst if r["error"] > r["tolerance"])
-    row = re.search(rf"FAIL row {first['index']} \[{first['category']}\] abs \S+ \(tol \S+\).*got .*expected", text)
+    assert text.startswith(f"FAIL  {function}") and f"{report.failures} exceed the tolerance" in text
+    first = next(r for r in report.worst if not r["passed"])
+    what = r"got .*expected" if report.exact else r"(abs|ulps) \S+ \(tol \S+\).*got .*expected"
+    row = re.search(rf"FAIL row {first['index']} \[{first['category']}\] {what}", text)
     assert row, text
     after = text[row.end():].splitlines()
     assert after[1].strip().startswith("inputs: ") and after[2].strip() == f"({first['comment']})"
+    assert after[3].strip().startswith(f"tc_id {first['tc_id']}")
 
 
 @pytest.mark.parametrize("language,driver", COMBOS)
@@ -75,17 +95,11 @@ def test_mutant_exits_1_through_the_cli(drivers, golden_dir, language, driver):
 
 
 @pytest.mark.parametrize("language,driver", COMBOS)
-def test_missing_clamp_is_shown_on_the_stiff_rows(drivers, golden_dir, language, driver):
-    # Without the §3.4 clamp of v2, the row v2 = 1, zf = y2 flips from 0 to 1. The report
-    # always lists stiff rows, so the flip is visible; see the next test for the gate.
+def test_missing_clamp_fails_on_the_clamp_rows(drivers, golden_dir, language, driver):
+    # Without the HPG17 §3.4 clamp of v2, the row v2 = 1, zf = y2 flips from 1e-6 to 1:
+    # a gated row (flag clamp) whose per-row tolerance is far below that error.
     report = _run("shade_missing_clamp", language, driver, golden_dir)
-    flip = [r for r in report.worst if r["category"] == "stiff" and r["error"] == 1.0]
-    assert flip and "v2 = 1" in flip[0]["comment"], report.format()
-
-
-@pytest.mark.xfail(strict=True, reason="the goldens gate the stiff rows of shade with tolerance 1, so a "
-                   "missing HPG17 §3.4 clamp (an error of exactly 1) passes; per-row tolerances are "
-                   "the shared comparator's job (issue 11). Strict: passes once that lands.")
-@pytest.mark.parametrize("language,driver", COMBOS[:1])
-def test_missing_clamp_fails(drivers, golden_dir, language, driver):
-    assert not _run("shade_missing_clamp", language, driver, golden_dir).passed
+    assert not report.passed, report.format()
+    flip = [r for r in report.worst if not r["passed"] and "clamp" in r["flags"] and r["error"] > 0.99]
+    assert flip and any("v2 = 1" in r["comment"] for r in flip), report.format()
+    assert all(r["tolerance"] < 0.1 for r in flip)

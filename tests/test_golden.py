@@ -91,7 +91,11 @@ def test_rows_gate_tightly(gdir):
     assert frac["shade-float32"] >= 0.98, frac["shade-float32"]
     assert m["cases"]["shade-float64"]["gated"]["float64"]["gated_below_0.1"] / m["cases"]["shade-float64"]["count"] > 0.99
     for name in ("shadow_intensity-lower-float32", "shadow_intensity-upper-float32"):
-        assert frac[name] >= 0.89, frac[name]  # the rest: see docs/golden.md, "Rows that do not gate"
+        # Of the rows where the bound is defined (not outside the moment space); the rest:
+        # see docs/golden.md, "Rows that do not gate".
+        e = m["cases"][name]
+        defined = e["count"] - e["results"]["acceptable"]
+        assert e["gated"]["float32"]["gated_below_0.1"] / defined >= 0.89, (name, defined)
     for name in ("shadow_intensity-lower-float64", "shadow_intensity-upper-float64"):
         assert m["cases"][name]["gated"]["float64"]["gated_below_0.1"] / m["cases"][name]["count"] >= 0.95
     # float64 ports are held to float64 rounding on random rows.

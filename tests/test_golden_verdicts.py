@@ -2,8 +2,9 @@
 
 The GLSL ports (shipped, and one-change mutants of them) run on a real OpenGL driver
 through ``conformance.run_case``; the same GPU outputs (captured with
-``conformance.run_glsl``) go through ``golden.verify`` and ``oracle.check``.
-Skipped without an OpenGL 4.3 context (unless CI=true).
+``conformance.run_glsl``) go through ``golden.verify`` and ``oracle.check``. The three
+agree row by row (conformance judges through ``golden.compare``, the one comparator,
+which the spy test below checks). Skipped without an OpenGL 4.3 context (unless CI=true).
 """
 
 import os
@@ -15,7 +16,8 @@ import pytest
 from moments_ref import conformance, golden, oracle
 
 FIXTURES = Path(__file__).parent / "fixtures" / "glsl"
-FLOAT32_CASES = [n for n in golden.CASES if n.endswith("-float32") and conformance.shipped_port(n) is not None]
+CASES = conformance.shipped_cases()  # float32 and float64 cases (a shader computes in float32)
+FLOAT32_CASES = [n for n in CASES if n.endswith("-float32")]
 
 # One-change mutants of the shipped GLSL: (name, case, file, function, old text, new text); all bugs.
 GLSL_MUTANTS = [
@@ -54,12 +56,13 @@ def ctx():
 @pytest.fixture(scope="module")
 def gdir(tmp_path_factory):
     d = tmp_path_factory.mktemp("golden_verdicts")
-    golden.write(d, FLOAT32_CASES)
+    golden.write(d, CASES)
     return d
 
 
 def _three_verdicts(ctx, gdir, tmp_path, glsl, function, case):
-    report = conformance.run_case(glsl, function, case, golden_dir=gdir, ctx=ctx)
+    """``(conformance, verify, oracle.check)`` pass/fail; asserts they fail the same rows."""
+    report = conformance.run_case(glsl, function, case, golden_dir=gdir)
     meta = golden.load_manifest(gdir)["cases"][case]
     arrays = golden.load_case_arrays(gdir, case, meta)
     specs = {o: (arrays[o].dtype if meta["exact"] else np.float32, arrays[o].shape) for o in meta["compare"]}
@@ -71,25 +74,20 @@ def _three_verdicts(ctx, gdir, tmp_path, glsl, function, case):
             got[o] = got[o].astype(want)
     path = tmp_path / "gpu.npz"
     np.savez(path, **{f"{case}.{o}": v for o, v in got.items()})
-    verified = not golden.verify(gdir, path, port_dtype="float32").failed
+    result = next(c for c in golden.verify(gdir, path, port_dtype="float32").cases if c.name == case)
+    # The same GPU outputs, the same rows: a float64 case gives verify the float32 column too.
+    assert np.array_equal(report.row_pass, result.verdict.row_pass), (case, report.format())
     outs = tuple(got[o] for o in meta["compare"])
-    checked = oracle.check(lambda *a: outs if len(outs) > 1 else outs[0], case, dtype="float32",
-                           n_hypothesis=0).passed
-    return report.passed, verified, checked
-
-
-#: True once conformance judges through moments_ref.golden.compare (its verdict module).
-SHARED = hasattr(conformance, "verdict")
+    checked = oracle.check(lambda *a: outs if len(outs) > 1 else outs[0], case, dtype="float32", n_hypothesis=0)
+    assert checked.failures == report.failures == int((~result.verdict.row_pass).sum())
+    return report.passed, result.status == "pass", checked.passed
 
 
 def _killed_by_all(verdicts, what):
-    if not SHARED and verdicts == (True, False, False):
-        pytest.xfail(f"{what}: verify and oracle kill it; this conformance still gates per category "
-                     "(legacy tolerances) until it calls golden.compare")
-    assert verdicts == (False, False, False)
+    assert verdicts == (False, False, False), what
 
 
-@pytest.mark.parametrize("case", FLOAT32_CASES)
+@pytest.mark.parametrize("case", CASES)
 def test_shipped_ports_same_verdict(ctx, gdir, tmp_path, case):
     path, function = conformance.shipped_port(case)
     assert _three_verdicts(ctx, gdir, tmp_path, path, function, case) == (True, True, True)
@@ -110,3 +108,24 @@ def test_glsl_mutants_killed_by_all_three(ctx, gdir, tmp_path, name, case, fname
 @pytest.mark.parametrize("name,case,fname,function", FIXTURE_MUTANTS, ids=[m[0] for m in FIXTURE_MUTANTS])
 def test_glsl_fixture_mutants_killed_by_all_three(ctx, gdir, tmp_path, name, case, fname, function):
     _killed_by_all(_three_verdicts(ctx, gdir, tmp_path, FIXTURES / fname, function, case), name)
+
+
+def test_conformance_judges_through_golden_compare(ctx, gdir, monkeypatch):
+    # No second set of rules: conformance's verdict is golden.compare's, whatever that says.
+    from moments_ref.conformance import verdict
+    from moments_ref.golden.compare import compare as real_compare
+
+    calls = []
+
+    def spy(entry, expected, candidate, port_dtype=None, case=""):
+        calls.append((case, port_dtype))
+        v = real_compare(entry, expected, candidate, port_dtype, case)
+        v.row_pass[:] = False
+        v.score[:] = np.inf
+        return v
+
+    monkeypatch.setattr(verdict, "compare", spy)
+    path, function = conformance.shipped_port("psi4-float32")
+    report = conformance.run_case(path, function, "psi4-float32", golden_dir=gdir)
+    assert calls == [("psi4-float32", "float32")]
+    assert not report.passed and report.failures == report.rows

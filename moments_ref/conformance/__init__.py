@@ -4,10 +4,11 @@
 [--golden DIR] [--adapter NAME]`` wraps the function ``NAME`` of the file, unchanged,
 in the harness's own compute entry point (:mod:`._wrap`), uploads the case's
 inputs, runs one dispatch, reads the outputs back and compares them with the
-golden case through the one shared verdict (:mod:`.verdict`): per row category
-the worst absolute error against the float64 ground truth, gated by the manifest's
-float32 tolerance; relative error and ulps, and the same against the reference's
-own float32 emulation, for information; integer outputs exact with the tie rule.
+golden case with :func:`moments_ref.golden.compare.compare`, the one comparator of
+``verify`` and ``oracle.check`` (:mod:`.verdict` adapts the readback and summarises):
+per-row float32 tolerances stored in the golden file, rounding ties accepting the
+codes stored for them; the report lists the failing rows with their error,
+tolerance, flags, inputs and reason.
 
 Drivers (:mod:`._run`): GLSL runs on OpenGL through moderngl (EGL, Mesa llvmpipe
 without a GPU) or on Vulkan (glslang to SPIR-V, then wgpu; Mesa lavapipe without a

@@ -40,14 +40,16 @@ class ConformanceReport:
     renderer: str
     rows: int
     exact: bool
-    categories: dict
-    worst: list  # dicts: index, category, error, tolerance, got, expected, reference, inputs, comment
+    categories: dict  # category -> verdict.CategoryResult
+    worst: list  # dicts: index, tc_id, category, flags, passed, error, tolerance, got, expected, inputs, comment
     timings: dict
     notes: list = field(default_factory=list)
-    components: dict | None = None  # vector outputs: per-component worst ulps / mismatch counts
+    components: dict | None = None  # vector outputs: per-component worst ulps / failing rows
     language: str = "glsl"
     driver: str = "gl"
     outputs: dict = field(default_factory=dict, repr=False)  # the port's outputs, by name
+    metric: str = "abs"
+    row_pass: np.ndarray | None = field(default=None, repr=False)  # per row, from golden.compare
 
     @property
     def passed(self):
@@ -59,37 +61,35 @@ class ConformanceReport:
 
     def _table(self):
         if self.exact:
-            lines = ["      category  rows | mismatches  accepted ties | failures   (integer output: exact)"]
+            lines = ["      category  rows | differ  accepted ties | failures   (integer codes: exact, or a stored "
+                     "acceptable code on tie rows)"]
             for c in self.categories.values():
-                lines.append(f"      {c.category:8} {c.rows:5d} | {c.mismatches:10d}  {c.ties:13d} | {c.failures:8d}")
+                lines.append(f"      {c.category:8} {c.rows:5d} | {c.mismatches:6d}  {c.ties:13d} | {c.failures:8d}")
             if self.components is not None:
-                lines.append(f"      rows differing per component: {self.components['mismatch']}")
+                lines.append(f"      failing rows per component: {self.components['mismatch']}")
             return lines
-        lines = ["      category  rows |  vs expected (float64)       | tolerance  fails |  vs reference float32 (info)",
-                 "                     |       abs       rel     ulps |                  |       abs       rel     ulps"]
+        lines = [f"      category  rows  gated | fails | worst error/tolerance: ratio  error ({self.metric})  tolerance"]
         for c in self.categories.values():
-            lines.append(
-                f"      {c.category:8} {c.rows:5d} | {fmt(c.worst_abs):>9} {fmt(c.worst_rel):>9} "
-                f"{fmt(c.worst_ulps):>8} | {fmt(c.tolerance):>9} {c.failures:6d} | "
-                f"{fmt(c.ref_abs):>9} {fmt(c.ref_rel):>9} {fmt(c.ref_ulps):>8}")
+            lines.append(f"      {c.category:8} {c.rows:5d} {c.gated:6d} | {c.failures:5d} | {fmt(c.worst_score):>28} "
+                         f"{fmt(c.worst_error):>14} {fmt(c.worst_tolerance):>10}")
         if self.components is not None:
-            lines.append(f"      worst ulps per component: vs expected {self.components['ulps']}"
-                         + (f", vs reference float32 {self.components['ref_ulps']}"
-                            if self.components.get("ref_ulps") is not None else ""))
+            lines.append(f"      worst float32 ulps per component: {self.components['ulps']}")
         return lines
 
     def _row(self, r):
-        verdict = "FAIL" if r["error"] > r["tolerance"] else "ok"
+        verdict = "ok" if r["passed"] else "FAIL"
         ins = "; ".join(f"{k}={_arr(v, np.asarray(v).dtype.kind in 'ui')}" for k, v in r["inputs"].items())
-        integer = self.exact
-        head = (f"      {verdict:4} row {r['index']} [{r['category']}] "
-                + (f"got {_arr(r['got'], integer)}, expected {_arr(r['expected'], integer)}"
-                   if integer else
-                   f"abs {fmt(r['error'])} (tol {fmt(r['tolerance'])}), rel {fmt(r['rel'])}, "
-                   f"ulps {fmt(r['ulps'])}: got {_arr(r['got'])}, expected {_arr(r['expected'])}"))
-        if r.get("reference") is not None:
-            head += f", {'other-precision code' if integer else 'reference float32'} {_arr(r['reference'], integer)}"
-        return [head, f"           inputs: {ins}", f"           ({r['comment']})"]
+        if self.exact:
+            head = f"got {_arr(r['got'], True)}, expected {_arr(r['expected'], True)}"
+            if "acceptable" in r:
+                head += f", acceptable (tie) {_arr(r['acceptable'], True)}"
+        else:
+            also = "" if self.metric == "abs" else f", abs {fmt(r['abs'])}"
+            head = (f"{self.metric} {fmt(r['error'])} (tol {fmt(r['tolerance'])}){also}, rel {fmt(r['rel'])}, "
+                    f"ulps {fmt(r['ulps'])}: got {_arr(r['got'])}, expected {_arr(r['expected'])}")
+        flags = f"; flags {r['flags']}" if r["flags"] else ""
+        return [f"      {verdict:4} row {r['index']} [{r['category']}] {head}",
+                f"           inputs: {ins}", f"           ({r['comment']})", f"           tc_id {r['tc_id']}{flags}"]
 
     def format(self):
         """The report as printed by ``moments-ref conformance``."""
@@ -99,7 +99,8 @@ class ConformanceReport:
         lines += [f"      note: {n}" for n in self.notes]
         lines += self._table()
         if self.worst:
-            lines.append("      worst rows (stiff rows always shown; gate: error > tolerance):")
+            lines.append("      worst rows (failing rows first by error/tolerance; per-row tolerances of the "
+                         "golden file, verdict by golden.compare):")
         for r in self.worst:
             lines += self._row(r)
         lines.append("      timings: " + ", ".join(f"{k} {v * 1e3:.2f} ms" for k, v in self.timings.items()))

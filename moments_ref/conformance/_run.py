@@ -1,4 +1,4 @@
-"""One conformance run: a language front end, a driver backend, one shared verdict.
+"""One conformance run: a language front end, a driver backend, the one comparator (:mod:`.verdict`).
 
 =========  ===============================================  ===============================
 language   Vulkan (wgpu; lavapipe without a GPU)            OpenGL (EGL; llvmpipe)
@@ -158,7 +158,7 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None):
 
 
 def run_case(path, function, case, golden_dir=None, language=None, adapter=None, worst_rows=5, gc=None):
-    """Run a shader function on a golden case and compare with the shared verdict.
+    """Run a shader function on a golden case and judge it with the one comparator (``golden.compare``).
 
     Parameters
     ----------
@@ -172,7 +172,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
         A folder written by ``moments-ref golden``; default: generate the case.
     language, adapter : see :func:`run_function`.
     worst_rows : int
-        Rows to list per failing category.
+        Failing rows to list per category.
     gc : GoldenCase, optional
         The case already loaded (skips reading it again).
 
@@ -191,4 +191,4 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
     v = compare_case(case, gc.meta, gc.arrays, got, worst_rows)
     return ConformanceReport(case, function, str(path), renderer, len(gc.category), v.exact, v.categories, v.worst,
-                             timings, v.notes, v.components, language, target.driver, got)
+                             timings, v.notes, v.components, language, target.driver, got, v.metric, v.row_pass)

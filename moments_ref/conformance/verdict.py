@@ -1,23 +1,18 @@
-"""The verdict of a conformance run: a port's outputs against one golden case.
+"""Conformance's view of the one comparator: a port's GPU outputs judged by ``golden.compare``.
 
-Everything that decides pass or fail lives here, behind :func:`compare_case`, so
-that every language and driver shares one comparison (and so that it can be
-replaced by the shared comparator of ``verify`` and ``oracle`` without touching
-the front ends or the backends).
+Pass or fail is decided by :func:`moments_ref.golden.compare.compare`, the
+comparator of ``verify`` and ``oracle.check``, with the port's precision
+:data:`GATE_DTYPE` (a shader computes in float32, so a float64 case is judged by
+its float32 tolerance column): per-row tolerances and metric from the golden file,
+rows whose ``result`` is ``acceptable`` accept the codes stored for them (rounding
+ties) or any finite value in range (undefined values); nothing is recomputed at
+check time. This module only adapts a driver's results to it and summarises:
 
-Rules (docs/ports.md, "Tolerances"):
-
-* float outputs: per row the worst absolute error over its components against
-  the expected values (float64 ground truth), gated by the manifest's **float32**
-  tolerance of the row's category (a shader computes in float32); relative
-  error and float32 ulps are reported beside it, and the same numbers against the
-  reference's own float32 emulation (``<output>_float32``) for information.
-  A NaN is an infinite error.
-* integer outputs (packed texels): exact. A ``stiff`` row is a rounding tie and
-  also accepts the code the reference computes in the other precision (the tie
-  rule); a float64 case accepts the reference's float32 code on every row.
-* rows listed in the report: per category the worst by error/tolerance, stiff
-  rows always (:func:`select_worst`).
+* readback is 32-bit words: integer outputs are narrowed to the manifest's width
+  (a word that does not fit that width is not a code of the format: its row fails);
+* per row category: rows, gated rows, failures, the worst error over tolerance;
+* the rows a porter reads (:func:`select_worst`): every category's worst failing
+  rows, or its closest row when it passes, and accepted ties of integer outputs.
 """
 
 from __future__ import annotations
@@ -26,44 +21,45 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..golden.compare import compare
+
 __all__ = ["GATE_DTYPE", "CategoryResult", "CaseVerdict", "compare_case", "ulp_distance", "select_worst"]
 
-#: The manifest's tolerance column every shader port is gated by.
+#: The precision every shader port is judged in (its tolerance column).
 GATE_DTYPE = "float32"
-_CATEGORIES = ("random", "stiff", "edge")
+_CATEGORIES = ("random", "edge", "stiff")
 
 
 @dataclass
 class CategoryResult:
-    """Summary of one row category."""
+    """Summary of one row category (``score`` = error / tolerance, > 1 fails)."""
 
     category: str
     rows: int
-    tolerance: float
+    gated: int
     failures: int
-    worst_abs: float = 0.0
-    worst_rel: float = 0.0
-    worst_ulps: float = 0.0
-    ref_abs: float | None = None
-    ref_rel: float | None = None
-    ref_ulps: float | None = None
-    mismatches: int = 0  # integer outputs: rows differing from the golden code
-    ties: int = 0  # integer outputs: rows accepted as the other precision's rounding
+    worst_score: float = 0.0
+    worst_error: float = 0.0  # at the worst row, in the case's metric
+    worst_tolerance: float = 0.0  # that row's tolerance (0: exact code, inf: ungated)
+    mismatches: int = 0  # integer outputs: rows whose codes differ from the golden code
+    ties: int = 0  # integer outputs: of those, rows passing on a stored acceptable code
 
 
 @dataclass
 class CaseVerdict:
-    """What :func:`compare_case` found: per category, the rows to show, per component."""
+    """What :func:`compare_case` found: per category, per row, the rows to show."""
 
     exact: bool
+    metric: str
     categories: dict
-    worst: list  # dicts: index, category, error, tolerance, got, expected, reference, inputs, comment
+    worst: list  # dicts: index, tc_id, category, flags, passed, error, tolerance, score, got, expected, ...
+    row_pass: np.ndarray
     components: dict | None = None
     notes: list = field(default_factory=list)
 
     @property
     def passed(self):
-        return all(c.failures == 0 for c in self.categories.values())
+        return bool(self.row_pass.all())
 
 
 def _ordered(x32):
@@ -75,6 +71,7 @@ def _ordered(x32):
 def ulp_distance(got, expected):
     """Number of float32 values between ``got`` (float32) and ``expected`` rounded to float32.
 
+    A measurement for reports and probes (the gate is :mod:`moments_ref.golden.compare`).
     NaN in either gives ``inf``; a float64 value beyond the float32 range rounds to ±inf.
     """
     g = np.asarray(got, np.float32)
@@ -84,169 +81,125 @@ def ulp_distance(got, expected):
     return np.where(np.isnan(g) | np.isnan(e), np.inf, d)
 
 
-def _float_metrics(got, expected, n):
-    """Per-row worst abs, rel and ulps (over the row's components)."""
-    g = np.asarray(got, np.float64).reshape(n, -1)
-    e = np.asarray(expected, np.float64).reshape(n, -1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a = np.abs(g - e)
-        a = np.where(np.isnan(a), np.inf, a)
-        r = np.where(a == 0, 0.0, a / np.abs(e))
-    u = ulp_distance(np.asarray(got, np.float32).reshape(n, -1), e)
-    return a.max(axis=1), r.max(axis=1), u.max(axis=1)
+def select_worst(category, score, row_pass, keep, extra=()):
+    """Row indices to print: per category the worst failing rows, or its closest passing row.
 
-
-def select_worst(category, err, tol, keep):
-    """Row indices to print: per category the worst by err/tol; stiff rows always."""
+    Failing rows: up to ``keep``, largest ``score`` first; a passing category shows
+    its largest score (three rows for ``stiff``); then the rows ``extra``.
+    """
     picked = []
-    with np.errstate(divide="ignore", invalid="ignore"):
-        score = np.where(tol > 0, err / np.where(tol > 0, tol, 1), np.where(err > 0, np.inf, 0))
-    for c in ("random", "edge", "stiff"):
+    for c in _CATEGORIES:
         idx = np.flatnonzero(category == c)
         if not idx.size:
             continue
-        order = idx[np.argsort(-score[idx], kind="stable")]
-        fails = int((err[idx] > tol[idx]).sum())
-        k = keep if fails else (3 if c == "stiff" else 1)
-        picked += [int(i) for i in order[: max(k, min(fails, keep))] if c == "stiff" or err[i] > 0 or fails]
-    return picked
+        fails = idx[~row_pass[idx]]
+        pool = fails if fails.size else idx[score[idx] > 0]
+        k = keep if fails.size else (3 if c == "stiff" else 1)
+        picked += [int(i) for i in pool[np.argsort(-score[pool], kind="stable")][:k]]
+    return picked + [int(i) for i in extra if i not in picked]
 
 
-def _reference(case_name, inputs, out_name, dtype):
-    """The reference's output ``out_name`` on ``inputs`` cast to ``dtype`` (None: unknown case)."""
-    from .. import golden
-
-    case = golden.CASES.get(case_name)
-    if case is None:
-        return None
-    cast = {k: (v if k in case.integer_inputs else np.asarray(v).astype(dtype)) for k, v in inputs.items()}
-    out = case.reference(**cast)
-    return np.asarray(out[case.outputs.index(out_name)])
-
-
-def _other_precision_codes(case_name, meta, inputs, out_name):
-    """Integer outputs of the reference in the precision the golden did not use, or None."""
-    return _reference(case_name, inputs, out_name, np.float64 if meta["dtype"] == "float32" else np.float32)
-
-
-def _float32_reference(case_name, arrays, inputs, out_name):
-    """The reference's float32 emulation: from the golden file, or computed for float64 cases."""
-    key = f"{out_name}_float32"
-    if key in arrays:
-        return arrays[key]
-    return _reference(case_name, inputs, out_name, np.float32)
-
-
-def _row(i, category, err, tol, got, expected, reference, inputs, comment, **extra):
-    return {"index": i, "category": category[i], "error": float(err[i]), "tolerance": float(tol[i]), **extra,
-            "got": got[i], "expected": expected[i], "reference": None if reference is None else reference[i],
-            "inputs": {k: v[i] for k, v in inputs.items()}, "comment": str(comment[i])}
-
-
-def _compare_exact(name, meta, arrays, inputs, got, category, tol, tol_table, worst_rows):
-    n = len(category)
-    err, ties = np.zeros(n), np.zeros(n, bool)
-    alt_codes = {o: _other_precision_codes(name, meta, inputs, o) for o in meta["compare"]}
+def _narrow(meta, got, n):
+    """Integer readback words -> the manifest's dtype; also the rows with a word that does not fit."""
+    out, misfit = dict(got), np.zeros(n, bool)
     for o in meta["compare"]:
-        exp = np.asarray(arrays[o]).astype(np.int64).reshape(n, -1)
-        g = np.asarray(got[o]).astype(np.int64).reshape(n, -1)
-        differs = (g != exp).any(axis=1)
-        alt = alt_codes[o]
-        if alt is not None:
-            alt_ok = (g == np.asarray(alt).astype(np.int64).reshape(n, -1)).all(axis=1)
-            # A stiff row is a rounding tie; a float64 case's codes are float64
-            # roundings that a float32 port need not reproduce.
-            accept = alt_ok & differs & ((category == "stiff") | (meta["dtype"] == "float64"))
-            ties |= accept
-            differs &= ~accept
-        err = np.maximum(err, np.where(differs, np.abs(g - exp).max(axis=1), 0).astype(np.float64))
-    categories = {}
-    for c in _CATEGORIES:
-        sel = category == c
-        if sel.any():
-            categories[c] = CategoryResult(c, int(sel.sum()), float(tol_table[c]), int((err[sel] > tol[sel]).sum()),
-                                           worst_abs=float(err[sel].max()),
-                                           mismatches=int(((err > 0) | ties)[sel].sum()), ties=int(ties[sel].sum()))
+        want = np.dtype(meta["outputs"][o]["dtype"])
+        g = np.asarray(got[o])
+        if meta["exact"] and g.dtype != want and g.dtype.kind in "ui":
+            info = np.iinfo(want)
+            g64 = g.astype(np.int64)
+            misfit |= ((g64 < info.min) | (g64 > info.max)).reshape(n, -1).any(axis=1)
+            out[o] = np.clip(g64, info.min, info.max).astype(want)
+    return out, misfit
+
+
+def _row(i, meta, arrays, got, v, score, row_pass, differs):
     o = meta["compare"][0]
-    picked = [int(i) for i in np.flatnonzero(err > tol)[:worst_rows * 3]] + [int(i) for i in np.flatnonzero(ties)[:3]]
-    worst = [_row(i, category, err, tol, got[o], arrays[o], alt_codes[o], inputs, arrays["comment"]) for i in picked]
-    components = None
-    if np.ndim(arrays[o]) == 2:
-        diff = np.asarray(got[o]).astype(np.int64) != np.asarray(arrays[o]).astype(np.int64)
-        components = {"mismatch": [int(x) for x in (diff & ~ties[:, None]).sum(axis=0)]}
-    return CaseVerdict(True, categories, worst, components)
+    r = {"index": i, "tc_id": int(arrays["tc_id"][i]), "category": str(arrays["category"][i]),
+         "flags": str(arrays["flags"][i]), "passed": bool(row_pass[i]), "error": float(v.error[i]),
+         "tolerance": float(v.tolerance[i]), "score": float(score[i]), "metric": meta["metric"],
+         "got": got[o][i], "expected": arrays[o][i], "inputs": {k: arrays[k][i] for k in meta["inputs"]},
+         "comment": str(arrays["comment"][i])}
+    if meta["exact"]:
+        r["tie"] = bool(row_pass[i] and differs[i])
+        if str(arrays["result"][i]) == "acceptable" and f"{o}_acceptable" in arrays:
+            r["acceptable"] = arrays[f"{o}_acceptable"][i]
+    else:
+        e, g = np.asarray(arrays[o][i], np.float64), np.asarray(got[o][i], np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = np.where(np.isnan(g - e), np.inf, np.abs(g - e))
+            r["abs"] = float(a.max())
+            r["rel"] = float(np.where(a == 0, 0.0, a / np.abs(e)).max())
+        r["ulps"] = float(ulp_distance(got[o][i], e).max())
+    return r
 
 
-def _max_or_none(acc, new):
-    return new if acc is None else np.maximum(acc, new)
-
-
-def _compare_float(name, meta, arrays, inputs, got, category, tol, tol_table, worst_rows):
-    n = len(category)
-    err, rel, ulp = np.zeros(n), np.zeros(n), np.zeros(n)
-    rerr = rrel = rulp = None
-    for o in meta["compare"]:
-        a, r, u = _float_metrics(got[o], arrays[o], n)
-        err, rel, ulp = np.maximum(err, a), np.maximum(rel, r), np.maximum(ulp, u)
-        ref = _float32_reference(name, arrays, inputs, o)
-        if ref is not None:
-            ra, rr, ru = _float_metrics(got[o], ref, n)
-            rerr, rrel, rulp = _max_or_none(rerr, ra), _max_or_none(rrel, rr), _max_or_none(rulp, ru)
-    categories = {}
+def _categories(category, v, score, row_pass, differs):
+    out = {}
     for c in _CATEGORIES:
-        sel = category == c
-        if not sel.any():
+        sel = np.flatnonzero(category == c)
+        if not sel.size:
             continue
-        categories[c] = CategoryResult(
-            c, int(sel.sum()), float(tol_table[c]), int((err[sel] > tol[sel]).sum()),
-            float(err[sel].max()), float(rel[sel].max()), float(ulp[sel].max()),
-            *(None if x is None else float(x[sel].max()) for x in (rerr, rrel, rulp)))
+        w = sel[int(np.argmax(score[sel]))]
+        out[c] = CategoryResult(c, int(sel.size), int(v.gated[sel].sum()), int((~row_pass[sel]).sum()),
+                                float(score[w]), float(v.error[w]), float(v.tolerance[w]),
+                                int(differs[sel].sum()), int((differs & row_pass)[sel].sum()))
+    return out
+
+
+def _components(meta, arrays, got, row_pass):
     o = meta["compare"][0]
-    ref0 = _float32_reference(name, arrays, inputs, o)
-    components = None
-    if np.ndim(arrays[o]) == 2:
-        def per_component(ref):
-            return "[" + ", ".join(_fmt_ulps(float(x)) for x in ulp_distance(got[o], ref).max(axis=0)) + "]"
-
-        components = {"ulps": per_component(arrays[o]), "ref_ulps": None if ref0 is None else per_component(ref0)}
-    worst = [_row(i, category, err, tol, got[o], arrays[o], ref0, inputs, arrays["comment"],
-                  rel=float(rel[i]), ulps=float(ulp[i]))
-             for i in select_worst(category, err, tol, worst_rows)]
-    return CaseVerdict(False, categories, worst, components)
-
-
-def _fmt_ulps(x):
-    return str(x) if not np.isfinite(x) else (f"{int(x)}" if x < 1e6 else f"{x:.3g}")
+    if np.ndim(arrays[o]) != 2:
+        return None
+    if meta["exact"]:
+        diff = np.asarray(got[o]).astype(np.int64) != np.asarray(arrays[o]).astype(np.int64)
+        return {"mismatch": [int(x) for x in (diff & ~row_pass[:, None]).sum(axis=0)]}
+    u = ulp_distance(got[o], arrays[o]).max(axis=0)
+    return {"ulps": "[" + ", ".join(str(int(x)) if x < 1e6 else f"{x:.3g}" for x in u) + "]"}
 
 
 def compare_case(name, meta, arrays, got, worst_rows=5):
-    """Compare a port's outputs with one golden case.
+    """Judge a port's outputs on one golden case with :func:`moments_ref.golden.compare.compare`.
 
     Parameters
     ----------
     name : str
-        The case name (``shade-float32``); the reference is looked up by it for the
-        tie rule and the float32 emulation of float64 cases.
+        The case name (``shade-float32``), for messages.
     meta : dict
-        The case's manifest entry (``compare``, ``exact``, ``dtype``, ``tolerances``).
+        The case's manifest entry.
     arrays : dict name -> array
-        The golden file: inputs, expected outputs, ``category`` and ``comment``.
+        The golden file (inputs, expected outputs, tolerances, acceptable codes,
+        ``result``, ``tc_id``, ``category``, ``flags``, ``comment``).
     got : dict name -> array
-        The port's outputs named as in ``meta["compare"]``.
+        The port's outputs named as in ``meta["compare"]``: float32 values, or
+        integer codes (32-bit readback words are narrowed to the manifest's width).
     worst_rows : int
-        Rows to list per failing category.
+        Failing rows to list per category.
 
     Returns
     -------
     CaseVerdict
     """
     category = np.asarray(arrays["category"]).astype(str)
-    tol_table = meta["tolerances"][GATE_DTYPE]
-    tol = np.array([float(tol_table[c]) for c in category])
-    inputs = {k: arrays[k] for k in meta["inputs"]}
-    compare = _compare_exact if meta["exact"] else _compare_float
-    verdict = compare(name, meta, arrays, inputs, got, category, tol, tol_table, worst_rows)
-    if meta["dtype"] == "float64" and any(np.asarray(v).dtype.kind == "f" for v in inputs.values()):
-        verdict.notes.append("float64 case: inputs rounded to float32 for upload; gated by the manifest's "
-                             "float32 column")
+    n = len(category)
+    got, misfit = _narrow(meta, got, n)
+    v = compare(meta, arrays, got, GATE_DTYPE, case=name)
+    row_pass = v.row_pass & ~misfit
+    score = np.where(misfit, np.inf, v.score)
+    differs = np.zeros(n, bool)
+    if meta["exact"]:
+        for o in meta["compare"]:
+            g, e = np.asarray(got[o]).astype(np.int64), np.asarray(arrays[o]).astype(np.int64)
+            differs |= (g != e).reshape(n, -1).any(axis=1)
+    ties = np.flatnonzero(differs & row_pass)[:3]
+    worst = [_row(i, meta, arrays, got, v, score, row_pass, differs)
+             for i in select_worst(category, score, row_pass, worst_rows, ties)]
+    verdict = CaseVerdict(meta["exact"], meta["metric"], _categories(category, v, score, row_pass, differs), worst,
+                          row_pass, _components(meta, arrays, got, row_pass))
+    if meta["dtype"] == "float64" and any(np.asarray(arrays[k]).dtype.kind == "f" for k in meta["inputs"]):
+        verdict.notes.append("float64 case: inputs rounded to float32 for upload; judged by the golden file's "
+                             "float32 tolerance column")
+    if misfit.any():
+        verdict.notes.append(f"{int(misfit.sum())} rows hold a word wider than the format's "
+                             f"{meta['outputs'][meta['compare'][0]]['dtype']} codes (failed)")
     return verdict

@@ -64,6 +64,9 @@ class Verdict:
     row_pass: np.ndarray  # (n,) bool
     score: np.ndarray  # (n,) float: max error / tolerance over the row's values
     outputs: dict = field(default_factory=dict)  # name -> OutputSummary
+    error: np.ndarray | None = None  # (n,) the error (metric's unit) at each row's worst value
+    tolerance: np.ndarray | None = None  # (n,) its tolerance (0: exact codes, inf: ungated)
+    gated: np.ndarray | None = None  # (n,) bool: the row is held to an expected value (not only a range)
 
     @property
     def passed(self):
@@ -169,7 +172,8 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
     n = len(expected["result"])
     acceptable_rows = np.asarray(expected["result"]) == "acceptable"
     row_pass = np.ones(n, bool)
-    score = np.zeros(n)
+    score = np.full(n, -1.0)
+    row_err, row_tol, row_gated = np.zeros(n), np.zeros(n), ~acceptable_rows
     outputs = {}
     for o in entry["compare"]:
         cand = np.asarray(candidate[o])
@@ -181,11 +185,14 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
             gated = int((~acceptable_rows).sum())
         else:
             ok, s, err, tol = _float(o, entry, expected, cand, n, dt)
+            row_gated = row_gated & np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
             gated = int((~acceptable_rows & np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1))
                          .all(axis=1)).sum())
         row_pass &= ok
+        worse = s > score
+        row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)
         score = np.maximum(score, s)
         w = int(np.argmax(s)) if n else 0
         outputs[o] = OutputSummary(o, entry["metric"], n, gated, int((~ok).sum()), w, float(s[w]) if n else 0.0,
                                    float(err[w]) if n else 0.0, float(tol[w]) if n else 0.0)
-    return Verdict(case, dt, row_pass, score, outputs)
+    return Verdict(case, dt, row_pass, np.maximum(score, 0.0), outputs, row_err, row_tol, row_gated)

@@ -63,7 +63,8 @@ NOTES = {
         "effect": "gated (integer outputs there are usually also rounding_tie)",
     },
     "outside_moment_space": {
-        "description": "unbiased moments just outside the moment space: no distribution has them, so the bound is "
+        "description": "moments just outside the moment space (unbiased, or biased too little to enter it: "
+                       "det B(b) < 0): no distribution has them, so the bound is "
                        "not defined and float32 and float64 implementations legitimately disagree by up to 1",
         "effect": "result acceptable: ungated (the output must only be finite and in [0, 1])",
     },
