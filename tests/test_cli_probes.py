@@ -143,7 +143,6 @@ PROBES = [
 ]
 
 #: Probes of ``verify``'s manifest parsing; fixed together with the strict verifier.
-VERIFY_MANIFEST = {"verify-manifest-not-json", "verify-manifest-no-cases"}
 
 
 def run_probe(argv, capsys):
@@ -162,11 +161,8 @@ def run_probe(argv, capsys):
     return code, err, tb, time.perf_counter() - t0
 
 
-_XFAIL = pytest.mark.xfail(strict=False, reason="manifest parsing belongs to the strict verifier (golden.verify)")
-
-
 @pytest.mark.parametrize("probe_id, argv, setup", [
-    pytest.param(*p, id=p[0], marks=_XFAIL if p[0] in VERIFY_MANIFEST else ()) for p in PROBES])
+    pytest.param(*p, id=p[0]) for p in PROBES])
 def test_probe_exits_2_with_one_line(probe_id, argv, setup, tmp_path, capsys, monkeypatch):
     if setup:
         setup(tmp_path)
