@@ -88,7 +88,53 @@ def resolve_moments(depth_samples):
     array([[[0.    , 0.25  , 0.    , 0.0625]]])
     """
     z = check_depth_samples(depth_samples)
-    return power_moments(z, axis=-1, n=4)
+    h, w, n = z.shape
+    flat = z.reshape(-1, n)
+    out = np.empty((flat.shape[0], 4), dtype=z.dtype)
+    step = max(1, _RESOLVE_BYTES // (z.itemsize * n))
+    for lo in range(0, flat.shape[0], step):
+        _resolve_chunk(flat[lo : lo + step], out[lo : lo + step])
+    return out.reshape(h, w, 4)
+
+
+#: Input bytes of one chunk of the resolve (its samples, powers and sums stay in L2).
+_RESOLVE_BYTES = 1 << 17
+
+
+def _resolve_chunk(z, out):
+    """``out[:, k-1] = mean_s z[:, s]^k`` for k = 1..4, bit for bit as :func:`power_moments`.
+
+    The samples are transposed to one contiguous row per sample (structure of
+    arrays), so every power and every partial sum is one contiguous ufunc call.
+    ``power_moments`` takes ``mean(axis=-1)`` of z, z·z, (z·z)·z, ...; NumPy sums
+    fewer than 8 values left to right and exactly 8 pairwise (its unrolled
+    pairwise sum), which is what is done here; more than 8 samples go through
+    ``power_moments`` itself, a chunk at a time.
+    """
+    n = z.shape[1]
+    if n > 8:
+        out[:] = power_moments(z, axis=-1, n=4)
+        return
+    zs = np.ascontiguousarray(z.T)
+    p = zs.copy()
+    acc = np.empty(z.shape[0], z.dtype)
+    tmp = np.empty_like(acc)
+    for k in range(4):
+        if n < 8:
+            np.add(p[0], 0.0, out=acc)  # NumPy's sum starts from +0: -0.0 samples sum to +0.0
+            for s in range(1, n):
+                acc += p[s]
+        else:
+            np.add(p[0], p[1], out=acc)
+            acc += np.add(p[2], p[3], out=tmp)
+            pair = np.add(p[4], p[5])
+            pair += np.add(p[6], p[7], out=tmp)
+            acc += pair
+            acc += 0.0
+        acc /= n
+        out[:, k] = acc
+        if k < 3:
+            p *= zs
 
 
 def gaussian_weights(taps=TAPS, sigma=SIGMA):
