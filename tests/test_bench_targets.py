@@ -15,10 +15,17 @@ from moments_ref.bench import _llvmpipe, _targets
 
 def test_measure_alternates_and_takes_medians():
     calls = []
-    times = iter([{"cpu": c, "wall": 2 * c} for c in (5.0, 1.0, 3.0)])
-    got = _targets.measure([lambda: calls.append("a"), lambda: (calls.append("b"), next(times))[1]], repeat=3)
-    assert calls == ["a", "b"] * 3
+    times = iter([{"cpu": c, "wall": 2 * c} for c in (9.0, 5.0, 1.0, 3.0)])  # the first is the warm-up
+    got = _targets.measure([lambda: calls.append("a"), lambda: (calls.append("b"), next(times))[1]], repeat=3,
+                           least=0)
+    assert calls == ["a", "b"] * 4
     assert got[1] == (3.0, 6.0)  # the median of the reported times, not the last one
+
+
+def test_measure_repeats_quick_calls_within_a_sample():
+    calls = []
+    _targets.measure([lambda: calls.append(1)], repeat=3, least=1e-3)
+    assert len(calls) > 4  # one warm-up, then more than one call per sample
 
 
 def test_every_target_has_a_ratio_and_a_mark(monkeypatch):

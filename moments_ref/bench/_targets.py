@@ -43,19 +43,28 @@ __all__ = ["raster_case", "measure", "run_targets", "targets_markdown", "GROWTH_
 GROWTH_LIMIT = 1.2
 
 
-def measure(fns, repeat=3):
-    """Alternate the callables ``fns`` ``repeat`` times; median ``(cpu, wall)`` seconds of each.
+def measure(fns, repeat=3, least=0.05):
+    """Alternate the callables ``fns`` ``repeat`` times; median ``(cpu, wall)`` seconds per call of each.
 
     A callable returning a dict ``{"cpu", "wall"}`` (the llvmpipe worker) reports
-    its own times; otherwise the call is timed here.
+    its own times. Otherwise the call is timed here, after one untimed warm-up
+    call, and a call quicker than ``least`` seconds is repeated within each
+    sample until the sample lasts about ``least`` (a memory copy of 64 MiB takes
+    a few ms, below the noise of one CPU-time reading on a shared machine).
     """
+    loops = [1] * len(fns)
+    for k, fn in enumerate(fns):
+        c0 = time.process_time()
+        if not isinstance(fn(), dict):
+            loops[k] = min(64, max(1, int(least / max(time.process_time() - c0, 1e-6))))
     cpu = [[] for _ in fns]
     wall = [[] for _ in fns]
     for _ in range(max(3, repeat)):
         for k, fn in enumerate(fns):
             c0, t0 = time.process_time(), time.perf_counter()
-            got = fn()
-            c, w = time.process_time() - c0, time.perf_counter() - t0
+            for _ in range(loops[k]):
+                got = fn()
+            c, w = (time.process_time() - c0) / loops[k], (time.perf_counter() - t0) / loops[k]
             if isinstance(got, dict):
                 c, w = got["cpu"], got["wall"]
             cpu[k].append(c)
