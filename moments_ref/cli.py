@@ -106,7 +106,7 @@ def _cmd_bench(args):
     from . import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "conformance"]
+        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -117,6 +117,8 @@ def _cmd_bench(args):
     if not args.only or any("end_to_end" in o for o in args.only):
         size = min(args.size, 512) if args.quick else args.size
         text += "\n" + bench.end_to_end_markdown(bench.end_to_end(size, 4), size, 4)
+    if not args.only or any("targets" in o for o in args.only):
+        text += "\n" + bench.targets_markdown(bench.run_targets(quick=args.quick))
     if not args.only or any("conformance" in o for o in args.only):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
     print(text)

@@ -151,7 +151,22 @@ def phi(b):
     array([-0.5 ,  0.5 ,  0.75,  0.  ])
     """
     b = real_input(b, "b", trailing=4)
-    b1, b2, b3, b4 = (b[..., k] for k in range(4))
+    flat = b.reshape(-1, 4)
+    out = np.empty(flat.shape, dtype=b.dtype)
+    # L2-sized chunks, each transposed to one contiguous row per moment (structure of
+    # arrays): the same operations per element as on the whole array.
+    for lo in range(0, flat.shape[0], _PHI_CHUNK):
+        chunk = flat[lo : lo + _PHI_CHUNK]
+        out[lo : lo + _PHI_CHUNK] = _phi_chunk(*np.ascontiguousarray(chunk.T)).T
+    return out.reshape(b.shape)
+
+
+#: Texels per chunk of :func:`phi` (four float32 rows and a dozen temporaries in L2).
+_PHI_CHUNK = 8192
+
+
+def _phi_chunk(b1, b2, b3, b4):
+    """Algorithm 2 on rows b1..b4 of one chunk: the rows (y1, y2, v2, ξ4), see :func:`phi`."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # (1)-(3) The quadratic whose roots are the support of S.
         sigma2 = b2 - b1 * b1
@@ -179,7 +194,7 @@ def phi(b):
         v2 = np.where(degenerate, 0, v2)
         b1sq = b1 * b1
         xi4 = np.where(single, b4 - b1sq * b1sq, xi4)
-    return np.stack([y1, y2, v2, xi4], axis=-1).astype(b.dtype, copy=False)
+    return np.stack([y1, y2, v2, xi4]).astype(b1.dtype, copy=False)
 
 
 def phi_inverse(r):

@@ -119,18 +119,27 @@ def _convolve(values, w, n_out, axis):
         return values[tuple(s)]
 
     acc = w[0] * shifted(0)
+    tmp = np.empty_like(acc)
     for t in range(1, len(w)):
-        acc = acc + w[t] * shifted(t)
+        acc += np.multiply(w[t], shifted(t), out=tmp)
     return acc
 
 
-def _run_batch(z, bx, by, out, pattern, addr, words, w, timings):
-    """Emulate the thread groups of the blocks ``(bx[i], by[i])`` and write their texels."""
-    H, W, S = z.shape
+def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
+    """Emulate the thread groups of the blocks ``(bx[i], by[i])`` and write their texels.
+
+    Shared memory is held as ``(words, blocks)``: the blocks of a batch run the same
+    program, so every gather or scatter through a word address moves one contiguous
+    run of ``blocks`` floats (structure of arrays over thread groups). The
+    arithmetic is the same for any arrangement. ``zt`` holds the depths as
+    ``(S, H·W)`` and ``out`` the result as ``(4, H·W)``, one contiguous row per
+    sample or moment, so that loads and stores are contiguous gathers and scatters.
+    """
+    H, W, S = shape
     nb = len(bx)
-    shared = np.zeros((nb, words), dtype=np.float32)
-    x0 = (_OUT_W * bx - _G)[:, None, None]
-    y0 = (_OUT_H * by - _G)[:, None, None]
+    shared = np.zeros((words, nb), dtype=np.float32)
+    x0 = _OUT_W * bx - _G
+    y0 = _OUT_H * by - _G
     inv = np.float32(S)
 
     # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
@@ -139,12 +148,12 @@ def _run_batch(z, bx, by, out, pattern, addr, words, w, timings):
     res = pattern["resolve"]
     for r in range(res.j.shape[0]):
         tx, ty = res.texel_x[r, 0], res.texel_y[r, 0]  # (warp, lane), same for every j
-        X = np.clip(x0 + tx, 0, W - 1)
-        Y = np.clip(y0 + ty, 0, H - 1)
-        d = z[Y, X]  # (blocks, warp, lane, S)
-        acc = np.zeros((4,) + d.shape[:-1], dtype=np.float32)
+        X = np.clip(x0 + tx[..., None], 0, W - 1)
+        Y = np.clip(y0 + ty[..., None], 0, H - 1)
+        texel = Y * W + X  # (warp, lane, blocks)
+        acc = np.zeros((4,) + texel.shape, dtype=np.float32)
         for s in range(S):
-            zs = d[..., s]
+            zs = zt[s].take(texel)  # sample s of each thread's texel
             z2 = zs * zs
             acc[0] += zs
             acc[1] += z2
@@ -152,27 +161,29 @@ def _run_batch(z, bx, by, out, pattern, addr, words, w, timings):
             acc[3] += z2 * z2
         acc /= inv
         for j in range(4):
-            shared[:, addr["resolve"][r, j]] = acc[j]
+            shared[addr["resolve"][r, j]] = acc[j]
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
-    v = shared[:, addr["horizontal read"]]  # (blocks, warp, 24, lane)
-    shared[:, addr["horizontal write"]] = _convolve(v, w, 16, axis=2)
+    v = shared[addr["horizontal read"]]  # (warp, 24, lane, blocks)
+    shared[addr["horizontal write"]] = _convolve(v, w, 16, axis=1)
     t2 = time.perf_counter()
 
     # Vertical blur: 20 loads per thread (upper or lower half of the strip), 12 results.
-    v = shared[:, addr["vertical read"]]  # (blocks, warp, 20, lane)
-    shared[:, addr["vertical write"]] = _convolve(v, w, 12, axis=2)
+    v = shared[addr["vertical read"]]  # (warp, 20, lane, blocks)
+    shared[addr["vertical write"]] = _convolve(v, w, 12, axis=1)
     t3 = time.perf_counter()
 
     # Readout: each thread reads three complete vectors; out-of-map texels are skipped.
     ro = pattern["readout"]
-    v = shared[:, addr["readout"]]  # (blocks, row i, j, warp, lane)
+    v = shared[addr["readout"]]  # (row i, j, warp, lane, blocks)
     tx, ty = ro.texel_x[:, 0], ro.texel_y[:, 0]  # (row i, warp, lane)
-    X = (_OUT_W * bx)[:, None, None, None] + tx
-    Y = (_OUT_H * by)[:, None, None, None] + ty
+    X = tx[..., None] + _OUT_W * bx
+    Y = ty[..., None] + _OUT_H * by
     inside = (X < W) & (Y < H)
-    out[Y[inside], X[inside]] = np.moveaxis(v, 2, -1)[inside]
+    texel = (Y * W + X)[inside]
+    for j in range(4):
+        out[j].put(texel, v[:, j][inside])
     t4 = time.perf_counter()
 
     if timings is not None:
@@ -180,7 +191,7 @@ def _run_batch(z, bx, by, out, pattern, addr, words, w, timings):
             timings[name] = timings.get(name, 0.0) + dt
 
 
-def filter_moments(depth_samples, *, blocks_per_batch=256, layout="paper", timings=None):
+def filter_moments(depth_samples, *, blocks_per_batch=64, layout="paper", timings=None):
     """Resolve and blur a multisampled shadow map block by block, as the HPG17 §4.1 shader does.
 
     Parameters
@@ -221,12 +232,13 @@ def filter_moments(depth_samples, *, blocks_per_batch=256, layout="paper", timin
     w = gaussian_weights(TAPS, SIGMA).astype(np.float32)
     H, W, _ = z.shape
     rows, cols = block_grid(H, W)
-    out = np.empty((H, W, 4), dtype=np.float32)
+    out = np.empty((4, H * W), dtype=np.float32)
+    zt = np.ascontiguousarray(z.reshape(H * W, -1).T)
     ids = np.arange(rows * cols)
     for start in range(0, len(ids), int(blocks_per_batch)):
         b = ids[start : start + int(blocks_per_batch)]
-        _run_batch(z, b % cols, b // cols, out, pattern, addr, words, w, timings)
-    return out
+        _run_batch(zt, z.shape, b % cols, b // cols, out, pattern, addr, words, w, timings)
+    return np.ascontiguousarray(out.T).reshape(H, W, 4)
 
 
 def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):

@@ -207,3 +207,34 @@ def test_blur_across_chunk_boundaries():
     w = gaussian_weights()
     want = ndimage.correlate1d(ndimage.correlate1d(m, w, axis=1, mode="nearest"), w, axis=0, mode="nearest")
     np.testing.assert_allclose(blur(m), want, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_resolve_is_bit_identical_to_power_moments_across_chunks(dtype, monkeypatch):
+    # The chunked structure-of-arrays resolve against moments.power_moments (an
+    # independent loop over array-of-structures powers and np.mean), bit for bit,
+    # for every sample count (sequential sums below 8, pairwise at 8, delegated
+    # above), with signed zeros (NumPy's sum starts from +0) and chunk boundaries.
+    from moments_ref import filtering
+    from moments_ref.moments import power_moments
+
+    monkeypatch.setattr(filtering, "_RESOLVE_BYTES", 200)
+    rng = np.random.default_rng(3)
+    for S in range(1, 18):
+        z = rng.uniform(-1, 1, (7, 9, S)).astype(dtype)
+        z.flat[::5] = -0.0
+        z[0, 0] = -0.0
+        z[1, 1] = 1.0
+        z[2, 2] = -1.0
+        got, want = resolve_moments(z), power_moments(z, axis=-1, n=4)
+        assert got.dtype == want.dtype and got.tobytes() == want.tobytes(), S
+
+
+def test_blur_bands_do_not_change_the_result(monkeypatch):
+    # One row per band against the default bands: the same terms in the same order.
+    from moments_ref import filtering
+
+    m = np.random.default_rng(4).uniform(-1, 1, (23, 17, 3)).astype(np.float32)
+    want = blur(m)
+    monkeypatch.setattr(filtering, "_BAND_BYTES", 1)
+    assert blur(m).tobytes() == want.tobytes()

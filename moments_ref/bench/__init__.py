@@ -21,12 +21,13 @@ from typing import Callable
 
 import numpy as np
 
-from . import filtering
-from . import onchip as _onchip
-from .vwss import warp
+from .. import filtering
+from .. import onchip as _onchip
+from ..vwss import warp
+from ._targets import run_targets, targets_markdown
 
 __all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time", "bench_filtering",
-           "bench_onchip", "bench_entries"]
+           "bench_onchip", "bench_entries", "run_targets", "targets_markdown"]
 
 
 @dataclass(frozen=True)
@@ -68,7 +69,7 @@ def copy_seconds(nbytes, repeat=3):
 
 
 def _moments_input(size, dtype):
-    from .moments import BIAS_FLOAT32, bias_moments, power_moments
+    from ..moments import BIAS_FLOAT32, bias_moments, power_moments
 
     rng = np.random.default_rng(1)
     z = rng.uniform(-1, 1, (size, size, 4))
@@ -86,32 +87,32 @@ def _setup_encode(size, dtype):
 
 
 def _setup_decode(size, dtype):
-    from .affine import encode_unorm16
+    from ..affine import encode_unorm16
 
     return encode_unorm16(_moments_input(size, "float64")[0]), np.dtype(dtype)
 
 
 def _fn_msm(b, zf):
-    from .msm import shadow_intensity
+    from ..msm import shadow_intensity
 
     return shadow_intensity(b, zf)
 
 
 def _fn_encode(b):
-    from .affine import encode_unorm16
+    from ..affine import encode_unorm16
 
     return encode_unorm16(b)
 
 
 def _fn_decode(u, dtype):
-    from .affine import decode_unorm16
+    from ..affine import decode_unorm16
 
     return decode_unorm16(u, dtype=dtype)
 
 
 def _setup_raster(samples):
     def setup(size, dtype):
-        from .raster import _small_triangles
+        from ..raster import _small_triangles
 
         n = size * size // 4
         v, t = _small_triangles(n, 1024, 4.0, np.random.default_rng(0))
@@ -121,14 +122,14 @@ def _setup_raster(samples):
 
 
 def _fn_raster(v, t, samples):
-    from .raster import rasterize_depth
+    from ..raster import rasterize_depth
 
     return rasterize_depth(v, t, np.eye(4), 1024, samples=samples)
 
 
 def _setup_representation(size, dtype):
-    from .moments import BIAS_FLOAT32, bias_moments
-    from .nonlinear import phi
+    from ..moments import BIAS_FLOAT32, bias_moments
+    from ..nonlinear import phi
 
     b, zf = _moments_input(size, "float64")
     return phi(bias_moments(b, BIAS_FLOAT32)).astype(dtype), zf.astype(dtype)
@@ -143,31 +144,31 @@ def _setup_pack(size, dtype):
 
 
 def _setup_unpack32(size, dtype):
-    from .packing import pack32
+    from ..packing import pack32
 
     return pack32(_setup_representation(size, "float64")[0]), np.dtype(dtype)
 
 
 def _fn_phi(b):
-    from .nonlinear import phi
+    from ..nonlinear import phi
 
     return phi(b)
 
 
 def _fn_shade(r, zf):
-    from .nonlinear import shade
+    from ..nonlinear import shade
 
     return shade(r, zf)
 
 
 def _fn_pack32(r):
-    from .packing import pack32
+    from ..packing import pack32
 
     return pack32(r)
 
 
 def _fn_unpack32(p, dtype):
-    from .packing import unpack32
+    from ..packing import unpack32
 
     return unpack32(p, dtype=dtype)
 
@@ -324,8 +325,8 @@ def _bench_zbuffer_fn(buf, idx, z):
 
 def _bench_warp_setup(size, dtype):
     """size² point-view updates: 16 views of 512², points on a tilted disc in front of them."""
-    from .scene import AreaLight
-    from .vwss.lights import light_views
+    from ..scene import AreaLight
+    from ..vwss.lights import light_views
 
     light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
     views = light_views(light, 16, 1.0, 5.0, seed=0)
@@ -344,8 +345,8 @@ def _bench_warp_fn(pts, vp, res):
 
 def _bench_mvr_setup(size, dtype):
     """size² triangle-views: 4 views of 1024², size²/4 small triangles (about 4 pixels each)."""
-    from .scene import AreaLight, torus_knot
-    from .vwss.lights import light_views
+    from ..scene import AreaLight, torus_knot
+    from ..vwss.lights import light_views
 
     light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
     views = light_views(light, 4, 1.0, 5.0, seed=0)
@@ -358,7 +359,7 @@ def _bench_mvr_setup(size, dtype):
 
 
 def _bench_mvr_fn(v, t, vp, res, dtype):
-    from .vwss.mvr import mvr
+    from ..vwss.mvr import mvr
 
     mvr(v, t, vp, res, dtype=dtype)
 
@@ -442,11 +443,11 @@ def end_to_end(size=2048, samples=4, repeat=1):
     followed by the same Φ and pack. Returns a list of dicts
     ``{path, stage, seconds, share}``; shares are of the path's total.
     """
-    from .filtering import bench_depth_map, blur, resolve_moments
-    from .moments import BIAS_FLOAT32, bias_moments
-    from .nonlinear import phi
-    from .onchip import filter_moments
-    from .packing import pack64
+    from ..filtering import bench_depth_map, blur, resolve_moments
+    from ..moments import BIAS_FLOAT32, bias_moments
+    from ..nonlinear import phi
+    from ..onchip import filter_moments
+    from ..packing import pack64
 
     z = bench_depth_map(size, samples, np.float32)
     state = {}
@@ -492,7 +493,7 @@ def end_to_end_markdown(rows, size, samples):
 
 def conformance_markdown(repeat=3):
     """Timing of one conformance run per golden case on the OpenGL context (llvmpipe here)."""
-    from .conformance import ContextError, bench_conformance
+    from ..conformance import ContextError, bench_conformance
 
     try:
         rows = bench_conformance(repeat=repeat)
