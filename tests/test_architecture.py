@@ -347,7 +347,8 @@ def test_the_project_refers_to_no_file_outside_it():
     outside = re.compile(r"design\.md|\.\./shared|shared/seeds|/work/")
     bad = []
     for p in sorted(repo.rglob("*")):
-        if (not p.is_file() or ".git" in p.parts or "__pycache__" in p.parts or ".egg-info" in str(p)
+        if (not p.is_file() or ".git" in p.parts or "__pycache__" in p.parts or ".hypothesis" in p.parts
+                or ".egg-info" in str(p)
                 or p.suffix not in {".py", ".md", ".toml", ".glsl", ".hlsl", ".wgsl", ".ipynb", ".cfg", ""}):
             continue
         if p == Path(__file__).resolve():
