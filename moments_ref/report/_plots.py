@@ -122,6 +122,7 @@ def _panel(ax, rows, key, label, colors):
         f = _front_2d(xs, ys)
         if f:
             ax.step([xs[i] for i in f], [ys[i] for i in f], where="post", color=c, lw=1, alpha=0.6, label=s)
+    ax.margins(x=0.1, y=0.06)  # room for the labels at the edges
     _labels(ax, points)
     ax.set_xlabel(label)
     ax.grid(True, which="both", alpha=0.3)
