@@ -56,7 +56,7 @@ def error_maps(result, names, reference="reference", title=""):
     vmax = _range(errors)
     cmap = plt.get_cmap("RdBu_r").with_extremes(bad=MASK)
     slots = 2 + 2 * len(names)
-    ncols = 4 if len(names) > 1 else 2
+    ncols = 4
     nrows = -(-slots // ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(2.6 * ncols + 1.0, 2.6 * nrows * h / w + 0.9), squeeze=False)
     ax = axes.ravel()
