@@ -175,6 +175,12 @@ def _cmd_report(args):
         argv += ["--scene", s]
     if args.full:
         argv.append("--full")
+    for t in args.technique or []:
+        argv += ["--technique", t]
+    if args.all_techniques:
+        argv.append("--all-techniques")
+    if args.repeats is not None:
+        argv += ["--repeats", str(args.repeats)]
     if args.no_progress:
         argv.append("--no-progress")
     return report.main(argv)
@@ -217,7 +223,12 @@ def _add_jobs(sub):
     """The main jobs: the report and the VWSS comparison."""
     rp = sub.add_parser("report", help="error against run time of every technique on the shipped scenes (main job)")
     rp.add_argument("--scene", action="append", help="scene name or file (repeatable; default: all shipped scenes)")
-    rp.add_argument("--full", action="store_true", help="2048² 4× MSAA shadow maps and full camera resolution")
+    rp.add_argument("--full", action="store_true", help="the scenes' own map size, MSAA and camera resolution")
+    rp.add_argument("--technique", action="append", metavar="NAME", help="this technique instead of the scene's "
+                    "outputs (repeatable)")
+    rp.add_argument("--all-techniques", action="store_true", help="every technique that can run on each scene")
+    rp.add_argument("--repeats", type=_int_in(1), default=None, metavar="N",
+                    help="timed repeats of each cost stage after a warm-up (default 3)")
     rp.add_argument("--out", required=True, type=Path, help="output folder")
     rp.add_argument("--no-progress", action="store_true", help="no progress bar")
     rp.set_defaults(func=_cmd_report)

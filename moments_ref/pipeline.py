@@ -97,14 +97,20 @@ class RunResult:
     scene : Scene
     techniques : list of str
     stages : list of str, the stages that ran, in order
-    seconds : dict stage -> wall-clock seconds
+    seconds : dict stage -> wall-clock seconds (the median of its timed repeats)
+    times : dict stage -> list of seconds: its timed repeats (after a warm-up run) for
+        the stages of the techniques' costs, the single run for the others
+    repeats : int, timed repeats of the cost stages
+    used_by : dict stage -> techniques whose result or reference needs it
     gbuffer : GBuffer (None when no technique shades the receiver pixels)
     shadow : dict technique -> its result (shadow intensity of the receiver pixels,
         or the scattering image)
     reference : dict technique -> its reference values
-    texel_seconds : dict technique -> seconds of its texture stages (shared stages
-        count fully for each technique that uses them: its cost alone)
-    fragment_seconds : dict technique -> seconds of its ``shade_`` stage
+    texel_seconds : dict technique -> median over the repeats of the summed seconds of
+        its texture stages (shared stages count fully for each technique that uses
+        them: its cost alone)
+    fragment_seconds : dict technique -> median seconds of its ``shade_`` stage
+    spread : dict technique -> {"texel": (median, min, max), "fragment": (median, min, max)}
     shadow_map_size : (H, W); msaa : int
     values : dict stage -> result (textures, maps) for inspection
     bits_per_texel : dict technique -> storage per texel
@@ -130,14 +136,30 @@ class RunResult:
     area: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     truth: dict = field(default_factory=dict)
+    times: dict = field(default_factory=dict)
+    repeats: int = 1
+    used_by: dict = field(default_factory=dict)
+    spread: dict = field(default_factory=dict)
 
     def rows(self) -> list:
-        """One results.csv row per technique: its reference's metric, bits and seconds."""
+        """One results.csv row per technique: its reference's metric, bits and seconds (median, min, max)."""
         out = []
         for n in self.techniques:
             m = get_reference(self.truth[n]).metric(self, n)
-            out.append({"scene": self.scene.name, "technique": n, "bits_per_texel": self.bits_per_texel[n], **m,
-                        "texel_seconds": self.texel_seconds[n], "fragment_seconds": self.fragment_seconds[n]})
+            row = {"scene": self.scene.name, "technique": n, "bits_per_texel": self.bits_per_texel[n], **m}
+            for kind in ("texel", "fragment"):
+                med, lo, hi = self.spread[n][kind] if n in self.spread else (getattr(self, f"{kind}_seconds")[n],) * 3
+                row.update({f"{kind}_seconds": med, f"{kind}_seconds_min": lo, f"{kind}_seconds_max": hi})
+            row["repeats"] = self.repeats
+            out.append(row)
+        return out
+
+    def stage_table(self) -> list:
+        """Per stage that ran: ``{"stage", "seconds" (median), "min", "max", "used_by"}``."""
+        out = []
+        for k in self.stages:
+            med, lo, hi = _spread(self.times.get(k, [self.seconds[k]]))
+            out.append({"stage": k, "seconds": med, "min": lo, "max": hi, "used_by": list(self.used_by.get(k, []))})
         return out
 
 
@@ -191,30 +213,71 @@ class _Graph:
             visit(t)
         return out
 
-    def run(self, targets, progress=False, desc="stages"):
+    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1):
+        """Compute the stages ``targets`` need; return ``(order, values, times)``.
+
+        A stage in ``timed`` runs once as a warm-up (its value is kept) and then
+        ``repeats`` times more, each timed; ``times[stage]`` lists those seconds
+        (one entry, the single run, for the other stages).
+        """
         order = self.order(targets)
-        values, seconds = {}, {}
-        bar = None
-        if progress:
-            import sys
-
-            from tqdm import tqdm
-
-            bar = tqdm(total=len(order), desc=desc, unit="stage", file=sys.stderr, leave=False)
+        values, times = {}, {}
+        bar = _stage_bar(progress, len(order), desc)
         try:
             for name in order:
                 stage = self.nodes[name]
                 if bar is not None:
                     bar.set_postfix_str(name, refresh=False)
+                args = [values[d] for d in stage.deps]
                 t0 = time.perf_counter()
-                values[name] = stage(*(values[d] for d in stage.deps))
-                seconds[name] = time.perf_counter() - t0
+                values[name] = stage(*args)
+                times[name] = [time.perf_counter() - t0]
+                if name in timed:
+                    times[name] = [_timed(stage, args) for _ in range(max(int(repeats), 1))]
                 if bar is not None:
                     bar.update(1)
         finally:
             if bar is not None:
                 bar.close()
-        return order, values, seconds
+        return order, values, times
+
+
+def _timed(stage, args):
+    t0 = time.perf_counter()
+    stage(*args)
+    return time.perf_counter() - t0
+
+
+def _stage_bar(progress, total, desc):
+    if not progress:
+        return None
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="stage", file=sys.stderr, leave=False)
+
+
+def _spread(per_repeat):
+    """(median, min, max) of a list of seconds."""
+    a = np.asarray(per_repeat, dtype=float)
+    return float(np.median(a)), float(a.min()), float(a.max())
+
+
+def _cost(times, keys, repeats):
+    """Per repeat the sum of the stages ``keys`` (a stage run once counts its one time in each)."""
+    if not keys:
+        return [0.0] * repeats
+    return [float(sum(times[k][min(i, len(times[k]) - 1)] for k in keys)) for i in range(repeats)]
+
+
+def _used_by(graph, info, order):
+    """Stage -> the techniques whose result or reference depends on it (run order)."""
+    out = {k: [] for k in order}
+    for n, i in info.items():
+        for k in graph.order([x for x in (i["shade"], i["reference"]) if x]):
+            out[k].append(n)
+    return out
 
 
 # ---------------------------------------------------------------------------
@@ -324,7 +387,8 @@ def plan(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=Non
 
 
 def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None, reference=True,
-        noise_tiles=64, frame=0, params=None, area=None, settings=None, full=False, given=None, progress=False):
+        noise_tiles=64, frame=0, params=None, area=None, settings=None, full=False, given=None, progress=False,
+        repeats=1):
     """Compute the requested techniques' results on a scene's camera view, lazily.
 
     Parameters
@@ -365,6 +429,11 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
         The sizes the caller set explicitly (default: the arguments above).
     progress : bool
         Show a tqdm progress bar of the stages on stderr.
+    repeats : int
+        Timed repeats of each stage of a technique's cost (its texture stages and
+        its shade stage), after a warm-up run whose value is used; the seconds are
+        their median (``spread``: median, min, max). The other stages (base
+        stages, references) run once.
 
     Returns
     -------
@@ -377,17 +446,23 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
     g, targets, meta = plan(scene, outputs, shadow_map_size=shadow_map_size, msaa=msaa, resolution=resolution,
                             reference=reference, noise_tiles=noise_tiles, frame=frame, params=params, area=area,
                             settings=settings, full=full, given=given)
-    order, values, seconds = g.run(targets, progress=progress, desc=scene.name)
     info = meta["info"]
+    timed = {k for i in info.values() for k in (*i["steps"], i["shade"])}
+    repeats = max(int(repeats), 1)
+    order, values, times = g.run(targets, progress=progress, desc=scene.name, timed=timed, repeats=repeats)
+    seconds = {k: _spread(v)[0] for k, v in times.items()}
+    spread = {n: {"texel": _spread(_cost(times, i["steps"], repeats)),
+                  "fragment": _spread(_cost(times, [i["shade"]], repeats))} for n, i in info.items()}
     return RunResult(scene=scene, techniques=meta["techniques"], stages=order, seconds=seconds,
                      gbuffer=values.get(PROJECTION),
                      shadow={n: values[i["shade"]] for n, i in info.items()},
                      reference={n: values[i["reference"]] for n, i in info.items() if i["reference"]},
-                     texel_seconds={n: float(sum(seconds[s] for s in i["steps"])) for n, i in info.items()},
-                     fragment_seconds={n: float(seconds[i["shade"]]) for n, i in info.items()},
+                     texel_seconds={n: v["texel"][0] for n, v in spread.items()},
+                     fragment_seconds={n: v["fragment"][0] for n, v in spread.items()},
                      shadow_map_size=meta["size"], msaa=meta["samples"], values=values,
                      bits_per_texel=meta["bits_per_texel"], area=meta["area"], settings=meta["settings"],
-                     truth={n: i["truth"] for n, i in info.items()})
+                     truth={n: i["truth"] for n, i in info.items()}, times=times, repeats=repeats,
+                     used_by=_used_by(g, info, order), spread=spread)
 
 
 # ---------------------------------------------------------------------------

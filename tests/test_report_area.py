@@ -55,7 +55,7 @@ role = "occluder"
 """
 
 AREA = {"reference_views": 48, "light_samples": 8}
-TINY = dict(progress=False, shadow_map_size=96, noise_tiles=1)
+TINY = dict(progress=False, shadow_map_size=96, noise_tiles=1, repeats=1)
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +81,8 @@ def area_run(square):
 @pytest.fixture(scope="module")
 def area_report(square, tmp_path_factory):
     out = tmp_path_factory.mktemp("report_area")
-    return out, report.run(scenes=[str(square)], out_dir=out, area=AREA, resolution=(64, 36), **TINY)
+    return out, report.run(scenes=[str(square)], out_dir=out, area=AREA, resolution=(64, 36), all_techniques=True,
+                           **TINY)
 
 
 def _rmse(a, b):
@@ -145,7 +146,8 @@ def test_report_has_the_area_rows(area_report, area_run, square):
         rows = {r["technique"]: r for r in csv.DictReader(f) if r["scene"] == "square"}
     assert {"msm_soft", "pcss", "vwss", "mvr", "pcf", "msm64"} <= set(rows)  # hard rows stay
     for n in ("msm_soft", "pcss", "vwss", "mvr"):
-        for c in report.COLUMNS[3:]:
+        assert rows[n]["pareto"] in ("true", "false") and int(rows[n]["repeats"]) >= 1
+        for c in report.COLUMNS[3:-2]:
             v = float(rows[n][c])
             assert math.isfinite(v) or (c == "flip_mean" and not report._flip_available()), (n, c)
         assert float(rows[n]["texel_seconds"]) > 0 and float(rows[n]["fragment_seconds"]) > 0
@@ -161,7 +163,7 @@ def test_report_has_the_area_rows(area_report, area_run, square):
 
 def test_report_stages_images_and_text(area_report):
     out, res = area_report
-    stages = json.loads((out / "stages.json").read_text())["square"]
+    stages = [s["stage"] for s in json.loads((out / "stages.json").read_text())["square"]]
     assert "mvr_reference_vwss" in stages and "vwss_warp" in stages
     assert not any("translucen" in s for s in stages)
     names = {p.name for p in out.iterdir()}
@@ -177,7 +179,7 @@ def test_report_stages_images_and_text(area_report):
 def test_directional_scene_has_no_multiview_work(tmp_path):
     res = report.run(scenes=["three-occluders"], out_dir=tmp_path, techniques=["pcf", "msm64"],
                      resolution=(32, 18), **TINY)
-    st = res["stages"]["three-occluders"]
+    st = [s["stage"] for s in res["stages"]["three-occluders"]]
     assert st and not any("vwss" in s or "mvr" in s or "scattering" in s for s in st)
     assert {r["technique"] for r in res["rows"]} == {"pcf", "msm64"}
     assert not (tmp_path / "msm_soft_artifacts.png").exists()
@@ -200,7 +202,7 @@ def test_soft_statements_state_the_measured_order():
 def scattering_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report_scattering")
     res = report.run(scenes=["scattering"], out_dir=out, techniques=list(pipeline.SCATTERING_OUTPUTS),
-                     progress=False, shadow_map_size=64, resolution=(32, 18),
+                     progress=False, shadow_map_size=64, resolution=(32, 18), repeats=1,
                      scattering={"epipolar_size": (32, 64), "reference_samples": 256, "raymarch_samples": 256})
     return out, res
 
@@ -221,7 +223,7 @@ def test_scattering_rows(scattering_report):
 
 def test_scattering_stages_and_text(scattering_report):
     out, res = scattering_report
-    st = json.loads((out / "stages.json").read_text())["scattering"]
+    st = [s["stage"] for s in json.loads((out / "stages.json").read_text())["scattering"]]
     assert {"scattering_raymarch_reference", "scattering_resample_filtered", "scattering_resample_unfiltered",
             "shade_scattering_6m", "scattering_raymarch"} <= set(st)
     assert all(s.startswith(("scattering_", "shade_scattering")) for s in st)

@@ -1,16 +1,23 @@
 """Error against run time: every technique on every scene, measured against the reference.
 
-``moments-ref report [--scene NAME|FILE]... [--full] --out DIR`` (:func:`main`)
-renders each scene's camera view, shades its receiver pixels with each
-technique (:mod:`moments_ref.pipeline`) and writes to DIR:
+``moments-ref report [--scene NAME|FILE]... [--technique NAME]... [--all-techniques]
+[--repeats N] [--full] --out DIR`` (:func:`main`) renders each scene's camera
+view, shades its receiver pixels with the techniques the scene's ``outputs``
+name (or ``--technique``, or with ``--all-techniques`` every one that can run
+on it; :mod:`moments_ref.pipeline`) and writes to DIR:
 
-* ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`;
-* ``stages.json``: per scene the stages that ran (:attr:`moments_ref.pipeline.RunResult.stages`);
+* ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`
+  (timings: medians of ``repeats`` timed runs after a warm-up with their min and
+  max; ``pareto``: on the scene's Pareto front, :mod:`._pareto`);
+* ``stages.json``: per scene a list of ``{"stage", "seconds" (median), "min",
+  "max", "used_by"}`` (:meth:`moments_ref.pipeline.RunResult.stage_table`);
 * ``claims.json``: the paper claims measured on the scenes that ran
   (:mod:`moments_ref.paper_claims`), also appended to report.md as a table;
-* ``report.md``: the table, the measured verdict on HPG17's headline claims,
-  the error-against-run-time scatter plot ``scatter.png`` and the error images
-  ``errors_<scene>.png``.
+* ``report.md``: the settings used (and what was reduced), the machine and a
+  same-run memory-copy rate (:mod:`._machine`), the Pareto front per scene, a
+  cross-scene summary, the measured verdict on HPG17's headline claims, the
+  error-against-cost plots ``front_<reference>.png`` (one per reference) and the
+  error images.
 
 Metrics over the receiver pixels inside the shadow map, with
 ``e = shadow − reference`` (shadow intensities, 1 = fully shadowed; the
@@ -27,13 +34,14 @@ split of HPG17 Figure 10. Both are NumPy times on this machine, not GPU times.
 
 Without ``--full`` each scene runs at reduced resolution
 (:func:`moments_ref.pipeline.reduced_settings`: shadow map halved per side,
-camera a quarter per side); ``--full`` uses 2048² maps with 4× MSAA and the
-scene's camera resolution (HPG17 §5). ``knot`` has an area light: the
+camera a quarter per side), printed at the start on stderr and in report.md;
+``--full`` uses the scene's own map size, MSAA and camera resolution (the
+shipped hard-shadow scenes: 2048² maps with 4× MSAA at 1920×1080, HPG17 §5). ``knot`` has an area light: the
 hard-shadow techniques here use its centre as a spot light (their reference is
 the filtered hard shadow of that spot).
 
-Every registered technique that can run on a scene (``Technique.refusal``) gets
-a row; the pipeline runs them all in one stage graph. Each row's error is its
+Each technique the scene asks for gets a row; the pipeline runs them all in one
+stage graph. Each row's error is its
 reference's metric (``Technique.truth``, :class:`~moments_ref.techniques.Reference`),
 and each reference used adds its figures and, where it has one, its section of
 report.md. Shipped: the filtered hard shadow above (``pcf``); multi-view
@@ -47,7 +55,8 @@ them once (``msm_soft``: ``msm_soft_artifacts.png`` and ``.md``, the artifacts t
 slides name).
 
 Package layout: this module runs and writes; :mod:`._text` holds results.csv,
-the claims and report.md, :mod:`._plots` the error-against-run-time plot.
+the claims and report.md, :mod:`._plots` the error-against-cost plots,
+:mod:`._pareto` the fronts and the summary, :mod:`._machine` the machine.
 
 References
 ----------
@@ -73,11 +82,14 @@ from .. import paper_claims, pipeline
 from .. import techniques as _techniques
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
-from ._plots import plot_error_vs_runtime
+from ._machine import copy_rate, machine, machine_lines
+from ._pareto import front_lines, mark_pareto, pareto_mask, summary_lines
+from ._plots import plot_error_vs_runtime, plot_fronts
 from ._text import CLEARLY_BELOW, CLOSE_REL, COLUMNS, csv_text, evaluate_claims, markdown, read_results
 
 __all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
-           "evaluate_claims", "soft_statements", "read_results", "plot_error_vs_runtime", "build_parser"]
+           "evaluate_claims", "soft_statements", "read_results", "plot_error_vs_runtime", "plot_fronts", "build_parser",
+           "pareto_mask", "mark_pareto"]
 
 _ = (CLOSE_REL, CLEARLY_BELOW)  # re-exported
 #: Area-light outputs in the default run (those measured against reference ``mvr``).
@@ -110,15 +122,28 @@ def _check_overrides(overrides):
     return out
 
 
-def _scene_techniques(scene, requested=None):
-    """The techniques of a scene: the registered (or requested) ones that can run on it."""
+def _scene_techniques(scene, requested=None, all_techniques=False):
+    """The techniques of a scene: the requested ones, else all (``all_techniques``) or the scene's ``outputs``.
+
+    Requested names and ``all_techniques`` keep those that can run on the scene
+    (``Technique.refusal``); a scene's own ``outputs`` are run as listed (a name
+    it cannot run is refused by the pipeline with the reason); a scene without
+    ``outputs`` runs every technique that can run on it.
+    """
+    if requested is None and not all_techniques and scene.outputs:
+        return list(dict.fromkeys(scene.outputs))
     names = _techniques.names() if requested is None else list(requested)
     return [n for n in names if _techniques.get(n).refusal(scene) is None]
 
 
+def _own_settings(sc):
+    return tuple(sc.shadow_map_size), int(sc.msaa), tuple(sc.camera.resolution)
+
+
 def _scene_settings(sc, full, given):
+    """Map size, MSAA and camera resolution of a run: the scene's own with ``full``, else reduced; ``given`` wins."""
     if full:
-        size, samples, res = (2048, 2048), 4, tuple(sc.camera.resolution)
+        size, samples, res = _own_settings(sc)
     else:
         size, samples, res = pipeline.reduced_settings(sc)
     if given["shadow_map_size"] is not None:
@@ -134,6 +159,8 @@ class _Collected:
     """What the scenes contributed, written at the end."""
 
     full: bool = False
+    repeats: int = 1
+    machine: list = field(default_factory=list)
     rows: list = field(default_factory=list)
     stages: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
@@ -143,19 +170,52 @@ class _Collected:
     images: dict = field(default_factory=dict)  # reference name -> [file names]
 
 
-def _run_scene(acc, sc, full, given, requested, overrides, noise_tiles, progress):
-    size, samples, res = _scene_settings(sc, full, given)
+def _value(v):
+    if isinstance(v, (tuple, list)):
+        return "×".join(_value(x) for x in v)
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def _reference_text(ref_name, cfg):
+    ref = get_reference(ref_name)
+    if not cfg:
+        return f"{ref_name} ({ref.label})"
+    items = ", ".join(f"{k} {_value(v)}" for k, v in cfg.items())
+    return f"{ref_name} ({items})"
+
+
+def _announce(acc, sc, names, used, ref_settings, full):
+    """Record the settings a scene runs with and print them on stderr, saying what was reduced."""
+    size, samples, res = used
+    own = _own_settings(sc)
     kind = getattr(sc.light, "kind", "directional")
-    acc.settings[sc.name] = {"size": size, "msaa": samples, "resolution": res,
-                             "light": "area (spot from its centre)" if kind == "area" else kind}
+    refs = "; ".join(_reference_text(n, c) for n, c in ref_settings.items())
+    reduced = [f"{what} {a} (scene: {b})" for what, a, b in
+               (("shadow map", "×".join(map(str, size)), "×".join(map(str, own[0]))),
+                ("MSAA", f"{samples}×", f"{own[1]}×"),
+                ("camera", "×".join(map(str, res)), "×".join(map(str, own[2])))) if a != b]
+    acc.settings[sc.name] = {"size": size, "msaa": samples, "resolution": res, "own": own, "references": refs,
+                             "light": "area (spot from its centre)" if kind == "area" else kind,
+                             "techniques": list(names), "reduced": reduced}
+    note = (f"not the scene's own: {', '.join(reduced)}; --full runs the scene's own settings"
+            if reduced else "the scene's own settings")
+    print(f"{sc.name}: {', '.join(names)}; shadow map {'×'.join(map(str, size))}, MSAA {samples}×, camera "
+          f"{'×'.join(map(str, res))}, reference {refs}, {acc.repeats} timed repeats ({note})", file=sys.stderr)
+
+
+def _run_scene(acc, sc, full, given, requested, overrides, noise_tiles, progress, all_techniques=False):
+    size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
-    names = _scene_techniques(sc, requested)
+    names = _scene_techniques(sc, requested, all_techniques)
     if not names:
         return
-    result = pipeline.run(sc, names, shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles,
-                          settings=overrides, full=full, given=given, progress=progress)
-    acc.stages[sc.name] += list(result.stages)
-    acc.measured[sc.name] = paper_claims.scene_measurements(result)
+    kw = dict(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles, settings=overrides,
+              full=full, given=given)
+    _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, **kw)[2]["settings"], full)
+    result = pipeline.run(sc, names, progress=progress, repeats=acc.repeats, **kw)
+    acc.stages[sc.name] = result.stage_table()
+    if result.gbuffer is not None:  # a scattering-only run shades no receiver pixels: nothing the claims need
+        acc.measured[sc.name] = paper_claims.scene_measurements(result)
     acc.rows += result.rows()
     groups = {}
     for n in result.techniques:
@@ -202,7 +262,8 @@ def _write(acc, out, flip_ok):
 
     statements = {name: {s: get_reference(name).statements(acc.rows, s) for s in scenes}
                   for name, scenes in acc.references.items() if get_reference(name).statements}
-    acc.figures["scatter.png"] = plot_error_vs_runtime(acc.rows)
+    mark_pareto(acc.rows)
+    acc.figures.update(plot_fronts(acc.rows))
     claims = evaluate_claims(acc.rows)
     refs = [(get_reference(n), cfg, statements.get(n, {})) for n, cfg in acc.references.items()]
     try:
@@ -212,7 +273,10 @@ def _write(acc, out, flip_ok):
         # leaves no half-written file.
         texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
                  "report.md": markdown(acc.rows, acc.stages, acc.settings, claims,
-                                       {"scatter": "scatter.png", **acc.images}, flip_ok, refs, lines)}
+                                       {"fronts": [n for n in acc.figures if n.startswith("front_")],
+                                        **acc.images}, flip_ok, refs, lines,
+                                       answer=acc.machine + front_lines(acc.rows) + summary_lines(acc.rows),
+                                       repeats=acc.repeats)}
         texts["claims.json"], texts["report.md"] = paper_claims.gather(acc.rows, acc.measured, texts["report.md"],
                                                                        acc.full)
         for name, fig in acc.figures.items():
@@ -227,7 +291,7 @@ def _write(acc, out, flip_ok):
 
 
 def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=None, shadow_map_size=None,
-        msaa=None, resolution=None, noise_tiles=64, area=None, scattering=None):
+        msaa=None, resolution=None, noise_tiles=64, area=None, scattering=None, all_techniques=False, repeats=3):
     """Run the report and write its files to ``out_dir``.
 
     Parameters
@@ -236,7 +300,8 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         Shipped scene names or scene files; default all shipped scenes
         (:func:`moments_ref.scene.list_scenes`).
     full : bool
-        2048² maps with 4× MSAA and the scenes' camera resolution (HPG17 §5);
+        The scenes' own map size, MSAA and camera resolution (the shipped
+        hard-shadow scenes: 2048² with 4× MSAA at 1920×1080, HPG17 §5);
         otherwise :func:`moments_ref.pipeline.reduced_settings`. The references
         then use their paper-scale settings (area lights: the scene's map size, a
         512-view MVR reference; scattering: the scene's own settings).
@@ -245,9 +310,14 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     progress : bool
         tqdm progress bars (scenes, and stages per scene) on stderr.
     techniques : list of str, optional
-        Only these techniques (default: every registered technique that can run
-        on the scene: its light kind, translucency, medium). A name no scene can
-        run is refused with the reason.
+        Only these techniques, on each scene that can run them (default: the
+        scene's ``outputs``). A name no scene can run is refused with the reason.
+    all_techniques : bool
+        Every registered technique that can run on each scene (light kind,
+        translucency, medium) instead of the scene's ``outputs``.
+    repeats : int
+        Timed repeats of every stage of a technique's cost, after a warm-up run
+        (results.csv: median, min, max).
     shadow_map_size, msaa, resolution : optional
         Override the settings for every scene (tests, notebooks);
         ``shadow_map_size`` also sets the maps of the area-light rows.
@@ -284,10 +354,11 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     overrides = _check_overrides({"area": area, "scattering": scattering})
     given = {"shadow_map_size": shadow_map_size, "msaa": msaa, "resolution": resolution}
     flip_ok = flip_available()
-    acc = _Collected(full=full)
+    acc = _Collected(full=full, repeats=max(int(repeats), 1))
+    acc.machine = machine_lines(machine(), copy_rate())
     with _bar(progress, len(loaded)) as bar:
         for sc in loaded:
-            _run_scene(acc, sc, full, given, techniques, overrides, noise_tiles, progress)
+            _run_scene(acc, sc, full, given, techniques, overrides, noise_tiles, progress, all_techniques)
             if bar is not None:
                 bar.update(1)
     return _write(acc, out, flip_ok)
@@ -299,10 +370,27 @@ def build_parser():
                                 description="Error against run time of the shadow techniques (HPG17 §5).")
     p.add_argument("--scene", action="append", metavar="NAME|FILE",
                    help="shipped scene name or scene file (repeatable; default: all shipped scenes)")
-    p.add_argument("--full", action="store_true", help="2048² shadow maps with 4× MSAA at the camera's resolution")
+    p.add_argument("--full", action="store_true",
+                   help="the scene's own map size, MSAA and camera resolution (default: reduced, printed at the start)")
+    p.add_argument("--technique", action="append", metavar="NAME",
+                   help="run this technique (repeatable) instead of each scene's outputs")
+    p.add_argument("--all-techniques", action="store_true",
+                   help="every technique that can run on each scene instead of its outputs")
+    p.add_argument("--repeats", type=_positive, default=3, metavar="N",
+                   help="timed repeats of each cost stage after a warm-up (default 3)")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
+
+
+def _positive(text):
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return n
 
 
 def main(argv=None) -> int:
@@ -313,11 +401,20 @@ def main(argv=None) -> int:
     except SystemExit as exc:
         return int(exc.code or 0)
     try:
-        res = run(scenes=args.scene, full=args.full, out_dir=args.out, progress=not args.no_progress)
+        if args.technique and args.all_techniques:
+            raise InputError("technique: give --technique or --all-techniques, not both")
+        res = run(scenes=args.scene, full=args.full, out_dir=args.out, progress=not args.no_progress,
+                  techniques=args.technique, all_techniques=args.all_techniques, repeats=args.repeats)
     except InputError as exc:
         print(f"moments-ref report: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {', '.join(str(p) for p in res['paths'].values())}")
+    skipped = 0
     for claim, verdict, evidence in res["claims"]:
-        print(f"{claim}: {({True: 'holds', False: 'does not hold', None: 'not measurable'})[verdict]} ({evidence})")
+        if verdict is None:  # its scene or techniques did not run
+            skipped += 1
+            continue
+        print(f"{claim}: {'holds' if verdict else 'does not hold'} ({evidence})")
+    if skipped:
+        print(f"{skipped} headline claim(s) need scenes or techniques that did not run (report.md lists them)")
     return 0

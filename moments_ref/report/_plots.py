@@ -56,3 +56,104 @@ def plot_error_vs_runtime(rows, fig=None):
     axes[1].legend(handles=handles, fontsize="x-small", loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
     return fig
+
+
+#: Figure titles per reference name (others: the reference's label).
+TITLES = {"pcf": "hard shadows, error against the filtered hard shadow (9×9 Gaussian PCF)",
+          "mvr": "soft shadows, error against multi-view rasterization (MVR)",
+          "raymarch": "single scattering, error against converged ray marching"}
+
+
+def _scale(values):
+    """``(scale, kwargs)`` of an axis for non-negative ``values``: linear unless they span over a decade."""
+    v = np.asarray([x for x in values if np.isfinite(x)], dtype=float)
+    pos = v[v > 0]
+    if len(pos) == 0 or pos.max() / pos.min() < 10:
+        return "linear", {}
+    if np.any(v == 0):  # a zero is drawn at zero: linear up to the smallest positive value
+        return "symlog", {"linthresh": float(pos.min()), "linscale": 0.5}
+    return "log", {}
+
+
+def _front_2d(xs, ys):
+    """Indices of the points no other beats in both x and y, by increasing x."""
+    idx = sorted(range(len(xs)), key=lambda i: (xs[i], ys[i]))
+    out, best = [], np.inf
+    for i in idx:
+        if ys[i] < best:
+            out.append(i)
+            best = ys[i]
+    return out
+
+
+_OFFSETS = ((4, 3, "left"), (4, -10, "left"), (-4, 3, "right"), (-4, -10, "right"), (4, 14, "left"),
+            (4, -21, "left"), (-4, 14, "right"), (-4, -21, "right"))
+
+
+def _labels(ax, points):
+    """Name each point beside it, moving a label to a free side where it would cover another."""
+    ax.autoscale_view()
+    placed = []
+    for x, y, text, color in points:
+        px, py = ax.transData.transform((x, y))
+        width = 5.5 * len(text)
+        for dx, dy, ha in _OFFSETS:
+            x0 = px + dx - (width if ha == "right" else 0)
+            box = (x0, py + dy, x0 + width, py + dy + 9)
+            if not any(box[0] < b[2] and b[0] < box[2] and box[1] < b[3] and b[1] < box[3] for b in placed):
+                break
+        placed.append(box)
+        ax.annotate(text, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=7, color=color, ha=ha)
+
+
+def _panel(ax, rows, key, label, colors):
+    for axis, vals in (("x", [r[key] for r in rows]), ("y", [r["rmse"] for r in rows])):
+        scale, kw = _scale(vals)
+        (ax.set_xscale if axis == "x" else ax.set_yscale)(scale, **kw)
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    points = []
+    for si, s in enumerate(scenes):
+        rs = [r for r in rows if r["scene"] == s and np.isfinite(r["rmse"])]
+        xs, ys = [r[key] for r in rs], [r["rmse"] for r in rs]
+        c = colors[si % len(colors)]
+        for r, x, y in zip(rs, xs, ys):
+            ax.scatter(x, y, s=40, color=c if r.get("pareto") else "white", edgecolors=c, zorder=3)
+            points.append((x, y, r["technique"], c))
+        f = _front_2d(xs, ys)
+        if f:
+            ax.step([xs[i] for i in f], [ys[i] for i in f], where="post", color=c, lw=1, alpha=0.6, label=s)
+    ax.margins(x=0.1, y=0.06)  # room for the labels at the edges
+    _labels(ax, points)
+    ax.set_xlabel(label)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def plot_fronts(rows):
+    """Per reference one figure ``front_<reference>.png``: RMSE against texel and against fragment seconds.
+
+    Filled markers: on the Pareto front over (RMSE, texel, fragment) of their
+    scene (``row["pareto"]``); hollow: dominated. The line is the front in the
+    plane of the panel. Axes linear unless the data span over a decade (then
+    log, or symlog with a zero drawn at zero).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from ._pareto import truth_of
+
+    colors = plt.get_cmap("tab10").colors
+    out = {}
+    for ref in dict.fromkeys(truth_of(r) for r in rows):
+        rs = [r for r in rows if truth_of(r) == ref]
+        fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+        _panel(axes[0], rs, "texel_seconds", "texel cost: texture stages, median s (NumPy)", colors)
+        _panel(axes[1], rs, "fragment_seconds", "fragment cost: lookups at the receiver pixels, median s", colors)
+        axes[0].set_ylabel("RMSE of the result against the reference")
+        axes[1].legend(fontsize="small", loc="best")
+        fig.suptitle(TITLES.get(ref, ref) + "\nfilled: on the scene's Pareto front over (RMSE, texel, fragment)",
+                     fontsize="medium")
+        fig.tight_layout()
+        out[f"front_{ref}.png"] = fig
+    return out

@@ -23,13 +23,18 @@ __all__ = ["COLUMNS", "CLOSE_REL", "CLEARLY_BELOW", "read_results", "evaluate_cl
 
 #: Columns of results.csv, in order.
 COLUMNS = ("scene", "technique", "bits_per_texel", "rmse", "max_error", "p99_error", "leak_fraction",
-           "flip_mean", "texel_seconds", "fragment_seconds")
+           "flip_mean", "texel_seconds", "texel_seconds_min", "texel_seconds_max", "fragment_seconds",
+           "fragment_seconds_min", "fragment_seconds_max", "repeats", "pareto")
+#: The float columns (all but scene, technique, bits_per_texel, repeats and pareto).
+_FLOATS = COLUMNS[3:-2]
 #: Relative tolerances of the verdicts (stated in report.md).
 CLOSE_REL = 0.10
 CLEARLY_BELOW = 0.90
 
 
 def _fmt(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
     if isinstance(v, float):
         return "nan" if math.isnan(v) else f"{v:.6g}"
     return str(v)
@@ -41,7 +46,7 @@ def csv_text(rows):
     wr = csv.writer(buf, lineterminator="\n")
     wr.writerow(COLUMNS)
     for r in rows:
-        wr.writerow([_fmt(r[c]) for c in COLUMNS])
+        wr.writerow([_fmt(r.get(c, "")) for c in COLUMNS])
     return buf.getvalue()
 
 
@@ -53,8 +58,9 @@ def read_results(path):
         raise InputError(f"results: {path} lacks columns {sorted(set(COLUMNS) - set(rows[0]))}")
     out = []
     for r in rows:
-        d = {"scene": r["scene"], "technique": r["technique"], "bits_per_texel": int(r["bits_per_texel"])}
-        for c in COLUMNS[3:]:
+        d = {"scene": r["scene"], "technique": r["technique"], "bits_per_texel": int(r["bits_per_texel"]),
+             "repeats": int(r["repeats"]), "pareto": r["pareto"] == "true"}
+        for c in _FLOATS:
             d[c] = float(r[c])
         out.append(d)
     return out
@@ -148,18 +154,42 @@ def _intro(flip_ok, sections):
     return lines
 
 
-def _settings(settings):
-    lines = ["## Settings", "", "| scene | shadow map | MSAA | camera | light |", "|---|---|---|---|---|"]
+def _settings(settings, repeats=1):
+    lines = ["## Settings", "",
+             "What ran: each scene's `outputs` (`--technique NAME` or `--all-techniques` instead). Map size, "
+             "MSAA and camera as used; where they differ from the scene's own, the scene's follow in "
+             "parentheses: run with `--full` for those.", "",
+             "| scene | techniques | shadow map | MSAA | camera | reference | light |", "|---|---|---|---|---|---|---|"]
     for s, v in settings.items():
-        lines.append(f"| {s} | {v['size'][0]}×{v['size'][1]} | {v['msaa']}× | {v['resolution'][0]}×"
-                     f"{v['resolution'][1]} | {v['light']} |")
+        own = v.get("own", (v["size"], v["msaa"], v["resolution"]))
+
+        def cell(a, b, fmt):
+            return fmt(a) + ("" if tuple(np.atleast_1d(a)) == tuple(np.atleast_1d(b)) else f" ({fmt(b)})")
+
+        lines.append(f"| {s} | {', '.join(v.get('techniques', []))} | {cell(v['size'], own[0], _x)} | "
+                     f"{cell(v['msaa'], own[1], lambda m: f'{m}×')} | {cell(v['resolution'], own[2], _x)} | "
+                     f"{v.get('references', '')} | {v['light']} |")
     lines.append("")
+    if any(v.get("reduced") for v in settings.values()):
+        lines += ["**Reduced settings**: the scenes marked with the scene's own values in parentheses ran "
+                  "smaller than they ask for (shadow map halved per side, camera a quarter per side); "
+                  "`moments-ref report --full` runs the scenes' own settings.", ""]
+    lines += [f"Timings: every stage of a technique's cost ran once as a warm-up and then {repeats} times, timed; "
+              "`texel_seconds` and `fragment_seconds` are the medians (`_min`, `_max`: the spread) and "
+              "`stages.json` lists each stage's median, min and max with the techniques using it. A stage "
+              "shared by several techniques (msm64, msm128 and vsm share the resolve and the blur) is "
+              "charged in full to every technique that needs it: each technique's cost is its cost alone, "
+              "and the costs of several techniques do not add up.", ""]
     if any(v["light"].startswith("area") for v in settings.values()):
         lines += ["Area lights: the hard-shadow techniques use the light's centre as a spot light "
                   "(perspective shadow map), and their reference is the filtered hard shadow of that spot. "
                   "The soft-shadow rows (msm_soft, pcss, vwss, mvr) are measured against multi-view "
                   "rasterization (MVR) with many light samples instead; see below.", ""]
     return lines
+
+
+def _x(v):
+    return "×".join(str(int(x)) for x in v)
 
 
 def _claims(claims, rows):
@@ -169,20 +199,23 @@ def _claims(claims, rows):
     for claim, verdict, evidence in claims:
         word = {True: "**holds**", False: "**does not hold**", None: "**not measurable**"}[verdict]
         lines.append(f"- {claim}: {word}. {evidence}")
+    lines.append("")
+    lines += ["`pareto`: on the Pareto front of its scene and reference (see above).", ""]
     lines += ["", "## Results", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(_fmt(r[c]) for c in COLUMNS) + " |" for r in rows]
     return lines + [""]
 
 
-def markdown(rows, stages, settings, claims, images, flip_ok, references, artifacts=()):
+def markdown(rows, stages, settings, claims, images, flip_ok, references, artifacts=(), answer=(), repeats=1):
     """report.md.
 
     ``references``: per reference used (in order) ``(reference, settings per scene,
-    statements per scene)``; ``images``: ``{"scatter": path, reference name: [paths]}``;
-    ``artifacts``: markdown lines of the techniques' measured artifacts.
+    statements per scene)``; ``images``: ``{"fronts": [paths], reference name: [paths]}``;
+    ``artifacts``: markdown lines of the techniques' measured artifacts; ``answer``:
+    the lines of the machine, the Pareto fronts and the summary, after the settings.
     """
     sections = [r.label for r, _, _ in references if r.section is not None]
-    lines = _intro(flip_ok, sections) + _settings(settings)
+    lines = _intro(flip_ok, sections) + _settings(settings, repeats) + list(answer)
     lines += _claims(claims, rows)
     plain = []
     for ref, cfg, statements in references:
@@ -192,11 +225,17 @@ def markdown(rows, stages, settings, claims, images, flip_ok, references, artifa
             continue
         lines += ref.section(cfg, statements, paths)
     lines += list(artifacts)
-    lines += ["## Error against run time", "", f"![error against run time]({images['scatter']})", "",
-              "## Error images", ""]
+    lines += ["## Error against run time", "",
+              "One figure per reference. Filled markers are on their scene's Pareto front; the line is the "
+              "front in the plane of the panel.", ""]
+    lines += [f"![error against run time]({p})" for p in images.get("fronts", [])] + ["", "## Error images", ""]
     for p in plain:
         lines += [f"![{p}]({p})", ""]
-    lines += ["## Stages that ran", ""]
-    lines += [f"- {s}: " + ", ".join(f"`{x}`" for x in st) for s, st in stages.items()]
+    lines += ["## Stages that ran", "", "Median seconds of each stage (min–max over the timed repeats; one run for "
+              "stages outside the techniques' costs) and the techniques that need it.", ""]
+    for s, st in stages.items():
+        lines.append(f"- {s}: " + ", ".join(
+            f"`{x['stage']}` {x['seconds']:.3g} s ({x['min']:.3g}–{x['max']:.3g}; {', '.join(x['used_by'])})"
+            if isinstance(x, dict) else f"`{x}`" for x in st))
     lines.append("")
     return "\n".join(lines)

@@ -48,6 +48,7 @@ from ..raster import rasterize_depth
 from ..vwss import depth_range, light_near, light_views
 from ..vwss.compare import _mvr_iter, _shade_multiview
 from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
+from ._errormaps import error_maps
 from .references import intensity_metric
 
 __all__ = ["AREA_SETTINGS", "area_settings", "configure", "soft_statements", "soft_figure", "MVR_REFERENCE",
@@ -229,7 +230,9 @@ def soft_figure(result, names):
 
 
 def _figures(result, names):
-    return {f"soft_{result.scene.name}.png": soft_figure(result, names)}
+    return {f"soft_{result.scene.name}.png": soft_figure(result, names),
+            f"errors_soft_{result.scene.name}.png": error_maps(
+                result, names, "MVR", f"{result.scene.name}: signed error against multi-view rasterization (MVR)")}
 
 
 def _section(settings, statements, images):

@@ -19,9 +19,8 @@ HPG17, FLIP : see docs/bib.md.
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..metrics import flip_mean, metrics, shaded_image
+from ._errormaps import error_maps
 from ._interface import PROJECTION, SHADOW_MAP, TRANSLUCENCY, Reference, Stage, register_reference
 from .pcf import pcf_filtered
 
@@ -47,28 +46,9 @@ def _reference_stage(ctx, settings, technique):
 
 
 def error_figure(result, names):
-    """``|shadow − reference|`` of each technique on the camera view."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    ncols = min(4, len(names))
-    nrows = -(-len(names) // ncols)
-    w, h = result.gbuffer.resolution
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 3.2 * nrows * h / w + 0.6), squeeze=False)
-    im = None
-    for ax in axes.ravel():
-        ax.axis("off")
-    for ax, n in zip(axes.ravel(), names):
-        img = np.full(h * w, np.nan)
-        img[result.gbuffer.pixel] = np.abs(result.shadow[n] - result.reference[n])
-        im = ax.imshow(img.reshape(h, w), cmap="magma", vmin=0, vmax=0.5, interpolation="nearest")
-        ax.set_title(n, fontsize="small")
-    fig.suptitle(f"{result.scene.name}: |shadow − reference| (the filtered hard shadow)")
-    if im is not None:
-        fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.8)
-    return fig
+    """The shaded reference, each technique's shaded image and its signed error (:func:`._errormaps.error_maps`)."""
+    return error_maps(result, names, "9×9 PCF", f"{result.scene.name}: signed error against the filtered hard "
+                      "shadow (9×9 Gaussian PCF at each technique's depth bias)")
 
 
 def _figures(result, names):

@@ -198,12 +198,16 @@ def artifact_images(out_dir, size=256, max_kernel=64):
     m = artifact_measurements(size=size, max_kernel=max_kernel)
     fig, ax = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
     ext = (-0.5, 0.5, -0.5, 0.5)
-    ax[0].imshow(m["hole_msm"], cmap="gray", vmin=0, vmax=max(m["hole_msm"].max(), 1e-9), extent=ext,
-                 origin="lower")
+    im0 = ax[0].imshow(m["hole_msm"], cmap="gray", vmin=0, vmax=max(m["hole_msm"].max(), 1e-9), extent=ext,
+                       origin="lower")
     ax[0].set_title(f"msm_soft: light through a 0.08² hole\naspect {m['hole_aspect_msm']:.2f}, "
                     f"fill {m['hole_fill_msm']:.2f}", fontsize=9)
-    ax[1].imshow(m["hole_reference"], cmap="gray", vmin=0, vmax=max(m["hole_reference"].max(), 1e-9), extent=ext,
-                 origin="lower")
+    im1 = ax[1].imshow(m["hole_reference"], cmap="gray", vmin=0, vmax=max(m["hole_reference"].max(), 1e-9),
+                       extent=ext, origin="lower")
+    for a, im in ((ax[0], im0), (ax[1], im1)):
+        a.set_xlabel("receiver x (world units)")
+        a.set_ylabel("receiver y (world units)")
+        fig.colorbar(im, ax=a, shrink=0.85).set_label("visibility (1 = fully lit)", fontsize=8)
     ax[1].set_title(f"reference (1.0 × 0.6 light)\naspect {m['hole_aspect_reference']:.2f}", fontsize=9)
     x = m["profile_x"]
     ax[2].plot(x, m["profile_column_reference"], "k-", label="reference (with or without wall)")

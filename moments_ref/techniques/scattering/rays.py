@@ -171,12 +171,20 @@ def scattering_figure(images, t_max):
     import matplotlib.pyplot as plt
 
     names = list(images)
-    fig, axes = plt.subplots(1, len(names), figsize=(4 * len(names), 3), squeeze=False)
+    fig, axes = plt.subplots(1, len(names), figsize=(4 * len(names) + 1, 3.2), squeeze=False)
+    im = None
     for ax, name in zip(axes[0], names):
-        ax.imshow(np.clip(images[name] / t_max, 0, 1), cmap="magma", vmin=0, vmax=1)
-        ax.set_title(name)
-        ax.axis("off")
-    fig.tight_layout()
+        h, w = np.shape(images[name])[:2]
+        im = ax.imshow(np.clip(images[name] / t_max, 0, 1), cmap="magma", vmin=0, vmax=1, extent=(0, w, h, 0))
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("camera pixel x")
+        ax.set_ylabel("camera pixel y")
+    fig.suptitle("in-scattered light along each view ray / t_max (t_max: the longest view ray, world units)",
+                 fontsize=9)
+    fig.tight_layout(rect=(0, 0, 0.93, 1))
+    if im is not None:
+        cax = fig.add_axes((0.945, 0.18, 0.012, 0.64))
+        fig.colorbar(im, cax=cax).set_label("scattering term / t_max (dimensionless)", fontsize=8)
     return fig
 
 

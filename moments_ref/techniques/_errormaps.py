@@ -1,0 +1,83 @@
+"""Error maps of the report: the shaded reference, each technique's shaded image and its signed error.
+
+Shared by the references whose values are shadow intensities of the receiver
+pixels (``pcf``: :mod:`.references`, ``mvr``: :mod:`.area`). The signed error is
+``e = shadow − reference`` (shadow intensity, 1 = fully shadowed): red where a
+technique is darker than the reference (over-darkening), blue where it is
+lighter (light leaking). One symmetric colour range for all panels of a figure,
+chosen from the data: the largest 99th percentile of ``|e|`` over the
+techniques (so that one technique with errors of 1 does not wash out the
+others); each panel states its own largest ``|e|`` and the share of its pixels
+beyond the range (drawn in the end colours, clipped). :data:`MASK` grey marks
+pixels that are not receivers inside the shadow map (background, occluders,
+receivers outside the light's map).
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..metrics import shaded_image
+
+__all__ = ["MASK", "error_maps"]
+
+#: Colour of the pixels without an error: not a receiver inside the shadow map.
+MASK = (0.55, 0.55, 0.55)
+
+
+def _range(errors):
+    p = [np.percentile(np.abs(e[np.isfinite(e)]), 99) for e in errors if np.any(np.isfinite(e))]
+    return max(max(p, default=0.0), 1e-3)
+
+
+def _legend(ax, reference, vmax):
+    ax.axis("off")
+    ax.text(0.02, 0.95, f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n\n"
+            "red: darker than the reference\nblue: lighter (light leaks)\n"
+            f"range ±{vmax:.3g}: the largest 99th\npercentile of |e|; beyond it clipped\n\n"
+            "grey: no receiver inside the\nshadow map (background, occluder,\noutside the light's map)",
+            va="top", fontsize=7, transform=ax.transAxes)
+
+
+def error_maps(result, names, reference="reference", title=""):
+    """Figure: the shaded reference, then per technique its shaded image and its signed error map."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    gb = result.gbuffer
+    w, h = gb.resolution
+    errors = [np.asarray(result.shadow[n], np.float64) - np.asarray(result.reference[n], np.float64) for n in names]
+    vmax = _range(errors)
+    cmap = plt.get_cmap("RdBu_r").with_extremes(bad=MASK)
+    slots = 2 + 2 * len(names)
+    ncols = 4
+    nrows = -(-slots // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(2.6 * ncols + 1.0, 2.6 * nrows * h / w + 0.9), squeeze=False)
+    ax = axes.ravel()
+    for a in ax:
+        a.axis("off")
+    ax[0].imshow(shaded_image(gb, result.reference[names[0]]), interpolation="nearest")
+    ax[0].set_title(f"{reference} (shaded)", fontsize=7)
+    _legend(ax[1], reference, vmax)
+    im = None
+    for i, (n, e) in enumerate(zip(names, errors)):
+        ax[2 + 2 * i].imshow(shaded_image(gb, result.shadow[n]), interpolation="nearest")
+        ax[2 + 2 * i].set_title(f"{n} (shaded)", fontsize=7)
+        img = np.full(h * w, np.nan)
+        img[gb.pixel] = e
+        im = ax[3 + 2 * i].imshow(img.reshape(h, w), cmap=cmap, vmin=-vmax, vmax=vmax, interpolation="nearest")
+        big = float(np.nanmax(np.abs(e))) if e.size else 0.0
+        beyond = float(np.mean(np.abs(e) > vmax)) if e.size else 0.0
+        ax[3 + 2 * i].set_title(f"{n}: e, max |e| {big:.2g}, {beyond:.1%} clipped", fontsize=7)
+    fig.suptitle(title or f"{result.scene.name}: signed error against {reference}", fontsize="medium")
+    fig.tight_layout(rect=(0, 0, 0.88, 1))
+    if im is not None:
+        cax = fig.add_axes((0.9, 0.15, 0.015, 0.7))
+        fig.colorbar(im, cax=cax).set_label("signed error e (shadow intensity)", fontsize=8)
+    return fig
