@@ -161,7 +161,7 @@ def _row(rows, scene, tech):
 
 
 def _mode(full):
-    return "--full (2048² maps, 4× MSAA, the scene's camera)" if full else (
+    return "--full (the scene's own shadow-map size, MSAA and camera)" if full else (
         "default reduced settings (maps halved per side, camera a quarter per side)")
 
 
