@@ -54,10 +54,12 @@ def test_dithered_only_with_noise_and_shared_texture():
 
 
 def test_knot_scene_outputs_run_with_multiview_stages_named_vwss():
-    """knot asks for vwss and mvr: multi-view stages, all named vwss; msm_soft/PCSS work on one map."""
+    """knot asks for msm_soft, pcss, vwss and mvr: multi-view stages, all named vwss; msm_soft/PCSS on one map."""
     area = {"reference_views": 3, "light_samples": 3}
-    r = _run("knot", None, area=area)
-    assert r.techniques == ["vwss", "mvr"]
+    r0 = _run("knot", None, area=area)
+    assert r0.techniques == ["msm_soft", "pcss", "vwss", "mvr"]
+    assert r0.stages.count("area_center_depth_map") == 1 and "raster_shadow_map" not in r0.stages
+    r = _run("knot", ["vwss", "mvr"], area=area)
     assert {"vwss_points", "vwss_warp", "shade_vwss", "mvr_vwss", "mvr_reference_vwss"} <= set(r.stages)
     assert not any(s.startswith(("raster_shadow_map", "area_center")) for s in r.stages)  # nothing unasked
     r2 = _run("knot", ["msm_soft", "pcss", "msm64"], area=area)
