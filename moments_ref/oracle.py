@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._arrays import InputError
-from .golden.cases import CASES, case_table
+from .golden.cases import CASES
 from .golden.compare import compare
-from .golden.spread import derive
+from .golden.spread import derive, row_tolerance
 from .golden.writer import golden_arrays, manifest_entry
 from .strategies import input_strategy
 
@@ -88,8 +88,7 @@ def _classify(c, inputs, arrays):
         v = np.asarray(v, np.float64).reshape(n, -1)
         cat[np.any((np.abs(v) == 1) | (v == 0), axis=1)] = "edge"
     if not c.integer_output:
-        t = np.max([arrays[f"{o}_tolerance_{c.dtype}"].reshape(n, -1).max(axis=1) for o in c.outputs], axis=0)
-        cat[t >= 1e-3] = "stiff"
+        cat[row_tolerance(c, arrays, c.dtype) >= 1e-3] = "stiff"
     return cat
 
 

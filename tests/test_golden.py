@@ -120,6 +120,27 @@ def test_expected_intensities_bracket_the_true_distribution(gdir):
             assert lo[i] <= res.fun + 1e-7
 
 
+#: The quantization transform as the slides print it ("Compute moments in resolve"),
+#: typed here rather than taken from moments_ref.affine: q = M b + c.
+_S3 = np.sqrt(3.0)
+_M = np.array([[1.5, 0, -2, 0], [0, 4, 0, -4], [_S3 / 2, 0, -2 * _S3 / 9, 0], [0, 0.5, 0, 0.5]])
+_C = np.array([0.5, 0, 0.5, 0])
+
+
+def test_affine_expectations_match_the_slides_matrix(gdir):
+    """Cases without an mpmath truth (expected = the reference in float64), checked independently."""
+    with np.load(gdir / "to_optimized-float64.npz") as g:
+        assert np.allclose(g["b"] @ _M.T + _C, g["q"], rtol=0, atol=1e-14)
+    with np.load(gdir / "from_optimized-float64.npz") as g:
+        assert np.allclose(np.linalg.solve(_M, (g["q"] - _C).T).T, g["b"], rtol=0, atol=1e-14)
+    with np.load(gdir / "decode_unorm16-float64.npz") as g:
+        assert np.allclose(np.linalg.solve(_M, (g["u"] / 65535.0 - _C).T).T, g["b"], rtol=0, atol=1e-14)
+    for dt, slack in (("float64", 1e-9), ("float32", 1e-2)):  # float32: the encoder's own rounding of q
+        with np.load(gdir / f"encode_unorm16-{dt}.npz") as g:
+            x = np.clip((g["b"].astype(np.float64) @ _M.T + _C) * 65535, 0, 65535)
+            assert np.abs(x - g["u"]).max() <= 0.5 + slack  # the nearest code (ties either way)
+
+
 def test_shade_truth_is_algorithm1_on_eq4_away_from_the_clamps():
     """The clamped mpmath Algorithm 3 equals precise.shade (Algorithm 1 on Eq. (4)) where no clamp acts."""
     from moments_ref import precise

@@ -185,9 +185,9 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
             gated = int((~acceptable_rows).sum())
         else:
             ok, s, err, tol = _float(o, entry, expected, cand, n, dt)
-            row_gated = row_gated & np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
-            gated = int((~acceptable_rows & np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1))
-                         .all(axis=1)).sum())
+            finite = np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
+            row_gated = row_gated & finite
+            gated = int((~acceptable_rows & finite).sum())
         row_pass &= ok
         worse = s > score
         row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)

@@ -33,8 +33,8 @@ import numpy as np
 from .cases import evaluate_reference, expected_outputs
 from .notes import UNGATED, UNGATED32
 
-__all__ = ["derive", "gated_summary", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS", "STRUCTURED", "ulp",
-           "PORT_DTYPES"]
+__all__ = ["derive", "gated_summary", "row_tolerance", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS",
+           "STRUCTURED", "ulp", "PORT_DTYPES"]
 
 SAFETY = 16.0
 FLOOR_ULPS = 4
@@ -240,6 +240,12 @@ def derive(case, inputs, category, comment, flags):
     return arrays
 
 
+def row_tolerance(case, arrays, dt):
+    """Per row, the largest tolerance of ``dt`` over the float case's output values: ``(n,)``."""
+    n = len(arrays["category"])
+    return np.max([arrays[f"{o}_tolerance_{dt}"].reshape(n, -1).max(axis=1) for o in case.outputs], axis=0)
+
+
 def gated_summary(case, arrays):
     """Per port dtype: rows gated (finite tolerance, result valid), and rows gated below 0.1 (abs metric)."""
     n = len(arrays["category"])
@@ -249,7 +255,7 @@ def gated_summary(case, arrays):
         if case.integer_output:
             out[dt] = {"gated": int(valid.sum()), "exact": int(valid.sum())}
             continue
-        t = np.max([arrays[f"{o}_tolerance_{dt}"].reshape(n, -1).max(axis=1) for o in case.outputs], axis=0)
+        t = row_tolerance(case, arrays, dt)
         entry = {"gated": int((valid & np.isfinite(t)).sum())}
         if case.metric == "abs":
             entry["gated_below_0.1"] = int((valid & (t < _WIDE)).sum())
