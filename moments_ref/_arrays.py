@@ -86,6 +86,25 @@ def working_dtype(x) -> np.dtype:
     return np.dtype(np.float32) if (dt.kind == "f" and dt.itemsize == 4) else np.dtype(np.float64)
 
 
+def as_array(x, name: str, what: str = "a real array") -> np.ndarray:
+    """``np.asarray(x)`` refusing masked values and ragged lists (:class:`InputError`).
+
+    The first step of :func:`as_real`, shared with the integer inputs of
+    :mod:`moments_ref.packing` (``what`` names the expected array in the message).
+    """
+    if isinstance(x, np.ma.MaskedArray):
+        if np.ma.is_masked(x):
+            idx = first_index(np.ma.getmaskarray(x))
+            raise InputError(f"{name}: expected an array without masked values (fill them with np.ma.filled "
+                             f"or drop them with .compressed()), got a masked value at index {idx}")
+        x = np.ma.getdata(x)
+    try:
+        return np.asarray(x)
+    except Exception as exc:  # ragged lists and the like
+        raise InputError(f"{name}: expected {what}, got a ragged or non-numeric "
+                         f"{type(x).__name__} ({str(exc).split('.')[0]})") from None
+
+
 def as_real(x, name: str, dtype=None) -> np.ndarray:
     """Convert ``x`` to a real float array following the dtype policy.
 
@@ -99,17 +118,7 @@ def as_real(x, name: str, dtype=None) -> np.ndarray:
         Force this working dtype (used for secondary arguments). By default the
         policy decides from ``x`` itself.
     """
-    if isinstance(x, np.ma.MaskedArray):
-        if np.ma.is_masked(x):
-            idx = first_index(np.ma.getmaskarray(x))
-            raise InputError(f"{name}: expected an array without masked values (fill them with np.ma.filled "
-                             f"or drop them with .compressed()), got a masked value at index {idx}")
-        x = np.ma.getdata(x)
-    try:
-        arr = np.asarray(x)
-    except Exception as exc:  # ragged lists and the like
-        raise InputError(f"{name}: expected a real array, got a ragged or non-numeric "
-                         f"{type(x).__name__} ({str(exc).split('.')[0]})") from None
+    arr = as_array(x, name)
     kind = arr.dtype.kind
     if kind not in "biuf":
         raise InputError(
@@ -117,6 +126,17 @@ def as_real(x, name: str, dtype=None) -> np.ndarray:
         )
     target = working_dtype(arr) if dtype is None else np.dtype(dtype)
     return arr.astype(target, copy=False)
+
+
+def float_dtype(dtype) -> np.dtype:
+    """A ``dtype`` argument: float32 or float64 (any byte order) as a native dtype, or InputError."""
+    try:
+        dt = np.dtype(dtype)
+    except (TypeError, ValueError):
+        raise InputError(f"dtype: expected float32 or float64, got {dtype!r}") from None
+    if dt.kind != "f" or dt.itemsize not in (4, 8):
+        raise InputError(f"dtype: expected float32 or float64, got {dt}")
+    return np.dtype(np.float32 if dt.itemsize == 4 else np.float64)
 
 
 def check_finite(arr: np.ndarray, name: str) -> None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace"]
+__all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "broadcast_chunks"]
 
 #: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
 CHUNK = 1 << 14
@@ -68,3 +68,32 @@ def copysign_inplace(d, h, sign):
     it = sign.dtype
     bits = np.bitwise_and(h.view(it), sign)
     np.bitwise_or(d.view(it), bits, out=d.view(it))
+
+
+def _flat_view(a, shape):
+    """``a`` reshaped to ``shape`` without copying, or None where that needs a copy."""
+    try:
+        return np.reshape(a, shape, copy=False)
+    except ValueError:
+        return None
+
+
+def broadcast_chunks(b, zf, shape):
+    """``(start, stop, b rows (k, m), zf (m,))`` over the broadcast shape, CHUNK at a time.
+
+    ``b`` has a trailing axis of k moments (4 or 6). The broadcast inputs are never
+    materialized: a flat view where one exists, else a gather of the chunk's
+    elements, so the peak memory of a call is its outputs plus one chunk of
+    temporaries. The rows are contiguous copies (one transposing copy per chunk).
+    """
+    k = b.shape[-1]
+    n = int(np.prod(shape, dtype=np.int64))
+    bb, zz = np.broadcast_to(b, shape + (k,)), np.broadcast_to(zf, shape)
+    bflat, zflat = _flat_view(bb, (-1, k)), _flat_view(zz, (-1,))
+    for start in range(0, n, CHUNK):
+        stop = min(start + CHUNK, n)
+        if bflat is None or zflat is None:
+            idx = np.unravel_index(np.arange(start, stop), shape)
+        bc = bflat[start:stop] if bflat is not None else bb[idx]
+        zc = zflat[start:stop] if zflat is not None else zz[idx]
+        yield start, stop, np.ascontiguousarray(bc.T), np.ascontiguousarray(zc)

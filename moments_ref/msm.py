@@ -64,7 +64,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import InputError, broadcast_pair, real_input
-from ._kernels import CHUNK, SINGULAR_RTOL, copysign_inplace, singular_thresholds, two_point
+from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
 
 __all__ = [
     "shadow_intensity",
@@ -232,25 +232,18 @@ def _prepare(b, zf):
     b = real_input(b, "b", trailing=4)
     zf = real_input(zf, "zf", dtype=b.dtype)
     shape = broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
-    if b.shape[:-1] == shape:
-        bflat = np.ascontiguousarray(b).reshape(-1, 4)
-    else:
-        bflat = np.ascontiguousarray(np.broadcast_to(b, shape + (4,))).reshape(-1, 4)
-    zflat = np.broadcast_to(zf, shape).reshape(-1) if zf.shape != shape else np.ascontiguousarray(zf).reshape(-1)
-    return bflat, zflat, shape
+    return b, zf, shape
 
 
-def _run(bflat, zflat, want, keys):
-    n = zflat.size
-    outs = {k: np.empty((n, 3) if k in ("depths", "weights") else (n,), dtype=bflat.dtype) for k in keys}
-    consts = _constants(bflat.dtype, min(CHUNK, max(n, 1)))
-    for start in range(0, n, CHUNK):
-        stop = min(start + CHUNK, n)
+def _run(b, zf, shape, want, keys):
+    """The kernel over :func:`~moments_ref._kernels.broadcast_chunks` (broadcasts never materialized)."""
+    n = int(np.prod(shape, dtype=np.int64))
+    outs = {k: np.empty((n, 3) if k in ("depths", "weights") else (n,), dtype=b.dtype) for k in keys}
+    consts = _constants(b.dtype, min(CHUNK, max(n, 1)))
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
         m = stop - start
         c = consts if m == CHUNK or n <= CHUNK else {k: v[:m] for k, v in consts.items()}
-        # One transposing copy per chunk: contiguous rows b1..b4 for the ufuncs.
-        res = _kernel(np.ascontiguousarray(bflat[start:stop].T), np.ascontiguousarray(zflat[start:stop]),
-                      want, c)
+        res = _kernel(bc, zc, want, c)
         for k in keys:
             outs[k][start:stop] = res[k]
     return outs
@@ -309,8 +302,8 @@ def shadow_intensity(b, zf, bound="lower"):
         from . import msm6
 
         return msm6.shadow_intensity(b, zf, bound)
-    bflat, zflat, shape = _prepare(b, zf)
-    out = _run(bflat, zflat, {bound}, (bound,))
+    b, zf, shape = _prepare(b, zf)
+    out = _run(b, zf, shape, {bound}, (bound,))
     return out[bound].reshape(shape)
 
 
@@ -348,8 +341,8 @@ def canonical_representation(b, zf):
         from . import msm6
 
         return msm6.canonical_representation(b, zf)
-    bflat, zflat, shape = _prepare(b, zf)
-    out = _run(bflat, zflat, {"canonical"}, ("depths", "weights"))
+    b, zf, shape = _prepare(b, zf)
+    out = _run(b, zf, shape, {"canonical"}, ("depths", "weights"))
     return out["depths"].reshape(shape + (3,)), out["weights"].reshape(shape + (3,))
 
 

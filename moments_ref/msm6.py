@@ -112,7 +112,7 @@ import numpy as np
 
 from ._arrays import InputError, broadcast_pair, first_index, real_input
 from .moments import BiasPreset, power_moments
-from ._kernels import CHUNK, SINGULAR_RTOL, singular_thresholds
+from ._kernels import SINGULAR_RTOL, broadcast_chunks, singular_thresholds
 from ._kernels import two_point as _two_point
 
 __all__ = [
@@ -338,33 +338,6 @@ def _prepare(b, zf):
     return b, zf, shape
 
 
-def _flat_view(a, shape):
-    """``a`` reshaped to ``shape`` without copying, or None where that needs a copy."""
-    try:
-        return np.reshape(a, shape, copy=False)
-    except ValueError:
-        return None
-
-
-def _chunks(b, zf, shape):
-    """``(start, stop, b rows (6, m), zf (m,))`` over the broadcast shape, CHUNK at a time.
-
-    The broadcast inputs are never materialized: a flat view where one exists,
-    else a gather of the chunk's elements, so the peak memory of a call is its
-    outputs plus one chunk of temporaries.
-    """
-    n = int(np.prod(shape, dtype=np.int64))
-    bb, zz = np.broadcast_to(b, shape + (6,)), np.broadcast_to(zf, shape)
-    bflat, zflat = _flat_view(bb, (-1, 6)), _flat_view(zz, (-1,))
-    for start in range(0, n, CHUNK):
-        stop = min(start + CHUNK, n)
-        if bflat is None or zflat is None:
-            idx = np.unravel_index(np.arange(start, stop), shape)
-        bc = bflat[start:stop] if bflat is not None else bb[idx]
-        zc = zflat[start:stop] if zflat is not None else zz[idx]
-        yield start, stop, np.ascontiguousarray(bc.T), np.ascontiguousarray(zc)
-
-
 def _run(b, zf, want):
     """The kernel over chunks; only the outputs named in ``want`` are allocated.
 
@@ -374,7 +347,7 @@ def _run(b, zf, want):
     b, zf, shape = _prepare(b, zf)
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("z", "w") else n, dtype=b.dtype) for k in want}
-    for start, stop, bc, zc in _chunks(b, zf, shape):
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
         lo, up, ww0, zz, wl = _kernel(bc, zc)
         res = {"lower": lo, "upper": up, "w0": ww0, "z": zz.T, "w": wl.T}
         for k in want:

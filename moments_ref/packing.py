@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import InputError, first_index, real_input
+from ._arrays import InputError, as_array, first_index, float_dtype, real_input
 from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, psi4, psi4_inverse, rounding_tolerance,
                         validate_representation)
 
@@ -125,7 +125,7 @@ def _encoder_input(r):
 
 def _uint_input(q, name, dtype, trailing=None):
     """An unsigned array of exactly ``dtype``'s width (any byte order), native, or InputError."""
-    q = _integer_array(q, name)
+    q = as_array(q, name, "an integer array")
     want = np.dtype(dtype)
     if q.dtype.kind != "u" or q.dtype.itemsize != want.itemsize:
         raise InputError(f"{name}: expected an array of dtype {want}, got dtype {q.dtype}")
@@ -134,23 +134,9 @@ def _uint_input(q, name, dtype, trailing=None):
     return q.astype(want, copy=False)
 
 
-def _integer_array(x, name):
-    """``np.asarray(x)`` refusing masked values and ragged lists (as :func:`real_input` does)."""
-    if isinstance(x, np.ma.MaskedArray):
-        if np.ma.is_masked(x):
-            raise InputError(f"{name}: expected an array without masked values, got a masked value at index "
-                             f"{first_index(np.ma.getmaskarray(x))}")
-        x = np.ma.getdata(x)
-    try:
-        return np.asarray(x)
-    except (ValueError, TypeError) as exc:
-        raise InputError(f"{name}: expected an integer array, got a ragged or non-numeric "
-                         f"{type(x).__name__} ({str(exc).split('.')[0]})") from None
-
-
 def _codes(x, name, hi):
     """Integer codes in ``0..hi`` as int64, or InputError (floats, NaN, strings, out of range)."""
-    a = _integer_array(x, name)
+    a = as_array(x, name, "an integer array")
     if a.dtype.kind not in "iu":
         raise InputError(f"{name}: expected an integer array of codes in 0..{hi}, got dtype {a.dtype}")
     bad = (a < 0) | (a > hi)
@@ -158,17 +144,6 @@ def _codes(x, name, hi):
         idx = first_index(bad)
         raise InputError(f"{name}: expected codes in 0..{hi}, got {a[idx]!r} at index {idx}")
     return a.astype(np.int64)
-
-
-def _float_dtype(dtype):
-    """float32 or float64 (any byte order) as a native dtype, or InputError."""
-    try:
-        dt = np.dtype(dtype)
-    except (TypeError, ValueError):
-        raise InputError(f"dtype: expected float32 or float64, got {dtype!r}") from None
-    if dt.kind != "f" or dt.itemsize not in (4, 8):
-        raise InputError(f"dtype: expected float32 or float64, got {dt}")
-    return np.dtype(np.float32 if dt.itemsize == 4 else np.float64)
 
 
 def _xi_code_up(xi4, code, decode, cmax):
@@ -242,7 +217,7 @@ def unpack64(q, dtype=np.float64):
     array([-1.0e+00,  1.0e+00,  1.0e+00,  1.2e-07])
     """
     q = _uint_input(q, "q", np.uint16, trailing=4)
-    dt = _float_dtype(dtype)
+    dt = float_dtype(dtype)
     u = q.astype(dt) / dt.type(_U16)
     r = np.empty(q.shape, dtype=dt)
     r[..., 0] = 2 * u[..., 0] - 1
@@ -385,7 +360,7 @@ def unpack32(p, dtype=np.float64):
     True
     """
     p = _uint_input(p, "p", np.uint32)
-    dt = _float_dtype(dtype)
+    dt = float_dtype(dtype)
     w = p.astype(np.int64)
     f2 = (w >> Y2_SHIFT) & ((1 << Y2_BITS) - 1)
     f1 = (w >> Y1_SHIFT) & ((1 << Y1_BITS) - 1)

@@ -71,9 +71,6 @@ __all__ = [
 #: Default working precision in significant decimal digits.
 DPS = 50
 
-#: Lower clamp of ξ4 in Ψ4 (HPG17 §3.3).
-XI4_MIN = 1.2e-7
-
 
 # ---------------------------------------------------------------------------
 # conversion helpers

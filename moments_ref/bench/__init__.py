@@ -214,7 +214,7 @@ def bench_filtering(size=2048, samples=4, onchip=True):
     samples : int
         MSAA samples per texel (4 in HPG17 §5).
     onchip : bool
-        Also time :func:`moments_ref._onchip.filter_moments` per stage.
+        Also time :func:`moments_ref.onchip.filter_moments` per stage.
 
     Returns
     -------
@@ -234,16 +234,22 @@ def bench_filtering(size=2048, samples=4, onchip=True):
     out["global_total_s"] = t_resolve + t_blur
     out["global_mtexels_per_s"] = out["texels"] / out["global_total_s"] / 1e6
     if onchip:
-        stages = {}
-        t0 = time.perf_counter()
-        f = _onchip.filter_moments(depth, timings=stages)
-        t_total = time.perf_counter() - t0
-        for k, v in stages.items():
-            out[f"onchip_{k}_s"] = v
-        out["onchip_total_s"] = t_total
-        out["onchip_mtexels_per_s"] = out["texels"] / t_total / 1e6
+        f, times = _onchip_timed(depth)
+        out.update(times)
         out["max_abs_difference"] = float(np.max(np.abs(f - ref)))
     return out
+
+
+def _onchip_timed(depth):
+    """:func:`moments_ref.onchip.filter_moments` of ``depth`` and its ``onchip_*`` timings."""
+    stages = {}
+    t0 = time.perf_counter()
+    f = _onchip.filter_moments(depth, timings=stages)
+    total = time.perf_counter() - t0
+    out = {f"onchip_{k}_s": v for k, v in stages.items()}
+    out["onchip_total_s"] = total
+    out["onchip_mtexels_per_s"] = depth.shape[0] * depth.shape[1] / total / 1e6
+    return f, out
 
 
 def _bench_setup_depth(size, dtype):
@@ -276,19 +282,7 @@ def _filtering_entries():
 
 def bench_onchip(size=2048, samples=4):
     """Seconds per stage of :func:`filter_moments` on the benchmark map of :func:`moments_ref.filtering.bench_depth_map`."""
-    depth = filtering.bench_depth_map(size, samples)
-    stages = {}
-    t0 = time.perf_counter()
-    _onchip.filter_moments(depth, timings=stages)
-    total = time.perf_counter() - t0
-    out = {f"onchip_{k}_s": v for k, v in stages.items()}
-    out["onchip_total_s"] = total
-    out["onchip_mtexels_per_s"] = size * size / total / 1e6
-    return out
-
-
-def _onchip_setup(size, dtype):
-    return (filtering.bench_depth_map(size, 4, dtype),)
+    return _onchip_timed(filtering.bench_depth_map(size, samples))[1]
 
 
 def _bench_nlq64(z):
@@ -301,10 +295,10 @@ def _onchip_entries():
     4× MSAA float32 depth maps of ``size²`` texels.
     """
     out = [
-        Benchmark("onchip filter_moments (4x MSAA)", "float32", _onchip_setup, _onchip.filter_moments, 16 + 16,
+        Benchmark("onchip filter_moments (4x MSAA)", "float32", _bench_setup_depth, _onchip.filter_moments, 16 + 16,
                   "4 depths in, 4 float32 moments out, block-wise shared-memory emulation"),
     ]
-    out.append(Benchmark("onchip filter_and_quantize nlq64", "float32", _onchip_setup, _bench_nlq64, 16 + 8,
+    out.append(Benchmark("onchip filter_and_quantize nlq64", "float32", _bench_setup_depth, _bench_nlq64, 16 + 8,
                          "4 depths in, 64-bit NLQ texel out"))
     return out
 

@@ -72,7 +72,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, float_dtype
 from ._coverage import _depth_at, _iter_coverage
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, _transform, frustum, look_at, orthographic, perspective,
@@ -215,9 +215,7 @@ def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
     S = _check_samples(samples)
     if cull not in ("none", "back", "front"):
         raise InputError(f"cull: expected 'none', 'back' or 'front', got {cull!r}")
-    dt = np.dtype(dtype)
-    if dt not in (np.float32, np.float64):
-        raise InputError(f"dtype: expected float32 or float64, got {dt}")
+    dt = float_dtype(dtype)
     pat = np.asarray(_D3D11_PATTERN[S], dtype=np.int64)
     return v, t, m, h, w, S, pat[:, 0] * 16, pat[:, 1] * 16, dt
 

@@ -285,15 +285,16 @@ def _transform(vT, m):
     n = vT.shape[1]
     cvT = np.empty((4, n))
     tmp = np.empty(min(n, _TRANSFORM_CHUNK))
-    for lo in range(0, n, _TRANSFORM_CHUNK):
-        x, y, z = vT[:, lo : lo + _TRANSFORM_CHUNK]
-        t = tmp[: x.shape[0]]
-        for j in range(4):
-            row = cvT[j, lo : lo + _TRANSFORM_CHUNK]
-            np.multiply(x, m[j, 0], out=row)
-            row += np.multiply(y, m[j, 1], out=t)
-            row += np.multiply(z, m[j, 2], out=t)
-            row += m[j, 3]
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite vertices: flagged in bad_v
+        for lo in range(0, n, _TRANSFORM_CHUNK):
+            x, y, z = vT[:, lo : lo + _TRANSFORM_CHUNK]
+            t = tmp[: x.shape[0]]
+            for j in range(4):
+                row = cvT[j, lo : lo + _TRANSFORM_CHUNK]
+                np.multiply(x, m[j, 0], out=row)
+                row += np.multiply(y, m[j, 1], out=t)
+                row += np.multiply(z, m[j, 2], out=t)
+                row += m[j, 3]
     return cvT, bad_v
 
 

@@ -39,11 +39,6 @@ def _helper_up(d):
     return np.array([0.0, 0.0, 1.0]) if abs(d[1]) > 0.9 else np.array([0.0, 1.0, 0.0])
 
 
-def _corners(bounds):
-    lo, hi = np.asarray(bounds, dtype=np.float64)
-    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-
-
 @dataclass(frozen=True)
 class DirectionalLight:
     """Parallel light travelling along ``direction`` (from the light into the scene)."""
