@@ -61,8 +61,7 @@ import numpy as np
 
 from ._arrays import InputError
 from .bluenoise import blue_noise_textures, frame_noise
-from .gbuffer import (BACKGROUND, OCCLUDER, OUTSIDE_LIGHT, RECEIVER, SLOPE_BIAS_TEXELS, GBuffer,  # noqa: F401
-                      camera_gbuffer, light_projection)
+from .gbuffer import GBuffer, camera_gbuffer, light_projection
 from . import techniques as _techniques
 from .techniques import PlanContext, Stage, get_reference, reduced_settings
 from .techniques._interface import GBUFFER, NOISE, PROJECTION, SHADOW_MAP, TRANSLUCENCY
@@ -466,7 +465,7 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
 
 
 # ---------------------------------------------------------------------------
-# Kept for callers of the former scattering path: thin views of run()
+# Public since the first release, kept for its callers: thin views of run()
 
 
 @dataclass
@@ -503,9 +502,10 @@ def scattering_stages(samples):
 
     out = [MAP, RAYS, REFERENCE]
     for name in SCATTERING_OUTPUTS:
-        for step in _techniques.get(name).steps(int(samples), False):
+        steps = _techniques.get(name).steps(int(samples), False)
+        for step in steps:
             out.append(step.key if step.key.startswith("scattering_") else "scattering_" + step.key)
-        if _techniques.get(name).steps(int(samples), False):
+        if steps:
             out.append(f"shade_{name}")
     out.append("scattering_raymarch")
     return out

@@ -94,7 +94,6 @@ __all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "
 _ = (CLOSE_REL, CLEARLY_BELOW)  # re-exported
 #: Area-light outputs in the default run (those measured against reference ``mvr``).
 AREA_ROWS = pipeline.AREA_OUTPUTS
-_flip_available = flip_available
 
 
 def _check_names(requested, loaded):

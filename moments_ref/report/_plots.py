@@ -110,6 +110,14 @@ def _panel(ax, rows, key, label, colors):
     for axis, vals in (("x", [r[key] for r in rows]), ("y", [r["rmse"] for r in rows])):
         scale, kw = _scale(vals)
         (ax.set_xscale if axis == "x" else ax.set_yscale)(scale, **kw)
+        if scale == "log":  # matplotlib labels every minor tick of a short log axis, and they overlap
+            from matplotlib.ticker import FuncFormatter
+
+            def _minor(v, _pos):
+                m = v / 10 ** np.floor(np.log10(v))
+                return f"{v:g}" if np.isclose(m, 2) or np.isclose(m, 5) else ""
+
+            (ax.xaxis if axis == "x" else ax.yaxis).set_minor_formatter(FuncFormatter(_minor))
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     points = []
     for si, s in enumerate(scenes):

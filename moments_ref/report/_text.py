@@ -17,6 +17,7 @@ import numpy as np
 from .._arrays import InputError
 from ..gbuffer import SLOPE_BIAS_TEXELS
 from ..metrics import LEAK_THRESHOLD
+from ..paper_claims import _row  # the one row lookup of the claims
 from .. import techniques as _techniques
 
 __all__ = ["COLUMNS", "CLOSE_REL", "CLEARLY_BELOW", "read_results", "evaluate_claims", "markdown", "csv_text"]
@@ -64,13 +65,6 @@ def read_results(path):
             d[c] = float(r[c])
         out.append(d)
     return out
-
-
-def _row(rows, scene, tech):
-    for r in rows:
-        if r["scene"] == scene and r["technique"] == tech:
-            return r
-    return None
 
 
 def evaluate_claims(rows, four_moment=None):

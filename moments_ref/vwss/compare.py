@@ -114,11 +114,10 @@ def _rmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2))) if a.size else float("nan")
 
 
-def _shade_multiview(maps_iter, P, ls, bias, first_store, keep=None):
+def _shade_multiview(maps_iter, P, ls, bias, keep=None):
     """Consume (sel, maps) passes; return (visibility, depth seconds, lighting seconds, covered texels).
 
-    ``first_store`` (a list) receives light sample 0's map; ``keep`` (a dict whose
-    keys are view indices) receives the maps of those views.
+    ``keep`` (a dict whose keys are view indices) receives the maps of those views.
     """
     acc = np.zeros(P.shape[0])
     t_depth = t_light = 0.0
@@ -128,8 +127,6 @@ def _shade_multiview(maps_iter, P, ls, bias, first_store, keep=None):
         t1 = time.perf_counter()
         t_depth += t1 - t0
         covered += int(np.count_nonzero(maps < 1))
-        if 0 in sel and first_store is not None:
-            first_store.append(maps[list(sel).index(0)].copy())
         for j, i in enumerate(sel):
             if keep is not None and int(i) in keep:
                 keep[int(i)] = maps[j].copy()
@@ -271,7 +268,7 @@ def _one_view_count(ls, src, cen, c):
                        ("vwss_nocull", lambda: generate_points(c["occ_v"], c["occ_t"], src, cull_back_faces=False)),
                        ("vwss_naive", lambda: naive_points(c["occ_v"], c["occ_t"], cen, cull_back_faces=True)),
                        ("mvr", None)):
-        store, kept[tech] = [], dict.fromkeys(wanted)
+        kept[tech] = dict.fromkeys(wanted)  # always view 0: the first maps
         if make is not None:
             t0 = time.perf_counter()
             pc = make()
@@ -280,12 +277,12 @@ def _one_view_count(ls, src, cen, c):
         else:
             t_pts, n_pts = 0.0, 0
             it = _mvr_iter(c["occ_v"], c["occ_t"], ls, m, c["progress"])
-        v_, t_d, t_l, cov = _shade_multiview(it, c["P"], ls, c["bias"], store, kept[tech])
+        v_, t_d, t_l, cov = _shade_multiview(it, c["P"], ls, c["bias"], kept[tech])
         rows.append({"technique": tech, "views": n, "points": n_pts, "triangles": c["n_tri"],
                      "rmse": _rmse(v_, c["vis_ref"]), "seconds_points": t_pts, "seconds_depth": t_d,
                      "seconds_lighting": t_l, "seconds_total": t_pts + t_d + t_l})
         coverage[(tech, n)] = cov
-        vis[tech], first[tech] = v_, (store[0] if store else None)
+        vis[tech], first[tech] = v_, kept[tech][0]
     ras = np.stack([kept["mvr"][i] for i in wanted])
     for w in ("vwss", "vwss_nocull", "vwss_naive"):
         d = coverage_difference(np.stack([kept[w][i] for i in wanted]), ras, c["near"], c["far"], c["bias"])
@@ -342,7 +339,7 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
 
     # Reference: MVR with many light samples (its own Poisson set).
     ls_ref = light_views(sc.light, int(cfg["reference_views"]), near, far, seed=seed + 1000)
-    vis_ref, _, _, _ = _shade_multiview(_mvr_iter(occ_v, occ_t, ls_ref, m, progress), P, ls_ref, bias, None)
+    vis_ref, _, _, _ = _shade_multiview(_mvr_iter(occ_v, occ_t, ls_ref, m, progress), P, ls_ref, bias)
 
     ctx = {"occ_v": occ_v, "occ_t": occ_t, "near": near, "far": far, "m": m, "vpp": vpp, "bias": bias,
            "P": P, "progress": progress, "vis_ref": vis_ref, "n_tri": n_tri}
