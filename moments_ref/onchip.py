@@ -53,7 +53,7 @@ import numpy as np
 
 from . import banks
 from ._arrays import InputError
-from .filtering import SIGMA, TAPS, check_depth_samples, gaussian_weights
+from .filtering import SIGMA, TAPS, check_depth_samples, gaussian_weights, quantize_nlq
 
 __all__ = [
     "FORMATS",
@@ -276,9 +276,5 @@ def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
         from .affine import encode_unorm16
 
         return encode_unorm16(b)
-    from .moments import BIAS_FLOAT32, bias_moments
-    from .nonlinear import phi
-    from .packing import pack32, pack64
-
-    r = phi(bias_moments(b, BIAS_FLOAT32))
-    return pack64(r) if fmt == "nlq64" else pack32(r)
+    # Bias, Φ and pack a band of rows at a time (no whole-map intermediates, same values).
+    return quantize_nlq(b, fmt)
