@@ -152,13 +152,14 @@ def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
         Y = np.clip(y0 + ty[..., None], 0, H - 1)
         texel = Y * W + X  # (warp, lane, blocks)
         acc = np.zeros((4,) + texel.shape, dtype=np.float32)
+        zs, z2, tmp = (np.empty(texel.shape, dtype=np.float32) for _ in range(3))
         for s in range(S):
-            zs = zt[s].take(texel)  # sample s of each thread's texel
-            z2 = zs * zs
+            zt[s].take(texel, out=zs)  # sample s of each thread's texel
+            np.multiply(zs, zs, out=z2)
             acc[0] += zs
             acc[1] += z2
-            acc[2] += z2 * zs
-            acc[3] += z2 * z2
+            acc[2] += np.multiply(z2, zs, out=tmp)
+            acc[3] += np.multiply(z2, z2, out=tmp)
         acc /= inv
         for j in range(4):
             shared[addr["resolve"][r, j]] = acc[j]
