@@ -25,9 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import InputError, first_index, real_input
-from .moments import BIAS_FLOAT32, bias_moments, power_moments
-from .nonlinear import phi
-from .packing import pack32, pack64
+from .moments import power_moments
+from .packing import nlq_texels
 
 __all__ = [
     "TAPS",
@@ -282,15 +281,14 @@ def _vertical_pass(hp, w):
     return out
 
 
-#: Texels per band of :func:`quantize_nlq` and :func:`global_path_nlq` (a band's
+#: Texels per band of :func:`global_path_nlq` (a band's
 #: float64 rows, about 2–5 MiB, stay in L3 whatever the map size).
 _PATH_BAND_TEXELS = 1 << 17
 
 
 def _quantized(b, fmt):
     """``pack(phi(bias_moments(b, BIAS_FLOAT32)))`` of a float32 moment band; ``fmt`` "nlq64" or "nlq32"."""
-    r = phi(bias_moments(b, BIAS_FLOAT32))
-    return pack64(r) if fmt == "nlq64" else pack32(r)
+    return nlq_texels(b, fmt)
 
 
 def quantize_nlq(moments, fmt="nlq64"):
@@ -309,21 +307,17 @@ def quantize_nlq(moments, fmt="nlq64"):
 
     Notes
     -----
-    Speed: a band of rows at a time, so that the biased moments and Φ's output
-    never exist as whole maps (their cost per texel does not grow with the map);
-    every step works texel by texel, so the bands change no value.
+    Speed: :func:`moments_ref.packing.nlq_texels`, an L2 chunk at a time, so that
+    the biased moments and Φ's output never exist as whole maps (their cost per
+    texel does not grow with the map); every step works texel by texel, so the
+    chunks change no value.
     """
     m = real_input(moments, "moments")
     if m.ndim != 3 or m.shape[-1] != 4:
         raise InputError(f"moments: expected an (H, W, 4) array, got shape {m.shape}")
     if fmt not in ("nlq64", "nlq32"):
         raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
-    h, wd, _ = m.shape
-    out = np.empty((h, wd, 4) if fmt == "nlq64" else (h, wd), np.uint16 if fmt == "nlq64" else np.uint32)
-    rows = max(1, _PATH_BAND_TEXELS // max(wd, 1))
-    for y in range(0, h, rows):
-        out[y : y + rows] = _quantized(m[y : y + rows], fmt)
-    return out
+    return _quantized(m, fmt)
 
 
 def global_path_nlq(depth_samples, fmt="nlq64"):

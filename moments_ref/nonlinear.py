@@ -42,6 +42,8 @@ HPG17, Peters and Klein 2015 : see docs/bib.md.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from ._arrays import InputError, broadcast_pair, first_index, real_input
@@ -155,13 +157,11 @@ def phi(b):
     out = np.empty(flat.shape, dtype=b.dtype)
     # L2-sized chunks, each transposed to one contiguous row per moment (structure of
     # arrays): the same operations per element as on the whole array.
-    full = _phi_constants(b.dtype)
     res = np.empty((4, min(_PHI_CHUNK, flat.shape[0])), dtype=b.dtype)
     for lo in range(0, flat.shape[0], _PHI_CHUNK):
         rows = np.ascontiguousarray(flat[lo : lo + _PHI_CHUNK].T)
         m = rows.shape[1]
-        c = full if m == _PHI_CHUNK else {k: v[:m] for k, v in full.items()}
-        _phi_chunk(*rows, res[:, :m], c)
+        _phi_rows(rows, res[:, :m])
         # One strided store per output channel (cheaper than a transposing copy).
         for k in range(4):
             out[lo : lo + m, k] = res[k, :m]
@@ -172,10 +172,22 @@ def phi(b):
 _PHI_CHUNK = 8192
 
 
+def _phi_rows(rows, out):
+    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ 8192) into the rows (y1, y2, v2, ξ4) of ``out``."""
+    m = rows.shape[1]
+    full = _phi_constants(rows.dtype)
+    c = full if m == _PHI_CHUNK else {k: v[:m] for k, v in full.items()}
+    _phi_chunk(*rows, out, c)
+
+
+@lru_cache(maxsize=4)
 def _phi_constants(dtype):
     """Constant rows of one chunk of :func:`phi`: zero and the sign-bit mask (array–array loops are the fast ones)."""
     it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
-    return {"zero": np.zeros(_PHI_CHUNK, dtype=dtype), "sign": np.full(_PHI_CHUNK, np.iinfo(it).min, dtype=it)}
+    out = {"zero": np.zeros(_PHI_CHUNK, dtype=dtype), "sign": np.full(_PHI_CHUNK, np.iinfo(it).min, dtype=it)}
+    for v in out.values():
+        v.flags.writeable = False
+    return out
 
 
 def _phi_chunk(b1, b2, b3, b4, out, c):
