@@ -52,9 +52,9 @@ def check_depth_samples(depth_samples, name="depth_samples") -> np.ndarray:
         raise InputError(f"{name}: expected an (H, W, S) array of sample depths, got shape {z.shape}")
     if 0 in z.shape:
         raise InputError(f"{name}: expected at least one texel and one sample, got shape {z.shape}")
-    bad = (z < -1) | (z > 1)
-    if bad.any():
-        idx = first_index(bad)
+    # Two reductions (no whole-map masks) decide; the mask is built only to name the first bad index.
+    if z.min() < -1 or z.max() > 1:
+        idx = first_index((z < -1) | (z > 1))
         raise InputError(f"{name}: expected depths in [-1, 1], got {z[idx]!r} at index {idx}")
     return z
 

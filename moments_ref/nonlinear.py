@@ -335,12 +335,14 @@ def psi4(xi4):
     return np.where(x <= dt(PSI4_XI_MIN), dt(0), u)[()]
 
 
-def _psi4_clamped(x):
+def _psi4_clamped(x, zero=0, one=1):
     """Ψ4 of ξ4 already clamped to [1.2e-7, 0.25]: the operations of :func:`psi4`, in place.
 
     For the encoders' contiguous chunks (no validation, no copies beyond the result):
     the same ufuncs in the same order as :func:`psi4`, and masked stores instead of
-    two ``np.where`` over whole arrays, so the values are bit for bit those of psi4.
+    two ``np.where`` over whole arrays, so the values are those of psi4 (only the
+    sign of a zero may differ, which no encoder's rounding keeps). ``zero`` and
+    ``one`` may be constant arrays of x's length (the vectorized loops).
     """
     dt = x.dtype.type
     u = np.multiply(x, dt(1e7))
@@ -348,7 +350,10 @@ def _psi4_clamped(x):
     np.log(u, out=u)
     u -= dt(_PSI_C0)
     u *= dt(1 / _PSI_C1)
-    np.clip(u, 0, 1, out=u)
+    # clip(u, 0, 1); given as constant arrays, maximum/minimum are the vectorized loops
+    # (u is never NaN here, and a zero's sign does not survive the encoders' rounding).
+    np.maximum(u, zero, out=u)
+    np.minimum(u, one, out=u)
     u[x >= dt(PSI4_XI_MAX)] = 1
     u[x <= dt(PSI4_XI_MIN)] = 0
     return u
