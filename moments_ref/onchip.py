@@ -183,13 +183,16 @@ def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
     Y = ty[..., None] + _OUT_H * by
     inside = (X < W) & (Y < H)
     texel = Y * W + X
+    # Stores by fancy assignment of a contiguous copy (several times faster than
+    # ndarray.put); every texel is written once, so the order of stores is immaterial.
     if inside.all():  # interior blocks: no mask to apply (same stores, no boolean gathers)
+        texel = texel.ravel()
         for j in range(4):
-            out[j].put(texel, v[:, j])
+            out[j][texel] = np.ascontiguousarray(v[:, j]).ravel()
         return _record(timings, (t0, t1, t2, t3, time.perf_counter()))
     texel = texel[inside]
     for j in range(4):
-        out[j].put(texel, v[:, j][inside])
+        out[j][texel] = v[:, j][inside]
     _record(timings, (t0, t1, t2, t3, time.perf_counter()))
 
 
@@ -233,6 +236,12 @@ def filter_moments(depth_samples, *, blocks_per_batch=64, layout="paper", timing
     HPG17 §4.1 and Figure 6; the access pattern of each phase is written down in
     :mod:`moments_ref.banks`, the block coverage in this module's docstring.
     """
+    out, (H, W) = _filter_rows(depth_samples, blocks_per_batch=blocks_per_batch, layout=layout, timings=timings)
+    return np.ascontiguousarray(out.T).reshape(H, W, 4)
+
+
+def _filter_rows(depth_samples, *, blocks_per_batch=64, layout="paper", timings=None):
+    """:func:`filter_moments` as ``(4, H·W)`` rows (the emulation's own layout, one row per moment) and ``(H, W)``."""
     z = check_depth_samples(depth_samples).astype(np.float32, copy=False)
     if isinstance(blocks_per_batch, bool) or not isinstance(blocks_per_batch, (int, np.integer)) or blocks_per_batch < 1:
         raise InputError(f"blocks_per_batch: expected a positive integer, got {blocks_per_batch!r}")
@@ -247,7 +256,7 @@ def filter_moments(depth_samples, *, blocks_per_batch=64, layout="paper", timing
     for start in range(0, len(ids), int(blocks_per_batch)):
         b = ids[start : start + int(blocks_per_batch)]
         _run_batch(zt, z.shape, b % cols, b // cols, out, pattern, addr, words, w, timings)
-    return np.ascontiguousarray(out.T).reshape(H, W, 4)
+    return out, (H, W)
 
 
 def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
@@ -278,12 +287,15 @@ def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
     """
     if fmt not in FORMATS:
         raise InputError(f"fmt: expected one of {tuple(FORMATS)}, got {fmt!r}")
+    if fmt in ("nlq64", "nlq32"):
+        # Bias, Φ and pack an L2 chunk at a time straight from the emulation's rows:
+        # the (H, W, 4) view of the rows reads each chunk as four contiguous runs and
+        # spares the transposing copy of filter_moments; the same texel values.
+        rows, (H, W) = _filter_rows(depth_samples, **kwargs)
+        return quantize_nlq(rows.T.reshape(H, W, 4), fmt)
     b = filter_moments(depth_samples, **kwargs)
     if fmt == "float128":
         return b
-    if fmt == "affine64":
-        from .affine import encode_unorm16
+    from .affine import encode_unorm16
 
-        return encode_unorm16(b)
-    # Bias, Φ and pack a band of rows at a time (no whole-map intermediates, same values).
-    return quantize_nlq(b, fmt)
+    return encode_unorm16(b)
