@@ -125,25 +125,58 @@ def _convolve(values, w, n_out, axis):
     return acc
 
 
-def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
+#: Texels per chunk of :func:`_thread_moments` (its rows stay in L2).
+_RESOLVE_CHUNK = 1 << 14
+
+
+def _thread_moments(zt):
+    """The 4 moments every resolving thread computes, for each texel of the map: ``(4, H·W)`` float32.
+
+    A thread of the resolve loads the S samples of its texel and accumulates, in
+    float32 and in sample order, ``z``, ``z²``, ``z²·z`` and ``z²·z²`` from 0, then
+    divides by S. Texels of a guard band are resolved by every block that loads
+    them, always to the same values, so each texel is computed here once, an L2
+    chunk of rows at a time (the same operations per texel), and the threads'
+    loads become gathers of these rows.
+    """
+    S, n = zt.shape
+    inv = np.float32(S)
+    mom = np.empty((4, n), dtype=np.float32)
+    z2, tmp = np.empty((2, min(n, _RESOLVE_CHUNK)), dtype=np.float32)
+    for lo in range(0, n, _RESOLVE_CHUNK):
+        hi = min(lo + _RESOLVE_CHUNK, n)
+        acc, q, t = mom[:, lo:hi], z2[: hi - lo], tmp[: hi - lo]
+        acc[...] = 0
+        for s in range(S):
+            zs = zt[s, lo:hi]
+            np.multiply(zs, zs, out=q)
+            acc[0] += zs
+            acc[1] += q
+            acc[2] += np.multiply(q, zs, out=t)
+            acc[3] += np.multiply(q, q, out=t)
+        acc /= inv
+    return mom
+
+
+def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     """Emulate the thread groups of the blocks ``(bx[i], by[i])`` and write their texels.
 
     Shared memory is held as ``(words, blocks)``: the blocks of a batch run the same
     program, so every gather or scatter through a word address moves one contiguous
     run of ``blocks`` floats (structure of arrays over thread groups). The
-    arithmetic is the same for any arrangement. ``zt`` holds the depths as
-    ``(S, H·W)`` and ``out`` the result as ``(4, H·W)``, one contiguous row per
-    sample or moment, so that loads and stores are contiguous gathers and scatters.
+    arithmetic is the same for any arrangement. ``mom`` holds each texel's resolved
+    moments (:func:`_thread_moments`) and ``out`` the result, both as ``(4, H·W)``,
+    one contiguous row per moment, so that loads and stores are contiguous
+    gathers and scatters.
     """
     H, W, S = shape
     nb = len(bx)
     shared = np.zeros((words, nb), dtype=np.float32)
     x0 = _OUT_W * bx - _G
     y0 = _OUT_H * by - _G
-    inv = np.float32(S)
 
     # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
-    # map), averages b(z) and writes the 4 moments.
+    # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments.
     t0 = time.perf_counter()
     res = pattern["resolve"]
     for r in range(res.j.shape[0]):
@@ -151,18 +184,8 @@ def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
         X = np.clip(x0 + tx[..., None], 0, W - 1)
         Y = np.clip(y0 + ty[..., None], 0, H - 1)
         texel = Y * W + X  # (warp, lane, blocks)
-        acc = np.zeros((4,) + texel.shape, dtype=np.float32)
-        zs, z2, tmp = (np.empty(texel.shape, dtype=np.float32) for _ in range(3))
-        for s in range(S):
-            zt[s].take(texel, out=zs)  # sample s of each thread's texel
-            np.multiply(zs, zs, out=z2)
-            acc[0] += zs
-            acc[1] += z2
-            acc[2] += np.multiply(z2, zs, out=tmp)
-            acc[3] += np.multiply(z2, z2, out=tmp)
-        acc /= inv
         for j in range(4):
-            shared[addr["resolve"][r, j]] = acc[j]
+            shared[addr["resolve"][r, j]] = mom[j].take(texel)
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
@@ -251,11 +274,14 @@ def _filter_rows(depth_samples, *, blocks_per_batch=64, layout="paper", timings=
     H, W, _ = z.shape
     rows, cols = block_grid(H, W)
     out = np.empty((4, H * W), dtype=np.float32)
-    zt = np.ascontiguousarray(z.reshape(H * W, -1).T)
+    t0 = time.perf_counter()
+    mom = _thread_moments(np.ascontiguousarray(z.reshape(H * W, -1).T))
+    if timings is not None:
+        timings["resolve"] = timings.get("resolve", 0.0) + time.perf_counter() - t0
     ids = np.arange(rows * cols)
     for start in range(0, len(ids), int(blocks_per_batch)):
         b = ids[start : start + int(blocks_per_batch)]
-        _run_batch(zt, z.shape, b % cols, b // cols, out, pattern, addr, words, w, timings)
+        _run_batch(mom, z.shape, b % cols, b // cols, out, pattern, addr, words, w, timings)
     return out, (H, W)
 
 
