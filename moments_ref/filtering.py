@@ -249,17 +249,18 @@ def blur(moments, weights=None):
     return _vertical_pass(hp, w)
 
 
-def _horizontal_pass(m, w, pad_rows=0):
-    """The horizontal pass of :func:`blur` (float64, clamp-to-edge columns) into rows ``pad_rows..`` of a new array.
+def _horizontal_pass(m, w, pad_rows=0, hp=None):
+    """The horizontal pass of :func:`blur` (float64, clamp-to-edge columns) into rows ``pad_rows..`` of ``hp``.
 
     A band of rows at a time: the band goes, cast to float64, into a clamp-to-edge
     padded buffer; the output goes straight into the rows of the vertically padded
     map (so the vertical pass needs no np.pad). Rows ``:pad_rows`` and the last
-    ``pad_rows`` are left for the caller to fill.
+    ``pad_rows`` are left for the caller to fill. ``hp`` is a new array unless given.
     """
     h, wd, c = m.shape
     r = (len(w) - 1) // 2
-    hp = np.empty((h + 2 * pad_rows, wd, c))
+    if hp is None:
+        hp = np.empty((h + 2 * pad_rows, wd, c))
     rows = max(1, _BAND_BYTES // (8 * (wd + 2 * r) * c))
     band = np.empty((min(rows, h), wd + 2 * r, c))
     tmp = np.empty((min(rows, h), wd, c))
@@ -347,9 +348,9 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
     Speed: each band of output rows resolves and blurs horizontally its rows and
     the 4 rows above and below (clamped at the border, as :func:`blur` pads), blurs
     them vertically and quantizes them, so no whole-map float64 intermediate
-    exists and the cost per texel stays flat as the map grows (the guard rows
-    cost 8 extra rows per band). Every value is computed by the same operations in
-    the same order as in the separate passes.
+    exists and the cost per texel stays flat as the map grows (the 8 guard rows
+    of a band are the previous band's last rows, kept). Every value is computed by
+    the same operations in the same order as in the separate passes.
     """
     z = check_depth_samples(depth_samples)
     if fmt not in ("nlq64", "nlq32"):
@@ -359,11 +360,17 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
     r = (len(w) - 1) // 2
     out = np.empty((h, wd, 4) if fmt == "nlq64" else (h, wd), np.uint16 if fmt == "nlq64" else np.uint32)
     rows = max(1, _PATH_BAND_TEXELS // wd)
+    hp = np.empty((min(rows, h) + 2 * r, wd, 4))
+    done = 0  # rows of hp that hold the horizontal pass of this band's first rows
     for y in range(0, h, rows):
         k = min(rows, h - y)
-        src = np.clip(np.arange(y - r, y + k + r), 0, h - 1)
-        hp = _horizontal_pass(_resolve(z[src]), w)
-        out[y : y + k] = _quantized(_vertical_pass(hp, w).astype(np.float32), fmt)
+        # Horizontal pass of map rows y − r .. y + k + r − 1 (clamped); the first 2r of
+        # them are the previous band's last 2r rows, moved up instead of recomputed.
+        src = np.clip(np.arange(y - r + done, y + k + r), 0, h - 1)
+        _horizontal_pass(_resolve(z[src]), w, pad_rows=done, hp=hp[: k + 2 * r])
+        out[y : y + k] = _quantized(_vertical_pass(hp[: k + 2 * r], w).astype(np.float32), fmt)
+        hp[: 2 * r] = hp[k : k + 2 * r].copy()
+        done = 2 * r
     return out
 
 
