@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "broadcast_chunks"]
+__all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
+           "broadcast_chunks"]
 
 #: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
 CHUNK = 1 << 14
@@ -68,6 +69,18 @@ def copysign_inplace(d, h, sign):
     it = sign.dtype
     bits = np.bitwise_and(h.view(it), sign)
     np.bitwise_or(d.view(it), bits, out=d.view(it))
+
+
+def copysign_exact(d, h, sign):
+    """``d := np.copysign(d, h)`` for any d (NaN included), by moving h's sign bit into d.
+
+    ``sign`` as in :func:`copysign_inplace`. Three integer passes: clear d's sign
+    bit, take h's, or them together; the IEEE result of ``np.copysign`` bit for bit.
+    """
+    it = sign.dtype
+    di = d.view(it)
+    np.bitwise_and(di, np.invert(sign), out=di)
+    np.bitwise_or(di, np.bitwise_and(h.view(it), sign), out=di)
 
 
 def _flat_view(a, shape):

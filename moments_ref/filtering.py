@@ -24,8 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import InputError, first_index, real_input
+from ._arrays import InputError, check_finite, first_index, real_input
 from .moments import power_moments
+from .packing import nlq_texels
 
 __all__ = [
     "TAPS",
@@ -35,6 +36,8 @@ __all__ = [
     "blur",
     "check_depth_samples",
     "bench_depth_map",
+    "quantize_nlq",
+    "global_path_nlq",
 ]
 
 #: Filter size and standard deviation of HPG17 §4.1 ("9² ... 2.4 texels").
@@ -44,7 +47,13 @@ SIGMA = 2.4
 
 def check_depth_samples(depth_samples, name="depth_samples") -> np.ndarray:
     """Validate an (H, W, S) array of sample depths in [-1, 1]; dtype per the policy."""
-    z = real_input(depth_samples, name)
+    z = real_input(depth_samples, name, finite=False)
+    # Fast path, two reductions and no whole-map masks: NaN or ±inf make min or max
+    # fail the test, so passing it proves every depth finite and in [-1, 1]. Otherwise
+    # the checks below run in their usual order and name the first bad index.
+    if z.ndim == 3 and 0 not in z.shape and z.dtype.kind == "f" and z.min() >= -1 and z.max() <= 1:
+        return z
+    check_finite(z, name)
     if z.ndim != 3:
         raise InputError(f"{name}: expected an (H, W, S) array of sample depths, got shape {z.shape}")
     if 0 in z.shape:
@@ -87,7 +96,11 @@ def resolve_moments(depth_samples):
     >>> resolve_moments([[[0.5, -0.5]]])
     array([[[0.    , 0.25  , 0.    , 0.0625]]])
     """
-    z = check_depth_samples(depth_samples)
+    return _resolve(check_depth_samples(depth_samples))
+
+
+def _resolve(z):
+    """:func:`resolve_moments` of checked samples (H, W, S), L2-sized chunks at a time."""
     h, w, n = z.shape
     flat = z.reshape(-1, n)
     out = np.empty((flat.shape[0], 4), dtype=z.dtype)
@@ -228,31 +241,136 @@ def blur(moments, weights=None):
     w = gaussian_weights() if weights is None else real_input(weights, "weights").astype(np.float64)
     if w.ndim != 1 or len(w) % 2 == 0:
         raise InputError(f"weights: expected a 1D kernel of odd length, got shape {w.shape}")
-    # Horizontal pass, a band of rows at a time: the band goes, cast to float64, into
-    # a clamp-to-edge padded buffer; the output goes straight into the rows of the
-    # vertically padded map ``hp`` (so the vertical pass needs no np.pad).
+    r = (len(w) - 1) // 2
+    h = m.shape[0]
+    hp = _horizontal_pass(m, w, pad_rows=r)
+    hp[:r] = hp[r]
+    hp[r + h :] = hp[r + h - 1]
+    return _vertical_pass(hp, w)
+
+
+def _horizontal_pass(m, w, pad_rows=0, hp=None):
+    """The horizontal pass of :func:`blur` (float64, clamp-to-edge columns) into rows ``pad_rows..`` of ``hp``.
+
+    A band of rows at a time: the band goes, cast to float64, into a clamp-to-edge
+    padded buffer; the output goes straight into the rows of the vertically padded
+    map (so the vertical pass needs no np.pad). Rows ``:pad_rows`` and the last
+    ``pad_rows`` are left for the caller to fill. ``hp`` is a new array unless given.
+    """
     h, wd, c = m.shape
     r = (len(w) - 1) // 2
-    hp = np.empty((h + 2 * r, wd, c))
+    if hp is None:
+        hp = np.empty((h + 2 * pad_rows, wd, c))
     rows = max(1, _BAND_BYTES // (8 * (wd + 2 * r) * c))
-    band = np.empty((rows, wd + 2 * r, c))
-    tmp = np.empty((rows, wd, c))
+    band = np.empty((min(rows, h), wd + 2 * r, c))
+    tmp = np.empty((min(rows, h), wd, c))
     for y in range(0, h, rows):
         k = min(rows, h - y)
         b = band[:k]
         b[:, r : r + wd] = m[y : y + k]
         b[:, :r] = b[:, r : r + 1]
         b[:, r + wd :] = b[:, r + wd - 1 : r + wd]
-        _correlate(b, w, hp[r + y : r + y + k], tmp[:k], axis=1)
-    hp[:r] = hp[r]
-    hp[r + h :] = hp[r + h - 1]
-    # Vertical pass: each band of output rows sums nine contiguous blocks of hp.
+        _correlate(b, w, hp[pad_rows + y : pad_rows + y + k], tmp[:k], axis=1)
+    return hp
+
+
+def _vertical_pass(hp, w):
+    """The vertical pass of :func:`blur` on rows already padded by ``(taps − 1)/2`` on each side."""
+    r = (len(w) - 1) // 2
+    h, wd, c = hp.shape[0] - 2 * r, hp.shape[1], hp.shape[2]
+    # Each band of output rows sums nine contiguous blocks of hp.
     out = np.empty((h, wd, c))
     rows = max(1, _BAND_BYTES // (8 * wd * c))
-    tmp = np.empty((rows, wd, c))
+    tmp = np.empty((min(rows, h), wd, c))
     for y in range(0, h, rows):
         k = min(rows, h - y)
         _correlate(hp[y : y + k + 2 * r], w, out[y : y + k], tmp[:k], axis=0)
+    return out
+
+
+#: Texels per band of :func:`global_path_nlq` (a band's
+#: float64 rows, about 2–5 MiB, stay in L3 whatever the map size).
+_PATH_BAND_TEXELS = 1 << 17
+
+
+def _quantized(b, fmt):
+    """``pack(phi(bias_moments(b, BIAS_FLOAT32)))`` of a float32 moment band; ``fmt`` "nlq64" or "nlq32"."""
+    return nlq_texels(b, fmt)
+
+
+def quantize_nlq(moments, fmt="nlq64"):
+    """Bias with ``BIAS_FLOAT32``, Φ (HPG17 Algorithm 2) and pack (§3.3 / §3.5) a float32 moment map.
+
+    Parameters
+    ----------
+    moments : (H, W, 4) float array
+        Filtered moments (float32 in the shader).
+    fmt : {"nlq64", "nlq32"}
+
+    Returns
+    -------
+    texture : (H, W, 4) uint16 (nlq64) or (H, W) uint32 (nlq32)
+        ``pack64(phi(bias_moments(moments, BIAS_FLOAT32)))`` (or pack32), bit for bit.
+
+    Notes
+    -----
+    Speed: :func:`moments_ref.packing.nlq_texels`, an L2 chunk at a time, so that
+    the biased moments and Φ's output never exist as whole maps (their cost per
+    texel does not grow with the map); every step works texel by texel, so the
+    chunks change no value.
+    """
+    m = real_input(moments, "moments")
+    if m.ndim != 3 or m.shape[-1] != 4:
+        raise InputError(f"moments: expected an (H, W, 4) array, got shape {m.shape}")
+    if fmt not in ("nlq64", "nlq32"):
+        raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
+    return _quantized(m, fmt)
+
+
+def global_path_nlq(depth_samples, fmt="nlq64"):
+    """The global path of HPG17 §4 from MSAA samples to NLQ texels, a band of rows at a time.
+
+    Parameters
+    ----------
+    depth_samples : (H, W, S) float array
+        Sample depths in [-1, 1].
+    fmt : {"nlq64", "nlq32"}
+
+    Returns
+    -------
+    texture : (H, W, 4) uint16 (nlq64) or (H, W) uint32 (nlq32)
+        ``pack(phi(bias_moments(blur(resolve_moments(z)).astype(float32), BIAS_FLOAT32)))``
+        bit for bit: resolve, the 9² Gaussian in float64 (clamp-to-edge), the cast
+        to float32 registers, the float32 bias, Φ (Algorithm 2) and pack64/pack32.
+
+    Notes
+    -----
+    Speed: each band of output rows resolves and blurs horizontally its rows and
+    the 4 rows above and below (clamped at the border, as :func:`blur` pads), blurs
+    them vertically and quantizes them, so no whole-map float64 intermediate
+    exists and the cost per texel stays flat as the map grows (the 8 guard rows
+    of a band are the previous band's last rows, kept). Every value is computed by
+    the same operations in the same order as in the separate passes.
+    """
+    z = check_depth_samples(depth_samples)
+    if fmt not in ("nlq64", "nlq32"):
+        raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
+    h, wd, _ = z.shape
+    w = gaussian_weights()
+    r = (len(w) - 1) // 2
+    out = np.empty((h, wd, 4) if fmt == "nlq64" else (h, wd), np.uint16 if fmt == "nlq64" else np.uint32)
+    rows = max(1, _PATH_BAND_TEXELS // wd)
+    hp = np.empty((min(rows, h) + 2 * r, wd, 4))
+    done = 0  # rows of hp that hold the horizontal pass of this band's first rows
+    for y in range(0, h, rows):
+        k = min(rows, h - y)
+        # Horizontal pass of map rows y − r .. y + k + r − 1 (clamped); the first 2r of
+        # them are the previous band's last 2r rows, moved up instead of recomputed.
+        src = np.clip(np.arange(y - r + done, y + k + r), 0, h - 1)
+        _horizontal_pass(_resolve(z[src]), w, pad_rows=done, hp=hp[: k + 2 * r])
+        out[y : y + k] = _quantized(_vertical_pass(hp[: k + 2 * r], w).astype(np.float32), fmt)
+        hp[: 2 * r] = hp[k : k + 2 * r].copy()
+        done = 2 * r
     return out
 
 

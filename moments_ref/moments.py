@@ -219,4 +219,7 @@ def bias_moments(b, preset=BIAS_FLOAT32):
         )
     check_finite(target, "preset.target")
     alpha = b.dtype.type(p.alpha)
-    return (b.dtype.type(1) - alpha) * b + alpha * target
+    # In place on the one new array (IEEE products commute, so b·(1 − α) is (1 − α)·b bit for bit).
+    out = np.multiply(b, b.dtype.type(1) - alpha)
+    out += alpha * target
+    return out

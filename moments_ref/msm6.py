@@ -212,7 +212,9 @@ def _solve_cubic(c0, c1, c2, c3, newton=2):
             f = ((c0 * r + c1) * r + c2) * r + c3
             fp = (3 * c0 * r + 2 * c1) * r + c2
             step = f / fp
-            step = np.where(np.isfinite(step) & (np.abs(step) <= np.abs(r) + 1), step, dt(0))
+            keep = np.isfinite(step) & (np.abs(step) <= np.abs(r) + 1)
+            if not keep.all():  # np.where(keep, step, 0), without the full copy when every step is kept
+                step[~keep] = 0
             r = r - step
     return r
 
@@ -268,7 +270,9 @@ def _kernel(b, zf):
         p1 = q1 + (2 * q2 + 3 * q3 * zf) * zf
         p2 = q2 + 3 * q3 * zf
         ok = ~singular
-        cf = [np.where(ok, x, y) for x, y in ((pz, one), (p1, zero), (p2, -one), (q3, zero))]
+        pairs = ((pz, one), (p1, zero), (p2, -one), (q3, zero))
+        # np.where(ok, x, y); when no row is singular that is x itself (no copies).
+        cf = [x for x, _ in pairs] if ok.all() else [np.where(ok, x, y) for x, y in pairs]
         t = _solve_cubic(*cf)  # (3, n); placeholder cubic t³ − t for singular rows
         # (4) weights w = t⁶ / Σ (L⁻¹ g)_i² / D_i, g = t³ v(zf + 1/t) = (t³, t²(1 + zf t), t(1 + zf t)², (1 + zf t)³).
         s = 1 + zf * t
@@ -277,11 +281,13 @@ def _kernel(b, zf):
         k = u0 * u0 + u1 * u1 / D1 + u2 * u2 / D2 + u3 * u3 / D3
         t3 = g[0]
         w = t3 * t3 / k
-        w = np.where(np.isfinite(w) & (w > 0), w, zero)
+        bad = ~(np.isfinite(w) & (w > 0))
+        if bad.any():  # np.where(finite and positive, w, 0), in place
+            w[bad] = zero
         z = zf + one / t  # ±inf for t = ±0
         # (5) lower = Σ_{z_l < zf} w_l.
         lower = (w * (t < 0)).sum(axis=0)
-        w0 = np.where(np.isfinite(w0), w0, zero)
+        w0[~np.isfinite(w0)] = zero  # np.where(isfinite, w0, 0), in place
     if singular.any():
         lower, w0, z, w = _singular(b, zf, single, two, three, singular, lower, w0, z, w,
                                     (D1, D2, L21, L31, L32))

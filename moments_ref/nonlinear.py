@@ -42,11 +42,13 @@ HPG17, Peters and Klein 2015 : see docs/bib.md.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from ._arrays import InputError, broadcast_pair, first_index, real_input
 from ._kernels import CHUNK as _CHUNK
-from ._kernels import copysign_inplace
+from ._kernels import copysign_exact, copysign_inplace
 
 __all__ = [
     "phi",
@@ -155,9 +157,14 @@ def phi(b):
     out = np.empty(flat.shape, dtype=b.dtype)
     # L2-sized chunks, each transposed to one contiguous row per moment (structure of
     # arrays): the same operations per element as on the whole array.
+    res = np.empty((4, min(_PHI_CHUNK, flat.shape[0])), dtype=b.dtype)
     for lo in range(0, flat.shape[0], _PHI_CHUNK):
-        chunk = flat[lo : lo + _PHI_CHUNK]
-        out[lo : lo + _PHI_CHUNK] = _phi_chunk(*np.ascontiguousarray(chunk.T)).T
+        rows = np.ascontiguousarray(flat[lo : lo + _PHI_CHUNK].T)
+        m = rows.shape[1]
+        _phi_rows(rows, res[:, :m])
+        # One strided store per output channel (cheaper than a transposing copy).
+        for k in range(4):
+            out[lo : lo + m, k] = res[k, :m]
     return out.reshape(b.shape)
 
 
@@ -165,36 +172,90 @@ def phi(b):
 _PHI_CHUNK = 8192
 
 
-def _phi_chunk(b1, b2, b3, b4):
-    """Algorithm 2 on rows b1..b4 of one chunk: the rows (y1, y2, v2, ξ4), see :func:`phi`."""
+def _phi_rows(rows, out):
+    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ 8192) into the rows (y1, y2, v2, ξ4) of ``out``."""
+    m = rows.shape[1]
+    full = _phi_constants(rows.dtype)
+    c = full if m == _PHI_CHUNK else {k: v[:m] for k, v in full.items()}
+    _phi_chunk(*rows, out, c)
+
+
+@lru_cache(maxsize=4)
+def _phi_constants(dtype):
+    """Constant rows of one chunk of :func:`phi`: zero and the sign-bit mask (array–array loops are the fast ones)."""
+    it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
+    out = {"zero": np.zeros(_PHI_CHUNK, dtype=dtype), "sign": np.full(_PHI_CHUNK, np.iinfo(it).min, dtype=it)}
+    for v in out.values():
+        v.flags.writeable = False
+    return out
+
+
+def _phi_chunk(b1, b2, b3, b4, out, c):
+    """Algorithm 2 on rows b1..b4 of one chunk into the rows ``out = (y1, y2, v2, ξ4)``, see :func:`phi`.
+
+    Speed: temporaries reused through ``out=`` and in-place ufuncs, no ``np.where``
+    on the common path. Each step's comment gives the formula; the code performs
+    its operations in that order (IEEE ``a − b = −(b − a)`` and ``(−a)² = a²``
+    are exact, which is all that ``L21² = (q1/σ²)²`` uses), so the values are bit
+    for bit those of the formulas.
+    """
+    y1, y2, v2, xi4 = out
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # (1)-(3) The quadratic whose roots are the support of S.
-        sigma2 = b2 - b1 * b1
+        # (1)-(3) σ² = q2 = b2 − b1², q1 = b1 b2 − b3, q0 = (−b1) q1 − b2 q2.
+        sigma2 = np.multiply(b1, b1)
+        np.subtract(b2, sigma2, out=sigma2)
         q2 = sigma2
-        q1 = b1 * b2 - b3
-        q0 = -b1 * q1 - b2 * q2
-        # (4) Roots without cancellation: t has no cancellation, q0/t is Vieta's other root.
-        disc = np.sqrt(np.maximum(q1 * q1 - 4 * q2 * q0, 0))
-        t = -0.5 * (q1 + np.copysign(disc, q1))
-        ra = t / q2
-        rb = q0 / t
-        y1 = np.fmin(ra, rb)
-        y2 = np.fmax(ra, rb)
-        # (5) Weight of the larger depth.
-        v2 = (b1 - y1) / (y2 - y1)
-        # (6)-(7) LDLᵀ of B(b): L21 and the third pivot ξ4.
-        l21 = (b3 - b1 * b2) / sigma2
-        xi4 = b4 - b2 * b2 - l21 * l21 * sigma2
-    single = ~(sigma2 > 0) | ~np.isfinite(xi4)
-    degenerate = single | ~(y2 > y1) | ~np.isfinite(v2) | ~np.isfinite(y1) | ~np.isfinite(y2)
+        q1 = np.multiply(b1, b2)
+        q1 -= b3
+        q0 = np.negative(b1)
+        q0 *= q1
+        t = np.multiply(b2, q2)
+        q0 -= t
+        # (4) t = −0.5 (q1 + copysign(√max(q1² − (4 q2) q0, 0), q1)), roots t/q2 and q0/t.
+        d = np.multiply(q1, q1)
+        np.multiply(q2, 4, out=t)
+        t *= q0
+        d -= t
+        np.maximum(d, c["zero"], out=d)
+        np.sqrt(d, out=d)
+        copysign_exact(d, q1, c["sign"])
+        d += q1
+        d *= -0.5
+        np.divide(d, q2, out=t)
+        np.divide(q0, d, out=q0)
+        np.fmin(t, q0, out=y1)
+        np.fmax(t, q0, out=y2)
+        # (5) v2 = (b1 − y1) / (y2 − y1).
+        np.subtract(b1, y1, out=v2)
+        np.subtract(y2, y1, out=t)
+        v2 /= t
+        # (6)-(7) L21 = (b3 − b1 b2)/σ² = −q1/σ², ξ4 = (b4 − b2²) − L21² σ².
+        np.divide(q1, sigma2, out=t)
+        t *= t
+        t *= sigma2
+        np.multiply(b2, b2, out=xi4)
+        np.subtract(b4, xi4, out=xi4)
+        xi4 -= t
+    _phi_degenerate(b1, b4, sigma2, out)
+
+
+def _phi_degenerate(b1, b4, sigma2, out):
+    """Where Algorithm 2 fails (see :func:`phi`, Notes): one depth at b1, ξ4 by Eq. (1)."""
+    y1, y2, v2, xi4 = out
+    single = sigma2 > 0
+    single &= np.isfinite(xi4)
+    np.logical_not(single, out=single)
+    ok = y2 > y1
+    for x in (v2, y1, y2):
+        ok &= np.isfinite(x)
+    degenerate = np.logical_not(ok, out=ok)
+    degenerate |= single
     if degenerate.any():
-        # One depth at b1 (see Notes): y1 = y2 = b1, v2 = 0, and ξ4 by Eq. (1).
-        y1 = np.where(degenerate, b1, y1)
-        y2 = np.where(degenerate, b1, y2)
-        v2 = np.where(degenerate, 0, v2)
+        np.copyto(y1, b1, where=degenerate)
+        np.copyto(y2, b1, where=degenerate)
+        np.copyto(v2, 0, where=degenerate)
         b1sq = b1 * b1
-        xi4 = np.where(single, b4 - b1sq * b1sq, xi4)
-    return np.stack([y1, y2, v2, xi4]).astype(b1.dtype, copy=False)
+        np.copyto(xi4, b4 - b1sq * b1sq, where=single)
 
 
 def phi_inverse(r):
@@ -272,6 +333,30 @@ def psi4(xi4):
     # Exact endpoints in both dtypes (float32 misses Ψ4(0.25) = 1 by an ulp).
     u = np.where(x >= dt(PSI4_XI_MAX), dt(1), np.clip(u, 0, 1))
     return np.where(x <= dt(PSI4_XI_MIN), dt(0), u)[()]
+
+
+def _psi4_clamped(x, zero=0, one=1):
+    """Ψ4 of ξ4 already clamped to [1.2e-7, 0.25]: the operations of :func:`psi4`, in place.
+
+    For the encoders' contiguous chunks (no validation, no copies beyond the result):
+    the same ufuncs in the same order as :func:`psi4`, and masked stores instead of
+    two ``np.where`` over whole arrays, so the values are those of psi4 (only the
+    sign of a zero may differ, which no encoder's rounding keeps). ``zero`` and
+    ``one`` may be constant arrays of x's length (the vectorized loops).
+    """
+    dt = x.dtype.type
+    u = np.multiply(x, dt(1e7))
+    np.log(u, out=u)
+    np.log(u, out=u)
+    u -= dt(_PSI_C0)
+    u *= dt(1 / _PSI_C1)
+    # clip(u, 0, 1); given as constant arrays, maximum/minimum are the vectorized loops
+    # (u is never NaN here, and a zero's sign does not survive the encoders' rounding).
+    np.maximum(u, zero, out=u)
+    np.minimum(u, one, out=u)
+    u[x >= dt(PSI4_XI_MAX)] = 1
+    u[x <= dt(PSI4_XI_MIN)] = 0
+    return u
 
 
 def psi4_inverse(u):

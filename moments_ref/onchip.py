@@ -53,7 +53,7 @@ import numpy as np
 
 from . import banks
 from ._arrays import InputError
-from .filtering import SIGMA, TAPS, check_depth_samples, gaussian_weights
+from .filtering import SIGMA, TAPS, check_depth_samples, gaussian_weights, quantize_nlq
 
 __all__ = [
     "FORMATS",
@@ -125,25 +125,58 @@ def _convolve(values, w, n_out, axis):
     return acc
 
 
-def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
+#: Texels per chunk of :func:`_thread_moments` (its rows stay in L2).
+_RESOLVE_CHUNK = 1 << 14
+
+
+def _thread_moments(zt):
+    """The 4 moments every resolving thread computes, for each texel of the map: ``(4, H·W)`` float32.
+
+    A thread of the resolve loads the S samples of its texel and accumulates, in
+    float32 and in sample order, ``z``, ``z²``, ``z²·z`` and ``z²·z²`` from 0, then
+    divides by S. Texels of a guard band are resolved by every block that loads
+    them, always to the same values, so each texel is computed here once, an L2
+    chunk of rows at a time (the same operations per texel), and the threads'
+    loads become gathers of these rows.
+    """
+    S, n = zt.shape
+    inv = np.float32(S)
+    mom = np.empty((4, n), dtype=np.float32)
+    z2, tmp = np.empty((2, min(n, _RESOLVE_CHUNK)), dtype=np.float32)
+    for lo in range(0, n, _RESOLVE_CHUNK):
+        hi = min(lo + _RESOLVE_CHUNK, n)
+        acc, q, t = mom[:, lo:hi], z2[: hi - lo], tmp[: hi - lo]
+        acc[...] = 0
+        for s in range(S):
+            zs = zt[s, lo:hi]
+            np.multiply(zs, zs, out=q)
+            acc[0] += zs
+            acc[1] += q
+            acc[2] += np.multiply(q, zs, out=t)
+            acc[3] += np.multiply(q, q, out=t)
+        acc /= inv
+    return mom
+
+
+def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     """Emulate the thread groups of the blocks ``(bx[i], by[i])`` and write their texels.
 
     Shared memory is held as ``(words, blocks)``: the blocks of a batch run the same
     program, so every gather or scatter through a word address moves one contiguous
     run of ``blocks`` floats (structure of arrays over thread groups). The
-    arithmetic is the same for any arrangement. ``zt`` holds the depths as
-    ``(S, H·W)`` and ``out`` the result as ``(4, H·W)``, one contiguous row per
-    sample or moment, so that loads and stores are contiguous gathers and scatters.
+    arithmetic is the same for any arrangement. ``mom`` holds each texel's resolved
+    moments (:func:`_thread_moments`) and ``out`` the result, both as ``(4, H·W)``,
+    one contiguous row per moment, so that loads and stores are contiguous
+    gathers and scatters.
     """
     H, W, S = shape
     nb = len(bx)
     shared = np.zeros((words, nb), dtype=np.float32)
     x0 = _OUT_W * bx - _G
     y0 = _OUT_H * by - _G
-    inv = np.float32(S)
 
     # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
-    # map), averages b(z) and writes the 4 moments.
+    # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments.
     t0 = time.perf_counter()
     res = pattern["resolve"]
     for r in range(res.j.shape[0]):
@@ -151,17 +184,8 @@ def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
         X = np.clip(x0 + tx[..., None], 0, W - 1)
         Y = np.clip(y0 + ty[..., None], 0, H - 1)
         texel = Y * W + X  # (warp, lane, blocks)
-        acc = np.zeros((4,) + texel.shape, dtype=np.float32)
-        for s in range(S):
-            zs = zt[s].take(texel)  # sample s of each thread's texel
-            z2 = zs * zs
-            acc[0] += zs
-            acc[1] += z2
-            acc[2] += z2 * zs
-            acc[3] += z2 * z2
-        acc /= inv
         for j in range(4):
-            shared[addr["resolve"][r, j]] = acc[j]
+            shared[addr["resolve"][r, j]] = mom[j].take(texel)
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
@@ -181,14 +205,25 @@ def _run_batch(zt, shape, bx, by, out, pattern, addr, words, w, timings):
     X = tx[..., None] + _OUT_W * bx
     Y = ty[..., None] + _OUT_H * by
     inside = (X < W) & (Y < H)
-    texel = (Y * W + X)[inside]
+    texel = Y * W + X
+    # Stores by fancy assignment of a contiguous copy (several times faster than
+    # ndarray.put); every texel is written once, so the order of stores is immaterial.
+    if inside.all():  # interior blocks: no mask to apply (same stores, no boolean gathers)
+        texel = texel.ravel()
+        for j in range(4):
+            out[j][texel] = np.ascontiguousarray(v[:, j]).ravel()
+        return _record(timings, (t0, t1, t2, t3, time.perf_counter()))
+    texel = texel[inside]
     for j in range(4):
-        out[j].put(texel, v[:, j][inside])
-    t4 = time.perf_counter()
+        out[j][texel] = v[:, j][inside]
+    _record(timings, (t0, t1, t2, t3, time.perf_counter()))
 
+
+def _record(timings, t):
+    """Add the stage times between the time stamps ``t`` to ``timings`` (if given)."""
     if timings is not None:
-        for name, dt in zip(_STAGES, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
-            timings[name] = timings.get(name, 0.0) + dt
+        for name, a, b in zip(_STAGES, t[:-1], t[1:]):
+            timings[name] = timings.get(name, 0.0) + (b - a)
 
 
 def filter_moments(depth_samples, *, blocks_per_batch=64, layout="paper", timings=None):
@@ -224,6 +259,12 @@ def filter_moments(depth_samples, *, blocks_per_batch=64, layout="paper", timing
     HPG17 §4.1 and Figure 6; the access pattern of each phase is written down in
     :mod:`moments_ref.banks`, the block coverage in this module's docstring.
     """
+    out, (H, W) = _filter_rows(depth_samples, blocks_per_batch=blocks_per_batch, layout=layout, timings=timings)
+    return np.ascontiguousarray(out.T).reshape(H, W, 4)
+
+
+def _filter_rows(depth_samples, *, blocks_per_batch=64, layout="paper", timings=None):
+    """:func:`filter_moments` as ``(4, H·W)`` rows (the emulation's own layout, one row per moment) and ``(H, W)``."""
     z = check_depth_samples(depth_samples).astype(np.float32, copy=False)
     if isinstance(blocks_per_batch, bool) or not isinstance(blocks_per_batch, (int, np.integer)) or blocks_per_batch < 1:
         raise InputError(f"blocks_per_batch: expected a positive integer, got {blocks_per_batch!r}")
@@ -233,12 +274,15 @@ def filter_moments(depth_samples, *, blocks_per_batch=64, layout="paper", timing
     H, W, _ = z.shape
     rows, cols = block_grid(H, W)
     out = np.empty((4, H * W), dtype=np.float32)
-    zt = np.ascontiguousarray(z.reshape(H * W, -1).T)
+    t0 = time.perf_counter()
+    mom = _thread_moments(np.ascontiguousarray(z.reshape(H * W, -1).T))
+    if timings is not None:
+        timings["resolve"] = timings.get("resolve", 0.0) + time.perf_counter() - t0
     ids = np.arange(rows * cols)
     for start in range(0, len(ids), int(blocks_per_batch)):
         b = ids[start : start + int(blocks_per_batch)]
-        _run_batch(zt, z.shape, b % cols, b // cols, out, pattern, addr, words, w, timings)
-    return np.ascontiguousarray(out.T).reshape(H, W, 4)
+        _run_batch(mom, z.shape, b % cols, b // cols, out, pattern, addr, words, w, timings)
+    return out, (H, W)
 
 
 def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
@@ -269,16 +313,15 @@ def filter_and_quantize(depth_samples, fmt="nlq64", **kwargs):
     """
     if fmt not in FORMATS:
         raise InputError(f"fmt: expected one of {tuple(FORMATS)}, got {fmt!r}")
+    if fmt in ("nlq64", "nlq32"):
+        # Bias, Φ and pack an L2 chunk at a time straight from the emulation's rows:
+        # the (H, W, 4) view of the rows reads each chunk as four contiguous runs and
+        # spares the transposing copy of filter_moments; the same texel values.
+        rows, (H, W) = _filter_rows(depth_samples, **kwargs)
+        return quantize_nlq(rows.T.reshape(H, W, 4), fmt)
     b = filter_moments(depth_samples, **kwargs)
     if fmt == "float128":
         return b
-    if fmt == "affine64":
-        from .affine import encode_unorm16
+    from .affine import encode_unorm16
 
-        return encode_unorm16(b)
-    from .moments import BIAS_FLOAT32, bias_moments
-    from .nonlinear import phi
-    from .packing import pack32, pack64
-
-    r = phi(bias_moments(b, BIAS_FLOAT32))
-    return pack64(r) if fmt == "nlq64" else pack32(r)
+    return encode_unorm16(b)

@@ -56,11 +56,14 @@ HPG17 : see docs/bib.md.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from ._arrays import InputError, as_array, first_index, float_dtype, real_input
-from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, psi4, psi4_inverse, rounding_tolerance,
-                        validate_representation)
+from .moments import BIAS_FLOAT32, bias_moments
+from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, _phi_rows, _psi4_clamped, phi, psi4, psi4_inverse,
+                        rounding_tolerance, validate_representation)
 
 __all__ = [
     "pack64",
@@ -77,6 +80,7 @@ __all__ = [
     "XI_SHIFT",
     "DEPTH_STEP32",
     "DEPTH_STEP64",
+    "nlq_texels",
 ]
 
 # 32-bit layout (stable): field shifts and widths.
@@ -121,6 +125,109 @@ def _encoder_input(r):
     np.clip(r[..., 2], 0, 1, out=r[..., 2])
     np.maximum(r[..., 3], 0, out=r[..., 3])
     return r
+
+
+#: Texels per chunk of the encoders (four float rows and their codes stay in L2).
+_ENCODE_CHUNK = 8192
+
+
+@lru_cache(maxsize=4)
+def _bounds(dtype):
+    """Constant rows of one chunk: -1, 0, 1, Ψ4's clamp bounds (read-only).
+
+    Speed: NumPy's maximum/minimum against a constant *array* are vectorized, its
+    clip and maximum against a scalar are not (about 2× slower); for finite values
+    ``clip(x, a, b) = minimum(maximum(x, a), b)`` exactly.
+    """
+    dt = np.dtype(dtype)
+    out = {k: np.full(_ENCODE_CHUNK, v, dtype=dt) for k, v in
+           (("-1", -1), ("0", 0), ("1", 1), ("xi_min", dt.type(PSI4_XI_MIN)), ("xi_max", dt.type(PSI4_XI_MAX)))}
+    for v in out.values():
+        v.flags.writeable = False
+    return out
+
+
+def _encoder_rows(r):
+    """``(start, stop, rows, bounds)`` over the texels of r: rows ``(y1, y2, v2, ξ4)`` saturated as by :func:`_encoder_input`.
+
+    Speed: one transposing copy per L2-sized chunk (structure of arrays), the
+    saturation in place on contiguous rows, the checks per chunk; the same
+    operations per element as :func:`_encoder_input`, so the same values. A chunk
+    that fails a check hands the whole array to :func:`_encoder_input`, which
+    raises the error it always raised (first bad index of r). ``bounds`` are the
+    rows of :func:`_bounds` cut to the chunk.
+    """
+    flat = r.reshape(-1, 4)
+    tol = r.dtype.type(rounding_tolerance(r.dtype))
+    full = _bounds(r.dtype)
+    for lo in range(0, flat.shape[0], _ENCODE_CHUNK):
+        rows = np.array(flat[lo : lo + _ENCODE_CHUNK].T, order="C")
+        m = rows.shape[1]
+        c = full if m == _ENCODE_CHUNK else {k: v[:m] for k, v in full.items()}
+        if not _saturated(rows, c, tol):
+            _encoder_input(r)  # raises
+        yield lo, lo + m, rows, c
+
+
+def _all_finite(rows):
+    """``np.isfinite(rows).all()``, decided by one sum where it is finite.
+
+    Speed: a sum is one vectorized reduction without a boolean temporary; a NaN or
+    infinity makes it non-finite, so a finite sum proves every value finite, and
+    only a non-finite sum (also reachable by overflow) needs the exact test.
+    """
+    return bool(np.isfinite(np.add.reduce(rows, axis=None))) or bool(np.isfinite(rows).all())
+
+
+def _saturated(rows, c, tol):
+    """Saturate the rows ``(y1, y2, v2, ξ4)`` in place as :func:`_encoder_input` does; False (rows untouched) if they fail its checks."""
+    y1, y2, v2, xi4 = rows
+    if not _all_finite(rows) or (y1 > y2 + tol).any():
+        return False
+    for y in (y1, y2):
+        np.maximum(y, c["-1"], out=y)
+        np.minimum(y, c["1"], out=y)
+    np.maximum(y2, y1, out=y2)
+    np.maximum(v2, c["0"], out=v2)
+    np.minimum(v2, c["1"], out=v2)
+    np.maximum(xi4, c["0"], out=xi4)
+    return True
+
+
+@lru_cache(maxsize=None)
+def _decoded_xi64(dtype):
+    """``psi4_inverse(c / 65535)`` for every 16-bit code c (what :func:`unpack64` decodes), read-only."""
+    dt = np.dtype(dtype)
+    t = psi4_inverse(np.arange(_U16 + 1).astype(dt) / dt.type(_U16))
+    t.flags.writeable = False
+    return t
+
+
+@lru_cache(maxsize=None)
+def _decoded_xi32(dtype):
+    """:func:`_decode_xi32` of every 6-bit code, read-only."""
+    t = _decode_xi32(np.arange(_XI_MAX + 1), dtype)
+    t.flags.writeable = False
+    return t
+
+
+def _xi_codes(xi4, scale, rounding, table, c):
+    """The Ψ4 code of saturated ξ4 rows (``rounding`` = np.ceil or np.rint), bumped where its decode < ξ4.
+
+    The operations of ``rounding(psi4(ξ4)·scale)`` and :func:`_xi_code_up`, except
+    that the decoded value of a code is looked up in ``table`` (the decoder applied
+    once to every code) instead of evaluating Ψ4⁻¹ (two exp) per texel.
+    """
+    x = np.maximum(xi4, c["xi_min"])
+    np.minimum(x, c["xi_max"], out=x)
+    u = _psi4_clamped(x, c["0"], c["1"])
+    u *= scale
+    code = rounding(u, out=u).astype(np.intp)
+    cmax = len(table) - 1
+    low = table[code] < x
+    low &= code < cmax
+    code += low
+    return code
 
 
 def _uint_input(q, name, dtype, trailing=None):
@@ -183,17 +290,29 @@ def pack64(r):
     >>> pack64([-1.0, 1.0, 0.5, 0.25])
     array([    0, 65535, 32768, 65535], dtype=uint16)
     """
-    r = _encoder_input(r)
-    dt = r.dtype.type
+    r = real_input(r, "r", trailing=4, finite=False)  # finiteness is checked per chunk
     q = np.empty(r.shape, dtype=np.uint16)
-    scale = dt(_U16)
-    q[..., 0] = np.rint((r[..., 0] + 1) * dt(0.5) * scale)
-    q[..., 1] = np.rint((r[..., 1] + 1) * dt(0.5) * scale)
-    q[..., 2] = np.rint(r[..., 2] * scale)
-    code = np.ceil(psi4(r[..., 3]) * scale).astype(np.int64)
-    code = _xi_code_up(r[..., 3], code, lambda c: psi4_inverse(c.astype(r.dtype) / scale), _U16)
-    q[..., 3] = code
+    qflat = q.reshape(-1, 4)
+    for lo, hi, rows, c in _encoder_rows(r):
+        _encode64(rows, c, qflat[lo:hi])
     return q
+
+
+def _encode64(rows, c, out):
+    """:func:`pack64` of saturated rows ``(y1, y2, v2, ξ4)`` (overwritten) into ``out`` (m, 4) uint16."""
+    y1, y2, v2, xi4 = rows
+    dt = rows.dtype.type
+    scale = dt(_U16)
+    # Channels 0, 1: round(65535 · (y + 1)/2), operations in the order of the formula.
+    for k, y in enumerate((y1, y2)):
+        y += 1
+        y *= dt(0.5)
+        y *= scale
+        out[:, k] = np.rint(y, out=y)
+    # Channel 2: round(65535 · v2); channel 3: ceil(65535 · Ψ4(ξ4)), bumped up.
+    v2 *= scale
+    out[:, 2] = np.rint(v2, out=v2)
+    out[:, 3] = _xi_codes(xi4, scale, np.ceil, _decoded_xi64(rows.dtype), c)
 
 
 def unpack64(q, dtype=np.float64):
@@ -318,14 +437,109 @@ def pack32(r):
     >>> unpack32(p).round(2)
     array([-0.5 ,  0.5 ,  0.25,  0.  ])
     """
-    r = _encoder_input(r)
-    dt = r.dtype.type
-    f1, f2 = fold(depth_code(r[..., 0]), depth_code(r[..., 1]))
-    vcode = np.rint(np.sqrt(r[..., 2]) * dt(_V_MAX)).astype(np.int64)
-    xcode = np.rint(psi4(r[..., 3]) * dt(_XI_MAX)).astype(np.int64)
-    xcode = _xi_code_up(r[..., 3], xcode, lambda c: _decode_xi32(c, r.dtype), _XI_MAX)
-    p = (f2 << Y2_SHIFT) | (f1 << Y1_SHIFT) | (vcode << V_SHIFT) | (xcode << XI_SHIFT)
-    return p.astype(np.uint32)
+    r = real_input(r, "r", trailing=4, finite=False)  # finiteness is checked per chunk
+    p = np.empty(r.shape[:-1], dtype=np.uint32)
+    pflat = p.reshape(-1)
+    for lo, hi, rows, c in _encoder_rows(r):
+        _encode32(rows, c, pflat[lo:hi])
+    return p
+
+
+def _encode32(rows, c, out):
+    """:func:`pack32` of saturated rows ``(y1, y2, v2, ξ4)`` (overwritten) into ``out`` (m,) uint32."""
+    y1, y2, v2, xi4 = rows
+    dt = rows.dtype.type
+    # Depth codes clip(⌊511.5 (y + 1)⌋, 0, 1022) (:func:`depth_code`), kept as floats:
+    # small integers are exact, and the fold needs no integer temporaries.
+    for y in (y1, y2):
+        y += 1
+        y *= dt(511.5)
+        np.floor(y, out=y)
+        np.maximum(y, c["0"], out=y)
+        np.minimum(y, 1022, out=y)
+    # The fold of Figure 5 (:func:`fold`): ỹ1 ≥ 512 -> (1023 − ỹ1, 1022 − ỹ2).
+    flip = y1 >= 512
+    np.subtract(1023, y1, out=y1, where=flip)
+    np.subtract(1022, y2, out=y2, where=flip)
+    # round(127 √v2) and round(63 Ψ4(ξ4)) (bumped up where it decodes below ξ4).
+    np.sqrt(v2, out=v2)
+    v2 *= dt(_V_MAX)
+    np.rint(v2, out=v2)
+    xcode = _xi_codes(xi4, dt(_XI_MAX), np.rint, _decoded_xi32(rows.dtype), c)
+    # Shift and or, in uint32 (every field fits its bits; ỹ2 sits at Y2_SHIFT = 0).
+    out[:] = y2
+    out |= y1.astype(np.uint32) << Y1_SHIFT
+    out |= v2.astype(np.uint32) << V_SHIFT
+    out |= xcode.astype(np.uint32) << XI_SHIFT
+
+
+# ---------------------------------------------------------------------------
+# moments -> texels in one pass
+
+
+def nlq_texels(b, fmt="nlq64"):
+    """``pack64(phi(bias_moments(b, BIAS_FLOAT32)))`` (or pack32) bit for bit, one L2 chunk at a time.
+
+    Parameters
+    ----------
+    b : (..., 4) float array
+        Moments b1..b4 (float32 in the shader), not yet biased.
+    fmt : {"nlq64", "nlq32"}
+
+    Returns
+    -------
+    texels : (..., 4) uint16 (nlq64) or (...) uint32 (nlq32)
+
+    Notes
+    -----
+    HPG17 §3.2 (bias), Algorithm 2 (Φ), §3.3 / §3.5 (the formats). Speed: each chunk
+    is transposed once into rows (structure of arrays) and stays there through
+    the bias, Φ and the encoder, instead of three whole-array passes with a
+    transposition each; every step is elementwise with the operations of the
+    separate functions, so the texels are the same. Input that any of the three
+    would refuse goes through them (and raises their error).
+    """
+    if fmt not in ("nlq64", "nlq32"):
+        raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
+    b = real_input(b, "b", trailing=4, finite=False)
+    shape = b.shape if fmt == "nlq64" else b.shape[:-1]
+    out = np.empty(shape, np.uint16 if fmt == "nlq64" else np.uint32)
+    flat, oflat = b.reshape(-1, 4), out.reshape((-1, 4) if fmt == "nlq64" else (-1,))
+    scale, shift = _bias_rows(b.dtype)
+    tol = b.dtype.type(rounding_tolerance(b.dtype))
+    full = _bounds(b.dtype)
+    res = np.empty((4, min(_ENCODE_CHUNK, flat.shape[0])), dtype=b.dtype)
+    for lo in range(0, flat.shape[0], _ENCODE_CHUNK):
+        rows = np.array(flat[lo : lo + _ENCODE_CHUNK].T, order="C")
+        m = rows.shape[1]
+        c = full if m == _ENCODE_CHUNK else {k: v[:m] for k, v in full.items()}
+        if not _all_finite(rows):
+            return _nlq_separately(b, fmt)
+        # Bias: b·(1 − α) + α b* (moments.bias_moments), row k gets α b*_k (a scalar
+        # per row: NumPy's array + scalar loop is vectorized, a broadcast column is not).
+        rows *= scale
+        for k in range(4):
+            rows[k] += shift[k]
+        _phi_rows(rows, res[:, :m])
+        if not _saturated(res[:, :m], c, tol):
+            return _nlq_separately(b, fmt)
+        (_encode64 if fmt == "nlq64" else _encode32)(res[:, :m], c, oflat[lo : lo + m])
+    return out
+
+
+def _nlq_separately(b, fmt):
+    """The three steps of :func:`nlq_texels` one after the other (the reference, and the error path)."""
+    r = phi(bias_moments(b, BIAS_FLOAT32))
+    return pack64(r) if fmt == "nlq64" else pack32(r)
+
+
+@lru_cache(maxsize=4)
+def _bias_rows(dtype):
+    """``(1 − α, α b*)`` of BIAS_FLOAT32 in dtype, as :func:`moments_ref.moments.bias_moments` computes them (α b* as scalars)."""
+    dt = np.dtype(dtype).type
+    alpha = dt(BIAS_FLOAT32.alpha)
+    shift = alpha * np.asarray(BIAS_FLOAT32.target, dtype=dtype)
+    return dt(1) - alpha, tuple(shift)
 
 
 def _decode_xi32(code, dt):

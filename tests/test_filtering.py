@@ -238,3 +238,38 @@ def test_blur_bands_do_not_change_the_result(monkeypatch):
     want = blur(m)
     monkeypatch.setattr(filtering, "_BAND_BYTES", 1)
     assert blur(m).tobytes() == want.tobytes()
+
+
+# ---------------------------------------------------------------------------
+# the whole global path in bands (filtering.global_path_nlq) against its passes
+
+
+@pytest.mark.parametrize("fmt", ["nlq64", "nlq32"])
+@pytest.mark.parametrize("shape", [(37, 23, 4), (9, 64, 1), (3, 5, 3)])
+def test_global_path_in_bands_is_the_passes_one_after_the_other(monkeypatch, fmt, shape):
+    from moments_ref import filtering
+    from moments_ref.moments import BIAS_FLOAT32, bias_moments
+    from moments_ref.nonlinear import phi
+    from moments_ref.packing import pack32, pack64
+
+    rng = np.random.default_rng(sum(shape))
+    z = rng.uniform(-1, 1, shape).astype(np.float32)
+    z[::4, ::3] = -0.0
+    z[1::5] = 1.0
+    r = phi(bias_moments(blur(resolve_moments(z)).astype(np.float32), BIAS_FLOAT32))
+    want = pack64(r) if fmt == "nlq64" else pack32(r)
+    # bands of 2 rows: every band has guard rows inside the map and at its border
+    monkeypatch.setattr(filtering, "_PATH_BAND_TEXELS", 2 * shape[1])
+    got = filtering.global_path_nlq(z, fmt)
+    assert got.dtype == want.dtype and got.shape == want.shape
+    assert np.array_equal(got, want)
+    assert np.array_equal(filtering.quantize_nlq(blur(resolve_moments(z)).astype(np.float32), fmt), want)
+
+
+def test_global_path_refuses_what_its_passes_refuse():
+    from moments_ref import filtering
+
+    with pytest.raises(InputError, match=r"depth_samples: expected depths in \[-1, 1\], got .* at index \(1, 0, 0\)"):
+        filtering.global_path_nlq(np.array([[[0.0]], [[1.5]]]))
+    with pytest.raises(InputError, match="fmt"):
+        filtering.global_path_nlq(np.zeros((2, 2, 1)), "nlq16")

@@ -295,3 +295,31 @@ def test_depth_steps_by_value():
     assert np.abs(d - y).max() > 0.45 * pk.DEPTH_STEP32
     d64 = pk.unpack64(pk.pack64(r))[:, 0]
     assert np.abs(d64 - y).max() <= pk.DEPTH_STEP64 / 2 + 1e-12
+
+
+# ---------------------------------------------------------------------------
+# bias, Φ and pack in one pass (packing.nlq_texels) against the three calls
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("fmt", ["nlq64", "nlq32"])
+def test_nlq_texels_is_bias_phi_pack(dtype, fmt):
+    rng = np.random.default_rng(7)
+    parts = [power_moments(rng.uniform(-1, 1, (9000, k))) for k in (1, 2, 3, 4)]  # one depth: singular rows
+    parts.append(power_moments(np.clip(rng.uniform(-1, 1, (3000, 1)) + rng.normal(0, 1e-6, (3000, 4)), -1, 1)))
+    b = np.concatenate(parts).astype(dtype)  # 39000 texels: several chunks and a short last one
+    r = nl.phi(bias_moments(b, BIAS_FLOAT32))
+    want = pk.pack64(r) if fmt == "nlq64" else pk.pack32(r)
+    got = pk.nlq_texels(b, fmt)
+    assert got.dtype == want.dtype and np.array_equal(got, want)
+    assert np.array_equal(pk.nlq_texels(b.reshape(3, -1, 4), fmt), want.reshape((3, -1, 4)[: want.ndim + 1]))
+
+
+def test_nlq_texels_raises_the_errors_of_its_steps():
+    b = np.zeros((20000, 4), np.float32)
+    b[12345, 2] = np.nan
+    with pytest.raises(InputError) as want:
+        bias_moments(b, BIAS_FLOAT32)
+    with pytest.raises(InputError) as got:
+        pk.nlq_texels(b)
+    assert str(got.value) == str(want.value)

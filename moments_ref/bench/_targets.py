@@ -33,7 +33,6 @@ from ..moments import BIAS_FLOAT32, bias_moments, power_moments
 from ..msm import shadow_intensity
 from ..msm6 import BIAS6_FLOAT32
 from ..nonlinear import phi, shade
-from ..packing import pack32, pack64
 from ..raster import rasterize_depth
 from ._cases import raster_case
 
@@ -114,10 +113,12 @@ def _raster_rows(cases, repeat):
 
 
 def global_nlq(z, fmt="nlq64"):
-    """The global path of HPG17 §4: resolve, 9² blur (float64, cast to float32), bias, Φ, pack."""
-    b = filtering.blur(filtering.resolve_moments(z)).astype(np.float32)
-    r = phi(bias_moments(b, BIAS_FLOAT32))
-    return pack64(r) if fmt == "nlq64" else pack32(r)
+    """The global path of HPG17 §4: resolve, 9² blur (float64, cast to float32), bias, Φ, pack.
+
+    :func:`moments_ref.filtering.global_path_nlq`: the same values as the passes one
+    after the other, a band of rows at a time.
+    """
+    return filtering.global_path_nlq(z, fmt)
 
 
 def _nlq_rows(size, repeat):
