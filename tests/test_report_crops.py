@@ -30,42 +30,48 @@ def test_spread_by_hand():
     assert _crops.spread(e[:1]) == pytest.approx(np.array([[0.2, 0.0, 0.1, 0.0]]))  # one technique: |e|
 
 
-def _brute_windows(score, side, count):
-    """Every window's mean by loops, sorted by (−mean, row, col); accepted when it meets no accepted one."""
+def _brute_windows(score, side, count, gap):
+    """Every window's mean by loops, sorted by (−mean, row, col); accepted when ``gap`` apart from the accepted."""
     h, w = score.shape
     cands = sorted(((-score[r:r + side, c:c + side].sum() / side ** 2, r, c) for r in range(h - side + 1)
                     for c in range(w - side + 1)))
     out = []
     for m, r, c in cands:
-        if -m <= 0 or len(out) == count:
+        if -m <= 0 or len(out) == count or (out and -m < _crops.MIN_SHARE * out[0][2]):
             break
-        if all(r + side <= r2 or r2 + side <= r or c + side <= c2 or c2 + side <= c for r2, c2, _ in out):
+        if all(r + side + gap <= r2 or r2 + side + gap <= r or c + side + gap <= c2 or c2 + side + gap <= c
+               for r2, c2, _ in out):
             out.append((r, c, -m))
     return out
 
 
-@given(st.integers(1, 12), st.integers(1, 12), st.integers(1, 5), st.integers(1, 4), st.randoms(use_true_random=False))
-def test_windows_equal_brute_force(h, w, side, count, rnd):
+@given(st.integers(1, 14), st.integers(1, 14), st.integers(1, 5), st.integers(1, 4), st.integers(0, 3),
+       st.randoms(use_true_random=False))
+def test_windows_equal_brute_force(h, w, side, count, gap, rnd):
     side = min(side, h, w)
     # Small integers: exact sums in both computations, and many ties to break the same way.
-    score = np.array([[rnd.choice([0, 0, 1, 2, 3]) for _ in range(w)] for _ in range(h)], dtype=float)
+    score = np.array([[rnd.choice([0, 0, 0, 1, 2, 30]) for _ in range(w)] for _ in range(h)], dtype=float)
     assert _crops.box_means(score, side) == pytest.approx(
         np.array([[score[r:r + side, c:c + side].mean() for c in range(w - side + 1)] for r in range(h - side + 1)]))
-    assert _crops.choose_windows(score, side, count) == _brute_windows(score, side, count)
+    assert _crops.choose_windows(score, side, count, gap) == _brute_windows(score, side, count, gap)
 
 
 def test_windows_find_planted_differences():
     score = np.zeros((60, 100))
     score[10:14, 80:84] = 1.0  # strongest
     score[40:44, 10:14] = 0.6
-    score[45:47, 50:52] = 0.5  # weaker and smaller
+    score[45:48, 50:53] = 0.5  # weaker and smaller
     score[5:6, 5:6] = 0.1  # a fourth: left out
+    score[10:14, 86:88] = 0.9  # beside the strongest: in its window or within half a window of it
     got = _crops.choose_windows(score, 8, 3)
     assert len(got) == 3
     for (r, c, _), (y, x) in zip(got, [(12, 82), (42, 12), (46, 51)]):
         assert r <= y < r + 8 and c <= x < c + 8
-    assert got[0][2] == pytest.approx(16 / 64) and got[0][2] > got[1][2] > got[2][2]
+    assert got[0][2] == pytest.approx((16 + 8 * 0.9) / 64) and got[0][2] > got[1][2] > got[2][2]
     assert _crops.choose_windows(np.zeros((20, 20)), 8) == []  # the techniques agree: no window
+    score[45:48, 50:53] = 0.0  # the third now below a tenth of the first: left out
+    score[45, 50] = 0.5
+    assert len(_crops.choose_windows(score, 8, 3)) == 2
 
 
 def _receiver_result(errors, h=40, w=64):

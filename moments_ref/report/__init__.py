@@ -17,8 +17,8 @@ on it; :mod:`moments_ref.pipeline`) and writes to DIR:
 * ``report.md``: the settings used (and what was reduced), the machine and a
   same-run memory-copy rate (:mod:`._machine`), the Pareto front per scene, a
   cross-scene summary, the measured verdict on HPG17's headline claims, the
-  error-against-cost plots ``front_<reference>.png`` (one per reference) and the
-  error images.
+  error-against-cost plots ``front_<reference>.png`` (one per reference), the
+  error images and the crops where the techniques differ most (:mod:`._crops`).
 
 Metrics over the receiver pixels inside the shadow map, with
 ``e = shadow − reference`` (shadow intensities, 1 = fully shadowed; the

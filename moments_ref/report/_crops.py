@@ -12,8 +12,10 @@ pixels are chosen where the techniques' signed errors against the reference
    from a summed-area table);
 3. greedily the window with the largest mean (ties: the first in row-major
    order of its top-left corner, so the choice is deterministic), then the
-   next largest among the windows that do not overlap any chosen one, until
-   :data:`MAX_WINDOWS` or no window with a positive mean is left.
+   next largest among the windows at least :data:`GAP` × ``side`` pixels away
+   from every chosen one (in x or in y: not two views of one feature), until
+   :data:`MAX_WINDOWS` or no window with a mean of at least :data:`MIN_SHARE`
+   of the first's is left.
 
 ``side`` is :data:`WINDOW` camera pixels at :data:`WINDOW_ROWS` rows, scaled
 with the camera's height (the same part of the view at every resolution; 192
@@ -41,7 +43,7 @@ from ..metrics import shaded_image
 from ..techniques import get_reference
 from ..techniques._errormaps import MASK
 
-__all__ = ["WINDOW", "WINDOW_ROWS", "MIN_SIDE", "MAX_WINDOWS", "window_side", "spread", "box_means",
+__all__ = ["WINDOW", "WINDOW_ROWS", "MIN_SIDE", "MAX_WINDOWS", "GAP", "MIN_SHARE", "window_side", "spread", "box_means",
            "choose_windows", "crop_figures", "crop_lines"]
 
 #: Window side in camera pixels at :data:`WINDOW_ROWS` rows of the camera.
@@ -51,6 +53,10 @@ WINDOW_ROWS = 270
 MIN_SIDE = 8
 #: Windows per figure, at most.
 MAX_WINDOWS = 3
+#: Least gap between two windows, as a share of their side.
+GAP = 0.5
+#: Least mean spread of a window, as a share of the first window's.
+MIN_SHARE = 0.1
 
 
 def window_side(resolution):
@@ -76,12 +82,15 @@ def box_means(score, side):
     return total / (side * side)
 
 
-def choose_windows(score, side, count=MAX_WINDOWS):
-    """Up to ``count`` non-overlapping windows of largest mean ``score``: list of ``(row, col, mean)``.
+def choose_windows(score, side, count=MAX_WINDOWS, gap=None, share=MIN_SHARE):
+    """Up to ``count`` windows of largest mean ``score``, apart from each other: list of ``(row, col, mean)``.
 
-    ``(row, col)`` is the top-left pixel; greedy, ties to the first in row-major
-    order; windows with mean 0 are not chosen (module docstring).
+    ``(row, col)`` is the top-left pixel. Greedy, ties to the first in row-major
+    order; each next window at least ``gap`` pixels (default ``GAP · side``)
+    from every chosen one in x or in y, with a mean of at least ``share`` of
+    the first's and above 0 (module docstring).
     """
+    gap = int(np.ceil(GAP * side)) if gap is None else int(gap)
     means = box_means(score, side)
     # Rounding of the summed-area table leaves ~1e-16 where the score is 0: not a difference.
     means[means <= 1e-12 * max(float(np.max(means)), 1.0)] = -np.inf
@@ -89,11 +98,12 @@ def choose_windows(score, side, count=MAX_WINDOWS):
     while len(out) < count:
         k = int(np.argmax(means))
         r, c = divmod(k, means.shape[1])
-        if not np.isfinite(means[r, c]):
+        if not np.isfinite(means[r, c]) or (out and means[r, c] < share * out[0][2]):
             break
         out.append((r, c, float(means[r, c])))
-        # Every window whose box meets the chosen one: top-left within side − 1 of it.
-        means[max(r - side + 1, 0):r + side, max(c - side + 1, 0):c + side] = -np.inf
+        # Every window whose box comes closer than ``gap`` to the chosen one in both x and y.
+        reach = side + gap
+        means[max(r - reach + 1, 0):r + reach, max(c - reach + 1, 0):c + reach] = -np.inf
     return out
 
 
@@ -133,7 +143,7 @@ _WORDS = {"shaded": ("shadow intensity, 1 = fully shadowed", "darker than the re
 def _legend(ax, kind, side, vmax, reference):
     what, red, blue = _WORDS[kind]
     text = (f"Windows: {side}×{side} camera pixels where the signed\nerrors differ most (the mean over the window "
-            "of\nmax − min of the techniques' errors and 0), chosen\ngreedily without overlap; "
+            "of\nmax − min of the techniques' errors and 0), chosen\ngreedily, half a window apart; "
             "nearest-neighbour magnified.\n\n"
             f"e = technique − {reference} ({what})\nred: {red}\nblue: {blue}\n"
             f"one range ±{vmax:.3g}: the largest |e| in the windows\n(nothing clipped)")
@@ -223,17 +233,19 @@ def crop_figure(title, kind, pictures, errors, windows, side, reference="referen
 
 
 def _bars(fig, kind, shown, err):
-    """Colour bars right of the panels: the signed error, and for scattering the term's values."""
+    """Colour bars right of the crops: the signed error, and for scattering the term's values above it."""
     if err is None:
         return
-    x = max(a.get_position().x1 for a in fig.axes) + 0.02
+    crops = [a.get_position() for a in fig.axes if a.get_images() and not a.get_xlabel()]
+    x = max(b.x1 for b in crops) + 0.015
+    y0, y1 = min(b.y0 for b in crops), max(b.y1 for b in crops)
     if kind == "scattering" and shown is not None:
-        fig.colorbar(shown, cax=fig.add_axes((x, 0.5, 0.012, 0.3))).set_label(
+        mid = (y0 + y1) / 2
+        fig.colorbar(shown, cax=fig.add_axes((x, mid + 0.02, 0.012, y1 - mid - 0.02))).set_label(
             "scattering term / t_max (dimensionless)", fontsize=7)
-        box = (x, 0.1, 0.012, 0.3)
-    else:
-        box = (x, 0.12, 0.012, 0.6)
-    fig.colorbar(err, cax=fig.add_axes(box)).set_label(f"signed error e ({_WORDS[kind][0]})", fontsize=7)
+        y1 = mid - 0.02
+    fig.colorbar(err, cax=fig.add_axes((x, y0, 0.012, y1 - y0))).set_label(
+        f"signed error e ({_WORDS[kind][0]})", fontsize=7)
 
 
 def crop_figures(result, groups):
@@ -266,8 +278,9 @@ def crop_lines(paths):
              f"{WINDOW_ROWS} camera rows, scaled with the camera's height) where the techniques' signed errors "
              "differ most: each pixel's spread of the errors (the largest minus the smallest of the techniques' "
              "signed errors and the reference's 0) is averaged over every window position (a box filter); the "
-             "window with the largest mean is taken first, then the largest among those not overlapping a "
-             "chosen one (ties: the first in row-major order). They are outlined and numbered on the "
+             "window with the largest mean is taken first, then the largest among those at least half a "
+             f"window away from every chosen one and with at least {MIN_SHARE:.0%} of the first's mean "
+             "(ties: the first in row-major order). They are outlined and numbered on the "
              "reference; each window shows the reference and every technique, nearest-neighbour magnified, "
              "above each technique's signed error on one colour scale per figure.", ""]
     for p in paths:

@@ -70,8 +70,9 @@ def _scale(values):
     pos = v[v > 0]
     if len(pos) == 0 or pos.max() / pos.min() < 10:
         return "linear", {}
-    if np.any(v == 0):  # a zero is drawn at zero: linear up to the smallest positive value
-        return "symlog", {"linthresh": float(pos.min()), "linscale": 0.5}
+    if np.any(v == 0):  # a zero is drawn at zero: linear up to the decade below the smallest positive value
+        # (a decade boundary, so that the ticks 0 and 10^k do not overlap)
+        return "symlog", {"linthresh": float(10 ** np.floor(np.log10(pos.min()))), "linscale": 1.0}
     return "log", {}
 
 
@@ -167,8 +168,8 @@ def plot_fronts(rows):
         axes[0].set_ylabel("RMSE of the result against the reference")
         axes[1].legend(fontsize="small", loc="best")
         fig.suptitle(TITLES.get(ref, ref) + "\nfilled: on the scene's Pareto front over (RMSE, texel, fragment), "
-                     "judged beyond the timing spread; bars: min–max of the timed repeats; line: the lower "
-                     "envelope of the medians", fontsize="medium")
+                     "judged beyond the timing spread; hollow: dominated\nbars: min–max of the timed repeats; "
+                     "line: the lower envelope of the medians", fontsize="medium")
         fig.tight_layout()
         out[f"front_{ref}.png"] = fig
     return out

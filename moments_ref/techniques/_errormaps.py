@@ -45,10 +45,10 @@ def _range(errors):
 
 def _legend(ax, reference, vmax):
     ax.axis("off")
-    ax.text(0.02, 0.95, f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n\n"
+    ax.text(0.02, 1.0, f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n"
             "red: darker than the reference\nblue: lighter (light leaks)\n"
-            f"range ±{vmax:.3g}: the largest 99th\npercentile of |e|; beyond it clipped\n\n"
-            "grey: no receiver inside the\nshadow map (background, occluder,\noutside the light's map)",
+            f"range ±{vmax:.3g}: the largest 99th\npercentile of |e|; beyond it clipped\n"
+            "grey: no receiver inside the shadow\nmap (background, occluder, outside it)",
             va="top", fontsize=7, transform=ax.transAxes)
 
 
@@ -84,7 +84,13 @@ def error_maps(result, names, reference="reference", title=""):
         big = float(np.nanmax(np.abs(e))) if e.size else 0.0
         beyond = float(np.mean(np.abs(e) > vmax)) if e.size else 0.0
         ax[3 + 2 * i].set_title(f"{n}: e, max |e| {big:.2g}, {beyond:.1%} clipped", fontsize=7)
-    fig.suptitle(title or f"{result.scene.name}: signed error against {reference}", fontsize="medium")
+    for a in ax:
+        if a.get_images():  # a frame: a white floor (lit, or e = 0) reaches the edge
+            a.axis("on")
+            a.set_xticks([])
+            a.set_yticks([])
+    fig.suptitle((title or f"{result.scene.name}: signed error against {reference}")
+                 + f"\ncamera view, {w}×{h} pixels", fontsize="medium")
     fig.tight_layout(rect=(0, 0, 0.88, 1))
     if im is not None:
         cax = fig.add_axes((0.9, 0.15, 0.015, 0.7))
@@ -131,8 +137,7 @@ def visibility_maps(result, names, reference="reference", title=""):
         ax.axis("off")
     for ax, (t, inten) in zip(axes.ravel(), panels):
         ax.axis("on")  # a frame: the lit floor is white up to the edge
-        ax.set_xticks([])
-        ax.set_yticks([])
+        ax.set(xticks=[], yticks=[])
         ax.imshow(_visibility_rgb(gb, inten, cmap), interpolation="nearest")
         ax.set_title(t, fontsize="small")
     fig.suptitle(title or f"{result.scene.name}: visibility (camera view, {w}×{h} pixels)", fontsize="medium")
