@@ -161,8 +161,8 @@ def test_timing_noise_keeps_a_technique_on_the_front():
     assert [r["pareto"] for r in rows] == [True, True, False, False, True]
     md = "\n".join(_pareto.front_lines(rows))
     assert ("| **nlq64** | yes | 0.05 | 1.05 (0.85–1.3) | 0.1 (0.09–0.11) | on the medians only (within the "
-            "spread): msm64 (RMSE 0.05 vs 0.05, texel 1.05 (0.85–1.3) vs 1 (0.8–1.2), fragment 0.1 (0.09–0.11) vs "
-            "0.1 (0.09–0.11)) |") in md
+            "spread): msm64 (RMSE 0.05 vs 0.05, texel 1.05 (0.85–1.3) vs 1 (0.8–1.2), fragment 0.1 (0.09–0.11) "
+            "vs 0.1 (0.09–0.11)) |") in md
     assert "| **msm64** | yes | 0.05 | 1 (0.8–1.2) | 0.1 (0.09–0.11) | |" in md
     assert ("| nlq32 | no | 0.06 | 2 (1.9–2.1) | 0.2 (0.19–0.21) | msm64 (RMSE 0.06 vs 0.05, texel 2 (1.9–2.1) "
             "vs 1 (0.8–1.2), fragment 0.2 (0.19–0.21) vs 0.1 (0.09–0.11)) |") in md

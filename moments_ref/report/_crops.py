@@ -1,4 +1,4 @@
-"""Crops where the techniques differ most: the magnified insets of HPG17's and VWSS's figures.
+"""Crops where the techniques differ most: the magnified insets of HPG17 Figure 1, the close-ups of VWSS Figure 8.
 
 Per scene and reference, up to :data:`MAX_WINDOWS` square windows of camera
 pixels are chosen where the techniques' signed errors against the reference
@@ -43,8 +43,8 @@ from ..metrics import shaded_image
 from ..techniques import get_reference
 from ..techniques._errormaps import MASK
 
-__all__ = ["WINDOW", "WINDOW_ROWS", "MIN_SIDE", "MAX_WINDOWS", "GAP", "MIN_SHARE", "window_side", "spread", "box_means",
-           "choose_windows", "crop_figures", "crop_lines"]
+__all__ = ["WINDOW", "WINDOW_ROWS", "MIN_SIDE", "MAX_WINDOWS", "GAP", "MIN_SHARE", "window_side", "spread",
+           "box_means", "choose_windows", "crop_figure", "crop_figures", "crop_lines"]
 
 #: Window side in camera pixels at :data:`WINDOW_ROWS` rows of the camera.
 WINDOW = 48
@@ -74,7 +74,7 @@ def spread(errors):
 
 
 def box_means(score, side):
-    """Mean of ``score`` (H, W) over every ``side × side`` window: (H − side + 1, W − side + 1), by top-left corner."""
+    """Mean of ``score`` (H, W) over each ``side × side`` window by its top-left pixel: (H−side+1, W−side+1)."""
     s = np.asarray(score, dtype=np.float64)
     sat = np.zeros((s.shape[0] + 1, s.shape[1] + 1))
     sat[1:, 1:] = s.cumsum(axis=0).cumsum(axis=1)

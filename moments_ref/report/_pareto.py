@@ -34,7 +34,8 @@ import numpy as np
 from .._arrays import InputError
 from .. import techniques as _techniques
 
-__all__ = ["pareto_mask", "dominates", "mark_pareto", "groups", "front_lines", "summary_lines", "KEYS", "SPREAD", "FRONT_RULE"]
+__all__ = ["pareto_mask", "dominates", "mark_pareto", "groups", "front_lines", "summary_lines", "KEYS", "SPREAD",
+           "FRONT_RULE"]
 
 #: The coordinates of the front, each minimized.
 KEYS = ("rmse", "texel_seconds", "fragment_seconds")
