@@ -91,9 +91,9 @@ def error_maps(result, names, reference="reference", title=""):
             a.set_yticks([])
     fig.suptitle((title or f"{result.scene.name}: signed error against {reference}")
                  + f"\ncamera view, {w}×{h} pixels", fontsize="medium")
-    fig.tight_layout(rect=(0, 0, 0.88, 1))
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
     if im is not None:
-        cax = fig.add_axes((0.9, 0.15, 0.015, 0.7))
+        cax = fig.add_axes((0.88, 0.15, 0.015, 0.7))
         fig.colorbar(im, cax=cax).set_label("signed error e (shadow intensity)", fontsize=8)
     return fig
 
@@ -140,13 +140,13 @@ def visibility_maps(result, names, reference="reference", title=""):
         ax.set(xticks=[], yticks=[])
         ax.imshow(_visibility_rgb(gb, inten, cmap), interpolation="nearest")
         ax.set_title(t, fontsize="small")
-    fig.suptitle(title or f"{result.scene.name}: visibility (camera view, {w}×{h} pixels)", fontsize="medium")
+    fig.suptitle((title or f"{result.scene.name}: visibility (camera view, {w}×{h} pixels)")
+                 + "\nvisibility = 1 − shadow intensity", fontsize="medium")
     fig.legend(handles=[Patch(color=OCCLUDER_COLOUR, label="occluder"),
                         Patch(color=VISIBILITY_MASK, label="no receiver inside the shadow map "
                               "(background, outside the light's map)")],
                loc="lower center", ncol=2, fontsize="small", frameon=False)
     fig.tight_layout(rect=(0, 0.05, 0.88, 1))
     cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
-    fig.colorbar(ScalarMappable(Normalize(0, 1), cmap), cax=cax).set_label(
-        "visibility = 1 − shadow intensity (1 = fully lit)", fontsize=8)
+    fig.colorbar(ScalarMappable(Normalize(0, 1), cmap), cax=cax).set_label("visibility (1 = fully lit)", fontsize=8)
     return fig
