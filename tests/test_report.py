@@ -24,7 +24,7 @@ def tiny(tmp_path_factory):
 def test_files_columns_and_plot(tiny):
     out, res = tiny
     assert {p.name for p in out.iterdir()} == {"results.csv", "stages.json", "report.md", "front_pcf.png",
-                                               "errors_translucent.png", "claims.json"}
+                                               "errors_translucent.png", "claims.json", "crops_translucent_pcf.png"}
     with open(out / "results.csv", newline="") as f:
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == report.COLUMNS
@@ -33,6 +33,7 @@ def test_files_columns_and_plot(tiny):
     assert (out / "front_pcf.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     md = (out / "report.md").read_text()
     assert "| scene | technique | bits_per_texel" in md and "front_pcf.png" in md and "errors_translucent.png" in md
+    assert "## Where the techniques differ most" in md and "![crops](crops_translucent_pcf.png)" in md
     stages = json.loads((out / "stages.json").read_text())
     assert "translucency_pass" in [s["stage"] for s in stages["translucent"]]
     assert report.read_results(out / "results.csv")[0].keys() == set(report.COLUMNS)

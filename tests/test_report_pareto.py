@@ -78,3 +78,100 @@ def test_settings_are_announced_with_the_reduction(capsys):
     assert report._scene_settings(sc, True, {"shadow_map_size": None, "msaa": None, "resolution": None}) == (
         (2048, 2048), 4, (1920, 1080))
 
+
+
+# ---------------------------------------------------------------------------
+# the front beyond the timing spread
+
+
+def _brute_spread(rows):
+    """The rule of report._pareto typed out row by row: (rmse, [(median, min, max), (median, min, max)])."""
+    def finite(r):
+        return np.isfinite(r[0]) and all(np.isfinite(v) for c in r[1] for v in c)
+
+    def beats(a, b):  # a dominates b
+        if not (finite(a) and finite(b)) or a[0] > b[0]:
+            return False
+        no_worse = all(ca[2] <= cb[1] or ca == cb for ca, cb in zip(a[1], b[1]))
+        better = a[0] < b[0] or any(ca[2] < cb[1] for ca, cb in zip(a[1], b[1]))
+        return no_worse and better
+
+    return [finite(r) and not any(beats(q, r) for j, q in enumerate(rows) if j != i) for i, r in enumerate(rows)]
+
+
+def _arrays(rows):
+    p = [[r[0]] + [c[0] for c in r[1]] for r in rows]
+    lo = [[r[0]] + [c[1] for c in r[1]] for r in rows]
+    hi = [[r[0]] + [c[2] for c in r[1]] for r in rows]
+    return p, lo, hi
+
+
+@st.composite
+def _timed(draw):
+    """A cost (median, min, max), often one of a few shared ones (the same stages charged to two rows)."""
+    shared = [(1.0, 0.8, 1.2), (1.0, 0.9, 1.1), (2.0, 1.2, 2.5), (0.5, 0.5, 0.5)]
+    if draw(st.booleans()):
+        return draw(st.sampled_from(shared))
+    a, b, c = sorted(draw(st.lists(st.sampled_from([0.1, 0.5, 0.8, 1.0, 1.1, 1.2, 2.0, 2.5]), min_size=3,
+                                   max_size=3)))
+    return (b, a, c)
+
+
+_spread_row = st.tuples(st.one_of(st.sampled_from([0.0, 0.03, 0.05]), st.just(float("nan"))),
+                        st.tuples(_timed(), _timed()))
+
+
+@given(st.lists(_spread_row, min_size=1, max_size=9))
+def test_front_beyond_the_spread_equals_brute_force(rows):
+    mask = list(report.pareto_mask(*_arrays(rows)))
+    assert mask == _brute_spread(rows)
+    naive = report.pareto_mask(_arrays(rows)[0])
+    assert all(m or not n for m, n in zip(mask, naive))  # it holds the front of the medians
+    if any(np.isfinite(r[0]) for r in rows):
+        assert any(mask)  # a strict partial order has minimal elements
+
+
+def test_front_without_spread_is_the_front_of_the_medians():
+    pts = [(0.0, 0.0, 1.2), (0.04, 0.7, 0.05), (0.05, 1.1, 0.07), (0.04, 0.7, 0.05), (0.1, 0.1, 0.1)]
+    assert list(report.pareto_mask(pts, pts, pts)) == list(report.pareto_mask(pts)) == _brute(pts)
+
+
+def _timed_row(tech, e, t, f):
+    """A row with costs (median, min, max)."""
+    return {"scene": "a", "technique": tech, "rmse": e, "texel_seconds": t[0], "texel_seconds_min": t[1],
+            "texel_seconds_max": t[2], "fragment_seconds": f[0], "fragment_seconds_min": f[1],
+            "fragment_seconds_max": f[2]}
+
+
+def test_timing_noise_keeps_a_technique_on_the_front():
+    """Hand-made rows on which the front of the medians and the front beyond the spread differ."""
+    frag = (0.10, 0.09, 0.11)  # the same fragment stage timed once, charged to msm64 and nlq64 alike
+    rows = [_timed_row("msm64", 0.05, (1.00, 0.80, 1.20), frag),
+            # slower than msm64 in the median only, within the spread; same RMSE: a tie
+            _timed_row("nlq64", 0.05, (1.05, 0.85, 1.30), frag),
+            # slower than msm64 beyond the spread in both costs, worse RMSE: beaten
+            _timed_row("nlq32", 0.06, (2.00, 1.90, 2.10), (0.20, 0.19, 0.21)),
+            # the same costs as msm64 (same stages), worse RMSE: beaten although nothing is beyond the spread
+            _timed_row("vsm", 0.09, (1.00, 0.80, 1.20), frag),
+            # lower RMSE: on the front whatever its cost
+            _timed_row("msm128", 0.04, (3.00, 2.90, 3.10), (0.30, 0.29, 0.31))]
+    medians = [[r[k] for k in _pareto.KEYS] for r in rows]
+    assert list(report.pareto_mask(medians)) == [True, False, False, False, True]
+    report.mark_pareto(rows)
+    assert [r["pareto"] for r in rows] == [True, True, False, False, True]
+    md = "\n".join(_pareto.front_lines(rows))
+    assert ("| **nlq64** | yes | 0.05 | 1.05 (0.85–1.3) | 0.1 (0.09–0.11) | on the medians only (within the "
+            "spread): msm64 (RMSE 0.05 vs 0.05, texel 1.05 (0.85–1.3) vs 1 (0.8–1.2), fragment 0.1 (0.09–0.11) "
+            "vs 0.1 (0.09–0.11)) |") in md
+    assert "| **msm64** | yes | 0.05 | 1 (0.8–1.2) | 0.1 (0.09–0.11) | |" in md
+    assert ("| nlq32 | no | 0.06 | 2 (1.9–2.1) | 0.2 (0.19–0.21) | msm64 (RMSE 0.06 vs 0.05, texel 2 (1.9–2.1) "
+            "vs 1 (0.8–1.2), fragment 0.2 (0.19–0.21) vs 0.1 (0.09–0.11)) |") in md
+    assert "| vsm | no | 0.09 |" in md and "`_max`" in md
+    # One more repeat that separates nlq64 from msm64 beyond the spread takes it off the front.
+    rows[1].update(texel_seconds_min=1.25, texel_seconds=1.28)
+    assert [r["pareto"] for r in report.mark_pareto(rows)] == [True, False, False, False, True]
+
+
+def test_a_spread_not_around_its_median_is_refused():
+    with pytest.raises(report.InputError, match=r"low <= points <= high.*index \(1, 1\)"):
+        report.pareto_mask([[0, 1], [0, 1]], [[0, 1], [0, 1.5]], [[0, 1], [0, 2]])

@@ -8,7 +8,8 @@ on it; :mod:`moments_ref.pipeline`) and writes to DIR:
 
 * ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`
   (timings: medians of ``repeats`` timed runs after a warm-up with their min and
-  max; ``pareto``: on the scene's Pareto front, :mod:`._pareto`);
+  max; ``pareto``: on the scene's Pareto front, dominance judged beyond the
+  timing spread, :mod:`._pareto`);
 * ``stages.json``: per scene a list of ``{"stage", "seconds" (median), "min",
   "max", "used_by"}`` (:meth:`moments_ref.pipeline.RunResult.stage_table`);
 * ``claims.json``: the paper claims measured on the scenes that ran
@@ -16,8 +17,8 @@ on it; :mod:`moments_ref.pipeline`) and writes to DIR:
 * ``report.md``: the settings used (and what was reduced), the machine and a
   same-run memory-copy rate (:mod:`._machine`), the Pareto front per scene, a
   cross-scene summary, the measured verdict on HPG17's headline claims, the
-  error-against-cost plots ``front_<reference>.png`` (one per reference) and the
-  error images.
+  error-against-cost plots ``front_<reference>.png`` (one per reference), the
+  error images and the crops where the techniques differ most (:mod:`._crops`).
 
 Metrics over the receiver pixels inside the shadow map, with
 ``e = shadow − reference`` (shadow intensities, 1 = fully shadowed; the
@@ -82,6 +83,7 @@ from .. import paper_claims, pipeline
 from .. import techniques as _techniques
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
+from ._crops import crop_figures
 from ._machine import copy_rate, machine, machine_lines
 from ._pareto import front_lines, mark_pareto, pareto_mask, summary_lines
 from ._plots import plot_error_vs_runtime, plot_fronts
@@ -225,6 +227,9 @@ def _run_scene(acc, sc, full, given, requested, overrides, noise_tiles, progress
         for fname, fig in (ref.figures(result, ref_names) if ref.figures else {}).items():
             acc.figures[fname] = fig
             acc.images.setdefault(ref_name, []).append(fname)
+    crops = crop_figures(result, groups)  # the insets where the techniques differ most (._crops)
+    acc.figures.update(crops)
+    acc.images.setdefault("crops", []).extend(crops)
 
 
 @contextmanager

@@ -70,8 +70,9 @@ def _scale(values):
     pos = v[v > 0]
     if len(pos) == 0 or pos.max() / pos.min() < 10:
         return "linear", {}
-    if np.any(v == 0):  # a zero is drawn at zero: linear up to the smallest positive value
-        return "symlog", {"linthresh": float(pos.min()), "linscale": 0.5}
+    if np.any(v == 0):  # a zero is drawn at zero: linear up to the decade below the smallest positive value
+        # (a decade boundary, so that the ticks 0 and 10^k do not overlap)
+        return "symlog", {"linthresh": float(10 ** np.floor(np.log10(pos.min()))), "linscale": 1.0}
     return "log", {}
 
 
@@ -125,6 +126,10 @@ def _panel(ax, rows, key, label, colors):
         xs, ys = [r[key] for r in rs], [r["rmse"] for r in rs]
         c = colors[si % len(colors)]
         for r, x, y in zip(rs, xs, ys):
+            lo, hi = r.get(f"{key}_min", x), r.get(f"{key}_max", x)
+            if hi > lo:  # the spread of the timed repeats
+                ax.errorbar(x, y, xerr=[[x - lo], [hi - x]], fmt="none", ecolor=c, elinewidth=1, capsize=2,
+                            alpha=0.6, zorder=2)
             ax.scatter(x, y, s=40, color=c if r.get("pareto") else "white", edgecolors=c, zorder=3)
             points.append((x, y, r["technique"], c))
         f = _front_2d(xs, ys)
@@ -140,8 +145,10 @@ def plot_fronts(rows):
     """Per reference one figure ``front_<reference>.png``: RMSE against texel and against fragment seconds.
 
     Filled markers: on the Pareto front over (RMSE, texel, fragment) of their
-    scene (``row["pareto"]``); hollow: dominated. The line is the front in the
-    plane of the panel. Axes linear unless the data span over a decade (then
+    scene (``row["pareto"]``, judged beyond the timing spread:
+    :mod:`._pareto`); hollow: dominated. Horizontal bars: the min–max of the
+    timed repeats (``_min``, ``_max``). The line is the lower envelope of the
+    medians in the plane of the panel. Axes linear unless the data span over a decade (then
     log, or symlog with a zero drawn at zero).
     """
     import matplotlib
@@ -160,8 +167,9 @@ def plot_fronts(rows):
         _panel(axes[1], rs, "fragment_seconds", "fragment cost: lookups at the receiver pixels, median s", colors)
         axes[0].set_ylabel("RMSE of the result against the reference")
         axes[1].legend(fontsize="small", loc="best")
-        fig.suptitle(TITLES.get(ref, ref) + "\nfilled: on the scene's Pareto front over (RMSE, texel, fragment)",
-                     fontsize="medium")
+        fig.suptitle(TITLES.get(ref, ref) + "\nfilled: on the scene's Pareto front over (RMSE, texel, fragment), "
+                     "judged beyond the timing spread; hollow: dominated\nbars: min–max of the timed repeats; "
+                     "line: the lower envelope of the medians", fontsize="medium")
         fig.tight_layout()
         out[f"front_{ref}.png"] = fig
     return out

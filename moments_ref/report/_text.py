@@ -19,6 +19,8 @@ from ..gbuffer import SLOPE_BIAS_TEXELS
 from ..metrics import LEAK_THRESHOLD
 from ..paper_claims import _row  # the one row lookup of the claims
 from .. import techniques as _techniques
+from ._crops import crop_lines
+from ._pareto import FRONT_RULE
 
 __all__ = ["COLUMNS", "CLOSE_REL", "CLEARLY_BELOW", "read_results", "evaluate_claims", "markdown", "csv_text"]
 
@@ -194,7 +196,8 @@ def _claims(claims, rows):
         word = {True: "**holds**", False: "**does not hold**", None: "**not measurable**"}[verdict]
         lines.append(f"- {claim}: {word}. {evidence}")
     lines.append("")
-    lines += ["`pareto`: on the Pareto front of its scene and reference (see above).", ""]
+    lines += ["`pareto`: on the Pareto front of its scene and reference (see above), dominance judged beyond "
+              "the timing spread: " + FRONT_RULE, ""]
     lines += ["", "## Results", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(_fmt(r[c]) for c in COLUMNS) + " |" for r in rows]
     return lines + [""]
@@ -204,7 +207,7 @@ def markdown(rows, stages, settings, claims, images, flip_ok, references, artifa
     """report.md.
 
     ``references``: per reference used (in order) ``(reference, settings per scene,
-    statements per scene)``; ``images``: ``{"fronts": [paths], reference name: [paths]}``;
+    statements per scene)``; ``images``: ``{"fronts": [paths], "crops": [paths], reference name: [paths]}``;
     ``artifacts``: markdown lines of the techniques' measured artifacts; ``answer``:
     the lines of the machine, the Pareto fronts and the summary, after the settings.
     """
@@ -220,11 +223,13 @@ def markdown(rows, stages, settings, claims, images, flip_ok, references, artifa
         lines += ref.section(cfg, statements, paths)
     lines += list(artifacts)
     lines += ["## Error against run time", "",
-              "One figure per reference. Filled markers are on their scene's Pareto front; the line is the "
-              "front in the plane of the panel.", ""]
+              "One figure per reference. Filled markers are on their scene's Pareto front (judged beyond the "
+              "timing spread, above); the horizontal bars are the min–max of the timed repeats; the line is "
+              "the lower envelope of the medians in the plane of the panel.", ""]
     lines += [f"![error against run time]({p})" for p in images.get("fronts", [])] + ["", "## Error images", ""]
     for p in plain:
         lines += [f"![{p}]({p})", ""]
+    lines += crop_lines(images.get("crops", []))
     lines += ["## Stages that ran", "", "Median seconds of each stage (min–max over the timed repeats; one run for "
               "stages outside the techniques' costs) and the techniques that need it.", ""]
     for s, st in stages.items():

@@ -12,6 +12,11 @@ beyond the range (drawn in the end colours, clipped). :data:`MASK` grey marks
 pixels that are not receivers inside the shadow map (background, occluders,
 receivers outside the light's map).
 
+:func:`visibility_maps` draws the visibility ``1 − intensity`` of the reference
+and each technique on a grey scale with its colour bar; there, pixels without
+a value are :data:`VISIBILITY_MASK` (light blue, not a grey of the scale) and
+occluders :data:`OCCLUDER_COLOUR` (orange).
+
 References
 ----------
 HPG17 : see docs/bib.md.
@@ -23,10 +28,14 @@ import numpy as np
 
 from ..metrics import shaded_image
 
-__all__ = ["MASK", "error_maps"]
+__all__ = ["MASK", "VISIBILITY_MASK", "OCCLUDER_COLOUR", "error_maps", "visibility_maps"]
 
 #: Colour of the pixels without an error: not a receiver inside the shadow map.
 MASK = (0.55, 0.55, 0.55)
+#: Colour of the pixels without a visibility (background, receivers outside the light's map) on a grey scale.
+VISIBILITY_MASK = (0.62, 0.78, 0.92)
+#: Colour of the occluders on a grey scale of visibility.
+OCCLUDER_COLOUR = (0.85, 0.55, 0.3)
 
 
 def _range(errors):
@@ -36,10 +45,10 @@ def _range(errors):
 
 def _legend(ax, reference, vmax):
     ax.axis("off")
-    ax.text(0.02, 0.95, f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n\n"
+    ax.text(0.02, 1.0, f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n"
             "red: darker than the reference\nblue: lighter (light leaks)\n"
-            f"range ±{vmax:.3g}: the largest 99th\npercentile of |e|; beyond it clipped\n\n"
-            "grey: no receiver inside the\nshadow map (background, occluder,\noutside the light's map)",
+            f"range ±{vmax:.3g}: the largest 99th\npercentile of |e|; beyond it clipped\n"
+            "grey: no receiver inside the shadow\nmap (background, occluder, outside it)",
             va="top", fontsize=7, transform=ax.transAxes)
 
 
@@ -75,9 +84,69 @@ def error_maps(result, names, reference="reference", title=""):
         big = float(np.nanmax(np.abs(e))) if e.size else 0.0
         beyond = float(np.mean(np.abs(e) > vmax)) if e.size else 0.0
         ax[3 + 2 * i].set_title(f"{n}: e, max |e| {big:.2g}, {beyond:.1%} clipped", fontsize=7)
-    fig.suptitle(title or f"{result.scene.name}: signed error against {reference}", fontsize="medium")
-    fig.tight_layout(rect=(0, 0, 0.88, 1))
+    for a in ax:
+        if a.get_images():  # a frame: a white floor (lit, or e = 0) reaches the edge
+            a.axis("on")
+            a.set_xticks([])
+            a.set_yticks([])
+    fig.suptitle((title or f"{result.scene.name}: signed error against {reference}")
+                 + f"\ncamera view, {w}×{h} pixels", fontsize="medium")
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
     if im is not None:
-        cax = fig.add_axes((0.9, 0.15, 0.015, 0.7))
+        cax = fig.add_axes((0.88, 0.15, 0.015, 0.7))
         fig.colorbar(im, cax=cax).set_label("signed error e (shadow intensity)", fontsize=8)
+    return fig
+
+
+def _visibility_rgb(gb, intensity, cmap):
+    """(H, W, 3): ``cmap`` of ``1 − intensity`` on the receivers, the documented colours elsewhere."""
+    from ..gbuffer import OCCLUDER
+
+    w, h = gb.resolution
+    rgb = np.empty((h * w, 3))
+    rgb[:] = VISIBILITY_MASK
+    rgb[gb.kind.reshape(-1) == OCCLUDER] = OCCLUDER_COLOUR
+    rgb[gb.pixel] = cmap(1.0 - np.clip(np.asarray(intensity, np.float64), 0, 1))[:, :3]
+    return rgb.reshape(h, w, 3)
+
+
+def visibility_maps(result, names, reference="reference", title=""):
+    """Figure: the visibility ``1 − shadow intensity`` of the reference and of each technique, one grey scale.
+
+    Receiver pixels inside the shadow map on the grey scale of the colour bar (0
+    black = fully shadowed, 1 white = fully lit); occluders :data:`OCCLUDER_COLOUR`,
+    other pixels :data:`VISIBILITY_MASK`, both named in the legend.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.patches import Patch
+
+    gb = result.gbuffer
+    w, h = gb.resolution
+    cmap = plt.get_cmap("gray")
+    panels = [(reference, result.reference.get(names[0]))] + [(n, result.shadow[n]) for n in names]
+    panels = [(t, v) for t, v in panels if v is not None]
+    ncols = min(len(panels), 3)
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.4 * ncols + 1.2, 3.4 * nrows * h / w + 1.3), squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, (t, inten) in zip(axes.ravel(), panels):
+        ax.axis("on")  # a frame: the lit floor is white up to the edge
+        ax.set(xticks=[], yticks=[])
+        ax.imshow(_visibility_rgb(gb, inten, cmap), interpolation="nearest")
+        ax.set_title(t, fontsize="small")
+    fig.suptitle((title or f"{result.scene.name}: visibility (camera view, {w}×{h} pixels)")
+                 + "\nvisibility = 1 − shadow intensity", fontsize="medium")
+    fig.legend(handles=[Patch(color=OCCLUDER_COLOUR, label="occluder"),
+                        Patch(color=VISIBILITY_MASK, label="no receiver inside the shadow map "
+                              "(background, outside the light's map)")],
+               loc="lower center", ncol=2, fontsize="small", frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 0.88, 1))
+    cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
+    fig.colorbar(ScalarMappable(Normalize(0, 1), cmap), cax=cax).set_label("visibility (1 = fully lit)", fontsize=8)
     return fig

@@ -48,7 +48,7 @@ from ..raster import rasterize_depth
 from ..vwss import depth_range, light_near, light_views
 from ..vwss.compare import _mvr_iter, _shade_multiview
 from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
-from ._errormaps import error_maps
+from ._errormaps import error_maps, visibility_maps
 from .references import intensity_metric
 
 __all__ = ["AREA_SETTINGS", "area_settings", "configure", "soft_statements", "soft_figure", "MVR_REFERENCE",
@@ -203,30 +203,14 @@ def soft_statements(rows, scene):
 
 
 def soft_figure(result, names):
-    """Visibility (1 − intensity) of the MVR reference and of each area-light row on the camera view."""
-    import matplotlib
+    """Visibility (1 − intensity) of the MVR reference and of each area-light row on the camera view.
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    from ..gbuffer import OCCLUDER, OUTSIDE_LIGHT
-
-    w, h = result.gbuffer.resolution
-    kind = result.gbuffer.kind.reshape(-1)
-    panels = [("MVR reference", result.reference.get(names[0]))] + [(n, result.shadow[n]) for n in names]
-    panels = [(t, v) for t, v in panels if v is not None]
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.2 * h / w + 0.7), squeeze=False)
-    for ax, (title, inten) in zip(axes[0], panels):
-        rgb = np.zeros((h * w, 3))
-        rgb[kind == OCCLUDER] = (0.85, 0.55, 0.3)
-        rgb[kind == OUTSIDE_LIGHT] = 0.5
-        rgb[result.gbuffer.pixel] = (1.0 - np.clip(np.asarray(inten, np.float64), 0, 1))[:, None]
-        ax.imshow(rgb.reshape(h, w, 3), interpolation="nearest")
-        ax.set_title(title, fontsize="small")
-        ax.axis("off")
-    fig.suptitle(f"{result.scene.name}: visibility under the area light")
-    fig.tight_layout()
-    return fig
+    :func:`._errormaps.visibility_maps`: one grey scale with its colour bar, occluders and pixels
+    without a receiver in documented colours.
+    """
+    return visibility_maps(result, names, "MVR reference", f"{result.scene.name}: visibility under the area "
+                           f"light (camera view, {result.gbuffer.resolution[0]}×{result.gbuffer.resolution[1]} "
+                           "pixels)")
 
 
 def _figures(result, names):
