@@ -1,0 +1,195 @@
+"""Coverage by spans: for each (triangle, pixel row, sample) the covered columns, solved from the edges.
+
+Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+
+Along a row of samples (fixed pixel row and sample index) the edge function of
+edge e is affine in the pixel column u counted from the box's first column:
+``F_e(u) = a_e u + L_e`` with ``a_e = 256 A_e``. The covered columns
+``F_e(u) >= 0`` for all three edges are one interval: ``u >= ceil(-L_e / a_e)``
+for ``a_e > 0``, ``u <= floor(-L_e / a_e)`` for ``a_e < 0``, all or nothing for
+``a_e = 0``. So the work per row is a constant, and the covered samples are
+written out from their intervals without testing the empty ones: the fill
+rate of a large triangle costs only its covered samples.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._matrices import _HALF, _SUB
+
+# (triangle, row, sample) rows per vectorized batch, and covered samples per yielded
+# batch: about 4 MiB per int64 array, so that a batch's temporaries stay near L2/L3.
+_ROW_BUDGET = 1 << 16
+_SAMPLE_BUDGET = 1 << 19
+
+# Below this magnitude an int64 L is exact in float64, and then ceil/floor of the
+# correctly rounded float quotient L / a equals the exact integer one: a non-integer
+# quotient lies at least 1/|a| from an integer, farther than its rounding error
+# |L / a| 2^-53 whenever |L| < 2^53. (Integer floor division costs 8 ns an element in
+# NumPy, a float division 0.5 ns.)
+_EXACT_FLOAT = float(1 << 53)
+# Boxes up to this many rows take the dense path (_rect_spans).
+_DENSE_ROWS = 32
+
+
+def _solve_interval(L, a, na, lo, hi):
+    """Narrow [lo, hi] (int64, in place) to the columns u with ``a u + L >= 0``.
+
+    Per row: L int64, a = 256 A int64, na = -a where a != 0 and 1 where a == 0 (so
+    that the float quotient is finite everywhere and no mask is needed for it).
+    """
+    t = L / na
+    pos = a > 0
+    neg = a < 0
+    bound = np.where(pos, np.ceil(t), np.floor(t)).astype(np.int64)
+    big = np.flatnonzero(np.abs(L) >= _EXACT_FLOAT)
+    if big.size:  # exact integer division (huge triangles reaching into the guard band)
+        Lb, ab = L[big], a[big]
+        safe = np.where(ab == 0, 1, ab)
+        bound[big] = np.where(ab > 0, -(Lb // safe), Lb // np.abs(safe))
+    np.maximum(lo, np.where(pos, bound, lo), out=lo)
+    np.minimum(hi, np.where(neg, bound, hi), out=hi)
+    # a == 0 (edge parallel to the rows): the whole row or nothing.
+    np.minimum(hi, np.where((~(pos | neg)) & (L < 0), -1, hi), out=hi)
+
+
+def _groups(weight, budget):
+    """Split positions 0..n-1 into consecutive runs of summed ``weight`` about ``budget`` (at least one each)."""
+    csum = np.cumsum(weight)
+    start = 0
+    while start < weight.size:
+        base = csum[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(csum, base + budget, side="right")))
+        yield start, stop
+        start = stop
+
+
+def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
+    """Covered column interval of every (triangle, row, sample) row of ``tri``'s boxes.
+
+    A3, B3 : (3, n) edge coefficients; base3 : (3, n) edge values at the centre of
+    the box's first pixel. Rows are ordered by triangle, pixel row, sample. Returns
+    the row's triangle position, pixel row, sample, first covered column and count
+    (count 0 rows left out).
+    """
+    S = sx.shape[0]
+    R = nr * S
+    pt = np.repeat(np.arange(nr.size), R)
+    k = np.arange(pt.size) - np.repeat(np.cumsum(R) - R, R)
+    ro, samp = k // S, k % S
+    yoff = sy[samp] + ro * _SUB
+    xoff = sx[samp]
+    lo = np.zeros(pt.size, np.int64)
+    hi = (nc - 1)[pt]
+    for e in range(3):
+        A, B, base = A3[e], B3[e], base3[e]
+        a = A * _SUB
+        na = np.where(a == 0, 1, -a)
+        L = base[pt] + A[pt] * xoff + B[pt] * yoff
+        _solve_interval(L, a[pt], na[pt], lo, hi)
+    cnt = hi - lo + 1
+    keep = np.flatnonzero(cnt > 0)
+    return pt[keep], (r0 + 0)[pt[keep]] + ro[keep], samp[keep], c0[pt[keep]] + lo[keep], cnt[keep]
+
+
+def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
+    """Yield _row_spans-like batches (row's triangle index into ``tri`` first) over all of ``tri``.
+
+    Boxes of up to _DENSE_ROWS rows go, grouped by their exact row count (a bincount,
+    no sort), to the dense float path; the rest (and any box too far into the guard
+    band for float64 to be exact) to the ragged int64 path.
+    """
+    S = sx.shape[0]
+    A3, B3 = s["A"][:, tri], s["B"][:, tri]
+    # Edge functions at the centre of each box's first pixel, exact in int64.
+    base3 = s["F0"][:, tri] + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
+    dense = (nr <= _DENSE_ROWS) & _float_safe(A3, B3, base3, nc, nr)
+    key = np.where(dense, nr, 0)
+    for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
+        sel = np.flatnonzero(key == k)
+        step = max(1, _ROW_BUDGET // (int(k) * S))
+        for a in range(0, sel.size, step):
+            g = sel[a:a + step]
+            j, row, samp, col0, cnt = _rect_spans(A3[:, g], B3[:, g], base3[:, g], c0[g], nc[g], r0[g], nr[g],
+                                                  int(k), sx, sy)
+            yield g[j], row, samp, col0, cnt
+    rest = np.flatnonzero(~dense)
+    for g0, g1 in _groups(nr[rest] * S, _ROW_BUDGET):
+        g = rest[g0:g1]
+        pt, row, samp, col0, cnt = _row_spans(A3[:, g], B3[:, g], base3[:, g], c0[g], nc[g], r0[g], nr[g], sx, sy)
+        yield g[pt], row, samp, col0, cnt
+
+
+def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy):
+    """Yield (setup index, row, col, sample, depth float64) of the covered samples of ``tri``.
+
+    Boxes are clamped to the map and nonempty. The depth is the plane through the
+    snapped vertices, ``z0 + za (X - X0) + zb (Y - Y0)`` in float64 with the integer
+    offsets converted exactly, evaluated in this order for every sample (so the
+    values do not depend on how samples are batched). The per-row parts are
+    computed once per row and repeated along the row's covered columns.
+    """
+    nc, nr = c1 - c0 + 1, r1 - r0 + 1
+    for pt, row, samp, col0, cnt in _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
+        i_row = tri[pt]
+        xs0 = col0 * _SUB + _HALF + sx[samp] - s["X"][0, i_row]
+        zbY = s["zb"][i_row] * (row * _SUB + _HALF + sy[samp] - s["Y"][0, i_row])
+        z0, za = s["z0"][i_row], s["za"][i_row]
+        for b0, b1 in _groups(cnt, _SAMPLE_BUDGET):
+            c = cnt[b0:b1]
+            n = int(c.sum())
+            local = np.arange(n) - np.repeat(np.cumsum(c) - c, c)
+            i = np.repeat(i_row[b0:b1], c)
+            col = np.repeat(col0[b0:b1], c) + local
+            Xs = np.repeat(xs0[b0:b1], c) + local * _SUB
+            z = np.repeat(z0[b0:b1], c) + np.repeat(za[b0:b1], c) * Xs + np.repeat(zbY[b0:b1], c)
+            yield i, np.repeat(row[b0:b1], c), col, np.repeat(samp[b0:b1], c), z
+
+
+def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
+    """As :func:`_row_spans` for boxes of at most k rows, on a dense (k, S, n) layout in float64.
+
+    Dense and triangle-innermost: the broadcast ufuncs run over contiguous rows
+    with no gathers or repeats (k is small, the boxes' rows beyond nr are masked).
+    Float64 is exact here: every L is an integer below 2^53 in magnitude (the caller
+    checks), so sums are exact and ceil of the quotient is exact (_EXACT_FLOAT).
+    Edges along the rows (a = 0) divide by -2^-40: ceil gives <= 0 for L >= 0 and
+    >= 2^40 (an empty row) for L <= -1, so they need no branch.
+    """
+    S = sx.shape[0]
+    n = nr.size
+    ro = (np.arange(k, dtype=np.float64) * _SUB)[:, None, None]
+    lo = np.zeros((k, S, n))
+    # Minus the last covered column; rows beyond the box get +inf (empty). Masks are
+    # added as 0 / -inf penalties: a ufunc's where= costs 11 ns an element, an add 0.4.
+    nhi = np.where(np.arange(k)[:, None] >= nr, np.inf, 0.0)[:, None, :] + (1.0 - nc)
+    nhi = np.broadcast_to(nhi, (k, S, n)).copy()
+    m = np.empty((k, S, n))
+    t = np.empty((k, S, n))
+    for e in range(3):
+        A, B, base = A3[e], B3[e], base3[e]
+        Ls = (base + A * sx[:, None] + B * sy[:, None]).astype(np.float64)  # (S, n), exact
+        Bf = B.astype(np.float64)
+        d = np.where(A == 0, -2.0 ** -40, -np.abs(A * _SUB).astype(np.float64))
+        np.add(Ls[None], Bf * ro, out=m)
+        np.divide(m, d, out=m)
+        np.ceil(m, out=m)
+        # a > 0 (and a = 0) bounds the first column, a < 0 the last (as -m).
+        pos = A >= 0
+        np.maximum(lo, np.add(m, np.where(pos, 0.0, -np.inf), out=t), out=lo)
+        np.maximum(nhi, np.add(m, np.where(pos, -np.inf, 0.0), out=t), out=nhi)
+    cnt = np.subtract(1.0, nhi, out=nhi)
+    cnt -= lo
+    keep = np.flatnonzero(cnt > 0)
+    rs, j = np.divmod(keep, n)
+    r, samp = np.divmod(rs, S)
+    return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
+            cnt.ravel()[keep].astype(np.int64))
+
+
+def _float_safe(A3, B3, base3, nc, nr):
+    """Boxes whose edge values all stay below 2^52 in magnitude (the float64 path is exact)."""
+    bound = (np.abs(base3.astype(np.float64)) + np.abs(A3.astype(np.float64)) * ((nc + 1) * _SUB)
+             + np.abs(B3.astype(np.float64)) * ((nr + 1) * _SUB))
+    return bound.max(axis=0) < 2.0 ** 52
