@@ -225,22 +225,25 @@ def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
 def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
-    Yields ``(s, i, row, col, samp, z)``: the chunk's setup ``s``, the triangle
-    index into it, the texel and sample, and the depth; samples clipped by depth
-    are counted in ``stats`` and left out. Shared by :func:`rasterize_depth` and
-    :func:`rasterize_fragments`, so both see exactly the same coverage.
+    Yields ``(s, i, flat, rcs, z)``: the chunk's setup ``s``, the triangle index
+    into it, the flat sample index ``(row * w + col) * S + sample``, the (row, col,
+    sample) arrays (only when ``want_world``, else None), and the depth; samples
+    clipped by depth are counted in ``stats`` and left out. Shared by
+    :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
+    the same coverage.
     """
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
         s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
         if s is None:
             continue
-        for i, row, col, samp, z in _iter_coverage(s, h, w, sx, sy):
+        for i, flat, rcs, z in _iter_coverage(s, h, w, sx, sy, want_world):
             ok = (z >= -1.0) & (z <= 1.0)
             stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
             if not ok.all():
-                i, row, col, samp, z = i[ok], row[ok], col[ok], samp[ok], z[ok]
+                i, flat, z = i[ok], flat[ok], z[ok]
+                rcs = rcs and tuple(a[ok] for a in rcs)
             stats.samples_covered += int(z.size)
-            yield s, i, row, col, samp, z
+            yield s, i, flat, rcs, z
 
 
 def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none",
@@ -303,9 +306,9 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     depth = np.ones(h * w * S, dtype=dt)
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for _, _, row, col, samp, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
+    for _, _, flat, _, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
         # Depth test: keep the nearest.
-        np.minimum.at(depth, (row * w + col) * S + samp, z.astype(dt))
+        np.minimum.at(depth, flat, z.astype(dt))
     return depth.reshape(h, w, S), stats
 
 
@@ -339,7 +342,7 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
     parts = []
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for s, i, row, col, samp, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
+    for s, i, _, (row, col, samp), z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
         # Screen-space barycentrics from the (unbiased) edge functions, exact in int64.
         Xs = col * _SUB + _HALF + sx[samp]
         Ys = row * _SUB + _HALF + sy[samp]

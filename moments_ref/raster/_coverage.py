@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._matrices import _HALF, _SUB
+from ._matrices import _HALF, SUBPIXEL_BITS
 from ._spans import _iter_spans
 
 
-def _iter_coverage(s, h, w, sx, sy):
-    """Yield (setup index, row, col, sample, depth float64) arrays of covered samples, batch by batch.
+def _iter_coverage(s, h, w, sx, sy, want_rcs):
+    """Yield (setup index, flat index, (row, col, sample) or None, depth float64) of covered samples, by batch.
 
     sx, sy : (S,) int64 sample offsets in 1/256 pixel. Every triangle's clamped
     pixel box goes to the span rasterizer (:mod:`moments_ref.raster._spans`); a
@@ -21,7 +21,7 @@ def _iter_coverage(s, h, w, sx, sy):
     """
     c0, c1, r0, r1 = _boxes(s, h, w, sx, sy)
     sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
-    yield from _iter_spans(s, sel, c0[sel], c1[sel], r0[sel], r1[sel], sx, sy)
+    yield from _iter_spans(s, sel, c0[sel], c1[sel], r0[sel], r1[sel], sx, sy, w, want_rcs)
 
 
 def _boxes(s, h, w, sx, sy):
@@ -29,10 +29,12 @@ def _boxes(s, h, w, sx, sy):
     X, Y = s["X"], s["Y"]
     # Pixel col has a sample at col*256 + 128 + sx; it may be covered only if some
     # sample lies within [min X, max X] of the vertices.
-    c0 = -((-(X.min(0) - _HALF - sx.max())) // _SUB)
-    c1 = (X.max(0) - _HALF - sx.min()) // _SUB
-    r0 = -((-(Y.min(0) - _HALF - sy.max())) // _SUB)
-    r1 = (Y.max(0) - _HALF - sy.min()) // _SUB
+    # Floor division by _SUB = 2^8 as an arithmetic shift (exact for negative values
+    # too; NumPy's int64 floor division costs 8 ns an element, a shift 0.4 ns).
+    c0 = -((-(X.min(0) - _HALF - sx.max())) >> SUBPIXEL_BITS)
+    c1 = (X.max(0) - _HALF - sx.min()) >> SUBPIXEL_BITS
+    r0 = -((-(Y.min(0) - _HALF - sy.max())) >> SUBPIXEL_BITS)
+    r1 = (Y.max(0) - _HALF - sy.min()) >> SUBPIXEL_BITS
     np.maximum(c0, 0, out=c0)
     np.minimum(c1, w - 1, out=c1)
     np.maximum(r0, 0, out=r0)

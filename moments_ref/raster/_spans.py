@@ -104,7 +104,7 @@ def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
     A3, B3 = s["A"][:, tri], s["B"][:, tri]
     # Edge functions at the centre of each box's first pixel, exact in int64.
     base3 = s["F0"][:, tri] + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
-    dense = (nr <= _DENSE_ROWS) & _float_safe(A3, B3, base3, nc, nr)
+    dense = (nr <= _DENSE_ROWS) & _float_safe(s["X"][:, tri], s["Y"][:, tri])
     key = np.where(dense, nr, 0)
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
         sel = np.flatnonzero(key == k)
@@ -121,30 +121,36 @@ def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
         yield g[pt], row, samp, col0, cnt
 
 
-def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy):
-    """Yield (setup index, row, col, sample, depth float64) of the covered samples of ``tri``.
+def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
+    """Yield (setup index, flat sample index, (row, col, sample) or None, depth float64) of covered samples.
 
-    Boxes are clamped to the map and nonempty. The depth is the plane through the
-    snapped vertices, ``z0 + za (X - X0) + zb (Y - Y0)`` in float64 with the integer
-    offsets converted exactly, evaluated in this order for every sample (so the
-    values do not depend on how samples are batched). The per-row parts are
-    computed once per row and repeated along the row's covered columns.
+    Boxes are clamped to the map and nonempty; the flat index is
+    ``(row * w + col) * S + sample``, the (row, col, sample) arrays are built only
+    when ``want_rcs``. The depth is the plane through the snapped vertices,
+    ``z0 + za (X - X0) + zb (Y - Y0)`` in float64 with the integer offsets
+    converted exactly, evaluated in this order for every sample (so the values do
+    not depend on how samples are batched). The per-row parts are computed once
+    per row and repeated along the row's covered columns.
     """
+    S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
     for pt, row, samp, col0, cnt in _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
         i_row = tri[pt]
         xs0 = col0 * _SUB + _HALF + sx[samp] - s["X"][0, i_row]
         zbY = s["zb"][i_row] * (row * _SUB + _HALF + sy[samp] - s["Y"][0, i_row])
         z0, za = s["z0"][i_row], s["za"][i_row]
+        flat0 = (row * w + col0) * S + samp
         for b0, b1 in _groups(cnt, _SAMPLE_BUDGET):
             c = cnt[b0:b1]
             n = int(c.sum())
             local = np.arange(n) - np.repeat(np.cumsum(c) - c, c)
-            i = np.repeat(i_row[b0:b1], c)
-            col = np.repeat(col0[b0:b1], c) + local
             Xs = np.repeat(xs0[b0:b1], c) + local * _SUB
             z = np.repeat(z0[b0:b1], c) + np.repeat(za[b0:b1], c) * Xs + np.repeat(zbY[b0:b1], c)
-            yield i, np.repeat(row[b0:b1], c), col, np.repeat(samp[b0:b1], c), z
+            flat = np.repeat(flat0[b0:b1], c) + local * S
+            rcs = None
+            if want_rcs:
+                rcs = (np.repeat(row[b0:b1], c), np.repeat(col0[b0:b1], c) + local, np.repeat(samp[b0:b1], c))
+            yield np.repeat(i_row[b0:b1], c), flat, rcs, z
 
 
 def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
@@ -188,8 +194,12 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
             cnt.ravel()[keep].astype(np.int64))
 
 
-def _float_safe(A3, B3, base3, nc, nr):
-    """Boxes whose edge values all stay below 2^52 in magnitude (the float64 path is exact)."""
-    bound = (np.abs(base3.astype(np.float64)) + np.abs(A3.astype(np.float64)) * ((nc + 1) * _SUB)
-             + np.abs(B3.astype(np.float64)) * ((nr + 1) * _SUB))
-    return bound.max(axis=0) < 2.0 ** 52
+def _float_safe(X, Y):
+    """Triangles whose edge values within the map stay below 2^51 (the float64 path is exact).
+
+    With vertex coordinates below 2^24 (1/256 pixels, i.e. 64k pixels) and samples
+    in the map (below 2^22), |A|, |B| and the offsets stay below 2^25, so
+    |E| < 2 * 2^25 * 2^25 = 2^51.
+    """
+    lim = 1 << 24
+    return (np.abs(X).max(axis=0) < lim) & (np.abs(Y).max(axis=0) < lim)

@@ -206,8 +206,11 @@ def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
     # positive inside.
     flip = area2 < 0
     if flip.any():
-        # Swap rows 1 and 2 only where flipped (half the work of a where over all rows).
-        X, Y, zv = (np.stack([a[0], np.where(flip, a[2], a[1]), np.where(flip, a[1], a[2])]) for a in (X, Y, zv))
+        # Swap vertices 1 and 2 in place, only in the flipped columns (a where over all
+        # rows, or np.stack of two wheres, allocates and writes every column).
+        f = np.flatnonzero(flip)
+        for a in (X, Y, zv):
+            a[1, f], a[2, f] = a[2, f], a[1, f]
         area2 = np.abs(area2)
         if want_world:
             attr = np.where(flip, attr[:, [0, 2, 1]], attr)
