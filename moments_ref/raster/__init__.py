@@ -236,10 +236,10 @@ def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
         s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
         if s is None:
             continue
-        for i, flat, rcs, z in _iter_coverage(s, h, w, sx, sy, want_world):
-            ok = (z >= -1.0) & (z <= 1.0)
-            stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
-            if not ok.all():
+        for i, flat, rcs, z, inside in _iter_coverage(s, h, w, sx, sy, want_world):
+            ok = None if inside else (z >= -1.0) & (z <= 1.0)
+            if ok is not None and not ok.all():
+                stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
                 i, flat, z = i[ok], flat[ok], z[ok]
                 rcs = rcs and tuple(a[ok] for a in rcs)
             stats.samples_covered += int(z.size)

@@ -122,7 +122,7 @@ def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
 
 
 def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
-    """Yield (setup index, flat sample index, (row, col, sample) or None, depth float64) of covered samples.
+    """Yield (setup index, flat sample index, (row, col, sample) or None, depth float64, all in [-1, 1]).
 
     Boxes are clamped to the map and nonempty; the flat index is
     ``(row * w + col) * S + sample``, the (row, col, sample) arrays are built only
@@ -140,17 +140,37 @@ def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
         zbY = s["zb"][i_row] * (row * _SUB + _HALF + sy[samp] - s["Y"][0, i_row])
         z0, za = s["z0"][i_row], s["za"][i_row]
         flat0 = (row * w + col0) * S + samp
+        # z is monotone along a row (each rounding step is), so a row whose first and
+        # last sample lie in [-1, 1] needs no depth-clip test per sample.
+        zf, zl = z0 + za * xs0 + zbY, z0 + za * (xs0 + (cnt - 1) * _SUB) + zbY
+        inside = (np.minimum(zf, zl) >= -1.0) & (np.maximum(zf, zl) <= 1.0)
         for b0, b1 in _groups(cnt, _SAMPLE_BUDGET):
-            c = cnt[b0:b1]
+            b = slice(b0, b1)
+            c = cnt[b]
             n = int(c.sum())
-            local = np.arange(n) - np.repeat(np.cumsum(c) - c, c)
-            Xs = np.repeat(xs0[b0:b1], c) + local * _SUB
-            z = np.repeat(z0[b0:b1], c) + np.repeat(za[b0:b1], c) * Xs + np.repeat(zbY[b0:b1], c)
-            flat = np.repeat(flat0[b0:b1], c) + local * S
+            start = np.cumsum(c) - c  # first position of each row in the batch
+            # Positions k = start + local: fold -start into the row values, and add the
+            # constant ramps k * step (cached), one repeat and one add per array.
+            Xs = np.repeat(xs0[b] - start * _SUB, c) + _ramp(n, _SUB)
+            z = np.repeat(z0[b], c) + np.repeat(za[b], c) * Xs + np.repeat(zbY[b], c)
+            flat = np.repeat(flat0[b] - start * S, c) + _ramp(n, S)
             rcs = None
             if want_rcs:
-                rcs = (np.repeat(row[b0:b1], c), np.repeat(col0[b0:b1], c) + local, np.repeat(samp[b0:b1], c))
-            yield np.repeat(i_row[b0:b1], c), flat, rcs, z
+                rcs = (np.repeat(row[b], c), np.repeat(col0[b] - start, c) + _ramp(n, 1), np.repeat(samp[b], c))
+            yield np.repeat(i_row[b], c), flat, rcs, z, bool(inside[b].all())
+
+
+_RAMPS = {}
+
+
+def _ramp(n, step):
+    """``np.arange(n) * step``, read-only, cut from a cached array grown as needed (a constant of the batch size)."""
+    r = _RAMPS.get(step)
+    if r is None or r.size < n:
+        r = np.arange(max(n, 2 * (0 if r is None else r.size), 1 << 16), dtype=np.int64) * step
+        r.flags.writeable = False
+        _RAMPS[step] = r
+    return r[:n]
 
 
 def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
