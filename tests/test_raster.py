@@ -574,3 +574,30 @@ def test_bench_raster_reports_numbers():
                               resolve_samples=20000)
     assert out["raster_1x_tris_per_s"] > 0 and out["raster_4x_samples_covered"] > 0
     assert out["resolve_agree"] is True
+
+
+def test_span_interval_is_exact_also_beyond_float_precision():
+    # _solve_interval against Python's exact integers, with |L| up to 2^60 (the
+    # integer fallback) and below 2^53 (the float quotient), a of both signs and 0.
+    from moments_ref.raster._spans import _solve_interval
+
+    rng = np.random.default_rng(5)
+    n = 4000
+    L = np.concatenate([rng.integers(-2**60, 2**60, n // 2), rng.integers(-2**40, 2**40, n // 2)])
+    L[::7] = (L[::7] // 256) * 256  # quotients that are exact integers
+    a = rng.integers(-2**29, 2**29, n) * 256
+    a[::5] = 0
+    # Just off an exact quotient with |L| > 2^53, where float64 rounds L itself.
+    q, d = rng.integers(2**46, 2**48, n // 4), rng.integers(1, 64, n // 4) * 256
+    L[1::4], a[1::4] = q * d + rng.choice([-1, 0, 1], n // 4), d * rng.choice([-1, 1], n // 4)
+    lo = np.full(n, -2**62)
+    hi = np.full(n, 2**62)
+    _solve_interval(L, a, np.where(a == 0, 1, -a), lo, hi)
+    for Li, ai, l, h in zip(L.tolist(), a.tolist(), lo.tolist(), hi.tolist()):
+        if ai > 0:
+            want = (-(Li // ai), 2**62)  # smallest u with a u + L >= 0
+        elif ai < 0:
+            want = (-2**62, Li // -ai)  # largest such u
+        else:
+            want = (-2**62, 2**62) if Li >= 0 else (-2**62, -1)
+        assert (l, h) == want, (Li, ai)

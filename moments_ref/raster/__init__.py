@@ -225,9 +225,9 @@ def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
 def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
-    Yields ``(s, i, flat, rcs, z)``: the chunk's setup ``s``, the triangle index
-    into it, the flat sample index ``(row * w + col) * S + sample``, the (row, col,
-    sample) arrays (only when ``want_world``, else None), and the depth; samples
+    Yields ``(s, flat, z, rcs)``: the chunk's setup ``s``, the flat sample index
+    ``(row * w + col) * S + sample``, the depth, and (only when ``want_world``,
+    else None) the (triangle index into ``s``, row, col, sample) arrays; samples
     clipped by depth are counted in ``stats`` and left out. Shared by
     :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
     the same coverage.
@@ -236,14 +236,14 @@ def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
         s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
         if s is None:
             continue
-        for i, flat, rcs, z, inside in _iter_coverage(s, h, w, sx, sy, want_world):
+        for flat, z, inside, rcs in _iter_coverage(s, h, w, sx, sy, want_world):
             ok = None if inside else (z >= -1.0) & (z <= 1.0)
             if ok is not None and not ok.all():
                 stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
-                i, flat, z = i[ok], flat[ok], z[ok]
+                flat, z = flat[ok], z[ok]
                 rcs = rcs and tuple(a[ok] for a in rcs)
             stats.samples_covered += int(z.size)
-            yield s, i, flat, rcs, z
+            yield s, flat, z, rcs
 
 
 def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none",
@@ -306,7 +306,7 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     depth = np.ones(h * w * S, dtype=dt)
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for _, _, flat, _, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
+    for _, flat, z, _ in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
         # Depth test: keep the nearest.
         np.minimum.at(depth, flat, z.astype(dt))
     return depth.reshape(h, w, S), stats
@@ -342,7 +342,7 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
     parts = []
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for s, i, _, (row, col, samp), z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
+    for s, _, z, (i, row, col, samp) in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
         # Screen-space barycentrics from the (unbiased) edge functions, exact in int64.
         Xs = col * _SUB + _HALF + sx[samp]
         Ys = row * _SUB + _HALF + sy[samp]

@@ -12,7 +12,7 @@ from ._spans import _iter_spans
 
 
 def _iter_coverage(s, h, w, sx, sy, want_rcs):
-    """Yield (setup index, flat index, (row, col, sample) or None, depth float64, all in [-1, 1]) by batch.
+    """Yield (flat index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None) by batch.
 
     sx, sy : (S,) int64 sample offsets in 1/256 pixel. Every triangle's clamped
     pixel box goes to the span rasterizer (:mod:`moments_ref.raster._spans`); a

@@ -66,7 +66,7 @@ def _groups(weight, budget):
 
 
 def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
-    """Covered column interval of every (triangle, row, sample) row of ``tri``'s boxes.
+    """Covered column interval of every (triangle, row, sample) row of the boxes, in int64.
 
     A3, B3 : (3, n) edge coefficients; base3 : (3, n) edge values at the centre of
     the box's first pixel. Rows are ordered by triangle, pixel row, sample. Returns
@@ -90,7 +90,7 @@ def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
         _solve_interval(L, a[pt], na[pt], lo, hi)
     cnt = hi - lo + 1
     keep = np.flatnonzero(cnt > 0)
-    return pt[keep], (r0 + 0)[pt[keep]] + ro[keep], samp[keep], c0[pt[keep]] + lo[keep], cnt[keep]
+    return pt[keep], r0[pt[keep]] + ro[keep], samp[keep], c0[pt[keep]] + lo[keep], cnt[keep]
 
 
 def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
@@ -122,11 +122,11 @@ def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
 
 
 def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
-    """Yield (setup index, flat sample index, (row, col, sample) or None, depth float64, all in [-1, 1]).
+    """Yield (flat sample index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None).
 
     Boxes are clamped to the map and nonempty; the flat index is
-    ``(row * w + col) * S + sample``, the (row, col, sample) arrays are built only
-    when ``want_rcs``. The depth is the plane through the snapped vertices,
+    ``(row * w + col) * S + sample``, the (setup index, row, col, sample) arrays
+    are built only when ``want_rcs``. The depth is the plane through the snapped vertices,
     ``z0 + za (X - X0) + zb (Y - Y0)`` in float64 with the integer offsets
     converted exactly, evaluated in this order for every sample (so the values do
     not depend on how samples are batched). The per-row parts are computed once
@@ -154,10 +154,12 @@ def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
             Xs = np.repeat(xs0[b] - start * _SUB, c) + _ramp(n, _SUB)
             z = np.repeat(z0[b], c) + np.repeat(za[b], c) * Xs + np.repeat(zbY[b], c)
             flat = np.repeat(flat0[b] - start * S, c) + _ramp(n, S)
+            # The depth pass needs only flat and z: the rest is built for fragments only.
             rcs = None
             if want_rcs:
-                rcs = (np.repeat(row[b], c), np.repeat(col0[b] - start, c) + _ramp(n, 1), np.repeat(samp[b], c))
-            yield np.repeat(i_row[b], c), flat, rcs, z, bool(inside[b].all())
+                rcs = (np.repeat(i_row[b], c), np.repeat(row[b], c), np.repeat(col0[b] - start, c) + _ramp(n, 1),
+                       np.repeat(samp[b], c))
+            yield flat, z, bool(inside[b].all()), rcs
 
 
 _RAMPS = {}
