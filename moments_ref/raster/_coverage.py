@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._matrices import _HALF, SUBPIXEL_BITS
-from ._spans import _iter_spans
+from ._spans import _FLOAT_SAFE_COORD, _iter_spans
 
 
 def _iter_coverage(s, h, w, sx, sy, want_rcs):
@@ -19,24 +19,28 @@ def _iter_coverage(s, h, w, sx, sy, want_rcs):
     generator call per batch: no measurable cost (measured with the triangle
     setup split, see :func:`moments_ref.raster._triangles._setup`).
     """
-    c0, c1, r0, r1 = _boxes(s, h, w, sx, sy)
+    c0, c1, r0, r1, safe = _boxes(s, h, w, sx, sy)
     sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
-    yield from _iter_spans(s, sel, c0[sel], c1[sel], r0[sel], r1[sel], sx, sy, w, want_rcs)
+    yield from _iter_spans(s, sel, c0[sel], c1[sel], r0[sel], r1[sel], safe[sel], sx, sy, w, want_rcs)
 
 
 def _boxes(s, h, w, sx, sy):
-    """Pixel bounding boxes (c0, c1, r0, r1) of the set-up triangles, clamped to the map."""
+    """Pixel bounding boxes (c0, c1, r0, r1) of the set-up triangles, clamped to the map, and
+    which triangles the exact float64 span path can take (see :data:`_FLOAT_SAFE_COORD`)."""
     X, Y = s["X"], s["Y"]
+    xmin, xmax, ymin, ymax = X.min(0), X.max(0), Y.min(0), Y.max(0)
     # Pixel col has a sample at col*256 + 128 + sx; it may be covered only if some
     # sample lies within [min X, max X] of the vertices.
     # Floor division by _SUB = 2^8 as an arithmetic shift (exact for negative values
     # too; NumPy's int64 floor division costs 8 ns an element, a shift 0.4 ns).
-    c0 = -((-(X.min(0) - _HALF - sx.max())) >> SUBPIXEL_BITS)
-    c1 = (X.max(0) - _HALF - sx.min()) >> SUBPIXEL_BITS
-    r0 = -((-(Y.min(0) - _HALF - sy.max())) >> SUBPIXEL_BITS)
-    r1 = (Y.max(0) - _HALF - sy.min()) >> SUBPIXEL_BITS
+    c0 = -((-(xmin - _HALF - sx.max())) >> SUBPIXEL_BITS)
+    c1 = (xmax - _HALF - sx.min()) >> SUBPIXEL_BITS
+    r0 = -((-(ymin - _HALF - sy.max())) >> SUBPIXEL_BITS)
+    r1 = (ymax - _HALF - sy.min()) >> SUBPIXEL_BITS
     np.maximum(c0, 0, out=c0)
     np.minimum(c1, w - 1, out=c1)
     np.maximum(r0, 0, out=r0)
     np.minimum(r1, h - 1, out=r1)
-    return c0, c1, r0, r1
+    lim = _FLOAT_SAFE_COORD
+    safe = (xmin > -lim) & (xmax < lim) & (ymin > -lim) & (ymax < lim)
+    return c0, c1, r0, r1, safe

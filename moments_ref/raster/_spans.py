@@ -31,6 +31,11 @@ _SAMPLE_BUDGET = 1 << 19
 _EXACT_FLOAT = float(1 << 53)
 # Boxes up to this many rows take the dense path (_rect_spans).
 _DENSE_ROWS = 32
+# Triangles whose vertex coordinates (1/256 pixel) lie below this bound in magnitude
+# have edge values below 2^51 at every sample in the map, so the dense path's float64
+# arithmetic is exact: samples lie below 2^22 (16384 pixels), so |A|, |B| and the
+# offsets from a vertex stay below 2^25 and |E| < 2 * 2^25 * 2^25.
+_FLOAT_SAFE_COORD = 1 << 24
 
 
 def _solve_interval(L, a, na, lo, hi):
@@ -93,7 +98,7 @@ def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
     return pt[keep], r0[pt[keep]] + ro[keep], samp[keep], c0[pt[keep]] + lo[keep], cnt[keep]
 
 
-def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
+def _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
     """Yield _row_spans-like batches (row's triangle index into ``tri`` first) over all of ``tri``.
 
     Boxes of up to _DENSE_ROWS rows go, grouped by their exact row count (a bincount,
@@ -104,7 +109,7 @@ def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
     A3, B3 = s["A"][:, tri], s["B"][:, tri]
     # Edge functions at the centre of each box's first pixel, exact in int64.
     base3 = s["F0"][:, tri] + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
-    dense = (nr <= _DENSE_ROWS) & _float_safe(s["X"][:, tri], s["Y"][:, tri])
+    dense = (nr <= _DENSE_ROWS) & safe
     key = np.where(dense, nr, 0)
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
         sel = np.flatnonzero(key == k)
@@ -121,7 +126,7 @@ def _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
         yield g[pt], row, samp, col0, cnt
 
 
-def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
+def _iter_spans(s, tri, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
     """Yield (flat sample index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None).
 
     Boxes are clamped to the map and nonempty; the flat index is
@@ -134,7 +139,7 @@ def _iter_spans(s, tri, c0, c1, r0, r1, sx, sy, w, want_rcs):
     """
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
-    for pt, row, samp, col0, cnt in _row_batches(s, tri, c0, nc, r0, nr, sx, sy):
+    for pt, row, samp, col0, cnt in _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
         i_row = tri[pt]
         xs0 = col0 * _SUB + _HALF + sx[samp] - s["X"][0, i_row]
         zbY = s["zb"][i_row] * (row * _SUB + _HALF + sy[samp] - s["Y"][0, i_row])
@@ -195,11 +200,11 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
     nhi = np.broadcast_to(nhi, (k, S, n)).copy()
     m = np.empty((k, S, n))
     t = np.empty((k, S, n))
+    d3 = np.where(A3 == 0, -2.0 ** -40, -np.abs(A3 * _SUB).astype(np.float64))
     for e in range(3):
-        A, B, base = A3[e], B3[e], base3[e]
+        A, B, base, d = A3[e], B3[e], base3[e], d3[e]
         Ls = (base + A * sx[:, None] + B * sy[:, None]).astype(np.float64)  # (S, n), exact
         Bf = B.astype(np.float64)
-        d = np.where(A == 0, -2.0 ** -40, -np.abs(A * _SUB).astype(np.float64))
         np.add(Ls[None], Bf * ro, out=m)
         np.divide(m, d, out=m)
         np.ceil(m, out=m)
@@ -214,14 +219,3 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
     r, samp = np.divmod(rs, S)
     return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
             cnt.ravel()[keep].astype(np.int64))
-
-
-def _float_safe(X, Y):
-    """Triangles whose edge values within the map stay below 2^51 (the float64 path is exact).
-
-    With vertex coordinates below 2^24 (1/256 pixels, i.e. 64k pixels) and samples
-    in the map (below 2^22), |A|, |B| and the offsets stay below 2^25, so
-    |E| < 2 * 2^25 * 2^25 = 2^51.
-    """
-    lim = 1 << 24
-    return (np.abs(X).max(axis=0) < lim) & (np.abs(Y).max(axis=0) < lim)
