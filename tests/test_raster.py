@@ -543,11 +543,12 @@ def test_results_do_not_depend_on_chunk_sizes(monkeypatch):
     vp = perspective(70, 1.3, 0.5, 12) @ look_at((0, 0, 4), (0, 0, 0), (0, 1, 0))
     d1, s1 = rasterize_depth(v, t, vp, (40, 52), samples=4)
     f1, _ = rasterize_fragments(v, t, vp, (40, 52), samples=4)
-    from moments_ref.raster import _coverage as coverage  # the coverage chunking lives there
+    from moments_ref.raster import _spans as spans  # the coverage chunking lives there
 
-    monkeypatch.setattr(coverage, "_BUDGET", 64)
+    monkeypatch.setattr(spans, "_ROW_BUDGET", 5)
+    monkeypatch.setattr(spans, "_SAMPLE_BUDGET", 3)
     monkeypatch.setattr(raster, "_SETUP_CHUNK", 7)
-    monkeypatch.setattr(coverage, "_TILE", 4)
+    monkeypatch.setattr(spans, "_DENSE_ROWS", 4)
     d2, s2 = rasterize_depth(v, t, vp, (40, 52), samples=4)
     f2, _ = rasterize_fragments(v, t, vp, (40, 52), samples=4)
     np.testing.assert_array_equal(d1, d2)
@@ -557,12 +558,12 @@ def test_results_do_not_depend_on_chunk_sizes(monkeypatch):
     assert s1.rasterized > 0 and (d1 < 1).mean() > 0.2
 
 
-def test_float64_map_and_small_vs_tiled_paths_agree(monkeypatch):
-    # The same large triangle through the tiled int64 path and (with a huge tile) the
-    # small int32 path gives the same map.
+def test_float64_map_and_dense_vs_ragged_paths_agree(monkeypatch):
+    # The same large triangle through the ragged int64 span path and (with a huge row
+    # limit) the dense float64 span path gives the same map.
     v = np.array([[-0.9, -0.7, -0.3], [0.8, -0.9, 0.4], [0.1, 0.95, 0.9]])
     d1, _ = rasterize_depth(v, [[0, 1, 2]], np.eye(4), 48, samples=8, dtype=np.float64)
-    monkeypatch.setattr(raster._coverage, "_TILE", 64)
+    monkeypatch.setattr(raster._spans, "_DENSE_ROWS", 64)
     d2, _ = rasterize_depth(v, [[0, 1, 2]], np.eye(4), 48, samples=8, dtype=np.float64)
     assert d1.dtype == np.float64
     np.testing.assert_array_equal(d1, d2)
@@ -573,3 +574,30 @@ def test_bench_raster_reports_numbers():
                               resolve_samples=20000)
     assert out["raster_1x_tris_per_s"] > 0 and out["raster_4x_samples_covered"] > 0
     assert out["resolve_agree"] is True
+
+
+def test_span_interval_is_exact_also_beyond_float_precision():
+    # _solve_interval against Python's exact integers, with |L| up to 2^60 (the
+    # integer fallback) and below 2^53 (the float quotient), a of both signs and 0.
+    from moments_ref.raster._spans import _solve_interval
+
+    rng = np.random.default_rng(5)
+    n = 4000
+    L = np.concatenate([rng.integers(-2**60, 2**60, n // 2), rng.integers(-2**40, 2**40, n // 2)])
+    L[::7] = (L[::7] // 256) * 256  # quotients that are exact integers
+    a = rng.integers(-2**29, 2**29, n) * 256
+    a[::5] = 0
+    # Just off an exact quotient with |L| > 2^53, where float64 rounds L itself.
+    q, d = rng.integers(2**46, 2**48, n // 4), rng.integers(1, 64, n // 4) * 256
+    L[1::4], a[1::4] = q * d + rng.choice([-1, 0, 1], n // 4), d * rng.choice([-1, 1], n // 4)
+    lo = np.full(n, -2**62)
+    hi = np.full(n, 2**62)
+    _solve_interval(L, a, np.where(a == 0, 1, -a), lo, hi)
+    for Li, ai, l, h in zip(L.tolist(), a.tolist(), lo.tolist(), hi.tolist()):
+        if ai > 0:
+            want = (-(Li // ai), 2**62)  # smallest u with a u + L >= 0
+        elif ai < 0:
+            want = (-2**62, Li // -ai)  # largest such u
+        else:
+            want = (-2**62, 2**62) if Li >= 0 else (-2**62, -1)
+        assert (l, h) == want, (Li, ai)

@@ -49,16 +49,18 @@ towards the viewer: OpenGL's default, and the winding of the meshes in
 :mod:`moments_ref.scene`. ``cull="back"`` drops the others (VWSS §3.1 rasterizes
 with back-face culling).
 
-Vectorization. Triangles are set up all at once, then grouped by the size of
-their pixel bounding box: those up to 32 pixels on a side go to bins of
-pixel grids of similar size, where edge functions are evaluated for every
-(triangle, pixel, sample) with int32 arithmetic; larger ones are cut into 32 × 32 tiles,
-tiles outside an edge are rejected, and the remaining (triangle, tile) pieces
-are evaluated like small triangles with int64 arithmetic. The depth resolve is
-``np.minimum.at`` (NumPy ≥ 1.25 made ``ufunc.at`` fast; on NumPy 2.4 it beats a
-lexsort + reduceat resolve by two orders of magnitude, see :func:`bench_raster`).
-Python loops run over bins and chunks only; results do not depend on the chunk
-size.
+Vectorization. Triangles are set up chunk by chunk, then rasterized by spans
+(:mod:`moments_ref.raster._spans`): for every (triangle, pixel row, sample) of
+the triangle's pixel box the covered columns form one interval, solved from the
+three edge functions exactly (a division per edge, no test per sample), and the
+covered samples are written out from the intervals. Boxes of up to 32 rows are
+evaluated together on a dense (rows, samples, triangles) layout in float64
+(exact: the edge values are integers below 2^53), taller ones row by row in
+int64. So the cost is the triangle setup plus the covered samples, never the
+empty part of a bounding box. The depth resolve is ``np.minimum.at`` (NumPy ≥
+1.25 made ``ufunc.at`` fast; on NumPy 2.4 it beats a lexsort + reduceat resolve
+by two orders of magnitude, see :func:`bench_raster`). Python loops run over
+chunks only; results do not depend on the chunk size.
 
 References
 ----------
@@ -73,7 +75,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._arrays import InputError, float_dtype
-from ._coverage import _depth_at, _iter_coverage
+from ._coverage import _iter_coverage
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, _transform, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions)
@@ -223,23 +225,25 @@ def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
 def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
-    Yields ``(s, i, row, col, samp, z)``: the chunk's setup ``s``, the triangle
-    index into it, the texel and sample, and the depth; samples clipped by depth
-    are counted in ``stats`` and left out. Shared by :func:`rasterize_depth` and
-    :func:`rasterize_fragments`, so both see exactly the same coverage.
+    Yields ``(s, flat, z, rcs)``: the chunk's setup ``s``, the flat sample index
+    ``(row * w + col) * S + sample``, the depth, and (only when ``want_world``,
+    else None) the (triangle index into ``s``, row, col, sample) arrays; samples
+    clipped by depth are counted in ``stats`` and left out. Shared by
+    :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
+    the same coverage.
     """
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
         s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
         if s is None:
             continue
-        for i, row, col, samp in _iter_coverage(s, h, w, sx, sy):
-            z = _depth_at(s, i, row, col, samp, sx, sy)
-            ok = (z >= -1.0) & (z <= 1.0)
-            stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
-            if not ok.all():
-                i, row, col, samp, z = i[ok], row[ok], col[ok], samp[ok], z[ok]
+        for flat, z, inside, rcs in _iter_coverage(s, h, w, sx, sy, want_world):
+            ok = None if inside else (z >= -1.0) & (z <= 1.0)
+            if ok is not None and not ok.all():
+                stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
+                flat, z = flat[ok], z[ok]
+                rcs = rcs and tuple(a[ok] for a in rcs)
             stats.samples_covered += int(z.size)
-            yield s, i, row, col, samp, z
+            yield s, flat, z, rcs
 
 
 def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none",
@@ -302,9 +306,9 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     depth = np.ones(h * w * S, dtype=dt)
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for _, _, row, col, samp, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
+    for _, flat, z, _ in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
         # Depth test: keep the nearest.
-        np.minimum.at(depth, (row * w + col) * S + samp, z.astype(dt))
+        np.minimum.at(depth, flat, z.astype(dt))
     return depth.reshape(h, w, S), stats
 
 
@@ -338,7 +342,7 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
     parts = []
     vT = np.ascontiguousarray(v.T)
     cvT, bad_v = _transform(vT, m)
-    for s, i, row, col, samp, z in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
+    for s, _, z, (i, row, col, samp) in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
         # Screen-space barycentrics from the (unbiased) edge functions, exact in int64.
         Xs = col * _SUB + _HALF + sx[samp]
         Ys = row * _SUB + _HALF + sy[samp]

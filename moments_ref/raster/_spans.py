@@ -1,0 +1,221 @@
+"""Coverage by spans: for each (triangle, pixel row, sample) the covered columns, solved from the edges.
+
+Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+
+Along a row of samples (fixed pixel row and sample index) the edge function of
+edge e is affine in the pixel column u counted from the box's first column:
+``F_e(u) = a_e u + L_e`` with ``a_e = 256 A_e``. The covered columns
+``F_e(u) >= 0`` for all three edges are one interval: ``u >= ceil(-L_e / a_e)``
+for ``a_e > 0``, ``u <= floor(-L_e / a_e)`` for ``a_e < 0``, all or nothing for
+``a_e = 0``. So the work per row is a constant, and the covered samples are
+written out from their intervals without testing the empty ones: the fill
+rate of a large triangle costs only its covered samples.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._matrices import _HALF, _SUB
+
+# (triangle, row, sample) rows per vectorized batch, and covered samples per yielded
+# batch: about 4 MiB per int64 array, so that a batch's temporaries stay near L2/L3.
+_ROW_BUDGET = 1 << 16
+_SAMPLE_BUDGET = 1 << 19
+
+# Below this magnitude an int64 L is exact in float64, and then ceil/floor of the
+# correctly rounded float quotient L / a equals the exact integer one: a non-integer
+# quotient lies at least 1/|a| from an integer, farther than its rounding error
+# |L / a| 2^-53 whenever |L| < 2^53. (Integer floor division costs 8 ns an element in
+# NumPy, a float division 0.5 ns.)
+_EXACT_FLOAT = float(1 << 53)
+# Boxes up to this many rows take the dense path (_rect_spans).
+_DENSE_ROWS = 32
+# Triangles whose vertex coordinates (1/256 pixel) lie below this bound in magnitude
+# have edge values below 2^51 at every sample in the map, so the dense path's float64
+# arithmetic is exact: samples lie below 2^22 (16384 pixels), so |A|, |B| and the
+# offsets from a vertex stay below 2^25 and |E| < 2 * 2^25 * 2^25.
+_FLOAT_SAFE_COORD = 1 << 24
+
+
+def _solve_interval(L, a, na, lo, hi):
+    """Narrow [lo, hi] (int64, in place) to the columns u with ``a u + L >= 0``.
+
+    Per row: L int64, a = 256 A int64, na = -a where a != 0 and 1 where a == 0 (so
+    that the float quotient is finite everywhere and no mask is needed for it).
+    """
+    t = L / na
+    pos = a > 0
+    neg = a < 0
+    bound = np.where(pos, np.ceil(t), np.floor(t)).astype(np.int64)
+    big = np.flatnonzero(np.abs(L) >= _EXACT_FLOAT)
+    if big.size:  # exact integer division (huge triangles reaching into the guard band)
+        Lb, ab = L[big], a[big]
+        safe = np.where(ab == 0, 1, ab)
+        bound[big] = np.where(ab > 0, -(Lb // safe), Lb // np.abs(safe))
+    np.maximum(lo, np.where(pos, bound, lo), out=lo)
+    np.minimum(hi, np.where(neg, bound, hi), out=hi)
+    # a == 0 (edge parallel to the rows): the whole row or nothing.
+    np.minimum(hi, np.where((~(pos | neg)) & (L < 0), -1, hi), out=hi)
+
+
+def _groups(weight, budget):
+    """Split positions 0..n-1 into consecutive runs of summed ``weight`` about ``budget`` (at least one each)."""
+    csum = np.cumsum(weight)
+    start = 0
+    while start < weight.size:
+        base = csum[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(csum, base + budget, side="right")))
+        yield start, stop
+        start = stop
+
+
+def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
+    """Covered column interval of every (triangle, row, sample) row of the boxes, in int64.
+
+    A3, B3 : (3, n) edge coefficients; base3 : (3, n) edge values at the centre of
+    the box's first pixel. Rows are ordered by triangle, pixel row, sample. Returns
+    the row's triangle position, pixel row, sample, first covered column and count
+    (count 0 rows left out).
+    """
+    S = sx.shape[0]
+    R = nr * S
+    pt = np.repeat(np.arange(nr.size), R)
+    k = np.arange(pt.size) - np.repeat(np.cumsum(R) - R, R)
+    ro, samp = k // S, k % S
+    yoff = sy[samp] + ro * _SUB
+    xoff = sx[samp]
+    lo = np.zeros(pt.size, np.int64)
+    hi = (nc - 1)[pt]
+    for e in range(3):
+        A, B, base = A3[e], B3[e], base3[e]
+        a = A * _SUB
+        na = np.where(a == 0, 1, -a)
+        L = base[pt] + A[pt] * xoff + B[pt] * yoff
+        _solve_interval(L, a[pt], na[pt], lo, hi)
+    cnt = hi - lo + 1
+    keep = np.flatnonzero(cnt > 0)
+    return pt[keep], r0[pt[keep]] + ro[keep], samp[keep], c0[pt[keep]] + lo[keep], cnt[keep]
+
+
+def _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
+    """Yield _row_spans-like batches (row's triangle index into ``tri`` first) over all of ``tri``.
+
+    Boxes of up to _DENSE_ROWS rows go, grouped by their exact row count (a bincount,
+    no sort), to the dense float path; the rest (and any box too far into the guard
+    band for float64 to be exact) to the ragged int64 path.
+    """
+    S = sx.shape[0]
+    A3, B3 = s["A"][:, tri], s["B"][:, tri]
+    # Edge functions at the centre of each box's first pixel, exact in int64.
+    base3 = s["F0"][:, tri] + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
+    dense = (nr <= _DENSE_ROWS) & safe
+    key = np.where(dense, nr, 0)
+    for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
+        sel = np.flatnonzero(key == k)
+        step = max(1, _ROW_BUDGET // (int(k) * S))
+        for a in range(0, sel.size, step):
+            g = sel[a:a + step]
+            j, row, samp, col0, cnt = _rect_spans(A3[:, g], B3[:, g], base3[:, g], c0[g], nc[g], r0[g], nr[g],
+                                                  int(k), sx, sy)
+            yield g[j], row, samp, col0, cnt
+    rest = np.flatnonzero(~dense)
+    for g0, g1 in _groups(nr[rest] * S, _ROW_BUDGET):
+        g = rest[g0:g1]
+        pt, row, samp, col0, cnt = _row_spans(A3[:, g], B3[:, g], base3[:, g], c0[g], nc[g], r0[g], nr[g], sx, sy)
+        yield g[pt], row, samp, col0, cnt
+
+
+def _iter_spans(s, tri, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
+    """Yield (flat sample index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None).
+
+    Boxes are clamped to the map and nonempty; the flat index is
+    ``(row * w + col) * S + sample``, the (setup index, row, col, sample) arrays
+    are built only when ``want_rcs``. The depth is the plane through the snapped vertices,
+    ``z0 + za (X - X0) + zb (Y - Y0)`` in float64 with the integer offsets
+    converted exactly, evaluated in this order for every sample (so the values do
+    not depend on how samples are batched). The per-row parts are computed once
+    per row and repeated along the row's covered columns.
+    """
+    S = sx.shape[0]
+    nc, nr = c1 - c0 + 1, r1 - r0 + 1
+    for pt, row, samp, col0, cnt in _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
+        i_row = tri[pt]
+        xs0 = col0 * _SUB + _HALF + sx[samp] - s["X"][0, i_row]
+        zbY = s["zb"][i_row] * (row * _SUB + _HALF + sy[samp] - s["Y"][0, i_row])
+        z0, za = s["z0"][i_row], s["za"][i_row]
+        flat0 = (row * w + col0) * S + samp
+        # z is monotone along a row (each rounding step is), so a row whose first and
+        # last sample lie in [-1, 1] needs no depth-clip test per sample.
+        zf, zl = z0 + za * xs0 + zbY, z0 + za * (xs0 + (cnt - 1) * _SUB) + zbY
+        inside = (np.minimum(zf, zl) >= -1.0) & (np.maximum(zf, zl) <= 1.0)
+        for b0, b1 in _groups(cnt, _SAMPLE_BUDGET):
+            b = slice(b0, b1)
+            c = cnt[b]
+            n = int(c.sum())
+            start = np.cumsum(c) - c  # first position of each row in the batch
+            # Positions k = start + local: fold -start into the row values, and add the
+            # constant ramps k * step (cached), one repeat and one add per array.
+            Xs = np.repeat(xs0[b] - start * _SUB, c) + _ramp(n, _SUB)
+            z = np.repeat(z0[b], c) + np.repeat(za[b], c) * Xs + np.repeat(zbY[b], c)
+            flat = np.repeat(flat0[b] - start * S, c) + _ramp(n, S)
+            # The depth pass needs only flat and z: the rest is built for fragments only.
+            rcs = None
+            if want_rcs:
+                rcs = (np.repeat(i_row[b], c), np.repeat(row[b], c), np.repeat(col0[b] - start, c) + _ramp(n, 1),
+                       np.repeat(samp[b], c))
+            yield flat, z, bool(inside[b].all()), rcs
+
+
+_RAMPS = {}
+
+
+def _ramp(n, step):
+    """``np.arange(n) * step``, read-only, cut from a cached array grown as needed (a constant of the batch size)."""
+    r = _RAMPS.get(step)
+    if r is None or r.size < n:
+        r = np.arange(max(n, 2 * (0 if r is None else r.size), 1 << 16), dtype=np.int64) * step
+        r.flags.writeable = False
+        _RAMPS[step] = r
+    return r[:n]
+
+
+def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
+    """As :func:`_row_spans` for boxes of at most k rows, on a dense (k, S, n) layout in float64.
+
+    Dense and triangle-innermost: the broadcast ufuncs run over contiguous rows
+    with no gathers or repeats (k is small, the boxes' rows beyond nr are masked).
+    Float64 is exact here: every L is an integer below 2^53 in magnitude (the caller
+    checks), so sums are exact and ceil of the quotient is exact (_EXACT_FLOAT).
+    Edges along the rows (a = 0) divide by -2^-40: ceil gives <= 0 for L >= 0 and
+    >= 2^40 (an empty row) for L <= -1, so they need no branch.
+    """
+    S = sx.shape[0]
+    n = nr.size
+    ro = (np.arange(k, dtype=np.float64) * _SUB)[:, None, None]
+    lo = np.zeros((k, S, n))
+    # Minus the last covered column; rows beyond the box get +inf (empty). Masks are
+    # added as 0 / -inf penalties: a ufunc's where= costs 11 ns an element, an add 0.4.
+    nhi = np.where(np.arange(k)[:, None] >= nr, np.inf, 0.0)[:, None, :] + (1.0 - nc)
+    nhi = np.broadcast_to(nhi, (k, S, n)).copy()
+    m = np.empty((k, S, n))
+    t = np.empty((k, S, n))
+    d3 = np.where(A3 == 0, -2.0 ** -40, -np.abs(A3 * _SUB).astype(np.float64))
+    for e in range(3):
+        A, B, base, d = A3[e], B3[e], base3[e], d3[e]
+        Ls = (base + A * sx[:, None] + B * sy[:, None]).astype(np.float64)  # (S, n), exact
+        Bf = B.astype(np.float64)
+        np.add(Ls[None], Bf * ro, out=m)
+        np.divide(m, d, out=m)
+        np.ceil(m, out=m)
+        # a > 0 (and a = 0) bounds the first column, a < 0 the last (as -m).
+        pos = A >= 0
+        np.maximum(lo, np.add(m, np.where(pos, 0.0, -np.inf), out=t), out=lo)
+        np.maximum(nhi, np.add(m, np.where(pos, -np.inf, 0.0), out=t), out=nhi)
+    cnt = np.subtract(1.0, nhi, out=nhi)
+    cnt -= lo
+    keep = np.flatnonzero(cnt > 0)
+    rs, j = np.divmod(keep, n)
+    r, samp = np.divmod(rs, S)
+    return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
+            cnt.ravel()[keep].astype(np.int64))
