@@ -2,8 +2,16 @@
 
 :func:`camera_gbuffer` rasterizes the scene from the camera and keeps the nearest
 fragment per pixel; :func:`light_projection` gives each receiver point its texel
-coordinates and depth in the light's shadow map, with the receiver-slope bias
-every technique and reference share (:data:`SLOPE_BIAS_TEXELS`).
+coordinates, its unbiased depth in the light's shadow map and its depth slope;
+:func:`receiver_depth` is the depth a lookup compares, with or without the
+receiver-slope bias (:data:`SLOPE_BIAS_TEXELS`).
+
+Depth bias (HPG17 §5). The filterable techniques use the constant bias alone
+("With non-linear quantization we use a constant depth bias of 10⁻³ depth units
+for all results"); PCF uses "a higher depth bias", which costs it its contact
+shadows: here the constant plus the receiver-slope term, and so does the 9×9
+PCF reference (without the slope term the exact 9×9 PCF shades a plane lit at an
+angle as half shadowed).
 
 References
 ----------
@@ -18,8 +26,8 @@ import numpy as np
 
 from .raster import project_points, rasterize_fragments
 
-__all__ = ["GBuffer", "camera_gbuffer", "light_projection", "SLOPE_BIAS_TEXELS", "BACKGROUND", "RECEIVER",
-           "OCCLUDER", "OUTSIDE_LIGHT"]
+__all__ = ["GBuffer", "camera_gbuffer", "light_projection", "receiver_depth", "SLOPE_BIAS_TEXELS", "BACKGROUND",
+           "RECEIVER", "OCCLUDER", "OUTSIDE_LIGHT"]
 
 #: kind image codes of :class:`GBuffer`.
 BACKGROUND, RECEIVER, OCCLUDER, OUTSIDE_LIGHT = 0, 1, 2, 3
@@ -41,7 +49,7 @@ class GBuffer:
     lambert : (N,) float64 ``|n · l|`` (two-sided surfaces)
     normal : (N, 3) float64 unit face normals
     uv : (N, 2) float64 texel coordinates in the shadow map (filled by ``light_projection``)
-    depth : (N,) float64 NDC depth in the light's view, minus the receiver-slope bias
+    depth : (N,) float64 NDC depth in the light's view (unbiased; see :func:`receiver_depth`)
     slope : (N,) float64 depth change per shadow-map texel along the receiver surface
     """
 
@@ -130,15 +138,11 @@ def _depth_slope(position, normal, view_proj, size):
 
 
 def light_projection(g, view_proj, size):
-    """Texel coordinates and depth of the receiver points in the shadow map.
+    """Texel coordinates, unbiased depth and depth slope of the receiver points in the shadow map.
 
-    The depth is lowered by a receiver-slope bias of ``SLOPE_BIAS_TEXELS`` (4.5√2)
-    texels times the depth change per texel along the receiver, applied alike to every
-    technique and to the reference (each then subtracts its own constant bias,
-    1e-3 for all here as HPG17 uses for NLQ). Without it, a plane lit at an angle
-    has half of a 9×9 filter footprint in front of its own fragment and the exact
-    filtered shadow (PCF) is 0.5 there: surface acne of the reference, not light
-    leaking of a technique (HPG17 §5: PCF "with a higher depth bias").
+    ``depth`` is the NDC depth itself; ``slope`` the depth change per texel along
+    the receiver (:func:`_depth_slope`), from which :func:`receiver_depth` forms
+    the receiver-slope bias of PCF and of the reference.
     """
     h, w = size
     xy, depth = project_points(g.position, view_proj, (h, w))
@@ -149,4 +153,17 @@ def light_projection(g, view_proj, size):
     slope = _depth_slope(g.position[inside], g.normal[inside], view_proj, (h, w))
     return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
                    position=g.position[inside], lambert=g.lambert[inside], normal=g.normal[inside],
-                   uv=xy[inside], depth=depth[inside] - SLOPE_BIAS_TEXELS * slope, slope=slope)
+                   uv=xy[inside], depth=depth[inside], slope=slope)
+
+
+def receiver_depth(g, slope_bias):
+    """The depth a shadow lookup compares, before the technique's constant bias.
+
+    ``g.depth − SLOPE_BIAS_TEXELS · g.slope`` when ``slope_bias`` (PCF and the PCF
+    reference: HPG17 §5's "higher depth bias"), else ``g.depth`` (the filterable
+    techniques: HPG17 §5's constant 10⁻³ alone). The slope term is
+    ``SLOPE_BIAS_TEXELS`` (4.5√2) texels times the depth change per texel: without
+    it a plane lit at an angle has half of a 9×9 filter footprint in front of its
+    own fragment and the exact filtered shadow (PCF) is 0.5 there (surface acne).
+    """
+    return g.depth - SLOPE_BIAS_TEXELS * g.slope if slope_bias else g.depth

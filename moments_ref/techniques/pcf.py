@@ -134,6 +134,7 @@ PCF = register(Technique(
     name="pcf",
     bits_per_texel=32,
     depth_bias=1e-3,
+    slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.gbuffer.receiver_depth)
     make_steps=_steps,
     lookup=_lookup,
     description="percentage-closer filtering, 9x9 Gaussian (sigma 2.4) x bilinear over the MSAA samples "

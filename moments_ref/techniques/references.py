@@ -1,7 +1,8 @@
 """The filtered hard shadow: the reference of the shadow-map techniques, and the intensity metric.
 
 Reference ``pcf`` (:data:`PCF_REFERENCE`): the 9×9-Gaussian PCF over the MSAA
-samples at the technique's own depth bias (:func:`moments_ref.techniques.pcf.pcf_filtered`),
+samples at the technique's own constant depth bias plus PCF's receiver-slope bias
+(:func:`moments_ref.techniques.pcf.pcf_filtered`, :func:`moments_ref.gbuffer.receiver_depth`),
 the exact filtered hard shadow ``Z(z < zf)``; with translucent occluders the
 filtered product of transmittances. Stage ``reference_pcf_bias<b>`` (or
 ``translucency_reference_bias<b>``): the bias is a stage parameter, so techniques
@@ -19,12 +20,13 @@ HPG17, FLIP : see docs/bib.md.
 
 from __future__ import annotations
 
+from ..gbuffer import SLOPE_BIAS_TEXELS, receiver_depth
 from ..metrics import flip_mean, metrics, shaded_image
 from ._errormaps import error_maps
-from ._interface import PROJECTION, SHADOW_MAP, TRANSLUCENCY, Reference, Stage, register_reference
+from ._interface import PROJECTION, SHADOW_MAP, TECHNIQUES, TRANSLUCENCY, Reference, Stage, register_reference
 from .pcf import pcf_filtered
 
-__all__ = ["intensity_metric", "error_figure", "PCF_REFERENCE"]
+__all__ = ["intensity_metric", "error_figure", "depth_bias_text", "PCF_REFERENCE"]
 
 
 def intensity_metric(result, name):
@@ -36,13 +38,31 @@ def intensity_metric(result, name):
 
 
 def _pcf(maps, gb, bias):
-    return pcf_filtered(maps, gb.uv, gb.depth - bias)
+    # The receiver-slope bias of PCF (moments_ref.gbuffer.receiver_depth) plus the technique's constant.
+    return pcf_filtered(maps, gb.uv, receiver_depth(gb, True) - bias)
 
 
 def _reference_stage(ctx, settings, technique):
     name = "translucency_reference" if ctx.translucent else "reference_pcf"
     src = TRANSLUCENCY if ctx.translucent else SHADOW_MAP
     return Stage(name, _pcf, (src, PROJECTION), params=(("bias", technique.depth_bias),))
+
+
+def depth_bias_text(names=None):
+    """One sentence for the report's settings: which depth bias each technique uses, and why.
+
+    ``names`` (default: every registered technique measured against ``pcf``) are
+    split by their ``slope_bias``.
+    """
+    ts = [t for t in TECHNIQUES.values() if t.truth == "pcf" and (names is None or t.name in names)]
+    slope = ", ".join(t.name for t in ts if t.slope_bias) or "none"
+    const = ", ".join(t.name for t in ts if not t.slope_bias) or "none"
+    value = " or ".join(f"{b:g}" for b in sorted({t.depth_bias for t in ts})) or "1e-3"
+    return (f"Depth bias (HPG17 §5): the filterable techniques ({const}) use only the constant {value} (\"With "
+            "non-linear quantization we use a constant depth bias of 10^-3 depth units for all results\"); "
+            f"PCF ({slope}) and the 9×9 PCF reference add a receiver-slope term of {SLOPE_BIAS_TEXELS:.3g} (4.5√2) "
+            "texels times the receiver's depth change per texel, HPG17's \"higher depth bias\" of PCF (without "
+            "it the exact 9×9 PCF shades a plane lit at an angle as half shadowed; it costs PCF contact shadows).")
 
 
 def error_figure(result, names):
