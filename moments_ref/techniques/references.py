@@ -62,7 +62,9 @@ def depth_bias_text(names=None):
             "non-linear quantization we use a constant depth bias of 10^-3 depth units for all results\"); "
             f"PCF ({slope}) and the 9×9 PCF reference add a receiver-slope term of {SLOPE_BIAS_TEXELS:.3g} (4.5√2) "
             "texels times the receiver's depth change per texel, HPG17's \"higher depth bias\" of PCF (without "
-            "it the exact 9×9 PCF shades a plane lit at an angle as half shadowed; it costs PCF contact shadows).")
+            "it the exact 9×9 PCF shades a plane lit at an angle as half shadowed; it costs PCF contact shadows, "
+            "so where the slope term is large the filterable techniques show contact shadows the reference lacks, "
+            "and that counts as their error).")
 
 
 def error_figure(result, names):
