@@ -129,9 +129,9 @@ def evaluate_claims(rows, four_moment=None):
 
 def _intro(flip_ok, sections):
     text = ("Each technique shades the receiver pixels of each scene's camera view; errors are against the "
-            "reference at the technique's depth bias (9×9 Gaussian PCF over the MSAA samples = the exact "
-            "filtered hard shadow Z(z < zf); with translucent occluders, the filtered product of "
-            "transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
+            "reference (9×9 Gaussian PCF over the MSAA samples against the receiver plane's depth at each tap = "
+            "the exact filtered hard shadow of the planar receiver; with translucent occluders, the filtered "
+            "product of transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
             f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are wall-clock NumPy seconds "
             "on this machine (texture stages / lookups, the split of HPG17 Figure 10), not GPU times. "
             + _techniques.references.depth_bias_text())  # the bias of each technique: techniques/references.py
