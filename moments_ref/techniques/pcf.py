@@ -10,8 +10,9 @@ of the 2×2 texels around ``uv`` (the texture unit), times the 9×9 Gaussian
     Z(z < zf) = Σ_taps weight · (1/S) Σ_s [z_s < zf]
 
 is the filtered hard shadow that every filterable technique approximates: with a
-filterable texture the same weights act on b(z) instead of on the test. This is
-the reference of :mod:`moments_ref.report`.
+filterable texture the same weights act on b(z) instead of on the test. With one
+``zf`` for the whole footprint it is the PCF technique (with HPG17 §5's
+receiver-slope bias in ``zf``).
 
 With a receiver plane (``gradient``, receiver-plane depth [Isidoro 2006]) each
 tap compares its sample with the plane's depth at that sample's position instead
@@ -26,7 +27,8 @@ contact shadows are kept: the reference of :mod:`moments_ref.report`.
 
 For a :class:`~moments_ref.techniques.LayeredSamples` map (translucent occluders)
 the test of a sample is ``Σ_k weight_k [z_k < zf]``, one minus the product of the
-transmittances in front of ``zf``: the reference for translucent occluders.
+transmittances in front of ``zf`` (or of the receiver plane there): the
+reference for translucent occluders.
 
 References
 ----------
