@@ -90,3 +90,36 @@ def test_contact_shadow_equals_brute_force():
     assert biased[0] < got[0] - 0.2
     # far from it the plane is lit, exactly
     assert pcf_filtered(maps, np.array([[50.0, 30.0]]), _plane_depth(50.0, 30.0) - 1e-3, gradient=GRAD)[0] == 0.0
+
+
+def test_translucent_contact_shadow_equals_brute_force():
+    """Layered map (translucency reference): a wedge of opacity 0.4 over the plane, Σ_k weight_k [z_k < plane]."""
+    from moments_ref.techniques import LayeredSamples
+
+    plane_map = _contact_map()
+    wedge = plane_map < _tilted_plane_map() - 1e-6  # samples where the wedge lies in front of the plane
+    depth = np.stack([np.where(wedge, plane_map, 1.0), _tilted_plane_map()], axis=-1).astype(np.float32)
+    weight = np.stack([np.where(wedge, 0.4, 0.0), np.where(wedge, 0.6, 1.0)], axis=-1)
+    layered = LayeredSamples(depth, weight)
+    pts = [(32.3, 20.7), (33.1, 40.2), (30.4, 50.5), (25.2, 22.2)]
+    uv = np.array(pts)
+    zf = _plane_depth(uv[:, 0], uv[:, 1]) - 1e-3
+    got = pcf_filtered(layered, uv, zf, gradient=GRAD)
+    g = gaussian_weights()
+    want = []
+    for (u, v), z in zip(pts, zf):
+        x0, y0 = math.floor(u - 0.5), math.floor(v - 0.5)
+        fx, fy = u - 0.5 - x0, v - 0.5 - y0
+        total = 0.0
+        for bx, wbx in ((x0, 1 - fx), (x0 + 1, fx)):
+            for by, wby in ((y0, 1 - fy), (y0 + 1, fy)):
+                for tx in range(-4, 5):
+                    for ty in range(-4, 5):
+                        col, row = bx + tx, by + ty
+                        for s, (ox, oy) in enumerate(D3D11_4X):
+                            plane = z + GRAD[0] * (col + 0.5 + ox - u) + GRAD[1] * (row + 0.5 + oy - v)
+                            occ = sum(weight[row, col, s, k] for k in range(2) if float(depth[row, col, s, k]) < plane)
+                            total += wbx * wby * g[tx + 4] * g[ty + 4] / 4 * occ
+        want.append(total)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert abs(got[-1] - 0.4) < 1e-12 and got[0] > 0.1  # inside the wedge's shadow: its opacity
