@@ -2,8 +2,19 @@
 
 :func:`camera_gbuffer` rasterizes the scene from the camera and keeps the nearest
 fragment per pixel; :func:`light_projection` gives each receiver point its texel
-coordinates and depth in the light's shadow map, with the receiver-slope bias
-every technique and reference share (:data:`SLOPE_BIAS_TEXELS`).
+coordinates, its unbiased depth in the light's shadow map, its signed depth
+gradient per texel along the receiver (``gradient``) and the gradient's length
+(``slope``); :func:`receiver_depth` is the depth a lookup compares, with or
+without the receiver-slope bias (:data:`SLOPE_BIAS_TEXELS`).
+
+Depth bias (HPG17 §5). The filterable techniques use the constant bias alone
+("With non-linear quantization we use a constant depth bias of 10⁻³ depth units
+for all results"); PCF uses "a higher depth bias", which costs it its contact
+shadows: here the constant plus the receiver-slope term. The 9×9 PCF reference
+uses neither the slope term nor a single depth: it compares each tap with the
+receiver plane's depth at that tap (receiver-plane depth, Isidoro 2006, from
+``gradient``), so a plane lit at an angle does not shadow itself and contact
+shadows stay (:mod:`moments_ref.techniques.references`).
 
 References
 ----------
@@ -18,8 +29,8 @@ import numpy as np
 
 from .raster import project_points, rasterize_fragments
 
-__all__ = ["GBuffer", "camera_gbuffer", "light_projection", "SLOPE_BIAS_TEXELS", "BACKGROUND", "RECEIVER",
-           "OCCLUDER", "OUTSIDE_LIGHT"]
+__all__ = ["GBuffer", "camera_gbuffer", "light_projection", "receiver_depth", "SLOPE_BIAS_TEXELS", "BACKGROUND",
+           "RECEIVER", "OCCLUDER", "OUTSIDE_LIGHT"]
 
 #: kind image codes of :class:`GBuffer`.
 BACKGROUND, RECEIVER, OCCLUDER, OUTSIDE_LIGHT = 0, 1, 2, 3
@@ -41,8 +52,10 @@ class GBuffer:
     lambert : (N,) float64 ``|n · l|`` (two-sided surfaces)
     normal : (N, 3) float64 unit face normals
     uv : (N, 2) float64 texel coordinates in the shadow map (filled by ``light_projection``)
-    depth : (N,) float64 NDC depth in the light's view, minus the receiver-slope bias
-    slope : (N,) float64 depth change per shadow-map texel along the receiver surface
+    depth : (N,) float64 NDC depth in the light's view (unbiased; see :func:`receiver_depth`)
+    slope : (N,) float64 depth change per shadow-map texel along the receiver surface, ``|gradient|``
+    gradient : (N, 2) float64 signed depth change per texel along the receiver,
+        ``(∂z/∂u, ∂z/∂v)`` (u = column, v = row): the receiver plane in the map
     """
 
     resolution: tuple
@@ -54,6 +67,7 @@ class GBuffer:
     uv: np.ndarray = None
     depth: np.ndarray = None
     slope: np.ndarray = None
+    gradient: np.ndarray = None
 
 
 def camera_gbuffer(scene, resolution):
@@ -103,12 +117,14 @@ def camera_gbuffer(scene, resolution):
 SLOPE_BIAS_TEXELS = 4.5 * 2**0.5
 
 
-def _depth_slope(position, normal, view_proj, size):
-    """|∂depth/∂(texel)| along the receiver plane at each point (light-space depth per texel).
+def _plane_gradient(position, normal, view_proj, size):
+    """(∂depth/∂u, ∂depth/∂v) along the receiver plane at each point, light-space depth per texel.
 
     Two tangents of the surface are projected into the shadow map; the depth
     gradient with respect to texel coordinates solves the 2×2 system of their
-    texel offsets. Grazing surfaces (singular system) get the largest finite slope.
+    texel offsets. A projective map takes the plane to a plane in (u, v, depth),
+    so the gradient is the same at every point of a planar receiver. Grazing
+    surfaces (singular system) give non-finite entries.
     """
     a = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     t1 = np.cross(normal, a)
@@ -124,21 +140,34 @@ def _depth_slope(position, normal, view_proj, size):
     with np.errstate(divide="ignore", invalid="ignore"):
         gx = (dz[:, 0] * j[:, 1, 1] - dz[:, 1] * j[:, 0, 1]) / det
         gy = (dz[:, 1] * j[:, 0, 0] - dz[:, 0] * j[:, 1, 0]) / det
-        slope = np.hypot(gx, gy)
+    return np.stack([gx, gy], axis=-1)
+
+
+def _depth_gradient(position, normal, view_proj, size):
+    """:func:`_plane_gradient` with grazing surfaces set to zero (no receiver plane: a single depth)."""
+    g = _plane_gradient(position, normal, view_proj, size)
+    return np.where(np.isfinite(g).all(axis=-1, keepdims=True), g, 0.0)
+
+
+def _depth_slope(position, normal, view_proj, size):
+    """|∂depth/∂(texel)| along the receiver plane at each point (light-space depth per texel).
+
+    The length of :func:`_plane_gradient`; grazing surfaces (singular system)
+    get the largest finite slope.
+    """
+    with np.errstate(invalid="ignore", over="ignore"):
+        slope = np.hypot(*_plane_gradient(position, normal, view_proj, size).T)
     finite = np.isfinite(slope)
     return np.where(finite, slope, slope[finite].max() if finite.any() else 0.0)
 
 
 def light_projection(g, view_proj, size):
-    """Texel coordinates and depth of the receiver points in the shadow map.
+    """Texel coordinates, unbiased depth, depth gradient and slope of the receiver points in the shadow map.
 
-    The depth is lowered by a receiver-slope bias of ``SLOPE_BIAS_TEXELS`` (4.5√2)
-    texels times the depth change per texel along the receiver, applied alike to every
-    technique and to the reference (each then subtracts its own constant bias,
-    1e-3 for all here as HPG17 uses for NLQ). Without it, a plane lit at an angle
-    has half of a 9×9 filter footprint in front of its own fragment and the exact
-    filtered shadow (PCF) is 0.5 there: surface acne of the reference, not light
-    leaking of a technique (HPG17 §5: PCF "with a higher depth bias").
+    ``depth`` is the NDC depth itself; ``gradient`` the signed depth change per
+    texel along the receiver (:func:`_depth_gradient`), the receiver plane of the
+    reference; ``slope`` its length (:func:`_depth_slope`), from which
+    :func:`receiver_depth` forms the receiver-slope bias of PCF.
     """
     h, w = size
     xy, depth = project_points(g.position, view_proj, (h, w))
@@ -146,7 +175,24 @@ def light_projection(g, view_proj, size):
               & (xy[:, 0] >= 0) & (xy[:, 0] <= w) & (xy[:, 1] >= 0) & (xy[:, 1] <= h))
     kind = g.kind.reshape(-1).copy()
     kind[g.pixel[~inside]] = OUTSIDE_LIGHT
-    slope = _depth_slope(g.position[inside], g.normal[inside], view_proj, (h, w))
+    pos, nrm = g.position[inside], g.normal[inside]
+    gradient = _depth_gradient(pos, nrm, view_proj, (h, w))
+    slope = _depth_slope(pos, nrm, view_proj, (h, w))
     return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
-                   position=g.position[inside], lambert=g.lambert[inside], normal=g.normal[inside],
-                   uv=xy[inside], depth=depth[inside] - SLOPE_BIAS_TEXELS * slope, slope=slope)
+                   position=pos, lambert=g.lambert[inside], normal=nrm,
+                   uv=xy[inside], depth=depth[inside], slope=slope, gradient=gradient)
+
+
+def receiver_depth(g, slope_bias):
+    """The depth a shadow lookup compares, before the technique's constant bias.
+
+    ``g.depth − SLOPE_BIAS_TEXELS · g.slope`` when ``slope_bias`` (PCF: HPG17
+    §5's "higher depth bias"), else ``g.depth`` (the filterable
+    techniques: HPG17 §5's constant 10⁻³ alone). The slope term is
+    ``SLOPE_BIAS_TEXELS`` (4.5√2) texels times the depth change per texel: without
+    it a plane lit at an angle has half of a 9×9 filter footprint in front of its
+    own fragment and the unbiased 9×9 PCF is 0.5 there (surface acne). The
+    reference does without it: it compares each tap with the receiver plane
+    (``g.gradient``, :func:`moments_ref.techniques.pcf.pcf_filtered`).
+    """
+    return g.depth - SLOPE_BIAS_TEXELS * g.slope if slope_bias else g.depth

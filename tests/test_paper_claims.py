@@ -58,6 +58,7 @@ def test_three_occluder_claim_counts_footprint_depths():
     class G:
         uv = np.array([[10.5, 10.5], [30.5, 30.5]])
         depth = np.array([0.9, 0.9])
+        slope = np.zeros(2)  # a receiver facing the light: no slope bias
 
     maps = np.ones((40, 40, 1), np.float32)
     maps[:, :12] = -0.5

@@ -86,6 +86,42 @@ def test_pcss_penumbra_width_follows_parallel_planes():
         assert width != pytest.approx(0.8 * (z_r - z_b) / z_r, rel=0.2)
 
 
+def _square_occluder_visibility(P, light_size, h_light, h_occ, half):
+    """Exact visibility under a square light (side ``light_size`` at height ``h_light``, centred above
+    the origin) of receiver points at y = 0 behind the square |x|, |z| < ``half`` at ``h_occ``: both
+    are parallel, so the occluder plane cuts the pyramid from a point to the light in a square of
+    half-side ``t l / 2`` centred at ``(1 − t) p``, t = h_occ / h_light, and the hidden fraction of
+    the light is the fraction of that square the occluder covers."""
+    t = h_occ / h_light
+    r = t * light_size / 2
+    ov = [np.clip(np.minimum(c + r, half) - np.maximum(c - r, -half), 0, None) / (2 * r)
+          for c in ((1 - t) * P[:, 0], (1 - t) * P[:, 2])]
+    return 1 - ov[0] * ov[1]
+
+
+@pytest.mark.parametrize("near", [0.2, 0.5, 1.0, 1.9])
+def test_pcss_umbra_and_lit_exact_for_every_near_plane(near):
+    # A 1.2-wide square at height 2 over the receiver plane, 1.0-wide light at height 4: PCSS's
+    # parallel-planes assumption holds, so PCSS is exact up to texels and taps. The light's near
+    # plane only moves the map's depth range: it must not change which points are in the umbra.
+    light = _light(1.0)
+    ls = light_views(light, 1, near, 5.0)
+    v, t = _quad(-0.6, 0.6, -0.6, 0.6, 2.0)
+    dm, _ = mvr(v, t, ls.center_view_proj(), 256)
+    g = np.linspace(-2, 2, 81)
+    P = np.c_[np.repeat(g, 81), np.zeros(81 * 81), np.tile(g, 81)]
+    exact = _square_occluder_visibility(P, 1.0, 4.0, 2.0, 0.6)
+    vis = pcss(P, dm[0], ls, 1e-3)
+    texel = 2 * 4.0 / 256  # receiver-plane size of a texel (fov 90 at distance 4)
+    inner = _square_occluder_visibility(P, 1.0 + 4 * texel, 4.0, 2.0, 0.6 - 2 * texel) == 0
+    outer = _square_occluder_visibility(P, 1.0 + 4 * texel, 4.0, 2.0, 0.6 + 2 * texel) == 1
+    assert inner.sum() > 300 and outer.sum() > 500  # the test has points in both
+    assert np.all(vis[inner] == 0), (near, np.count_nonzero(vis[inner]))  # umbra: fully shadowed
+    assert np.all(vis[outer] == 1), near  # no part of the occluder in front of the light: lit
+    pen = ~inner & ~outer
+    assert np.sqrt(np.mean((vis[pen] - exact[pen]) ** 2)) < 0.1, near
+
+
 def test_mvr_converges_with_view_count():
     light = _light(1.0)
     v, t = _quad(-20, 0, -20, 20, 2.0)

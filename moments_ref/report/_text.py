@@ -15,7 +15,6 @@ import math
 import numpy as np
 
 from .._arrays import InputError
-from ..gbuffer import SLOPE_BIAS_TEXELS
 from ..metrics import LEAK_THRESHOLD
 from ..paper_claims import _row  # the one row lookup of the claims
 from .. import techniques as _techniques
@@ -132,15 +131,12 @@ def evaluate_claims(rows, four_moment=None):
 
 def _intro(flip_ok, sections):
     text = ("Each technique shades the receiver pixels of each scene's camera view; errors are against the "
-            "reference at the technique's depth bias (9×9 Gaussian PCF over the MSAA samples = the exact "
-            "filtered hard shadow Z(z < zf); with translucent occluders, the filtered product of "
-            "transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
+            "reference (9×9 Gaussian PCF over the MSAA samples against the receiver plane's depth at each tap = "
+            "the exact filtered hard shadow of the planar receiver; with translucent occluders, the filtered "
+            "product of transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
             f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are wall-clock NumPy seconds "
             "on this machine (texture stages / lookups, the split of HPG17 Figure 10), not GPU times. "
-            "Depth bias: each technique's constant (1e-3, as HPG17 uses for NLQ) plus a receiver-slope term "
-            f"of {SLOPE_BIAS_TEXELS:.3g} (4.5√2) texels times the receiver's depth change per texel, the same "
-            "for every technique and the reference (without it the exact 9×9 PCF shades a plane lit at an "
-            "angle as half shadowed, which would be charged to the techniques as error).")
+            + _techniques.references.depth_bias_text())  # the bias of each technique: techniques/references.py
     if sections:
         text += (" Exceptions, described in their sections below: the rows measured against another reference "
                  "(" + "; ".join(sections) + ").")

@@ -17,6 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .._arrays import InputError, real_input
+from ..gbuffer import receiver_depth
 
 __all__ = [
     "Step",
@@ -253,7 +254,7 @@ def _apply_step(x, step, params):
 
 
 def _shade(tex, gb, noise=None, technique=None):
-    return technique.shadow(tex, gb.uv, gb.depth, noise=noise)
+    return technique.shadow(tex, gb.uv, receiver_depth(gb, technique.slope_bias), noise=noise)
 
 
 def texture_stages(technique, ctx: PlanContext, settings=None) -> Plan:
@@ -289,6 +290,10 @@ class Technique:
         Storage per shadow-map texel of the filtered texture.
     depth_bias : float
         Subtracted from the fragment depth in :meth:`shadow`.
+    slope_bias : bool
+        Its shade stage also lowers the fragment depth by the receiver-slope bias
+        (:func:`moments_ref.gbuffer.receiver_depth`): PCF, HPG17 §5's "higher depth
+        bias"; the filterable techniques use the constant alone (default False).
     make_steps : callable ``(samples: int, layered: bool) -> tuple[Step, ...]``
         The steps from the shadow map to the texture for a map with ``samples``
         MSAA samples, opaque or layered. An empty chain means the texture is the
@@ -348,6 +353,7 @@ class Technique:
     truth: str = "pcf"
     requires_medium: bool = False
     artifacts: Callable = None
+    slope_bias: bool = False
 
     def refusal(self, scene):
         """Why the technique cannot run on ``scene`` (a sentence), or None when it can."""

@@ -10,16 +10,29 @@ of the 2×2 texels around ``uv`` (the texture unit), times the 9×9 Gaussian
     Z(z < zf) = Σ_taps weight · (1/S) Σ_s [z_s < zf]
 
 is the filtered hard shadow that every filterable technique approximates: with a
-filterable texture the same weights act on b(z) instead of on the test. This is
-the reference of :mod:`moments_ref.report`.
+filterable texture the same weights act on b(z) instead of on the test. With one
+``zf`` for the whole footprint it is the PCF technique (with HPG17 §5's
+receiver-slope bias in ``zf``).
+
+With a receiver plane (``gradient``, receiver-plane depth [Isidoro 2006]) each
+tap compares its sample with the plane's depth at that sample's position instead
+of one ``zf`` for the whole footprint,
+
+    Z_plane = Σ_taps weight · (1/S) Σ_s [z_s < zf + g · (p_tap,s − uv)],
+
+with ``p_tap,s`` the tap's texel centre plus the MSAA offset of sample s
+(:func:`moments_ref.raster.sample_positions`): the exact filtered visibility of
+a planar receiver. A lit plane then does not shadow itself at any angle and
+contact shadows are kept: the reference of :mod:`moments_ref.report`.
 
 For a :class:`~moments_ref.techniques.LayeredSamples` map (translucent occluders)
 the test of a sample is ``Σ_k weight_k [z_k < zf]``, one minus the product of the
-transmittances in front of ``zf``: the reference for translucent occluders.
+transmittances in front of ``zf`` (or of the receiver plane there): the
+reference for translucent occluders.
 
 References
 ----------
-HPG17, Reeves et al. 1987 : see docs/bib.md.
+HPG17, Reeves et al. 1987, Isidoro 2006 : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -27,9 +40,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..filtering import gaussian_weights
+from ..raster import SAMPLE_COUNTS, sample_positions
 from ._interface import Technique, is_layered, register
 
-__all__ = ["pcf_filtered", "tap_weights", "PCF"]
+__all__ = ["pcf_filtered", "tap_weights", "tap_centres", "PCF"]
 
 #: Fragments per chunk (each gathers 10 × 10 texels × S samples × K layers).
 CHUNK = 1 << 13
@@ -78,7 +92,25 @@ def tap_weights(coord, size, taps=None):
     return index, weight
 
 
-def pcf_filtered(samples, uv, zf):
+def tap_centres(coord, size, taps=9):
+    """Positions along one axis that the 10 taps of :func:`tap_weights` stand for.
+
+    ``i0 − 4 + t + ½`` for t = 0..9 (the texel centres before clamping to the
+    edge; :func:`tap_weights` fetches the clamped index), ``i0 = clamp(floor(coord − ½))``.
+    Returns an (N, 10) float64 array.
+    """
+    r = (taps - 1) // 2
+    s = np.asarray(coord, dtype=np.float64) - 0.5
+    i0 = np.clip(np.floor(s), 0, size - 1)
+    return i0[:, None] - r + np.arange(taps + 1) + 0.5
+
+
+def _sample_offsets(S):
+    """MSAA sample offsets (S, 2) of the map; the texel centre when S is not a rasterizer count."""
+    return sample_positions(S) if S in SAMPLE_COUNTS else np.zeros((S, 2))
+
+
+def pcf_filtered(samples, uv, zf, gradient=None):
     """Gaussian-weighted percentage-closer filtering of the MSAA samples, float64.
 
     Parameters
@@ -89,11 +121,18 @@ def pcf_filtered(samples, uv, zf):
         Texel coordinates (u = column, v = row, centres at ``i + 0.5``).
     zf : (...) float array
         Fragment depth (already biased), broadcast against ``uv[..., 0]``.
+    gradient : (..., 2) float array, optional
+        Receiver plane: depth change per texel ``(∂z/∂u, ∂z/∂v)``
+        (:attr:`moments_ref.gbuffer.GBuffer.gradient`). Sample s of the tap at
+        texel centre ``c`` (:func:`tap_centres`) is compared with
+        ``min(zf + gradient · (c + o_s − uv), 1)``, ``o_s`` its MSAA offset
+        (the far plane bounds the plane: the clear depth 1 occludes nothing).
+        Default: ``zf`` for every tap.
 
     Returns
     -------
     intensity : (...) float64 array in [0, 1]
-        ``Σ_{rows, cols} wy · wx · (1/S) Σ_s Σ_k weight_k [z_k < zf]`` with the
+        ``Σ_{rows, cols} wy · wx · (1/S) Σ_s Σ_k weight_k [z_k < zf_tap,s]`` with the
         weights of :func:`tap_weights`.
     """
     layered = is_layered(samples)
@@ -105,14 +144,27 @@ def pcf_filtered(samples, uv, zf):
     shape = np.broadcast_shapes(uv.shape[:-1], zf.shape)
     uvf = np.broadcast_to(uv, shape + (2,)).reshape(-1, 2)
     zff = np.broadcast_to(zf, shape).reshape(-1)
+    if gradient is not None:
+        grad = np.broadcast_to(np.asarray(gradient, dtype=np.float64), shape + (2,)).reshape(-1, 2)
+        off = _sample_offsets(S)
     out = np.empty(zff.shape[0])
     for lo in range(0, zff.shape[0], CHUNK):
         hi = lo + CHUNK
         ci, cw = tap_weights(uvf[lo:hi, 0], W)
         ri, rw = tap_weights(uvf[lo:hi, 1], H)
         d = depth[ri[:, :, None], ci[:, None, :]]  # (n, 10, 10, S, K)
+        z = zff[lo:hi, None, None, None]  # (n, 1, 1, 1): one depth for the footprint
+        if gradient is not None:
+            # Receiver plane at each sample: zf + gx·(x − u) + gy·(y − v) (Isidoro 2006).
+            gx, gy = grad[lo:hi, 0], grad[lo:hi, 1]
+            dx = tap_centres(uvf[lo:hi, 0], W) - uvf[lo:hi, :1]  # (n, 10) columns
+            dy = tap_centres(uvf[lo:hi, 1], H) - uvf[lo:hi, 1:]  # (n, 10) rows
+            z = (z + (gx[:, None] * dx)[:, None, :, None] + (gy[:, None] * dy)[:, :, None, None]
+                 + gx[:, None, None, None] * off[:, 0] + gy[:, None, None, None] * off[:, 1])
+            # The plane ends at the far plane (depth 1): the map's clear depth 1 occludes nothing.
+            z = np.minimum(z, 1.0)
         # Compare in float64: the float32 depths are exact there.
-        test = d < zff[lo:hi, None, None, None, None]
+        test = d < z[..., None]
         if layered:
             occluded = (test * lw[ri[:, :, None], ci[:, None, :]]).sum(axis=-1).mean(axis=-1)
         else:
@@ -134,6 +186,7 @@ PCF = register(Technique(
     name="pcf",
     bits_per_texel=32,
     depth_bias=1e-3,
+    slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.gbuffer.receiver_depth)
     make_steps=_steps,
     lookup=_lookup,
     description="percentage-closer filtering, 9x9 Gaussian (sigma 2.4) x bilinear over the MSAA samples "

@@ -1,10 +1,16 @@
 """The filtered hard shadow: the reference of the shadow-map techniques, and the intensity metric.
 
 Reference ``pcf`` (:data:`PCF_REFERENCE`): the 9×9-Gaussian PCF over the MSAA
-samples at the technique's own depth bias (:func:`moments_ref.techniques.pcf.pcf_filtered`),
-the exact filtered hard shadow ``Z(z < zf)``; with translucent occluders the
-filtered product of transmittances. Stage ``reference_pcf_bias<b>`` (or
-``translucency_reference_bias<b>``): the bias is a stage parameter, so techniques
+samples with receiver-plane depth (Isidoro 2006): each sample of each tap is
+compared with the receiver plane's depth at that sample,
+``zf + gx·(x − u) + gy·(y − v) − b`` (``GBuffer.gradient``,
+:func:`moments_ref.techniques.pcf.pcf_filtered`), with only the technique's
+constant bias ``b`` (10⁻³) against depth quantization. That is the exact
+filtered hard shadow of the planar receiver: no self-shadowing of a plane lit
+at an angle and no slope bias, so contact shadows are in the reference, and PCF
+(the technique, with HPG17 §5's receiver-slope bias) loses them as its error.
+With translucent occluders the filtered product of transmittances, alike.
+Stage ``reference_pcf_bias<b>`` (or ``translucency_reference_bias<b>``): the bias is a stage parameter, so techniques
 with equal biases share the stage.
 
 :func:`intensity_metric` is the metric of every reference whose values are
@@ -14,17 +20,18 @@ images shaded with the technique and with the reference.
 
 References
 ----------
-HPG17, FLIP : see docs/bib.md.
+HPG17, Isidoro 2006, FLIP : see docs/bib.md.
 """
 
 from __future__ import annotations
 
+from ..gbuffer import SLOPE_BIAS_TEXELS
 from ..metrics import flip_mean, metrics, shaded_image
 from ._errormaps import error_maps
-from ._interface import PROJECTION, SHADOW_MAP, TRANSLUCENCY, Reference, Stage, register_reference
+from ._interface import PROJECTION, SHADOW_MAP, TECHNIQUES, TRANSLUCENCY, Reference, Stage, register_reference
 from .pcf import pcf_filtered
 
-__all__ = ["intensity_metric", "error_figure", "PCF_REFERENCE"]
+__all__ = ["intensity_metric", "error_figure", "depth_bias_text", "PCF_REFERENCE"]
 
 
 def intensity_metric(result, name):
@@ -36,7 +43,8 @@ def intensity_metric(result, name):
 
 
 def _pcf(maps, gb, bias):
-    return pcf_filtered(maps, gb.uv, gb.depth - bias)
+    # Receiver-plane depth at every tap (Isidoro 2006) minus the technique's constant bias; no slope term.
+    return pcf_filtered(maps, gb.uv, gb.depth - bias, gradient=gb.gradient)
 
 
 def _reference_stage(ctx, settings, technique):
@@ -45,17 +53,36 @@ def _reference_stage(ctx, settings, technique):
     return Stage(name, _pcf, (src, PROJECTION), params=(("bias", technique.depth_bias),))
 
 
+def depth_bias_text(names=None):
+    """One sentence for the report's settings: which depth bias each technique uses, and why.
+
+    ``names`` (default: every registered technique measured against ``pcf``) are
+    split by their ``slope_bias``.
+    """
+    ts = [t for t in TECHNIQUES.values() if t.truth == "pcf" and (names is None or t.name in names)]
+    slope = ", ".join(t.name for t in ts if t.slope_bias) or "none"
+    const = ", ".join(t.name for t in ts if not t.slope_bias) or "none"
+    value = " or ".join(f"{b:g}" for b in sorted({t.depth_bias for t in ts})) or "1e-3"
+    return (f"Depth bias (HPG17 §5): the filterable techniques ({const}) use only the constant {value} (\"With "
+            "non-linear quantization we use a constant depth bias of 10^-3 depth units for all results\"); "
+            f"PCF ({slope}) adds a receiver-slope term of {SLOPE_BIAS_TEXELS:.3g} (4.5√2) texels times the "
+            "receiver's depth change per texel, HPG17's \"higher depth bias\" of PCF, which costs it contact "
+            "shadows. The 9×9 PCF reference compares each tap with the receiver plane's depth there (receiver-plane "
+            "depth, Isidoro 2006) and the constant bias alone: the exact filtered hard shadow of the planar "
+            "receiver, with its contact shadows and without self-shadowing of planes lit at an angle.")
+
+
 def error_figure(result, names):
     """The shaded reference, each technique's shaded image and its signed error (:func:`._errormaps.error_maps`)."""
     return error_maps(result, names, "9×9 PCF", f"{result.scene.name}: signed error against the filtered hard "
-                      "shadow (9×9 Gaussian PCF at each technique's depth bias)")
+                      "shadow (9×9 Gaussian PCF, receiver-plane depth, each technique's constant bias)")
 
 
 def _figures(result, names):
     return {f"errors_{result.scene.name}.png": error_figure(result, names)}
 
 
-#: The filtered hard shadow at each technique's depth bias.
+#: The filtered hard shadow of the receiver plane at each technique's constant depth bias.
 PCF_REFERENCE = register_reference(Reference(
     name="pcf", label="hard-shadow techniques", stage=_reference_stage, metric=intensity_metric,
     figures=_figures,

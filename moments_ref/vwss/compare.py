@@ -22,7 +22,8 @@ not GPU times: they show how the costs scale, not the paper's milliseconds.
 Near plane. All views use the light's own near plane ``z_n`` (VWSS Listing 1,
 ``light.nearZ``): the scene's ``params.light_near``
 (:func:`moments_ref.vwss.lights.light_near`), or ``near=`` / ``--near``. It sets
-the source view's resolution by Eq. (3) and PCSS's blocker-search region alike.
+the source view's resolution by Eq. (3) and bounds PCSS's blocker-search plane
+(the nearest depth in PCSS's map, :func:`moments_ref.vwss.shading.pcss`).
 
 Holes and bloat (VWSS §3.2, Figure 6) are measured per light sample against the
 MVR map of the same view (:func:`coverage_difference`) on the first warp pass's
@@ -413,7 +414,8 @@ def markdown(res) -> str:
     lines += ["", "`vwss_nocull` is an extra row: VWSS with back-face culling off (VWSS §3.1). `vwss_naive` "
               "warps the nearest surface of the light's centre view (VWSS Figure 5, left).", "",
               f"Near plane z_n = {c['near']:.4g} ({c['near_rule']}): the light-sample views, Eq. (3) and PCSS's "
-              "blocker search use the same value.", "",
+              "map use the same value; PCSS's blocker search covers the light's projection on the plane of the "
+              "nearest depth in its map (at least z_n).", "",
               "## The paper's claims, measured here (also `claims.json`)", "", markdown_table(res.claims)]
     if res.holes:
         lines += ["## Holes and bloat against MVR (same light samples)", "",

@@ -12,8 +12,9 @@ front of the light's plane, a property of the light like its size. It is a scene
 parameter, ``params.light_near`` (:data:`LIGHT_NEAR_PARAM`, world units), read by
 :func:`light_near`. It enters VWSS Eq. (3) (the enlarged source view is
 ``(z_n + d) / z_n`` times the samples' resolution per side, :mod:`.points`) and
-PCSS's blocker search (the search rectangle lies on the near plane,
-:func:`moments_ref.vwss.shading.pcss`), so both methods see the same value. A
+PCSS's map, whose blocker search covers the light's projection on the plane of
+the nearest depth in the map, never nearer than ``z_n``
+(:func:`moments_ref.vwss.shading.pcss`), so both methods see the same value. A
 scene without ``light_near`` gets the older rule of :func:`depth_range`: just in
 front of the nearest occluder (the largest near plane that clips nothing, and
 then the smallest source view), and reports say which rule was used. The

@@ -219,8 +219,14 @@ def _tap_pattern(n, seed):
     return taps
 
 
+def _search_depth(dmap, lin, near):
+    """``max(near, nearest view depth of an occupied texel)``; ``near`` for an empty map."""
+    occupied = dmap < 1
+    return max(float(near), float(lin[occupied].min())) if occupied.any() else float(near)
+
+
 def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BLOCKER_TAPS,
-         filter_taps=PCSS_FILTER_TAPS, seed=0):
+         filter_taps=PCSS_FILTER_TAPS, seed=0, search_depth=None):
     """Percentage-closer soft shadows from the light-centre map (Fernando 2005; VWSS §4).
 
     Parameters
@@ -237,6 +243,9 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
         64 and 96 in VWSS §4.
     seed : int
         Seed of the (deterministic) Poisson-disk tap patterns.
+    search_depth : float, optional
+        View depth of the plane whose rectangle the blocker search covers;
+        default ``max(samples.near, nearest depth in the map)`` (see Notes).
 
     Returns
     -------
@@ -250,13 +259,20 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     projected (tan) units: the cross-section of the pyramid from the receiver to
     the light. Steps:
 
-    The near plane is the light's own ``z_n`` (``samples.near``, VWSS Listing 1's
-    ``light.nearZ``, :func:`moments_ref.vwss.lights.light_near`), the value that
-    also sets VWSS's source resolution (Eq. (3)): a smaller ``z_n`` widens the
-    search rectangle and spreads the 64 taps thinner.
+    These rectangles are nested: the nearer the plane, the larger. Fernando's
+    search region, ``w_search = l (z_r − z_n) / z_r`` at the near plane ``z_n``,
+    is the one at the nearest depth a blocker can have. Here that depth is
+    ``z_s = max(z_n, z_min)`` with ``z_min`` the nearest depth in the map (a min
+    reduction): no blocker lies nearer, so the region still holds every blocker,
+    and it no longer depends on where the light's own near plane (``samples.near``,
+    VWSS Listing 1's ``light.nearZ``, which also sets VWSS's Eq. (3)) happens to
+    lie. With the literal ``z_n`` (``search_depth=samples.near``) a small near
+    plane makes the region many times the map: on the knot scene at ``z_n = 0.2``
+    it is about 2.8 map widths across, 54 of the 64 taps fall outside the map,
+    the rest miss the thin tube and umbra pixels come out fully lit.
 
-    1. Blocker search over that rectangle at the near plane (the largest one):
-       mean depth ``z_b`` of the taps nearer than ``z_r − bias``. No blocker: lit.
+    1. Blocker search over the rectangle at ``z_s``: mean depth ``z_b`` of the
+       taps nearer than ``z_r − bias``. No blocker: lit.
     2. Penumbra estimate by parallel planes, ``w = l (z_r − z_b) / z_b`` on the
        receiver, i.e. half-extents ``(l / 2)(1/z_b − 1/z_r)`` in tan units.
     3. PCF with ``filter_taps`` taps over that rectangle.
@@ -275,8 +291,10 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     hx, hy = light.width / 2 * kx, light.height / 2 * ky
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_r = np.where(zr > 0, 1 / zr, 0.0)
-    # 1. Blocker search.
-    sx, sy = hx * (1 / n - inv_r), hy * (1 / n - inv_r)
+    # 1. Blocker search over the rectangle at the nearest depth a blocker can have.
+    zs = _search_depth(dmap, lin, n) if search_depth is None else float(search_depth)
+    reach = np.maximum(1 / zs - inv_r, 0.0)
+    sx, sy = hx * reach, hy * reach
     total = np.zeros(p.shape[0])
     count = np.zeros(p.shape[0])
     for ox, oy in _tap_pattern(blocker_taps, seed):  # loop over taps
