@@ -133,7 +133,7 @@ def _intro(flip_ok, sections):
             "reference at the technique's depth bias (9×9 Gaussian PCF over the MSAA samples = the exact "
             "filtered hard shadow Z(z < zf); with translucent occluders, the filtered product of "
             "transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
-            f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are wall-clock NumPy seconds "
+            f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are CPU seconds of NumPy "
             "on this machine (texture stages / lookups, the split of HPG17 Figure 10), not GPU times. "
             "Depth bias: each technique's constant (1e-3, as HPG17 uses for NLQ) plus a receiver-slope term "
             f"of {SLOPE_BIAS_TEXELS:.3g} (4.5√2) texels times the receiver's depth change per texel, the same "
