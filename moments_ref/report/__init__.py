@@ -423,7 +423,9 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     dict with ``rows`` (list of dict, :data:`COLUMNS`), ``stages`` (scene -> list),
     ``claims``, ``soft`` (scene -> measured soft-shadow statements),
     ``artifacts`` (the measurements of ``msm_soft.artifact_images`` or None),
-    ``settings`` (reference -> scene -> its settings) and ``paths`` (name -> Path).
+    ``settings`` (reference -> scene -> its settings), ``paths`` (name -> Path)
+    and ``tasks`` (task key -> the pid, CPU and wall seconds of the process that
+    ran it, :func:`._jobs.run_tasks`).
 
     Raises
     ------
@@ -452,10 +454,11 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     tasks = _tasks([(sc, pl, acc.repeats, progress) for sc, pl in plans], full, jobs)
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
-    done = run_tasks(tasks, jobs, progress=progress)
+    timings = {}
+    done = run_tasks(tasks, jobs, progress=progress, timings=timings)
     for sc, _ in plans:
         _collect(acc, sc, done[("scene", sc.name)])
-    return _write(acc, out, flip_ok, done)
+    return {**_write(acc, out, flip_ok, done), "tasks": timings}
 
 
 def build_parser():

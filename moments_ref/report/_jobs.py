@@ -23,6 +23,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+import time
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
@@ -51,10 +52,17 @@ def _init_worker(limit):
     matplotlib.use("Agg")
 
 
+def _call(fn, args):
+    """``fn(*args)`` and how long it took: ``(result, {"pid", "cpu", "wall"})`` (seconds)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = fn(*args)
+    return result, {"pid": os.getpid(), "cpu": time.process_time() - c0, "wall": time.perf_counter() - t0}
+
+
 def _serial(tasks, bar):
     out = {}
     for key, fn, args in tasks:
-        out[key] = fn(*args)
+        out[key] = _call(fn, args)
         if bar is not None:
             bar.update(1)
     return out
@@ -75,7 +83,7 @@ def _parallel(tasks, jobs, bar):
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_worker,
                                initargs=(max_memory(),))
     try:
-        futures = {pool.submit(fn, *args): key for key, fn, args in tasks}
+        futures = {pool.submit(_call, fn, args): key for key, fn, args in tasks}
         pending = set(futures)
         while pending:
             done, pending = wait(pending, return_when=FIRST_EXCEPTION)
@@ -95,12 +103,13 @@ def _parallel(tasks, jobs, bar):
     return {key: f.result() for f, key in futures.items()}
 
 
-def run_tasks(tasks, jobs=1, progress=False, desc="report"):
+def run_tasks(tasks, jobs=1, progress=False, desc="report", timings=None):
     """Run ``tasks`` (a list of ``(key, function, args)``); return ``{key: result}`` in the tasks' order.
 
     ``jobs`` 1 (or a single task) runs them here, in order; more runs them on
     ``min(jobs, len(tasks))`` spawned worker processes. ``progress``: a tqdm bar
-    of the tasks on stderr.
+    of the tasks on stderr. ``timings``: a dict receiving per key the task's
+    ``{"pid", "cpu", "wall"}`` (the process that ran it, its CPU and wall seconds).
     """
     tasks = list(tasks)
     jobs = max(min(int(jobs), len(tasks)), 1)
@@ -110,7 +119,10 @@ def run_tasks(tasks, jobs=1, progress=False, desc="report"):
 
         bar = tqdm(total=len(tasks), desc=desc, unit="task", file=sys.stderr, leave=False)
     try:
-        return _serial(tasks, bar) if jobs == 1 else _parallel(tasks, jobs, bar)
+        done = _serial(tasks, bar) if jobs == 1 else _parallel(tasks, jobs, bar)
     finally:
         if bar is not None:
             bar.close()
+    if timings is not None:
+        timings.update({k: t for k, (_, t) in done.items()})
+    return {k: r for k, (r, _) in done.items()}
