@@ -181,6 +181,8 @@ def _cmd_report(args):
         argv.append("--all-techniques")
     if args.repeats is not None:
         argv += ["--repeats", str(args.repeats)]
+    if args.jobs is not None:
+        argv += ["--jobs", str(args.jobs)]
     if args.no_progress:
         argv.append("--no-progress")
     return report.main(argv)
@@ -229,6 +231,8 @@ def _add_jobs(sub):
     rp.add_argument("--all-techniques", action="store_true", help="every technique that can run on each scene")
     rp.add_argument("--repeats", type=_int_in(1), default=None, metavar="N",
                     help="timed repeats of each cost stage after a warm-up (default 3)")
+    rp.add_argument("--jobs", type=_int_in(1), default=None, metavar="N",
+                    help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
     rp.add_argument("--out", required=True, type=Path, help="output folder")
     rp.add_argument("--no-progress", action="store_true", help="no progress bar")
     rp.set_defaults(func=_cmd_report)

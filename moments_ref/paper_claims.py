@@ -340,9 +340,13 @@ def _pixel_notes(measured):
     return lines
 
 
-def gather(rows, measured, report_md, full=False, extra=(), notes=()):
-    """``(claims.json text, report_md with the claims table appended)`` for the scenes that ran."""
-    cs = claims(rows, measured, full, extra)
+def gather(rows, measured, report_md, full=False, extra=(), notes=(), temporal=True):
+    """``(claims.json text, report_md with the claims table appended)`` for the scenes that ran.
+
+    ``temporal=False`` leaves out the temporal claim (:func:`claims`); the report
+    measures it beside the scenes and passes it in ``extra``.
+    """
+    cs = claims(rows, measured, full, extra, temporal)
     lines = [report_md.rstrip("\n"), "", "## Paper claims (claims.json)", "",
              f"Settings: {_mode(full)}. Each verdict compares our measurement with the paper's own figure; "
              "`why` says how a sentence without a number was read. A verdict can change between the default "

@@ -96,7 +96,7 @@ class RunResult:
     scene : Scene
     techniques : list of str
     stages : list of str, the stages that ran, in order
-    seconds : dict stage -> wall-clock seconds (the median of its timed repeats)
+    seconds : dict stage -> seconds (the median of its timed repeats; wall-clock or CPU, ``run(clock=...)``)
     times : dict stage -> list of seconds: its timed repeats (after a warm-up run) for
         the stages of the techniques' costs, the single run for the others
     repeats : int, timed repeats of the cost stages
@@ -212,12 +212,12 @@ class _Graph:
             visit(t)
         return out
 
-    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1):
+    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1, clock=time.perf_counter):
         """Compute the stages ``targets`` need; return ``(order, values, times)``.
 
         A stage in ``timed`` runs once as a warm-up (its value is kept) and then
         ``repeats`` times more, each timed; ``times[stage]`` lists those seconds
-        (one entry, the single run, for the other stages).
+        (one entry, the single run, for the other stages), read from ``clock``.
         """
         order = self.order(targets)
         values, times = {}, {}
@@ -228,11 +228,11 @@ class _Graph:
                 if bar is not None:
                     bar.set_postfix_str(name, refresh=False)
                 args = [values[d] for d in stage.deps]
-                t0 = time.perf_counter()
+                t0 = clock()
                 values[name] = stage(*args)
-                times[name] = [time.perf_counter() - t0]
+                times[name] = [clock() - t0]
                 if name in timed:
-                    times[name] = [_timed(stage, args) for _ in range(max(int(repeats), 1))]
+                    times[name] = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1))]
                 if bar is not None:
                     bar.update(1)
         finally:
@@ -241,10 +241,10 @@ class _Graph:
         return order, values, times
 
 
-def _timed(stage, args):
-    t0 = time.perf_counter()
+def _timed(stage, args, clock):
+    t0 = clock()
     stage(*args)
-    return time.perf_counter() - t0
+    return clock() - t0
 
 
 def _stage_bar(progress, total, desc):
@@ -255,6 +255,14 @@ def _stage_bar(progress, total, desc):
     from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, unit="stage", file=sys.stderr, leave=False)
+
+
+def _clock(name):
+    """The timer of ``run(clock=name)``."""
+    clocks = {"wall": time.perf_counter, "cpu": time.process_time}
+    if name not in clocks:
+        raise InputError(f"clock: expected one of {', '.join(clocks)}, got {name!r}")
+    return clocks[name]
 
 
 def _spread(per_repeat):
@@ -387,7 +395,7 @@ def plan(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=Non
 
 def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None, reference=True,
         noise_tiles=64, frame=0, params=None, area=None, settings=None, full=False, given=None, progress=False,
-        repeats=1):
+        repeats=1, clock="wall"):
     """Compute the requested techniques' results on a scene's camera view, lazily.
 
     Parameters
@@ -433,6 +441,10 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
         its shade stage), after a warm-up run whose value is used; the seconds are
         their median (``spread``: median, min, max). The other stages (base
         stages, references) run once.
+    clock : "wall" or "cpu"
+        What the seconds measure: wall-clock time (``time.perf_counter``) or the
+        CPU time of this process, all its threads (``time.process_time``: not
+        inflated when other processes compete for the cores; the report's choice).
 
     Returns
     -------
@@ -448,7 +460,8 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
     info = meta["info"]
     timed = {k for i in info.values() for k in (*i["steps"], i["shade"])}
     repeats = max(int(repeats), 1)
-    order, values, times = g.run(targets, progress=progress, desc=scene.name, timed=timed, repeats=repeats)
+    order, values, times = g.run(targets, progress=progress, desc=scene.name, timed=timed, repeats=repeats,
+                                 clock=_clock(clock))
     seconds = {k: _spread(v)[0] for k, v in times.items()}
     spread = {n: {"texel": _spread(_cost(times, i["steps"], repeats)),
                   "fragment": _spread(_cost(times, [i["shade"]], repeats))} for n, i in info.items()}

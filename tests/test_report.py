@@ -116,8 +116,8 @@ def test_interrupted_run_leaves_no_partial_files(tmp_path, monkeypatch):
         return real(*a, **k)
 
     monkeypatch.setattr(report.pipeline, "run", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        report.run(scenes=["translucent", "facade"], out_dir=tmp_path / "r", **TINY)
+    with pytest.raises(KeyboardInterrupt):  # jobs=1: the patch reaches the scenes (worker processes import afresh)
+        report.run(scenes=["translucent", "facade"], out_dir=tmp_path / "r", jobs=1, **TINY)
     assert not (tmp_path / "r").exists() or not any((tmp_path / "r").iterdir())
     monkeypatch.setattr(report.pipeline, "run", real)
 

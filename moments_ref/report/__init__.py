@@ -1,7 +1,7 @@
 """Error against run time: every technique on every scene, measured against the reference.
 
 ``moments-ref report [--scene NAME|FILE]... [--technique NAME]... [--all-techniques]
-[--repeats N] [--full] --out DIR`` (:func:`main`) renders each scene's camera
+[--repeats N] [--jobs N] [--full] --out DIR`` (:func:`main`) renders each scene's camera
 view, shades its receiver pixels with the techniques the scene's ``outputs``
 name (or ``--technique``, or with ``--all-techniques`` every one that can run
 on it; :mod:`moments_ref.pipeline`) and writes to DIR:
@@ -28,10 +28,14 @@ transmittances): ``rmse``, ``max_error = max |e|``, ``p99_error`` (99th
 percentile of ``|e|``), ``leak_fraction`` (share of pixels lit more than 0.05
 above the reference, ``e < −0.05``) and ``flip_mean``, the mean of NVIDIA ꟻLIP
 (package ``flip-evaluator``, LDR) between the shaded image and the image shaded
-with the reference. ``texel_seconds`` is the wall-clock time of the technique's
-texture stages (shared stages counted fully for each technique: its cost
-alone), ``fragment_seconds`` that of its lookups for all receiver pixels, the
-split of HPG17 Figure 10. Both are NumPy times on this machine, not GPU times.
+with the reference. ``texel_seconds`` is the CPU time (``time.process_time`` of
+the process running the stage) of the technique's texture stages (shared stages
+counted fully for each technique: its cost alone), ``fragment_seconds`` that of
+its lookups for all receiver pixels, the split of HPG17 Figure 10. Both are NumPy
+times on this machine, not GPU times. CPU time, not wall-clock, because with
+``--jobs N`` (default: the usable cores) the scenes run side by side in worker
+processes (:mod:`._jobs`) and compete for the machine; the results other than
+timings do not depend on ``--jobs``.
 
 Without ``--full`` each scene runs at reduced resolution
 (:func:`moments_ref.pipeline.reduced_settings`: shadow map halved per side,
@@ -57,7 +61,8 @@ slides name).
 
 Package layout: this module runs and writes; :mod:`._text` holds results.csv,
 the claims and report.md, :mod:`._plots` the error-against-cost plots,
-:mod:`._pareto` the fronts and the summary, :mod:`._machine` the machine.
+:mod:`._pareto` the fronts and the summary, :mod:`._machine` the machine,
+:mod:`._jobs` the worker processes.
 
 References
 ----------
@@ -68,22 +73,24 @@ HPG17, VWSS, Slides, FLIP : see docs/bib.md.
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import sys
-from contextlib import contextmanager
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .._arrays import InputError
-from .._io import save_figure, write_text
+from .._io import save_figure, write_bytes, write_text
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
-from .. import paper_claims, pipeline
+from .. import paper_claims, pipeline, scattering_temporal
 from .. import techniques as _techniques
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
 from ._crops import crop_figures
+from ._jobs import WorkerDied, run_tasks, usable_cores
 from ._machine import copy_rate, machine, machine_lines
 from ._pareto import front_lines, mark_pareto, pareto_mask, summary_lines
 from ._plots import plot_error_vs_runtime, plot_fronts
@@ -166,7 +173,7 @@ class _Collected:
     stages: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     references: dict = field(default_factory=dict)  # reference name -> scene -> settings
-    figures: dict = field(default_factory=dict)
+    pngs: dict = field(default_factory=dict)  # file name -> PNG bytes of the scenes' figures
     measured: dict = field(default_factory=dict)  # scene -> numbers the paper claims need
     images: dict = field(default_factory=dict)  # reference name -> [file names]
 
@@ -204,89 +211,153 @@ def _announce(acc, sc, names, used, ref_settings, full):
           f"{'×'.join(map(str, res))}, reference {refs}, {acc.repeats} timed repeats ({note})", file=sys.stderr)
 
 
-def _run_scene(acc, sc, full, given, requested, overrides, noise_tiles, progress, all_techniques=False):
+def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_techniques=False):
+    """``(techniques, pipeline keywords)`` of a scene, its settings announced; ``None`` when nothing runs on it."""
     size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
     names = _scene_techniques(sc, requested, all_techniques)
     if not names:
-        return
+        return None
     kw = dict(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles, settings=overrides,
               full=full, given=given)
     _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, **kw)[2]["settings"], full)
-    result = pipeline.run(sc, names, progress=progress, repeats=acc.repeats, **kw)
-    acc.stages[sc.name] = result.stage_table()
-    if result.gbuffer is not None:  # a scattering-only run shades no receiver pixels: nothing the claims need
-        acc.measured[sc.name] = paper_claims.scene_measurements(result)
-    acc.rows += result.rows()
+    return names, kw
+
+
+def _png(fig):
+    """The PNG bytes :func:`moments_ref._io.save_figure` writes (dpi 110, no timestamp); closes ``fig``."""
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
+
+
+def _scene_task(sc, names, kw, repeats, progress):
+    """A scene's share of the report, here or in a worker: rows, stages, claim numbers, figures as PNG bytes.
+
+    Timed stages are measured in CPU seconds of this process (``clock="cpu"``).
+    Everything returned is plain data (picklable); nothing is written.
+    """
+    result = pipeline.run(sc, names, progress=progress, repeats=repeats, clock="cpu", **kw)
+    part = {"rows": result.rows(), "stages": result.stage_table(), "references": {}, "images": {}, "pngs": {},
+            "measured": None if result.gbuffer is None else paper_claims.scene_measurements(result)}
+    # (a scattering-only run shades no receiver pixels: nothing the claims need)
     groups = {}
     for n in result.techniques:
         groups.setdefault(result.truth[n], []).append(n)
     for ref_name, ref_names in groups.items():
         ref = get_reference(ref_name)
-        acc.references.setdefault(ref_name, {})[sc.name] = result.settings[ref_name]
+        part["references"][ref_name] = result.settings[ref_name]
         for fname, fig in (ref.figures(result, ref_names) if ref.figures else {}).items():
-            acc.figures[fname] = fig
-            acc.images.setdefault(ref_name, []).append(fname)
+            part["pngs"][fname] = _png(fig)
+            part["images"].setdefault(ref_name, []).append(fname)
     crops = crop_figures(result, groups)  # the insets where the techniques differ most (._crops)
-    acc.figures.update(crops)
-    acc.images.setdefault("crops", []).extend(crops)
+    for fname, fig in crops.items():
+        part["pngs"][fname] = _png(fig)
+        part["images"].setdefault("crops", []).append(fname)
+    return part
 
 
-@contextmanager
-def _bar(progress, total):
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=total, desc="report", unit="scene", file=sys.stderr, leave=False)
-    try:
-        yield bar
-    finally:
-        if bar is not None:
-            bar.close()
-
-
-def _artifacts(rows, out):
-    """Each technique with rows and measured artifacts: (first measurements, markdown lines, paths)."""
-    first, lines, paths = None, [], {}
-    for n in dict.fromkeys(r["technique"] for r in rows):
-        t = _techniques.get(n)
-        if t.artifacts is None:
-            continue
-        # Synthetic scenes with exact references; writes its own files atomically.
-        m, more, written = t.artifacts(out)
-        first = m if first is None else first
-        lines += more
-        paths.update({Path(x).name: Path(x) for x in written})
-    return first, lines, paths
+def _collect(acc, sc, part):
+    """Add a scene's :func:`_scene_task` result to ``acc`` (called in scene order)."""
+    acc.stages[sc.name] = part["stages"]
+    if part["measured"] is not None:
+        acc.measured[sc.name] = part["measured"]
+    acc.rows += part["rows"]
+    for ref_name, cfg in part["references"].items():
+        acc.references.setdefault(ref_name, {})[sc.name] = cfg
+    for ref_name, fnames in part["images"].items():
+        acc.images.setdefault(ref_name, []).extend(fnames)
+    acc.pngs.update(part["pngs"])
 
 
-def _write(acc, out, flip_ok):
+def _temporal_task(scene_name, full):
+    """The slides' temporal scattering claim on a shipped scene (what ``paper_claims.claims`` measures)."""
+    from ..scene import load_scene
+
+    m = scattering_temporal.measure(load_scene(scene_name), "full" if full else "default")
+    return scattering_temporal.claim(m)
+
+
+def _artifacts_task(names):
+    """Each technique of ``names`` with measured artifacts: (first measurements, markdown lines, file bytes).
+
+    The artifacts write their own files; they are written to a temporary folder
+    here and their bytes returned, so that the report's folder is written only
+    at the end.
+    """
+    first, lines, files = None, [], {}
+    with tempfile.TemporaryDirectory(prefix="moments-ref-artifacts-") as tmp:
+        for n in names:
+            m, more, written = _techniques.get(n).artifacts(Path(tmp))
+            first = m if first is None else first
+            lines += more
+            files.update({Path(x).name: Path(x).read_bytes() for x in written})
+    return first, lines, files
+
+
+def _tasks(plans, full, jobs):
+    """The report's tasks ``(key, function, args)``: each scene, the artifacts, the temporal claim.
+
+    With more than one job the longest go first (the temporal claim, then scenes
+    with an area light, then with a medium, then by technique count): a short
+    task ends the run, not a long one started last.
+    """
+    tasks, weight = [], {}
+    for sc, (names, kw), repeats, progress in plans:
+        truths = {_techniques.get(n).truth for n in names}
+        tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and jobs == 1)))
+        weight[tasks[-1][0]] = (2 if "mvr" in truths else 1 if "raymarch" in truths else 0, len(names))
+    ran = [n for _, (names, _), _, _ in plans for n in names]
+    with_artifacts = [n for n in dict.fromkeys(ran) if _techniques.get(n).artifacts is not None]
+    if with_artifacts:
+        tasks.append((("artifacts",), _artifacts_task, (with_artifacts,)))
+        weight[("artifacts",)] = (0, 0)
+    from ..scene import list_scenes
+
+    shipped = [sc.name for sc, (names, _), _, _ in plans if "scattering_6m" in names and sc.name in list_scenes()]
+    if shipped:
+        tasks.append((("temporal",), _temporal_task, (shipped[0], full)))
+        weight[("temporal",)] = (3, 0)
+    if jobs > 1:
+        tasks.sort(key=lambda t: weight[t[0]], reverse=True)
+    return tasks
+
+
+def _write(acc, out, flip_ok, done):
+    """Write every file of the report to ``out``; ``done``: the results of :func:`_tasks`."""
     import matplotlib.pyplot as plt
 
     statements = {name: {s: get_reference(name).statements(acc.rows, s) for s in scenes}
                   for name, scenes in acc.references.items() if get_reference(name).statements}
     mark_pareto(acc.rows)
-    acc.figures.update(plot_fronts(acc.rows))
+    fronts = plot_fronts(acc.rows)
     claims = evaluate_claims(acc.rows)
     refs = [(get_reference(n), cfg, statements.get(n, {})) for n, cfg in acc.references.items()]
+    artifacts, lines, files = done.get(("artifacts",), (None, [], {}))
+    temporal = done.get(("temporal",))
     try:
-        artifacts, lines, paths = _artifacts(acc.rows, out)
-        # Every text is complete before the report's own files are written; each file is
+        # Every text and image is complete before the first file is written; each file is
         # written atomically (temporary file, then rename), so an interrupted run
         # leaves no half-written file.
         texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
                  "report.md": markdown(acc.rows, acc.stages, acc.settings, claims,
-                                       {"fronts": [n for n in acc.figures if n.startswith("front_")],
-                                        **acc.images}, flip_ok, refs, lines,
+                                       {"fronts": list(fronts), **acc.images}, flip_ok, refs, lines,
                                        answer=acc.machine + front_lines(acc.rows) + summary_lines(acc.rows),
                                        repeats=acc.repeats)}
-        texts["claims.json"], texts["report.md"] = paper_claims.gather(acc.rows, acc.measured, texts["report.md"],
-                                                                       acc.full)
-        for name, fig in acc.figures.items():
+        texts["claims.json"], texts["report.md"] = paper_claims.gather(
+            acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
+            temporal=False)
+        paths = {name: write_bytes(out / name, data) for name, data in files.items()}
+        paths.update({name: write_bytes(out / name, data) for name, data in acc.pngs.items()})
+        for name, fig in fronts.items():
             paths[name] = save_figure(fig, out / name, dpi=110)
     finally:
-        for fig in acc.figures.values():
+        for fig in fronts.values():
             plt.close(fig)
     for name, text in texts.items():
         paths[name] = write_text(out / name, text)
@@ -294,8 +365,20 @@ def _write(acc, out, flip_ok):
             "artifacts": artifacts, "paths": paths, "settings": acc.references}
 
 
+def _timing_line(jobs, cores, repeats):
+    """The machine section's sentence on how the timings were taken."""
+    side = ("one scene at a time" if jobs == 1 else
+            f"{jobs} worker processes side by side, so a timed stage shared the memory bandwidth (and, with "
+            "more workers than cores or other load, the cores) with the other workers; `--jobs 1` times each "
+            "stage alone")
+    return (f"Timings are CPU seconds of the process that ran the stage (`time.process_time`, all its threads: "
+            f"not inflated while other processes wait for a core), each the median of {repeats} timed runs "
+            f"after a warm-up. The scenes ran {side} ({cores} usable cores).")
+
+
 def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=None, shadow_map_size=None,
-        msaa=None, resolution=None, noise_tiles=64, area=None, scattering=None, all_techniques=False, repeats=3):
+        msaa=None, resolution=None, noise_tiles=64, area=None, scattering=None, all_techniques=False, repeats=3,
+        jobs=None):
     """Run the report and write its files to ``out_dir``.
 
     Parameters
@@ -321,7 +404,14 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         translucency, medium) instead of the scene's ``outputs``.
     repeats : int
         Timed repeats of every stage of a technique's cost, after a warm-up run
-        (results.csv: median, min, max).
+        (results.csv: median, min, max; CPU seconds of the process running the
+        stage, ``time.process_time``).
+    jobs : int, optional
+        Worker processes running the scenes, the temporal scattering claim and
+        the artifacts side by side (:mod:`._jobs`; default the usable cores,
+        ``len(os.sched_getaffinity(0))``); 1 runs everything in this process, one
+        after the other. The results do not depend on it, only the timings'
+        competition for the machine (stated in report.md).
     shadow_map_size, msaa, resolution : optional
         Override the settings for every scene (tests, notebooks);
         ``shadow_map_size`` also sets the maps of the area-light rows.
@@ -339,7 +429,9 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     dict with ``rows`` (list of dict, :data:`COLUMNS`), ``stages`` (scene -> list),
     ``claims``, ``soft`` (scene -> measured soft-shadow statements),
     ``artifacts`` (the measurements of ``msm_soft.artifact_images`` or None),
-    ``settings`` (reference -> scene -> its settings) and ``paths`` (name -> Path).
+    ``settings`` (reference -> scene -> its settings), ``paths`` (name -> Path)
+    and ``tasks`` (task key -> the pid, CPU and wall seconds of the process that
+    ran it, :func:`._jobs.run_tasks`).
 
     Raises
     ------
@@ -358,14 +450,21 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     overrides = _check_overrides({"area": area, "scattering": scattering})
     given = {"shadow_map_size": shadow_map_size, "msaa": msaa, "resolution": resolution}
     flip_ok = flip_available()
+    jobs = usable_cores() if jobs is None else int(jobs)
+    if jobs < 1:
+        raise InputError(f"jobs: expected a positive integer, got {jobs}")
     acc = _Collected(full=full, repeats=max(int(repeats), 1))
-    acc.machine = machine_lines(machine(), copy_rate())
-    with _bar(progress, len(loaded)) as bar:
-        for sc in loaded:
-            _run_scene(acc, sc, full, given, techniques, overrides, noise_tiles, progress, all_techniques)
-            if bar is not None:
-                bar.update(1)
-    return _write(acc, out, flip_ok)
+    acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
+    plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
+                                                                  noise_tiles, all_techniques)) is not None]
+    tasks = _tasks([(sc, pl, acc.repeats, progress) for sc, pl in plans], full, jobs)
+    jobs = min(jobs, len(tasks)) or 1
+    acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
+    timings = {}
+    done = run_tasks(tasks, jobs, progress=progress, timings=timings)
+    for sc, _ in plans:
+        _collect(acc, sc, done[("scene", sc.name)])
+    return {**_write(acc, out, flip_ok, done), "tasks": timings}
 
 
 def build_parser():
@@ -382,6 +481,8 @@ def build_parser():
                    help="every technique that can run on each scene instead of its outputs")
     p.add_argument("--repeats", type=_positive, default=3, metavar="N",
                    help="timed repeats of each cost stage after a warm-up (default 3)")
+    p.add_argument("--jobs", type=_positive, default=None, metavar="N",
+                   help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
@@ -408,7 +509,8 @@ def main(argv=None) -> int:
         if args.technique and args.all_techniques:
             raise InputError("technique: give --technique or --all-techniques, not both")
         res = run(scenes=args.scene, full=args.full, out_dir=args.out, progress=not args.no_progress,
-                  techniques=args.technique, all_techniques=args.all_techniques, repeats=args.repeats)
+                  techniques=args.technique, all_techniques=args.all_techniques, repeats=args.repeats,
+                  jobs=args.jobs)
     except InputError as exc:
         print(f"moments-ref report: {exc}", file=sys.stderr)
         return 2

@@ -1,6 +1,6 @@
 """The machine the report's timings come from, and a same-run memory-copy rate.
 
-The seconds in results.csv are NumPy wall-clock times on one machine. To compare
+The seconds in results.csv are NumPy CPU times on one machine. To compare
 them across machines, report.md states the cores, the NumPy version, the BLAS it
 is built with (``numpy.show_config``; the threads in use via ``threadpoolctl``
 where installed) and the rate of a plain memory copy measured in the same run

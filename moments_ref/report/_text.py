@@ -134,7 +134,7 @@ def _intro(flip_ok, sections):
             "reference (9×9 Gaussian PCF over the MSAA samples against the receiver plane's depth at each tap = "
             "the exact filtered hard shadow of the planar receiver; with translucent occluders, the filtered "
             "product of transmittances). Shadow intensity: 1 = fully shadowed. `leak_fraction`: share of receiver "
-            f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are wall-clock NumPy seconds "
+            f"pixels lit more than {LEAK_THRESHOLD} above the reference. Times are CPU seconds of NumPy "
             "on this machine (texture stages / lookups, the split of HPG17 Figure 10), not GPU times. "
             + _techniques.references.depth_bias_text())  # the bias of each technique: techniques/references.py
     if sections:

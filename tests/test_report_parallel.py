@@ -1,0 +1,119 @@
+"""The report on worker processes (``--jobs``): the same results as the serial run, errors as in it.
+
+Two small scenes at tiny settings are run with ``jobs=1`` (everything in this
+process, one after the other) and ``jobs=2`` (two spawned workers); every
+column of results.csv but the timings, stages.json but its seconds, claims.json
+and the error images must be identical, byte for byte where they are files. A
+slow variant adds an area-light scene (the msm_soft artifacts as their own task).
+"""
+
+import csv
+import json
+import os
+import time
+
+import pytest
+
+from moments_ref import InputError, report
+from moments_ref._arrays import set_max_memory
+from moments_ref.report import _jobs
+
+TINY = dict(progress=False, shadow_map_size=48, resolution=(48, 27), noise_tiles=1, repeats=1)
+TIMING = {"texel_seconds", "texel_seconds_min", "texel_seconds_max", "fragment_seconds", "fragment_seconds_min",
+          "fragment_seconds_max", "pareto"}  # pareto: the front over the costs, so it follows the timings
+
+
+def _outputs(out):
+    """What must not depend on ``jobs``: results.csv without timings, stages without seconds, claims, images."""
+    with open(out / "results.csv", newline="") as f:
+        rows = [{k: v for k, v in r.items() if k not in TIMING} for r in csv.DictReader(f)]
+    stages = {s: [(x["stage"], x["used_by"]) for x in v] for s, v in json.loads((out / "stages.json").read_text()).items()}
+    images = {p.name: p.read_bytes() for p in sorted(out.glob("*.png")) if not p.name.startswith("front_")}
+    return rows, stages, json.loads((out / "claims.json").read_text()), images
+
+
+def _same(a, b):
+    rows_a, stages_a, claims_a, images_a = a
+    rows_b, stages_b, claims_b, images_b = b
+    assert rows_a == rows_b
+    assert stages_a == stages_b
+    assert claims_a == claims_b  # no claim is measured on the timings
+    assert images_a.keys() == images_b.keys() and images_a
+    for name in images_a:
+        assert images_a[name] == images_b[name], name
+
+
+def _run_both(tmp_path, scenes, **kw):
+    res = {}
+    for jobs in (1, 2):
+        out = tmp_path / f"jobs{jobs}"
+        res[jobs] = report.run(scenes=scenes, out_dir=out, jobs=jobs, **TINY, **kw)
+    return res, _outputs(tmp_path / "jobs1"), _outputs(tmp_path / "jobs2")
+
+
+def test_two_jobs_give_the_serial_results(tmp_path):
+    res, serial, parallel = _run_both(tmp_path, ["translucent", "facade"])
+    _same(serial, parallel)
+    assert len(serial[0]) == 4  # translucent_msm; msm128, nlq64, nlq32
+    # the rows come back in scene order, whatever order the workers finished in
+    assert [r["scene"] for r in res[2]["rows"]] == ["translucent"] + ["facade"] * 3
+    assert list(res[1]["paths"]) == list(res[2]["paths"])
+    md = (tmp_path / "jobs2" / "report.md").read_text()
+    assert "2 worker processes side by side" in md and "CPU seconds" in md
+    assert "one scene at a time" in (tmp_path / "jobs1" / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_two_jobs_give_the_serial_results_with_an_area_light(tmp_path):
+    area = {"map_size": 32, "light_samples": 4, "reference_views": 8}
+    res, serial, parallel = _run_both(tmp_path, ["knot", "translucent"], area=area,
+                                      techniques=["msm_soft", "pcss", "translucent_msm"])
+    _same(serial, parallel)
+    assert res[1]["artifacts"] is not None and (tmp_path / "jobs2" / "msm_soft_artifacts.png").read_bytes() == \
+        (tmp_path / "jobs1" / "msm_soft_artifacts.png").read_bytes()
+
+
+def test_a_worker_error_is_the_serial_error_and_nothing_is_written(tmp_path):
+    # The shadow map's memory check runs in the worker: the limit must reach it, and its
+    # InputError must come back as itself, before any file is written.
+    old = set_max_memory(2 ** 30)
+    try:
+        messages = []
+        for jobs in (1, 2):
+            out = tmp_path / f"jobs{jobs}"
+            with pytest.raises(InputError) as e:
+                report.run(scenes=["translucent", "facade"], out_dir=out, jobs=jobs,
+                           **{**TINY, "shadow_map_size": 8192, "msaa": 8})
+            messages.append(str(e.value))
+            assert not out.exists() or not any(out.iterdir())
+    finally:
+        set_max_memory(old)
+    assert messages[0] == messages[1] and "memory limit" in messages[0] and "\n" not in messages[0]
+
+
+def _fail(x):
+    raise InputError(f"x: expected something else, got {x}")
+
+
+def _sleep(x):
+    time.sleep(x)
+    return os.getpid()
+
+
+def test_run_tasks_keeps_the_order_and_stops_the_others_on_error():
+    tasks = [(("a",), _sleep, (0.5,)), (("b",), _sleep, (0.0,)), (("c",), _sleep, (0.0,))]
+    done = _jobs.run_tasks(tasks, jobs=2)
+    assert list(done) == [("a",), ("b",), ("c",)]
+    assert os.getpid() not in done.values()  # they ran in workers
+    assert set(_jobs.run_tasks(tasks[1:], jobs=1).values()) == {os.getpid()}  # jobs 1: here
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match="^x: expected something else, got 1$"):
+        _jobs.run_tasks([(("long",), _sleep, (60,)), (("bad",), _fail, (1,))], jobs=2)
+    assert time.perf_counter() - t0 < 30  # the long task was stopped, not waited for
+
+
+def test_jobs_on_the_command_line(tmp_path, capsys):
+    assert report.main(["--scene", "translucent", "--jobs", "0", "--out", str(tmp_path)]) == 2
+    assert "--jobs" in capsys.readouterr().err
+    assert report.build_parser().parse_args(["--out", "x"]).jobs is None  # default: the usable cores
+    assert _jobs.usable_cores() == len(os.sched_getaffinity(0))
