@@ -109,6 +109,9 @@ def _kernel(b, zf, want, c, dest=None):
     ``moments-ref bench`` kernels, 1024², CPU time, best of 9 in 3 interleaved runs,
     before and after moving ``CHUNK`` and the copysign to :mod:`moments_ref._kernels`:
     float32 27.7 -> 24.8 ms, float64 54.8 -> 51.6 ms (no slowdown; noise ±20 %).
+    The chunk checks of :func:`_run`, ``CHUNK = 32768``, float masks in step (5) and
+    bounds written into the output: 2048² float32 0.132 -> 0.094 s CPU, 16.6× -> 11.0×
+    a same-run copy of the traffic (bench targets, load 4.5 on 2 cores).
     """
     dt = b.dtype.type
     n = zf.shape[0]
