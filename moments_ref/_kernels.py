@@ -91,8 +91,8 @@ def _flat_view(a, shape):
         return None
 
 
-def broadcast_chunks(b, zf, shape):
-    """``(start, stop, b rows (k, m), zf (m,))`` over the broadcast shape, CHUNK at a time.
+def broadcast_chunks(b, zf, shape, chunk=None):
+    """``(start, stop, b rows (k, m), zf (m,))`` over the broadcast shape, ``chunk`` (default CHUNK) at a time.
 
     ``b`` has a trailing axis of k moments (4 or 6). The broadcast inputs are never
     materialized: a flat view where one exists, else a gather of the chunk's
@@ -103,8 +103,9 @@ def broadcast_chunks(b, zf, shape):
     n = int(np.prod(shape, dtype=np.int64))
     bb, zz = np.broadcast_to(b, shape + (k,)), np.broadcast_to(zf, shape)
     bflat, zflat = _flat_view(bb, (-1, k)), _flat_view(zz, (-1,))
-    for start in range(0, n, CHUNK):
-        stop = min(start + CHUNK, n)
+    chunk = CHUNK if chunk is None else chunk
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
         if bflat is None or zflat is None:
             idx = np.unravel_index(np.arange(start, stop), shape)
         bc = bflat[start:stop] if bflat is not None else bb[idx]
