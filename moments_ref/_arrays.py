@@ -44,6 +44,8 @@ __all__ = [
     "broadcast_pair",
     "first_index",
     "real_input",
+    "lookup_inputs",
+    "refuse_lookup",
     "MAX_MEMORY_DEFAULT",
     "max_memory",
     "set_max_memory",
@@ -179,6 +181,39 @@ def real_input(x, name: str, trailing=None, dtype=None, finite: bool = True) -> 
     if finite:
         check_finite(arr, name)
     return arr
+
+
+def refuse_lookup(x: np.ndarray, name: str, zf: np.ndarray) -> None:
+    """Raise the :class:`InputError` of a lookup's full checks, in their order.
+
+    Finite ``x`` (first bad index), finite ``zf``, then ``zf`` broadcastable
+    with ``x[..., 0]``. Returns only if all of them pass.
+    """
+    check_finite(x, name)
+    check_finite(zf, "zf")
+    broadcast_pair(x[..., 0], f"{name}[..., 0]", zf, "zf")
+
+
+def lookup_inputs(x, name: str, zf, trailing: int = 4):
+    """``(x, zf, shape)`` of a chunked lookup, finiteness left to the chunks.
+
+    ``x`` with ``trailing`` entries on its last axis and ``zf`` in ``x``'s dtype,
+    converted and shape-checked; the kernels check NaN and inf per chunk while it
+    is in cache and call :func:`refuse_lookup` for the error of the full checks,
+    so messages and their order are those of checking everything up front.
+    """
+    x = real_input(x, name, trailing=trailing, finite=False)
+    try:
+        zf = real_input(zf, "zf", dtype=x.dtype, finite=False)
+    except InputError:
+        check_finite(x, name)  # the first check of the full order
+        raise
+    try:
+        shape = np.broadcast_shapes(x.shape[:-1], zf.shape)
+    except ValueError:
+        refuse_lookup(x, name, zf)
+        raise
+    return x, zf, shape
 
 
 def positive_int(value, name: str, context: str = None) -> int:

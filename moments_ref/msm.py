@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._arrays import InputError, broadcast_pair, check_finite, real_input
+from ._arrays import InputError, lookup_inputs, real_input, refuse_lookup
 from ._kernels import SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
 
 __all__ = [
@@ -244,28 +244,6 @@ def _kernel(b, zf, want, c, dest=None):
     return out
 
 
-def _prepare(b, zf):
-    """Convert and check shapes; finiteness is checked per chunk in :func:`_run` (same errors)."""
-    b = real_input(b, "b", trailing=4, finite=False)
-    try:
-        zf = real_input(zf, "zf", dtype=b.dtype, finite=False)
-    except InputError:
-        check_finite(b, "b")  # the first check of the full order
-        raise
-    try:
-        shape = np.broadcast_shapes(b.shape[:-1], zf.shape)
-    except ValueError:
-        _refuse(b, zf)
-    return b, zf, shape
-
-
-def _refuse(b, zf):
-    """Raise the :class:`InputError` of the full checks, in their order (finite b, finite zf, shapes)."""
-    check_finite(b, "b")
-    check_finite(zf, "zf")
-    broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
-
-
 def _run(b, zf, shape, want, keys):
     """The kernel over :func:`~moments_ref._kernels.broadcast_chunks` (broadcasts never materialized).
 
@@ -278,7 +256,7 @@ def _run(b, zf, shape, want, keys):
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
         m = stop - start
         if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
-            _refuse(b, zf)  # raises: a value is NaN or inf
+            refuse_lookup(b, "b", zf)  # raises: a value is NaN or inf
         c = consts if m == CHUNK or n <= CHUNK else {k: v[:m] if np.ndim(v) else v for k, v in consts.items()}
         dest = {k: outs[k][start:stop] for k in keys if k in ("lower", "upper")}
         res = _kernel(bc, zc, want, c, dest)
@@ -341,7 +319,7 @@ def shadow_intensity(b, zf, bound="lower"):
         from . import msm6
 
         return msm6.shadow_intensity(b, zf, bound)
-    b, zf, shape = _prepare(b, zf)
+    b, zf, shape = lookup_inputs(b, "b", zf)
     out = _run(b, zf, shape, {bound}, (bound,))
     return out[bound].reshape(shape)
 
@@ -380,7 +358,7 @@ def canonical_representation(b, zf):
         from . import msm6
 
         return msm6.canonical_representation(b, zf)
-    b, zf, shape = _prepare(b, zf)
+    b, zf, shape = lookup_inputs(b, "b", zf)
     out = _run(b, zf, shape, {"canonical"}, ("depths", "weights"))
     return out["depths"].reshape(shape + (3,)), out["weights"].reshape(shape + (3,))
 

@@ -46,7 +46,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._arrays import InputError, broadcast_pair, check_finite, first_index, real_input
+from ._arrays import InputError, first_index, lookup_inputs, real_input, refuse_lookup
 from ._kernels import copysign_exact, copysign_inplace
 
 __all__ = [
@@ -659,16 +659,7 @@ def shade(r, zf):
     >>> shade([-0.5, 0.5, 0.75, 0.0], [-0.6, 0.0, 0.6])
     array([0.  , 0.25, 1.  ])
     """
-    r = real_input(r, "r", trailing=4, finite=False)
-    try:
-        zf = real_input(zf, "zf", dtype=r.dtype, finite=False)
-    except InputError:
-        check_finite(r, "r")  # the first check of the full order
-        raise
-    try:
-        shape = np.broadcast_shapes(r.shape[:-1], zf.shape)
-    except ValueError:
-        _refuse(r, zf)
+    r, zf, shape = lookup_inputs(r, "r", zf)
     rflat = np.broadcast_to(r, shape + (4,)).reshape(-1, 4)
     zflat = np.broadcast_to(zf, shape).reshape(-1)
     n = zflat.size
@@ -715,8 +706,6 @@ def _refuse(r, zf, cols=None, start=0, shape=()):
     broadcastable shapes, then the domain of the chunk ``cols`` (its rows starting
     at flat index ``start`` of the broadcast ``shape``).
     """
-    check_finite(r, "r")
-    check_finite(zf, "zf")
-    broadcast_pair(r[..., 0], "r[..., 0]", zf, "zf")
+    refuse_lookup(r, "r", zf)
     if cols is not None:
         _check_domain(cols.T, "r", offset=start, full_shape=shape)
