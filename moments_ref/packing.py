@@ -290,12 +290,7 @@ def pack64(r):
     >>> pack64([-1.0, 1.0, 0.5, 0.25])
     array([    0, 65535, 32768, 65535], dtype=uint16)
     """
-    r = real_input(r, "r", trailing=4, finite=False)  # finiteness is checked per chunk
-    q = np.empty(r.shape, dtype=np.uint16)
-    qflat = q.reshape(-1, 4)
-    for lo, hi, rows, c in _encoder_rows(r):
-        _encode64(rows, c, qflat[lo:hi])
-    return q
+    return _pack(r, "nlq64")
 
 
 def _encode64(rows, c, out):
@@ -437,12 +432,7 @@ def pack32(r):
     >>> unpack32(p).round(2)
     array([-0.5 ,  0.5 ,  0.25,  0.  ])
     """
-    r = real_input(r, "r", trailing=4, finite=False)  # finiteness is checked per chunk
-    p = np.empty(r.shape[:-1], dtype=np.uint32)
-    pflat = p.reshape(-1)
-    for lo, hi, rows, c in _encoder_rows(r):
-        _encode32(rows, c, pflat[lo:hi])
-    return p
+    return _pack(r, "nlq32")
 
 
 def _encode32(rows, c, out):
@@ -477,6 +467,29 @@ def _encode32(rows, c, out):
 # moments -> texels in one pass
 
 
+#: The encoder of each texel format (rows of (y1, y2, v2, ξ4) -> texels).
+_ENCODERS = {"nlq64": _encode64, "nlq32": _encode32}
+
+
+def _texel_output(lead_shape, fmt):
+    """Empty texels of ``fmt`` for ``lead_shape`` texels and their flat view (one row or entry per texel)."""
+    if fmt == "nlq64":
+        out = np.empty(lead_shape + (4,), np.uint16)  # four UNORM16 channels
+        return out, out.reshape(-1, 4)
+    out = np.empty(lead_shape, np.uint32)
+    return out, out.reshape(-1)
+
+
+def _pack(r, fmt):
+    """:func:`pack64` / :func:`pack32`: encode ``r`` in L2 chunks of rows; finiteness checked per chunk."""
+    r = real_input(r, "r", trailing=4, finite=False)
+    out, flat = _texel_output(r.shape[:-1], fmt)
+    encode = _ENCODERS[fmt]
+    for lo, hi, rows, c in _encoder_rows(r):
+        encode(rows, c, flat[lo:hi])
+    return out
+
+
 def nlq_texels(b, fmt="nlq64"):
     """``pack64(phi(bias_moments(b, BIAS_FLOAT32)))`` (or pack32) bit for bit, one L2 chunk at a time.
 
@@ -502,9 +515,8 @@ def nlq_texels(b, fmt="nlq64"):
     if fmt not in ("nlq64", "nlq32"):
         raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
     b = real_input(b, "b", trailing=4, finite=False)
-    shape = b.shape if fmt == "nlq64" else b.shape[:-1]
-    out = np.empty(shape, np.uint16 if fmt == "nlq64" else np.uint32)
-    flat, oflat = b.reshape(-1, 4), out.reshape((-1, 4) if fmt == "nlq64" else (-1,))
+    out, oflat = _texel_output(b.shape[:-1], fmt)
+    flat = b.reshape(-1, 4)
     scale, shift = _bias_rows(b.dtype)
     tol = b.dtype.type(rounding_tolerance(b.dtype))
     full = _bounds(b.dtype)
@@ -523,7 +535,7 @@ def nlq_texels(b, fmt="nlq64"):
         _phi_rows(rows, res[:, :m])
         if not _saturated(res[:, :m], c, tol):
             return _nlq_separately(b, fmt)
-        (_encode64 if fmt == "nlq64" else _encode32)(res[:, :m], c, oflat[lo : lo + m])
+        _ENCODERS[fmt](res[:, :m], c, oflat[lo : lo + m])
     return out
 
 
