@@ -39,6 +39,15 @@ def test_files_columns_and_plot(tiny):
     assert report.read_results(out / "results.csv")[0].keys() == set(report.COLUMNS)
 
 
+def test_claims_are_the_papers_terms_only(tiny):
+    """report.md and run() give claims.json's verdicts; the fixed 10 %/90 % criteria are not printed."""
+    out, res = tiny
+    assert res["claims"] == json.loads((out / "claims.json").read_text())
+    md = (out / "report.md").read_text()
+    assert "## Paper claims (claims.json)" in md
+    assert "Headline claims" not in md and "close = RMSE within" not in md
+
+
 def test_metrics_against_the_reference(tiny):
     _, res = tiny
     rows = {r["technique"]: r for r in res["rows"]}

@@ -188,7 +188,7 @@ def _x(v):
     return "×".join(str(int(x)) for x in v)
 
 
-def _claims(claims, rows):
+def _results(rows):
     # HPG17's claims are judged in the paper's own terms in the claims table at the end
     # (paper_claims, claims.json); the fixed criteria of evaluate_claims are not the
     # paper's, so report.md does not print their verdicts.
@@ -201,7 +201,7 @@ def _claims(claims, rows):
     return lines + [""]
 
 
-def markdown(rows, stages, settings, claims, images, flip_ok, references, artifacts=(), answer=(), repeats=1):
+def markdown(rows, stages, settings, images, flip_ok, references, artifacts=(), answer=(), repeats=1):
     """report.md.
 
     ``references``: per reference used (in order) ``(reference, settings per scene,
@@ -211,7 +211,7 @@ def markdown(rows, stages, settings, claims, images, flip_ok, references, artifa
     """
     sections = [r.label for r, _, _ in references if r.section is not None]
     lines = _intro(flip_ok, sections) + _settings(settings, repeats) + list(answer)
-    lines += _claims(claims, rows)
+    lines += _results(rows)
     plain = []
     for ref, cfg, statements in references:
         paths = images.get(ref.name, [])
