@@ -303,15 +303,16 @@ def _artifacts_task(names):
 def _tasks(plans, full, jobs):
     """The report's tasks ``(key, function, args)``: each scene, the artifacts, the temporal claim.
 
-    With more than one job the longest go first (the temporal claim, then scenes
-    with an area light, then with a medium, then by technique count): a short
-    task ends the run, not a long one started last.
+    With more than one job the longest go first (scenes with an area light, whose
+    multi-view references and techniques render many views; then the others by
+    technique count, the temporal claim counted as five, about its measured cost):
+    a short task ends the run, not a long one started last.
     """
     tasks, weight = [], {}
     for sc, (names, kw), repeats, progress in plans:
         truths = {_techniques.get(n).truth for n in names}
         tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and jobs == 1)))
-        weight[tasks[-1][0]] = (2 if "mvr" in truths else 1 if "raymarch" in truths else 0, len(names))
+        weight[tasks[-1][0]] = (1 if "mvr" in truths else 0, len(names))
     ran = [n for _, (names, _), _, _ in plans for n in names]
     with_artifacts = [n for n in dict.fromkeys(ran) if _techniques.get(n).artifacts is not None]
     if with_artifacts:
@@ -322,7 +323,7 @@ def _tasks(plans, full, jobs):
     shipped = [sc.name for sc, (names, _), _, _ in plans if "scattering_6m" in names and sc.name in list_scenes()]
     if shipped:
         tasks.append((("temporal",), _temporal_task, (shipped[0], full)))
-        weight[("temporal",)] = (3, 0)
+        weight[("temporal",)] = (0, 5)
     if jobs > 1:
         tasks.sort(key=lambda t: weight[t[0]], reverse=True)
     return tasks
