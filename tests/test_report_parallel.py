@@ -112,6 +112,24 @@ def test_run_tasks_keeps_the_order_and_stops_the_others_on_error():
     assert time.perf_counter() - t0 < 30  # the long task was stopped, not waited for
 
 
+def test_workers_keep_their_processes_for_a_second_batch():
+    with _jobs.Workers(2) as workers:
+        first = workers.run([(("a",), _sleep, (0.3,)), (("b",), _sleep, (0.3,))])
+        second = workers.run([(("c",), _sleep, (0.0,)), (("d",), _sleep, (0.0,)), (("e",), _sleep, (0.0,))])
+    assert len(set(first.values())) == 2 and os.getpid() not in first.values()
+    assert set(second.values()) <= set(first.values())  # the same two workers, no new start-up
+    with _jobs.Workers(1) as workers:
+        assert set(workers.run([(("a",), _sleep, (0.0,))] * 2).values()) == {os.getpid()}
+
+
+def test_the_front_plots_are_written_by_both(tmp_path):
+    # the second batch (the Pareto-front plots, one task per reference) runs on the workers
+    res = report.run(scenes=["translucent", "facade"], out_dir=tmp_path, jobs=2, **TINY)
+    assert ("front", "pcf") in res["tasks"] and res["tasks"][("front", "pcf")]["pid"] != os.getpid()
+    png = (tmp_path / "front_pcf.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and "front_pcf.png" in (tmp_path / "report.md").read_text()
+
+
 def test_jobs_on_the_command_line(tmp_path, capsys):
     assert report.main(["--scene", "translucent", "--jobs", "0", "--out", str(tmp_path)]) == 2
     assert "--jobs" in capsys.readouterr().err

@@ -187,23 +187,76 @@ def test_ray_marching_converges(small_scene):
     assert errs[2] < 0.01, errs  # 128 samples ("ground truth" in the slides) are close, not converged
 
 
-def test_ray_march_against_brute_force_visibility(small_scene):
-    # An independent visibility test for a few points: project with project_points.
+def _marched_by_definition(depth, vp, eye, dirs, t_end, n):
+    """Per ray ``t_end · mean_k V(t_k)`` by the definition: every sample projected with
+    ``raster.project_points``, its nearest texel's MSAA samples compared one by one
+    (visible: ``o ≥ z`` or ``o ≥ FAR_NDC``; 1 outside the map). Also returns, per ray,
+    whether a sample lies within 1e-9 of a texel edge or of a sample depth (where
+    rounding may decide)."""
     from moments_ref.raster import project_points
 
-    scene, (depth, vp), rays, _ = small_scene
-    cam_rays, _ = rays
-    i, j = 20, 40
-    d, t_end = cam_rays.direction[i, j], cam_rays.t_end[i, j]
-    n = 64
-    t = (np.arange(n) + 0.5) / n * t_end
-    xy, dz = project_points(scene.camera.eye + t[:, None] * d, vp, depth.shape[:2])
-    col, row = np.floor(xy[:, 0]).astype(int), np.floor(xy[:, 1]).astype(int)
-    ok = (col >= 0) & (col < depth.shape[1]) & (row >= 0) & (row < depth.shape[0])
-    occ = depth[np.clip(row, 0, depth.shape[0] - 1), np.clip(col, 0, depth.shape[1] - 1)]
-    vis = np.where(ok, ((occ >= dz[:, None]) | (occ >= sc.FAR_NDC)).mean(axis=1), 1.0)
-    one = sc.CameraRays(d.reshape(1, 1, 3), np.array([[t_end]]), np.array([[True]]), (1, 1))
-    assert sc.ray_march(depth, vp, scene.camera.eye, one, n)[0, 0] == pytest.approx(t_end * vis.mean(), rel=1e-12)
+    h, w, _ = depth.shape
+    out, close = np.empty(len(t_end)), np.zeros(len(t_end), bool)
+    frac = (np.arange(n) + 0.5) / n
+    for r in range(len(t_end)):  # loop over rays
+        t = frac * t_end[r]
+        xy, dz = project_points(eye + t[:, None] * dirs[r], vp, (h, w))
+        col, row = np.floor(xy[:, 0]).astype(int), np.floor(xy[:, 1]).astype(int)
+        ok = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        occ = depth[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)].astype(np.float64)
+        vis = np.where(ok, ((occ >= dz[:, None]) | (occ >= np.float32(sc.FAR_NDC))).mean(axis=1), 1.0)
+        out[r] = t_end[r] * vis.mean()
+        edge = np.minimum(np.abs(xy - np.round(xy)).min(axis=1), np.abs(occ - dz[:, None]).min(axis=1))
+        close[r] = bool((edge < 1e-9).any())
+    return out, close
+
+
+def test_ray_march_against_brute_force_visibility(small_scene):
+    # Every ray of a 40×22 camera, against the definition sample by sample (project_points).
+    scene, (depth, vp), _, _ = small_scene
+    cam_rays, _ = sc.camera_rays(scene, (40, 22))
+    dirs, t_end = cam_rays.direction.reshape(-1, 3), cam_rays.t_end.reshape(-1)
+    want, close = _marched_by_definition(depth, vp, scene.camera.eye, dirs, t_end, 48)
+    got = sc.ray_march(depth, vp, scene.camera.eye, cam_rays, 48).reshape(-1)
+    assert 0 < np.mean(want < t_end) < 1  # some rays are shadowed, some not
+    off = got != want
+    assert not (off & ~close).any(), np.flatnonzero(off & ~close)[:10]
+    assert off.sum() <= 2
+
+
+def test_ray_march_ties_and_outside():
+    # A ray at constant light depth z = 0.5 (x direction, identity light matrix): samples
+    # at exactly z are visible (o ≥ z), nearer ones occlude; points outside the map are lit.
+    depth = np.array([[[0.5, 0.25, 0.5, 0.75]] * 4] * 4, np.float32)  # (4, 4, 4): one sample of 4 nearer
+    ray = sc.CameraRays(np.array([[[1.0, 0.0, 0.0]]]), np.array([[1.0]]), np.ones((1, 1), bool), (1, 1))
+    got = sc.ray_march(depth, np.eye(4), np.array([-0.999, 0.1, 0.5]), ray, 8)[0, 0]
+    # samples at x = −0.999 + (k + ½)/8: all 8 inside [−1, 1): 3/4 visible each
+    assert got == 0.75
+    got = sc.ray_march(depth, np.eye(4), np.array([0.5, 0.1, 0.5]), ray, 8)[0, 0]
+    # x = 0.5 + (k + ½)/8 leaves the map at x = 1 after 4 samples: (4 · 3/4 + 4) / 8
+    assert got == (4 * 0.75 + 4) / 8
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 2, 3, 4, 8]), st.integers(1, 40))
+def test_ray_march_random_maps(seed, s, n):
+    # Random MSAA maps with cleared samples, rays leaving the map and a light view that is
+    # not axis-aligned: equal to the definition (S = 3: to rounding of the mean of thirds).
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(1, 9, size=2)
+    depth = rng.uniform(-1, 1, (h, w, s)).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.3] = 1.0
+    vp = np.eye(4)
+    vp[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * 0.7
+    vp[:3, 3] = rng.uniform(-0.3, 0.3, 3)
+    dirs = rng.normal(size=(6, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    t_end = rng.uniform(0.1, 3.0, 6)
+    eye = rng.uniform(-0.5, 0.5, 3)
+    want, close = _marched_by_definition(depth, vp, eye, dirs, t_end, n)
+    rays = sc.CameraRays(dirs.reshape(2, 3, 3), t_end.reshape(2, 3), np.ones((2, 3), bool), (3, 2))
+    got = sc.ray_march(depth, vp, eye, rays, n).reshape(-1)
+    ok = np.isclose(got, want, rtol=1e-14, atol=0) if s == 3 else got == want
+    assert (ok | close).all(), (got, want)
 
 
 def test_six_moment_technique_close_to_reference(small_scene):
@@ -275,6 +328,9 @@ def test_bad_input():
         sc.render(load_scene("scattering"), "msm64")
     with pytest.raises(InputError, match="params"):
         sc.SCATTERING_6M.prepare(np.zeros((4, 4, 1), np.float32), {})
+    with pytest.raises(InputError, match=r"depth_samples.*\(0, 1, 0\)"):
+        sc.ray_march(np.array([[[0.5], [np.nan]]]), np.eye(4), np.zeros(3),
+                     sc.CameraRays(np.zeros((1, 1, 3)), np.ones((1, 1)), np.ones((1, 1), bool), (1, 1)), 4)
     with pytest.raises(InputError, match="n_samples"):
         sc.ray_march(np.zeros((4, 4, 1)), np.eye(4), np.zeros(3),
                      sc.CameraRays(np.zeros((1, 1, 3)), np.ones((1, 1)), np.ones((1, 1), bool), (1, 1)), 0)

@@ -58,6 +58,19 @@ def test_pcf_equals_brute_force_loop():
     assert np.abs(pcf_filtered(z, uv, zf + 0.2) - want).max() > 1e-3
 
 
+@given(st.sampled_from([1, 2, 3, 4, 8, 16]), st.integers(0, 2**32 - 1), st.booleans())
+def test_pcf_sample_share_is_the_mean_bit_for_bit(S, seed, strided):
+    # PCF counts a tap's occluding samples as the set bits of one word (S = 1, 2, 4, 8);
+    # it must equal the mean of the booleans exactly, also for other S and strided input.
+    from moments_ref.techniques.pcf import _share
+
+    test = np.random.default_rng(seed).random((5, 3, 2 * S if strided else S)) < 0.5
+    test = test[..., ::2] if strided else test
+    got = _share(test)
+    want = test.mean(axis=-1)
+    assert got.dtype == np.float64 and got.tobytes() == want.tobytes()
+
+
 @settings(deadline=None)
 @given(u=st.floats(-2, 10), v=st.floats(-2, 9), zf=st.floats(-1, 1))
 def test_pcf_is_bilinear_fetch_of_blurred_tests(u, v, zf):

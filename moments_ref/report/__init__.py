@@ -83,14 +83,14 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError
-from .._io import save_figure, write_bytes, write_text
+from .._io import write_bytes, write_text
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from .. import paper_claims, pipeline, scattering_temporal
 from .. import techniques as _techniques
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
 from ._crops import crop_figures
-from ._jobs import WorkerDied, run_tasks, usable_cores
+from ._jobs import WorkerDied, Workers, usable_cores
 from ._machine import copy_rate, machine, machine_lines
 from ._pareto import front_lines, mark_pareto, pareto_mask, summary_lines
 from ._plots import plot_error_vs_runtime, plot_fronts
@@ -303,15 +303,16 @@ def _artifacts_task(names):
 def _tasks(plans, full, jobs):
     """The report's tasks ``(key, function, args)``: each scene, the artifacts, the temporal claim.
 
-    With more than one job the longest go first (the temporal claim, then scenes
-    with an area light, then with a medium, then by technique count): a short
-    task ends the run, not a long one started last.
+    With more than one job the longest go first (scenes with an area light, whose
+    multi-view references and techniques render many views; then the others by
+    technique count, the temporal claim counted as five, about its measured cost):
+    a short task ends the run, not a long one started last.
     """
     tasks, weight = [], {}
     for sc, (names, kw), repeats, progress in plans:
         truths = {_techniques.get(n).truth for n in names}
         tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and jobs == 1)))
-        weight[tasks[-1][0]] = (2 if "mvr" in truths else 1 if "raymarch" in truths else 0, len(names))
+        weight[tasks[-1][0]] = (1 if "mvr" in truths else 0, len(names))
     ran = [n for _, (names, _), _, _ in plans for n in names]
     with_artifacts = [n for n in dict.fromkeys(ran) if _techniques.get(n).artifacts is not None]
     if with_artifacts:
@@ -322,42 +323,45 @@ def _tasks(plans, full, jobs):
     shipped = [sc.name for sc, (names, _), _, _ in plans if "scattering_6m" in names and sc.name in list_scenes()]
     if shipped:
         tasks.append((("temporal",), _temporal_task, (shipped[0], full)))
-        weight[("temporal",)] = (3, 0)
+        weight[("temporal",)] = (0, 5)
     if jobs > 1:
         tasks.sort(key=lambda t: weight[t[0]], reverse=True)
     return tasks
 
 
-def _write(acc, out, flip_ok, done):
-    """Write every file of the report to ``out``; ``done``: the results of :func:`_tasks`."""
-    import matplotlib.pyplot as plt
+def _fronts_task(rows):
+    """``{front_<reference>.png: PNG bytes}`` of :func:`plot_fronts` (``rows`` marked by :func:`mark_pareto`)."""
+    return {name: _png(fig) for name, fig in plot_fronts(rows).items()}
 
+
+def _front_tasks(rows):
+    """One :func:`_fronts_task` per reference (each plot needs only its own scenes' rows)."""
+    from ._pareto import truth_of
+
+    refs = dict.fromkeys(truth_of(r) for r in rows)
+    return [(("front", ref), _fronts_task, ([r for r in rows if truth_of(r) == ref],)) for ref in refs]
+
+
+def _write(acc, out, flip_ok, done, fronts):
+    """Write every file of the report to ``out``; ``done``: the results of :func:`_tasks`; ``fronts``: PNG bytes."""
     statements = {name: {s: get_reference(name).statements(acc.rows, s) for s in scenes}
                   for name, scenes in acc.references.items() if get_reference(name).statements}
-    mark_pareto(acc.rows)
-    fronts = plot_fronts(acc.rows)
     refs = [(get_reference(n), cfg, statements.get(n, {})) for n, cfg in acc.references.items()]
     artifacts, lines, files = done.get(("artifacts",), (None, [], {}))
     temporal = done.get(("temporal",))
-    try:
-        # Every text and image is complete before the first file is written; each file is
-        # written atomically (temporary file, then rename), so an interrupted run
-        # leaves no half-written file.
-        texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
-                 "report.md": markdown(acc.rows, acc.stages, acc.settings,
-                                       {"fronts": list(fronts), **acc.images}, flip_ok, refs, lines,
-                                       answer=acc.machine + front_lines(acc.rows) + summary_lines(acc.rows),
-                                       repeats=acc.repeats)}
-        texts["claims.json"], texts["report.md"] = paper_claims.gather(
-            acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
-            temporal=False)
-        paths = {name: write_bytes(out / name, data) for name, data in files.items()}
-        paths.update({name: write_bytes(out / name, data) for name, data in acc.pngs.items()})
-        for name, fig in fronts.items():
-            paths[name] = save_figure(fig, out / name, dpi=110)
-    finally:
-        for fig in fronts.values():
-            plt.close(fig)
+    # Every text and image is complete before the first file is written; each file is
+    # written atomically (temporary file, then rename), so an interrupted run
+    # leaves no half-written file.
+    texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
+             "report.md": markdown(acc.rows, acc.stages, acc.settings,
+                                   {"fronts": list(fronts), **acc.images}, flip_ok, refs, lines,
+                                   answer=acc.machine + front_lines(acc.rows) + summary_lines(acc.rows),
+                                   repeats=acc.repeats)}
+    texts["claims.json"], texts["report.md"] = paper_claims.gather(
+        acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
+        temporal=False)
+    paths = {name: write_bytes(out / name, data) for name, data in files.items()}
+    paths.update({name: write_bytes(out / name, data) for name, data in {**acc.pngs, **fronts}.items()})
     for name, text in texts.items():
         paths[name] = write_text(out / name, text)
     return {"rows": acc.rows, "stages": acc.stages, "claims": json.loads(texts["claims.json"]),
@@ -431,7 +435,8 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     ``artifacts`` (the measurements of ``msm_soft.artifact_images`` or None),
     ``settings`` (reference -> scene -> its settings), ``paths`` (name -> Path)
     and ``tasks`` (task key -> the pid, CPU and wall seconds of the process that
-    ran it, :func:`._jobs.run_tasks`).
+    ran it, :meth:`._jobs.Workers.run`; the scenes, the temporal claim, the
+    artifacts, then one ``("front", reference)`` plot each).
 
     Raises
     ------
@@ -461,10 +466,16 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
     timings = {}
-    done = run_tasks(tasks, jobs, progress=progress, timings=timings)
-    for sc, _ in plans:
-        _collect(acc, sc, done[("scene", sc.name)])
-    return {**_write(acc, out, flip_ok, done), "tasks": timings}
+    with Workers(jobs) as workers:
+        done = workers.run(tasks, progress=progress, timings=timings)
+        for sc, _ in plans:
+            _collect(acc, sc, done[("scene", sc.name)])
+        mark_pareto(acc.rows)
+        # The front plots need every scene's rows: a second batch on the same (warm) workers.
+        fronts = {}
+        for part in workers.run(_front_tasks(acc.rows), timings=timings).values():
+            fronts.update(part)
+    return {**_write(acc, out, flip_ok, done, fronts), "tasks": timings}
 
 
 def build_parser():

@@ -15,7 +15,8 @@ A worker's exception is raised here as it was raised there (an
 line); the other workers are stopped at once and nothing has been written: the
 tasks only compute, the report writes after the last one returned. A worker the
 system killed (memory) surfaces as :class:`WorkerDied`, an ``InputError`` naming
-the remedy.
+the remedy. :class:`Workers` keeps the processes for a second batch (the report's
+Pareto-front plots, which need every scene's rows).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from .._arrays import InputError, max_memory, set_max_memory
 
-__all__ = ["usable_cores", "run_tasks", "WorkerDied"]
+__all__ = ["usable_cores", "run_tasks", "Workers", "WorkerDied"]
 
 
 class WorkerDied(InputError):
@@ -78,10 +79,7 @@ def _stop(pool):
     pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _parallel(tasks, jobs, bar):
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_init_worker,
-                               initargs=(max_memory(),))
+def _parallel(pool, tasks, bar):
     try:
         futures = {pool.submit(_call, fn, args): key for key, fn, args in tasks}
         pending = set(futures)
@@ -99,30 +97,68 @@ def _parallel(tasks, jobs, bar):
     except BaseException:
         _stop(pool)
         raise
-    pool.shutdown(wait=True)
     return {key: f.result() for f, key in futures.items()}
 
 
+class Workers:
+    """Up to ``jobs`` worker processes for several batches of tasks (a context manager).
+
+    The processes start with the first :meth:`run` of more than one task (at most
+    one per task of that batch) and stay for the next batches, whose tasks then
+    skip the start-up (a fresh interpreter importing NumPy, SciPy and matplotlib).
+    ``jobs`` 1 runs every batch here. Leaving the block lets the workers exit
+    without waiting for them (they have nothing left to do; the interpreter
+    joins them at exit); after an error they are terminated.
+    """
+
+    def __init__(self, jobs=1):
+        self.jobs = max(int(jobs), 1)
+        self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        if self._pool is not None:
+            if kind is None:
+                self._pool.shutdown(wait=False)
+            else:
+                _stop(self._pool)
+            self._pool = None
+        return False
+
+    def run(self, tasks, progress=False, desc="report", timings=None):
+        """Run ``tasks`` (a list of ``(key, function, args)``); return ``{key: result}`` in the tasks' order.
+
+        ``progress``: a tqdm bar of the tasks on stderr. ``timings``: a dict
+        receiving per key the task's ``{"pid", "cpu", "wall"}`` (the process that
+        ran it, its CPU and wall seconds).
+        """
+        tasks = list(tasks)
+        bar = None
+        if progress and tasks:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(tasks), desc=desc, unit="task", file=sys.stderr, leave=False)
+        try:
+            if self._pool is None and min(self.jobs, len(tasks)) > 1:
+                self._pool = ProcessPoolExecutor(max_workers=min(self.jobs, len(tasks)),
+                                                 mp_context=multiprocessing.get_context("spawn"),
+                                                 initializer=_init_worker, initargs=(max_memory(),))
+            done = _serial(tasks, bar) if self._pool is None else _parallel(self._pool, tasks, bar)
+        finally:
+            if bar is not None:
+                bar.close()
+        if timings is not None:
+            timings.update({k: t for k, (_, t) in done.items()})
+        return {k: r for k, (r, _) in done.items()}
+
+
 def run_tasks(tasks, jobs=1, progress=False, desc="report", timings=None):
-    """Run ``tasks`` (a list of ``(key, function, args)``); return ``{key: result}`` in the tasks' order.
+    """Run ``tasks`` on :class:`Workers` ``(jobs)`` (one batch); return ``{key: result}`` in the tasks' order.
 
     ``jobs`` 1 (or a single task) runs them here, in order; more runs them on
-    ``min(jobs, len(tasks))`` spawned worker processes. ``progress``: a tqdm bar
-    of the tasks on stderr. ``timings``: a dict receiving per key the task's
-    ``{"pid", "cpu", "wall"}`` (the process that ran it, its CPU and wall seconds).
+    ``min(jobs, len(tasks))`` spawned worker processes (:meth:`Workers.run`).
     """
-    tasks = list(tasks)
-    jobs = max(min(int(jobs), len(tasks)), 1)
-    bar = None
-    if progress and tasks:
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(tasks), desc=desc, unit="task", file=sys.stderr, leave=False)
-    try:
-        done = _serial(tasks, bar) if jobs == 1 else _parallel(tasks, jobs, bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    if timings is not None:
-        timings.update({k: t for k, (_, t) in done.items()})
-    return {k: r for k, (r, _) in done.items()}
+    with Workers(jobs) as workers:
+        return workers.run(tasks, progress=progress, desc=desc, timings=timings)

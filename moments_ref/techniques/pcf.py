@@ -148,29 +148,58 @@ def pcf_filtered(samples, uv, zf, gradient=None):
         grad = np.broadcast_to(np.asarray(gradient, dtype=np.float64), shape + (2,)).reshape(-1, 2)
         off = _sample_offsets(S)
     out = np.empty(zff.shape[0])
+    flat = depth.reshape(H * W, S, K)
     for lo in range(0, zff.shape[0], CHUNK):
         hi = lo + CHUNK
         ci, cw = tap_weights(uvf[lo:hi, 0], W)
         ri, rw = tap_weights(uvf[lo:hi, 1], H)
-        d = depth[ri[:, :, None], ci[:, None, :]]  # (n, 10, 10, S, K)
+        texel = ri[:, :, None] * W + ci[:, None, :]  # (n, 10, 10)
+        d = flat.take(texel, axis=0)  # (n, 10, 10, S, K): a flat gather, not a 2-D fancy index
         z = zff[lo:hi, None, None, None]  # (n, 1, 1, 1): one depth for the footprint
         if gradient is not None:
-            # Receiver plane at each sample: zf + gx·(x − u) + gy·(y − v) (Isidoro 2006).
-            gx, gy = grad[lo:hi, 0], grad[lo:hi, 1]
-            dx = tap_centres(uvf[lo:hi, 0], W) - uvf[lo:hi, :1]  # (n, 10) columns
-            dy = tap_centres(uvf[lo:hi, 1], H) - uvf[lo:hi, 1:]  # (n, 10) rows
-            z = (z + (gx[:, None] * dx)[:, None, :, None] + (gy[:, None] * dy)[:, :, None, None]
-                 + gx[:, None, None, None] * off[:, 0] + gy[:, None, None, None] * off[:, 1])
-            # The plane ends at the far plane (depth 1): the map's clear depth 1 occludes nothing.
-            z = np.minimum(z, 1.0)
+            z = _receiver_plane(z, grad[lo:hi], uvf[lo:hi], off, W, H)
         # Compare in float64: the float32 depths are exact there.
         test = d < z[..., None]
         if layered:
-            occluded = (test * lw[ri[:, :, None], ci[:, None, :]]).sum(axis=-1).mean(axis=-1)
+            occluded = (test * lw.reshape(H * W, S, K).take(texel, axis=0)).sum(axis=-1).mean(axis=-1)
         else:
-            occluded = test[..., 0].mean(axis=-1)
+            occluded = _share(test[..., 0])
         out[lo:hi] = np.einsum("nij,ni,nj->n", occluded, rw, cw)
     return np.clip(out, 0.0, 1.0).reshape(shape)
+
+
+def _receiver_plane(z, grad, uv, off, W, H):
+    """``min(zf + gx·(x − u) + gy·(y − v) + gx·o_x + gy·o_y, 1)`` per tap and sample (Isidoro 2006), (n, 10, 10, S).
+
+    The sums in this order, the full-size ones in place (the far plane, depth 1,
+    bounds the plane: the map's clear depth 1 occludes nothing).
+    """
+    gx, gy = grad[:, 0], grad[:, 1]
+    dx = tap_centres(uv[:, 0], W) - uv[:, :1]  # (n, 10) columns
+    dy = tap_centres(uv[:, 1], H) - uv[:, 1:]  # (n, 10) rows
+    rows = z + (gx[:, None] * dx)[:, None, :, None] + (gy[:, None] * dy)[:, :, None, None]  # (n, 10, 10, 1)
+    out = np.add(rows, gx[:, None, None, None] * off[:, 0])
+    out += gy[:, None, None, None] * off[:, 1]
+    return np.minimum(out, 1.0, out=out)
+
+
+#: Unsigned integer holding S booleans, for the sample counts whose share is a bit count.
+_SAMPLE_WORDS = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
+
+
+def _share(test):
+    """``test.mean(axis=-1)`` of a C-contiguous boolean (..., S) array, exactly (float64).
+
+    For S in 1, 2, 4, 8 the S booleans of a tap are one unsigned word whose set
+    bits count the true ones (a boolean is the byte 0 or 1); the count over S is
+    what the mean's exact sum of zeros and ones divided by S gives.
+    """
+    S = test.shape[-1]
+    word = _SAMPLE_WORDS.get(S)
+    if word is None or not test.flags.c_contiguous:
+        return test.mean(axis=-1)
+    count = np.bitwise_count(test.view(word)[..., 0])
+    return np.divide(count, S, dtype=np.float64)
 
 
 def _steps(samples, layered):
