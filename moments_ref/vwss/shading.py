@@ -120,20 +120,45 @@ def _project(positions, view_proj, h, w):
     return x, y, cw
 
 
-def _lookup(depth_map, lin_map, x, y, cw, bias, near, far):
-    """Lit (True) per point for nearest-texel lookups at window positions (x, y)."""
+def _occluder_map(depth_map, lin_map):
+    """Flat (H+2)·(W+2) map: the occluder's view depth where ``depth < 1``, +inf at empty texels and
+    on a one-texel border (so that a tap outside the map reads +inf and counts as lit)."""
     h, w = depth_map.shape
-    col = np.floor(x)
-    row = np.floor(y)
-    inside = (cw > 0) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    lit = np.ones(x.shape, bool)
-    i = np.flatnonzero(inside)
-    ci = col[i].astype(np.intp)
-    ri = row[i].astype(np.intp)
-    d_occ = lin_map[ri, ci]
-    # Shadowed when an occluder (non-empty texel) lies nearer than the point minus the bias.
-    lit[i] = ~((depth_map[ri, ci] < 1) & (d_occ < cw[i] - bias))
-    return lit
+    occ = np.full((h + 2, w + 2), np.inf)
+    np.copyto(occ[1:-1, 1:-1], lin_map, where=depth_map < 1)
+    return occ.reshape(-1)
+
+
+def _threshold(cw, bias):
+    """``cw − bias`` where the point is in front of the view (``cw > 0``), −inf elsewhere (always lit)."""
+    return np.where(cw > 0, cw - bias, -np.inf)
+
+
+def _padded_floor(v, n):
+    """``floor(v) + 1`` clipped to ``[0, n + 1]`` as intp: the index into a map padded by one texel.
+
+    Out-of-range, infinite and NaN positions (``cw = 0``) land on the +inf border.
+    """
+    c = np.floor(v)
+    np.fmin(c, n, out=c)  # NaN -> n (fmin returns the non-NaN operand)
+    np.fmax(c, -1, out=c)
+    c += 1
+    return c.astype(np.intp)
+
+
+def _shadowed(occ, row_index, col_index, threshold):
+    """Shadowed (True) per point: the texel's occluder lies nearer than the threshold.
+
+    ``occ`` from :func:`_occluder_map`; ``row_index`` = padded row × (W + 2), ``col_index`` =
+    padded column. Equals, per point, "inside the map, in front of the view, an occluder
+    (depth < 1) with view depth < cw − bias" (outside, behind or empty: +inf or −inf, False).
+    """
+    return occ.take(row_index + col_index) < threshold
+
+
+def _lookup(occ, x, y, threshold, h, w):
+    """Shadowed (True) per point for nearest-texel lookups at window positions (x, y)."""
+    return _shadowed(occ, _padded_floor(y, h) * (w + 2), _padded_floor(x, w), threshold)
 
 
 def _check_positions(positions):
@@ -175,14 +200,21 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     maps = _check_maps(depth_maps, vp.shape[0])
     taps = np.asarray(taps, np.int64).reshape(-1, 2)
     h, w = maps.shape[1:]
+    n_taps = taps.shape[0]
+    # floor(x + dx) per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
+    dxs, dx_of = np.unique(taps[:, 0], return_inverse=True)
+    dys, dy_of = np.unique(taps[:, 1], return_inverse=True)
     acc = np.zeros(p.shape[0])
     for k in range(vp.shape[0]):  # loop over views
         x, y, cw = _project(p, vp[k], h, w)
-        lin = linear_depth(maps[k], near, far)
-        lit = np.zeros(p.shape[0])
-        for dx, dy in taps:  # loop over the 5 taps
-            lit += _lookup(maps[k], lin, x + dx, y + dy, cw, bias, near, far)
-        acc += lit / taps.shape[0]
+        occ = _occluder_map(maps[k], linear_depth(maps[k], near, far))
+        thr = _threshold(cw, bias)
+        cols = [_padded_floor(x + dx, w) for dx in dxs]
+        rows = [_padded_floor(y + dy, h) * (w + 2) for dy in dys]
+        shadowed = np.zeros(p.shape[0], np.intp)
+        for a, b in zip(dx_of.reshape(-1), dy_of.reshape(-1)):  # loop over the taps
+            shadowed += _shadowed(occ, rows[b], cols[a], thr)
+        acc += (n_taps - shadowed) / n_taps  # lit fraction (exact integer count / T)
     return acc
 
 
@@ -285,6 +317,8 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     vp = samples.center_view_proj()
     x, y, zr = _project(p, vp, h, w)
     lin = linear_depth(dmap, n, f)
+    occ = _occluder_map(dmap, lin)
+    thr = _threshold(zr, bias)
     # tan units -> texels
     kx = w / (2 * np.tan(samples.fov / 2))
     ky = h / (2 * np.tan(samples.fov / 2))
@@ -298,22 +332,17 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     total = np.zeros(p.shape[0])
     count = np.zeros(p.shape[0])
     for ox, oy in _tap_pattern(blocker_taps, seed):  # loop over taps
-        col = np.floor(x + ox * sx)
-        row = np.floor(y + oy * sy)
-        inside = (zr > 0) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
-        i = np.flatnonzero(inside)
-        ri, ci = row[i].astype(np.intp), col[i].astype(np.intp)
-        d = lin[ri, ci]
-        blk = (dmap[ri, ci] < 1) & (d < zr[i] - bias)
-        total[i[blk]] += d[blk]
-        count[i[blk]] += 1
+        d = occ.take(_padded_floor(y + oy * sy, h) * (w + 2) + _padded_floor(x + ox * sx, w))
+        blk = d < thr  # an occluder nearer than the receiver minus the bias
+        np.add(total, d, out=total, where=blk)
+        count += blk
     has = count > 0
     zb = np.where(has, total / np.maximum(count, 1), 1.0)
     # 2. Penumbra by parallel planes; 3. PCF over it.
     fx, fy = hx * (1 / zb - inv_r), hy * (1 / zb - inv_r)
-    lit = np.zeros(p.shape[0])
+    shadowed = np.zeros(p.shape[0], np.intp)
     for ox, oy in _tap_pattern(filter_taps, seed + 1):
-        lit += _lookup(dmap, lin, x + ox * fx, y + oy * fy, zr, bias, n, f)
-    vis = lit / filter_taps
+        shadowed += _lookup(occ, x + ox * fx, y + oy * fy, thr, h, w)
+    vis = (filter_taps - shadowed) / filter_taps
     vis[~has] = 1.0
     return vis
