@@ -42,6 +42,10 @@ PCF5 = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]], np.int64)
 #: PCSS tap counts of VWSS §4.
 PCSS_BLOCKER_TAPS = 64
 PCSS_FILTER_TAPS = 96
+# Points per block of the shading loops: the temporaries stay in cache and _project's thin
+# (n, 3) @ (3, 3) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18), whose
+# threads cost more than they save on it. Results do not depend on the block size.
+_BLOCK = 1 << 14
 
 
 @dataclass(frozen=True)
@@ -120,13 +124,14 @@ def _project(positions, view_proj, h, w):
     return x, y, cw
 
 
-def _occluder_map(depth_map, lin_map):
-    """Flat (H+2)·(W+2) map: the occluder's view depth where ``depth < 1``, +inf at empty texels and
-    on a one-texel border (so that a tap outside the map reads +inf and counts as lit)."""
+def _occluder_map(depth_map, near, far):
+    """Flat (H+2)·(W+2) map: the occluder's view depth (:func:`linear_depth`) where ``depth < 1``,
+    +inf at empty texels and on a one-texel border (a tap outside the map reads +inf: lit)."""
     h, w = depth_map.shape
-    occ = np.full((h + 2, w + 2), np.inf)
-    np.copyto(occ[1:-1, 1:-1], lin_map, where=depth_map < 1)
-    return occ.reshape(-1)
+    occ = np.full((h + 2) * (w + 2), np.inf)
+    i = np.flatnonzero(depth_map < 1)  # row-major texel r * W + c -> padded (r + 1)(W + 2) + c + 1
+    occ[i + 2 * (i // w) + (w + 3)] = linear_depth(np.take(depth_map, i), near, far)
+    return occ
 
 
 def _threshold(cw, bias):
@@ -200,22 +205,25 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     maps = _check_maps(depth_maps, vp.shape[0])
     taps = np.asarray(taps, np.int64).reshape(-1, 2)
     h, w = maps.shape[1:]
-    n_taps = taps.shape[0]
-    # floor(x + dx) per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
-    dxs, dx_of = np.unique(taps[:, 0], return_inverse=True)
-    dys, dy_of = np.unique(taps[:, 1], return_inverse=True)
     acc = np.zeros(p.shape[0])
     for k in range(vp.shape[0]):  # loop over views
-        x, y, cw = _project(p, vp[k], h, w)
-        occ = _occluder_map(maps[k], linear_depth(maps[k], near, far))
-        thr = _threshold(cw, bias)
-        cols = [_padded_floor(x + dx, w) for dx in dxs]
-        rows = [_padded_floor(y + dy, h) * (w + 2) for dy in dys]
-        shadowed = np.zeros(p.shape[0], np.intp)
-        for a, b in zip(dx_of.reshape(-1), dy_of.reshape(-1)):  # loop over the taps
-            shadowed += _shadowed(occ, rows[b], cols[a], thr)
-        acc += (n_taps - shadowed) / n_taps  # lit fraction (exact integer count / T)
+        occ = _occluder_map(maps[k], near, far)
+        for lo in range(0, p.shape[0], _BLOCK):  # loop over blocks of points
+            acc[lo:lo + _BLOCK] += _pcf_block(occ, p[lo:lo + _BLOCK], vp[k], h, w, bias, taps)
     return acc
+
+
+def _pcf_block(occ, p, view_proj, h, w, bias, taps):
+    """Lit fraction of the PCF taps of one view for a block of points (exact count / T)."""
+    x, y, cw = _project(p, view_proj, h, w)
+    thr = _threshold(cw, bias)
+    # floor(x + dx) once per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
+    cols = {dx: _padded_floor(x + dx, w) for dx in np.unique(taps[:, 0])}
+    rows = {dy: _padded_floor(y + dy, h) * (w + 2) for dy in np.unique(taps[:, 1])}
+    shadowed = np.zeros(p.shape[0], np.intp)
+    for dx, dy in taps:  # loop over the taps
+        shadowed += _shadowed(occ, rows[dy], cols[dx], thr)
+    return (taps.shape[0] - shadowed) / taps.shape[0]
 
 
 def multiview_visibility(positions, depth_maps, samples: LightSamples, bias, views=None, taps=PCF5):
@@ -251,10 +259,9 @@ def _tap_pattern(n, seed):
     return taps
 
 
-def _search_depth(dmap, lin, near):
+def _search_depth(dmap, occ, near):
     """``max(near, nearest view depth of an occupied texel)``; ``near`` for an empty map."""
-    occupied = dmap < 1
-    return max(float(near), float(lin[occupied].min())) if occupied.any() else float(near)
+    return max(float(near), float(occ.min())) if (dmap < 1).any() else float(near)
 
 
 def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BLOCKER_TAPS,
@@ -315,23 +322,32 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     light = samples.light
     n, f = samples.near, samples.far
     vp = samples.center_view_proj()
-    x, y, zr = _project(p, vp, h, w)
-    lin = linear_depth(dmap, n, f)
-    occ = _occluder_map(dmap, lin)
-    thr = _threshold(zr, bias)
-    # tan units -> texels
+    occ = _occluder_map(dmap, n, f)
+    # tan units -> texels: half-extents of the light (l_w / 2, l_h / 2) in texels per tan unit
     kx = w / (2 * np.tan(samples.fov / 2))
     ky = h / (2 * np.tan(samples.fov / 2))
-    hx, hy = light.width / 2 * kx, light.height / 2 * ky
+    half = (light.width / 2 * kx, light.height / 2 * ky)
+    # 1. Blocker search over the rectangle at the nearest depth a blocker can have.
+    zs = _search_depth(dmap, occ, n) if search_depth is None else float(search_depth)
+    taps = (_tap_pattern(blocker_taps, seed), _tap_pattern(filter_taps, seed + 1))
+    vis = np.empty(p.shape[0])
+    for lo in range(0, p.shape[0], _BLOCK):  # loop over blocks of points
+        x, y, zr = _project(p[lo:lo + _BLOCK], vp, h, w)
+        vis[lo:lo + _BLOCK] = _pcss_block(occ, h, w, x, y, zr, bias, 1 / zs, half, taps)
+    return vis
+
+
+def _pcss_block(occ, h, w, x, y, zr, bias, inv_s, half, taps):
+    """PCSS steps 1–3 (see :func:`pcss`) for a block of points at window (x, y), view depth zr."""
+    hx, hy = half
+    thr = _threshold(zr, bias)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_r = np.where(zr > 0, 1 / zr, 0.0)
-    # 1. Blocker search over the rectangle at the nearest depth a blocker can have.
-    zs = _search_depth(dmap, lin, n) if search_depth is None else float(search_depth)
-    reach = np.maximum(1 / zs - inv_r, 0.0)
+    reach = np.maximum(inv_s - inv_r, 0.0)
     sx, sy = hx * reach, hy * reach
-    total = np.zeros(p.shape[0])
-    count = np.zeros(p.shape[0])
-    for ox, oy in _tap_pattern(blocker_taps, seed):  # loop over taps
+    total = np.zeros(x.shape[0])
+    count = np.zeros(x.shape[0])
+    for ox, oy in taps[0]:  # loop over the blocker-search taps
         d = occ.take(_padded_floor(y + oy * sy, h) * (w + 2) + _padded_floor(x + ox * sx, w))
         blk = d < thr  # an occluder nearer than the receiver minus the bias
         np.add(total, d, out=total, where=blk)
@@ -340,9 +356,9 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     zb = np.where(has, total / np.maximum(count, 1), 1.0)
     # 2. Penumbra by parallel planes; 3. PCF over it.
     fx, fy = hx * (1 / zb - inv_r), hy * (1 / zb - inv_r)
-    shadowed = np.zeros(p.shape[0], np.intp)
-    for ox, oy in _tap_pattern(filter_taps, seed + 1):
+    shadowed = np.zeros(x.shape[0], np.intp)
+    for ox, oy in taps[1]:  # loop over the filter taps
         shadowed += _lookup(occ, x + ox * fx, y + oy * fy, thr, h, w)
-    vis = (filter_taps - shadowed) / filter_taps
+    vis = (taps[1].shape[0] - shadowed) / taps[1].shape[0]
     vis[~has] = 1.0
     return vis
