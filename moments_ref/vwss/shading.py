@@ -18,6 +18,14 @@ recovered from NDC map depth by ``d = 2 f n / ((f + n) − z (f − n))``, so th
 the bias is in world units. A tap outside a map, an empty texel (z = 1) or a
 point behind a view counts as lit.
 
+NumPy. Each map becomes one flat array padded by a one-texel border: the view
+depth of the occluder where ``z < 1`` and +inf at empty texels and on the
+border. A tap clips ``floor(x + dx)`` to the border (NaN and ±inf positions of
+points on the light's plane included), gathers once and compares with
+``cw − bias``, which is −inf for a point behind the view: the same booleans as
+testing "inside, in front, occupied, nearer" one by one. Points are shaded in
+blocks of ``2**14`` (the results do not depend on the block size).
+
 References
 ----------
 VWSS, Fernando 2005 : see docs/bib.md.
