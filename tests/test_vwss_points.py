@@ -183,3 +183,23 @@ def test_poisson_disk_covers_the_whole_light():
         assert np.all(np.abs(uv.mean(0) - 0.5) < 0.12), n
         quad = (uv[:, 0] > 0.5) * 2 + (uv[:, 1] > 0.5)
         assert np.bincount(quad, minlength=4).min() >= n // 8
+
+
+def test_poisson_disk_cache_cannot_be_corrupted_by_callers():
+    from moments_ref.vwss import lights
+    from moments_ref.vwss.shading import _tap_pattern
+
+    fresh = lights._poisson_disk.__wrapped__(24, 5)  # the fill without the cache
+    a = poisson_disk(24, seed=5)
+    assert np.array_equal(a, fresh) and a.flags.writeable
+    a[:] = -1.0  # a caller writing into its result
+    b = poisson_disk(24, seed=5)
+    assert b is not a and np.array_equal(b, fresh)
+    ls = light_views(_light(), 24, 1.0, 5.0, seed=5)
+    ls.uv[:] = 0.0  # nor through LightSamples.uv
+    assert np.array_equal(light_views(_light(), 24, 1.0, 5.0, seed=5).uv, fresh)
+    assert np.array_equal(poisson_disk(24.0, seed=5.0), fresh)  # same key for equal numbers
+    taps = _tap_pattern(24, 5)
+    assert not taps.flags.writeable and np.array_equal(taps, fresh * 2 - 1)
+    with pytest.raises(ValueError):
+        taps[0, 0] = 0.0

@@ -14,6 +14,7 @@ from moments_ref.scene import AreaLight, Camera
 from moments_ref.vwss import compare
 from moments_ref.vwss.lights import light_views
 from moments_ref.vwss.mvr import mvr
+from moments_ref.vwss import shading as pcf
 from moments_ref.vwss.shading import gbuffer, linear_depth, multiview_visibility, pcss
 
 
@@ -239,3 +240,162 @@ def test_compare_main(tmp_path, capsys):
         compare.SETTINGS["quick"].update(old)
     assert (tmp_path / "o" / "vwss.csv").exists()
     assert "holds" in capsys.readouterr().out or True
+
+
+# --- the lookups against a plain-Python brute force of their definition -----------------------
+#
+# Views whose matrices have entries 0, 1 and 1/2 make the projection exact in floating point (every
+# product is exact, every sum has at most one non-zero rounding step: the same in BLAS and here), so
+# the brute force can compute the window position and view depth itself, bit for bit.
+
+_W, _H, _NEAR, _FAR = 16, 8, 0.5, 3.0
+
+
+def _exact_view(shift_x=0.0, shift_y=0.0):
+    """clip = (px + shift_x, py + shift_y, pz, pz / 2 + 1): cw = 0 at pz = −2, behind the view below."""
+    return np.array([[1, 0, 0, shift_x], [0, 1, 0, shift_y], [0, 0, 1, 0], [0, 0, 0.5, 1]], float)
+
+
+def _brute_window(p, m):
+    """Plain-Python window position and view depth (the definition: x = (x_c / w + 1) W / 2, ...)."""
+    px, py, pz = (float(v) for v in p)
+    cx, cy = px + m[0][3], py + m[1][3]
+    cw = pz * 0.5 + 1.0
+    if cw == 0:
+        return math.nan, math.nan, cw  # the lookup must not need x, y here
+    return (cx / cw + 1) * (_W / 2), (1 - cy / cw) * (_H / 2), cw
+
+
+def _brute_lit(dmap, x, y, cw, bias):
+    """Lit by the definition: outside the map, behind the view, an empty texel, or no nearer occluder."""
+    if not cw > 0:
+        return True
+    col, row = math.floor(x), math.floor(y)
+    if not (0 <= col < _W and 0 <= row < _H):
+        return True
+    z = float(dmap[row][col])
+    lin = 2 * _FAR * _NEAR / ((_FAR + _NEAR) - z * (_FAR - _NEAR))
+    return not (z < 1 and lin < cw - bias)
+
+
+def _adversarial_points(rng, n):
+    """Points on texel boundaries (and one ulp off), outside the map, behind the view and at cw = 0."""
+    col = rng.integers(-3, _W + 4, n)
+    row = rng.integers(-3, _H + 4, n)
+    cw = rng.choice([1.0, 0.5, 1.5, 0.75], n)
+    pz = (cw - 1) * 2
+    # window (col, row) exactly: x_c = (2 col / W − 1) cw (powers of two: exact)
+    p = np.c_[(2 * col / _W - 1) * cw, (1 - 2 * row / _H) * cw, pz]
+    k = n // 6
+    p[:k, :2] = np.nextafter(p[:k, :2], np.inf)
+    p[k:2 * k, :2] = np.nextafter(p[k:2 * k, :2], -np.inf)
+    p[2 * k:3 * k] = np.c_[rng.uniform(-3, 3, (k, 2)), rng.uniform(-1.9, 2, k)]  # anywhere
+    p[3 * k:3 * k + 20, 2] = -2.0  # cw = 0: x, y are ±inf or NaN
+    p[3 * k:3 * k + 5, :2] = 0.0  # 0 / 0
+    p[3 * k + 20:3 * k + 40, 2] = -3.0  # behind the view (cw < 0), some of them project inside
+    p[3 * k + 40:3 * k + 60, :2] = rng.uniform(-1e6, 1e6, (20, 2))  # far outside
+    # window x = 8 − 2⁻⁵⁰ and y = 4 − 2⁻⁵¹ (cw = 1): x + 1 rounds to 9, while floor(x) + 1 = 8
+    e = 2.0 ** -53
+    p[3 * k + 60:3 * k + 80] = np.c_[rng.choice([-e, e, 0.0], 20), rng.choice([-e, e, 0.0], 20), np.zeros(20)]
+    return p
+
+
+def _adversarial_maps(rng, k):
+    m = rng.uniform(-1, 1, (k, _H, _W))
+    # 0.2: view depth exactly 1 = cw of the points at pz = 0 (a tie with the threshold when bias = 0)
+    for value, frac in ((1.0, 0.25), (1.5, 0.05), (np.nextafter(1.0, 0), 0.05), (-1.0, 0.05), (0.2, 0.1)):
+        m[rng.random(m.shape) < frac] = value
+    return m
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_pcf_sum_equals_brute_force_lookups(seed):
+    rng = np.random.default_rng(seed)
+    views = np.stack([_exact_view(), _exact_view(0.25, -0.125), _exact_view(-0.5, 0.375)])
+    maps = _adversarial_maps(rng, 3)
+    if seed % 2:
+        maps = maps.astype(np.float32)
+    p = _adversarial_points(rng, 600)
+    taps = pcf.PCF5 if seed < 2 else rng.integers(-2, 3, (int(rng.integers(1, 8)), 2))
+    bias = (0.0, 1e-3, 0.25, -2.0)[seed]  # −2: behind the view would be "nearer" without the cw test
+    got = pcf.pcf_sum(p, maps, views, _NEAR, _FAR, bias, taps)
+    want = np.zeros(len(p))
+    kinds = set()
+    for i, q in enumerate(p):  # brute force: per point, view and tap (test only)
+        acc = 0.0
+        for k in range(3):
+            x, y, cw = _brute_window(q, views[k])
+            lit = 0
+            for dx, dy in taps:
+                one = _brute_lit(maps[k], x + int(dx), y + int(dy), cw, bias)
+                lit += one
+                kinds.add(("behind" if not cw > 0 else "outside" if not (0 <= x + dx < _W and 0 <= y + dy < _H)
+                           else "lit" if one else "shadowed"))
+            acc += lit / len(taps)
+        want[i] = acc
+    assert kinds == {"behind", "outside", "lit", "shadowed"}
+    assert np.array_equal(got, want), np.flatnonzero(got != want)[:10]
+
+
+def _pcss_light(views):
+    """What pcss reads of LightSamples, with an exact centre view."""
+    light = types.SimpleNamespace(width=1.0, height=0.5)
+    return types.SimpleNamespace(light=light, near=_NEAR, far=_FAR, fov=math.pi / 2,
+                                 center_view_proj=lambda: views)
+
+
+def _brute_pcss(dmap, q, view, samples, bias, blockers, filt, zs):
+    x, y, zr = _brute_window(q, view)
+    kx = _W / (2 * np.tan(samples.fov / 2))
+    ky = _H / (2 * np.tan(samples.fov / 2))
+    hx, hy = samples.light.width / 2 * kx, samples.light.height / 2 * ky
+    inv_r = 1 / zr if zr > 0 else 0.0
+    reach = max(1 / zs - inv_r, 0.0)
+    total, count = 0.0, 0
+    for ox, oy in blockers:
+        xx, yy = x + float(ox) * (hx * reach), y + float(oy) * (hy * reach)
+        if not _brute_lit(dmap, xx, yy, zr, bias):  # a blocker: its view depth joins the mean
+            z = float(dmap[math.floor(yy)][math.floor(xx)])
+            total += 2 * _FAR * _NEAR / ((_FAR + _NEAR) - z * (_FAR - _NEAR))
+            count += 1
+    if count == 0:
+        return 1.0
+    zb = total / count
+    fx, fy = hx * (1 / zb - inv_r), hy * (1 / zb - inv_r)
+    lit = sum(_brute_lit(dmap, x + float(ox) * fx, y + float(oy) * fy, zr, bias) for ox, oy in filt)
+    return lit / len(filt)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_pcss_equals_brute_force(seed):
+    rng = np.random.default_rng(10 + seed)
+    view = _exact_view(0.125, 0.0)
+    dmap = _adversarial_maps(rng, 1)[0]
+    dmap[rng.random(dmap.shape) < 0.4] = 1.0  # holes: partial blocker sets
+    p = _adversarial_points(rng, 240)
+    samples = _pcss_light(view)
+    bias = (1e-3, 0.0, 0.2)[seed]
+    nb, nf = ((64, 96), (16, 24), (5, 7))[seed]
+    search = (None, 0.3, None)[seed]
+    got = pcss(p, dmap, samples, bias, blocker_taps=nb, filter_taps=nf, seed=seed, search_depth=search)
+    occupied = [float(z) for z in dmap.reshape(-1) if z < 1]
+    lin = [2 * _FAR * _NEAR / ((_FAR + _NEAR) - z * (_FAR - _NEAR)) for z in occupied]
+    zs = max(_NEAR, min(lin)) if search is None else search
+    blockers, filt = pcf._tap_pattern(nb, seed), pcf._tap_pattern(nf, seed + 1)
+    want = np.array([_brute_pcss(dmap, q, view, samples, bias, blockers, filt, zs) for q in p])
+    assert 0 < np.count_nonzero(want == 1) < len(p) and np.count_nonzero((want > 0) & (want < 1)) > 5
+    assert np.array_equal(got, want), np.flatnonzero(got != want)[:10]
+
+
+def test_pcf_sum_blocks_do_not_change_the_sum(monkeypatch):
+    # More points than one block (and a partial last block) give the same sums as one point at a time.
+    rng = np.random.default_rng(3)
+    views = np.stack([_exact_view(), _exact_view(0.25, -0.125)])
+    maps = _adversarial_maps(rng, 2)
+    p = _adversarial_points(rng, 700)
+    monkeypatch.setattr(pcf, "_BLOCK", 64)
+    blocked = pcf.pcf_sum(p, maps, views, _NEAR, _FAR, 1e-3)
+    vis = pcss(p, maps[0], _pcss_light(views[0]), 1e-3)
+    monkeypatch.setattr(pcf, "_BLOCK", 1 << 20)
+    assert np.array_equal(blocked, pcf.pcf_sum(p, maps, views, _NEAR, _FAR, 1e-3))
+    assert np.array_equal(vis, pcss(p, maps[0], _pcss_light(views[0]), 1e-3))

@@ -13,6 +13,7 @@ from moments_ref.vwss.mvr import mvr
 from moments_ref.vwss.points import generate_points, source_view
 from moments_ref.vwss.shading import linear_depth
 from moments_ref.bench import bench_entries
+from moments_ref.vwss import warp as warp_mod
 from moments_ref.vwss.warp import project_to_texels, warp, zbuffer_max
 
 
@@ -233,3 +234,45 @@ def test_bench_entries_run():
     for bm in (b for b in bench_entries() if b.name.startswith("vwss")):
         args = bm.setup(64, bm.dtype)
         bm.fn(*args)
+
+
+def _brute_texels(points, views, h, w):
+    """Per (point, view) pair in plain Python: the clip tests of a depth-map pass, by the definition."""
+    hom = np.c_[points, np.ones(len(points), points.dtype)]
+    flat, rev = [], []
+    for n in range(len(points)):  # brute force (test only)
+        for v in range(len(views)):
+            c = hom[n] @ views[v].T  # exact for the matrices below (entries 0, ±1, ±1/2, 2)
+            dt = points.dtype.type
+            if not c[3] > 0:
+                continue
+            with np.errstate(over="ignore", invalid="ignore"):  # 1 / tiny w: inf, inf · 0
+                inv = dt(1) / c[3]
+                x = (c[0] * inv + dt(1)) * dt(w / 2)
+                y = (dt(1) - c[1] * inv) * dt(h / 2)
+                r = dt(0.5) - dt(0.5) * (c[2] * inv)
+            if 0 <= x < w and 0 <= y < h and 0 <= r <= 1:
+                flat.append((v * h + min(int(y), h - 1)) * w + min(int(x), w - 1))
+                rev.append(r)
+    return np.array(flat, np.intp), np.array(rev, points.dtype)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_project_to_texels_equals_brute_force_on_the_bounds(dtype, monkeypatch):
+    # Views with exact products put points exactly on x = 0, x = W, y = 0, y = H, r = 0, r = 1 and
+    # one ulp either side, behind the view (w < 0) and on w = 0 (inf and NaN window positions).
+    views = np.array([np.eye(4), [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0.5, 1]],
+                      [[-1, 0, 0, 0.5], [0, 2, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]],
+                      [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, -1, 0]]], dtype)
+    edge = np.array([-1, 1, 0, 0.5, -0.5, 2, -2, 1e30], dtype)
+    edge = np.concatenate([edge, np.nextafter(edge, dtype(np.inf)), np.nextafter(edge, dtype(-np.inf))])
+    rng = np.random.default_rng(1)
+    pts = np.c_[rng.choice(edge, 3000), rng.choice(edge, 3000), rng.choice(edge, 3000)].astype(dtype)
+    pts[:5] = 0  # (0, 0, 0): w = 0 in the last view, 0 / 0
+    monkeypatch.setattr(warp_mod, "_BLOCK", 256)  # many blocks and a partial last one
+    with np.errstate(over="ignore"):  # 1 / w overflows for a subnormal w (a warning, as for any caller)
+        flat, rev = project_to_texels(pts, views, (8, 16))
+    want_flat, want_rev = _brute_texels(pts, views, 8, 16)
+    assert 100 < flat.size < pts.shape[0] * len(views)
+    assert np.array_equal(flat, want_flat) and rev.dtype == dtype and np.array_equal(rev, want_rev)
+    assert {0.0, 1.0} <= set(rev.tolist())  # both depth bounds are kept

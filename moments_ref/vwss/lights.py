@@ -31,6 +31,7 @@ VWSS : see docs/bib.md.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,8 @@ def poisson_disk(n, seed=0) -> np.ndarray:
     Returns
     -------
     uv : (n, 2) float64 array in [0, 1)²
+        A fresh (writable) copy on every call: the fill is computed once per
+        ``(n, seed)`` and cached (it costs about 0.2 s at n = 64 and 3 s at 512).
 
     Notes
     -----
@@ -91,8 +94,6 @@ def poisson_disk(n, seed=0) -> np.ndarray:
     points of a larger fill would keep a blob around Bridson's start point and
     under-sample part of the light.) The result depends only on ``(n, seed)``.
     """
-    from scipy.stats import qmc
-
     try:
         k = int(n)
         ok = k == n and k >= 1
@@ -100,12 +101,22 @@ def poisson_disk(n, seed=0) -> np.ndarray:
         ok = False
     if not ok:
         raise InputError(f"n: expected a positive integer number of samples, got {n!r}")
+    return _poisson_disk(k, int(seed)).copy()
+
+
+@functools.lru_cache(maxsize=32)
+def _poisson_disk(k, seed):
+    """The cached fill of :func:`poisson_disk` (read-only: callers get copies)."""
+    from scipy.stats import qmc  # ~1.5 s to import: only when a new (n, seed) is asked for
+
     radius = np.sqrt(2.0 / (np.sqrt(3.0) * k))
     while True:
-        pts = qmc.PoissonDisk(d=2, radius=min(radius, 0.5), rng=int(seed)).fill_space()
+        pts = qmc.PoissonDisk(d=2, radius=min(radius, 0.5), rng=seed).fill_space()
         if pts.shape[0] >= k:
-            keep = np.sort(np.random.default_rng(int(seed)).choice(pts.shape[0], k, replace=False))
-            return pts[keep]
+            keep = np.sort(np.random.default_rng(seed).choice(pts.shape[0], k, replace=False))
+            uv = pts[keep]
+            uv.setflags(write=False)
+            return uv
         radius *= 0.95
 
 

@@ -18,6 +18,14 @@ recovered from NDC map depth by ``d = 2 f n / ((f + n) − z (f − n))``, so th
 the bias is in world units. A tap outside a map, an empty texel (z = 1) or a
 point behind a view counts as lit.
 
+NumPy. Each map becomes one flat array padded by a one-texel border: the view
+depth of the occluder where ``z < 1`` and +inf at empty texels and on the
+border. A tap clips ``floor(x + dx)`` to the border (NaN and ±inf positions of
+points on the light's plane included), gathers once and compares with
+``cw − bias``, which is −inf for a point behind the view: the same booleans as
+testing "inside, in front, occupied, nearer" one by one. Points are shaded in
+blocks of ``2**14`` (the results do not depend on the block size).
+
 References
 ----------
 VWSS, Fernando 2005 : see docs/bib.md.
@@ -42,6 +50,10 @@ PCF5 = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]], np.int64)
 #: PCSS tap counts of VWSS §4.
 PCSS_BLOCKER_TAPS = 64
 PCSS_FILTER_TAPS = 96
+# Points per block of the shading loops: the temporaries stay in cache and _project's thin
+# (n, 3) @ (3, 3) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18), whose
+# threads cost more than they save on it. Results do not depend on the block size.
+_BLOCK = 1 << 14
 
 
 @dataclass(frozen=True)
@@ -120,20 +132,46 @@ def _project(positions, view_proj, h, w):
     return x, y, cw
 
 
-def _lookup(depth_map, lin_map, x, y, cw, bias, near, far):
-    """Lit (True) per point for nearest-texel lookups at window positions (x, y)."""
+def _occluder_map(depth_map, near, far):
+    """Flat (H+2)·(W+2) map: the occluder's view depth (:func:`linear_depth`) where ``depth < 1``,
+    +inf at empty texels and on a one-texel border (a tap outside the map reads +inf: lit)."""
     h, w = depth_map.shape
-    col = np.floor(x)
-    row = np.floor(y)
-    inside = (cw > 0) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    lit = np.ones(x.shape, bool)
-    i = np.flatnonzero(inside)
-    ci = col[i].astype(np.intp)
-    ri = row[i].astype(np.intp)
-    d_occ = lin_map[ri, ci]
-    # Shadowed when an occluder (non-empty texel) lies nearer than the point minus the bias.
-    lit[i] = ~((depth_map[ri, ci] < 1) & (d_occ < cw[i] - bias))
-    return lit
+    occ = np.full((h + 2) * (w + 2), np.inf)
+    i = np.flatnonzero(depth_map < 1)  # row-major texel r * W + c -> padded (r + 1)(W + 2) + c + 1
+    occ[i + 2 * (i // w) + (w + 3)] = linear_depth(np.take(depth_map, i), near, far)
+    return occ
+
+
+def _threshold(cw, bias):
+    """``cw − bias`` where the point is in front of the view (``cw > 0``), −inf elsewhere (always lit)."""
+    return np.where(cw > 0, cw - bias, -np.inf)
+
+
+def _padded_floor(v, n):
+    """``floor(v) + 1`` clipped to ``[0, n + 1]`` as intp: the index into a map padded by one texel.
+
+    Out-of-range, infinite and NaN positions (``cw = 0``) land on the +inf border.
+    """
+    c = np.floor(v)
+    np.fmin(c, n, out=c)  # NaN -> n (fmin returns the non-NaN operand)
+    np.fmax(c, -1, out=c)
+    c += 1
+    return c.astype(np.intp)
+
+
+def _shadowed(occ, row_index, col_index, threshold):
+    """Shadowed (True) per point: the texel's occluder lies nearer than the threshold.
+
+    ``occ`` from :func:`_occluder_map`; ``row_index`` = padded row × (W + 2), ``col_index`` =
+    padded column. Equals, per point, "inside the map, in front of the view, an occluder
+    (depth < 1) with view depth < cw − bias" (outside, behind or empty: +inf or −inf, False).
+    """
+    return occ.take(row_index + col_index) < threshold
+
+
+def _lookup(occ, x, y, threshold, h, w):
+    """Shadowed (True) per point for nearest-texel lookups at window positions (x, y)."""
+    return _shadowed(occ, _padded_floor(y, h) * (w + 2), _padded_floor(x, w), threshold)
 
 
 def _check_positions(positions):
@@ -177,13 +215,23 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     h, w = maps.shape[1:]
     acc = np.zeros(p.shape[0])
     for k in range(vp.shape[0]):  # loop over views
-        x, y, cw = _project(p, vp[k], h, w)
-        lin = linear_depth(maps[k], near, far)
-        lit = np.zeros(p.shape[0])
-        for dx, dy in taps:  # loop over the 5 taps
-            lit += _lookup(maps[k], lin, x + dx, y + dy, cw, bias, near, far)
-        acc += lit / taps.shape[0]
+        occ = _occluder_map(maps[k], near, far)
+        for lo in range(0, p.shape[0], _BLOCK):  # loop over blocks of points
+            acc[lo:lo + _BLOCK] += _pcf_block(occ, p[lo:lo + _BLOCK], vp[k], h, w, bias, taps)
     return acc
+
+
+def _pcf_block(occ, p, view_proj, h, w, bias, taps):
+    """Lit fraction of the PCF taps of one view for a block of points (exact count / T)."""
+    x, y, cw = _project(p, view_proj, h, w)
+    thr = _threshold(cw, bias)
+    # floor(x + dx) once per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
+    cols = {dx: _padded_floor(x + dx, w) for dx in np.unique(taps[:, 0])}
+    rows = {dy: _padded_floor(y + dy, h) * (w + 2) for dy in np.unique(taps[:, 1])}
+    shadowed = np.zeros(p.shape[0], np.intp)
+    for dx, dy in taps:  # loop over the taps
+        shadowed += _shadowed(occ, rows[dy], cols[dx], thr)
+    return (taps.shape[0] - shadowed) / taps.shape[0]
 
 
 def multiview_visibility(positions, depth_maps, samples: LightSamples, bias, views=None, taps=PCF5):
@@ -219,10 +267,9 @@ def _tap_pattern(n, seed):
     return taps
 
 
-def _search_depth(dmap, lin, near):
+def _search_depth(dmap, occ, near):
     """``max(near, nearest view depth of an occupied texel)``; ``near`` for an empty map."""
-    occupied = dmap < 1
-    return max(float(near), float(lin[occupied].min())) if occupied.any() else float(near)
+    return max(float(near), float(occ.min())) if (dmap < 1).any() else float(near)
 
 
 def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BLOCKER_TAPS,
@@ -283,37 +330,43 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     light = samples.light
     n, f = samples.near, samples.far
     vp = samples.center_view_proj()
-    x, y, zr = _project(p, vp, h, w)
-    lin = linear_depth(dmap, n, f)
-    # tan units -> texels
+    occ = _occluder_map(dmap, n, f)
+    # tan units -> texels: half-extents of the light (l_w / 2, l_h / 2) in texels per tan unit
     kx = w / (2 * np.tan(samples.fov / 2))
     ky = h / (2 * np.tan(samples.fov / 2))
-    hx, hy = light.width / 2 * kx, light.height / 2 * ky
+    half = (light.width / 2 * kx, light.height / 2 * ky)
+    # 1. Blocker search over the rectangle at the nearest depth a blocker can have.
+    zs = _search_depth(dmap, occ, n) if search_depth is None else float(search_depth)
+    taps = (_tap_pattern(blocker_taps, seed), _tap_pattern(filter_taps, seed + 1))
+    vis = np.empty(p.shape[0])
+    for lo in range(0, p.shape[0], _BLOCK):  # loop over blocks of points
+        x, y, zr = _project(p[lo:lo + _BLOCK], vp, h, w)
+        vis[lo:lo + _BLOCK] = _pcss_block(occ, h, w, x, y, zr, bias, 1 / zs, half, taps)
+    return vis
+
+
+def _pcss_block(occ, h, w, x, y, zr, bias, inv_s, half, taps):
+    """PCSS steps 1–3 (see :func:`pcss`) for a block of points at window (x, y), view depth zr."""
+    hx, hy = half
+    thr = _threshold(zr, bias)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_r = np.where(zr > 0, 1 / zr, 0.0)
-    # 1. Blocker search over the rectangle at the nearest depth a blocker can have.
-    zs = _search_depth(dmap, lin, n) if search_depth is None else float(search_depth)
-    reach = np.maximum(1 / zs - inv_r, 0.0)
+    reach = np.maximum(inv_s - inv_r, 0.0)
     sx, sy = hx * reach, hy * reach
-    total = np.zeros(p.shape[0])
-    count = np.zeros(p.shape[0])
-    for ox, oy in _tap_pattern(blocker_taps, seed):  # loop over taps
-        col = np.floor(x + ox * sx)
-        row = np.floor(y + oy * sy)
-        inside = (zr > 0) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
-        i = np.flatnonzero(inside)
-        ri, ci = row[i].astype(np.intp), col[i].astype(np.intp)
-        d = lin[ri, ci]
-        blk = (dmap[ri, ci] < 1) & (d < zr[i] - bias)
-        total[i[blk]] += d[blk]
-        count[i[blk]] += 1
+    total = np.zeros(x.shape[0])
+    count = np.zeros(x.shape[0])
+    for ox, oy in taps[0]:  # loop over the blocker-search taps
+        d = occ.take(_padded_floor(y + oy * sy, h) * (w + 2) + _padded_floor(x + ox * sx, w))
+        blk = d < thr  # an occluder nearer than the receiver minus the bias
+        np.add(total, d, out=total, where=blk)
+        count += blk
     has = count > 0
     zb = np.where(has, total / np.maximum(count, 1), 1.0)
     # 2. Penumbra by parallel planes; 3. PCF over it.
     fx, fy = hx * (1 / zb - inv_r), hy * (1 / zb - inv_r)
-    lit = np.zeros(p.shape[0])
-    for ox, oy in _tap_pattern(filter_taps, seed + 1):
-        lit += _lookup(dmap, lin, x + ox * fx, y + oy * fy, zr, bias, n, f)
-    vis = lit / filter_taps
+    shadowed = np.zeros(x.shape[0], np.intp)
+    for ox, oy in taps[1]:  # loop over the filter taps
+        shadowed += _lookup(occ, x + ox * fx, y + oy * fy, thr, h, w)
+    vis = (taps[1].shape[0] - shadowed) / taps[1].shape[0]
     vis[~has] = 1.0
     return vis

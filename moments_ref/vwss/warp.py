@@ -41,6 +41,10 @@ __all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes"]
 
 # Point-view pairs projected per vectorized chunk (bounds the temporaries).
 _CHUNK = 1 << 21
+# Point-view pairs per block inside :func:`project_to_texels`: the temporaries stay in cache and
+# the thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18),
+# whose threads cost more than they save on it (results do not depend on the block size).
+_BLOCK = 1 << 13
 
 
 def _uint_of(dt):
@@ -177,28 +181,55 @@ def project_to_texels(points, view_proj, resolution):
     """
     p = _points(points)
     m = _views(view_proj).astype(p.dtype)
-    h, w = _check_resolution(resolution)
+    return _project_to_texels(p, m, *_check_resolution(resolution))
+
+
+def _project_to_texels(p, m, h, w):
+    """:func:`project_to_texels` of checked points ``p`` (N, 3) and views ``m`` (k, 4, 4) of p's dtype."""
     k = m.shape[0]
-    dt = p.dtype.type
-    # One matrix product for all k views: (N, 4) @ (4, 4k).
+    # One matrix product for all k views: (n, 4) @ (4, 4k), columns ordered (component, view).
+    mt = m.transpose(2, 1, 0).reshape(4, 4 * k)
+    step = max(1, _BLOCK // k)
+    parts = [_texel_block(p[lo:lo + step], mt, k, h, w) for lo in range(0, p.shape[0], step)]
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return np.zeros(0, np.intp), np.zeros(0, p.dtype)
+    return np.concatenate([f for f, _ in parts]), np.concatenate([r for _, r in parts])
+
+
+def _texel_block(p, mt, k, h, w):
+    """Texels and reversed depths of one block of points, in (point, view) order."""
+    dt, ut = p.dtype.type, _uint_of(p.dtype)
     hom = np.concatenate([p, np.ones((p.shape[0], 1), p.dtype)], axis=1)
-    # clip[n, c, v] = sum_j hom[n, j] m[v, c, j]: columns ordered (component, view).
-    clip = (hom @ m.transpose(2, 1, 0).reshape(4, 4 * k)).reshape(p.shape[0], 4, k)
+    clip = (hom @ mt).reshape(p.shape[0], 4, k)
     cw = clip[:, 3]
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = dt(1) / cw
-        x = (clip[:, 0] * inv + dt(1)) * dt(w / 2)
-        y = (dt(1) - clip[:, 1] * inv) * dt(h / 2)
-        r = dt(0.5) - dt(0.5) * (clip[:, 2] * inv)
-    ok = (cw > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h) & (r >= 0) & (r <= 1)
-    pi, vi = np.nonzero(ok)
-    col = x[pi, vi].astype(np.intp)
-    row = y[pi, vi].astype(np.intp)
+        x = clip[:, 0] * inv  # x = (x_clip / w + 1) W/2
+        x += dt(1)
+        x *= dt(w / 2)
+        y = clip[:, 1] * inv  # y = (1 − y_clip / w) H/2
+        np.subtract(dt(1), y, out=y)
+        y *= dt(h / 2)
+        r = clip[:, 2] * inv  # r = 1/2 − (z_clip / w) / 2
+        r *= dt(0.5)
+        np.subtract(dt(0.5), r, out=r)
+    # 0 ≤ x < W, 0 ≤ y < H, 0 ≤ r ≤ 1 as one unsigned comparison each: none of x, y, r can be
+    # −0.0 (a − b rounds to +0.0 when a = b, and the factors are ≥ 1/2), so the bit pattern orders
+    # them (module docstring); negative values and NaN have patterns above every bound.
+    ok = cw > 0
+    ok &= x.view(ut) < np.array(w, p.dtype).view(ut)
+    ok &= y.view(ut) < np.array(h, p.dtype).view(ut)
+    ok &= r.view(ut) <= np.array(1, p.dtype).view(ut)
+    i = np.flatnonzero(ok)  # = point * k + view
+    col = x.reshape(-1).take(i).astype(np.intp)
+    row = y.reshape(-1).take(i).astype(np.intp)
     # float rounding can put x == w after the test on the unrounded value; clamp.
     np.minimum(col, w - 1, out=col)
     np.minimum(row, h - 1, out=row)
-    flat = (vi * h + row) * w + col
-    return flat, r[pi, vi] + dt(0.0)
+    flat = (i % k * h + row) * w + col
+    return flat, r.reshape(-1).take(i) + dt(0.0)
 
 
 def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
@@ -224,9 +255,10 @@ def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
     for s in starts:
         sel = np.arange(s, min(s + k, nv))
         buf = np.zeros(sel.size * h * w, udt)
+        mp = m[sel].astype(p.dtype)
         step = max(1, _CHUNK // sel.size)
         for lo in range(0, p.shape[0], step):
-            flat, r = project_to_texels(p[lo:lo + step], m[sel], (h, w))
+            flat, r = _project_to_texels(p[lo:lo + step], mp, h, w)
             _zmax_into(buf, flat, r)
         r = buf.view(p.dtype).reshape(sel.size, h, w)
         # Back to NDC depth: z = 1 - 2 r (empty texels, r = 0, become 1 = far).
