@@ -20,8 +20,10 @@ def _iter_coverage(s, h, w, sx, sy, want_rcs):
     setup split, see :func:`moments_ref.raster._triangles._setup`).
     """
     c0, c1, r0, r1, safe = _boxes(s, h, w, sx, sy)
-    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
-    yield from _iter_spans(s, sel, c0[sel], c1[sel], r0[sel], r1[sel], safe[sel], sx, sy, w, want_rcs)
+    nonempty = (c0 <= c1) & (r0 <= r1)
+    sel = np.flatnonzero(nonempty)
+    c0, c1, r0, r1, safe = (np.compress(nonempty, a) for a in (c0, c1, r0, r1, safe))
+    yield from _iter_spans(s, sel, c0, c1, r0, r1, safe, sx, sy, w, want_rcs)
 
 
 def _boxes(s, h, w, sx, sy):

@@ -106,9 +106,10 @@ def _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
     band for float64 to be exact) to the ragged int64 path.
     """
     S = sx.shape[0]
-    A3, B3 = s["A"][:, tri], s["B"][:, tri]
+    # np.take: 2-3 times quicker than the equal fancy index s["A"][:, tri] (NumPy 2.4).
+    A3, B3, F3 = (np.take(s[name], tri, axis=1) for name in ("A", "B", "F0"))
     # Edge functions at the centre of each box's first pixel, exact in int64.
-    base3 = s["F0"][:, tri] + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
+    base3 = F3 + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
     dense = (nr <= _DENSE_ROWS) & safe
     key = np.where(dense, nr, 0)
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
@@ -116,13 +117,14 @@ def _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
         step = max(1, _ROW_BUDGET // (int(k) * S))
         for a in range(0, sel.size, step):
             g = sel[a:a + step]
-            j, row, samp, col0, cnt = _rect_spans(A3[:, g], B3[:, g], base3[:, g], c0[g], nc[g], r0[g], nr[g],
-                                                  int(k), sx, sy)
+            a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
+            j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0[g], nc[g], r0[g], nr[g], int(k), sx, sy)
             yield g[j], row, samp, col0, cnt
     rest = np.flatnonzero(~dense)
     for g0, g1 in _groups(nr[rest] * S, _ROW_BUDGET):
         g = rest[g0:g1]
-        pt, row, samp, col0, cnt = _row_spans(A3[:, g], B3[:, g], base3[:, g], c0[g], nc[g], r0[g], nr[g], sx, sy)
+        a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
+        pt, row, samp, col0, cnt = _row_spans(a3, b3, e3, c0[g], nc[g], r0[g], nr[g], sx, sy)
         yield g[pt], row, samp, col0, cnt
 
 

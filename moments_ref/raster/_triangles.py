@@ -127,7 +127,7 @@ def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
     bad = bad_v[triT[0]] | bad_v[triT[1]] | bad_v[triT[2]]
     stats.nonfinite += int(np.count_nonzero(bad))
     if bad.any():
-        triT, tid = triT[:, ~bad], tid[~bad]
+        triT, tid = np.compress(~bad, triT, axis=1), tid[~bad]
     # Zero area in world space: exactly collinear or repeated vertices.
     # np.take is 2.7 times quicker than the equal fancy index vT[:, triT] (NumPy 2.4).
     p = np.take(vT, triT, axis=1)  # (3 coords, 3 vertices, n)
@@ -136,7 +136,7 @@ def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
               | (e1[0] * e2[1] != e1[1] * e2[0]))
     stats.degenerate += int(nondeg.size - np.count_nonzero(nondeg))
     if not nondeg.all():
-        triT, tid, p = triT[:, nondeg], tid[nondeg], p[:, :, nondeg]
+        triT, tid, p = np.compress(nondeg, triT, axis=1), tid[nondeg], np.compress(nondeg, p, axis=2)
     c = np.take(cvT, triT, axis=1)  # (4, 3, n) clip-space vertices
     x, y, z, cw = c
     # Trivial reject: all three vertices outside the same plane of the view volume.
@@ -145,7 +145,7 @@ def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
     stats.outside += int(np.count_nonzero(out))
     attr = np.concatenate([c, p]) if want_world else c  # (k, 3, n), linear in clip space
     if out.any():
-        attr, tid = attr[:, :, ~out], tid[~out]
+        attr, tid = np.compress(~out, attr, axis=2), tid[~out]
     return attr, tid
 
 
@@ -166,7 +166,7 @@ def _clip(attr, tid, h, w, lo, n, stats):
     pos_w = _all3(attr[3] > 0)  # a non-standard matrix may leave w <= 0
     if not pos_w.all():
         stats.outside += _count_ids(tid[~pos_w], lo, n)
-        attr, tid = attr[:, :, pos_w], tid[pos_w]
+        attr, tid = np.compress(pos_w, attr, axis=2), tid[pos_w]
     return attr, tid
 
 
