@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, first_index, real_input
-from ._matrices import _SUB
+from ._matrices import _SUB, _clip_space
 
 # Window coordinates stay within ±2^20 pixels (guard band): with 8 sub-pixel bits
 # edge-function products stay below 2^60 in int64.
@@ -94,11 +94,11 @@ def _count_ids(ids, lo, n) -> int:
     return int(np.count_nonzero(mark))
 
 
-def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
+def _setup(verts, tri, lo, h, w, cull, stats, want_world):
     """Clip, snap and set up edge equations for one chunk of triangles.
 
-    Arrays are component-major ("structure of arrays"): vT (3, V) world and cvT
-    (4, V) clip-space vertices; per-triangle results are (3, n) (one row per
+    ``verts`` from :func:`_vertices`. Arrays are component-major ("structure of
+    arrays"); per-triangle results are (3, n) (one row per
     vertex or edge) or (n,). ``tri`` (n, 3) holds the chunk's indices, whose
     triangle ids start at ``lo``. Returns None when nothing is left to rasterize.
 
@@ -109,7 +109,7 @@ def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
     :func:`_reject`, :func:`_clip`, :func:`_snap_and_cull`, :func:`_edge_equations`.
     """
     n = tri.shape[0]
-    attr, tid = _reject(vT, cvT, bad_v, tri, lo, stats, want_world)
+    attr, tid = _reject(verts, tri, lo, stats, want_world)
     attr, tid = _clip(attr, tid, h, w, lo, n, stats)
     if tid.size == 0:
         return None
@@ -119,25 +119,41 @@ def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
     return _edge_equations(*snapped, want_world)
 
 
-def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
+def _vertices(v, m, n_triangles):
+    """``(v, m, vT, cvT)`` for :func:`_setup`: world and clip-space vertices, component-major (3, V) and (4, V),
+    when the mesh shares its vertices (fewer than 1.5 per triangle: transform each once and
+    gather), else None for both (the triangles' vertices are gathered and transformed chunk
+    by chunk, so no array of the size of the mesh is allocated). Same values either way."""
+    if 2 * v.shape[0] > 3 * n_triangles:
+        return v, m, None, None
+    vT = np.ascontiguousarray(v.T)
+    return v, m, vT, _clip_space(vT, m)
+
+
+def _reject(verts, tri, lo, stats, want_world):
     """Drop non-finite, degenerate and trivially outside triangles; (attributes (k, 3, n), ids)."""
+    v, m, vT, cvT = verts
     n = tri.shape[0]
     tid = np.arange(lo, lo + n)
     triT = np.ascontiguousarray(tri.T)  # a contiguous index makes np.take below quicker
-    bad = bad_v[triT[0]] | bad_v[triT[1]] | bad_v[triT[2]]
-    stats.nonfinite += int(np.count_nonzero(bad))
-    if bad.any():
-        triT, tid = np.compress(~bad, triT, axis=1), tid[~bad]
+    # The chunk's world vertices, (3 coords, 3 vertices, n). np.take is 2.7 times quicker
+    # than the equal fancy index vT[:, triT] (NumPy 2.4); without vT, whole rows of v are
+    # gathered and the chunk transposed once (in cache).
+    p = np.take(vT, triT, axis=1) if vT is not None else np.take(v, triT.ravel(), axis=0).T.reshape(3, 3, n)
+    fin = np.isfinite(p).reshape(9, n)
+    bad = None if fin.all() else ~fin.all(axis=0)
+    if bad is not None:
+        stats.nonfinite += int(np.count_nonzero(bad))
+        triT, tid, p = np.compress(~bad, triT, axis=1), tid[~bad], np.compress(~bad, p, axis=2)
     # Zero area in world space: exactly collinear or repeated vertices.
-    # np.take is 2.7 times quicker than the equal fancy index vT[:, triT] (NumPy 2.4).
-    p = np.take(vT, triT, axis=1)  # (3 coords, 3 vertices, n)
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     nondeg = ((e1[1] * e2[2] != e1[2] * e2[1]) | (e1[2] * e2[0] != e1[0] * e2[2])
               | (e1[0] * e2[1] != e1[1] * e2[0]))
     stats.degenerate += int(nondeg.size - np.count_nonzero(nondeg))
     if not nondeg.all():
         triT, tid, p = np.compress(nondeg, triT, axis=1), tid[nondeg], np.compress(nondeg, p, axis=2)
-    c = np.take(cvT, triT, axis=1)  # (4, 3, n) clip-space vertices
+    # (4, 3, n) clip-space vertices (the same operations whether transformed here or gathered).
+    c = np.take(cvT, triT, axis=1) if cvT is not None else _clip_space(p, m)
     x, y, z, cw = c
     # Trivial reject: all three vertices outside the same plane of the view volume.
     out = (_all3(x > cw) | _all3(x < -cw) | _all3(y > cw) | _all3(y < -cw)
