@@ -191,29 +191,38 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
     checks), so sums are exact and ceil of the quotient is exact (_EXACT_FLOAT).
     Edges along the rows (a = 0) divide by -2^-40: ceil gives <= 0 for L >= 0 and
     >= 2^40 (an empty row) for L <= -1, so they need no branch.
+
+    The edges of each triangle are taken in the order (one with a > 0, one with
+    a < 0, the third): the A of a closed triangle sum to 0 and are not all 0, so both
+    exist, and the first two bound only the first resp. the last column (no masks).
+    The bounds are maxima of the same values in another order, so they are the same.
     """
     S = sx.shape[0]
     n = nr.size
     ro = (np.arange(k, dtype=np.float64) * _SUB)[:, None, None]
-    lo = np.zeros((k, S, n))
-    # Minus the last covered column; rows beyond the box get +inf (empty). Masks are
-    # added as 0 / -inf penalties: a ufunc's where= costs 11 ns an element, an add 0.4.
-    nhi = np.where(np.arange(k)[:, None] >= nr, np.inf, 0.0)[:, None, :] + (1.0 - nc)
-    nhi = np.broadcast_to(nhi, (k, S, n)).copy()
-    m = np.empty((k, S, n))
-    t = np.empty((k, S, n))
+    i_pos, i_neg = np.argmax(A3, axis=0), np.argmin(A3, axis=0)
+    order = np.stack([i_pos, i_neg, 3 - i_pos - i_neg])
+    A3, B3, base3 = (np.take_along_axis(x, order, axis=0) for x in (A3, B3, base3))
     d3 = np.where(A3 == 0, -2.0 ** -40, -np.abs(A3 * _SUB).astype(np.float64))
-    for e in range(3):
-        A, B, base, d = A3[e], B3[e], base3[e], d3[e]
-        Ls = (base + A * sx[:, None] + B * sy[:, None]).astype(np.float64)  # (S, n), exact
-        Bf = B.astype(np.float64)
-        np.add(Ls[None], Bf * ro, out=m)
-        np.divide(m, d, out=m)
-        np.ceil(m, out=m)
-        # a > 0 (and a = 0) bounds the first column, a < 0 the last (as -m).
-        pos = A >= 0
-        np.maximum(lo, np.add(m, np.where(pos, 0.0, -np.inf), out=t), out=lo)
-        np.maximum(nhi, np.add(m, np.where(pos, -np.inf, 0.0), out=t), out=nhi)
+
+    def bound(e, out):
+        # ceil(L / d) of edge e at every (row, sample, triangle), into out.
+        Ls = (base3[e] + A3[e] * sx[:, None] + B3[e] * sy[:, None]).astype(np.float64)  # (S, n), exact
+        np.add(Ls[None], B3[e].astype(np.float64) * ro, out=out)
+        np.divide(out, d3[e], out=out)
+        return np.ceil(out, out=out)
+
+    lo = np.maximum(bound(0, np.empty((k, S, n))), 0.0, out=np.empty((k, S, n)))
+    # Minus the last covered column; rows beyond the box get +inf (empty).
+    nhi = bound(1, np.empty((k, S, n)))
+    np.maximum(nhi, np.where(np.arange(k)[:, None] >= nr, np.inf, 0.0)[:, None, :] + (1.0 - nc), out=nhi)
+    # The third edge bounds either side: its mask is added as a 0 / -inf penalty (a
+    # ufunc's where= costs 11 ns an element, an add 0.4).
+    m = bound(2, np.empty((k, S, n)))
+    pos = A3[2] >= 0
+    t = np.add(m, np.where(pos, 0.0, -np.inf))
+    np.maximum(lo, t, out=lo)
+    np.maximum(nhi, np.add(m, np.where(pos, -np.inf, 0.0), out=t), out=nhi)
     cnt = np.subtract(1.0, nhi, out=nhi)
     cnt -= lo
     keep = np.flatnonzero(cnt > 0)
