@@ -234,7 +234,7 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world):
     """
     verts = _vertices(v, m, t.shape[0])
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
-        s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
+        s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world)
         if s is None:
             continue
         for flat, z, inside, rcs in _iter_coverage(s, h, w, sx, sy, want_world):

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, first_index, real_input
+from ._coverage import _boxes
 from ._matrices import _SUB, _clip_space
 
 # Window coordinates stay within ±2^20 pixels (guard band): with 8 sub-pixel bits
@@ -94,13 +95,16 @@ def _count_ids(ids, lo, n) -> int:
     return int(np.count_nonzero(mark))
 
 
-def _setup(verts, tri, lo, h, w, cull, stats, want_world):
+def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
     """Clip, snap and set up edge equations for one chunk of triangles.
 
     ``verts`` from :func:`_vertices`. Arrays are component-major ("structure of
     arrays"); per-triangle results are (3, n) (one row per
     vertex or edge) or (n,). ``tri`` (n, 3) holds the chunk's indices, whose
     triangle ids start at ``lo``. Returns None when nothing is left to rasterize.
+    Triangles whose pixel box holds no sample (sx, sy: the sample offsets) are
+    dropped before their edge equations; ``s["box"]`` holds the boxes of the rest
+    (:func:`moments_ref.raster._coverage._boxes`).
 
     Four steps, one function each (a call per chunk of ``_SETUP_CHUNK`` triangles;
     ``moments-ref bench`` rasterize_depth 1× MSAA, 262144 small triangles into 1024²,
@@ -116,7 +120,16 @@ def _setup(verts, tri, lo, h, w, cull, stats, want_world):
     snapped = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world)
     if snapped is None:
         return None
-    return _edge_equations(*snapped, want_world)
+    box = _boxes(snapped[0], snapped[1], h, w, sx, sy)
+    nonempty = (box[0] <= box[1]) & (box[2] <= box[3])
+    if not nonempty.all():
+        if not nonempty.any():
+            return None
+        snapped = tuple(None if a is None else np.compress(nonempty, a, axis=-1) for a in snapped)
+        box = tuple(np.compress(nonempty, a) for a in box)
+    s = _edge_equations(*snapped, want_world)
+    s["box"] = box
+    return s
 
 
 def _vertices(v, m, n_triangles):
