@@ -117,16 +117,17 @@ def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
     attr, tid = _clip(attr, tid, h, w, lo, n, stats)
     if tid.size == 0:
         return None
-    snapped = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world)
-    if snapped is None:
-        return None
-    box = _boxes(snapped[0], snapped[1], h, w, sx, sy)
-    nonempty = (box[0] <= box[1]) & (box[2] <= box[3])
-    if not nonempty.all():
-        if not nonempty.any():
+    X, Y, zv, area2, keep = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats)
+    box = _boxes(X, Y, h, w, sx, sy)
+    keep &= (box[0] <= box[1]) & (box[2] <= box[3])
+    # The attributes are only needed again for world positions (want_world).
+    snapped = (X, Y, zv, area2, tid, attr if want_world else None)
+    if not keep.all():
+        if not keep.any():
             return None
-        snapped = tuple(None if a is None else np.compress(nonempty, a, axis=-1) for a in snapped)
-        box = tuple(np.compress(nonempty, a) for a in box)
+        # np.compress is twice as quick as a boolean index on the last axis.
+        snapped = tuple(None if a is None else np.compress(keep, a, axis=-1) for a in snapped)
+        box = tuple(np.compress(keep, a) for a in box)
     s = _edge_equations(*snapped, want_world)
     s["box"] = box
     return s
@@ -199,8 +200,13 @@ def _clip(attr, tid, h, w, lo, n, stats):
     return attr, tid
 
 
-def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world):
-    """Perspective division, viewport transform, snapping to 1/256 pixel, culling; None if nothing is left."""
+def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
+    """Perspective division, viewport transform, snapping to 1/256 pixel, culling.
+
+    Returns X, Y, zv, area2 of every triangle and which to keep (nonzero snapped
+    area, not culled); the caller drops the others together with those whose box
+    is empty (one np.compress per array).
+    """
     cw = attr[3]
     X = np.rint((attr[0] / cw + 1.0) * (w / 2 * _SUB)).astype(np.int64)  # (3, n)
     Y = np.rint((1.0 - attr[1] / cw) * (h / 2 * _SUB)).astype(np.int64)
@@ -218,15 +224,8 @@ def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world):
     stats.zero_area += _count_ids(tid[zero], lo, n)
     stats.culled += _count_ids(tid[culled], lo, n)
     keep = ~(zero | culled)
-    if not keep.all():
-        # np.compress is twice as quick as a boolean index on the last axis; the
-        # attributes are only needed again for world positions (want_world).
-        X, Y, zv, area2, tid = (np.compress(keep, a, axis=-1) for a in (X, Y, zv, area2, tid))
-        attr = np.compress(keep, attr, axis=-1) if want_world else None
-    if tid.size == 0:
-        return None
-    stats.rasterized += _count_ids(tid, lo, n)
-    return X, Y, zv, area2, tid, attr
+    stats.rasterized += _count_ids(tid if keep.all() else tid[keep], lo, n)
+    return X, Y, zv, area2, keep
 
 
 def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
