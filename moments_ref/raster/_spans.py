@@ -84,7 +84,7 @@ def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
     R = nr * S
     pt = np.repeat(np.arange(nr.size), R)
     k = np.arange(pt.size) - np.repeat(np.cumsum(R) - R, R)
-    ro, samp = k // S, k % S
+    ro, samp = np.divmod(k, S) if S & (S - 1) else (k >> (S.bit_length() - 1), k & (S - 1))  # S = 1, 4, 8: shifts
     yoff = sy[samp] + ro * _SUB
     xoff = sx[samp]
     lo = np.zeros(pt.size, np.int64)
@@ -96,8 +96,9 @@ def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
         L = base[pt] + A[pt] * xoff + B[pt] * yoff
         _solve_interval(L, a[pt], na[pt], lo, hi)
     cnt = hi - lo + 1
-    keep = np.flatnonzero(cnt > 0)
-    return pt[keep], r0[pt[keep]] + ro[keep], samp[keep], c0[pt[keep]] + lo[keep], cnt[keep]
+    keep = cnt > 0  # np.compress: quicker than a boolean or integer index
+    pt, ro, samp, lo, cnt = (np.compress(keep, a) for a in (pt, ro, samp, lo, cnt))
+    return pt, r0[pt] + ro, samp, c0[pt] + lo, cnt
 
 
 def _row_batches(s, tri, c0, nc, r0, nr, safe, sx, sy):
