@@ -77,9 +77,9 @@ import numpy as np
 from .._arrays import InputError, float_dtype
 from ._coverage import _iter_coverage
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
-                       _check_size, _homogeneous, _transform, frustum, look_at, orthographic, perspective,
+                       _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions)
-from ._triangles import _check_mesh, _setup
+from ._triangles import _check_mesh, _setup, _vertices
 
 __all__ = [
     "SAMPLE_COUNTS",
@@ -222,7 +222,7 @@ def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
     return v, t, m, h, w, S, pat[:, 0] * 16, pat[:, 1] * 16, dt
 
 
-def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
+def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
     Yields ``(s, flat, z, rcs)``: the chunk's setup ``s``, the flat sample index
@@ -232,8 +232,9 @@ def _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, want_world):
     :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
     the same coverage.
     """
+    verts = _vertices(v, m, t.shape[0])
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
-        s = _setup(vT, cvT, bad_v, t[lo:lo + _SETUP_CHUNK], lo, h, w, cull, stats, want_world)
+        s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world)
         if s is None:
             continue
         for flat, z, inside, rcs in _iter_coverage(s, h, w, sx, sy, want_world):
@@ -304,9 +305,7 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, view_proj, size, samples, cull, dtype)
     stats = RasterStats(triangles=int(t.shape[0]))
     depth = np.ones(h * w * S, dtype=dt)
-    vT = np.ascontiguousarray(v.T)
-    cvT, bad_v = _transform(vT, m)
-    for _, flat, z, _ in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, False):
+    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False):
         # Depth test: keep the nearest.
         np.minimum.at(depth, flat, z.astype(dt))
     return depth.reshape(h, w, S), stats
@@ -340,9 +339,7 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
     v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, view_proj, size, samples, cull, dtype)
     stats = RasterStats(triangles=int(t.shape[0]))
     parts = []
-    vT = np.ascontiguousarray(v.T)
-    cvT, bad_v = _transform(vT, m)
-    for s, _, z, (i, row, col, samp) in _covered_samples(vT, cvT, bad_v, t, h, w, sx, sy, cull, stats, True):
+    for s, _, z, (i, row, col, samp) in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, True):
         # Screen-space barycentrics from the (unbiased) edge functions, exact in int64.
         Xs = col * _SUB + _HALF + sx[samp]
         Ys = row * _SUB + _HALF + sy[samp]

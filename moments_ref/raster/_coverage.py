@@ -14,20 +14,20 @@ from ._spans import _FLOAT_SAFE_COORD, _iter_spans
 def _iter_coverage(s, h, w, sx, sy, want_rcs):
     """Yield (flat index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None) by batch.
 
-    sx, sy : (S,) int64 sample offsets in 1/256 pixel. Every triangle's clamped
-    pixel box goes to the span rasterizer (:mod:`moments_ref.raster._spans`); a
-    generator call per batch: no measurable cost (measured with the triangle
-    setup split, see :func:`moments_ref.raster._triangles._setup`).
+    sx, sy : (S,) int64 sample offsets in 1/256 pixel. Every triangle's clamped,
+    nonempty pixel box (``s["box"]``, from :func:`_boxes`) goes to the span
+    rasterizer (:mod:`moments_ref.raster._spans`); a generator call per batch: no
+    measurable cost (measured with the triangle setup split, see
+    :func:`moments_ref.raster._triangles._setup`).
     """
-    c0, c1, r0, r1, safe = _boxes(s, h, w, sx, sy)
-    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
-    yield from _iter_spans(s, sel, c0[sel], c1[sel], r0[sel], r1[sel], safe[sel], sx, sy, w, want_rcs)
+    c0, c1, r0, r1, safe = s["box"]
+    yield from _iter_spans(s, np.arange(c0.size), c0, c1, r0, r1, safe, sx, sy, w, want_rcs)
 
 
-def _boxes(s, h, w, sx, sy):
-    """Pixel bounding boxes (c0, c1, r0, r1) of the set-up triangles, clamped to the map, and
-    which triangles the exact float64 span path can take (see :data:`_FLOAT_SAFE_COORD`)."""
-    X, Y = s["X"], s["Y"]
+def _boxes(X, Y, h, w, sx, sy):
+    """Pixel bounding boxes (c0, c1, r0, r1) of triangles with snapped vertices X, Y (3, n), clamped to the map
+    (empty where c0 > c1 or r0 > r1), and which triangles the exact float64 span path can take
+    (see :data:`_FLOAT_SAFE_COORD`)."""
     xmin, xmax, ymin, ymax = X.min(0), X.max(0), Y.min(0), Y.max(0)
     # Pixel col has a sample at col*256 + 128 + sx; it may be covered only if some
     # sample lies within [min X, max X] of the vertices.

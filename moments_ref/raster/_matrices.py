@@ -273,33 +273,25 @@ def project_points(points, view_proj, size):
     return xy, ndc[..., 2]
 
 
-def _transform(vT, m):
-    """Clip-space vertices, component-major (4, V), and non-finite vertex flags (V,).
+def _clip_space(p, m):
+    """Clip-space coordinates (4, ...) of world points given component-major, p (3, ...).
 
-    vT : (3, V) world vertices, component-major. (Twelve multiply-adds over
-    contiguous rows: a BLAS matmul with a 3 × 4 operand is slower here.) The
-    rows are taken in L2-sized chunks with one temporary, in place: the same
-    operations in the same order as ``x·m0 + y·m1 + z·m2 + m3`` on whole rows.
+    ``x·m0 + y·m1 + z·m2 + m3`` per row, in this order (twelve multiply-adds over
+    contiguous rows, in place; a BLAS matmul with a 3 × 4 operand is slower here).
+    Called per chunk of triangles on their gathered vertices, so the arrays stay in
+    cache and no array of the size of the whole mesh is allocated.
     """
-    bad_v = ~(np.isfinite(vT[0]) & np.isfinite(vT[1]) & np.isfinite(vT[2]))
-    n = vT.shape[1]
-    cvT = np.empty((4, n))
-    tmp = np.empty(min(n, _TRANSFORM_CHUNK))
-    with np.errstate(invalid="ignore", over="ignore"):  # non-finite vertices: flagged in bad_v
-        for lo in range(0, n, _TRANSFORM_CHUNK):
-            x, y, z = vT[:, lo : lo + _TRANSFORM_CHUNK]
-            t = tmp[: x.shape[0]]
-            for j in range(4):
-                row = cvT[j, lo : lo + _TRANSFORM_CHUNK]
-                np.multiply(x, m[j, 0], out=row)
-                row += np.multiply(y, m[j, 1], out=t)
-                row += np.multiply(z, m[j, 2], out=t)
-                row += m[j, 3]
-    return cvT, bad_v
-
-
-#: Vertices per chunk of :func:`_transform` (7 rows of float64 in about 450 KiB).
-_TRANSFORM_CHUNK = 8192
+    x, y, z = p
+    c = np.empty((4,) + x.shape)
+    t = np.empty_like(x)
+    with np.errstate(invalid="ignore", over="ignore"):  # huge finite vertices overflow to inf
+        for j in range(4):
+            row = c[j]
+            np.multiply(x, m[j, 0], out=row)
+            row += np.multiply(y, m[j, 1], out=t)
+            row += np.multiply(z, m[j, 2], out=t)
+            row += m[j, 3]
+    return c
 
 
 def _homogeneous(p, m):

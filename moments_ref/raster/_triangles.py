@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, first_index, real_input
-from ._matrices import _SUB
+from ._coverage import _boxes
+from ._matrices import _SUB, _clip_space
 
 # Window coordinates stay within ±2^20 pixels (guard band): with 8 sub-pixel bits
 # edge-function products stay below 2^60 in int64.
@@ -94,13 +95,16 @@ def _count_ids(ids, lo, n) -> int:
     return int(np.count_nonzero(mark))
 
 
-def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
+def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
     """Clip, snap and set up edge equations for one chunk of triangles.
 
-    Arrays are component-major ("structure of arrays"): vT (3, V) world and cvT
-    (4, V) clip-space vertices; per-triangle results are (3, n) (one row per
+    ``verts`` from :func:`_vertices`. Arrays are component-major ("structure of
+    arrays"); per-triangle results are (3, n) (one row per
     vertex or edge) or (n,). ``tri`` (n, 3) holds the chunk's indices, whose
     triangle ids start at ``lo``. Returns None when nothing is left to rasterize.
+    Triangles whose pixel box holds no sample (sx, sy: the sample offsets) are
+    dropped before their edge equations; ``s["box"]`` holds the boxes of the rest
+    (:func:`moments_ref.raster._coverage._boxes`).
 
     Four steps, one function each (a call per chunk of ``_SETUP_CHUNK`` triangles;
     ``moments-ref bench`` rasterize_depth 1× MSAA, 262144 small triangles into 1024²,
@@ -109,35 +113,61 @@ def _setup(vT, cvT, bad_v, tri, lo, h, w, cull, stats, want_world):
     :func:`_reject`, :func:`_clip`, :func:`_snap_and_cull`, :func:`_edge_equations`.
     """
     n = tri.shape[0]
-    attr, tid = _reject(vT, cvT, bad_v, tri, lo, stats, want_world)
+    attr, tid = _reject(verts, tri, lo, stats, want_world)
     attr, tid = _clip(attr, tid, h, w, lo, n, stats)
     if tid.size == 0:
         return None
-    snapped = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world)
-    if snapped is None:
-        return None
-    return _edge_equations(*snapped, want_world)
+    X, Y, zv, area2, keep = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats)
+    box = _boxes(X, Y, h, w, sx, sy)
+    keep &= (box[0] <= box[1]) & (box[2] <= box[3])
+    # The attributes are only needed again for world positions (want_world).
+    snapped = (X, Y, zv, area2, tid, attr if want_world else None)
+    if not keep.all():
+        if not keep.any():
+            return None
+        # np.compress is twice as quick as a boolean index on the last axis.
+        snapped = tuple(None if a is None else np.compress(keep, a, axis=-1) for a in snapped)
+        box = tuple(np.compress(keep, a) for a in box)
+    s = _edge_equations(*snapped, want_world)
+    s["box"] = box
+    return s
 
 
-def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
+def _vertices(v, m, n_triangles):
+    """``(v, m, vT, cvT)`` for :func:`_setup`: world and clip-space vertices, component-major (3, V) and (4, V),
+    when the mesh shares its vertices (fewer than 1.5 per triangle: transform each once and
+    gather), else None for both (the triangles' vertices are gathered and transformed chunk
+    by chunk, so no array of the size of the mesh is allocated). Same values either way."""
+    if 2 * v.shape[0] > 3 * n_triangles:
+        return v, m, None, None
+    vT = np.ascontiguousarray(v.T)
+    return v, m, vT, _clip_space(vT, m)
+
+
+def _reject(verts, tri, lo, stats, want_world):
     """Drop non-finite, degenerate and trivially outside triangles; (attributes (k, 3, n), ids)."""
+    v, m, vT, cvT = verts
     n = tri.shape[0]
     tid = np.arange(lo, lo + n)
     triT = np.ascontiguousarray(tri.T)  # a contiguous index makes np.take below quicker
-    bad = bad_v[triT[0]] | bad_v[triT[1]] | bad_v[triT[2]]
-    stats.nonfinite += int(np.count_nonzero(bad))
-    if bad.any():
-        triT, tid = triT[:, ~bad], tid[~bad]
+    # The chunk's world vertices, (3 coords, 3 vertices, n). np.take is 2.7 times quicker
+    # than the equal fancy index vT[:, triT] (NumPy 2.4); without vT, whole rows of v are
+    # gathered and the chunk transposed once (in cache).
+    p = np.take(vT, triT, axis=1) if vT is not None else np.take(v, triT.ravel(), axis=0).T.reshape(3, 3, n)
+    fin = np.isfinite(p).reshape(9, n)
+    bad = None if fin.all() else ~fin.all(axis=0)
+    if bad is not None:
+        stats.nonfinite += int(np.count_nonzero(bad))
+        triT, tid, p = np.compress(~bad, triT, axis=1), tid[~bad], np.compress(~bad, p, axis=2)
     # Zero area in world space: exactly collinear or repeated vertices.
-    # np.take is 2.7 times quicker than the equal fancy index vT[:, triT] (NumPy 2.4).
-    p = np.take(vT, triT, axis=1)  # (3 coords, 3 vertices, n)
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     nondeg = ((e1[1] * e2[2] != e1[2] * e2[1]) | (e1[2] * e2[0] != e1[0] * e2[2])
               | (e1[0] * e2[1] != e1[1] * e2[0]))
     stats.degenerate += int(nondeg.size - np.count_nonzero(nondeg))
     if not nondeg.all():
-        triT, tid, p = triT[:, nondeg], tid[nondeg], p[:, :, nondeg]
-    c = np.take(cvT, triT, axis=1)  # (4, 3, n) clip-space vertices
+        triT, tid, p = np.compress(nondeg, triT, axis=1), tid[nondeg], np.compress(nondeg, p, axis=2)
+    # (4, 3, n) clip-space vertices (the same operations whether transformed here or gathered).
+    c = np.take(cvT, triT, axis=1) if cvT is not None else _clip_space(p, m)
     x, y, z, cw = c
     # Trivial reject: all three vertices outside the same plane of the view volume.
     out = (_all3(x > cw) | _all3(x < -cw) | _all3(y > cw) | _all3(y < -cw)
@@ -145,7 +175,7 @@ def _reject(vT, cvT, bad_v, tri, lo, stats, want_world):
     stats.outside += int(np.count_nonzero(out))
     attr = np.concatenate([c, p]) if want_world else c  # (k, 3, n), linear in clip space
     if out.any():
-        attr, tid = attr[:, :, ~out], tid[~out]
+        attr, tid = np.compress(~out, attr, axis=2), tid[~out]
     return attr, tid
 
 
@@ -166,12 +196,17 @@ def _clip(attr, tid, h, w, lo, n, stats):
     pos_w = _all3(attr[3] > 0)  # a non-standard matrix may leave w <= 0
     if not pos_w.all():
         stats.outside += _count_ids(tid[~pos_w], lo, n)
-        attr, tid = attr[:, :, pos_w], tid[pos_w]
+        attr, tid = np.compress(pos_w, attr, axis=2), tid[pos_w]
     return attr, tid
 
 
-def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world):
-    """Perspective division, viewport transform, snapping to 1/256 pixel, culling; None if nothing is left."""
+def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
+    """Perspective division, viewport transform, snapping to 1/256 pixel, culling.
+
+    Returns X, Y, zv, area2 of every triangle and which to keep (nonzero snapped
+    area, not culled); the caller drops the others together with those whose box
+    is empty (one np.compress per array).
+    """
     cw = attr[3]
     X = np.rint((attr[0] / cw + 1.0) * (w / 2 * _SUB)).astype(np.int64)  # (3, n)
     Y = np.rint((1.0 - attr[1] / cw) * (h / 2 * _SUB)).astype(np.int64)
@@ -189,15 +224,8 @@ def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats, want_world):
     stats.zero_area += _count_ids(tid[zero], lo, n)
     stats.culled += _count_ids(tid[culled], lo, n)
     keep = ~(zero | culled)
-    if not keep.all():
-        # np.compress is twice as quick as a boolean index on the last axis; the
-        # attributes are only needed again for world positions (want_world).
-        X, Y, zv, area2, tid = (np.compress(keep, a, axis=-1) for a in (X, Y, zv, area2, tid))
-        attr = np.compress(keep, attr, axis=-1) if want_world else None
-    if tid.size == 0:
-        return None
-    stats.rasterized += _count_ids(tid, lo, n)
-    return X, Y, zv, area2, tid, attr
+    stats.rasterized += _count_ids(tid if keep.all() else tid[keep], lo, n)
+    return X, Y, zv, area2, keep
 
 
 def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
