@@ -100,15 +100,20 @@ def _sleep(x):
     return os.getpid()
 
 
-def test_run_tasks_keeps_the_order_and_stops_the_others_on_error():
+def _run(tasks, jobs):
+    with _jobs.Workers(jobs) as workers:
+        return workers.run(tasks)
+
+
+def test_workers_keep_the_order_and_stop_the_others_on_error():
     tasks = [(("a",), _sleep, (0.5,)), (("b",), _sleep, (0.0,)), (("c",), _sleep, (0.0,))]
-    done = _jobs.run_tasks(tasks, jobs=2)
+    done = _run(tasks, jobs=2)
     assert list(done) == [("a",), ("b",), ("c",)]
     assert os.getpid() not in done.values()  # they ran in workers
-    assert set(_jobs.run_tasks(tasks[1:], jobs=1).values()) == {os.getpid()}  # jobs 1: here
+    assert set(_run(tasks[1:], jobs=1).values()) == {os.getpid()}  # jobs 1: here
     t0 = time.perf_counter()
     with pytest.raises(InputError, match="^x: expected something else, got 1$"):
-        _jobs.run_tasks([(("long",), _sleep, (60,)), (("bad",), _fail, (1,))], jobs=2)
+        _run([(("long",), _sleep, (60,)), (("bad",), _fail, (1,))], jobs=2)
     assert time.perf_counter() - t0 < 30  # the long task was stopped, not waited for
 
 

@@ -1,6 +1,6 @@
 """The report's independent tasks (scenes, the temporal claim, the artifacts) on ``--jobs`` worker processes.
 
-:func:`run_tasks` runs a list of tasks, each a top-level function and its
+:meth:`Workers.run` runs a list of tasks, each a top-level function and its
 arguments (spawn-safe: the workers start a fresh interpreter and import the
 function by name), either one after the other in this process (``jobs`` 1, the
 serial path) or in a :class:`concurrent.futures.ProcessPoolExecutor` of
@@ -15,8 +15,8 @@ A worker's exception is raised here as it was raised there (an
 line); the other workers are stopped at once and nothing has been written: the
 tasks only compute, the report writes after the last one returned. A worker the
 system killed (memory) surfaces as :class:`WorkerDied`, an ``InputError`` naming
-the remedy. :class:`Workers` keeps the processes for a second batch (the report's
-Pareto-front plots, which need every scene's rows).
+the remedy. The processes stay for a second batch (the report's Pareto-front plots,
+which need every scene's rows).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from .._arrays import InputError, max_memory, set_max_memory
 
-__all__ = ["usable_cores", "run_tasks", "Workers", "WorkerDied"]
+__all__ = ["usable_cores", "Workers", "WorkerDied"]
 
 
 class WorkerDied(InputError):
@@ -152,13 +152,3 @@ class Workers:
         if timings is not None:
             timings.update({k: t for k, (_, t) in done.items()})
         return {k: r for k, (r, _) in done.items()}
-
-
-def run_tasks(tasks, jobs=1, progress=False, desc="report", timings=None):
-    """Run ``tasks`` on :class:`Workers` ``(jobs)`` (one batch); return ``{key: result}`` in the tasks' order.
-
-    ``jobs`` 1 (or a single task) runs them here, in order; more runs them on
-    ``min(jobs, len(tasks))`` spawned worker processes (:meth:`Workers.run`).
-    """
-    with Workers(jobs) as workers:
-        return workers.run(tasks, progress=progress, desc=desc, timings=timings)

@@ -76,10 +76,9 @@ def tap_weights(coord, size, taps=None):
     """
     g = gaussian_weights() if taps is None else np.asarray(taps, dtype=np.float64)
     r = (len(g) - 1) // 2
-    s = np.asarray(coord, dtype=np.float64) - 0.5
-    base = np.floor(s)
+    s, base, first = _first_texel(coord, size)
     f = s - base
-    i0 = np.clip(base, 0, size - 1).astype(np.intp)
+    i0 = first.astype(np.intp)
     i1 = np.clip(base + 1, 0, size - 1).astype(np.intp)
     n = len(g) + 1
     weight = np.zeros(s.shape + (n,))
@@ -100,9 +99,15 @@ def tap_centres(coord, size, taps=9):
     Returns an (N, 10) float64 array.
     """
     r = (taps - 1) // 2
-    s = np.asarray(coord, dtype=np.float64) - 0.5
-    i0 = np.clip(np.floor(s), 0, size - 1)
+    i0 = _first_texel(coord, size)[2]
     return i0[:, None] - r + np.arange(taps + 1) + 0.5
+
+
+def _first_texel(coord, size):
+    """``s = coord − ½``, ``floor(s)`` and the footprint's first texel ``clamp(floor(s), 0, size − 1)`` (float64)."""
+    s = np.asarray(coord, dtype=np.float64) - 0.5
+    base = np.floor(s)
+    return s, base, np.clip(base, 0, size - 1)
 
 
 def _sample_offsets(S):
