@@ -88,7 +88,7 @@ def _check_directional(scene):
 
 
 def _padded_samples(depth_samples):
-    """The map's samples with empty ones (``≥ FAR_NDC``) and a one-texel border set to +inf, flattened.
+    """The map's samples with empty ones (``≥ FAR_NDC``) and a one-texel border set to +inf, flattened; (H, W, S).
 
     A march sample is visible against an MSAA sample ``o`` when ``o ≥ z``; +inf is
     visible against every ``z``, so an empty sample and a point outside the map
@@ -100,7 +100,7 @@ def _padded_samples(depth_samples):
     inner = pad[1:-1, 1:-1]
     inner[...] = d
     inner[inner >= FAR_NDC] = np.inf
-    return pad.reshape(-1, s)
+    return pad.reshape(-1, s), (h, w, s)
 
 
 def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 17):
@@ -132,8 +132,7 @@ def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 17):
     """
     if not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
         raise InputError(f"n_samples: expected a positive integer, got {n_samples!r}")
-    flat = _padded_samples(depth_samples)
-    h, w, s = np.shape(depth_samples)
+    flat, (h, w, s) = _padded_samples(depth_samples)
     dirs = np.asarray(rays.direction, np.float64).reshape(-1, 3)
     t_end = np.asarray(rays.t_end, np.float64).reshape(-1)
     m = np.asarray(view_proj, dtype=np.float64)
