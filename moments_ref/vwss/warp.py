@@ -39,9 +39,7 @@ from .._arrays import InputError, first_index, positive_int, real_input
 
 __all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes"]
 
-# Point-view pairs projected per vectorized chunk (bounds the temporaries).
-_CHUNK = 1 << 21
-# Point-view pairs per block inside :func:`project_to_texels`: the temporaries stay in cache and
+# Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes`: the temporaries stay in cache and
 # the thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18),
 # whose threads cost more than they save on it (results do not depend on the block size).
 _BLOCK = 1 << 13
@@ -187,8 +185,7 @@ def project_to_texels(points, view_proj, resolution):
 def _project_to_texels(p, m, h, w):
     """:func:`project_to_texels` of checked points ``p`` (N, 3) and views ``m`` (k, 4, 4) of p's dtype."""
     k = m.shape[0]
-    # One matrix product for all k views: (n, 4) @ (4, 4k), columns ordered (component, view).
-    mt = m.transpose(2, 1, 0).reshape(4, 4 * k)
+    mt = _stacked(m)
     step = max(1, _BLOCK // k)
     parts = [_texel_block(p[lo:lo + step], mt, k, h, w) for lo in range(0, p.shape[0], step)]
     if len(parts) == 1:
@@ -196,6 +193,11 @@ def _project_to_texels(p, m, h, w):
     if not parts:
         return np.zeros(0, np.intp), np.zeros(0, p.dtype)
     return np.concatenate([f for f, _ in parts]), np.concatenate([r for _, r in parts])
+
+
+def _stacked(m):
+    """The k views as one (4, 4k) matrix, columns ordered (component, view): one product for all views."""
+    return m.transpose(2, 1, 0).reshape(4, 4 * m.shape[0])
 
 
 def _texel_block(p, mt, k, h, w):
@@ -255,11 +257,10 @@ def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
     for s in starts:
         sel = np.arange(s, min(s + k, nv))
         buf = np.zeros(sel.size * h * w, udt)
-        mp = m[sel].astype(p.dtype)
-        step = max(1, _CHUNK // sel.size)
-        for lo in range(0, p.shape[0], step):
-            flat, r = _project_to_texels(p[lo:lo + step], mp, h, w)
-            _zmax_into(buf, flat, r)
+        mt = _stacked(m[sel].astype(p.dtype))
+        step = max(1, _BLOCK // sel.size)
+        for lo in range(0, p.shape[0], step):  # each block straight into the z-buffer, no concatenation
+            _zmax_into(buf, *_texel_block(p[lo:lo + step], mt, sel.size, h, w))
         r = buf.view(p.dtype).reshape(sel.size, h, w)
         # Back to NDC depth: z = 1 - 2 r (empty texels, r = 0, become 1 = far).
         yield sel, (p.dtype.type(1) - p.dtype.type(2) * r)
