@@ -143,20 +143,19 @@ def _plane_gradient(position, normal, view_proj, size):
     return np.stack([gx, gy], axis=-1)
 
 
-def _depth_gradient(position, normal, view_proj, size):
-    """:func:`_plane_gradient` with grazing surfaces set to zero (no receiver plane: a single depth)."""
-    g = _plane_gradient(position, normal, view_proj, size)
-    return np.where(np.isfinite(g).all(axis=-1, keepdims=True), g, 0.0)
+def _depth_gradient(plane):
+    """The :func:`_plane_gradient` ``plane`` with grazing surfaces set to zero (no receiver plane: a single depth)."""
+    return np.where(np.isfinite(plane).all(axis=-1, keepdims=True), plane, 0.0)
 
 
-def _depth_slope(position, normal, view_proj, size):
+def _depth_slope(plane):
     """|∂depth/∂(texel)| along the receiver plane at each point (light-space depth per texel).
 
-    The length of :func:`_plane_gradient`; grazing surfaces (singular system)
-    get the largest finite slope.
+    The length of the :func:`_plane_gradient` ``plane``; grazing surfaces
+    (singular system) get the largest finite slope.
     """
     with np.errstate(invalid="ignore", over="ignore"):
-        slope = np.hypot(*_plane_gradient(position, normal, view_proj, size).T)
+        slope = np.hypot(*plane.T)
     finite = np.isfinite(slope)
     return np.where(finite, slope, slope[finite].max() if finite.any() else 0.0)
 
@@ -176,8 +175,8 @@ def light_projection(g, view_proj, size):
     kind = g.kind.reshape(-1).copy()
     kind[g.pixel[~inside]] = OUTSIDE_LIGHT
     pos, nrm = g.position[inside], g.normal[inside]
-    gradient = _depth_gradient(pos, nrm, view_proj, (h, w))
-    slope = _depth_slope(pos, nrm, view_proj, (h, w))
+    plane = _plane_gradient(pos, nrm, view_proj, (h, w))  # once: the gradient and its length
+    gradient, slope = _depth_gradient(plane), _depth_slope(plane)
     return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
                    position=pos, lambert=g.lambert[inside], normal=nrm,
                    uv=xy[inside], depth=depth[inside], slope=slope, gradient=gradient)

@@ -143,28 +143,28 @@ def test_multiview_technique_needs_area_light():
 
 def test_receiver_slope_is_the_depth_change_per_texel():
     """Plane z = a·x seen through the identity projection into a 100² map: 50 texels per unit."""
-    from moments_ref.gbuffer import _depth_slope
+    from moments_ref.gbuffer import _depth_slope, _plane_gradient
 
     rng = np.random.default_rng(0)
     for a in (0.0, 0.3, -2.0):
         p = rng.uniform(-0.5, 0.5, (20, 3))
         p[:, 2] = a * p[:, 0]
         n = np.tile(np.array([-a, 0.0, 1.0]) / np.hypot(a, 1.0), (20, 1))
-        slope = _depth_slope(p, n, np.eye(4), (100, 100))
+        slope = _depth_slope(_plane_gradient(p, n, np.eye(4), (100, 100)))
         np.testing.assert_allclose(slope, abs(a) / 50, atol=1e-9)
 
 
 
 def test_receiver_gradient_is_the_signed_depth_change_per_texel():
     """Plane z = a·x + b·y through the identity projection into a 100² map: (a/50, −b/50) (v runs down)."""
-    from moments_ref.gbuffer import _depth_gradient
+    from moments_ref.gbuffer import _depth_gradient, _plane_gradient
 
     rng = np.random.default_rng(0)
     for a, b in ((0.0, 0.0), (0.3, -0.7), (-2.0, 0.4)):
         p = rng.uniform(-0.5, 0.5, (20, 3))
         p[:, 2] = a * p[:, 0] + b * p[:, 1]
         n = np.tile(np.array([-a, -b, 1.0]) / np.linalg.norm([a, b, 1.0]), (20, 1))
-        np.testing.assert_allclose(_depth_gradient(p, n, np.eye(4), (100, 100)),
+        np.testing.assert_allclose(_depth_gradient(_plane_gradient(p, n, np.eye(4), (100, 100))),
                                    np.tile([a / 50, -b / 50], (20, 1)), atol=1e-9)
 
 TILTED = """

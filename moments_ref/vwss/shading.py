@@ -136,10 +136,10 @@ def _occluder_map(depth_map, near, far):
     """Flat (H+2)·(W+2) map: the occluder's view depth (:func:`linear_depth`) where ``depth < 1``,
     +inf at empty texels and on a one-texel border (a tap outside the map reads +inf: lit)."""
     h, w = depth_map.shape
-    occ = np.full((h + 2) * (w + 2), np.inf)
-    i = np.flatnonzero(depth_map < 1)  # row-major texel r * W + c -> padded (r + 1)(W + 2) + c + 1
-    occ[i + 2 * (i // w) + (w + 3)] = linear_depth(np.take(depth_map, i), near, far)
-    return occ
+    occ = np.full((h + 2, w + 2), np.inf)
+    occupied = depth_map < 1
+    occ[1:-1, 1:-1][occupied] = linear_depth(depth_map[occupied], near, far)
+    return occ.reshape(-1)
 
 
 def _threshold(cw, bias):
@@ -267,9 +267,10 @@ def _tap_pattern(n, seed):
     return taps
 
 
-def _search_depth(dmap, occ, near):
+def _search_depth(occ, near):
     """``max(near, nearest view depth of an occupied texel)``; ``near`` for an empty map."""
-    return max(float(near), float(occ.min())) if (dmap < 1).any() else float(near)
+    nearest = float(occ.min())  # +inf when no texel is occupied
+    return max(float(near), nearest) if np.isfinite(nearest) else float(near)
 
 
 def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BLOCKER_TAPS,
@@ -336,7 +337,7 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     ky = h / (2 * np.tan(samples.fov / 2))
     half = (light.width / 2 * kx, light.height / 2 * ky)
     # 1. Blocker search over the rectangle at the nearest depth a blocker can have.
-    zs = _search_depth(dmap, occ, n) if search_depth is None else float(search_depth)
+    zs = _search_depth(occ, n) if search_depth is None else float(search_depth)
     taps = (_tap_pattern(blocker_taps, seed), _tap_pattern(filter_taps, seed + 1))
     vis = np.empty(p.shape[0])
     for lo in range(0, p.shape[0], _BLOCK):  # loop over blocks of points
