@@ -62,7 +62,7 @@ import numpy as np
 
 from ._arrays import InputError, as_array, first_index, float_dtype, real_input
 from .moments import BIAS_FLOAT32, bias_moments
-from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, _phi_rows, _psi4_clamped, phi, psi4, psi4_inverse,
+from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, _phi_rows, _psi4_clamped, phi, psi4_inverse,
                         rounding_tolerance, validate_representation)
 
 __all__ = [
@@ -214,9 +214,11 @@ def _decoded_xi32(dtype):
 def _xi_codes(xi4, scale, rounding, table, c):
     """The Ψ4 code of saturated ξ4 rows (``rounding`` = np.ceil or np.rint), bumped where its decode < ξ4.
 
-    The operations of ``rounding(psi4(ξ4)·scale)`` and :func:`_xi_code_up`, except
-    that the decoded value of a code is looked up in ``table`` (the decoder applied
-    once to every code) instead of evaluating Ψ4⁻¹ (two exp) per texel.
+    ``code = rounding(Ψ4(clamp(ξ4))·scale)``, then ``code + 1`` where the code's
+    decoded ξ4 is below the clamped ξ4 (float rounding of Ψ4 and Ψ4⁻¹) and the
+    code is not the largest; the decoded value of a code is looked up in
+    ``table`` (the decoder applied once to every code) instead of evaluating
+    Ψ4⁻¹ (two exp) per texel.
     """
     x = np.maximum(xi4, c["xi_min"])
     np.minimum(x, c["xi_max"], out=x)
@@ -251,13 +253,6 @@ def _codes(x, name, hi):
         idx = first_index(bad)
         raise InputError(f"{name}: expected codes in 0..{hi}, got {a[idx]!r} at index {idx}")
     return a.astype(np.int64)
-
-
-def _xi_code_up(xi4, code, decode, cmax):
-    """Bump ``code`` by one where ``decode(code) < ξ4`` (float rounding of Ψ4, Ψ4⁻¹)."""
-    xi = np.clip(xi4, PSI4_XI_MIN, PSI4_XI_MAX).astype(xi4.dtype)
-    low = (decode(code) < xi) & (code < cmax)
-    return code + low.astype(code.dtype)
 
 
 # ---------------------------------------------------------------------------
