@@ -29,10 +29,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..bluenoise import lookup_bilinear, lookup_dithered
-from ..moments import BIAS_FLOAT32, bias_moments
-from ..nonlinear import phi, shade
+from ..nonlinear import shade
 from ..onchip import filter_moments
-from ..packing import pack32, pack64, unpack32, unpack64
+from ..packing import nlq_texels, unpack32, unpack64
 from ._interface import Step, Technique, register
 
 __all__ = ["NLQ64", "NLQ32", "NLQ64_DITHER", "NLQ32_DITHER"]
@@ -42,19 +41,17 @@ def _onchip(x, params):
     return filter_moments(x)
 
 
-def _quantizer(pack):
+def _quantizer(fmt):
     def quantize(b, params):
-        return pack(phi(bias_moments(b, BIAS_FLOAT32)))
+        return nlq_texels(b, fmt)  # pack(phi(bias_moments(b, BIAS_FLOAT32))) bit for bit, chunked
     return quantize
 
 
 def _steps_for(bits):
-    pack = pack64 if bits == 64 else pack32
-
     def steps(samples, layered):
         # The shader resolves the MSAA samples while loading; a 1x map has nothing to resolve.
         first = "onchip_resolve_blur" if samples > 1 else "onchip_blur"
-        return (Step(first, _onchip), Step(f"quantize_nlq{bits}", _quantizer(pack)))
+        return (Step(first, _onchip), Step(f"quantize_nlq{bits}", _quantizer(f"nlq{bits}")))
     return steps
 
 
