@@ -122,9 +122,20 @@ def save_npz(path, arrays: dict) -> bytes:
     return data
 
 
+#: PNG metadata without the matplotlib version (the same figure gives the same bytes).
+PNG_METADATA = {"Software": None}
+
+
+def figure_png(fig, dpi=110) -> bytes:
+    """The PNG bytes :func:`save_figure` writes for ``fig`` at ``dpi``."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, metadata=PNG_METADATA)
+    return buf.getvalue()
+
+
 def save_figure(fig, path, **kwargs) -> Path:
     """``fig.savefig`` atomically (PNG metadata without a timestamp)."""
-    kwargs.setdefault("metadata", {"Software": None} if str(path).endswith(".png") else None)
+    kwargs.setdefault("metadata", PNG_METADATA if str(path).endswith(".png") else None)
     if kwargs["metadata"] is None:
         kwargs.pop("metadata")
     with atomic_path(path) as tmp:

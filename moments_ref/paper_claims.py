@@ -287,15 +287,24 @@ def _three_occluder_claim(measured, full):
                      "footprint), so the situation of Figure 9 does not occur at these settings"))
 
 
-def _temporal_claim(rows, full):
-    """The slides' temporal claim, measured on the first scattering scene that ran (a shipped one)."""
-    from .scene import list_scenes, load_scene
+def temporal_scene(scene_names):
+    """The scene the slides' temporal claim is measured on: the first shipped one of ``scene_names`` (or None)."""
+    from .scene import list_scenes
 
-    names = [s for s in dict.fromkeys(r["scene"] for r in rows if r["technique"] == "scattering_6m")
-             if s in list_scenes()]
-    if not names:
-        return None
-    return scattering_temporal.claim(scattering_temporal.measure(load_scene(names[0]), "full" if full else "default"))
+    return next((s for s in scene_names if s in list_scenes()), None)
+
+
+def temporal_claim(scene_name, full=False):
+    """The slides' temporal claim measured on the shipped scene ``scene_name`` (:mod:`moments_ref.scattering_temporal`)."""
+    from .scene import load_scene
+
+    return scattering_temporal.claim(scattering_temporal.measure(load_scene(scene_name), "full" if full else "default"))
+
+
+def _temporal_claim(rows, full):
+    """The temporal claim on the first shipped scene whose rows have scattering_6m; None without one."""
+    name = temporal_scene(dict.fromkeys(r["scene"] for r in rows if r["technique"] == "scattering_6m"))
+    return None if name is None else temporal_claim(name, full)
 
 
 def claims(rows, measured, full=False, extra=(), temporal=True):

@@ -73,7 +73,6 @@ HPG17, VWSS, Slides, FLIP : see docs/bib.md.
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import sys
 import tempfile
@@ -83,7 +82,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError
-from .._io import write_bytes, write_text
+from .._io import figure_png, write_bytes, write_text
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from .. import paper_claims, pipeline, scattering_temporal
 from .. import techniques as _techniques
@@ -228,12 +227,10 @@ def _png(fig):
     """The PNG bytes :func:`moments_ref._io.save_figure` writes (dpi 110, no timestamp); closes ``fig``."""
     import matplotlib.pyplot as plt
 
-    buf = io.BytesIO()
     try:
-        fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+        return figure_png(fig, dpi=110)
     finally:
         plt.close(fig)
-    return buf.getvalue()
 
 
 def _scene_task(sc, names, kw, repeats, progress):
@@ -275,14 +272,6 @@ def _collect(acc, sc, part):
     acc.pngs.update(part["pngs"])
 
 
-def _temporal_task(scene_name, full):
-    """The slides' temporal scattering claim on a shipped scene (what ``paper_claims.claims`` measures)."""
-    from ..scene import load_scene
-
-    m = scattering_temporal.measure(load_scene(scene_name), "full" if full else "default")
-    return scattering_temporal.claim(m)
-
-
 def _artifacts_task(names):
     """Each technique of ``names`` with measured artifacts: (first measurements, markdown lines, file bytes).
 
@@ -300,7 +289,7 @@ def _artifacts_task(names):
     return first, lines, files
 
 
-def _tasks(plans, full, jobs):
+def _tasks(plans, full, jobs, repeats, progress):
     """The report's tasks ``(key, function, args)``: each scene, the artifacts, the temporal claim.
 
     With more than one job the longest go first (scenes with an area light, whose
@@ -308,23 +297,22 @@ def _tasks(plans, full, jobs):
     technique count, the temporal claim counted as five, about its measured cost):
     a short task ends the run, not a long one started last.
     """
-    tasks, weight = [], {}
-    for sc, (names, kw), repeats, progress in plans:
-        truths = {_techniques.get(n).truth for n in names}
-        tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and jobs == 1)))
-        weight[tasks[-1][0]] = (1 if "mvr" in truths else 0, len(names))
-    ran = [n for _, (names, _), _, _ in plans for n in names]
+    others, weight = [], {("artifacts",): (0, 0), ("temporal",): (0, 5)}
+    ran = [n for _, (names, _) in plans for n in names]
     with_artifacts = [n for n in dict.fromkeys(ran) if _techniques.get(n).artifacts is not None]
     if with_artifacts:
-        tasks.append((("artifacts",), _artifacts_task, (with_artifacts,)))
-        weight[("artifacts",)] = (0, 0)
-    from ..scene import list_scenes
-
-    shipped = [sc.name for sc, (names, _), _, _ in plans if "scattering_6m" in names and sc.name in list_scenes()]
-    if shipped:
-        tasks.append((("temporal",), _temporal_task, (shipped[0], full)))
-        weight[("temporal",)] = (0, 5)
-    if jobs > 1:
+        others.append((("artifacts",), _artifacts_task, (with_artifacts,)))
+    scene = paper_claims.temporal_scene([sc.name for sc, (names, _) in plans if "scattering_6m" in names])
+    if scene is not None:
+        others.append((("temporal",), paper_claims.temporal_claim, (scene, full)))
+    serial = min(jobs, len(plans) + len(others)) == 1  # per-stage bars only in this process
+    tasks = []
+    for sc, (names, kw) in plans:
+        truths = {_techniques.get(n).truth for n in names}
+        tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and serial)))
+        weight[tasks[-1][0]] = (1 if "mvr" in truths else 0, len(names))
+    tasks += others
+    if not serial:
         tasks.sort(key=lambda t: weight[t[0]], reverse=True)
     return tasks
 
@@ -462,7 +450,7 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                   noise_tiles, all_techniques)) is not None]
-    tasks = _tasks([(sc, pl, acc.repeats, progress) for sc, pl in plans], full, jobs)
+    tasks = _tasks(plans, full, jobs, acc.repeats, progress)
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
     timings = {}

@@ -67,10 +67,14 @@ def window_side(resolution):
 
 def spread(errors):
     """Per pixel ``max(0, max_t e_t) − min(0, min_t e_t)`` of ``errors`` (t, H, W); NaN (no error) counts 0."""
-    e = np.asarray(errors, dtype=np.float64)
-    hi = np.max(np.where(np.isnan(e), 0.0, np.maximum(e, 0.0)), axis=0)
-    lo = np.min(np.where(np.isnan(e), 0.0, np.minimum(e, 0.0)), axis=0)
-    return hi - lo
+    errors = list(errors)
+    hi = np.zeros(np.shape(errors[0]))
+    lo = np.zeros_like(hi)
+    for e in errors:  # loop over techniques; fmax/fmin skip NaN, so NaN counts 0
+        e = np.asarray(e, dtype=np.float64)
+        np.fmax(hi, e, out=hi)
+        np.fmin(lo, e, out=lo)
+    return np.subtract(hi, lo, out=hi)
 
 
 def box_means(score, side):
@@ -259,7 +263,7 @@ def crop_figures(result, groups):
         kind, pictures, errors = _views(result, list(names))
         first = next(iter(pictures.values()))
         side = window_side((first.shape[1], first.shape[0]))
-        windows = choose_windows(spread(list(errors.values())), side)
+        windows = choose_windows(spread(errors.values()), side)
         if not windows:
             continue
         label = get_reference(ref_name).label
