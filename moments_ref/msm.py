@@ -94,12 +94,12 @@ def _constants(dtype, n):
     }
 
 
-def _kernel(b, zf, want, c, dest=None):
+def _kernel(b, zf, want, c, dest):
     """Algorithm 1 on flat chunks: b (4, n) contiguous rows b1..b4, zf (n,) -> dict.
 
     ``want`` is a set drawn from {"lower", "upper", "canonical"}; ``c`` holds the
     constant arrays of :func:`_constants` (same length); a bound in ``want`` is
-    written into ``dest[bound]`` when given (saves a copy). Every case is computed
+    written into ``dest[bound]`` when ``dest`` has it (saves a copy). Every case is computed
     for every element and the result is selected by multiplying with 0/1 masks:
     in NumPy ``np.where``, masked ufuncs, ``np.clip`` with scalars and
     ``np.copysign`` each cost several arithmetic passes, so they are avoided here.
@@ -202,7 +202,8 @@ def _kernel(b, zf, want, c, dest=None):
         w2 = np.subtract(c["one"], w0, out=q1)
         w2 -= w1
         np.maximum(w2, c["zero"], out=w2)  # w0 + w1 may round above 1 (−4.5e−6 seen in float32)
-        # The 0/1 masks as floats (a bool operand costs a casting pass; same products).
+        # The 0/1 masks as floats (a bool operand costs a casting pass; same products). Comparing
+        # straight into the float array was not faster (its ufunc casts through a buffer).
         mask = np.greater(zf, z2, out=singular.copy())
         fmask = c2
         np.copyto(fmask, mask)
@@ -230,7 +231,6 @@ def _kernel(b, zf, want, c, dest=None):
         w1[s] = np.where(at1, 0, tv1)
         w2[s] = np.where(at2, 0, tv2)
     out = {}
-    dest = {} if dest is None else dest
     if "upper" in want:
         upper = lower + w0
         np.minimum(upper, c["one"], out=upper)
