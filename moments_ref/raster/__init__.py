@@ -75,7 +75,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._arrays import InputError, float_dtype
-from ._coverage import _iter_coverage
+from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions)
@@ -237,7 +237,7 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world):
         s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world)
         if s is None:
             continue
-        for flat, z, inside, rcs in _iter_coverage(s, h, w, sx, sy, want_world):
+        for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world):
             ok = None if inside else (z >= -1.0) & (z <= 1.0)
             if ok is not None and not ok.all():
                 stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))

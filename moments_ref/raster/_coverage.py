@@ -1,4 +1,4 @@
-"""Coverage: the pixel box of each set-up triangle, handed to the span rasterizer.
+"""Coverage: the pixel box of each set-up triangle, which the span rasterizer (:mod:`._spans`) fills.
 
 Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
 """
@@ -8,20 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._matrices import _HALF, SUBPIXEL_BITS
-from ._spans import _FLOAT_SAFE_COORD, _iter_spans
-
-
-def _iter_coverage(s, h, w, sx, sy, want_rcs):
-    """Yield (flat index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None) by batch.
-
-    sx, sy : (S,) int64 sample offsets in 1/256 pixel. Every triangle's clamped,
-    nonempty pixel box (``s["box"]``, from :func:`_boxes`) goes to the span
-    rasterizer (:mod:`moments_ref.raster._spans`); a generator call per batch: no
-    measurable cost (measured with the triangle setup split, see
-    :func:`moments_ref.raster._triangles._setup`).
-    """
-    c0, c1, r0, r1, safe = s["box"]
-    yield from _iter_spans(s, np.arange(c0.size), c0, c1, r0, r1, safe, sx, sy, w, want_rcs)
+from ._spans import _FLOAT_SAFE_COORD
 
 
 def _boxes(X, Y, h, w, sx, sy):
