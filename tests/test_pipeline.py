@@ -26,6 +26,21 @@ def test_railing_stages_share_resolve_and_blur():
     assert r.texel_seconds["msm64"] >= r.seconds["blur_moments"]
 
 
+def test_clock_chooses_the_timer(monkeypatch):
+    # clock="cpu" times each stage with time.process_time: a fake one that ticks 1 per
+    # reading makes every timed stage last exactly 1 s; an unknown clock is refused.
+    import itertools
+
+    ticks = itertools.count()
+    monkeypatch.setattr(pipeline.time, "process_time", lambda: float(next(ticks)))
+    r = _run("facade", ["msm128"], clock="cpu", repeats=2)
+    assert r.times and all(set(t) == {1.0} for t in r.times.values()), r.times  # 1 s per timed run
+    assert r.times["shade_msm128"] == [1.0, 1.0]  # a cost stage: its 2 timed repeats
+    assert r.fragment_seconds["msm128"] == 1.0
+    with pytest.raises(InputError, match="clock: expected one of wall, cpu, got 'gpu'"):
+        _run("facade", ["msm128"], clock="gpu")
+
+
 def test_knot_one_sample_map_has_no_resolve_and_no_multiview():
     r = _run("knot", ["msm128", "nlq64"], msaa=1)
     assert "compute_moments" in r.stages and "onchip_blur" in r.stages
