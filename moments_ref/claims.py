@@ -15,8 +15,8 @@ and ``why`` says how it was read. ``"not measurable here"`` means the scene or
 technique the claim needs did not run, or the quantity has no counterpart on this
 platform (a GPU timing on a NumPy implementation).
 
-This module holds no measurement: :mod:`moments_ref.vwss.paper` builds the VWSS
-claims, :mod:`moments_ref.paper_claims` those of HPG17 and the slides.
+This module holds no measurement: :mod:`moments_ref.techniques.vwss.paper` builds the VWSS
+claims, :mod:`moments_ref.report.paper_claims` those of HPG17 and the slides.
 
 References
 ----------

@@ -103,7 +103,7 @@ def _cmd_mutants(args):
 
 
 def _cmd_bench(args):
-    from . import bench
+    from .tools import bench
 
     if args.only:
         names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance"]
@@ -131,7 +131,7 @@ def _cmd_bench(args):
 
 
 def _cmd_stability(args):
-    from . import stability
+    from .tools import stability
 
     path = stability.main(args.out)
     print(f"wrote {path}")
@@ -139,7 +139,7 @@ def _cmd_stability(args):
 
 
 def _cmd_figure3(args):
-    from . import figures
+    from .tools import figures
 
     paths = figures.write_figure3(args.out)
     print("wrote " + ", ".join(str(p) for p in paths))
@@ -147,7 +147,7 @@ def _cmd_figure3(args):
 
 
 def _cmd_figure4(args):
-    from . import figures
+    from .tools import figures
 
     paths = figures.write_figure4(args.out, scene=args.scene, size=args.size, samples=args.samples)
     print("wrote " + ", ".join(str(p) for p in paths))
@@ -156,7 +156,7 @@ def _cmd_figure4(args):
 
 
 def _cmd_banks(args):
-    from . import banks
+    from .gpu import banks
 
     text = banks.main()
     print(text)
@@ -189,7 +189,7 @@ def _cmd_report(args):
 
 
 def _cmd_vwss(args):
-    from .vwss import compare
+    from .techniques.vwss import compare
 
     return compare.main(args)
 

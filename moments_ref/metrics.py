@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .gbuffer import OCCLUDER, OUTSIDE_LIGHT
+from .scene.gbuffer import OCCLUDER, OUTSIDE_LIGHT
 
 __all__ = ["LEAK_THRESHOLD", "metrics", "shaded_image", "flip_mean", "flip_available"]
 

@@ -29,7 +29,7 @@ from .golden.cases import CASES
 from .golden.compare import compare
 from .golden.spread import derive, row_tolerance
 from .golden.writer import golden_arrays, manifest_entry
-from .strategies import input_strategy
+from .tools.strategies import input_strategy
 
 __all__ = ["check", "OracleReport", "input_strategy"]
 

@@ -18,7 +18,7 @@ The stages every technique may build on:
                             renders it)
 ``camera_gbuffer``          receiver points seen by the camera (nearest fragment
                             per pixel of the scene rasterized from the camera,
-                            :func:`moments_ref.gbuffer.camera_gbuffer`)
+                            :func:`moments_ref.scene.gbuffer.camera_gbuffer`)
 ``light_projection``        their texel coordinates and depth in the shadow map
 ``bluenoise_textures``      HPG17 §4.2 texture array (only for dithered techniques)
 ``frame_noise``             the per-pixel blue noise of frame 0
@@ -60,8 +60,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._arrays import InputError
-from .bluenoise import blue_noise_textures, frame_noise
-from .gbuffer import GBuffer, camera_gbuffer, light_projection
+from .gpu.bluenoise import blue_noise_textures, frame_noise
+from .scene.gbuffer import GBuffer, camera_gbuffer, light_projection
 from . import techniques as _techniques
 from .techniques import PlanContext, Stage, get_reference, reduced_settings
 from .techniques._interface import GBUFFER, NOISE, PROJECTION, SHADOW_MAP, TRANSLUCENCY

@@ -37,7 +37,7 @@ from hypothesis import given, settings
 
 from moments_ref import nonlinear as nl
 from moments_ref.moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments, power_moments
-from moments_ref.strategies import depth_distributions
+from moments_ref.tools.strategies import depth_distributions
 
 PROFILE = settings(max_examples=100, derandomize=True, deadline=None)
 

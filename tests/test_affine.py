@@ -35,7 +35,7 @@ from moments_ref.affine import (
     to_optimized6,
     unorm_to_float,
 )
-from moments_ref.strategies import depth_distributions, moment_vectors
+from moments_ref.tools.strategies import depth_distributions, moment_vectors
 
 DTYPES = [np.float64, np.float32]
 STEP16 = 1.0 / 65535

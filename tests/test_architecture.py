@@ -19,26 +19,14 @@ from pathlib import Path
 
 import pytest
 
+from moments_ref.tools import layout
+
 ROOT = Path(__file__).resolve().parents[1] / "moments_ref"
 
-#: Layers, bottom first (docs/architecture.md, "Dependencies point one way"). A module
-#: may import modules of its own layer and of lower layers only. Names are module paths
-#: below ``moments_ref``; a package name covers its submodules.
-LAYERS = (
-    ("base", {"_arrays", "_io", "_apidoc", "claims"}),
-    ("core", {"_kernels", "moments", "msm", "msm6", "affine", "nonlinear", "packing", "precise"}),
-    ("gpu", {"filtering", "onchip", "banks", "bluenoise", "sat"}),
-    ("scene", {"raster", "scene", "gbuffer", "metrics"}),
-    ("techniques", {"techniques", "vwss", "scattering_temporal"}),
-    ("pipeline", {"pipeline"}),
-    ("report", {"report", "paper_claims"}),
-    ("api", {"__init__", "ports"}),
-)
-#: Leaves: they import what they measure (any layer) and only other leaves, the command
-#: line and ``__main__`` import them.
-LEAVES = {"bench", "stability", "figures", "golden", "oracle", "conformance", "strategies"}
-#: On top of everything: the command line.
-TOP = {"cli", "__main__"}
+#: The layers come from the folders (moments_ref/tools/layout.py): a folder is a layer or a leaf
+#: of its own name, the flat modules at the top are named there; old paths of moved modules are
+#: shims (moments_ref/_shim.py) outside the layers.
+RANK = {name: i for i, name in enumerate(layout.ORDER)}
 
 #: Size limits (code lines).
 MAX_MODULE_LINES = 400
@@ -141,16 +129,13 @@ def cycles(graph: dict) -> list:
 
 
 def layer_of(name: str):
-    """``(rank, layer name)`` of a module; leaves rank -1 and the command line +inf."""
-    top = name.split(".")[0]
-    for rank, (layer, members) in enumerate(LAYERS):
-        if top in members or name in members:
-            return rank, layer
-    if top in LEAVES:
-        return -1, "leaf"
-    if top in TOP:
-        return float("inf"), "cli"
-    raise AssertionError(f"module {name} is in no layer of tests/test_architecture.py: add it")
+    """``(rank, layer name)`` of a module; leaves rank -1, the command line +inf, shims -2."""
+    try:
+        layer = layout.layer_of(name)
+    except KeyError as exc:
+        raise AssertionError(str(exc)) from None
+    rank = {"leaf": -1, "cli": float("inf"), "shim": -2}.get(layer, RANK.get(layer))
+    return rank, layer
 
 
 def layer_violations(graph: dict) -> list:
@@ -160,12 +145,45 @@ def layer_violations(graph: dict) -> list:
         ra, la = layer_of(a)
         for b in sorted(deps):
             rb, lb = layer_of(b)
-            if lb == "leaf":
+            if la == "shim" or lb == "shim":
+                if not (la == "shim" and b == "_shim"):
+                    bad.append(f"{a} ({la}) imports {b} ({lb}): only shims may use moments_ref._shim's old paths")
+            elif lb == "leaf":
                 if la not in ("leaf", "cli"):
                     bad.append(f"{a} ({la}) imports the leaf {b}")
             elif la != "leaf" and rb > ra:
                 bad.append(f"{a} ({la}) imports {b} ({lb}), a higher layer")
     return bad
+
+
+def test_every_module_is_in_a_layer():
+    """A new folder or flat module must be placed in moments_ref/tools/layout.py."""
+    for name in modules():
+        layer_of(name)
+    with pytest.raises(KeyError, match="in no layer"):
+        layout.layer_of("newthing")
+
+
+def test_every_moved_path_is_a_warning_shim():
+    """Each old path of moments_ref._shim.MOVED is a shim file; each shim is listed; old names forward and warn."""
+    import importlib
+    import warnings
+
+    from moments_ref._shim import MOVED
+
+    shims = {n for n, src in modules().items() if "_shim import forward" in src}
+    assert shims == set(MOVED)
+    for old, new in MOVED.items():
+        target = importlib.import_module(f"moments_ref.{new}")
+        name = target.__all__[0]
+        shim = importlib.import_module(f"moments_ref.{old}")
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            assert getattr(shim, name) is getattr(target, name)
+        assert [w.category for w in seen] == [DeprecationWarning] and f"moments_ref.{new}" in str(seen[0].message)
+        assert name in dir(shim)
+        with pytest.raises(AttributeError):
+            shim.no_such_name_here
 
 
 def test_no_import_cycles():
@@ -179,21 +197,27 @@ def test_layer_order():
 def test_the_import_checks_fail_on_violations(tmp_path):
     """A temporary package with a function-local cycle and an upward import: both are found."""
     pkg = tmp_path / "moments_ref"
-    (pkg / "techniques").mkdir(parents=True)
+    for d in ("techniques", "tools", "gpu"):
+        (pkg / d).mkdir(parents=True)
+        (pkg / d / "__init__.py").write_text("")
     (pkg / "__init__.py").write_text("from .msm import x\n")
     (pkg / "msm.py").write_text("def f():\n    from . import msm6\n    from .techniques import pcf\n")
     (pkg / "msm6.py").write_text("from .msm import f\n")
     (pkg / "techniques" / "__init__.py").write_text("from . import pcf\n")
-    (pkg / "techniques" / "pcf.py").write_text("from .. import msm\nfrom ..bench import b\n")
-    (pkg / "bench.py").write_text("x = 1\n")
-    (pkg / "banks.py").write_text("import moments_ref.msm\n")
+    (pkg / "techniques" / "pcf.py").write_text("from .. import msm\nfrom ..tools.bench import b\n")
+    (pkg / "tools" / "bench.py").write_text("x = 1\n")
+    (pkg / "gpu" / "banks.py").write_text("import moments_ref.msm\nfrom ..filtering import blur\n")
+    (pkg / "filtering.py").write_text("from ._shim import forward\n")
+    (pkg / "_shim.py").write_text("")
     g = import_graph(pkg)
     assert g["msm"] == {"msm6", "techniques.pcf"}
-    assert g["banks"] == {"msm"} and g["__init__"] == {"msm"}
+    assert g["gpu.banks"] == {"msm", "filtering"} and g["__init__"] == {"msm"}
     assert cycles(g) == [["msm", "msm6", "techniques.pcf"]]
     bad = layer_violations(g)
     assert "msm (core) imports techniques.pcf (techniques), a higher layer" in bad
-    assert "techniques.pcf (techniques) imports the leaf bench" in bad
+    assert "techniques.pcf (techniques) imports the leaf tools.bench" in bad
+    assert "gpu.banks (gpu) imports filtering (shim): only shims may use moments_ref._shim's old paths" in bad
+    assert not any(x.startswith("filtering ") for x in bad)  # the shim itself may import _shim
 
 
 # ---------------------------------------------------------------------------

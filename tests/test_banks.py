@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from moments_ref import InputError, banks
+from moments_ref import InputError
+from moments_ref.gpu import banks
 
 CELLS = list(itertools.product(range(1, 5), range(40), range(32)))  # (j, x, y)
 

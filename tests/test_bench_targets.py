@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from moments_ref.bench import _llvmpipe, _targets
+from moments_ref.tools.bench import _llvmpipe, _targets
 
 
 def test_measure_alternates_and_takes_medians():

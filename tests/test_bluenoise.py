@@ -1,4 +1,4 @@
-"""Tests of moments_ref.bluenoise (HPG17 §4.2).
+"""Tests of moments_ref.gpu.bluenoise (HPG17 §4.2).
 
 References independent of the code under test:
 
@@ -24,7 +24,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from moments_ref import InputError
-from moments_ref import bluenoise as bn
+from moments_ref.gpu import bluenoise as bn
 
 # --------------------------------------------------------------------------
 # helpers (independent references)

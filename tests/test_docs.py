@@ -5,28 +5,34 @@ import pkgutil
 from pathlib import Path
 
 import moments_ref
-from moments_ref import _apidoc
+from moments_ref.tools import apidoc as _apidoc
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_api_doc_is_current():
     assert (ROOT / "docs" / "api.md").read_text().strip() == _apidoc.render().strip(), \
-        "regenerate: python -m moments_ref._apidoc > docs/api.md"
+        "regenerate: python -m moments_ref.tools.apidoc > docs/api.md"
 
 
 def test_every_public_module_is_documented():
-    documented = set(_apidoc.MODULES)
+    """Every public module with names of its own has a section in docs/api.md; the others are
+    re-exported by their package (checked here name by name), the CLI, package data or a shim."""
+    documented = set(_apidoc.public_modules())
+    api = (ROOT / "docs" / "api.md").read_text()
     for m in pkgutil.walk_packages(moments_ref.__path__, "moments_ref."):
         name = m.name.removeprefix("moments_ref.")
-        if any(part.startswith("_") for part in name.split(".")) or m.ispkg and name in ("ports", "vwss"):
+        if any(part.startswith("_") for part in name.split(".")) or name in ("cli", "ports") \
+                or _apidoc.layout.is_shim(name) or _apidoc.layout.is_shim(name.split(".")[0]):
             continue
         mod = importlib.import_module(m.name)
-        if name in ("cli", "ports", "scene.camera", "scene.files", "scene.lights", "scene.mesh") or \
-                name.startswith("techniques.") and name not in documented:
-            continue  # the CLI; scene and technique internals re-exported by their package
-        assert name in documented, f"moments_ref.{name} is missing from docs/api.md (_apidoc.MODULES)"
-        assert hasattr(mod, "__all__"), f"moments_ref.{name} has no __all__"
+        names = set(getattr(mod, "__all__", ()))
+        assert names or m.ispkg, f"moments_ref.{name} has no __all__"
+        if name in documented:
+            assert f"## `moments_ref.{name}`" in api
+            continue
+        parent = importlib.import_module(m.name.rsplit(".", 1)[0])
+        assert names <= set(parent.__all__), f"moments_ref.{name} is missing from docs/api.md"
 
 
 def test_design_table_names_are_exported():
@@ -37,3 +43,18 @@ def test_design_table_names_are_exported():
     from moments_ref import golden, oracle
 
     assert callable(golden.write) and callable(golden.verify) and callable(oracle.check)
+
+
+def _between_markers(path):
+    text = (ROOT / path).read_text()
+    return text.split("<!-- layout: begin -->\n", 1)[1].split("\n<!-- layout: end -->", 1)[0].strip()
+
+
+def test_layout_tables_are_generated_from_the_folders():
+    table = _apidoc.layout_markdown()
+    for path in ("README.md", "docs/architecture.md"):
+        assert _between_markers(path) == table, f"regenerate the table in {path}: python -m moments_ref.tools.apidoc --layout"
+    rows = {p for _, p, _ in _apidoc.layout.layout_rows()}
+    folders = {f"moments_ref/{p.name}/" for p in (ROOT / "moments_ref").iterdir()
+               if (p / "__init__.py").is_file() and not _apidoc.layout.is_shim(p.name)}
+    assert folders <= rows and "moments_ref/gpu/" in rows and "moments_ref/tools/" in rows

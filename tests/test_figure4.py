@@ -5,7 +5,7 @@ import csv
 import numpy as np
 
 from moments_ref.cli import main
-from moments_ref.figures import figure4_data
+from moments_ref.tools.figures import figure4_data
 from moments_ref.moments import BIAS_FLOAT32, bias_moments, power_moments
 from moments_ref.nonlinear import phi, psi4
 

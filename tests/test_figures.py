@@ -1,4 +1,4 @@
-"""Tests of moments_ref.figures (HPG17 Figure 3) and of notebooks/figure3.ipynb."""
+"""Tests of moments_ref.tools.figures (HPG17 Figure 3) and of notebooks/figure3.ipynb."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from moments_ref import InputError, figures
+from moments_ref import InputError
+from moments_ref.tools import figures
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,8 +10,8 @@ from hypothesis.extra import numpy as hnp
 from scipy import ndimage
 
 from moments_ref import InputError
-from moments_ref.bench import bench_filtering
-from moments_ref.filtering import (
+from moments_ref.tools.bench import bench_filtering
+from moments_ref.gpu.filtering import (
     SIGMA,
     TAPS,
     blur,
@@ -215,7 +215,7 @@ def test_resolve_is_bit_identical_to_power_moments_across_chunks(dtype, monkeypa
     # independent loop over array-of-structures powers and np.mean), bit for bit,
     # for every sample count (sequential sums below 8, pairwise at 8, delegated
     # above), with signed zeros (NumPy's sum starts from +0) and chunk boundaries.
-    from moments_ref import filtering
+    from moments_ref.gpu import filtering
     from moments_ref.moments import power_moments
 
     monkeypatch.setattr(filtering, "_RESOLVE_BYTES", 200)
@@ -232,7 +232,7 @@ def test_resolve_is_bit_identical_to_power_moments_across_chunks(dtype, monkeypa
 
 def test_blur_bands_do_not_change_the_result(monkeypatch):
     # One row per band against the default bands: the same terms in the same order.
-    from moments_ref import filtering
+    from moments_ref.gpu import filtering
 
     m = np.random.default_rng(4).uniform(-1, 1, (23, 17, 3)).astype(np.float32)
     want = blur(m)
@@ -247,7 +247,7 @@ def test_blur_bands_do_not_change_the_result(monkeypatch):
 @pytest.mark.parametrize("fmt", ["nlq64", "nlq32"])
 @pytest.mark.parametrize("shape", [(37, 23, 4), (9, 64, 1), (3, 5, 3)])
 def test_global_path_in_bands_is_the_passes_one_after_the_other(monkeypatch, fmt, shape):
-    from moments_ref import filtering
+    from moments_ref.gpu import filtering
     from moments_ref.moments import BIAS_FLOAT32, bias_moments
     from moments_ref.nonlinear import phi
     from moments_ref.packing import pack32, pack64
@@ -267,7 +267,7 @@ def test_global_path_in_bands_is_the_passes_one_after_the_other(monkeypatch, fmt
 
 
 def test_global_path_refuses_what_its_passes_refuse():
-    from moments_ref import filtering
+    from moments_ref.gpu import filtering
 
     with pytest.raises(InputError, match=r"depth_samples: expected depths in \[-1, 1\], got .* at index \(1, 0, 0\)"):
         filtering.global_path_nlq(np.array([[[0.0]], [[1.5]]]))

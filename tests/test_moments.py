@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from moments_ref import InputError, precise
 from moments_ref.moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments, hankel, power_moments
-from moments_ref.strategies import depth_distributions, moment_vectors
+from moments_ref.tools.strategies import depth_distributions, moment_vectors
 
 
 def _loop_moments(z, w, n):

@@ -1,7 +1,7 @@
 """HPG17 Algorithm 1 (moments_ref.msm) checked by independent means.
 
 References used here, none of them msm itself: the exact Z of the drawn
-distribution (moments_ref.strategies.exact_shadow), the mpmath twin
+distribution (moments_ref.tools.strategies.exact_shadow), the mpmath twin
 (moments_ref.precise, Algorithm 1 literally at 50 digits), a linear program over
 distributions on a grid (scipy HiGHS), and closed-form facts (a two-point
 distribution is the only one with its moments).
@@ -26,7 +26,8 @@ from hypothesis import assume, example, given
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 
-from moments_ref import InputError, precise, stability
+from moments_ref import InputError, precise
+from moments_ref.tools import stability
 from moments_ref.moments import BIAS_FLOAT32, bias_moments, power_moments
 from moments_ref.msm import (
     canonical_representation,
@@ -34,7 +35,7 @@ from moments_ref.msm import (
     shadow_intensity,
     singular_thresholds,
 )
-from moments_ref.strategies import depth_distributions, depths, exact_shadow, two_point_distributions
+from moments_ref.tools.strategies import depth_distributions, depths, exact_shadow, two_point_distributions
 
 ALPHA_SLACK = BIAS_FLOAT32.alpha
 F64_VS_PRECISE = 1e-9

@@ -28,7 +28,7 @@ from scipy.optimize import linprog
 
 from moments_ref import InputError, msm, msm6, precise
 from moments_ref.moments import bias_moments, power_moments
-from moments_ref.strategies import depth_distributions, depths, exact_shadow
+from moments_ref.tools.strategies import depth_distributions, depths, exact_shadow
 
 ALPHA = msm6.BIAS6_FLOAT64.alpha
 ALPHA32 = msm6.BIAS6_FLOAT32.alpha

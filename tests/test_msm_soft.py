@@ -2,7 +2,7 @@
 
 Independent references: the closed-form visibility of a rectangle parallel to
 a rectangular light (overlap of two rectangles), moments computed by
-definition, the multi-view rasterization (MVR) reference of moments_ref.vwss,
+definition, the multi-view rasterization (MVR) reference of moments_ref.techniques.vwss,
 and vwss.shading.linear_depth for the depth conversion.
 """
 
@@ -15,9 +15,9 @@ from hypothesis import given, strategies as st
 from moments_ref import InputError
 from moments_ref.affine import from_optimized, to_optimized
 from moments_ref.moments import BIAS_UNORM16, BiasPreset, bias_moments, hankel, power_moments
-from moments_ref.raster import look_at, perspective, rasterize_depth
+from moments_ref.scene.raster import look_at, perspective, rasterize_depth
 from moments_ref.scene import AreaLight
-from moments_ref import sat
+from moments_ref.gpu import sat
 from moments_ref.techniques import get, msm_soft
 
 LIGHT = AreaLight(center=[0.0, 0.0, 0.0], normal=[0.0, -1.0, 0.0], width=1.0, height=0.6, up=[0.0, 0.0, -1.0],
@@ -111,7 +111,7 @@ def test_a_third_of_the_soft_bias_is_not_enough():
 
 
 def test_frustum_is_read_back_from_the_matrix():
-    from moments_ref.vwss.shading import linear_depth
+    from moments_ref.techniques.vwss.shading import linear_depth
 
     fr = msm_soft.LightFrustum.from_view_proj(LIGHT, VP, (128, 256))
     assert fr.near == pytest.approx(NEAR) and fr.far == pytest.approx(FAR)
@@ -214,13 +214,13 @@ def test_points_outside_the_map_are_lit():
 
 
 # ---------------------------------------------------------------------------
-# Against the MVR reference of moments_ref.vwss
+# Against the MVR reference of moments_ref.techniques.vwss
 
 
 def test_against_mvr_on_a_square_occluder():
-    from moments_ref.vwss import light_views, multiview_visibility
-    from moments_ref.vwss.mvr import mvr
-    from moments_ref.vwss.shading import pcss
+    from moments_ref.techniques.vwss import light_views, multiview_visibility
+    from moments_ref.techniques.vwss.mvr import mvr
+    from moments_ref.techniques.vwss.shading import pcss
 
     v, t = rect_mesh([(-0.5, 0.5, -0.5, 0.5, 2.5)])
     ls = light_views(LIGHT, 64, 2.0, FAR, seed=1)
@@ -291,7 +291,7 @@ def test_registered_technique_matches_shade_points():
     dm = square_scene(2.0, size=128)
     tex = t.prepare(dm, {"light": LIGHT, "view_proj": VP})
     assert isinstance(tex, msm_soft.SoftShadowMap) and tex.sat.table.dtype == np.uint32
-    from moments_ref.raster import project_points
+    from moments_ref.scene.raster import project_points
 
     pts = frame(XS, 0 * XS, RECEIVER)
     uv, z = project_points(pts, VP, (128, 128))

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from moments_ref import InputError, msm, nonlinear as nl, precise
 from moments_ref.moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments, hankel, power_moments
-from moments_ref.strategies import depth_distributions, two_point_distributions
+from moments_ref.tools.strategies import depth_distributions, two_point_distributions
 
 # Rounding slack of Algorithm 2's outputs for moments of a distribution on [-1, 1]
 # biased with BIAS_FLOAT32 (measured: float32 ξ4 down to −3e-8, y within 1 ulp of ±1).

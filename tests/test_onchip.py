@@ -8,9 +8,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from moments_ref import InputError, banks
-from moments_ref.filtering import blur, resolve_moments
-from moments_ref.onchip import block_grid, filter_and_quantize, filter_moments, tolerance
+from moments_ref import InputError
+from moments_ref.gpu import banks
+from moments_ref.gpu.filtering import blur, resolve_moments
+from moments_ref.gpu.onchip import block_grid, filter_and_quantize, filter_moments, tolerance
 
 
 def random_depths(h, w, s, seed=0, dtype=np.float32):
@@ -119,7 +120,7 @@ def test_tolerance_has_power_against_a_wrong_border_rule():
     # by far more than the tolerance: the comparison checks the border rule.
     from scipy import ndimage
 
-    from moments_ref.filtering import gaussian_weights
+    from moments_ref.gpu.filtering import gaussian_weights
 
     z = np.full((30, 40, 1), 0.5, dtype=np.float32)
     b = resolve_moments(z).astype(np.float64)

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from moments_ref import InputError, nonlinear as nl, packing as pk
 from moments_ref.moments import BIAS_FLOAT32, bias_moments, power_moments
-from moments_ref.strategies import depth_distributions
+from moments_ref.tools.strategies import depth_distributions
 
 
 @st.composite

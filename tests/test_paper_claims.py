@@ -1,11 +1,12 @@
-"""HPG17 claims from the pipeline's arrays (moments_ref.paper_claims)."""
+"""HPG17 claims from the pipeline's arrays (moments_ref.report.paper_claims)."""
 
 import json
 
 import numpy as np
 import pytest
 
-from moments_ref import paper_claims, pipeline
+from moments_ref.report import paper_claims
+from moments_ref import pipeline
 from moments_ref.moments import BIAS_FLOAT32, bias_moments
 from moments_ref.msm import shadow_intensity
 from moments_ref.nonlinear import shade

@@ -158,7 +158,7 @@ def test_multiview_technique_needs_area_light():
 
 def test_receiver_slope_is_the_depth_change_per_texel():
     """Plane z = a·x seen through the identity projection into a 100² map: 50 texels per unit."""
-    from moments_ref.gbuffer import _depth_slope, _plane_gradient
+    from moments_ref.scene.gbuffer import _depth_slope, _plane_gradient
 
     rng = np.random.default_rng(0)
     for a in (0.0, 0.3, -2.0):
@@ -172,7 +172,7 @@ def test_receiver_slope_is_the_depth_change_per_texel():
 
 def test_receiver_gradient_is_the_signed_depth_change_per_texel():
     """Plane z = a·x + b·y through the identity projection into a 100² map: (a/50, −b/50) (v runs down)."""
-    from moments_ref.gbuffer import _depth_gradient, _plane_gradient
+    from moments_ref.scene.gbuffer import _depth_gradient, _plane_gradient
 
     rng = np.random.default_rng(0)
     for a, b in ((0.0, 0.0), (0.3, -0.7), (-2.0, 0.4)):
@@ -228,7 +228,7 @@ def test_lit_plane_is_unshadowed_by_reference_and_slope_biased_pcf(tmp_path):
 def test_depth_bias_is_the_papers_slope_for_pcf_constant_for_filterable(tmp_path):
     """HPG17 §5: PCF adds the receiver-slope bias, filterable techniques use 1e-3 alone; the reference the
     receiver plane and 1e-3."""
-    from moments_ref.gbuffer import SLOPE_BIAS_TEXELS
+    from moments_ref.scene.gbuffer import SLOPE_BIAS_TEXELS
     from moments_ref.techniques.pcf import pcf_filtered
 
     path = tmp_path / "tilted.toml"

@@ -1,4 +1,4 @@
-"""The mpmath twins (moments_ref.precise) and the stability report (moments_ref.stability).
+"""The mpmath twins (moments_ref.precise) and the stability report (moments_ref.tools.stability).
 
 The oracle is checked against what it must satisfy by definition (its canonical
 representation reproduces b0..b4; a dyadic two-point distribution is reproduced
@@ -13,9 +13,10 @@ import sympy
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
-from moments_ref import InputError, precise, stability
+from moments_ref import InputError, precise
+from moments_ref.tools import stability
 from moments_ref.moments import BIAS_FLOAT32, bias_moments, power_moments
-from moments_ref.strategies import depth_distributions, depths, exact_shadow
+from moments_ref.tools.strategies import depth_distributions, depths, exact_shadow
 
 
 @given(depth_distributions(), depths())

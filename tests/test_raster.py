@@ -1,4 +1,4 @@
-"""Tests of moments_ref.raster against brute-force per-sample references.
+"""Tests of moments_ref.scene.raster against brute-force per-sample references.
 
 The references here are deliberately naive and written from the definitions: a
 Python loop over pixels and samples, edge tests in exact integers with the
@@ -17,8 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from moments_ref import InputError
-from moments_ref import raster
-from moments_ref.raster import (
+from moments_ref.scene import raster
+from moments_ref.scene.raster import (
     look_at,
     orthographic,
     perspective,
@@ -543,7 +543,7 @@ def test_results_do_not_depend_on_chunk_sizes(monkeypatch):
     vp = perspective(70, 1.3, 0.5, 12) @ look_at((0, 0, 4), (0, 0, 0), (0, 1, 0))
     d1, s1 = rasterize_depth(v, t, vp, (40, 52), samples=4)
     f1, _ = rasterize_fragments(v, t, vp, (40, 52), samples=4)
-    from moments_ref.raster import _spans as spans  # the coverage chunking lives there
+    from moments_ref.scene.raster import _spans as spans  # the coverage chunking lives there
 
     monkeypatch.setattr(spans, "_ROW_BUDGET", 5)
     monkeypatch.setattr(spans, "_SAMPLE_BUDGET", 3)
@@ -579,7 +579,7 @@ def test_bench_raster_reports_numbers():
 def test_span_interval_is_exact_also_beyond_float_precision():
     # _solve_interval against Python's exact integers, with |L| up to 2^60 (the
     # integer fallback) and below 2^53 (the float quotient), a of both signs and 0.
-    from moments_ref.raster._spans import _solve_interval
+    from moments_ref.scene.raster._spans import _solve_interval
 
     rng = np.random.default_rng(5)
     n = 4000
@@ -609,7 +609,7 @@ def test_span_interval_is_exact_also_beyond_float_precision():
 
 def _setup_from_window(X, Y):
     """Edge equations of triangles given by window vertices in 1/256 pixel, (3, n) int64 each."""
-    from moments_ref.raster._triangles import _edge_equations
+    from moments_ref.scene.raster._triangles import _edge_equations
 
     X, Y = np.array(X, dtype=np.int64), np.array(Y, dtype=np.int64)
     area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
@@ -627,9 +627,9 @@ def test_span_rows_are_the_samples_inside_all_three_edges(seed, samples, dense_r
     # F0), evaluated in Python integers at every sample of the map. Triangles up to a few
     # pixels (dense path, with the edge reordering for k S >= 3) and larger (ragged path,
     # dense_rows = 0), with horizontal and vertical edges (a = 0) from a coarse grid.
-    from moments_ref.raster import _spans
-    from moments_ref.raster._coverage import _boxes
-    from moments_ref.raster._matrices import _D3D11_PATTERN
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
 
     rng = np.random.default_rng(seed)
     h, w, n = 12, 14, 6
@@ -669,7 +669,7 @@ def test_span_rows_are_the_samples_inside_all_three_edges(seed, samples, dense_r
 @given(st.lists(st.integers(1, 40), min_size=1, max_size=60))
 def test_span_repeater_is_np_repeat(counts):
     # Both branches (gather by a repeated row index for short rows, np.repeat for long).
-    from moments_ref.raster._spans import _repeater
+    from moments_ref.scene.raster._spans import _repeater
 
     c = np.array(counts, dtype=np.int64)
     a = np.random.default_rng(len(counts)).normal(size=c.size)

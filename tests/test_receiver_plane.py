@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from moments_ref.filtering import gaussian_weights
-from moments_ref.raster import rasterize_depth
+from moments_ref.gpu.filtering import gaussian_weights
+from moments_ref.scene.raster import rasterize_depth
 from moments_ref.techniques.pcf import pcf_filtered
 
 N = 64  # map side; identity view-projection: u = (x + 1)·N/2, v = (1 − y)·N/2, depth = z

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from moments_ref.gbuffer import BACKGROUND, OCCLUDER, RECEIVER
+from moments_ref.scene.gbuffer import BACKGROUND, OCCLUDER, RECEIVER
 from moments_ref.report import _crops
 from moments_ref.techniques import _errormaps
 from moments_ref.techniques.scattering import RAYS

@@ -1,6 +1,6 @@
 """Wrap-around summed-area tables (Slides, "SAT over a moment shadow map", "Caveat: Bilinear interpolation").
 
-References used here, independent of moments_ref.sat: Python integers (exact
+References used here, independent of moments_ref.gpu.sat: Python integers (exact
 sums, no wrap), float64 sums of the unquantized values, a brute-force area
 integral over every texel's overlap with the query, and the hardware-style
 bilinear filter of moments_ref.techniques.
@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, strategies as st
 
 from moments_ref import InputError
-from moments_ref import sat
+from moments_ref.gpu import sat
 
 
 def all_rectangles(h, w):

@@ -193,7 +193,7 @@ def _marched_by_definition(depth, vp, eye, dirs, t_end, n):
     (visible: ``o ≥ z`` or ``o ≥ FAR_NDC``; 1 outside the map). Also returns, per ray,
     whether a sample lies within 1e-9 of a texel edge or of a sample depth (where
     rounding may decide)."""
-    from moments_ref.raster import project_points
+    from moments_ref.scene.raster import project_points
 
     h, w, _ = depth.shape
     out, close = np.empty(len(t_end)), np.zeros(len(t_end), bool)

@@ -1,9 +1,10 @@
-"""Temporal stability of prefiltered single scattering (moments_ref.scattering_temporal)."""
+"""Temporal stability of prefiltered single scattering (moments_ref.report.scattering_temporal)."""
 
 import numpy as np
 import pytest
 
-from moments_ref import InputError, scattering_temporal as T
+from moments_ref import InputError
+from moments_ref.report import scattering_temporal as T
 from moments_ref.scene import load_scene
 
 

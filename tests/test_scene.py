@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from moments_ref import InputError
-from moments_ref.raster import project_points
+from moments_ref.scene.raster import project_points
 from moments_ref.scene import (
     GENERATORS,
     AreaLight,
@@ -335,7 +335,7 @@ def test_area_light_frame():
 def test_knot_fragments_with_back_face_culling_match_depth_map():
     # VWSS §3.1 point generation: back-face culled fragments of the central view; their
     # per-sample minimum is the depth map rendered with the same culling.
-    from moments_ref.raster import rasterize_depth, rasterize_fragments
+    from moments_ref.scene.raster import rasterize_depth, rasterize_fragments
 
     s = load_scene("knot")
     vp = s.shadow_view_proj()

@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 from moments_ref import InputError
 from moments_ref import techniques as T
-from moments_ref.filtering import blur, gaussian_weights
-from moments_ref.raster import orthographic, rasterize_fragments
+from moments_ref.gpu.filtering import blur, gaussian_weights
+from moments_ref.scene.raster import orthographic, rasterize_fragments
 from moments_ref.techniques.esm import esm_feature, esm_shadow
 from moments_ref.techniques.evsm import evsm_feature, evsm_shadow
 from moments_ref.techniques.pcf import pcf_filtered
@@ -105,7 +105,7 @@ def _translucent_setup():
     vo, to = quad(-0.5, 0.9, -0.9, 0.9, -0.6)
     va, ta = quad(-0.9, 0.3, -0.7, 0.6, 0.2)
     vb, tb = quad(-0.2, 0.8, -0.4, 0.8, -0.2)
-    from moments_ref.raster import rasterize_depth
+    from moments_ref.scene.raster import rasterize_depth
 
     opaque, _ = rasterize_depth(vo, to, vp, (8, 8), samples=4)
     vt = np.concatenate([va, vb])
@@ -273,7 +273,7 @@ def test_three_occluders_make_four_moments_leak():
 
 
 def test_nlq_texture_is_filter_and_quantize():
-    from moments_ref.onchip import filter_and_quantize
+    from moments_ref.gpu.onchip import filter_and_quantize
 
     z = _two_depth_map(40, seed=3)
     for fmt in ("nlq64", "nlq32"):

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, strategies as st
 
 from moments_ref import InputError
-from moments_ref.raster import project_points, rasterize_depth, rasterize_fragments
+from moments_ref.scene.raster import project_points, rasterize_depth, rasterize_fragments
 from moments_ref.scene import AreaLight, box, torus_knot
-from moments_ref.vwss.lights import depth_range, light_views, poisson_disk
-from moments_ref.vwss.points import center_view, enlarged_view, generate_points, naive_points, source_view
+from moments_ref.techniques.vwss.lights import depth_range, light_views, poisson_disk
+from moments_ref.techniques.vwss.points import center_view, enlarged_view, generate_points, naive_points, source_view
 
 
 def _light(w=1.2, h=0.8, fov=90):
@@ -132,7 +132,7 @@ def test_source_view_mutant_is_caught():
     light = _light(1.2, 0.8, 90)
     ls = light_views(light, 4, 1.0, 6.0)
     src = source_view(ls, 64)
-    from moments_ref.raster import look_at, perspective
+    from moments_ref.scene.raster import look_at, perspective
     eye = light.center - 0.5 * src.distance * light.normal
     vp = perspective(90, 1, 0.5 * src.distance, 6.0) @ look_at(eye, eye + light.normal, light.bitangent)
     hom = np.c_[light.corners(), np.ones(4)] @ vp.T
@@ -186,8 +186,8 @@ def test_poisson_disk_covers_the_whole_light():
 
 
 def test_poisson_disk_cache_cannot_be_corrupted_by_callers():
-    from moments_ref.vwss import lights
-    from moments_ref.vwss.shading import _tap_pattern
+    from moments_ref.techniques.vwss import lights
+    from moments_ref.techniques.vwss.shading import _tap_pattern
 
     fresh = lights._poisson_disk.__wrapped__(24, 5)  # the fill without the cache
     a = poisson_disk(24, seed=5)

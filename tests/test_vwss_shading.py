@@ -11,11 +11,11 @@ from hypothesis import given, settings, strategies as st
 
 from moments_ref import InputError
 from moments_ref.scene import AreaLight, Camera
-from moments_ref.vwss import compare
-from moments_ref.vwss.lights import light_views
-from moments_ref.vwss.mvr import mvr
-from moments_ref.vwss import shading as pcf
-from moments_ref.vwss.shading import gbuffer, linear_depth, multiview_visibility, pcss
+from moments_ref.techniques.vwss import compare
+from moments_ref.techniques.vwss.lights import light_views
+from moments_ref.techniques.vwss.mvr import mvr
+from moments_ref.techniques.vwss import shading as pcf
+from moments_ref.techniques.vwss.shading import gbuffer, linear_depth, multiview_visibility, pcss
 
 
 def _light(size=1.0):

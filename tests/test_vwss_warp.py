@@ -6,15 +6,15 @@ from hypothesis import given, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from moments_ref import InputError
-from moments_ref.raster import rasterize_depth
+from moments_ref.scene.raster import rasterize_depth
 from moments_ref.scene import AreaLight, torus_knot
-from moments_ref.vwss.lights import depth_range, light_views
-from moments_ref.vwss.mvr import mvr
-from moments_ref.vwss.points import generate_points, source_view
-from moments_ref.vwss.shading import linear_depth
-from moments_ref.bench import bench_entries
-from moments_ref.vwss import warp as warp_mod
-from moments_ref.vwss.warp import project_to_texels, warp, zbuffer_max
+from moments_ref.techniques.vwss.lights import depth_range, light_views
+from moments_ref.techniques.vwss.mvr import mvr
+from moments_ref.techniques.vwss.points import generate_points, source_view
+from moments_ref.techniques.vwss.shading import linear_depth
+from moments_ref.tools.bench import bench_entries
+from moments_ref.techniques.vwss import warp as warp_mod
+from moments_ref.techniques.vwss.warp import project_to_texels, warp, zbuffer_max
 
 
 def _light():

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..filtering import blur, resolve_moments
+from ..gpu.filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows, _msm_rows
 

@@ -13,7 +13,7 @@ on it; :mod:`moments_ref.pipeline`) and writes to DIR:
 * ``stages.json``: per scene a list of ``{"stage", "seconds" (median), "min",
   "max", "used_by"}`` (:meth:`moments_ref.pipeline.RunResult.stage_table`);
 * ``claims.json``: the paper claims measured on the scenes that ran
-  (:mod:`moments_ref.paper_claims`), also appended to report.md as a table;
+  (:mod:`moments_ref.report.paper_claims`), also appended to report.md as a table;
 * ``report.md``: the settings used (and what was reduced), the machine and a
   same-run memory-copy rate (:mod:`._machine`), the Pareto front per scene, a
   cross-scene summary, the
@@ -84,7 +84,8 @@ import numpy as np
 from .._arrays import InputError
 from .._io import figure_png, write_bytes, write_text
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
-from .. import paper_claims, pipeline, scattering_temporal
+from . import paper_claims, scattering_temporal
+from .. import pipeline
 from .. import techniques as _techniques
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._arrays import InputError
 from ..metrics import LEAK_THRESHOLD
-from ..paper_claims import _row  # the one row lookup of the claims
+from .paper_claims import _row  # the one row lookup of the claims
 from .. import techniques as _techniques
 from ._crops import crop_lines
 from ._pareto import FRONT_RULE
@@ -77,7 +77,7 @@ def evaluate_claims(rows, four_moment=None):
     "clearly below" = RMSE at most 90 % of the other; "leaks" = leak_fraction > 0.
     These thresholds are this function's, not HPG17's (which states none), so
     report.md does not print these verdicts: it judges the claims in the paper's
-    own terms with :func:`moments_ref.paper_claims.claims` (``claims.json``).
+    own terms with :func:`moments_ref.report.paper_claims.claims` (``claims.json``).
     Kept for scripts that compare rows quickly.
     """
     if four_moment is None:

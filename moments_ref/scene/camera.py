@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import InputError, check_memory
-from ..raster import look_at, perspective
+from .raster import look_at, perspective
 
 __all__ = ["Camera", "BYTES_PER_PIXEL"]
 

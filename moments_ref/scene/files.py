@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError, check_memory
-from ..raster import SAMPLE_COUNTS, MAX_SIZE, rasterize_depth
+from .raster import SAMPLE_COUNTS, MAX_SIZE, rasterize_depth
 from .camera import Camera
 from .lights import AreaLight, DirectionalLight
 from .mesh import GENERATORS, Mesh, merge, read_obj, rotate, scale, translate
@@ -163,7 +163,7 @@ class Scene:
     def shadow_map(self, size=None, samples=None, translucent=False, exclude=(), cull="none"):
         """Rasterize the occluders into the light's depth map.
 
-        Returns ``(depth (H, W, S) float32, stats)`` from :func:`moments_ref.raster.rasterize_depth`.
+        Returns ``(depth (H, W, S) float32, stats)`` from :func:`moments_ref.scene.raster.rasterize_depth`.
         """
         size = self.shadow_map_size if size is None else size
         samples = self.msaa if samples is None else samples

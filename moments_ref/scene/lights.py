@@ -6,7 +6,7 @@
   "a rectangular area light" with ``l_c``, ``l_n``, ``l_w``, ``l_h``); its shadow
   maps are perspective views from points on the rectangle looking along the normal.
 
-The matrix builders live in :mod:`moments_ref.raster` (OpenGL conventions, NDC
+The matrix builders live in :mod:`moments_ref.scene.raster` (OpenGL conventions, NDC
 depth in [−1, 1]).
 
 References
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import InputError
-from ..raster import look_at, orthographic, perspective
+from .raster import look_at, orthographic, perspective
 
 __all__ = ["DirectionalLight", "AreaLight"]
 

@@ -3,7 +3,7 @@
 A mesh is a pair of arrays: ``vertices`` (V, 3) float64 world positions and
 ``triangles`` (T, 3) int64 vertex indices. Generators wind every triangle
 counter-clockwise seen from outside (its right-hand normal points outwards), the
-front-face convention of :mod:`moments_ref.raster`. The world is y-up.
+front-face convention of :mod:`moments_ref.scene.raster`. The world is y-up.
 
 Generators build the geometry of the test scenes of HPG17 (Figure 1: a railing,
 a banner and the ground; Figure 8: a facade with a protrusion; Figure 9: an

@@ -27,14 +27,14 @@ references without special cases.
 Conventions
 -----------
 ``depth_samples`` is an ``(H, W, S)`` float array of sample depths in [-1, 1]
-(:func:`moments_ref.raster.rasterize_depth`), or a :class:`LayeredSamples` (the
+(:func:`moments_ref.scene.raster.rasterize_depth`), or a :class:`LayeredSamples` (the
 output of the translucency pass, :func:`moments_ref.techniques.translucent.translucency_pass`):
 per sample a depth distribution of K layers with weights summing to 1. An opaque
 map is the special case K = 1, weight 1.
 
 ``uv`` is ``(..., 2)`` in texels, u = x (column) and v = y (row), texel centres at
-``i + 0.5`` (the convention of :mod:`moments_ref.bluenoise` and of the window
-coordinates of :func:`moments_ref.raster.project_points`). ``depth`` is the
+``i + 0.5`` (the convention of :mod:`moments_ref.gpu.bluenoise` and of the window
+coordinates of :func:`moments_ref.scene.raster.project_points`). ``depth`` is the
 fragment's NDC depth in the light's view, broadcast against ``uv[..., 0]``.
 
 Registering a technique

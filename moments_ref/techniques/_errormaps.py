@@ -100,7 +100,7 @@ def error_maps(result, names, reference="reference", title=""):
 
 def _visibility_rgb(gb, intensity, cmap):
     """(H, W, 3): ``cmap`` of ``1 − intensity`` on the receivers, the documented colours elsewhere."""
-    from ..gbuffer import OCCLUDER
+    from ..scene.gbuffer import OCCLUDER
 
     w, h = gb.resolution
     rgb = np.empty((h * w, 3))

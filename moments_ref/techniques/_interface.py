@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .._arrays import InputError, real_input
-from ..gbuffer import receiver_depth
+from ..scene.gbuffer import receiver_depth
 
 __all__ = [
     "Step",
@@ -292,7 +292,7 @@ class Technique:
         Subtracted from the fragment depth in :meth:`shadow`.
     slope_bias : bool
         Its shade stage also lowers the fragment depth by the receiver-slope bias
-        (:func:`moments_ref.gbuffer.receiver_depth`): PCF, HPG17 §5's "higher depth
+        (:func:`moments_ref.scene.gbuffer.receiver_depth`): PCF, HPG17 §5's "higher depth
         bias"; the filterable techniques use the constant alone (default False).
     make_steps : callable ``(samples: int, layered: bool) -> tuple[Step, ...]``
         The steps from the shadow map to the texture for a map with ``samples``
@@ -394,7 +394,7 @@ class Technique:
             raise InputError(f"depth_samples: technique {self.name!r} does not render translucent occluders; "
                              "pass the opaque (H, W, S) depth map")
         if not layered:
-            from ..filtering import check_depth_samples
+            from ..gpu.filtering import check_depth_samples
 
             depth_samples = check_depth_samples(depth_samples)
         p = {**self.defaults, **(params or {})}
@@ -416,7 +416,7 @@ class Technique:
             Fragment depth in the light's NDC; the technique's ``depth_bias`` is
             subtracted here.
         noise : (..., 2) float array in [0, 1], optional
-            Per-fragment blue noise (:func:`moments_ref.bluenoise.frame_noise`);
+            Per-fragment blue noise (:func:`moments_ref.gpu.bluenoise.frame_noise`);
             required when ``needs_noise``.
 
         Returns
@@ -458,7 +458,7 @@ def bilinear_filtered(texture, uv, dtype=np.float32):
     -------
     values : (..., C) array of ``dtype``
     """
-    from ..bluenoise import bilinear_footprint
+    from ..gpu.bluenoise import bilinear_footprint
 
     rows, cols, w = bilinear_footprint(np.asarray(uv, dtype=dtype), texture.shape)
     t = np.asarray(texture)[rows, cols].astype(dtype, copy=False)  # (..., 4, C)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..filtering import blur, resolve_moments
+from ..gpu.filtering import blur, resolve_moments
 from ..moments import power_moments
 from ._interface import LayeredSamples, Step, is_layered
 

@@ -13,15 +13,15 @@ light samples, the reference of VWSS §4 (reference ``mvr``,
 ``area_center_depth_map``   one depth map from the light's centre
                             (``LightSamples.center_view_proj()``), shared by
                             msm_soft and PCSS
-``shade_pcss``              :func:`moments_ref.vwss.pcss` (64-tap blocker search,
+``shade_pcss``              :func:`moments_ref.techniques.vwss.pcss` (64-tap blocker search,
                             96-tap PCF) on the centre map
 ``vwss_light_samples``      the N Poisson-disk light samples and their views
 ``vwss_points``             layered points from the enlarged source view (VWSS
-                            §3.1, :func:`moments_ref.vwss.generate_points`)
+                            §3.1, :func:`moments_ref.techniques.vwss.generate_points`)
 ``vwss_warp``               the points warped into the N light-sample maps
-                            (VWSS §3.2, :func:`moments_ref.vwss.warp.warp`)
+                            (VWSS §3.2, :func:`moments_ref.techniques.vwss.warp.warp`)
 ``shade_vwss``              5-tap PCF in every map, averaged
-                            (:func:`moments_ref.vwss.multiview_visibility`)
+                            (:func:`moments_ref.techniques.vwss.multiview_visibility`)
 ``mvr_vwss``                the N light-sample maps rasterized (only for ``mvr``)
 ``shade_mvr_vwss``          5-tap PCF in those maps
 ``mvr_reference_vwss``      the reference: MVR with R light samples of their own
@@ -44,9 +44,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import positive_int
-from ..raster import rasterize_depth
-from ..vwss import depth_range, light_near, light_views
-from ..vwss.compare import _mvr_iter, _shade_multiview
+from ..scene.raster import rasterize_depth
+from .vwss import depth_range, light_near, light_views
+from .vwss.compare import _mvr_iter, _shade_multiview
 from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
 from ._errormaps import error_maps, visibility_maps
 from .references import intensity_metric
@@ -78,7 +78,7 @@ def area_settings(scene, full=False, *, map_size=None, light_samples=None, refer
     -------
     dict with ``map_size``, ``light_samples``, ``reference_views``,
     ``views_per_pass`` (8, warp passes as ``moments-ref vwss``) and ``seed`` (0;
-    the reference uses ``seed + 1000``, as :func:`moments_ref.vwss.compare.run_detailed`).
+    the reference uses ``seed + 1000``, as :func:`moments_ref.techniques.vwss.compare.run_detailed`).
     """
     size = tuple(scene.shadow_map_size) if full else reduced_settings(scene)[0]
     cfg = {"map_size": int(max(size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),

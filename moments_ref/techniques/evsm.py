@@ -31,7 +31,7 @@ negative warp (identical to EVSM64's) then decides, and EVSM64's milder positive
 warp can even beat it. Lit depths behind the fragment come from the cleared far
 plane z = 1 where a receiver is not rendered into the map (hence every shipped
 receiver that HPG17's setup would render casts), from a depth bias larger than
-the constant 1e-3 (the receiver-slope bias of :mod:`moments_ref.gbuffer`, up to
+the constant 1e-3 (the receiver-slope bias of :mod:`moments_ref.scene.gbuffer`, up to
 0.04 depth units on railing's steep banner, which is why EVSM, like every
 filterable technique, uses the constant alone) and from depth discontinuities (the
 ground behind the banner's edges): HPG17 §2, EVSM "misrepresents shadows at object

@@ -1,20 +1,20 @@
 """Non-linearly quantized moment shadow maps (HPG17 §3, §4): 64 and 32 bits, bilinear or dithered.
 
-Texture: the compute shader of HPG17 §4.1 (:func:`moments_ref.onchip.filter_moments`,
+Texture: the compute shader of HPG17 §4.1 (:func:`moments_ref.gpu.onchip.filter_moments`,
 resolve and 9×9 blur block by block in float32), then per texel
 ``bias_moments(b, BIAS_FLOAT32)``, Algorithm 2 (:func:`moments_ref.nonlinear.phi`)
 and the 64-bit (§3.3, :func:`moments_ref.packing.pack64`) or 32-bit (§3.5,
 :func:`moments_ref.packing.pack32`) texel format. This is what
-:func:`moments_ref.onchip.filter_and_quantize` returns; here the filtering is a
+:func:`moments_ref.gpu.onchip.filter_and_quantize` returns; here the filtering is a
 stage of its own so that both formats and both lookups share it.
 
 Lookup: non-linearly quantized texels cannot be filtered by the texture unit.
 
 * ``nlq64``, ``nlq32``: true bilinear interpolation, four texels, four times
   Algorithm 3, interpolated intensities (HPG17 §4.2, the quality reference of
-  Figure 7; :func:`moments_ref.bluenoise.lookup_bilinear`);
+  Figure 7; :func:`moments_ref.gpu.bluenoise.lookup_bilinear`);
 * ``nlq64_dither``, ``nlq32_dither``: one texel fetched at ``uv`` plus blue noise,
-  one Algorithm 3 (HPG17 §4.2, :func:`moments_ref.bluenoise.lookup_dithered`).
+  one Algorithm 3 (HPG17 §4.2, :func:`moments_ref.gpu.bluenoise.lookup_dithered`).
 
 Depth bias 1e-3 (HPG17 §5: "With non-linear quantization we use a constant depth
 bias of 10⁻³ depth units for all results"). Shading runs in float32.
@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..bluenoise import lookup_bilinear, lookup_dithered
+from ..gpu.bluenoise import lookup_bilinear, lookup_dithered
 from ..nonlinear import shade
-from ..onchip import filter_moments
+from ..gpu.onchip import filter_moments
 from ..packing import nlq_texels, unpack32, unpack64
 from ._interface import Step, Technique, register
 

@@ -5,7 +5,7 @@ depths. Here every fragment applies to the unfiltered MSAA samples exactly the
 weights that a filterable technique applies to its texture: the bilinear weights
 of the 2×2 texels around ``uv`` (the texture unit), times the 9×9 Gaussian
 (σ = 2.4, HPG17 §4.1) around each of them with clamp-to-edge borders (the rule of
-:func:`moments_ref.filtering.blur`), times 1/S per sample (the resolve). The result
+:func:`moments_ref.gpu.filtering.blur`), times 1/S per sample (the resolve). The result
 
     Z(z < zf) = Σ_taps weight · (1/S) Σ_s [z_s < zf]
 
@@ -21,7 +21,7 @@ of one ``zf`` for the whole footprint,
     Z_plane = Σ_taps weight · (1/S) Σ_s [z_s < zf + g · (p_tap,s − uv)],
 
 with ``p_tap,s`` the tap's texel centre plus the MSAA offset of sample s
-(:func:`moments_ref.raster.sample_positions`): the exact filtered visibility of
+(:func:`moments_ref.scene.raster.sample_positions`): the exact filtered visibility of
 a planar receiver. A lit plane then does not shadow itself at any angle and
 contact shadows are kept: the reference of :mod:`moments_ref.report`.
 
@@ -39,8 +39,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..filtering import gaussian_weights
-from ..raster import SAMPLE_COUNTS, sample_positions
+from ..gpu.filtering import gaussian_weights
+from ..scene.raster import SAMPLE_COUNTS, sample_positions
 from ._interface import Technique, is_layered, register
 
 __all__ = ["pcf_filtered", "tap_weights", "tap_centres", "PCF"]
@@ -59,7 +59,7 @@ def tap_weights(coord, size, taps=None):
     size : int
         Map extent along the axis.
     taps : (9,) float array, optional
-        Gaussian weights (default :func:`moments_ref.filtering.gaussian_weights`).
+        Gaussian weights (default :func:`moments_ref.gpu.filtering.gaussian_weights`).
 
     Returns
     -------
@@ -128,7 +128,7 @@ def pcf_filtered(samples, uv, zf, gradient=None):
         Fragment depth (already biased), broadcast against ``uv[..., 0]``.
     gradient : (..., 2) float array, optional
         Receiver plane: depth change per texel ``(∂z/∂u, ∂z/∂v)``
-        (:attr:`moments_ref.gbuffer.GBuffer.gradient`). Sample s of the tap at
+        (:attr:`moments_ref.scene.gbuffer.GBuffer.gradient`). Sample s of the tap at
         texel centre ``c`` (:func:`tap_centres`) is compared with
         ``min(zf + gradient · (c + o_s − uv), 1)``, ``o_s`` its MSAA offset
         (the far plane bounds the plane: the clear depth 1 occludes nothing).
@@ -220,7 +220,7 @@ PCF = register(Technique(
     name="pcf",
     bits_per_texel=32,
     depth_bias=1e-3,
-    slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.gbuffer.receiver_depth)
+    slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.scene.gbuffer.receiver_depth)
     make_steps=_steps,
     lookup=_lookup,
     description="percentage-closer filtering, 9x9 Gaussian (sigma 2.4) x bilinear over the MSAA samples "

@@ -25,7 +25,7 @@ HPG17, Isidoro 2006, FLIP : see docs/bib.md.
 
 from __future__ import annotations
 
-from ..gbuffer import SLOPE_BIAS_TEXELS
+from ..scene.gbuffer import SLOPE_BIAS_TEXELS
 from ..metrics import flip_mean, metrics, shaded_image
 from ._errormaps import error_maps
 from ._interface import PROJECTION, SHADOW_MAP, TECHNIQUES, TRANSLUCENCY, Reference, Stage, register_reference

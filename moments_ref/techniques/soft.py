@@ -13,9 +13,9 @@ VWSS : see docs/bib.md. PCSS: Fernando 2005, cited in place.
 from __future__ import annotations
 
 from .._arrays import InputError
-from ..vwss import generate_points, multiview_visibility, pcss, source_view
-from ..vwss.mvr import mvr
-from ..vwss.warp import warp
+from .vwss import generate_points, multiview_visibility, pcss, source_view
+from .vwss.mvr import mvr
+from .vwss.warp import warp
 from ._interface import PROJECTION, Plan, Stage, Technique, register
 from .area import CENTER_MAP, LIGHT_SAMPLES, _occluder, center_map_stages, samples_stage
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, real_input
-from ..raster import rasterize_fragments
+from ..scene.raster import rasterize_fragments
 from ._interface import LayeredSamples, Technique, register
 from .msm import msm64_lookup, msm64_steps
 
@@ -55,7 +55,7 @@ def translucency_pass(opaque_depth, vertices, triangles, opacity, view_proj, cul
     view_proj : (4, 4) float array
         The light's matrix (the one that rendered ``opaque_depth``).
     cull : str
-        Face culling, as :func:`moments_ref.raster.rasterize_fragments`.
+        Face culling, as :func:`moments_ref.scene.raster.rasterize_fragments`.
 
     Returns
     -------

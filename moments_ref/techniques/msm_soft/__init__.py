@@ -4,7 +4,7 @@ Percentage-closer soft shadows [Fernando 2005] in three steps (Slides,
 "Percentage-closer soft shadows"), each replaced by a constant-time query:
 
 1. **Blocker search** (Slides, "Moment-based blocker search"): one interpolated
-   query of the summed-area table (:mod:`moments_ref.sat`) over the search
+   query of the summed-area table (:mod:`moments_ref.gpu.sat`) over the search
    region gives the moments of its depth distribution; Algorithm 1's canonical
    representation ``(zf, z1, z2; w0, w1, w2)`` (:func:`moments_ref.msm.canonical_representation`)
    reconstructs it with three depths, and the average blocker depth is
@@ -24,7 +24,7 @@ Geometry and units
 ------------------
 The single shadow map is the perspective view from the area light's centre
 along its normal (:meth:`moments_ref.scene.Scene.shadow_view_proj`, or
-:meth:`moments_ref.vwss.LightSamples.center_view_proj`); its samples and the
+:meth:`moments_ref.techniques.vwss.LightSamples.center_view_proj`); its samples and the
 fragments' depths arrive as NDC depths z ∈ [−1, 1] (the package's depth convention,
 docs/architecture.md). Distances
 ``d`` are view depths in world units along the light normal,
@@ -47,7 +47,7 @@ centred on the receiver's texel position with full extent ``l (1/d − 1/d_r)``
 in tan units, times ``k = W / (2 tan(fov/2))`` texels per tan unit:
 
 * search region: at the near plane, ``d = near`` (the largest region that can
-  hold a blocker, as :func:`moments_ref.vwss.pcss`);
+  hold a blocker, as :func:`moments_ref.techniques.vwss.pcss`);
 * filter region: at ``d = d_b``; this is the PCSS penumbra width
   ``w_penumbra = (d_r − d_b) l / d_b`` on the receiver, projected (divided by
   ``d_r``). For an occluder parallel to the light it is exactly the set of
@@ -58,7 +58,7 @@ Regions are clamped (documented clamp, counted in the details) to at least one
 texel (the query is then bilinear filtering: a hard shadow) and at most
 ``max_kernel`` texels per side, the SAT's largest kernel ``n = max_kernel²``;
 rectangles reaching over the map's border are intersected with the map
-(:func:`moments_ref.sat.interpolated_mean` with ``clamp=True``). Fragments
+(:func:`moments_ref.gpu.sat.interpolated_mean` with ``clamp=True``). Fragments
 outside the map or behind the light are lit.
 
 The texture stores the optimized basis (:func:`moments_ref.affine.to_optimized`)

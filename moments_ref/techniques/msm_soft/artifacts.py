@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...raster import look_at, perspective, rasterize_depth
+from ...scene.raster import look_at, perspective, rasterize_depth
 from .shadow import precision_bits_text, prepare, shade_points
 
 __all__ = ["ARTIFACT_SCENES", "ray_cast_visibility", "artifact_measurements", "artifact_images",

@@ -19,11 +19,11 @@ import numpy as np
 
 from ..._arrays import InputError, real_input
 from ...affine import from_optimized, to_optimized
-from ...filtering import resolve_moments
+from ...gpu.filtering import resolve_moments
 from ...moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments
 from ...msm import canonical_representation, shadow_intensity
-from ...raster import project_points
-from ... import sat as _sat
+from ...scene.raster import project_points
+from ...gpu import sat as _sat
 
 __all__ = ["EPSILON", "MAX_AUTO_KERNEL", "DEPTH_BIAS", "soft_bias", "LightFrustum", "SoftShadowMap", "prepare",
            "prepare_moments", "average_blocker_depth", "penumbra_width", "soft_shadow", "shade_points",
@@ -55,7 +55,7 @@ def soft_bias(n) -> BiasPreset:
     -------
     BiasPreset
         ``α = max(3·10⁻⁷, 6·10⁻⁵ · (2¹⁶ − 1)/Q)`` with ``Q = floor((2³² − 1)/n)``
-        (:func:`moments_ref.sat.code_scale`), target ``(0, 0.628, 0, 0.628)``.
+        (:func:`moments_ref.gpu.sat.code_scale`), target ``(0, 0.628, 0, 0.628)``.
 
     Notes
     -----
@@ -282,7 +282,7 @@ def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") ->
     z = np.asarray(depth_samples)
     if z.ndim == 2:
         z = z[..., None]
-    from ...filtering import check_depth_samples
+    from ...gpu.filtering import check_depth_samples
 
     z = check_depth_samples(z).astype(np.float64)
     if _check_depth(depth) == "linear":
@@ -488,7 +488,7 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
     -------
     visibility : (P,) float64 array in [0, 1]
         ``1 − intensity``; 1 for points outside the map or behind the light
-        (the convention of :func:`moments_ref.vwss.pcss`).
+        (the convention of :func:`moments_ref.techniques.vwss.pcss`).
     """
     light, vp = _resolve_source(source, view_proj)
     if isinstance(depth_map, SoftShadowMap):

@@ -38,7 +38,7 @@ slides do it with six moments, in five steps:
    convert the depth, six moments of that one depth. Aliased.
 
    *With filtering* (Slides, "Resampling with filtering"): sample the filtered
-   four-moment map (:mod:`moments_ref.filtering`: MSAA resolve and the 9×9
+   four-moment map (:mod:`moments_ref.gpu.filtering`: MSAA resolve and the 9×9
    Gaussian, bilinear lookup), drop b4 and represent b1..b3 by two depths
    (HPG17 Algorithm 2, ``y1, y2, v2``), convert both depths, and combine
    ``(1 − v2)·b(z1) + v2·b(z2)`` (six moments each).

@@ -23,7 +23,7 @@ from ...affine import decode_r10g10b10a2, encode_r10g10b10a2, from_optimized6, u
 from ...moments import bias_moments, power_moments
 from ...msm import _two_point
 from ...msm6 import BIAS6_UNORM10, shadow_bounds
-from ...raster import project_points
+from ...scene.raster import project_points
 from .._interface import bilinear_filtered
 
 __all__ = ["FAR_NDC", "AXIS_ANGLE", "EPIPOLAR_SIZE", "EpipolarFrame", "epipolar_frame", "epipolar_coordinates",

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError
-from ...filtering import check_depth_samples
+from ...gpu.filtering import check_depth_samples
 from ...metrics import flip_mean
-from ...raster import rasterize_depth
+from ...scene.raster import rasterize_depth
 from .epipolar import AXIS_ANGLE, FAR_NDC, epipolar_depth
 
 __all__ = ["CameraRays", "camera_rays", "ray_march", "scattering_metric", "scattering_figure", "write_images"]

@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..raster import _small_triangles
+from ...scene.raster import _small_triangles
 
 __all__ = ["raster_case"]
 
@@ -25,7 +25,7 @@ def raster_case(name):
     if kind == "small":
         v, t = _small_triangles(int(rest[0]), 1024, 4.0, np.random.default_rng(0))
         return v, t, np.eye(4), 1024, samples
-    from ..scene import load_scene
+    from ...scene import load_scene
 
     scene = load_scene("railing")
     m = scene.occluder_mesh(translucent=False)

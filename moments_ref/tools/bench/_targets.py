@@ -9,7 +9,7 @@ time mostly measures the neighbours). The baselines:
   the same traffic: a kernel that reads ``a`` bytes and writes ``c`` copies
   ``(a + c) / 2`` bytes, which moves ``a + c``;
 * Mesa's llvmpipe drawing the same triangles with one thread
-  (:mod:`moments_ref.bench._llvmpipe`), when moderngl and EGL are present;
+  (:mod:`moments_ref.tools.bench._llvmpipe`), when moderngl and EGL are present;
 * the global path for the on-chip emulation (it does the same arithmetic).
 
 Nothing here is asserted by the tests: targets are read, not enforced.
@@ -28,12 +28,12 @@ import tracemalloc
 
 import numpy as np
 
-from .. import filtering, onchip
-from ..moments import BIAS_FLOAT32, bias_moments, power_moments
-from ..msm import shadow_intensity
-from ..msm6 import BIAS6_FLOAT32
-from ..nonlinear import phi, shade
-from ..raster import rasterize_depth
+from ...gpu import filtering, onchip
+from ...moments import BIAS_FLOAT32, bias_moments, power_moments
+from ...msm import shadow_intensity
+from ...msm6 import BIAS6_FLOAT32
+from ...nonlinear import phi, shade
+from ...scene.raster import rasterize_depth
 from ._cases import raster_case
 
 __all__ = ["raster_case", "measure", "run_targets", "targets_markdown", "GROWTH_LIMIT"]
@@ -115,7 +115,7 @@ def _raster_rows(cases, repeat):
 def global_nlq(z, fmt="nlq64"):
     """The global path of HPG17 §4: resolve, 9² blur (float64, cast to float32), bias, Φ, pack.
 
-    :func:`moments_ref.filtering.global_path_nlq`: the same values as the passes one
+    :func:`moments_ref.gpu.filtering.global_path_nlq`: the same values as the passes one
     after the other, a band of rows at a time.
     """
     return filtering.global_path_nlq(z, fmt)

@@ -1,6 +1,6 @@
 """Coverage by spans: for each (triangle, pixel row, sample) the covered columns, solved from the edges.
 
-Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+Part of :mod:`moments_ref.scene.raster` (see its docstring for the conventions).
 
 Along a row of samples (fixed pixel row and sample index) the edge function of
 edge e is affine in the pixel column u counted from the box's first column:

@@ -1,6 +1,6 @@
 """Coverage: the pixel box of each set-up triangle, which the span rasterizer (:mod:`._spans`) fills.
 
-Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+Part of :mod:`moments_ref.scene.raster` (see its docstring for the conventions).
 """
 
 from __future__ import annotations

@@ -1,13 +1,13 @@
 """Triangle setup: validation, trivial rejection, clipping, snapping, culling, edge equations.
 
-Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+Part of :mod:`moments_ref.scene.raster` (see its docstring for the conventions).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._arrays import InputError, first_index, real_input
+from ..._arrays import InputError, first_index, real_input
 from ._coverage import _boxes
 from ._matrices import _SUB, _clip_space
 
@@ -104,7 +104,7 @@ def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
     triangle ids start at ``lo``. Returns None when nothing is left to rasterize.
     Triangles whose pixel box holds no sample (sx, sy: the sample offsets) are
     dropped before their edge equations; ``s["box"]`` holds the boxes of the rest
-    (:func:`moments_ref.raster._coverage._boxes`).
+    (:func:`moments_ref.scene.raster._coverage._boxes`).
 
     Four steps, one function each (a call per chunk of ``_SETUP_CHUNK`` triangles;
     ``moments-ref bench`` rasterize_depth 1× MSAA, 262144 small triangles into 1024²,

@@ -1,13 +1,13 @@
 """Sample patterns, view and projection matrices, projection of points (OpenGL conventions).
 
-Part of :mod:`moments_ref.raster` (see its docstring for the conventions).
+Part of :mod:`moments_ref.scene.raster` (see its docstring for the conventions).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._arrays import InputError, real_input
+from ..._arrays import InputError, real_input
 
 __all__ = ["SAMPLE_COUNTS", "SUBPIXEL_BITS", "MAX_SIZE", "sample_positions", "look_at", "orthographic", "frustum",
            "perspective", "project_points"]

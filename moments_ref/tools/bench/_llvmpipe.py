@@ -2,7 +2,7 @@
 
 The worker is started with ``LP_NUM_THREADS=0`` (llvmpipe rasterizes in the
 calling thread) so that its CPU time is one core's work, like the reference's.
-It builds the same scenes as :mod:`moments_ref.bench._cases` (same seeds), so
+It builds the same scenes as :mod:`moments_ref.tools.bench._cases` (same seeds), so
 only short commands cross the pipe: ``case NAME`` sets a scene up (vertices in
 clip space from the same ``view_proj``, a depth-only multisampled framebuffer,
 a warm-up draw for the shader JIT), ``time`` clears, draws and waits
@@ -64,7 +64,7 @@ def _gl_case(ctx, name):
 
 
 def serve(stdin=sys.stdin, stdout=sys.stdout):
-    """The worker's loop (``python -m moments_ref.bench._llvmpipe``)."""
+    """The worker's loop (``python -m moments_ref.tools.bench._llvmpipe``)."""
     import moderngl
 
     try:
@@ -104,9 +104,9 @@ class Llvmpipe:
         except ImportError as exc:
             raise LlvmpipeUnavailable(f"moderngl is not importable ({exc})") from None
         env = dict(os.environ, LP_NUM_THREADS="0", GALLIUM_DRIVER="llvmpipe")
-        root = str(Path(__file__).resolve().parents[2])
+        root = str(Path(__file__).resolve().parents[3])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        self._p = subprocess.Popen([sys.executable, "-m", "moments_ref.bench._llvmpipe"], env=env,
+        self._p = subprocess.Popen([sys.executable, "-m", "moments_ref.tools.bench._llvmpipe"], env=env,
                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         hello = self._read()
         if "error" in hello:
@@ -126,7 +126,7 @@ class Llvmpipe:
         return self._read()
 
     def case(self, name):
-        """Set scene ``name`` of :func:`moments_ref.bench._cases.raster_case` up in the worker."""
+        """Set scene ``name`` of :func:`moments_ref.tools.bench._cases.raster_case` up in the worker."""
         self._ask(f"case {name}")
 
     def time(self):

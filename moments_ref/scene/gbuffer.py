@@ -1,0 +1,197 @@
+"""Receiver points seen by the camera: the G-buffer pass and its projection into the shadow map.
+
+:func:`camera_gbuffer` rasterizes the scene from the camera and keeps the nearest
+fragment per pixel; :func:`light_projection` gives each receiver point its texel
+coordinates, its unbiased depth in the light's shadow map, its signed depth
+gradient per texel along the receiver (``gradient``) and the gradient's length
+(``slope``); :func:`receiver_depth` is the depth a lookup compares, with or
+without the receiver-slope bias (:data:`SLOPE_BIAS_TEXELS`).
+
+Depth bias (HPG17 §5). The filterable techniques use the constant bias alone
+("With non-linear quantization we use a constant depth bias of 10⁻³ depth units
+for all results"); PCF uses "a higher depth bias", which costs it its contact
+shadows: here the constant plus the receiver-slope term. The 9×9 PCF reference
+uses neither the slope term nor a single depth: it compares each tap with the
+receiver plane's depth at that tap (receiver-plane depth, Isidoro 2006, from
+``gradient``), so a plane lit at an angle does not shadow itself and contact
+shadows stay (:mod:`moments_ref.techniques.references`).
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .raster import project_points, rasterize_fragments
+
+__all__ = ["GBuffer", "camera_gbuffer", "light_projection", "receiver_depth", "SLOPE_BIAS_TEXELS", "BACKGROUND",
+           "RECEIVER", "OCCLUDER", "OUTSIDE_LIGHT"]
+
+#: kind image codes of :class:`GBuffer`.
+BACKGROUND, RECEIVER, OCCLUDER, OUTSIDE_LIGHT = 0, 1, 2, 3
+
+
+@dataclass
+class GBuffer:
+    """Receiver points seen by the camera.
+
+    Attributes
+    ----------
+    resolution : (width, height)
+    kind : (height, width) int8 image
+        0 background, 1 receiver (shaded, counted in the metrics), 2 occluder,
+        3 receiver outside the light's shadow map (left unshadowed, not counted).
+    pixel : (N,) int64
+        Flat index ``row * width + col`` of each pixel with ``kind == 1``.
+    position : (N, 3) float64 world positions
+    lambert : (N,) float64 ``|n · l|`` (two-sided surfaces)
+    normal : (N, 3) float64 unit face normals
+    uv : (N, 2) float64 texel coordinates in the shadow map (filled by ``light_projection``)
+    depth : (N,) float64 NDC depth in the light's view (unbiased; see :func:`receiver_depth`)
+    slope : (N,) float64 depth change per shadow-map texel along the receiver surface, ``|gradient|``
+    gradient : (N, 2) float64 signed depth change per texel along the receiver,
+        ``(∂z/∂u, ∂z/∂v)`` (u = column, v = row): the receiver plane in the map
+    """
+
+    resolution: tuple
+    kind: np.ndarray
+    pixel: np.ndarray
+    position: np.ndarray
+    lambert: np.ndarray
+    normal: np.ndarray = None
+    uv: np.ndarray = None
+    depth: np.ndarray = None
+    slope: np.ndarray = None
+    gradient: np.ndarray = None
+
+
+def camera_gbuffer(scene, resolution):
+    """Nearest fragment per camera pixel among receivers and opaque occluder-only objects."""
+    width, height = resolution
+    rec = scene.receiver
+    # Occluders that are not also receivers hide receivers; translucent ones do not
+    # (the receiver is seen through them).
+    role = np.array([scene.objects[i].role == "occluder" for i in scene.occluder_object], dtype=bool).reshape(-1)
+    keep = role & ~scene.occluder_translucent
+    occ_tri = scene.occluder.triangles[keep]
+    v = np.concatenate([rec.vertices, scene.occluder.vertices])
+    tri = np.concatenate([rec.triangles, occ_tri + rec.vertices.shape[0]])
+    frags, _ = rasterize_fragments(v, tri, scene.camera.view_proj(), (height, width), samples=1, dtype=np.float64)
+    kind = np.zeros(height * width, dtype=np.int8)
+    if len(frags):
+        order = np.lexsort((frags.depth, frags.texel))
+        texel = frags.texel[order]
+        first = np.ones(texel.shape[0], bool)
+        first[1:] = texel[1:] != texel[:-1]
+        sel = order[first]
+    else:
+        sel = np.zeros(0, np.intp)
+    texel, tri_id = frags.texel[sel], frags.triangle[sel]
+    is_rec = tri_id < rec.triangles.shape[0]
+    kind[texel] = np.where(is_rec, RECEIVER, OCCLUDER)
+    pixel = texel[is_rec]
+    pos = frags.position[sel][is_rec].astype(np.float64)
+    # Face normals of the receiver triangles (two-sided Lambert).
+    t = rec.triangles[tri_id[is_rec]]
+    p0, p1, p2 = (rec.vertices[t[:, k]] for k in range(3))
+    n = np.cross(p1 - p0, p2 - p0)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    if getattr(scene.light, "kind", "directional") == "directional":
+        to_light = np.broadcast_to(-scene.light.direction, pos.shape)
+    else:
+        d = scene.light.center - pos
+        to_light = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-30)
+    lambert = np.abs(np.einsum("ij,ij->i", n, to_light))
+    return GBuffer(resolution=(width, height), kind=kind.reshape(height, width), pixel=pixel,
+                   position=pos, lambert=lambert, normal=n)
+
+
+#: Receiver-slope bias in shadow-map texels (see :func:`light_projection`): the
+#: farthest a tap of the 9×9 footprint reaches along any direction (4√2 texels on
+#: the diagonal) plus half a texel diagonal for the fragment's position in its texel.
+SLOPE_BIAS_TEXELS = 4.5 * 2**0.5
+
+
+def _plane_gradient(position, normal, view_proj, size):
+    """(∂depth/∂u, ∂depth/∂v) along the receiver plane at each point, light-space depth per texel.
+
+    Two tangents of the surface are projected into the shadow map; the depth
+    gradient with respect to texel coordinates solves the 2×2 system of their
+    texel offsets. A projective map takes the plane to a plane in (u, v, depth),
+    so the gradient is the same at every point of a planar receiver. Grazing
+    surfaces (singular system) give non-finite entries.
+    """
+    a = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(normal, a)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(normal, t1)
+    scale = 1e-3 * max(1.0, float(np.abs(position).max()))
+    xy0, z0 = project_points(position, view_proj, size)
+    xy1, z1 = project_points(position + scale * t1, view_proj, size)
+    xy2, z2 = project_points(position + scale * t2, view_proj, size)
+    j = np.stack([xy1 - xy0, xy2 - xy0], axis=1)  # (N, 2 tangents, 2 texel axes)
+    dz = np.stack([z1 - z0, z2 - z0], axis=1)
+    det = j[:, 0, 0] * j[:, 1, 1] - j[:, 0, 1] * j[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gx = (dz[:, 0] * j[:, 1, 1] - dz[:, 1] * j[:, 0, 1]) / det
+        gy = (dz[:, 1] * j[:, 0, 0] - dz[:, 0] * j[:, 1, 0]) / det
+    return np.stack([gx, gy], axis=-1)
+
+
+def _depth_gradient(plane):
+    """The :func:`_plane_gradient` ``plane`` with grazing surfaces set to zero (no receiver plane: a single depth)."""
+    return np.where(np.isfinite(plane).all(axis=-1, keepdims=True), plane, 0.0)
+
+
+def _depth_slope(plane):
+    """|∂depth/∂(texel)| along the receiver plane at each point (light-space depth per texel).
+
+    The length of the :func:`_plane_gradient` ``plane``; grazing surfaces
+    (singular system) get the largest finite slope.
+    """
+    with np.errstate(invalid="ignore", over="ignore"):
+        slope = np.hypot(*plane.T)
+    finite = np.isfinite(slope)
+    return np.where(finite, slope, slope[finite].max() if finite.any() else 0.0)
+
+
+def light_projection(g, view_proj, size):
+    """Texel coordinates, unbiased depth, depth gradient and slope of the receiver points in the shadow map.
+
+    ``depth`` is the NDC depth itself; ``gradient`` the signed depth change per
+    texel along the receiver (:func:`_depth_gradient`), the receiver plane of the
+    reference; ``slope`` its length (:func:`_depth_slope`), from which
+    :func:`receiver_depth` forms the receiver-slope bias of PCF.
+    """
+    h, w = size
+    xy, depth = project_points(g.position, view_proj, (h, w))
+    inside = (np.isfinite(depth) & (depth >= -1) & (depth <= 1)
+              & (xy[:, 0] >= 0) & (xy[:, 0] <= w) & (xy[:, 1] >= 0) & (xy[:, 1] <= h))
+    kind = g.kind.reshape(-1).copy()
+    kind[g.pixel[~inside]] = OUTSIDE_LIGHT
+    pos, nrm = g.position[inside], g.normal[inside]
+    plane = _plane_gradient(pos, nrm, view_proj, (h, w))  # once: the gradient and its length
+    gradient, slope = _depth_gradient(plane), _depth_slope(plane)
+    return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
+                   position=pos, lambert=g.lambert[inside], normal=nrm,
+                   uv=xy[inside], depth=depth[inside], slope=slope, gradient=gradient)
+
+
+def receiver_depth(g, slope_bias):
+    """The depth a shadow lookup compares, before the technique's constant bias.
+
+    ``g.depth − SLOPE_BIAS_TEXELS · g.slope`` when ``slope_bias`` (PCF: HPG17
+    §5's "higher depth bias"), else ``g.depth`` (the filterable
+    techniques: HPG17 §5's constant 10⁻³ alone). The slope term is
+    ``SLOPE_BIAS_TEXELS`` (4.5√2) texels times the depth change per texel: without
+    it a plane lit at an angle has half of a 9×9 filter footprint in front of its
+    own fragment and the unbiased 9×9 PCF is 0.5 there (surface acne). The
+    reference does without it: it compares each tap with the receiver plane
+    (``g.gradient``, :func:`moments_ref.techniques.pcf.pcf_filtered`).
+    """
+    return g.depth - SLOPE_BIAS_TEXELS * g.slope if slope_bias else g.depth

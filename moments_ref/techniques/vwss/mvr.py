@@ -1,0 +1,79 @@
+"""Multi-view rasterization (MVR): one rasterized depth map per light sample (VWSS §2.1).
+
+The brute-force baseline and the reference of VWSS §4: "Light samples are set as
+an eye location, and the GPU rasterizes geometry ... to produce a depth map"
+for every sample. Here each view is one call of
+:func:`moments_ref.scene.raster.rasterize_depth` (one sample per texel, texel-centre
+coverage with the top-left rule), so the maps are directly comparable with the
+point-warped maps of :func:`moments_ref.techniques.vwss.warp.warp` (same views, same NDC
+depth convention, empty = 1).
+
+References
+----------
+VWSS : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from ..._arrays import InputError
+from ...scene.raster import RasterStats, rasterize_depth
+from .warp import _check_resolution, _views
+
+__all__ = ["mvr_passes", "mvr"]
+
+
+def mvr_passes(vertices, triangles, views, resolution, cull="none", dtype=np.float32, progress=False):
+    """Yield ``(view index, depth map (H, W), RasterStats)`` one light sample at a time.
+
+    Parameters as :func:`mvr`.
+    """
+    m = _views(views)
+    h, w = _check_resolution(resolution)
+    it = range(m.shape[0])
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(it, desc="mvr", unit="view", file=sys.stderr, disable=None, leave=False)
+    for i in it:
+        d, st = rasterize_depth(vertices, triangles, m[i], (h, w), samples=1, cull=cull, dtype=dtype)
+        yield i, d[..., 0], st
+
+
+def mvr(vertices, triangles, views, resolution, cull="none", dtype=np.float32, progress=False):
+    """Rasterize the occluders once per light-sample view.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float array
+    triangles : (T, 3) int array
+    views : LightSamples or (N, 4, 4) float array
+        View-projection matrices.
+    resolution : int or (H, W)
+    cull : {"none", "back", "front"}
+    dtype : float32 or float64
+        Depth storage (float32 = D32_FLOAT, the paper's "32-bit floating-point precision").
+    progress : bool
+        tqdm bar over the views on stderr.
+
+    Returns
+    -------
+    depth : (N, H, W) array of ``dtype``
+        NDC depth of the nearest triangle per texel centre; 1 where none.
+    stats : RasterStats
+        Counts summed over the views (``triangles`` = input triangles × views).
+    """
+    m = _views(views)
+    h, w = _check_resolution(resolution)
+    if np.dtype(dtype) not in (np.float32, np.float64):
+        raise InputError(f"dtype: expected float32 or float64, got {dtype!r}")
+    out = np.empty((m.shape[0], h, w), dtype)
+    total = RasterStats()
+    for i, d, st in mvr_passes(vertices, triangles, m, (h, w), cull, dtype, progress):
+        out[i] = d
+        for k, v in st.as_dict().items():
+            setattr(total, k, getattr(total, k) + v)
+    return out, total

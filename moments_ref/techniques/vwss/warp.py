@@ -1,0 +1,307 @@
+"""Depth-map rendering by view warping: reproject, snap, z-buffer (VWSS §3.2, Listing 2).
+
+Each point is projected into every light-sample view, snapped to the texel that
+contains it (its nearest texel centre) and z-buffered with an atomic maximum on
+the 32-bit integer view of its reversed-z depth, as Listing 2::
+
+    InterlockedMax(rt_depth_int[float3(x, y, lightIndex)], asuint(cp.z));
+
+Reversed z. Listing 2 keeps the *largest* depth, so nearer must be larger: the
+reversed depth ``r = (1 − z_ndc) / 2`` is 1 on the near plane and 0 on the far
+plane (Direct3D's reversed-z convention), and an empty texel holds 0. For
+non-negative IEEE-754 floats the order of the bit patterns read as unsigned
+integers equals the order of the values (sign bit 0, then exponent, then
+mantissa, most significant first), so a ``uint32`` maximum is a float maximum.
+It fails for negative numbers (sign bit set: they order above every positive
+float) and NaN (exponent all ones, mantissa non-zero: above +inf); those are
+refused. −0.0 is folded into +0.0 first.
+
+NumPy. ``np.maximum.at`` is the unbuffered scatter-maximum that plays the role
+of the atomics: the result does not depend on the order of the updates, so a
+serial (one view per traversal of the points), partially parallel (k views per
+traversal) or fully parallel (all views in one traversal) order gives the same
+maps bit for bit (VWSS §3.2, Figure 2).
+
+The public maps are NDC depth in [−1, 1] (``z = 1 − 2 r``, empty = 1 = far), the
+convention of :func:`moments_ref.scene.raster.rasterize_depth`, so that warped and
+rasterized maps compare directly.
+
+References
+----------
+VWSS : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..._arrays import InputError, first_index, positive_int, real_input
+
+__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes"]
+
+# Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes`: the temporaries stay in cache and
+# the thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18),
+# whose threads cost more than they save on it (results do not depend on the block size).
+_BLOCK = 1 << 13
+
+
+def _uint_of(dt):
+    return np.uint32 if np.dtype(dt) == np.float32 else np.uint64
+
+
+def _check_resolution(resolution):
+    try:
+        hw = (resolution, resolution) if np.ndim(resolution) == 0 else tuple(resolution)
+        h, w = (int(v) for v in hw)
+        ok = len(hw) == 2 and all(int(v) == v for v in hw) and h >= 1 and w >= 1
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"resolution: expected a positive int or (H, W), got {resolution!r}")
+    return h, w
+
+
+def _zmax_into(buf, index, depth):
+    """``buf[index] = max(buf[index], asuint(depth))`` without checks (depth ≥ +0.0, no NaN)."""
+    np.maximum.at(buf, index, depth.view(buf.dtype))
+
+
+def zbuffer_max(texel_index, depth, n_texels):
+    """Z-buffer by an atomic maximum on the unsigned-integer view of reversed-z depth.
+
+    Parameters
+    ----------
+    texel_index : (N,) int array
+        Destination texel of each update, in ``[0, n_texels)``.
+    depth : (N,) float array
+        Reversed-z depth (larger = nearer), non-negative, not NaN (+inf is
+        allowed: its bit pattern is the largest of the non-negative floats).
+        float32 uses ``uint32`` as Listing 2; float64 uses ``uint64``; other
+        inputs become float64 (the package's dtype policy).
+    n_texels : int
+        Size of the buffer.
+
+    Returns
+    -------
+    zbuffer : (n_texels,) float array of the working dtype
+        Per texel the largest depth written to it, 0 where nothing was written
+        (the reversed-z clear value, far).
+
+    Raises
+    ------
+    InputError
+        Negative or NaN depth (the integer ordering would be wrong), an index
+        outside ``[0, n_texels)``, or mismatched lengths.
+
+    Notes
+    -----
+    VWSS Listing 2: ``InterlockedMax(rt_depth_int[...], asuint(cp.z))``. −0.0 is
+    turned into +0.0 (by adding +0.0) because its bit pattern 0x80000000 would
+    order above every positive float.
+
+    Examples
+    --------
+    >>> zbuffer_max([0, 0, 2], np.float32([0.25, 0.5, 1.0]), 3)
+    array([0.5, 0. , 1. ], dtype=float32)
+    """
+    z = real_input(depth, "depth", finite=False).reshape(-1)
+    idx = np.asarray(texel_index)
+    if idx.dtype.kind not in "iu":
+        raise InputError(f"texel_index: expected an integer array, got dtype {idx.dtype}")
+    idx = idx.reshape(-1)
+    if idx.shape != z.shape:
+        raise InputError(f"texel_index: expected {z.shape[0]} indices (one per depth), got {idx.shape[0]}")
+    try:
+        n = int(n_texels)
+        ok = n == n_texels and n >= 0
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"n_texels: expected a non-negative integer, got {n_texels!r}")
+    bad = np.isnan(z) | (z < 0)
+    if bad.any():
+        i = first_index(bad)
+        raise InputError(f"depth: expected non-negative reversed-z depths (not NaN), got {z[i]!r} at index {i}")
+    out = (idx < 0) | (idx >= n)
+    if out.any():
+        i = first_index(out)
+        raise InputError(f"texel_index: expected indices in [0, {n}), got {idx[i]} at index {i}")
+    z = z + z.dtype.type(0.0)  # -0.0 -> +0.0
+    buf = np.zeros(n, _uint_of(z.dtype))
+    _zmax_into(buf, idx.astype(np.intp, copy=False), z)
+    return buf.view(z.dtype)
+
+
+def _views(views):
+    vp = getattr(views, "view_proj", views)
+    m = real_input(vp, "views", dtype=np.float64)
+    if m.ndim == 2:
+        m = m[None]
+    if m.ndim != 3 or m.shape[1:] != (4, 4):
+        raise InputError(f"views: expected LightSamples or (V, 4, 4) view-projection matrices, got shape {m.shape}")
+    if m.shape[0] == 0:
+        raise InputError("views: expected at least one view, got none")
+    return m
+
+
+def _points(points):
+    p = real_input(points, "points", trailing=3)  # NaN or inf coordinates -> InputError
+    if p.ndim != 2:
+        raise InputError(f"points: expected an (N, 3) array, got shape {p.shape}")
+    return p
+
+
+def project_to_texels(points, view_proj, resolution):
+    """Project points into views and snap them to texels (the per-point work of Listing 2).
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+        World positions; float32 input is projected in float32 (as a shader).
+    view_proj : (K, 4, 4) float array
+    resolution : int or (H, W)
+
+    Returns
+    -------
+    flat : (M,) intp array
+        ``view * H * W + row * W + col`` for each (point, view) pair that lands
+        inside a view: ``w > 0``, window position inside the map and NDC depth in
+        [−1, 1] (the clip tests of a depth-map pass).
+    reversed_depth : (M,) float array of the working dtype
+        ``r = (1 − z_ndc) / 2`` in [0, 1] (1 = near plane).
+
+    Notes
+    -----
+    Window coordinates follow :mod:`moments_ref.scene.raster`: ``x = (x_ndc + 1) W/2``,
+    ``y = (1 − y_ndc) H/2``; the texel is ``(floor(y), floor(x))``, the one whose
+    centre is nearest (VWSS §3.2, "snap the projected location to the nearest
+    neighbor pixel").
+    """
+    p = _points(points)
+    m = _views(view_proj).astype(p.dtype)
+    return _project_to_texels(p, m, *_check_resolution(resolution))
+
+
+def _project_to_texels(p, m, h, w):
+    """:func:`project_to_texels` of checked points ``p`` (N, 3) and views ``m`` (k, 4, 4) of p's dtype."""
+    k = m.shape[0]
+    mt = _stacked(m)
+    step = max(1, _BLOCK // k)
+    parts = [_texel_block(p[lo:lo + step], mt, k, h, w) for lo in range(0, p.shape[0], step)]
+    if len(parts) == 1:
+        return parts[0]
+    if not parts:
+        return np.zeros(0, np.intp), np.zeros(0, p.dtype)
+    return np.concatenate([f for f, _ in parts]), np.concatenate([r for _, r in parts])
+
+
+def _stacked(m):
+    """The k views as one (4, 4k) matrix, columns ordered (component, view): one product for all views."""
+    return m.transpose(2, 1, 0).reshape(4, 4 * m.shape[0])
+
+
+def _texel_block(p, mt, k, h, w):
+    """Texels and reversed depths of one block of points, in (point, view) order."""
+    dt, ut = p.dtype.type, _uint_of(p.dtype)
+    hom = np.concatenate([p, np.ones((p.shape[0], 1), p.dtype)], axis=1)
+    clip = (hom @ mt).reshape(p.shape[0], 4, k)
+    cw = clip[:, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = dt(1) / cw
+        x = clip[:, 0] * inv  # x = (x_clip / w + 1) W/2
+        x += dt(1)
+        x *= dt(w / 2)
+        y = clip[:, 1] * inv  # y = (1 − y_clip / w) H/2
+        np.subtract(dt(1), y, out=y)
+        y *= dt(h / 2)
+        r = clip[:, 2] * inv  # r = 1/2 − (z_clip / w) / 2
+        r *= dt(0.5)
+        np.subtract(dt(0.5), r, out=r)
+    # 0 ≤ x < W, 0 ≤ y < H, 0 ≤ r ≤ 1 as one unsigned comparison each: none of x, y, r can be
+    # −0.0 (a − b rounds to +0.0 when a = b, and the factors are ≥ 1/2), so the bit pattern orders
+    # them (module docstring); negative values and NaN have patterns above every bound.
+    ok = cw > 0
+    ok &= x.view(ut) < np.array(w, p.dtype).view(ut)
+    ok &= y.view(ut) < np.array(h, p.dtype).view(ut)
+    ok &= r.view(ut) <= np.array(1, p.dtype).view(ut)
+    i = np.flatnonzero(ok)  # = point * k + view
+    col = x.reshape(-1).take(i).astype(np.intp)
+    row = y.reshape(-1).take(i).astype(np.intp)
+    # float rounding can put x == w after the test on the unrounded value; clamp.
+    np.minimum(col, w - 1, out=col)
+    np.minimum(row, h - 1, out=row)
+    flat = (i % k * h + row) * w + col
+    return flat, r.reshape(-1).take(i) + dt(0.0)
+
+
+def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
+    """Yield the warped depth maps pass by pass: ``(view indices, maps (k, H, W))``.
+
+    Parameters as :func:`warp`. Each pass traverses all points once and renders
+    ``views_per_pass`` maps (the last pass may have fewer).
+    """
+    p = _points(points)
+    m = _views(views)
+    h, w = _check_resolution(resolution)
+    nv = m.shape[0]
+    k = nv if views_per_pass is None else views_per_pass
+    k = min(positive_int(k, "views_per_pass"), nv)
+    udt = _uint_of(p.dtype)
+    starts = range(0, nv, k)
+    if progress:
+        import sys
+
+        from tqdm import tqdm
+
+        starts = tqdm(starts, desc="warp", unit="pass", file=sys.stderr, disable=None, leave=False)
+    for s in starts:
+        sel = np.arange(s, min(s + k, nv))
+        buf = np.zeros(sel.size * h * w, udt)
+        mt = _stacked(m[sel].astype(p.dtype))
+        step = max(1, _BLOCK // sel.size)
+        for lo in range(0, p.shape[0], step):  # each block straight into the z-buffer, no concatenation
+            _zmax_into(buf, *_texel_block(p[lo:lo + step], mt, sel.size, h, w))
+        r = buf.view(p.dtype).reshape(sel.size, h, w)
+        # Back to NDC depth: z = 1 - 2 r (empty texels, r = 0, become 1 = far).
+        yield sel, (p.dtype.type(1) - p.dtype.type(2) * r)
+
+
+def warp(points, views, resolution, views_per_pass=None, progress=False):
+    """Render one depth map per light-sample view from points (VWSS §3.2).
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+        World positions (:class:`~moments_ref.techniques.vwss.points.PointCloud.positions`);
+        float32 points are projected in float32 and give float32 maps.
+        NaN or inf coordinates raise :class:`InputError`. N = 0 is allowed.
+    views : LightSamples or (V, 4, 4) float array
+        View-projection matrices of the light samples.
+    resolution : int or (H, W)
+        Depth-map size.
+    views_per_pass : int, optional
+        Maps rendered per traversal of the points: 1 = serial, 1 < k < V =
+        partially parallel, None or V = fully parallel. The maps do not depend on it.
+    progress : bool
+        Show a tqdm bar over the passes (stderr).
+
+    Returns
+    -------
+    depth : (V, H, W) float array
+        NDC depth of the nearest point per texel, in [−1, 1]; 1 (far) where no
+        point landed. Views that see no point are entirely 1: a documented empty
+        result, not an error.
+
+    Notes
+    -----
+    VWSS Listing 2: per point and view ``cp = mul(wp, viewToLight)``, perspective
+    divide, nearest texel, ``InterlockedMax(asuint(z))`` on reversed-z depth
+    (see :func:`zbuffer_max` and the module docstring).
+    """
+    p = _points(points)
+    h, w = _check_resolution(resolution)
+    m = _views(views)
+    out = np.empty((m.shape[0], h, w), p.dtype)
+    for sel, maps in warp_passes(p, m, (h, w), views_per_pass, progress):
+        out[sel] = maps
+    return out

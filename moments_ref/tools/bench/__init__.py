@@ -1,0 +1,531 @@
+"""``moments-ref bench``: throughput of the kernels beside a same-run memory copy.
+
+Every kernel is timed on square inputs (2048² by default) and compared with
+``np.copyto`` of the same number of bytes (inputs read plus outputs written),
+measured in the same run right before it. The ratio ``copy time / kernel time``
+says how far a kernel is from being memory bound (1 = as fast as a copy; the
+foundation issue's target for float32 ``shadow_intensity`` is 1/20 = 0.05).
+Times are the best of a few repetitions (the minimum is the least noisy
+estimate of the cost on a shared machine).
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ...gpu import filtering
+from ...gpu import onchip as _onchip
+from ...techniques.vwss import warp
+from ._targets import run_targets, targets_markdown
+
+__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time", "bench_filtering",
+           "bench_onchip", "bench_entries", "run_targets", "targets_markdown"]
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """One timed kernel: ``setup(size, dtype) -> args``; ``fn(*args)``; bytes in and out per element."""
+
+    name: str
+    dtype: str
+    setup: Callable
+    fn: Callable
+    bytes_per_element: int
+    note: str = ""
+    #: Elements for a ``size`` argument (default ``size²``: texels or fragments).
+    count: Callable = staticmethod(lambda size: size * size)
+    unit: str = "elem"
+
+
+def best_time(fn, *args, repeat=3):
+    """Best wall time of ``fn(*args)`` over ``repeat`` runs, in seconds."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn(*args)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def copy_seconds(nbytes, repeat=3):
+    """Time of copying ``nbytes`` bytes between two preallocated buffers (``np.copyto``).
+
+    A kernel reading ``a`` bytes and writing ``c`` bytes moves ``a + c`` bytes;
+    a copy of ``(a + c) / 2`` bytes also moves ``a + c``. We copy half the
+    bytes so both sides count the same traffic.
+    """
+    n = max(1, nbytes // 2)
+    src = np.ones(n, dtype=np.uint8)
+    dst = np.empty_like(src)
+    return best_time(np.copyto, dst, src, repeat=repeat)
+
+
+def _moments_input(size, dtype):
+    from ...moments import BIAS_FLOAT32, bias_moments, power_moments
+
+    rng = np.random.default_rng(1)
+    z = rng.uniform(-1, 1, (size, size, 4))
+    b = bias_moments(power_moments(z), BIAS_FLOAT32).astype(dtype)
+    zf = rng.uniform(-1, 1, (size, size)).astype(dtype)
+    return b, zf
+
+
+def _setup_msm(size, dtype):
+    return _moments_input(size, dtype)
+
+
+def _setup_encode(size, dtype):
+    return (_moments_input(size, dtype)[0],)
+
+
+def _setup_decode(size, dtype):
+    from ...affine import encode_unorm16
+
+    return encode_unorm16(_moments_input(size, "float64")[0]), np.dtype(dtype)
+
+
+def _fn_msm(b, zf):
+    from ...msm import shadow_intensity
+
+    return shadow_intensity(b, zf)
+
+
+def _fn_encode(b):
+    from ...affine import encode_unorm16
+
+    return encode_unorm16(b)
+
+
+def _fn_decode(u, dtype):
+    from ...affine import decode_unorm16
+
+    return decode_unorm16(u, dtype=dtype)
+
+
+def _setup_raster(samples):
+    def setup(size, dtype):
+        from ...scene.raster import _small_triangles
+
+        n = size * size // 4
+        v, t = _small_triangles(n, 1024, 4.0, np.random.default_rng(0))
+        return v, t, samples
+
+    return setup
+
+
+def _fn_raster(v, t, samples):
+    from ...scene.raster import rasterize_depth
+
+    return rasterize_depth(v, t, np.eye(4), 1024, samples=samples)
+
+
+def _setup_representation(size, dtype):
+    from ...moments import BIAS_FLOAT32, bias_moments
+    from ...nonlinear import phi
+
+    b, zf = _moments_input(size, "float64")
+    return phi(bias_moments(b, BIAS_FLOAT32)).astype(dtype), zf.astype(dtype)
+
+
+def _setup_phi(size, dtype):
+    return (_moments_input(size, dtype)[0],)
+
+
+def _setup_pack(size, dtype):
+    return (_setup_representation(size, dtype)[0],)
+
+
+def _setup_unpack32(size, dtype):
+    from ...packing import pack32
+
+    return pack32(_setup_representation(size, "float64")[0]), np.dtype(dtype)
+
+
+def _fn_phi(b):
+    from ...nonlinear import phi
+
+    return phi(b)
+
+
+def _fn_shade(r, zf):
+    from ...nonlinear import shade
+
+    return shade(r, zf)
+
+
+def _fn_pack32(r):
+    from ...packing import pack32
+
+    return pack32(r)
+
+
+def _fn_unpack32(p, dtype):
+    from ...packing import unpack32
+
+    return unpack32(p, dtype=dtype)
+
+
+def _core_benchmarks():
+    out = []
+    for dt, w in (("float32", 4), ("float64", 8)):
+        out.append(Benchmark("shadow_intensity", dt, _setup_msm, _fn_msm, 6 * w, "4 + 1 floats in, 1 out"))
+        out.append(Benchmark("encode_unorm16", dt, _setup_encode, _fn_encode, 4 * w + 8, "4 floats in, 4 uint16 out"))
+        out.append(Benchmark("decode_unorm16", dt, _setup_decode, _fn_decode, 8 + 4 * w, "4 uint16 in, 4 floats out"))
+    out += [
+        Benchmark("phi (Algorithm 2)", "float32", _setup_phi, _fn_phi, 32, "4 floats in, 4 out"),
+        Benchmark("shade (Algorithm 3)", "float32", _setup_representation, _fn_shade, 24,
+                  "5 floats in, 1 out; target 1/20 of the copy"),
+        Benchmark("pack32", "float32", _setup_pack, _fn_pack32, 20, "4 floats in, 1 uint32 out"),
+        Benchmark("unpack32", "float32", _setup_unpack32, _fn_unpack32, 20, "1 uint32 in, 4 floats out"),
+    ]
+    for s in (1, 4):
+        # Triangles in: 3 vertices of 4 float32 each; a 1024² map out, amortized per triangle.
+        out.append(Benchmark(f"rasterize_depth {s}x MSAA", "float32", _setup_raster(s), _fn_raster, 48 + 16 * s,
+                             "size²/4 small triangles (about 4 px wide) into a 1024² map; target 2 M/s",
+                             count=lambda size: size * size // 4, unit="tri"))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# The filtering, on-chip and VWSS kernels (the bench imports what it measures)
+
+
+def _timed(fn, *args):
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, time.perf_counter() - t0
+
+
+def bench_filtering(size=2048, samples=4, onchip=True):
+    """Time the global path (resolve, then blur) and the on-chip emulation.
+
+    Parameters
+    ----------
+    size : int
+        Side of the square shadow map (HPG17 §5 uses 2048²).
+    samples : int
+        MSAA samples per texel (4 in HPG17 §5).
+    onchip : bool
+        Also time :func:`moments_ref.gpu.onchip.filter_moments` per stage.
+
+    Returns
+    -------
+    results : dict
+        ``{"size", "samples", "texels", "global_resolve_s", "global_blur_s",
+        "global_total_s", "global_mtexels_per_s"}`` and, with ``onchip``, the
+        on-chip stage times ``"onchip_<stage>_s"``, ``"onchip_total_s"``,
+        ``"onchip_mtexels_per_s"`` and ``"max_abs_difference"`` between the two
+        paths. Wall-clock seconds of one run on this machine (NumPy, CPU).
+    """
+    depth = filtering.bench_depth_map(size, samples)
+    out = {"size": int(size), "samples": int(samples), "texels": int(size) * int(size)}
+    b, t_resolve = _timed(filtering.resolve_moments, depth)
+    ref, t_blur = _timed(filtering.blur, b)
+    out["global_resolve_s"] = t_resolve
+    out["global_blur_s"] = t_blur
+    out["global_total_s"] = t_resolve + t_blur
+    out["global_mtexels_per_s"] = out["texels"] / out["global_total_s"] / 1e6
+    if onchip:
+        f, times = _onchip_timed(depth)
+        out.update(times)
+        out["max_abs_difference"] = float(np.max(np.abs(f - ref)))
+    return out
+
+
+def _onchip_timed(depth):
+    """:func:`moments_ref.gpu.onchip.filter_moments` of ``depth`` and its ``onchip_*`` timings."""
+    stages = {}
+    t0 = time.perf_counter()
+    f = _onchip.filter_moments(depth, timings=stages)
+    total = time.perf_counter() - t0
+    out = {f"onchip_{k}_s": v for k, v in stages.items()}
+    out["onchip_total_s"] = total
+    out["onchip_mtexels_per_s"] = depth.shape[0] * depth.shape[1] / total / 1e6
+    return f, out
+
+
+def _bench_setup_depth(size, dtype):
+    return (filtering.bench_depth_map(size, 4, dtype),)
+
+
+def _bench_setup_moments(size, dtype):
+    return (filtering.resolve_moments(filtering.bench_depth_map(size, 4, dtype)),)
+
+
+def _global_path(z):
+    return filtering.blur(filtering.resolve_moments(z))
+
+
+def _filtering_entries():
+    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.tools.bench`): resolve, blur, both.
+
+    Inputs are 4× MSAA float32 depth maps of ``size²`` texels; bytes per texel
+    count the samples read and the moments written.
+    """
+    return [
+        Benchmark("resolve_moments (4x MSAA)", "float32", _bench_setup_depth, filtering.resolve_moments, 16 + 16,
+                  "4 depths in, 4 float32 moments out"),
+        Benchmark("blur 9x9 reference", "float64", _bench_setup_moments, filtering.blur, 16 + 32,
+                  "float32 moments in, float64 out, two passes, clamp-to-edge"),
+        Benchmark("resolve+blur global path", "float32", _bench_setup_depth, _global_path, 16 + 32,
+                  "4 depths in, float64 moments out"),
+    ]
+
+
+def bench_onchip(size=2048, samples=4):
+    """Seconds per stage of :func:`filter_moments` on the benchmark map of :func:`moments_ref.gpu.filtering.bench_depth_map`."""
+    return _onchip_timed(filtering.bench_depth_map(size, samples))[1]
+
+
+def _bench_nlq64(z):
+    return _onchip.filter_and_quantize(z, "nlq64")
+
+
+def _onchip_entries():
+    """Benchmarks for ``moments-ref bench`` (:mod:`moments_ref.tools.bench`): the on-chip emulation.
+
+    4× MSAA float32 depth maps of ``size²`` texels.
+    """
+    out = [
+        Benchmark("onchip filter_moments (4x MSAA)", "float32", _bench_setup_depth, _onchip.filter_moments, 16 + 16,
+                  "4 depths in, 4 float32 moments out, block-wise shared-memory emulation"),
+    ]
+    out.append(Benchmark("onchip filter_and_quantize nlq64", "float32", _bench_setup_depth, _bench_nlq64, 16 + 8,
+                         "4 depths in, 64-bit NLQ texel out"))
+    return out
+
+
+def _bench_zbuffer_setup(size, dtype):
+    rng = np.random.default_rng(3)
+    n = size * size
+    n_texels = 16 * 1024 * 1024 if size >= 1024 else 1 << 20
+    idx = rng.integers(0, n_texels, n).astype(np.intp)
+    z = rng.uniform(0, 1, n).astype(dtype)
+    return np.zeros(n_texels, warp._uint_of(dtype)), idx, z
+
+
+def _bench_zbuffer_fn(buf, idx, z):
+    buf[:] = 0
+    warp._zmax_into(buf, idx, z)
+
+
+def _bench_warp_setup(size, dtype):
+    """size² point-view updates: 16 views of 512², points on a tilted disc in front of them."""
+    from ...scene import AreaLight
+    from ...techniques.vwss.lights import light_views
+
+    light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
+    views = light_views(light, 16, 1.0, 5.0, seed=0)
+    n = max(1, size * size // 16)
+    rng = np.random.default_rng(4)
+    a = rng.uniform(0, 2 * np.pi, n)
+    rad = 1.5 * np.sqrt(rng.uniform(0, 1, n))
+    pts = np.stack([rad * np.cos(a), 2.0 + 0.2 * rad * np.sin(a), rad * np.sin(a)], -1).astype(dtype)
+    return pts, views.view_proj, 512
+
+
+def _bench_warp_fn(pts, vp, res):
+    for _ in warp.warp_passes(pts, vp, res, views_per_pass=8):
+        pass
+
+
+def _bench_mvr_setup(size, dtype):
+    """size² triangle-views: 4 views of 1024², size²/4 small triangles (about 4 pixels each)."""
+    from ...scene import AreaLight, torus_knot
+    from ...techniques.vwss.lights import light_views
+
+    light = AreaLight(center=(0, 4, 0), normal=(0, -1, 0), width=1.0, height=1.0, up=(0, 0, -1), fov=90)
+    views = light_views(light, 4, 1.0, 5.0, seed=0)
+    n_tri = max(64, size * size // 4)
+    sides = 32
+    segments = max(2, n_tri // (2 * sides))
+    knot = torus_knot(p=2, q=3, radius=1.1, tube=0.14, segments=segments, sides=sides)
+    v = knot.vertices + np.array([0.0, 1.5, 0.0])
+    return v, knot.triangles, views.view_proj, 1024, np.dtype(dtype)
+
+
+def _bench_mvr_fn(v, t, vp, res, dtype):
+    from ...techniques.vwss.mvr import mvr
+
+    mvr(v, t, vp, res, dtype=dtype)
+
+
+def _vwss_entries():
+    """Benchmarks for ``moments-ref bench``: z-buffer atomics, full warp, MVR.
+
+    The bench's element count is ``size²``; here an element is one point-view
+    update (``zbuffer_max`` / ``warp``) or one triangle-view (``mvr``), so
+    ``Melem/s`` reads directly as warp updates or MVR triangles per second.
+    """
+    return [
+        Benchmark("vwss zbuffer_max (np.maximum.at)", "float32", _bench_zbuffer_setup, _bench_zbuffer_fn, 12,
+                  "element = 1 update: index 8 B + depth 4 B in, random texel of a 64 MB map"),
+        Benchmark("vwss warp (project+snap+zbuffer)", "float32", _bench_warp_setup, _bench_warp_fn, 8,
+                  "element = 1 point-view update; 16 views of 512^2, 8 per pass"),
+        Benchmark("vwss mvr (rasterize_depth)", "float32", _bench_mvr_setup, _bench_mvr_fn, 4,
+                  "element = 1 triangle-view; torus knot, 4 views of 1024^2"),
+    ]
+
+
+def _extra_benchmarks():
+    """Benchmarks of the GPU-emulation and VWSS modules."""
+    return _filtering_entries() + _onchip_entries() + _vwss_entries()
+
+
+BENCHMARKS = _core_benchmarks()
+
+
+def run(size=2048, quick=False, only=None, progress=None, repeat=None):
+    """Run the benchmarks; return one dict per benchmark.
+
+    Parameters
+    ----------
+    size : int
+        Side of the square inputs (elements = size²).
+    quick : bool
+        One repetition and at most 512² (a smoke run).
+    only : list of str, optional
+        Run benchmarks whose ``name`` contains one of these strings.
+    progress : callable, optional
+        ``progress(total)`` returning a context manager with ``update(n)`` (tqdm).
+    """
+    if quick:
+        size = min(size, 512)
+    repeat = repeat or (1 if quick else 3)
+    benches = bench_entries()
+    if only:
+        benches = [b for b in benches if any(o in b.name for o in only)]
+    rows = []
+    bar = progress(len(benches)) if progress else None
+    try:
+        for bm in benches:
+            args = bm.setup(size, bm.dtype)
+            n = bm.count(size)
+            t = best_time(bm.fn, *args, repeat=repeat)
+            nbytes = n * bm.bytes_per_element
+            tc = copy_seconds(nbytes, repeat=max(repeat, 3))
+            rows.append({
+                "name": bm.name, "dtype": bm.dtype, "elements": n, "seconds": t,
+                "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": tc,
+                "ratio_to_copy": tc / t, "note": bm.note, "unit": bm.unit,
+            })
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return rows
+
+
+def end_to_end(size=2048, samples=4, repeat=1):
+    """Time a ``size²`` ``samples``× MSAA depth map -> filtered NLQ64 texture, by stage.
+
+    The global path of HPG17 §4 as the reference computes it: resolve
+    (:func:`~moments_ref.gpu.filtering.resolve_moments`, float32), the 9×9 Gaussian
+    (:func:`~moments_ref.gpu.filtering.blur`, float64 reference, cast to float32 like
+    the shader's registers), bias with ``BIAS_FLOAT32`` and Φ
+    (:func:`~moments_ref.nonlinear.phi`), pack (:func:`~moments_ref.packing.pack64`);
+    and beside it the on-chip emulation (:func:`~moments_ref._onchip.filter_moments`)
+    followed by the same Φ and pack. Returns a list of dicts
+    ``{path, stage, seconds, share}``; shares are of the path's total.
+    """
+    from ...gpu.filtering import bench_depth_map, blur, resolve_moments
+    from ...moments import BIAS_FLOAT32, bias_moments
+    from ...nonlinear import phi
+    from ...gpu.onchip import filter_moments
+    from ...packing import pack64
+
+    z = bench_depth_map(size, samples, np.float32)
+    state = {}
+
+    def timed(path, stage, fn):
+        best = float("inf")
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            state[stage] = fn()
+            best = min(best, time.perf_counter() - t0)
+        return {"path": path, "stage": stage, "seconds": best}
+
+    rows = [
+        timed("global", "resolve", lambda: resolve_moments(z)),
+        timed("global", "blur", lambda: blur(state["resolve"]).astype(np.float32)),
+        timed("global", "bias + phi", lambda: phi(bias_moments(state["blur"], BIAS_FLOAT32))),
+        timed("global", "pack64", lambda: pack64(state["bias + phi"])),
+        timed("onchip", "filter_moments (resolve + blur in blocks)", lambda: filter_moments(z)),
+    ]
+    rows.append(timed("onchip", "bias + phi ", lambda: phi(bias_moments(
+        state["filter_moments (resolve + blur in blocks)"], BIAS_FLOAT32))))
+    rows.append(timed("onchip", "pack64 ", lambda: pack64(state["bias + phi "])))
+    for path in ("global", "onchip"):
+        total = sum(r["seconds"] for r in rows if r["path"] == path)
+        for r in rows:
+            if r["path"] == path:
+                r["share"] = r["seconds"] / total
+        rows.append({"path": path, "stage": "total", "seconds": total, "share": 1.0})
+    return rows
+
+
+def end_to_end_markdown(rows, size, samples):
+    lines = [
+        f"## End to end: {size}² {samples}× MSAA depth map -> NLQ64 texture (target: 3 s or less on one core)",
+        "",
+        "| path | stage | seconds | share |",
+        "|---|---|---:|---:|",
+    ]
+    for r in rows:
+        lines.append(f"| {r['path']} | {r['stage'].strip()} | {r['seconds']:.3f} | {100 * r['share']:.0f}% |")
+    return "\n".join(lines) + "\n"
+
+
+def conformance_markdown(repeat=3):
+    """Timing of one conformance run per golden case on the OpenGL context (llvmpipe here)."""
+    from ...conformance import ContextError, bench_conformance
+
+    try:
+        rows = bench_conformance(repeat=repeat)
+    except ContextError as exc:
+        return f"## Conformance runs\n\nskipped: no OpenGL 4.3 context ({exc})\n"
+    lines = [f"## Conformance runs per golden case ({rows[0]['renderer'] if rows else '-'}), best of {repeat}", "",
+             "| case | function | rows | compile s | upload s | dispatch s | readback s |",
+             "|---|---|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['case']} | {r['function']} | {r['rows']} | {r['compile_s']:.4f} | {r['upload_s']:.5f} | "
+                     f"{r['dispatch_s']:.5f} | {r['readback_s']:.5f} |")
+    return "\n".join(lines) + "\n"
+
+
+def markdown(rows):
+    """A markdown table of :func:`run`'s rows (empty string for no rows)."""
+    import platform
+
+    if not rows:
+        return ""
+
+    lines = [
+        f"# moments-ref bench ({platform.machine()}, numpy {np.__version__}, one thread of Python)",
+        "",
+        "ratio = time of a memory copy of the same bytes (same run) / kernel time; 1 = copy bound.",
+        "",
+        "| kernel | dtype | elements | seconds | M/s | MB moved | copy s | ratio to copy | note |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['name']} | {r['dtype']} | {r['elements']} {r['unit']} | {r['seconds']:.4f} | {r['melem_per_s']:.1f} | "
+            f"{r['mbytes']:.1f} | {r['copy_seconds']:.4f} | {r['ratio_to_copy']:.3f} (1/{1 / r['ratio_to_copy']:.0f}) | "
+            f"{r['note']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def bench_entries():
+    """Every benchmark of ``moments-ref bench``: the core kernels, filtering, on-chip emulation, VWSS."""
+    return BENCHMARKS + _extra_benchmarks()
