@@ -27,7 +27,8 @@ def test_moments_affine_are_the_moments_of_the_mapped_depths(dist, so):
     s, o = so
     b = power_moments(z, w, n=6)
     direct = power_moments(s * z + o, w, n=6)
-    assert np.allclose(D.moments_affine(b, s, o), direct, rtol=0, atol=1e-13)
+    # s z + o may leave [-1, 1] (2 z - 1 reaches -3): moments up to 3^6, error relative to them
+    assert np.allclose(D.moments_affine(b, s, o), direct, rtol=1e-12, atol=1e-13)
 
 
 @given(depth_distributions(max_points=4))
