@@ -3,7 +3,7 @@
 Independent references: the closed-form visibility of a rectangle parallel to
 a rectangular light (overlap of two rectangles), moments computed by
 definition, the multi-view rasterization (MVR) reference of moments_ref.techniques.vwss,
-and vwss.shading.linear_depth for the depth conversion.
+and the light matrix's own w_clip for the depth conversion.
 """
 
 import itertools
@@ -111,17 +111,20 @@ def test_a_third_of_the_soft_bias_is_not_enough():
 
 
 def test_frustum_is_read_back_from_the_matrix():
-    from moments_ref.techniques.vwss.shading import linear_depth
-
     fr = msm_soft.LightFrustum.from_view_proj(LIGHT, VP, (128, 256))
     assert fr.near == pytest.approx(NEAR) and fr.far == pytest.approx(FAR)
     assert fr.tan_half_fov == pytest.approx((np.tan(np.radians(30)),) * 2)
     assert fr.extent == pytest.approx((1.0, 0.6))  # width along the columns
-    z = np.linspace(-1, 1, 11)
-    np.testing.assert_allclose(fr.view_depth(z), linear_depth(z, NEAR, FAR))
-    np.testing.assert_allclose(fr.ndc_depth(fr.view_depth(z)), z, atol=1e-12)
-    np.testing.assert_allclose(fr.linear_to_view(fr.linear_depth(z)), fr.view_depth(z))
-    assert fr.linear_depth(1.0) == pytest.approx(1.0) and fr.linear_depth(-1.0) == pytest.approx(-1.0)
+    # points along the light's axis at known distances: the matrix's NDC depth, read back
+    d = np.linspace(NEAR, FAR, 11)
+    hom = np.c_[LIGHT.center + d[:, None] * LIGHT.normal, np.ones(11)] @ np.asarray(VP).T
+    z = hom[:, 2] / hom[:, 3]
+    np.testing.assert_allclose(fr.d_view_from_ndc(z), d, rtol=1e-12)
+    np.testing.assert_allclose(fr.z_ndc_from_view(d), z, atol=1e-12)
+    np.testing.assert_allclose(fr.z_linear_from_ndc(z), np.linspace(-1, 1, 11), atol=1e-12)
+    np.testing.assert_allclose(fr.d_view_from_linear(fr.z_linear_from_ndc(z)), d, rtol=1e-12)
+    with pytest.warns(DeprecationWarning, match="LightFrustum.view_depth"):
+        assert np.array_equal(fr.view_depth(z), fr.d_view_from_ndc(z))
     with pytest.raises(InputError, match="perspective view from the light"):
         msm_soft.LightFrustum.from_view_proj(LIGHT, np.eye(4), (8, 8))
     with pytest.raises(InputError, match="area light"):

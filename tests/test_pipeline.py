@@ -221,7 +221,7 @@ def test_lit_plane_is_unshadowed_by_reference_and_slope_biased_pcf(tmp_path):
     gb, maps = r.values["light_projection"], r.values["raster_shadow_map"]
     assert r.reference["pcf"].max() == 0.0  # receiver-plane depth: exact on the plane
     assert r.shadow["pcf"].max() < 0.02  # PCF's receiver-slope bias
-    acne = pcf_filtered(maps, gb.uv, gb.depth - 1e-3)
+    acne = pcf_filtered(maps, gb.uv, gb.z_ndc_light - 1e-3)
     assert np.median(acne) > 0.3  # surface acne: about half of the footprint lies in front
 
 
@@ -236,13 +236,13 @@ def test_depth_bias_is_the_papers_slope_for_pcf_constant_for_filterable(tmp_path
     r = pipeline.run(str(path), ["pcf", "msm128", "vsm"])
     gb, maps = r.values["light_projection"], r.values["raster_shadow_map"]
     assert gb.slope.min() > 0  # the plane is tilted against the light: the two setups differ
-    slope_biased = gb.depth - SLOPE_BIAS_TEXELS * gb.slope - 1e-3
-    np.testing.assert_array_equal(r.reference["pcf"], pcf_filtered(maps, gb.uv, gb.depth - 1e-3, gradient=gb.gradient))
+    slope_biased = gb.z_ndc_light - SLOPE_BIAS_TEXELS * gb.slope - 1e-3
+    np.testing.assert_array_equal(r.reference["pcf"], pcf_filtered(maps, gb.uv, gb.z_ndc_light - 1e-3, gradient=gb.gradient))
     np.testing.assert_array_equal(r.shadow["pcf"], pcf_filtered(maps, gb.uv, slope_biased))
     for name in ("msm128", "vsm"):
         t = T.get(name)
         tex = r.values[t.steps(r.msaa)[-1].name]
-        np.testing.assert_array_equal(r.shadow[name], t.shadow(tex, gb.uv, gb.depth))  # constant bias only
+        np.testing.assert_array_equal(r.shadow[name], t.shadow(tex, gb.uv, gb.z_ndc_light))  # constant bias only
     # power: on this plane lit at 60° MSM128 self-shadows a little at the constant bias (measured median 0.14)
     # and not with the slope bias, so the two setups are told apart
     assert np.median(r.shadow["msm128"]) > 0.05 > r.shadow["pcf"].max()

@@ -23,6 +23,8 @@ from moments_ref.affine import decode_r10g10b10a2, encode_r10g10b10a2
 from moments_ref.moments import power_moments
 from moments_ref.scene import load_scene
 from moments_ref.techniques import scattering as sc
+from moments_ref.techniques.scattering.epipolar import _bilinear_wrap_rows
+from moments_ref.techniques.scattering.rays import pixel_epipolar
 
 SCENE_RMSE_6M_MEASURED = 0.018  # scattering_6m; 0.013 unfiltered; 0.045 ignoring all shadows
 SCENE_RMSE_6M = 0.03
@@ -284,7 +286,7 @@ def test_moment_bounds_bracket_exact_epipolar_integral(small_scene):
     cam_rays, t_max = rays
     f = sc.epipolar_frame(scene.camera.eye, scene.light.direction, t_max, (64, 128), t_max)
     b = sc.resample_unfiltered(depth, vp, f)
-    uv, z = sc._pixel_epipolar(cam_rays, f)
+    uv, z = pixel_epipolar(cam_rays, f)
     row = np.floor(uv[..., 1]).astype(int) % 64
     x = uv[..., 0]
     k = np.arange(128)
@@ -293,7 +295,7 @@ def test_moment_bounds_bracket_exact_epipolar_integral(small_scene):
     exact = np.where(x < 1, (b[..., 0][row][..., 0] < z), exact)
     P = sc.prefix_means(b)
     u = sc.prefix_lookup_coordinate(x, 128)
-    bb = sc._bilinear_wrap_rows(P, u, row + 0.5)  # the pixel's own row (no filtering across rows)
+    bb = _bilinear_wrap_rows(P, u, row + 0.5)  # the pixel's own row (no filtering across rows)
     lo, up = shadow_bounds(bb, z)
     assert (lo <= exact + 1e-6).all() and (exact <= up + 1e-6).all()
 

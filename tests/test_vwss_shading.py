@@ -15,7 +15,9 @@ from moments_ref.techniques.vwss import compare
 from moments_ref.techniques.vwss.lights import light_views
 from moments_ref.techniques.vwss.mvr import mvr
 from moments_ref.techniques.vwss import shading as pcf
-from moments_ref.techniques.vwss.shading import gbuffer, linear_depth, multiview_visibility, pcss
+from moments_ref.techniques.vwss.shading import multiview_visibility, pcss
+from moments_ref.scene.depth import d_view_from_ndc
+from moments_ref.scene.gbuffer import depth_gbuffer
 
 
 def _light(size=1.0):
@@ -36,11 +38,11 @@ def _exact_edge_visibility(x, light_size, h_light, h_occ):
     return np.clip(0.5 - xl / light_size, 0, 1)
 
 
-def test_linear_depth_inverts_projection():
+def test_view_distance_inverts_the_light_samples_projection():
     ls = light_views(_light(), 1, 0.7, 9.0)
     d = np.linspace(0.7, 9.0, 50)
     p = np.c_[np.zeros(50), 4.0 - d, np.zeros(50), np.ones(50)] @ ls.center_view_proj().T
-    assert np.allclose(linear_depth(p[:, 2] / p[:, 3], 0.7, 9.0), d, rtol=1e-12)
+    assert np.allclose(d_view_from_ndc(p[:, 2] / p[:, 3], 0.7, 9.0), d, rtol=1e-12)
 
 
 _LS = {}
@@ -143,9 +145,10 @@ def test_gbuffer_positions_on_receiver():
     cam = Camera(eye=(0, 3, 4), target=(0, 0, 0), resolution=(40, 30))
     v, t = _quad(-3, 3, -3, 3, 0.0)
     ov, ot = _quad(-0.5, 0.5, -0.5, 0.5, 1.0)
-    gb = gbuffer(v, t, cam.view_proj(), (30, 40), ov, ot)
-    assert gb.receiver.any() and gb.occluder.any() and not (gb.receiver & gb.occluder).any()
-    assert np.allclose(gb.points[:, 1], 0, atol=1e-4)  # depth plane of 1/256-pixel snapped vertices
+    gb = depth_gbuffer(v, t, cam.view_proj(), (30, 40), ov, ot)
+    assert gb.receiver_mask.any() and gb.occluder_mask.any() and not (gb.receiver_mask & gb.occluder_mask).any()
+    assert gb.resolution == (40, 30) and np.array_equal(gb.pixel, np.flatnonzero(gb.receiver_mask))
+    assert np.allclose(gb.position[:, 1], 0, atol=1e-4)  # depth plane of 1/256-pixel snapped vertices
 
 
 def test_shading_bad_input():

@@ -11,7 +11,7 @@ from moments_ref.scene import AreaLight, torus_knot
 from moments_ref.techniques.vwss.lights import depth_range, light_views
 from moments_ref.techniques.vwss.mvr import mvr
 from moments_ref.techniques.vwss.points import generate_points, source_view
-from moments_ref.techniques.vwss.shading import linear_depth
+from moments_ref.scene.depth import d_view_from_ndc
 from moments_ref.tools.bench import bench_entries
 from moments_ref.techniques.vwss import warp as warp_mod
 from moments_ref.techniques.vwss.warp import project_to_texels, warp, zbuffer_max
@@ -225,7 +225,7 @@ def test_layered_points_cover_what_mvr_covers():
     # depth within about a texel: the difference in distance, in units of the texel footprint at that
     # distance (2 d tan(45°) / m), is small for most texels (large only at silhouettes and grazing faces)
     both = cw & cr
-    lw, lr = linear_depth(w_maps[both], near, far), linear_depth(r_maps[both], near, far)
+    lw, lr = d_view_from_ndc(w_maps[both], near, far), d_view_from_ndc(r_maps[both], near, far)
     r = np.abs(lw - lr) / (2 * lr / m)
     assert np.median(r) < 0.25 and np.mean(r <= 1) > 0.8
 

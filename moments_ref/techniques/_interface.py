@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .._arrays import InputError, real_input
-from ..scene.gbuffer import receiver_depth
+from ..scene.gbuffer import z_ndc_lookup
 
 __all__ = [
     "Step",
@@ -254,7 +254,7 @@ def _apply_step(x, step, params):
 
 
 def _shade(tex, gb, noise=None, technique=None):
-    return technique.shadow(tex, gb.uv, receiver_depth(gb, technique.slope_bias), noise=noise)
+    return technique.shadow(tex, gb.uv, z_ndc_lookup(gb, technique.slope_bias), noise=noise)
 
 
 def texture_stages(technique, ctx: PlanContext, settings=None) -> Plan:
@@ -292,7 +292,7 @@ class Technique:
         Subtracted from the fragment depth in :meth:`shadow`.
     slope_bias : bool
         Its shade stage also lowers the fragment depth by the receiver-slope bias
-        (:func:`moments_ref.scene.gbuffer.receiver_depth`): PCF, HPG17 §5's "higher depth
+        (:func:`moments_ref.scene.gbuffer.z_ndc_lookup`): PCF, HPG17 §5's "higher depth
         bias"; the filterable techniques use the constant alone (default False).
     make_steps : callable ``(samples: int, layered: bool) -> tuple[Step, ...]``
         The steps from the shadow map to the texture for a map with ``samples``

@@ -44,9 +44,10 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import positive_int
+from ..claims import find_row
 from ..scene.raster import rasterize_depth
 from .vwss import depth_range, light_near, light_views
-from .vwss.compare import _mvr_iter, _shade_multiview
+from .vwss.mvr import mvr_visibility
 from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
 from ._errormaps import error_maps, visibility_maps
 from .references import intensity_metric
@@ -137,9 +138,7 @@ def _light_samples(scene, cfg):
 def _reference_visibility(gb, scene, cfg):
     occ = _occluder(scene)
     ls_ref = light_views(scene.light, cfg["reference_views"], cfg["near"], cfg["far"], seed=int(cfg["seed"]) + 1000)
-    vis, _, _, _ = _shade_multiview(_mvr_iter(occ.vertices, occ.triangles, ls_ref, cfg["map_size"], False),
-                                    gb.position, ls_ref, cfg["bias"], None)
-    return 1.0 - vis
+    return 1.0 - mvr_visibility(occ.vertices, occ.triangles, ls_ref, cfg["map_size"], gb.position, cfg["bias"])
 
 
 def center_map_stages(ctx, cfg):
@@ -163,10 +162,6 @@ def _reference_stage(ctx, cfg, technique):
 # the report's part: statements, figure, section
 
 
-def _row(rows, scene, tech):
-    return next((r for r in rows if r["scene"] == scene and r["technique"] == tech), None)
-
-
 def soft_statements(rows, scene):
     """Measured statements on the area-light rows of ``scene`` (RMSE against the MVR reference).
 
@@ -174,7 +169,7 @@ def soft_statements(rows, scene):
     number comes from ``rows``; comparisons are stated as measured (ratios),
     not assumed.
     """
-    r = {t: _row(rows, scene, t) for t in ("msm_soft", "pcss", "vwss", "mvr")}
+    r = {t: find_row(rows, scene, t) for t in ("msm_soft", "pcss", "vwss", "mvr")}
     r = {t: v for t, v in r.items() if v is not None}
     if not r:
         return []

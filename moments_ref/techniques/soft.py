@@ -17,7 +17,7 @@ from .vwss import generate_points, multiview_visibility, pcss, source_view
 from .vwss.mvr import mvr
 from .vwss.warp import warp
 from ._interface import PROJECTION, Plan, Stage, Technique, register
-from .area import CENTER_MAP, LIGHT_SAMPLES, _occluder, center_map_stages, samples_stage
+from .area import CENTER_MAP, LIGHT_SAMPLES, center_map_stages, samples_stage
 
 __all__ = ["PCSS", "VWSS", "MVR"]
 
@@ -33,7 +33,7 @@ def _pcss_stages(technique, ctx, cfg):
 
 def _points(ls, scene, cfg):
     # Layered points of the enlarged source view (VWSS Eqs. (1)-(3), back faces culled).
-    occ = _occluder(scene)
+    occ = scene.occluder_mesh(translucent=False)
     return generate_points(occ.vertices, occ.triangles, source_view(ls, cfg["map_size"]))
 
 
@@ -54,7 +54,7 @@ def _vwss_stages(technique, ctx, cfg):
 
 
 def _mvr_maps(ls, scene, cfg):
-    occ = _occluder(scene)
+    occ = scene.occluder_mesh(translucent=False)
     return mvr(occ.vertices, occ.triangles, ls, cfg["map_size"])[0]
 
 

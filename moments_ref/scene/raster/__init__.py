@@ -78,7 +78,7 @@ from ..._arrays import InputError, float_dtype
 from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
-                       project_points, sample_positions)
+                       project_points, sample_positions, unproject_points)
 from ._triangles import _check_mesh, _setup, _vertices
 
 __all__ = [
@@ -91,15 +91,17 @@ __all__ = [
     "frustum",
     "perspective",
     "project_points",
+    "unproject_points",
     "RasterStats",
     "Fragments",
     "rasterize_depth",
     "rasterize_fragments",
     "bench_raster",
+    "small_triangles",
 ]
 
 _ = (_D3D11_PATTERN, MAX_SIZE, SUBPIXEL_BITS, frustum, look_at, orthographic, perspective, project_points,
-     sample_positions, _homogeneous)  # re-exported
+     unproject_points, sample_positions, _homogeneous)  # re-exported
 
 # Triangles set up per chunk: bounds the memory of the per-triangle arrays and keeps
 # them in cache (measured on 1 M small triangles into 1024²: 2^15 gives 2.4 M/s,
@@ -367,8 +369,12 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
 # Benchmark
 
 
-def _small_triangles(n, size, extent, rng):
-    """n random triangles with vertices within `extent` pixels of a random centre, in NDC."""
+def small_triangles(n, size, extent, rng):
+    """n random triangles with vertices within ``extent`` pixels of a random centre, in NDC (benchmark input).
+
+    Returns ``(vertices (3n, 3), triangles (n, 3))``; drawn with an identity matrix they
+    land in a ``size``² map.
+    """
     centre = rng.uniform(extent, size - extent, (n, 1, 2))
     xy = centre + rng.uniform(-extent / 2, extent / 2, (n, 3, 2))
     z = rng.uniform(-0.9, 0.9, (n, 1, 1)) + rng.uniform(-0.05, 0.05, (n, 3, 1))
@@ -410,7 +416,7 @@ def bench_raster(n_triangles=500_000, size=1024, extent=4.0, samples=(1, 4), rep
         plus the parameters.
     """
     rng = np.random.default_rng(seed)
-    v, t = _small_triangles(int(n_triangles), size, float(extent), rng)
+    v, t = small_triangles(int(n_triangles), size, float(extent), rng)
     out = {"n_triangles": int(n_triangles), "size": int(size), "extent_px": float(extent),
            "numpy": np.__version__}
     for S in samples:

@@ -28,7 +28,8 @@ along its normal (:meth:`moments_ref.scene.Scene.shadow_view_proj`, or
 fragments' depths arrive as NDC depths z ∈ [−1, 1] (the package's depth convention,
 docs/architecture.md). Distances
 ``d`` are view depths in world units along the light normal,
-``d = 2 f n / ((f + n) − z (f − n))`` (:meth:`LightFrustum.view_depth`).
+``d = 2 f n / ((f + n) − z (f − n))`` (:meth:`LightFrustum.d_view_from_ndc`,
+:func:`moments_ref.scene.depth.d_view_from_ndc`).
 
 Stored depth. By default (``depth="linear"``) the texture holds the moments of
 the depth *linear in d*, remapped to [−1, 1]: ``z_lin = 2 (d − n)/(f − n) − 1``
@@ -143,8 +144,8 @@ def _steps(samples, layered):
 
 def _lookup(texture, uv, zf, noise):
     # Technique.shadow subtracted DEPTH_BIAS; the receiver itself lies at zf + DEPTH_BIAS.
-    dr = texture.frustum.view_depth(np.asarray(zf, np.float64) + DEPTH_BIAS)
-    return soft_shadow(texture, uv, zf, receiver_depth=dr, dtype=np.float32)
+    dr = texture.frustum.d_view_from_ndc(np.asarray(zf, np.float64) + DEPTH_BIAS)
+    return soft_shadow(texture, uv, zf, d_view_receiver=dr, dtype=np.float32)
 
 
 def _sat_stage(c):

@@ -22,6 +22,8 @@ from ...affine import from_optimized, to_optimized
 from ...gpu.filtering import resolve_moments
 from ...moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments
 from ...msm import canonical_representation, shadow_intensity
+from ..._shim import alias, renamed_keywords
+from ...scene.depth import d_view_from_ndc, z_ndc_from_view
 from ...scene.raster import project_points
 from ...gpu import sat as _sat
 
@@ -130,29 +132,31 @@ class LightFrustum:
         return cls(near=float(near), far=float(far), tan_half_fov=(1 / px, 1 / py), size=(h, w),
                    extent=(float(ext[0]), float(ext[1])))
 
-    def view_depth(self, z):
-        """World distance along the normal of NDC depth z: ``2 f n / ((f + n) − z (f − n))`` (float64)."""
-        z = np.asarray(z, np.float64)
-        n, f = self.near, self.far
-        return 2 * f * n / ((f + n) - z * (f - n))
+    def d_view_from_ndc(self, z_ndc):
+        """View distance (world units along the normal) of the map's NDC depth (:func:`~moments_ref.scene.depth.d_view_from_ndc`)."""
+        return d_view_from_ndc(z_ndc, self.near, self.far)
 
-    def ndc_depth(self, d):
-        """Inverse of :meth:`view_depth`: ``((f + n) − 2 f n / d) / (f − n)`` (float64)."""
-        d = np.asarray(d, np.float64)
-        n, f = self.near, self.far
-        return ((f + n) - 2 * f * n / d) / (f - n)
+    def z_ndc_from_view(self, d_view):
+        """Inverse of :meth:`d_view_from_ndc` (float64)."""
+        return z_ndc_from_view(d_view, self.near, self.far)
 
-    def linear_depth(self, z):
-        """NDC depth -> depth linear in the view distance, on [−1, 1]: ``2 (d − n)/(f − n) − 1`` (float64).
+    def z_linear_from_ndc(self, z_ndc):
+        """The map's NDC depth -> depth linear in the view distance on [−1, 1]: ``2 (d − n)/(f − n) − 1`` (float64).
 
-        NDC 1 (empty texel, far plane) stays 1; NDC −1 (near plane) stays −1.
+        The NDC depth an orthographic map with the same near and far planes would
+        store; NDC 1 (empty texel, far plane) stays 1, −1 (near plane) stays −1.
         """
-        d = self.view_depth(z)
-        return 2 * (d - self.near) / (self.far - self.near) - 1
+        return z_ndc_from_view(self.d_view_from_ndc(z_ndc), self.near, self.far, "orthographic")
 
-    def linear_to_view(self, zl):
-        """Inverse of the linear remap: ``n + (zl + 1)(f − n)/2`` (float64)."""
-        return self.near + (np.asarray(zl, np.float64) + 1) * (self.far - self.near) / 2
+    def d_view_from_linear(self, z_linear):
+        """Inverse of the linear remap: ``n + (z_linear + 1)(f − n)/2`` (float64)."""
+        return d_view_from_ndc(z_linear, self.near, self.far, "orthographic")
+
+    # Old names (DeprecationWarning): the NDC ones did not say which depth they return.
+    view_depth = alias("d_view_from_ndc")
+    ndc_depth = alias("z_ndc_from_view")
+    linear_depth = alias("z_linear_from_ndc")
+    linear_to_view = alias("d_view_from_linear")
 
     @property
     def texels_per_tan(self) -> np.ndarray:
@@ -199,12 +203,15 @@ class SoftShadowMap:
     def stored_depth(self, z_ndc):
         """The stored depth of NDC depths (float64)."""
         z = np.asarray(z_ndc, np.float64)
-        return self.frustum.linear_depth(z) if self.depth == "linear" else z
+        return self.frustum.z_linear_from_ndc(z) if self.depth == "linear" else z
 
-    def view_depth(self, z_stored):
-        """World distance along the normal of a stored depth (float64)."""
+    def d_view_from_stored(self, z_stored):
+        """View distance (world units along the normal) of a stored depth (float64)."""
         z = np.asarray(z_stored, np.float64)
-        return self.frustum.linear_to_view(z) if self.depth == "linear" else self.frustum.view_depth(z)
+        return self.frustum.d_view_from_linear(z) if self.depth == "linear" else self.frustum.d_view_from_ndc(z)
+
+    #: Old name (DeprecationWarning).
+    view_depth = alias("d_view_from_stored")
 
     @property
     def precision_bits(self) -> float:
@@ -287,7 +294,7 @@ def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") ->
     z = check_depth_samples(z).astype(np.float64)
     if _check_depth(depth) == "linear":
         fr = LightFrustum.from_view_proj(light, view_proj, z.shape[:2])
-        z = np.clip(fr.linear_depth(z), -1.0, 1.0)
+        z = np.clip(fr.z_linear_from_ndc(z), -1.0, 1.0)
     return prepare_moments(resolve_moments(z), light, view_proj, max_kernel, depth)
 
 
@@ -353,7 +360,8 @@ def _query_moments(tex, centre, half, dtype):
     return bias_moments(from_optimized(q), tex.bias)
 
 
-def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=EPSILON, details=False):
+@renamed_keywords(receiver_depth="d_view_receiver")
+def soft_shadow(texture, uv, zf, d_view_receiver=None, dtype=np.float32, epsilon=EPSILON, details=False):
     """Shadow intensity of fragments by moment soft shadow mapping.
 
     Parameters
@@ -364,9 +372,9 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     zf : (...) float array
         Fragment NDC depth, depth bias already subtracted (converted to the
         texture's stored depth here).
-    receiver_depth : (...) float array, optional
-        The fragment's view depth ``d_r`` (world units); default
-        ``view_depth(zf)``.
+    d_view_receiver : (...) float array, optional
+        The fragment's view distance ``d_r`` (world units along the light normal);
+        default ``frustum.d_view_from_ndc(zf)``. (Old name ``receiver_depth``, deprecated.)
     dtype : float32 or float64
         Arithmetic of the SAT conversion, the biasing and Algorithm 1
         (float32 emulates the shader). Region geometry is float64.
@@ -400,8 +408,8 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     uvf = np.broadcast_to(uv, shape + (2,)).reshape(-1, 2)
     zff = np.broadcast_to(z, shape).reshape(-1)
     fr = texture.frustum
-    dr = fr.view_depth(zff) if receiver_depth is None else np.broadcast_to(
-        real_input(receiver_depth, "receiver_depth", dtype=np.float64, finite=False), shape).reshape(-1)
+    dr = fr.d_view_from_ndc(zff) if d_view_receiver is None else np.broadcast_to(
+        real_input(d_view_receiver, "d_view_receiver", dtype=np.float64, finite=False), shape).reshape(-1)
     h, w = fr.size
     inside = (np.isfinite(uvf).all(-1) & (uvf[:, 0] >= 0) & (uvf[:, 0] <= w) & (uvf[:, 1] >= 0)
               & (uvf[:, 1] <= h) & np.isfinite(zff) & (zff > -1) & (zff <= 1) & np.isfinite(dr) & (dr > 0))
@@ -414,7 +422,7 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     b = _query_moments(texture, c, s_half, dt)
     zb, blocked = average_blocker_depth(b, zi.astype(dt), epsilon)
     # 2. Penumbra estimate (parallel planes) -> filter region at the blocker depth.
-    db = np.minimum(texture.view_depth(zb.astype(np.float64)), di)
+    db = np.minimum(texture.d_view_from_stored(zb.astype(np.float64)), di)
     f_raw = fr.region_half_extent(db, di)
     f_half = np.clip(f_raw, lo_h, hi_h)
     # 3. One interpolated query over the filter region, Algorithm 1 (lower bound).
@@ -504,8 +512,8 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
     d_r = p @ m[3, :3] + m[3, 3]  # w_clip: distance along the light normal
     b = 0.002 * fr.far if bias is None else float(bias)
     with np.errstate(divide="ignore", invalid="ignore"):
-        zf = np.where(d_r - b > 0, fr.ndc_depth(d_r - b), np.nan)
-    res = soft_shadow(tex, xy, zf, receiver_depth=d_r, dtype=dtype, details=details)
+        zf = np.where(d_r - b > 0, fr.z_ndc_from_view(d_r - b), np.nan)
+    res = soft_shadow(tex, xy, zf, d_view_receiver=d_r, dtype=dtype, details=details)
     if details:
         return 1.0 - res[0], res[1]
     return 1.0 - res

@@ -117,11 +117,10 @@ from ..._arrays import InputError
 from ...affine import encode_r10g10b10a2
 from .._interface import Plan, Reference, Stage, Step, Technique, register, register_reference
 from .._steps import moment_steps
-from .epipolar import _bilinear_wrap_rows  # noqa: F401  (tests check it directly)
 from .epipolar import (AXIS_ANGLE, EPIPOLAR_SIZE, FAR_NDC, EpipolarFrame, deferred_shadow, epipolar_coordinates,
                        epipolar_depth, epipolar_frame, prefix_lookup_coordinate, prefix_means, quantize6,
                        resample_filtered, resample_unfiltered)
-from .rays import (CameraRays, _check_directional, _pixel_epipolar, camera_rays, ray_march, scattering_figure,
+from .rays import (CameraRays, camera_rays, check_directional, pixel_epipolar, ray_march, scattering_figure,
                    scattering_metric, write_images)
 
 __all__ = [
@@ -277,7 +276,7 @@ def _step(x, rays, step, view_proj):
 
 
 def _shade(texture, rays):
-    uv, z = _pixel_epipolar(rays[0], rays[2])
+    uv, z = pixel_epipolar(rays[0], rays[2])
     return rays[0].t_end * (1 - deferred_shadow(texture, uv, z).astype(np.float64))
 
 
@@ -384,7 +383,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     ``lower``, ``upper`` (shadowed fractions), ``texture``, ``frame``,
     ``texel_seconds``, ``fragment_seconds``.
     """
-    _check_directional(scene)
+    check_directional(scene)
     tech = SCATTERING_TECHNIQUES.get(technique, technique) if isinstance(technique, str) else technique
     if not isinstance(tech, Technique) or tech.name not in SCATTERING_TECHNIQUES:
         raise InputError(f"technique: expected one of {', '.join(SCATTERING_TECHNIQUES)}, got {technique!r}")
@@ -394,7 +393,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     t0 = time.perf_counter()
     texture = tech.prepare(depth, {"frame": frame, "view_proj": vp})
     t1 = time.perf_counter()
-    uv, z = _pixel_epipolar(cam_rays, frame)
+    uv, z = pixel_epipolar(cam_rays, frame)
     shadow, lower, upper = deferred_shadow(texture, uv, z, bounds=True)
     t2 = time.perf_counter()
     scat = cam_rays.t_end * (1 - shadow.astype(np.float64))
@@ -422,7 +421,7 @@ def convergence(scene, counts=(16, 32, 64, 128, 256, 512), reference=4096, *, sh
     dict count -> RMSE of ``S / t_max`` over all pixels, and the reference image under
     key ``"reference_image"`` (``S``, (H, W)).
     """
-    _check_directional(scene)
+    check_directional(scene)
     depth, vp, cam_rays, t_max = _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution)
     ref = ray_march(depth, vp, scene.camera.eye, cam_rays, int(reference))
     out = {"reference_image": ref}
@@ -450,7 +449,7 @@ def report_rows(scene, *, shadow_map_size=None, msaa=None, resolution=None, epip
 
     With ``out_dir`` the images are written as ``scattering_<scene>.png``.
     """
-    _check_directional(scene)
+    check_directional(scene)
     params = scene.params or {}
     ref_n = int(reference_samples or params.get("reference_samples", 4096))
     rm_n = int(raymarch_samples or params.get("raymarch_samples", 128))

@@ -21,9 +21,9 @@ import numpy as np
 from ..._arrays import InputError, real_input
 from ...affine import decode_r10g10b10a2, encode_r10g10b10a2, from_optimized6, unorm_to_float
 from ...moments import bias_moments, power_moments
-from ...msm import _two_point
+from ..._kernels import two_point
 from ...msm6 import BIAS6_UNORM10, shadow_bounds
-from ...scene.raster import project_points
+from ...scene.raster import project_points, unproject_points
 from .._interface import bilinear_filtered
 
 __all__ = ["FAR_NDC", "AXIS_ANGLE", "EPIPOLAR_SIZE", "EpipolarFrame", "epipolar_frame", "epipolar_coordinates",
@@ -159,11 +159,7 @@ def _texel_points(frame):
 
 def _light_offset(window_xy, ndc_depth, view_proj, size, frame):
     """Offset a along ω_l (relative to the eye) of shadow-map samples; +inf for no occluder."""
-    h, w = size
-    ndc = np.stack([window_xy[..., 0] * (2.0 / w) - 1, 1 - window_xy[..., 1] * (2.0 / h),
-                    ndc_depth, np.ones_like(ndc_depth)], axis=-1)
-    world = ndc @ np.linalg.inv(view_proj).T
-    world = world[..., :3] / world[..., 3:4]
+    world = unproject_points(window_xy, ndc_depth, view_proj, size)
     a = (world - frame.eye) @ frame.light
     return np.where(ndc_depth >= FAR_NDC, np.inf, a)
 
@@ -205,7 +201,7 @@ def _two_depths(b):
     """HPG17 Algorithm 2 on b1..b3 (b4 dropped): depths y1, y2 and weight v2 (float64)."""
     b1, b2, b3 = b[..., 0], b[..., 1], b[..., 2]
     sigma2 = b2 - b1 * b1
-    y1, y2, v2 = _two_point(b1, b2, b3, sigma2)
+    y1, y2, v2 = two_point(b1, b2, b3, sigma2)
     single = sigma2 <= 8 * np.finfo(np.float64).eps * np.abs(b2)  # one depth: σ² is rounding
     y1 = np.where(single, b1, y1)
     y2 = np.where(single, b1, y2)

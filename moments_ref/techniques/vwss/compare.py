@@ -53,11 +53,13 @@ import numpy as np
 
 from ..._arrays import InputError
 from ...claims import markdown_table, write_json
+from ...scene.depth import d_view_from_ndc
+from ...scene.gbuffer import depth_gbuffer
 from ...scene.raster import rasterize_depth
 from .lights import depth_range, light_near, light_views
 from .mvr import mvr_passes
 from .points import center_view, generate_points, naive_points, source_view
-from .shading import gbuffer, linear_depth, pcf_sum, pcss
+from .shading import pcf_sum, pcss
 from .warp import warp_passes
 from . import paper
 
@@ -159,7 +161,7 @@ def coverage_difference(warped, rasterized, near, far, bias):
     """
     w = np.asarray(warped, np.float64)
     r = np.asarray(rasterized, np.float64)
-    lw, lr = linear_depth(w, near, far), linear_depth(r, near, far)
+    lw, lr = d_view_from_ndc(w, near, far), d_view_from_ndc(r, near, far)
     cov_r, cov_w = r < 1, w < 1
     holes = cov_r & (~cov_w | (lw > lr + bias))
     bloat = cov_w & (~cov_r | (lw < lr - bias))
@@ -333,8 +335,8 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
 
     cam = Camera(sc.camera.eye, sc.camera.target, sc.camera.up, sc.camera.fov, (cw, ch), sc.camera.near,
                  sc.camera.far)
-    gb = gbuffer(sc.receiver.vertices, sc.receiver.triangles, cam.view_proj(), (ch, cw), occ_v, occ_t)
-    P = gb.points
+    gb = depth_gbuffer(sc.receiver.vertices, sc.receiver.triangles, cam.view_proj(), (ch, cw), occ_v, occ_t)
+    P = gb.position
     if P.shape[0] == 0:
         raise InputError(f"scene: no receiver pixel is visible from the camera of {sc.name!r}")
 
@@ -371,15 +373,15 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
     scal = _scaling(sc, near, far, m, int(cfg["scaling_views"]), vpp, seed, progress) if scaling else []
     conv = [(r["views"], r["rmse"]) for r in rows if r["technique"] == "mvr"]
     res = Comparison(rows=rows, statements=[], settings=cfg, scaling=scal, convergence=conv,
-                     coverage=coverage, leaks=leaks, mask=gb.receiver, holes=holes)
+                     coverage=coverage, leaks=leaks, mask=gb.receiver_mask, holes=holes)
     res.claims = paper.claims(res)
     res.statements = [(c.statement, c.verdict == "holds", c.why) for c in res.claims]
-    img = np.full(gb.receiver.shape, np.nan)
+    img = np.full(gb.kind.shape, np.nan)
     for k, v_ in vis.items():
         im = img.copy()
-        im[gb.receiver] = v_
+        im[gb.receiver_mask] = v_
         res.images[k] = im
-    res.images["_occluder"] = gb.occluder
+    res.images["_occluder"] = gb.occluder_mask
     res.depth_images = first_maps
     if out_dir is not None:
         write_outputs(res, out_dir)

@@ -112,10 +112,10 @@ def _fn_decode(u, dtype):
 
 def _setup_raster(samples):
     def setup(size, dtype):
-        from ...scene.raster import _small_triangles
+        from ...scene.raster import small_triangles
 
         n = size * size // 4
-        v, t = _small_triangles(n, 1024, 4.0, np.random.default_rng(0))
+        v, t = small_triangles(n, 1024, 4.0, np.random.default_rng(0))
         return v, t, samples
 
     return setup
@@ -309,12 +309,12 @@ def _bench_zbuffer_setup(size, dtype):
     n_texels = 16 * 1024 * 1024 if size >= 1024 else 1 << 20
     idx = rng.integers(0, n_texels, n).astype(np.intp)
     z = rng.uniform(0, 1, n).astype(dtype)
-    return np.zeros(n_texels, warp._uint_of(dtype)), idx, z
+    return np.zeros(n_texels, warp.zbuffer_dtype(dtype)), idx, z
 
 
 def _bench_zbuffer_fn(buf, idx, z):
     buf[:] = 0
-    warp._zmax_into(buf, idx, z)
+    warp.zmax_into(buf, idx, z)
 
 
 def _bench_warp_setup(size, dtype):

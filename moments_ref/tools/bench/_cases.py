@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...scene.raster import _small_triangles
+from ...scene.raster import small_triangles
 
 __all__ = ["raster_case"]
 
@@ -23,7 +23,7 @@ def raster_case(name):
     kind, *rest = name.split("-")
     samples = int(rest[-1].rstrip("x"))
     if kind == "small":
-        v, t = _small_triangles(int(rest[0]), 1024, 4.0, np.random.default_rng(0))
+        v, t = small_triangles(int(rest[0]), 1024, 4.0, np.random.default_rng(0))
         return v, t, np.eye(4), 1024, samples
     from ...scene import load_scene
 
