@@ -106,7 +106,7 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance"]
+        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
