@@ -11,7 +11,8 @@ Names renamed so that they say which space or frame they hold (``view_proj`` ->
 ``clip_from_world``, ``linear_depth`` -> ``d_view_from_ndc``, ...) keep their old
 spelling for one release too, warning the same way: module names through
 :data:`RENAMED` and :func:`renamed` (a module-level ``__getattr__``), methods and
-attributes through :func:`alias`, keyword arguments through :func:`renamed_keywords`.
+attributes through :func:`alias`, keyword arguments through :func:`renamed_keywords`, keys of
+parameter dicts through :func:`renamed_keys`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from __future__ import annotations
 import importlib
 import warnings
 
-__all__ = ["MOVED", "forward", "RENAMED", "renamed", "alias", "renamed_keywords"]
+__all__ = ["MOVED", "forward", "RENAMED", "renamed", "alias", "renamed_keywords", "renamed_keys"]
 
 #: Old path -> new path, both below ``moments_ref`` (the old paths go in the release after next).
 MOVED = {
@@ -126,3 +127,15 @@ def renamed_keywords(**old_to_new):
         return call
 
     return wrap
+
+
+def renamed_keys(mapping, what, **old_to_new):
+    """``mapping`` with its old keys under their new names (a copy; warns once per old key found)."""
+    if not isinstance(mapping, dict) or not any(k in mapping for k in old_to_new):
+        return mapping
+    out = dict(mapping)
+    for old, new in old_to_new.items():
+        if old in out:
+            _warn(f"{what}[{old!r}]", f"{what}[{new!r}]")
+            out.setdefault(new, out.pop(old))
+    return out

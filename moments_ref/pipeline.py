@@ -45,7 +45,7 @@ techniques are refused, with the reason, on scenes they cannot run on
 
 Lights. A directional light gets its fitted orthographic map (HPG17 §5). An area
 light (scene ``knot``) is used as a spot light from its centre by the hard-shadow
-techniques (:meth:`moments_ref.scene.Scene.shadow_view_proj`).
+techniques (:meth:`moments_ref.scene.Scene.light_clip_from_world`).
 
 References
 ----------
@@ -295,10 +295,10 @@ def _shadow_map(scene, size, samples):
     return scene.shadow_map(size=size, samples=samples)[0]
 
 
-def _layers(opaque, scene, view_proj):
+def _layers(opaque, scene, clip_from_world):
     m = scene.occluder_mesh(translucent=True)
     alpha = scene.occluder_opacity[scene.occluder_translucent]
-    return translucency_pass(opaque, m.vertices, m.triangles, alpha, view_proj)
+    return translucency_pass(opaque, m.vertices, m.triangles, alpha, clip_from_world)
 
 
 def _noise(textures, gb, frame):
@@ -310,11 +310,11 @@ def _base_stages(ctx):
     scene = ctx.scene
     out = [Stage(SHADOW_MAP, _shadow_map, bound=(("scene", scene), ("size", ctx.size), ("samples", ctx.samples))),
            Stage(GBUFFER, camera_gbuffer, bound=(("scene", scene), ("resolution", ctx.resolution))),
-           Stage(PROJECTION, light_projection, (GBUFFER,), bound=(("view_proj", ctx.view_proj), ("size", ctx.size))),
+           Stage(PROJECTION, light_projection, (GBUFFER,), bound=(("clip_from_world", ctx.clip_from_world), ("size", ctx.size))),
            Stage("bluenoise_textures", blue_noise_textures, bound=(("count", ctx.noise_tiles),)),
            Stage(NOISE, _noise, ("bluenoise_textures", PROJECTION), bound=(("frame", ctx.frame),))]
     if ctx.translucent:
-        out.append(Stage(TRANSLUCENCY, _layers, (SHADOW_MAP,), bound=(("scene", scene), ("view_proj", ctx.view_proj))))
+        out.append(Stage(TRANSLUCENCY, _layers, (SHADOW_MAP,), bound=(("scene", scene), ("clip_from_world", ctx.clip_from_world))))
     return out
 
 
@@ -349,7 +349,7 @@ def _context(scene, shadow_map_size, msaa, resolution, params, noise_tiles, fram
     return PlanContext(scene=scene, size=size, samples=scene.msaa if msaa is None else int(msaa),
                        resolution=tuple(scene.camera.resolution) if resolution is None else tuple(resolution),
                        params={**scene.params, **(params or {})},
-                       translucent=bool(np.any(scene.occluder_translucent)), view_proj=scene.shadow_view_proj(),
+                       translucent=bool(np.any(scene.occluder_translucent)), clip_from_world=scene.light_clip_from_world(),
                        noise_tiles=noise_tiles, frame=frame, full=bool(full), given=dict(given))
 
 

@@ -139,3 +139,32 @@ def test_unproject_inverts_project():
     pts = np.random.default_rng(1).uniform(-1, 1, (50, 3))
     xy, z = project_points(pts, m, (90, 160))
     np.testing.assert_allclose(unproject_points(xy, z, m, (90, 160)), pts, atol=1e-9)
+
+
+def test_old_matrix_names_still_work_with_a_deprecation_warning():
+    """view_proj said neither frame: the matrices are clip_from_world now; the old spellings warn and forward."""
+    from moments_ref.scene import load_scene
+    from moments_ref.scene.raster import project_points, rasterize_depth
+    from moments_ref.techniques.vwss import light_views
+
+    sc = load_scene("knot")
+    m = sc.light_clip_from_world()
+    with pytest.warns(DeprecationWarning, match="Scene.shadow_view_proj is now Scene.light_clip_from_world"):
+        assert np.array_equal(sc.shadow_view_proj(), m)
+    with pytest.warns(DeprecationWarning, match="Camera.view_proj"):
+        assert np.array_equal(sc.camera.view_proj(), sc.camera.clip_from_world())
+    ls = light_views(sc.light, 2, 0.5, 5.0)
+    with pytest.warns(DeprecationWarning, match="LightSamples.view_proj"):
+        assert np.array_equal(ls.view_proj, ls.clip_from_world)
+    with pytest.warns(DeprecationWarning, match="LightSamples.center_view_proj"):
+        assert np.array_equal(ls.center_view_proj(), ls.center_clip_from_world())
+    pts = sc.occluder.vertices[:5]
+    with pytest.warns(DeprecationWarning, match=r"project_points\(view_proj=...\)"):
+        old = project_points(pts, view_proj=m, size=64)
+    new = project_points(pts, clip_from_world=m, size=64)
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(old, new))
+    tri = np.array([[0, 1, 2]])
+    v = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.0, 0.5, 0.0]])
+    with pytest.warns(DeprecationWarning):
+        assert np.array_equal(rasterize_depth(v, tri, view_proj=np.eye(4), size=8)[0],
+                              rasterize_depth(v, tri, np.eye(4), 8)[0])

@@ -93,7 +93,7 @@ def test_view_ray_is_a_row_and_shadow_test_is_a_depth_comparison():
 
 
 def test_unfiltered_resampling_of_a_plane():
-    # view_proj = identity: NDC = world, the light travels along +z; occluder plane z = 0.2.
+    # clip_from_world = identity: NDC = world, the light travels along +z; occluder plane z = 0.2.
     f = _frame(eye=(0.05, -0.1, -0.5), rho_max=0.6, size=(16, 32))
     depth = np.full((64, 64, 1), 0.2, dtype=np.float32)
     b = sc.resample_unfiltered(depth, np.eye(4), f)
@@ -173,7 +173,7 @@ def test_quantization_round_trip():
 @pytest.fixture(scope="module")
 def small_scene():
     scene = load_scene("scattering")
-    vp = scene.shadow_view_proj()
+    vp = scene.light_clip_from_world()
     depth, _ = scene.shadow_map(size=(128, 128), samples=4)
     rays = sc.camera_rays(scene, (80, 45))
     ref = sc.ray_march(depth, vp, scene.camera.eye, rays[0], 1024)

@@ -41,7 +41,7 @@ def _exact_edge_visibility(x, light_size, h_light, h_occ):
 def test_view_distance_inverts_the_light_samples_projection():
     ls = light_views(_light(), 1, 0.7, 9.0)
     d = np.linspace(0.7, 9.0, 50)
-    p = np.c_[np.zeros(50), 4.0 - d, np.zeros(50), np.ones(50)] @ ls.center_view_proj().T
+    p = np.c_[np.zeros(50), 4.0 - d, np.zeros(50), np.ones(50)] @ ls.center_clip_from_world().T
     assert np.allclose(d_view_from_ndc(p[:, 2] / p[:, 3], 0.7, 9.0), d, rtol=1e-12)
 
 
@@ -79,7 +79,7 @@ def test_pcss_penumbra_width_follows_parallel_planes():
     P = np.c_[x, np.zeros_like(x), np.zeros_like(x)]
     for h_occ in (1.0, 2.0, 3.0):
         v, t = _quad(-20, 0, -20, 20, h_occ)
-        dm, _ = mvr(v, t, ls.center_view_proj(), 512)
+        dm, _ = mvr(v, t, ls.center_clip_from_world(), 512)
         vis = pcss(P, dm[0], ls, 1e-3)
         width = x[np.argmax(vis >= 0.9)] - x[np.argmax(vis > 0.1)]
         z_r, z_b = 4.0, 4.0 - h_occ  # distances from the light
@@ -110,7 +110,7 @@ def test_pcss_umbra_and_lit_exact_for_every_near_plane(near):
     light = _light(1.0)
     ls = light_views(light, 1, near, 5.0)
     v, t = _quad(-0.6, 0.6, -0.6, 0.6, 2.0)
-    dm, _ = mvr(v, t, ls.center_view_proj(), 256)
+    dm, _ = mvr(v, t, ls.center_clip_from_world(), 256)
     g = np.linspace(-2, 2, 81)
     P = np.c_[np.repeat(g, 81), np.zeros(81 * 81), np.tile(g, 81)]
     exact = _square_occluder_visibility(P, 1.0, 4.0, 2.0, 0.6)
@@ -145,7 +145,7 @@ def test_gbuffer_positions_on_receiver():
     cam = Camera(eye=(0, 3, 4), target=(0, 0, 0), resolution=(40, 30))
     v, t = _quad(-3, 3, -3, 3, 0.0)
     ov, ot = _quad(-0.5, 0.5, -0.5, 0.5, 1.0)
-    gb = depth_gbuffer(v, t, cam.view_proj(), (30, 40), ov, ot)
+    gb = depth_gbuffer(v, t, cam.clip_from_world(), (30, 40), ov, ot)
     assert gb.receiver_mask.any() and gb.occluder_mask.any() and not (gb.receiver_mask & gb.occluder_mask).any()
     assert gb.resolution == (40, 30) and np.array_equal(gb.pixel, np.flatnonzero(gb.receiver_mask))
     assert np.allclose(gb.position[:, 1], 0, atol=1e-4)  # depth plane of 1/256-pixel snapped vertices
@@ -344,7 +344,7 @@ def _pcss_light(views):
     """What pcss reads of LightSamples, with an exact centre view."""
     light = types.SimpleNamespace(width=1.0, height=0.5)
     return types.SimpleNamespace(light=light, near=_NEAR, far=_FAR, fov=math.pi / 2,
-                                 center_view_proj=lambda: views)
+                                 center_clip_from_world=lambda: views)
 
 
 def _brute_pcss(dmap, q, view, samples, bias, blockers, filt, zs):

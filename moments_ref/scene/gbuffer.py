@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import real_input
-from .._shim import alias, renamed
+from .._shim import alias, renamed, renamed_keywords
 from .raster import project_points, rasterize_depth, rasterize_fragments, unproject_points
 
 __all__ = ["GBuffer", "camera_gbuffer", "depth_gbuffer", "light_projection", "z_ndc_lookup", "SLOPE_BIAS_TEXELS", "BACKGROUND",
@@ -99,7 +99,7 @@ def camera_gbuffer(scene, resolution):
     occ_tri = scene.occluder.triangles[keep]
     v = np.concatenate([rec.vertices, scene.occluder.vertices])
     tri = np.concatenate([rec.triangles, occ_tri + rec.vertices.shape[0]])
-    frags, _ = rasterize_fragments(v, tri, scene.camera.view_proj(), (height, width), samples=1, dtype=np.float64)
+    frags, _ = rasterize_fragments(v, tri, scene.camera.clip_from_world(), (height, width), samples=1, dtype=np.float64)
     kind = np.zeros(height * width, dtype=np.int8)
     if len(frags):
         order = np.lexsort((frags.depth, frags.texel))
@@ -173,7 +173,7 @@ def depth_gbuffer(receiver_vertices, receiver_triangles, clip_from_world, size, 
 SLOPE_BIAS_TEXELS = 4.5 * 2**0.5
 
 
-def _plane_gradient(position, normal, view_proj, size):
+def _plane_gradient(position, normal, clip_from_world, size):
     """(∂depth/∂u, ∂depth/∂v) along the receiver plane at each point, light-space depth per texel.
 
     Two tangents of the surface are projected into the shadow map; the depth
@@ -187,9 +187,9 @@ def _plane_gradient(position, normal, view_proj, size):
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
     t2 = np.cross(normal, t1)
     scale = 1e-3 * max(1.0, float(np.abs(position).max()))
-    xy0, z0 = project_points(position, view_proj, size)
-    xy1, z1 = project_points(position + scale * t1, view_proj, size)
-    xy2, z2 = project_points(position + scale * t2, view_proj, size)
+    xy0, z0 = project_points(position, clip_from_world, size)
+    xy1, z1 = project_points(position + scale * t1, clip_from_world, size)
+    xy2, z2 = project_points(position + scale * t2, clip_from_world, size)
     j = np.stack([xy1 - xy0, xy2 - xy0], axis=1)  # (N, 2 tangents, 2 texel axes)
     dz = np.stack([z1 - z0, z2 - z0], axis=1)
     det = j[:, 0, 0] * j[:, 1, 1] - j[:, 0, 1] * j[:, 1, 0]
@@ -216,7 +216,8 @@ def _depth_slope(plane):
     return np.where(finite, slope, slope[finite].max() if finite.any() else 0.0)
 
 
-def light_projection(g, view_proj, size):
+@renamed_keywords(view_proj="clip_from_world")
+def light_projection(g, clip_from_world, size):
     """Texel coordinates, unbiased depth, depth gradient and slope of the receiver points in the shadow map.
 
     ``z_ndc_light`` is the NDC depth itself; ``gradient`` the signed depth change per
@@ -225,13 +226,13 @@ def light_projection(g, view_proj, size):
     :func:`z_ndc_lookup` forms the receiver-slope bias of PCF.
     """
     h, w = size
-    xy, depth = project_points(g.position, view_proj, (h, w))
+    xy, depth = project_points(g.position, clip_from_world, (h, w))
     inside = (np.isfinite(depth) & (depth >= -1) & (depth <= 1)
               & (xy[:, 0] >= 0) & (xy[:, 0] <= w) & (xy[:, 1] >= 0) & (xy[:, 1] <= h))
     kind = g.kind.reshape(-1).copy()
     kind[g.pixel[~inside]] = OUTSIDE_LIGHT
     pos, nrm = g.position[inside], g.normal[inside]
-    plane = _plane_gradient(pos, nrm, view_proj, (h, w))  # once: the gradient and its length
+    plane = _plane_gradient(pos, nrm, clip_from_world, (h, w))  # once: the gradient and its length
     gradient, slope = _depth_gradient(plane), _depth_slope(plane)
     return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
                    position=pos, lambert=g.lambert[inside], normal=nrm,

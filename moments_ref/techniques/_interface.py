@@ -219,7 +219,7 @@ class PlanContext:
     size : (H, W) shadow-map size; samples : MSAA samples; resolution : (width, height)
     params : dict, the scene's ``params`` with the run's overrides
     translucent : bool, the scene has translucent occluders
-    view_proj : (4, 4) the light's shadow-map matrix
+    clip_from_world : (4, 4) the light's shadow-map matrix
     noise_tiles, frame : blue-noise settings (HPG17 §4.2)
     full : bool, paper-scale settings (``moments-ref report --full``)
     given : dict, the settings the caller set explicitly (``shadow_map_size``,
@@ -232,7 +232,7 @@ class PlanContext:
     resolution: tuple
     params: dict
     translucent: bool
-    view_proj: Any
+    clip_from_world: Any
     noise_tiles: int = 64
     frame: int = 0
     full: bool = False

@@ -11,7 +11,7 @@ light samples, the reference of VWSS §4 (reference ``mvr``,
 ``area_center_view``        the light's centre view (``vwss.light_views`` with one
                             sample: the projection, near and far)
 ``area_center_depth_map``   one depth map from the light's centre
-                            (``LightSamples.center_view_proj()``), shared by
+                            (``LightSamples.center_clip_from_world()``), shared by
                             msm_soft and PCSS
 ``shade_pcss``              :func:`moments_ref.techniques.vwss.pcss` (64-tap blocker search,
                             96-tap PCF) on the centre map
@@ -128,7 +128,7 @@ def _center_view(scene, cfg):
 
 def _center_map(ls1, scene, cfg):
     occ = _occluder(scene)
-    return ls1, rasterize_depth(occ.vertices, occ.triangles, ls1.center_view_proj(), cfg["map_size"])[0]
+    return ls1, rasterize_depth(occ.vertices, occ.triangles, ls1.center_clip_from_world(), cfg["map_size"])[0]
 
 
 def _light_samples(scene, cfg):

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._shim import renamed_keywords
 from ..depth import ndc_from_window, window_from_ndc
 
 __all__ = ["SAMPLE_COUNTS", "SUBPIXEL_BITS", "MAX_SIZE", "sample_positions", "look_at", "orthographic", "frustum",
@@ -231,21 +232,22 @@ def _check_size(size) -> tuple[int, int]:
     return h, w
 
 
-def _check_matrix(view_proj) -> np.ndarray:
-    m = real_input(view_proj, "view_proj", dtype=np.float64)
+def _check_matrix(clip_from_world) -> np.ndarray:
+    m = real_input(clip_from_world, "clip_from_world", dtype=np.float64)
     if m.shape != (4, 4):
-        raise InputError(f"view_proj: expected a (4, 4) matrix, got shape {m.shape}")
+        raise InputError(f"clip_from_world: expected a (4, 4) matrix, got shape {m.shape}")
     return m
 
 
-def project_points(points, view_proj, size):
+@renamed_keywords(view_proj="clip_from_world")
+def project_points(points, clip_from_world, size):
     """Window coordinates and NDC depth of world points.
 
     Parameters
     ----------
     points : (..., 3) float array
         World positions.
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         ``projection @ view``.
     size : int or (H, W)
         Map size.
@@ -263,7 +265,7 @@ def project_points(points, view_proj, size):
     Points behind a perspective camera (w ≤ 0) get NaN.
     """
     h, w = _check_size(size)
-    m = _check_matrix(view_proj)
+    m = _check_matrix(clip_from_world)
     p = real_input(points, "points", trailing=3, dtype=np.float64, finite=False)
     hom = _homogeneous(p, m)
     clip, cw = hom[..., :3], hom[..., 3]

@@ -23,8 +23,8 @@ Percentage-closer soft shadows [Fernando 2005] in three steps (Slides,
 Geometry and units
 ------------------
 The single shadow map is the perspective view from the area light's centre
-along its normal (:meth:`moments_ref.scene.Scene.shadow_view_proj`, or
-:meth:`moments_ref.techniques.vwss.LightSamples.center_view_proj`); its samples and the
+along its normal (:meth:`moments_ref.scene.Scene.light_clip_from_world`, or
+:meth:`moments_ref.techniques.vwss.LightSamples.center_clip_from_world`); its samples and the
 fragments' depths arrive as NDC depths z ∈ [−1, 1] (the package's depth convention,
 docs/architecture.md). Distances
 ``d`` are view depths in world units along the light normal,
@@ -83,6 +83,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import renamed_keys
 from .._interface import PROJECTION, Plan, Stage, Step, Technique, register
 from ..area import CENTER_MAP, center_map_stages
 from .artifacts import (ARTIFACT_SCENES, artifact_images, artifact_measurements, ray_cast_visibility,
@@ -121,14 +122,15 @@ _ = (EPSILON, MAX_AUTO_KERNEL, LightFrustum, SoftShadowMap, average_blocker_dept
 
 
 def _params_light(params):
+    params = renamed_keys(params, "params", view_proj="clip_from_world")
     scene = params.get("scene")
     light = params.get("light", getattr(scene, "light", None))
-    vp = params.get("view_proj")
+    vp = params.get("clip_from_world")
     if vp is None and scene is not None:
-        vp = scene.shadow_view_proj()
+        vp = scene.light_clip_from_world()
     if light is None or vp is None:
         raise InputError("params: msm_soft needs the area light and its centre's view: pass params "
-                         "{'scene': scene} or {'light': AreaLight, 'view_proj': (4, 4)}")
+                         "{'scene': scene} or {'light': AreaLight, 'clip_from_world': (4, 4)}")
     return light, vp
 
 
@@ -149,7 +151,7 @@ def _lookup(texture, uv, zf, noise):
 
 
 def _sat_stage(c):
-    return prepare(c[1], c[0].light, c[0].center_view_proj())
+    return prepare(c[1], c[0].light, c[0].center_clip_from_world())
 
 
 def _shade_stage(c, tex, gb, bias):

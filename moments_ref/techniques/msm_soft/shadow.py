@@ -101,7 +101,8 @@ class LightFrustum:
     extent: tuple
 
     @classmethod
-    def from_view_proj(cls, light, view_proj, size):
+    @renamed_keywords(view_proj="clip_from_world")
+    def from_matrix(cls, light, clip_from_world, size):
         """Read near, far and field of view back from ``projection @ look_at`` (OpenGL).
 
         Raises :class:`InputError` for a matrix that is not a symmetric
@@ -111,9 +112,9 @@ class LightFrustum:
             if not hasattr(light, attr):
                 raise InputError(f"light: expected a rectangular area light (moments_ref.scene.AreaLight), "
                                  f"got {type(light).__name__}")
-        m = real_input(view_proj, "view_proj", dtype=np.float64)
+        m = real_input(clip_from_world, "clip_from_world", dtype=np.float64)
         if m.shape != (4, 4):
-            raise InputError(f"view_proj: expected a (4, 4) matrix, got shape {m.shape}")
+            raise InputError(f"clip_from_world: expected a (4, 4) matrix, got shape {m.shape}")
         fwd = m[3, :3]  # w_clip = distance along the viewing direction
         ok = abs(np.linalg.norm(fwd) - 1) < 1e-9 and np.dot(fwd, light.normal) > 1 - 1e-9
         sx, sy = m[0, :3], m[1, :3]
@@ -123,14 +124,17 @@ class LightFrustum:
         b = m[2, 3] + a * m[3, 3]
         near, far = (b / (a - 1), b / (a + 1)) if ok and a not in (1, -1) else (np.nan, np.nan)
         if not (ok and np.isfinite(near) and np.isfinite(far) and 0 < near < far):
-            raise InputError("view_proj: expected a symmetric perspective view from the light along its normal "
-                             "(Scene.shadow_view_proj() or LightSamples.center_view_proj())")
+            raise InputError("clip_from_world: expected a symmetric perspective view from the light along its normal "
+                             "(Scene.light_clip_from_world() or LightSamples.center_clip_from_world())")
         ux, uy = sx / px, sy / py
         ext = (abs(light.tangent @ ux) * light.width + abs(light.bitangent @ ux) * light.height,
                abs(light.tangent @ uy) * light.width + abs(light.bitangent @ uy) * light.height)
         h, w = int(size[0]), int(size[1])
         return cls(near=float(near), far=float(far), tan_half_fov=(1 / px, 1 / py), size=(h, w),
                    extent=(float(ext[0]), float(ext[1])))
+
+    #: Old name (DeprecationWarning).
+    from_view_proj = alias("from_matrix")
 
     def d_view_from_ndc(self, z_ndc):
         """View distance (world units along the normal) of the map's NDC depth (:func:`~moments_ref.scene.depth.d_view_from_ndc`)."""
@@ -240,7 +244,8 @@ def _check_depth(depth):
     return depth
 
 
-def prepare_moments(moments, light, view_proj, max_kernel=None, depth="linear") -> SoftShadowMap:
+@renamed_keywords(view_proj="clip_from_world")
+def prepare_moments(moments, light, clip_from_world, max_kernel=None, depth="linear") -> SoftShadowMap:
     """Build the :class:`SoftShadowMap` from per-texel moments b1..b4.
 
     Parameters
@@ -249,7 +254,7 @@ def prepare_moments(moments, light, view_proj, max_kernel=None, depth="linear") 
         Moments of each texel's stored depths (resolved, unfiltered), of the
         depth named by ``depth``.
     light : AreaLight
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         The map's view from the light's centre.
     max_kernel : int, optional
         Largest region side in texels. Default: the side of the largest search
@@ -265,20 +270,21 @@ def prepare_moments(moments, light, view_proj, max_kernel=None, depth="linear") 
     b = real_input(moments, "moments", trailing=4, dtype=np.float64)
     if b.ndim != 3:
         raise InputError(f"moments: expected an (H, W, 4) array, got shape {b.shape}")
-    fr = LightFrustum.from_view_proj(light, view_proj, b.shape[:2])
+    fr = LightFrustum.from_matrix(light, clip_from_world, b.shape[:2])
     k = _check_kernel(max_kernel, fr)
     table = _sat.build(to_optimized(b), k * k)
     return SoftShadowMap(sat=table, frustum=fr, max_kernel=k, bias=soft_bias(k * k), depth=_check_depth(depth))
 
 
-def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") -> SoftShadowMap:
+@renamed_keywords(view_proj="clip_from_world")
+def prepare(depth_samples, light, clip_from_world, max_kernel=None, depth="linear") -> SoftShadowMap:
     """Resolve a shadow map to moments and build its summed-area table.
 
     Parameters
     ----------
     depth_samples : (H, W) or (H, W, S) float array
         NDC depths in [−1, 1] from the light's centre (1 = empty).
-    light, view_proj, max_kernel, depth
+    light, clip_from_world, max_kernel, depth
         As :func:`prepare_moments`; with ``depth="linear"`` the samples are
         remapped to ``2 (d − n)/(f − n) − 1`` before their moments are taken.
 
@@ -293,9 +299,9 @@ def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") ->
 
     z = check_depth_samples(z).astype(np.float64)
     if _check_depth(depth) == "linear":
-        fr = LightFrustum.from_view_proj(light, view_proj, z.shape[:2])
+        fr = LightFrustum.from_matrix(light, clip_from_world, z.shape[:2])
         z = np.clip(fr.z_linear_from_ndc(z), -1.0, 1.0)
-    return prepare_moments(resolve_moments(z), light, view_proj, max_kernel, depth)
+    return prepare_moments(resolve_moments(z), light, clip_from_world, max_kernel, depth)
 
 
 def average_blocker_depth(b, zf, epsilon=EPSILON):
@@ -452,33 +458,34 @@ def soft_shadow(texture, uv, zf, d_view_receiver=None, dtype=np.float32, epsilon
     return out, info
 
 
-def _resolve_source(source, view_proj):
-    """(light, view_proj) from a Scene, a LightSamples or an AreaLight (+ view_proj)."""
-    if hasattr(source, "center_view_proj") and hasattr(source, "light"):  # vwss.LightSamples
-        return source.light, source.center_view_proj() if view_proj is None else view_proj
-    if hasattr(source, "shadow_view_proj") and hasattr(source, "light"):  # scene.Scene
-        return source.light, source.shadow_view_proj() if view_proj is None else view_proj
-    if view_proj is None:
-        raise InputError(f"view_proj: required with a light of type {type(source).__name__} "
+def _resolve_source(source, clip_from_world):
+    """(light, clip_from_world) from a Scene, a LightSamples or an AreaLight (+ clip_from_world)."""
+    if hasattr(source, "center_clip_from_world") and hasattr(source, "light"):  # vwss.LightSamples
+        return source.light, source.center_clip_from_world() if clip_from_world is None else clip_from_world
+    if hasattr(source, "light_clip_from_world") and hasattr(source, "light"):  # scene.Scene
+        return source.light, source.light_clip_from_world() if clip_from_world is None else clip_from_world
+    if clip_from_world is None:
+        raise InputError(f"clip_from_world: required with a light of type {type(source).__name__} "
                          "(or pass a Scene or vwss.LightSamples)")
-    return source, view_proj
+    return source, clip_from_world
 
 
-def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_kernel=None, dtype=np.float32,
+@renamed_keywords(view_proj="clip_from_world")
+def shade_points(source, depth_map, points, *, clip_from_world=None, bias=None, max_kernel=None, dtype=np.float32,
                  details=False, depth="linear"):
     """Visibility of world points under a rectangular area light by moment soft shadow mapping.
 
     Parameters
     ----------
     source : Scene, vwss.LightSamples or AreaLight
-        The light and the view of its centre's map (``Scene.shadow_view_proj()``,
-        ``LightSamples.center_view_proj()``, or ``view_proj`` with a bare light).
+        The light and the view of its centre's map (``Scene.light_clip_from_world()``,
+        ``LightSamples.center_clip_from_world()``, or ``clip_from_world`` with a bare light).
     depth_map : (H, W) or (H, W, S) float array, or SoftShadowMap
         NDC depths of the occluders rasterized with that view (1 = empty), or
         an already prepared texture.
     points : (P, 3) float array
         World positions of the receivers (e.g. ``vwss.gbuffer(...).points``).
-    view_proj : (4, 4) float array, optional
+    clip_from_world : (4, 4) float array, optional
         Overrides the source's view (required for a bare AreaLight).
     bias : float, optional
         Depth bias in world units along the light normal, default ``0.002·far``
@@ -498,7 +505,7 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
         ``1 − intensity``; 1 for points outside the map or behind the light
         (the convention of :func:`moments_ref.techniques.vwss.pcss`).
     """
-    light, vp = _resolve_source(source, view_proj)
+    light, vp = _resolve_source(source, clip_from_world)
     if isinstance(depth_map, SoftShadowMap):
         tex = depth_map
     else:
@@ -508,7 +515,7 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
         raise InputError(f"points: expected a (P, 3) array, got shape {p.shape}")
     fr = tex.frustum
     xy, _ = project_points(p, vp, fr.size)
-    m = real_input(vp, "view_proj", dtype=np.float64)
+    m = real_input(vp, "clip_from_world", dtype=np.float64)
     d_r = p @ m[3, :3] + m[3, 3]  # w_clip: distance along the light normal
     b = 0.002 * fr.far if bias is None else float(bias)
     with np.errstate(divide="ignore", invalid="ignore"):

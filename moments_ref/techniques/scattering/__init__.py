@@ -114,6 +114,7 @@ import time
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import renamed_keys
 from ...affine import encode_r10g10b10a2
 from .._interface import Plan, Reference, Stage, Step, Technique, register, register_reference
 from .._steps import moment_steps
@@ -158,10 +159,11 @@ _ = (CameraRays, EPIPOLAR_SIZE, prefix_lookup_coordinate, epipolar_coordinates, 
 
 
 def _frame_params(params):
+    params = renamed_keys(params, "params", view_proj="clip_from_world")
     try:
-        return params["frame"], params["view_proj"]
+        return params["frame"], params["clip_from_world"]
     except (KeyError, TypeError):
-        raise InputError("params: the scattering techniques need 'frame' (EpipolarFrame) and 'view_proj' "
+        raise InputError("params: the scattering techniques need 'frame' (EpipolarFrame) and 'clip_from_world' "
                          "(the light's matrix); build them with moments_ref.techniques.scattering.render") from None
 
 
@@ -268,11 +270,11 @@ def _frame(scene, cam_rays, t_max, size):
 
 
 def _march(depth, rays, scene, samples):
-    return ray_march(depth, scene.shadow_view_proj(), scene.camera.eye, rays[0], int(samples))
+    return ray_march(depth, scene.light_clip_from_world(), scene.camera.eye, rays[0], int(samples))
 
 
-def _step(x, rays, step, view_proj):
-    return step.fn(x, {"frame": rays[2], "view_proj": view_proj})
+def _step(x, rays, step, clip_from_world):
+    return step.fn(x, {"frame": rays[2], "clip_from_world": clip_from_world})
 
 
 def _shade(texture, rays):
@@ -291,7 +293,7 @@ def _scattering_stages(technique, ctx, cfg):
     texel = [MAP]
     for step in technique.steps(cfg["msaa"]):
         key = step.key if step.key.startswith("scattering_") else "scattering_" + step.key
-        st = Stage(key, _step, (node, RAYS), bound=(("step", step), ("view_proj", ctx.scene.shadow_view_proj())))
+        st = Stage(key, _step, (node, RAYS), bound=(("step", step), ("clip_from_world", ctx.scene.light_clip_from_world())))
         stages.append(st)
         texel.append(key)
         node = key
@@ -374,7 +376,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     technique : "scattering_6m", "scattering_6m_unfiltered" or a Technique
     shadow_map_size, msaa, resolution, epipolar_size : overrides of the scene's
         settings (``epipolar_size`` also from ``scene.params['epipolar_size']``)
-    shadow_map : (depth (H, W, S), view_proj), optional, reuse a rasterized map
+    shadow_map : (depth (H, W, S), clip_from_world), optional, reuse a rasterized map
     rays : (CameraRays, t_max), optional, reuse camera rays
 
     Returns
@@ -391,7 +393,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     size = epipolar_size or scene.params.get("epipolar_size", EPIPOLAR_SIZE)
     frame = _frame(scene, cam_rays, t_max, size)
     t0 = time.perf_counter()
-    texture = tech.prepare(depth, {"frame": frame, "view_proj": vp})
+    texture = tech.prepare(depth, {"frame": frame, "clip_from_world": vp})
     t1 = time.perf_counter()
     uv, z = pixel_epipolar(cam_rays, frame)
     shadow, lower, upper = deferred_shadow(texture, uv, z, bounds=True)
@@ -404,7 +406,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
 def _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution):
     """The light's depth map and matrix and the camera rays: given ones, or rendered from ``scene``."""
     if shadow_map is None:
-        vp = scene.shadow_view_proj()
+        vp = scene.light_clip_from_world()
         depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
     else:
         depth, vp = shadow_map
@@ -453,7 +455,7 @@ def report_rows(scene, *, shadow_map_size=None, msaa=None, resolution=None, epip
     params = scene.params or {}
     ref_n = int(reference_samples or params.get("reference_samples", 4096))
     rm_n = int(raymarch_samples or params.get("raymarch_samples", 128))
-    vp = scene.shadow_view_proj()
+    vp = scene.light_clip_from_world()
     t0 = time.perf_counter()
     depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
     raster_seconds = time.perf_counter() - t0

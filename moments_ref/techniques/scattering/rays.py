@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import renamed_keywords
 from ...gpu.filtering import check_depth_samples
 from ...metrics import flip_mean
 from ...scene.depth import window_scale, x_window_from_ndc, y_window_from_ndc
@@ -57,7 +58,7 @@ def camera_rays(scene, resolution=None, t_max=None):
     from ...scene.camera import Camera
 
     cam = Camera(cam.eye, cam.target, cam.up, cam.fov, (w, h), cam.near, cam.far)
-    vp = cam.view_proj()
+    vp = cam.clip_from_world()
     verts = np.concatenate([scene.receiver.vertices, scene.occluder.vertices])
     tris = np.concatenate([scene.receiver.triangles, scene.occluder.triangles + scene.receiver.vertices.shape[0]])
     depth, _ = rasterize_depth(verts, tris, vp, (h, w), samples=1, dtype=np.float64)
@@ -104,14 +105,15 @@ def _padded_samples(depth_samples):
     return pad.reshape(-1, s), (h, w, s)
 
 
-def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 17):
+@renamed_keywords(view_proj="clip_from_world")
+def ray_march(depth_samples, clip_from_world, eye, rays, n_samples, chunk=1 << 17):
     """Visibility integral by ray marching through the shadow map (midpoint rule).
 
     Parameters
     ----------
     depth_samples : (H, W, S) float array
         The light's MSAA depth map in [-1, 1] (cleared to 1 = no occluder).
-    view_proj : (4, 4) the light's matrix (orthographic: ``w = 1``)
+    clip_from_world : (4, 4) the light's matrix (orthographic: ``w = 1``)
     eye : (3,) camera position
     rays : CameraRays
     n_samples : int ≥ 1
@@ -136,7 +138,7 @@ def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 17):
     flat, (h, w, s) = _padded_samples(depth_samples)
     dirs = np.asarray(rays.direction, np.float64).reshape(-1, 3)
     t_end = np.asarray(rays.t_end, np.float64).reshape(-1)
-    m = np.asarray(view_proj, dtype=np.float64)
+    m = np.asarray(clip_from_world, dtype=np.float64)
     o = m[:3, :3] @ np.asarray(eye, np.float64) + m[:3, 3]  # clip coordinates of the eye
     # Window coordinates + 1 (the padded map's), affine in t: a + t · b per ray.
     a = np.array([x_window_from_ndc(o[0], w) + 1, y_window_from_ndc(o[1], h) + 1, o[2]])

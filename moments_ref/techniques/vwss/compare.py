@@ -133,7 +133,7 @@ def _shade_multiview(maps_iter, P, ls, bias, keep=None):
         for j, i in enumerate(sel):
             if keep is not None and int(i) in keep:
                 keep[int(i)] = maps[j].copy()
-        acc += pcf_sum(P, maps, ls.view_proj[sel], ls.near, ls.far, bias)
+        acc += pcf_sum(P, maps, ls.clip_from_world[sel], ls.near, ls.far, bias)
         t0 = time.perf_counter()
         t_light += t0 - t1
     return acc / len(ls), t_depth, t_light, covered
@@ -249,7 +249,7 @@ def _prepare(scene, views, quick, map_size, reference_views, camera_size, bias, 
 def _pcss_row(ls, c):
     """PCSS (64-tap blocker search, 96-tap PCF) from the light-centre map: its row and visibility."""
     t0 = time.perf_counter()
-    dmap, _ = rasterize_depth(c["occ_v"], c["occ_t"], ls.center_view_proj(), c["m"])
+    dmap, _ = rasterize_depth(c["occ_v"], c["occ_t"], ls.center_clip_from_world(), c["m"])
     t_d = time.perf_counter() - t0
     vis = pcss(c["P"], dmap[..., 0], ls, c["bias"])
     t_l = time.perf_counter() - t0 - t_d
@@ -335,7 +335,7 @@ def run_detailed(scene="knot", views=None, quick=False, out_dir=None, progress=T
 
     cam = Camera(sc.camera.eye, sc.camera.target, sc.camera.up, sc.camera.fov, (cw, ch), sc.camera.near,
                  sc.camera.far)
-    gb = depth_gbuffer(sc.receiver.vertices, sc.receiver.triangles, cam.view_proj(), (ch, cw), occ_v, occ_t)
+    gb = depth_gbuffer(sc.receiver.vertices, sc.receiver.triangles, cam.clip_from_world(), (ch, cw), occ_v, occ_t)
     P = gb.position
     if P.shape[0] == 0:
         raise InputError(f"scene: no receiver pixel is visible from the camera of {sc.name!r}")

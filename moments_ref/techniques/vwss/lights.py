@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._shim import alias
 from ...scene.raster import look_at, perspective
 
 __all__ = ["poisson_disk", "LightSamples", "check_fov", "check_light", "check_views", "check_resolution", "depth_range",
@@ -148,13 +149,17 @@ class LightSamples:
         return int(self.uv.shape[0])
 
     @property
-    def view_proj(self) -> np.ndarray:
+    def clip_from_world(self) -> np.ndarray:
         """(N, 4, 4) ``projection @ view`` per sample."""
         return self.projection @ self.view
 
-    def center_view_proj(self) -> np.ndarray:
-        """(4, 4) view-projection from the light's centre (the single map of PCSS)."""
+    def center_clip_from_world(self) -> np.ndarray:
+        """(4, 4) ``projection @ view`` from the light's centre (the single map of PCSS)."""
         return self.projection @ _view_from(self.light, self.light.center)
+
+    # Old names (DeprecationWarning).
+    view_proj = alias("clip_from_world")
+    center_view_proj = alias("center_clip_from_world")
 
 
 def _view_from(light, eye):
@@ -285,7 +290,7 @@ def check_resolution(resolution):
 
 def check_views(views):
     """The ``(V, 4, 4)`` float64 clip-from-world matrices of LightSamples or of matrices (InputError otherwise)."""
-    vp = getattr(views, "view_proj", views)
+    vp = getattr(views, "clip_from_world", views)
     m = real_input(vp, "views", dtype=np.float64)
     if m.ndim == 2:
         m = m[None]

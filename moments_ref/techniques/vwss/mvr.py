@@ -103,5 +103,5 @@ def mvr_visibility(vertices, triangles, samples: LightSamples, resolution, posit
     """
     acc = np.zeros(np.shape(positions)[0])
     for i, d, _ in mvr_passes(vertices, triangles, samples, resolution, progress=progress):
-        acc += pcf_sum(positions, d[None], samples.view_proj[[i]], samples.near, samples.far, bias)
+        acc += pcf_sum(positions, d[None], samples.clip_from_world[[i]], samples.near, samples.far, bias)
     return acc / len(samples)

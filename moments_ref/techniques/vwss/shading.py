@@ -40,7 +40,7 @@ import numpy as np
 
 from ..._arrays import InputError, real_input
 from ...scene.depth import d_view_from_ndc, x_window_from_ndc, y_window_from_ndc
-from ..._shim import renamed
+from ..._shim import renamed, renamed_keywords
 from .lights import LightSamples, poisson_disk
 
 __all__ = ["PCF5", "pcf_sum", "multiview_visibility", "pcss",
@@ -61,10 +61,10 @@ _BLOCK = 1 << 14
 __getattr__ = renamed("techniques.vwss.shading")
 
 
-def _project(positions, view_proj, h, w):
+def _project(positions, clip_from_world, h, w):
     """Continuous window coordinates and view depth (w_clip) of positions in one view."""
-    hom = positions @ view_proj[:3, :3].T + view_proj[:3, 3]
-    cw = positions @ view_proj[3, :3] + view_proj[3, 3]
+    hom = positions @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    cw = positions @ clip_from_world[3, :3] + clip_from_world[3, 3]
     with np.errstate(divide="ignore", invalid="ignore"):
         x = x_window_from_ndc(hom[:, 0] / cw, w)
         y = y_window_from_ndc(hom[:, 1] / cw, h)
@@ -131,14 +131,15 @@ def _check_maps(depth_maps, n_views):
     return d
 
 
-def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
+@renamed_keywords(view_proj="clip_from_world")
+def pcf_sum(positions, depth_maps, clip_from_world, near, far, bias, taps=PCF5):
     """Sum over maps of the fraction of PCF taps that are lit, per point.
 
     Parameters
     ----------
     positions : (P, 3) float array, world positions of the receiver
     depth_maps : (K, H, W) float array, NDC depth (1 = empty)
-    view_proj : (K, 4, 4) float array, the maps' views
+    clip_from_world : (K, 4, 4) float array, the maps' views
     near, far : float, the shared near and far distances of the views
     bias : float, depth bias in world units along the light normal
     taps : (T, 2) int array of texel offsets (dx, dy); default :data:`PCF5`
@@ -148,7 +149,7 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     (P,) float64 array in [0, K]
     """
     p = _check_positions(positions)
-    vp = real_input(view_proj, "view_proj", dtype=np.float64).reshape(-1, 4, 4)
+    vp = real_input(clip_from_world, "clip_from_world", dtype=np.float64).reshape(-1, 4, 4)
     maps = _check_maps(depth_maps, vp.shape[0])
     taps = np.asarray(taps, np.int64).reshape(-1, 2)
     h, w = maps.shape[1:]
@@ -160,9 +161,9 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     return acc
 
 
-def _pcf_block(occ, p, view_proj, h, w, bias, taps):
+def _pcf_block(occ, p, clip_from_world, h, w, bias, taps):
     """Lit fraction of the PCF taps of one view for a block of points (exact count / T)."""
-    x, y, cw = _project(p, view_proj, h, w)
+    x, y, cw = _project(p, clip_from_world, h, w)
     thr = _threshold(cw, bias)
     # floor(x + dx) once per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
     cols = {dx: _padded_floor(x + dx, w) for dx in np.unique(taps[:, 0])}
@@ -194,7 +195,7 @@ def multiview_visibility(positions, depth_maps, samples: LightSamples, bias, vie
         ``(1/K) Σ_k (1/5) Σ_taps [d_k(tap) ≥ d_point − bias]``.
     """
     sel = np.arange(len(samples)) if views is None else np.asarray(views, np.int64)
-    s = pcf_sum(positions, depth_maps, samples.view_proj[sel], samples.near, samples.far, bias, taps)
+    s = pcf_sum(positions, depth_maps, samples.clip_from_world[sel], samples.near, samples.far, bias, taps)
     return s / sel.size
 
 
@@ -221,7 +222,7 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     positions : (P, 3) float array
     depth_map : (H, W) float array
         NDC depth rasterized from the light's centre with the samples' projection
-        (``samples.center_view_proj()``).
+        (``samples.center_clip_from_world()``).
     samples : LightSamples
         For the light, the shared projection, near and far.
     bias : float
@@ -269,7 +270,7 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     h, w = dmap.shape
     light = samples.light
     n, f = samples.near, samples.far
-    vp = samples.center_view_proj()
+    vp = samples.center_clip_from_world()
     occ = _occluder_map(dmap, n, f)
     # tan units -> texels: half-extents of the light (l_w / 2, l_h / 2) in texels per tan unit
     kx = w / (2 * np.tan(samples.fov / 2))

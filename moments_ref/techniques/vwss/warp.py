@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError, first_index, positive_int, real_input
+from ..._shim import renamed_keywords
 from .lights import check_resolution, check_views
 from ...scene.depth import x_window_from_ndc, y_window_from_ndc, z_ndc_from_reversed, z_reversed_from_ndc
 
@@ -130,14 +131,15 @@ def _points(points):
     return p
 
 
-def project_to_texels(points, view_proj, resolution):
+@renamed_keywords(view_proj="clip_from_world")
+def project_to_texels(points, clip_from_world, resolution):
     """Project points into views and snap them to texels (the per-point work of Listing 2).
 
     Parameters
     ----------
     points : (N, 3) float array
         World positions; float32 input is projected in float32 (as a shader).
-    view_proj : (K, 4, 4) float array
+    clip_from_world : (K, 4, 4) float array
     resolution : int or (H, W)
 
     Returns
@@ -157,7 +159,7 @@ def project_to_texels(points, view_proj, resolution):
     neighbor pixel").
     """
     p = _points(points)
-    m = check_views(view_proj).astype(p.dtype)
+    m = check_views(clip_from_world).astype(p.dtype)
     return _project_to_texels(p, m, *check_resolution(resolution))
 
 

@@ -329,7 +329,7 @@ def _bench_warp_setup(size, dtype):
     a = rng.uniform(0, 2 * np.pi, n)
     rad = 1.5 * np.sqrt(rng.uniform(0, 1, n))
     pts = np.stack([rad * np.cos(a), 2.0 + 0.2 * rad * np.sin(a), rad * np.sin(a)], -1).astype(dtype)
-    return pts, views.view_proj, 512
+    return pts, views.clip_from_world, 512
 
 
 def _bench_warp_fn(pts, vp, res):
@@ -349,7 +349,7 @@ def _bench_mvr_setup(size, dtype):
     segments = max(2, n_tri // (2 * sides))
     knot = torus_knot(p=2, q=3, radius=1.1, tube=0.14, segments=segments, sides=sides)
     v = knot.vertices + np.array([0.0, 1.5, 0.0])
-    return v, knot.triangles, views.view_proj, 1024, np.dtype(dtype)
+    return v, knot.triangles, views.clip_from_world, 1024, np.dtype(dtype)
 
 
 def _bench_mvr_fn(v, t, vp, res, dtype):
