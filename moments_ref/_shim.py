@@ -20,7 +20,7 @@ from __future__ import annotations
 import importlib
 import warnings
 
-__all__ = ["MOVED", "forward", "RENAMED", "renamed", "alias", "renamed_keywords", "renamed_keys"]
+__all__ = ["MOVED", "forward", "RENAMED", "renamed", "alias", "renamed_keywords", "renamed_keys", "warn_renamed"]
 
 #: Old path -> new path, both below ``moments_ref`` (the old paths go in the release after next).
 MOVED = {
@@ -37,7 +37,8 @@ MOVED = {
     "vwss.warp": "techniques.vwss.warp",
     "vwss.mvr": "techniques.vwss.mvr",
     "vwss.shading": "techniques.vwss.shading",
-    "vwss.compare": "techniques.vwss.compare",
+    "vwss.compare": "report.vwss",
+    "techniques.vwss.compare": "report.vwss",
     "vwss.paper": "techniques.vwss.paper",
     "paper_claims": "report.paper_claims",
     "scattering_temporal": "report.scattering_temporal",
@@ -76,7 +77,8 @@ RENAMED = {
 }
 
 
-def _warn(old, new):
+def warn_renamed(old, new):
+    """Warn (DeprecationWarning, at the caller's caller) that ``old`` is now ``new``."""
     warnings.warn(f"{old} is now {new}; the old name will be removed in the next release", DeprecationWarning,
                   stacklevel=3)
 
@@ -89,7 +91,7 @@ def renamed(module):
         if name not in table:
             raise AttributeError(f"module 'moments_ref.{module}' has no attribute {name!r}")
         home, _, new = table[name].rpartition(".")
-        _warn(f"moments_ref.{module}.{name}", f"moments_ref.{home}.{new}")
+        warn_renamed(f"moments_ref.{module}.{name}", f"moments_ref.{home}.{new}")
         return getattr(importlib.import_module(f"moments_ref.{home}"), new)
 
     return __getattr__
@@ -103,7 +105,7 @@ def alias(new):
             self.old = f"{owner.__name__}.{name}"
 
         def __get__(self, obj, owner=None):
-            _warn(self.old, f"{owner.__name__}.{new}")
+            warn_renamed(self.old, f"{owner.__name__}.{new}")
             return getattr(owner if obj is None else obj, new)
 
     return _Alias()
@@ -120,7 +122,7 @@ def renamed_keywords(**old_to_new):
                 if old in kwargs:
                     if new in kwargs:
                         raise TypeError(f"{fn.__name__}() got both {old!r} (the old name) and {new!r}")
-                    _warn(f"{fn.__name__}({old}=...)", f"{fn.__name__}({new}=...)")
+                    warn_renamed(f"{fn.__name__}({old}=...)", f"{fn.__name__}({new}=...)")
                     kwargs[new] = kwargs.pop(old)
             return fn(*args, **kwargs)
 
@@ -136,6 +138,6 @@ def renamed_keys(mapping, what, **old_to_new):
     out = dict(mapping)
     for old, new in old_to_new.items():
         if old in out:
-            _warn(f"{what}[{old!r}]", f"{what}[{new!r}]")
+            warn_renamed(f"{what}[{old!r}]", f"{what}[{new!r}]")
             out.setdefault(new, out.pop(old))
     return out

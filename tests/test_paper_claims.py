@@ -17,8 +17,7 @@ from moments_ref.scene import load_scene
 @pytest.fixture(scope="module")
 def railing():
     sc = load_scene("railing")
-    return pipeline.run(sc, ["evsm64", "evsm128", "msm64", "msm128", "nlq64", "nlq32"], shadow_map_size=128,
-                        msaa=1, resolution=(96, 54))
+    return pipeline.run(sc, ["evsm64", "evsm128", "msm64", "msm128", "nlq64", "nlq32"], pipeline.Settings(shadow_map_size=128, msaa=1, resolution=(96, 54)))
 
 
 def test_pixel_statistic_is_nearest_neighbour_msm128_against_nlq64(railing):

@@ -12,8 +12,9 @@ from moments_ref.scene import load_scene
 SMALL = dict(shadow_map_size=48, resolution=(40, 24))
 
 
-def _run(scene, outputs, **kw):
-    return pipeline.run(load_scene(scene), outputs, **{**SMALL, **kw})
+def _run(scene, outputs, area=None, **kw):
+    over = {"area": area} if area is not None else None
+    return pipeline.run(load_scene(scene), outputs, pipeline.Settings(**{**SMALL, **kw}, overrides=over))
 
 
 def test_railing_stages_share_resolve_and_blur():
@@ -117,9 +118,39 @@ def test_pcf_row_loses_the_references_contact_shadows_and_errors_are_small_for_m
 
 
 def test_stage_plan_without_running():
-    g, targets, meta = pipeline.plan(load_scene("railing"), ["nlq32_dither"], **SMALL)
-    order = g.order(targets)
-    assert order[-1] in targets and "bluenoise_textures" in order
+    rp = pipeline.plan(load_scene("railing"), ["nlq32_dither"], pipeline.Settings(**SMALL))
+    order = rp.graph.order(rp.targets)
+    assert order[-1] in rp.targets and "bluenoise_textures" in order
+    t = rp.techniques["nlq32_dither"]
+    assert t.shade == "shade_nlq32_dither" and t.truth == "pcf" and t.bits == 32 and t.result == "intensity"
+    assert set(t.texel) < set(order) and rp.context.size == (48, 48) and rp.context.resolution == (40, 24)
+
+
+def test_the_old_keywords_and_the_meta_triple_still_work_with_a_warning():
+    sc = load_scene("railing")
+    with pytest.warns(DeprecationWarning, match="Settings"):
+        rp = pipeline.plan(sc, ["pcf"], shadow_map_size=48, resolution=(40, 24), given={"msaa": None})
+    assert rp.context.size == (48, 48)
+    with pytest.warns(DeprecationWarning, match="graph, targets, meta"):
+        g, targets, meta = rp
+    assert meta["info"]["pcf"]["shade"] == "shade_pcf" and meta["size"] == (48, 48)
+    with pytest.warns(DeprecationWarning), pytest.raises(InputError, match="scattering: unknown settings"):
+        pipeline.plan(load_scene("scattering"), ["scattering_6m"], settings={"scattering": {"typo": 1}})
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        pipeline.plan(sc, ["pcf"], shadow_map=48)
+
+
+def test_the_depth_gbuffer_serves_only_techniques_that_shade_world_positions():
+    sc = load_scene("knot")
+    st = pipeline.Settings(shadow_map_size=32, resolution=(32, 18), gbuffer="depth",
+                           overrides={"area": {"light_samples": 2, "reference_views": 2}})
+    with pytest.raises(InputError, match="looks its texture up"):
+        pipeline.plan(sc, ["msm64"], st)
+    rp = pipeline.plan(sc, ["vwss", "pcss"], st)
+    assert rp.context.receivers == "camera_depth_gbuffer"
+    assert "light_projection" not in rp.graph.order(rp.targets)
+    with pytest.raises(InputError, match="gbuffer"):
+        pipeline.plan(sc, ["vwss"], st.replace(gbuffer="pixels"))
 
 
 def test_unknown_output_lists_known():
@@ -274,7 +305,8 @@ def test_graph_shares_equal_stages_and_refuses_a_different_step_under_one_key():
 
 
 def test_reference_stage_keys_carry_the_bias():
-    g, _, meta = pipeline.plan(load_scene("railing"), ["pcf", "msm64", "nlq64"], **SMALL)
-    refs = {i["reference"] for i in meta["info"].values()}
+    rp = pipeline.plan(load_scene("railing"), ["pcf", "msm64", "nlq64"], pipeline.Settings(**SMALL))
+    g = rp.graph
+    refs = {t.reference for t in rp.techniques.values()}
     assert refs == {"reference_pcf_bias0.001"}  # one bias, one shared reference stage
     assert g.nodes["reference_pcf_bias0.001"].params == (("bias", 1e-3),)

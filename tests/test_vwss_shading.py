@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 
 from moments_ref import InputError
 from moments_ref.scene import AreaLight, Camera
-from moments_ref.techniques.vwss import compare
+from moments_ref.report import vwss as compare
 from moments_ref.techniques.vwss.lights import light_views
 from moments_ref.techniques.vwss.mvr import mvr
 from moments_ref.techniques.vwss import shading as pcf
@@ -197,8 +197,9 @@ role = "occluder"
 def test_compare_quick_on_tiny_scene(tmp_path):
     f = tmp_path / "tiny.toml"
     f.write_text(SCENE)
-    res = compare.run_detailed(scene=f, views=(4, 8), quick=True, out_dir=tmp_path / "out", progress=False,
-                               map_size=64, reference_views=24, camera_size=(64, 36))
+    cs = compare.comparison_settings(quick=True, views=(4, 8), progress=False, map_size=64, reference_views=24,
+                                     camera=(64, 36))
+    res = compare.measure(f, cs, out_dir=tmp_path / "out")
     with open(tmp_path / "out" / "vwss.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert tuple(rows[0].keys()) == compare.COLUMNS
@@ -226,6 +227,9 @@ def test_compare_quick_on_tiny_scene(tmp_path):
     assert set(res.holes) == {(t, n) for t in ("vwss", "vwss_nocull", "vwss_naive") for n in (4, 8)}
     # a scene with a directional light is refused
     with pytest.raises(InputError, match="area light"):
+        compare.measure("railing", compare.comparison_settings(quick=True, progress=False))
+    # the old keywords still work, with a DeprecationWarning
+    with pytest.warns(DeprecationWarning, match="comparison_settings"), pytest.raises(InputError, match="area light"):
         compare.run(scene="railing", quick=True, progress=False)
 
 

@@ -84,6 +84,10 @@ class Camera:
         w, h = self.resolution
         return perspective(self.fov, w / h, self.near, self.far)
 
+    def resized(self, resolution) -> "Camera":
+        """The same camera rendering ``resolution`` = (width, height) pixels (its aspect follows)."""
+        return Camera(self.eye, self.target, self.up, self.fov, tuple(resolution), self.near, self.far)
+
     def clip_from_world(self) -> np.ndarray:
         """``projection @ view``: world to clip coordinates of the camera."""
         return self.projection() @ self.view()

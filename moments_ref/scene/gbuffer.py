@@ -99,7 +99,8 @@ def camera_gbuffer(scene, resolution):
     occ_tri = scene.occluder.triangles[keep]
     v = np.concatenate([rec.vertices, scene.occluder.vertices])
     tri = np.concatenate([rec.triangles, occ_tri + rec.vertices.shape[0]])
-    frags, _ = rasterize_fragments(v, tri, scene.camera.clip_from_world(), (height, width), samples=1, dtype=np.float64)
+    frags, _ = rasterize_fragments(v, tri, scene.camera.resized(resolution).clip_from_world(), (height, width),
+                                   samples=1, dtype=np.float64)
     kind = np.zeros(height * width, dtype=np.int8)
     if len(frags):
         order = np.lexsort((frags.depth, frags.texel))

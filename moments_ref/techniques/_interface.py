@@ -6,7 +6,7 @@ package docstring for the conventions.
 
 References
 ----------
-HPG17, Slides : see docs/bib.md.
+HPG17, Slides, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -200,13 +200,17 @@ class Plan:
     fully for each technique: its cost alone); ``shade`` is the key of the stage
     whose value is its result for the receivers (its fragment cost); ``bits``
     overrides the technique's ``bits_per_texel`` where the storage follows from
-    the settings.
+    the settings. ``result`` says what the shade stage holds: the shadow intensity
+    (default) or the visibility ``1 − intensity`` (the soft shadows of VWSS §4, whose
+    shading pass computes the visible fraction of the light; the pipeline reports
+    ``1 − visibility`` as their intensity).
     """
 
     stages: tuple
     texel: tuple
     shade: str
     bits: int = None
+    result: str = "intensity"
 
 
 @dataclass(frozen=True)
@@ -219,11 +223,12 @@ class PlanContext:
     size : (H, W) shadow-map size; samples : MSAA samples; resolution : (width, height)
     params : dict, the scene's ``params`` with the run's overrides
     translucent : bool, the scene has translucent occluders
-    clip_from_world : (4, 4) the light's shadow-map matrix
+    light_clip_from_world : (4, 4) the light's shadow-map matrix
     noise_tiles, frame : blue-noise settings (HPG17 §4.2)
     full : bool, paper-scale settings (``moments-ref report --full``)
-    given : dict, the settings the caller set explicitly (``shadow_map_size``,
-        ``msaa``, ``resolution``: None where not set)
+    receivers : str, the key of the stage holding the receivers the techniques
+        shade (a :class:`~moments_ref.scene.gbuffer.GBuffer`; ``light_projection``
+        unless the run asks for the depth G-buffer)
     """
 
     scene: Any
@@ -232,11 +237,11 @@ class PlanContext:
     resolution: tuple
     params: dict
     translucent: bool
-    clip_from_world: Any
+    light_clip_from_world: Any
     noise_tiles: int = 64
     frame: int = 0
     full: bool = False
-    given: dict = field(default_factory=dict)
+    receivers: str = PROJECTION
 
 
 def reduced_settings(scene):
@@ -520,6 +525,8 @@ class Reference:
         Measured statements on the rows of its techniques.
     section : callable ``(settings, statements, images) -> list of str``, optional
         Its section of report.md (``settings``: scene -> its settings).
+    result : {"intensity", "visibility"}
+        What its stage holds (as :attr:`Plan.result`).
     """
 
     name: str
@@ -532,6 +539,7 @@ class Reference:
     figures: Callable = None
     statements: Callable = None
     section: Callable = None
+    result: str = "intensity"
 
     def settings(self, ctx, overrides=None) -> dict:
         """:attr:`configure` of the run (``{}`` without one); unknown overrides raise InputError."""

@@ -48,7 +48,7 @@ from ..claims import find_row
 from ..scene.raster import rasterize_depth
 from .vwss import depth_range, light_near, light_views
 from .vwss.mvr import mvr_visibility
-from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
+from ._interface import Reference, Stage, reduced_settings, register_reference
 from ._errormaps import error_maps, visibility_maps
 from .references import intensity_metric
 
@@ -56,7 +56,7 @@ __all__ = ["AREA_SETTINGS", "area_settings", "configure", "soft_statements", "so
            "CENTER_MAP", "LIGHT_SAMPLES", "center_map_stages", "samples_stage"]
 
 #: Settings of the area-light techniques (:func:`configure`).
-AREA_SETTINGS = ("map_size", "light_samples", "reference_views", "views_per_pass", "seed", "bias")
+AREA_SETTINGS = ("map_size", "light_samples", "reference_views", "views_per_pass", "seed", "bias", "near")
 #: Keys of the shared stages.
 CENTER_VIEW, CENTER_MAP, LIGHT_SAMPLES = "area_center_view", "area_center_depth_map", "vwss_light_samples"
 
@@ -79,7 +79,7 @@ def area_settings(scene, full=False, *, map_size=None, light_samples=None, refer
     -------
     dict with ``map_size``, ``light_samples``, ``reference_views``,
     ``views_per_pass`` (8, warp passes as ``moments-ref vwss``) and ``seed`` (0;
-    the reference uses ``seed + 1000``, as :func:`moments_ref.techniques.vwss.compare.run_detailed`).
+    the reference uses ``seed + 1000``, as ``moments-ref vwss``, :mod:`moments_ref.report.vwss`).
     """
     size = tuple(scene.shadow_map_size) if full else reduced_settings(scene)[0]
     cfg = {"map_size": int(max(size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),
@@ -94,19 +94,21 @@ def area_settings(scene, full=False, *, map_size=None, light_samples=None, refer
 def configure(ctx, overrides):
     """The settings of one run: :func:`area_settings` plus ``near``, ``far`` and ``bias`` (world units).
 
-    Maps of the run's shadow-map size (with ``ctx.full`` and no explicit size: the
-    scene's), a reference of 64 light samples (512 with ``ctx.full``).
+    Maps of the run's shadow-map size, a reference of 64 light samples (512 with
+    ``ctx.full``). ``near`` is the light's near plane ``z_n`` (default the scene's
+    ``params.light_near``, else just in front of the nearest occluder:
+    :func:`moments_ref.techniques.vwss.lights.depth_range`); ``bias`` defaults to
+    ``0.002 · far``, as ``moments-ref vwss``.
     """
     scene = ctx.scene
-    own = ctx.full and ctx.given.get("shadow_map_size") is None
-    cfg = {"map_size": int(max(scene.shadow_map_size if own else ctx.size)),
-           "light_samples": int((scene.params or {}).get("light_samples", 24)),
-           "reference_views": 512 if ctx.full else 64, "views_per_pass": 8, "seed": 0, "bias": None}
+    cfg = {"map_size": int(max(ctx.size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),
+           "reference_views": 512 if ctx.full else 64, "views_per_pass": 8, "seed": 0, "bias": None, "near": None}
     cfg.update({k: v for k, v in overrides.items() if v is not None})
     for key in ("map_size", "light_samples", "reference_views", "views_per_pass"):
         cfg[key] = positive_int(cfg[key], key, "area")
     occ = scene.occluder_mesh(translucent=False)
-    near, far = depth_range(scene.light, occ.vertices, scene.receiver.vertices, near=light_near(scene))
+    zn = light_near(scene) if cfg["near"] is None else float(cfg["near"])
+    near, far = depth_range(scene.light, occ.vertices, scene.receiver.vertices, near=zn)
     # World-space depth bias along the light normal: the default of `moments-ref vwss`.
     bias = 0.002 * far if cfg["bias"] is None else float(cfg["bias"])
     cfg.update({"near": near, "far": far, "bias": bias})
@@ -138,7 +140,7 @@ def _light_samples(scene, cfg):
 def _reference_visibility(gb, scene, cfg):
     occ = _occluder(scene)
     ls_ref = light_views(scene.light, cfg["reference_views"], cfg["near"], cfg["far"], seed=int(cfg["seed"]) + 1000)
-    return 1.0 - mvr_visibility(occ.vertices, occ.triangles, ls_ref, cfg["map_size"], gb.position, cfg["bias"])
+    return mvr_visibility(occ.vertices, occ.triangles, ls_ref, cfg["map_size"], gb.position, cfg["bias"])
 
 
 def center_map_stages(ctx, cfg):
@@ -154,7 +156,7 @@ def samples_stage(ctx, cfg):
 
 
 def _reference_stage(ctx, cfg, technique):
-    return Stage("mvr_reference_vwss", _reference_visibility, (PROJECTION,),
+    return Stage("mvr_reference_vwss", _reference_visibility, (ctx.receivers,),
                  bound=(("scene", ctx.scene), ("cfg", cfg)))
 
 
@@ -243,5 +245,5 @@ def _section(settings, statements, images):
 MVR_REFERENCE = register_reference(Reference(
     name="mvr", label="area-light outputs", stage=_reference_stage, metric=intensity_metric, option="area",
     configure=configure, settings_keys=AREA_SETTINGS, figures=_figures, statements=soft_statements,
-    section=_section,
+    section=_section, result="visibility",
 ))

@@ -236,17 +236,16 @@ MAP, RAYS, REFERENCE = "scattering_raster_shadow_map", "scattering_camera_rays",
 def configure(ctx, overrides):
     """Settings of one run: the scattering map, camera and epipolar sizes and the ray-marching sample counts.
 
-    The run's shadow-map size, MSAA and camera resolution; with ``ctx.full`` the
-    scene's own where the caller set none. ``epipolar_size``,
-    ``reference_samples`` and ``raymarch_samples`` default to the scene's
-    ``params`` (or (256, 512), 4096 and 128).
+    The run's shadow-map size, MSAA and camera resolution (with ``--full`` the
+    scene's own). ``epipolar_size``, ``reference_samples`` and
+    ``raymarch_samples`` default to the scene's ``params`` (or (256, 512), 4096
+    and 128).
     """
-    scene, given, params = ctx.scene, ctx.given, ctx.scene.params or {}
-    own = {k: ctx.full and given.get(k) is None for k in ("shadow_map_size", "msaa", "resolution")}
+    params = ctx.scene.params or {}
     return {
-        "shadow_map_size": tuple(scene.shadow_map_size) if own["shadow_map_size"] else tuple(ctx.size),
-        "msaa": int(scene.msaa) if own["msaa"] else int(ctx.samples),
-        "resolution": tuple(scene.camera.resolution) if own["resolution"] else tuple(ctx.resolution),
+        "shadow_map_size": tuple(ctx.size),
+        "msaa": int(ctx.samples),
+        "resolution": tuple(ctx.resolution),
         "epipolar_size": tuple(overrides.get("epipolar_size") or params.get("epipolar_size", EPIPOLAR_SIZE)),
         "reference_samples": int(overrides.get("reference_samples") or params.get("reference_samples", 4096)),
         "raymarch_samples": int(overrides.get("raymarch_samples") or params.get("raymarch_samples", 128)),

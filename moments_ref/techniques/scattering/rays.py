@@ -55,9 +55,7 @@ def camera_rays(scene, resolution=None, t_max=None):
     """
     cam = scene.camera
     w, h = cam.resolution if resolution is None else (int(resolution[0]), int(resolution[1]))
-    from ...scene.camera import Camera
-
-    cam = Camera(cam.eye, cam.target, cam.up, cam.fov, (w, h), cam.near, cam.far)
+    cam = cam.resized((w, h))
     vp = cam.clip_from_world()
     verts = np.concatenate([scene.receiver.vertices, scene.occluder.vertices])
     tris = np.concatenate([scene.receiver.triangles, scene.occluder.triangles + scene.receiver.vertices.shape[0]])

@@ -6,7 +6,6 @@
 * :mod:`.mvr`: multi-view rasterization, the baseline and the reference.
 * :mod:`.shading`: 5-tap multi-view PCF and PCSS (§4); the G-buffer is
   :func:`moments_ref.scene.gbuffer.depth_gbuffer`.
-* :mod:`.compare`: the ``moments-ref vwss`` comparison.
 * :mod:`.paper`: the paper's figures (Tables 1 and 2) and the claims measured against them.
 
 The functions ``warp`` and ``mvr`` are not re-exported here, so that
