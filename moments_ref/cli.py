@@ -189,9 +189,9 @@ def _cmd_report(args):
 
 
 def _cmd_vwss(args):
-    from .techniques.vwss import compare
+    from .report import vwss
 
-    return compare.main(args)
+    return vwss.main(args)
 
 
 def _cmd_conformance(args):
