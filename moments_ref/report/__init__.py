@@ -212,16 +212,16 @@ def _announce(acc, sc, names, used, ref_settings, full):
 
 
 def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_techniques=False):
-    """``(techniques, pipeline keywords)`` of a scene, its settings announced; ``None`` when nothing runs on it."""
+    """``(techniques, pipeline.Settings)`` of a scene, its settings announced; ``None`` when nothing runs on it."""
     size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
     names = _scene_techniques(sc, requested, all_techniques)
     if not names:
         return None
-    kw = dict(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles, settings=overrides,
-              full=full, given=given)
-    _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, **kw)[2]["settings"], full)
-    return names, kw
+    st = pipeline.Settings(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles,
+                           overrides=overrides, full=full, repeats=acc.repeats, clock="cpu")
+    _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, st).settings, full)
+    return names, st
 
 
 def _png(fig):
@@ -234,13 +234,13 @@ def _png(fig):
         plt.close(fig)
 
 
-def _scene_task(sc, names, kw, repeats, progress):
+def _scene_task(sc, names, settings, progress):
     """A scene's share of the report, here or in a worker: rows, stages, claim numbers, figures as PNG bytes.
 
-    Timed stages are measured in CPU seconds of this process (``clock="cpu"``).
+    Timed stages are measured in CPU seconds of this process (``settings.clock``, "cpu").
     Everything returned is plain data (picklable); nothing is written.
     """
-    result = pipeline.run(sc, names, progress=progress, repeats=repeats, clock="cpu", **kw)
+    result = pipeline.run(sc, names, settings.replace(progress=progress))
     part = {"rows": result.rows(), "stages": result.stage_table(), "references": {}, "images": {}, "pngs": {},
             "measured": None if result.gbuffer is None else paper_claims.scene_measurements(result)}
     # (a scattering-only run shades no receiver pixels: nothing the claims need)
@@ -290,7 +290,7 @@ def _artifacts_task(names):
     return first, lines, files
 
 
-def _tasks(plans, full, jobs, repeats, progress):
+def _tasks(plans, full, jobs, progress):
     """The report's tasks ``(key, function, args)``: each scene, the artifacts, the temporal claim.
 
     With more than one job the longest go first (scenes with an area light, whose
@@ -308,9 +308,9 @@ def _tasks(plans, full, jobs, repeats, progress):
         others.append((("temporal",), paper_claims.temporal_claim, (scene, full)))
     serial = min(jobs, len(plans) + len(others)) == 1  # per-stage bars only in this process
     tasks = []
-    for sc, (names, kw) in plans:
+    for sc, (names, settings) in plans:
         truths = {_techniques.get(n).truth for n in names}
-        tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and serial)))
+        tasks.append((("scene", sc.name), _scene_task, (sc, names, settings, progress and serial)))
         weight[tasks[-1][0]] = (1 if "mvr" in truths else 0, len(names))
     tasks += others
     if not serial:
@@ -451,7 +451,7 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                   noise_tiles, all_techniques)) is not None]
-    tasks = _tasks(plans, full, jobs, acc.repeats, progress)
+    tasks = _tasks(plans, full, jobs, progress)
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
     timings = {}
