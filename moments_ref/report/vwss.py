@@ -277,53 +277,52 @@ def _pipeline_settings(cs, n, reference):
 
 @dataclass
 class _Run:
-    """One technique's pipeline run: its visibility, its maps and its row."""
+    """What the comparison keeps of one technique's pipeline run (its N maps are dropped).
+
+    ``kept``: the maps of the views compared with MVR (:func:`_wanted`; view 0
+    first); ``covered``: texels covered over all N maps.
+    """
 
     vis: np.ndarray
-    maps: np.ndarray
     row: dict
-    samples: object
+    kept: np.ndarray = None
+    covered: int = 0
+
+
+def _wanted(samples, cs, n):
+    """The views compared with MVR: those of the first warp pass and the outermost light sample (its index)."""
+    outer = int(np.argmax(np.linalg.norm(samples.uv - 0.5, axis=1)))
+    return sorted(set(range(min(cs.views_per_pass, n))) | {outer}), outer
 
 
 def _technique_run(sc, tech, cs, n):
     """:func:`moments_ref.pipeline.run` of one technique (one at a time: its N maps are freed before the next)."""
-    return _as_run(sc, tech, pipeline.run(sc, [tech], _pipeline_settings(cs, n, False)), n)
+    return _as_run(sc, tech, pipeline.run(sc, [tech], _pipeline_settings(cs, n, False)), cs, n)
 
 
-def _as_run(sc, tech, r, n):
+def _as_run(sc, tech, r, cs, n):
     """The :class:`_Run` of technique ``tech`` in the pipeline result ``r``."""
     p = r.plans[tech.name]
     sec = r.seconds
-    points = sum(sec[k] for k in p.texel[:-1])
-    n_points = sum(len(r.values[k]) for k in p.texel[:-1])
-    row = {"technique": tech.name, "views": n if tech is not PCSS else 1, "points": n_points,
-           "triangles": int(sc.occluder.triangles.shape[0]), "rmse": None, "seconds_points": float(points),
+    row = {"technique": tech.name, "views": n if tech is not PCSS else 1,
+           "points": sum(len(r.values[k]) for k in p.texel[:-1]), "triangles": int(sc.occluder.triangles.shape[0]),
+           "rmse": None, "seconds_points": float(sum(sec[k] for k in p.texel[:-1])),
            "seconds_depth": sec[p.texel[-1]], "seconds_lighting": sec[p.shade]}
     row["seconds_total"] = row["seconds_points"] + row["seconds_depth"] + row["seconds_lighting"]
+    if tech is PCSS:
+        return _Run(vis=r.values[p.shade], row=row)
     maps = r.values[p.texel[-1]]
-    return _Run(vis=r.values[p.shade], maps=maps[1] if tech is PCSS else maps, row=row,
-                samples=r.values.get(LIGHT_SAMPLES))
+    wanted, _ = _wanted(r.values[LIGHT_SAMPLES], cs, n)
+    return _Run(vis=r.values[p.shade], row=row, kept=maps[wanted], covered=int(np.count_nonzero(maps < 1)))
 
 
-def _holes(runs, wanted, outer, n, cfg):
-    """Holes and bloat of the warped maps against MVR's on the views ``wanted`` (VWSS §3.2, Figure 6)."""
-    ras = runs["mvr"].maps[wanted]
+def _holes(runs, samples, cs, n, cfg):
+    """Holes and bloat of the warped maps against MVR's on the views compared (VWSS §3.2, Figure 6)."""
+    wanted, outer = _wanted(samples, cs, n)
     return {(w, n): {"views": wanted, "outermost": outer,
-                     **{k: v.tolist() for k, v in coverage_difference(runs[w].maps[wanted], ras, cfg["near"],
+                     **{k: v.tolist() for k, v in coverage_difference(runs[w].kept, runs["mvr"].kept, cfg["near"],
                                                                         cfg["far"], cfg["bias"]).items()}}
             for w in ("vwss", "vwss_nocull", "vwss_naive")}
-
-
-def _view_count(sc, cs, n, vis_ref):
-    """The rows of N = ``n`` light samples, their visibilities, first maps, coverage and holes."""
-    runs = {t.name: _technique_run(sc, t, cs, n) for t in TECHNIQUES}
-    for t in runs.values():
-        t.row["rmse"] = _rmse(t.vis, vis_ref)
-    ls = runs["mvr"].samples
-    outer = int(np.argmax(np.linalg.norm(ls.uv - 0.5, axis=1)))
-    wanted = sorted(set(range(min(cs.views_per_pass, n))) | {outer})
-    coverage = {(name, n): int(np.count_nonzero(t.maps < 1)) for name, t in runs.items()}
-    return runs, coverage, wanted, outer
 
 
 def _reference(sc, cs):
@@ -366,16 +365,19 @@ def measure(scene="knot", settings: ComparisonSettings = None, out_dir=None) -> 
     gb = first.gbuffer
     rows, vis, first_maps, coverage, holes = [], {}, {}, {}, {}
     for n in cs.views:
-        runs, cov, wanted, outer = _view_count(sc, cs, n, vis_ref)
-        rows += [t.row for t in runs.values()]
-        coverage.update(cov)
-        holes.update(_holes(runs, wanted, outer, n, cfg))
-        src = source_view(runs["vwss"].samples, cs.map_size)
+        runs = {t.name: _technique_run(sc, t, cs, n) for t in TECHNIQUES}
+        ls = light_views(sc.light, n, cfg["near"], cfg["far"], seed=cs.seed)  # the runs' light samples
+        for name, t in runs.items():
+            t.row["rmse"] = _rmse(t.vis, vis_ref)
+            rows.append(t.row)
+            coverage[(name, n)] = t.covered
+        holes.update(_holes(runs, ls, cs, n, cfg))
+        src = source_view(ls, cs.map_size)
         cfg["source_resolution"], cfg["source_distance"] = src.resolution, src.distance
         if n == max(cs.views):
             vis.update({name: t.vis for name, t in runs.items()})
-            first_maps.update({name: t.maps[0] for name, t in runs.items()})
-    pcss_run = _as_run(sc, PCSS, first, max(cs.views))  # PCSS from the light's centre, with the same near plane
+            first_maps.update({name: t.kept[0] for name, t in runs.items()})  # view 0 is always kept
+    pcss_run = _as_run(sc, PCSS, first, cs, max(cs.views))  # PCSS from the light's centre, with the same near plane
     pcss_run.row["rmse"] = _rmse(pcss_run.vis, vis_ref)
     rows.append(pcss_run.row)
     vis["pcss"], vis["reference"] = pcss_run.vis, vis_ref
