@@ -83,6 +83,7 @@ import numpy as np
 
 from .._arrays import InputError
 from .._io import figure_png, write_bytes, write_text
+from .._options import add_report_arguments
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from . import paper_claims, scattering_temporal
 from .. import pipeline
@@ -98,6 +99,7 @@ from ._text import CLEARLY_BELOW, CLOSE_REL, COLUMNS, csv_text, evaluate_claims,
 
 __all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
            "evaluate_claims", "soft_statements", "read_results", "plot_error_vs_runtime", "plot_fronts", "build_parser",
+           "add_arguments",
            "pareto_mask", "mark_pareto"]
 
 _ = (CLOSE_REL, CLEARLY_BELOW)  # re-exported
@@ -467,44 +469,27 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     return {**_write(acc, out, flip_ok, done, fronts), "tasks": timings}
 
 
+#: The arguments of ``moments-ref report`` on a parser (their one definition, shared with the command line).
+add_arguments = add_report_arguments
+
+
 def build_parser():
-    """The argument parser of ``moments-ref report``."""
-    p = argparse.ArgumentParser(prog="moments-ref report",
-                                description="Error against run time of the shadow techniques (HPG17 §5).")
-    p.add_argument("--scene", action="append", metavar="NAME|FILE",
-                   help="shipped scene name or scene file (repeatable; default: all shipped scenes)")
-    p.add_argument("--full", action="store_true",
-                   help="the scene's own map size, MSAA and camera resolution (default: reduced, printed at the start)")
-    p.add_argument("--technique", action="append", metavar="NAME",
-                   help="run this technique (repeatable) instead of each scene's outputs")
-    p.add_argument("--all-techniques", action="store_true",
-                   help="every technique that can run on each scene instead of its outputs")
-    p.add_argument("--repeats", type=_positive, default=3, metavar="N",
-                   help="timed repeats of each cost stage after a warm-up (default 3)")
-    p.add_argument("--jobs", type=_positive, default=None, metavar="N",
-                   help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
-    p.add_argument("--out", required=True, type=Path, help="output folder")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    return p
+    """The argument parser of ``moments-ref report`` (:func:`add_arguments`)."""
+    return add_arguments(argparse.ArgumentParser(prog="moments-ref report",
+                                                 description="Error against run time of the shadow techniques (HPG17 §5)."))
 
 
-def _positive(text):
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return n
+def main(args=None) -> int:
+    """``moments-ref report``; returns the exit code (0 done, 2 bad usage or input).
 
-
-def main(argv=None) -> int:
-    """``moments-ref report``; returns the exit code (0 done, 2 bad usage or input)."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
+    ``args``: the parsed arguments of :func:`add_arguments` (what ``moments-ref report``
+    passes), or a list of command-line strings (parsed here).
+    """
+    if args is None or isinstance(args, (list, tuple)):
+        try:
+            args = build_parser().parse_args(args)
+        except SystemExit as exc:
+            return int(exc.code or 0)
     try:
         if args.technique and args.all_techniques:
             raise InputError("technique: give --technique or --all-techniques, not both")
