@@ -1,4 +1,4 @@
-"""The issue-17 targets of ``moments-ref bench``: every target is printed with a ratio and a mark.
+"""The speed targets of ``moments-ref bench``: every target is printed with a ratio and a mark.
 
 No timing is asserted (targets are read, not enforced); these tests check that the
 measurement alternates candidate and baseline, that every target is reported, and

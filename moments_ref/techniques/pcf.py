@@ -39,14 +39,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernels import PCF_CHUNK
 from ..gpu.filtering import gaussian_weights
 from ..scene.raster import SAMPLE_COUNTS, sample_positions
 from ._interface import Technique, is_layered, register
 
 __all__ = ["pcf_filtered", "tap_weights", "tap_centres", "PCF"]
 
-#: Fragments per chunk (each gathers 10 × 10 texels × S samples × K layers).
-CHUNK = 1 << 13
+#: Fragments per chunk (each gathers 10 × 10 texels × S samples × K layers; moments_ref._kernels' table).
+CHUNK = PCF_CHUNK
 
 
 def tap_weights(coord, size, taps=None):

@@ -75,6 +75,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..._arrays import InputError, float_dtype
+from ..._kernels import RASTER_SETUP_CHUNK
 from ..._shim import renamed_keywords
 from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
@@ -104,10 +105,8 @@ __all__ = [
 _ = (_D3D11_PATTERN, MAX_SIZE, SUBPIXEL_BITS, frustum, look_at, orthographic, perspective, project_points,
      unproject_points, sample_positions, _homogeneous)  # re-exported
 
-# Triangles set up per chunk: bounds the memory of the per-triangle arrays and keeps
-# them in cache (measured on 1 M small triangles into 1024²: 2^15 gives 2.4 M/s,
-# 2^17 2.0 M/s, 2^13 2.0 M/s).
-_SETUP_CHUNK = 1 << 15
+# Triangles set up per chunk (moments_ref._kernels' table of chunk sizes, with its measurement).
+_SETUP_CHUNK = RASTER_SETUP_CHUNK
 
 
 

@@ -39,6 +39,7 @@ import functools
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._kernels import SHADING_BLOCK
 from ...scene.depth import d_view_from_ndc, x_window_from_ndc, y_window_from_ndc
 from ..._shim import renamed, renamed_keywords
 from .lights import LightSamples, poisson_disk
@@ -51,10 +52,9 @@ PCF5 = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]], np.int64)
 #: PCSS tap counts of VWSS §4.
 PCSS_BLOCKER_TAPS = 64
 PCSS_FILTER_TAPS = 96
-# Points per block of the shading loops: the temporaries stay in cache and _project's thin
-# (n, 3) @ (3, 3) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18), whose
-# threads cost more than they save on it. Results do not depend on the block size.
-_BLOCK = 1 << 14
+# Points per block of the shading loops (moments_ref._kernels' table, with the reason). Results do not depend
+# on the block size.
+_BLOCK = SHADING_BLOCK
 
 
 #: Old names (a DeprecationWarning): linear_depth, GBuffer and gbuffer moved to moments_ref.scene.

@@ -36,16 +36,16 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError, first_index, positive_int, real_input
+from ..._kernels import WARP_BLOCK
 from ..._shim import renamed_keywords
 from .lights import check_resolution, check_views
 from ...scene.depth import x_window_from_ndc, y_window_from_ndc, z_ndc_from_reversed, z_reversed_from_ndc
 
 __all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes", "zbuffer_dtype", "zmax_into"]
 
-# Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes`: the temporaries stay in cache and
-# the thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18),
-# whose threads cost more than they save on it (results do not depend on the block size).
-_BLOCK = 1 << 13
+# Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes` (moments_ref._kernels' table,
+# with the reason; results do not depend on the block size).
+_BLOCK = WARP_BLOCK
 
 
 def zbuffer_dtype(dt):

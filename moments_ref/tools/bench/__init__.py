@@ -4,7 +4,7 @@ Every kernel is timed on square inputs (2048² by default) and compared with
 ``np.copyto`` of the same number of bytes (inputs read plus outputs written),
 measured in the same run right before it. The ratio ``copy time / kernel time``
 says how far a kernel is from being memory bound (1 = as fast as a copy; the
-foundation issue's target for float32 ``shadow_intensity`` is 1/20 = 0.05).
+speed targets, :mod:`._targets`, ask float32 ``shadow_intensity`` for 1/8).
 Times are the best of a few repetitions (the minimum is the least noisy
 estimate of the cost on a shared machine).
 

@@ -33,6 +33,7 @@ from ...moments import BIAS_FLOAT32, bias_moments, power_moments
 from ...msm import shadow_intensity
 from ...msm6 import BIAS6_FLOAT32
 from ...nonlinear import phi, shade
+from ...report._jobs import usable_cores
 from ...scene.raster import rasterize_depth
 from ._cases import raster_case
 
@@ -238,8 +239,8 @@ def targets_markdown(rows):
     if not rows:
         return ""
     (a, _, _), (b, _, _) = rows[0]["load"]
-    lines = [f"## Targets of issue 17 (same-run ratios, medians of CPU time; load average {a:.2f} before, "
-             f"{b:.2f} after, 2 cores)", "",
+    lines = [f"## Speed targets (same-run ratios, medians of CPU time; load average {a:.2f} before, "
+             f"{b:.2f} after, {usable_cores()} usable cores)", "",
              "| target | ratio | limit | mark | measured |", "|---|---:|---:|---|---|"]
     for r in rows:
         if r["ratio"] is None:
