@@ -28,25 +28,8 @@ def fixture(name):
     return os.path.join(FIXTURES, name)
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    try:
-        return conformance.get_context()
-    except ContextError as exc:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"CI=true but no OpenGL 4.3 context: {exc}")
-        pytest.skip(f"no OpenGL 4.3 context: {exc}")
-
-
 # Every case a shipped port covers, at both dtypes (float64 cases: inputs rounded to float32).
 SHIPPED_CASES = conformance.shipped_cases()
-
-
-@pytest.fixture(scope="module")
-def golden_dir():
-    from test_conformance_languages import shipped_golden_folder
-
-    return shipped_golden_folder()
 
 
 def _run(ctx, golden_dir, path, function, case, **kw):

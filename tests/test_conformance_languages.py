@@ -7,21 +7,20 @@ where a missing driver or compiler is a failure (.ci/run installs them).
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import io
 import os
 import re
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from moments_ref import InputError, cli, conformance, golden
+from moments_ref import InputError, cli, conformance
 from moments_ref.conformance import ContextError, ToolError, _run, _wgpu, _wrap
 from moments_ref.conformance._source import load_source
+
+from _oracles import golden_folder
 
 COMBOS = [(lang, drv) for lang in conformance.LANGUAGES for drv in conformance.DRIVERS]
 CASES = conformance.shipped_cases()
@@ -46,17 +45,9 @@ def drivers():
         _need(lambda: conformance._toolchain._tool(tool), tool)
 
 
-@functools.lru_cache(maxsize=None)
 def shipped_golden_folder():
-    """Goldens of every shipped case, written once per test process (shared by the conformance tests)."""
-    d = tempfile.mkdtemp(prefix="moments-ref-test-golden-")
-    golden.write(d, CASES)
-    return Path(d)
-
-
-@pytest.fixture(scope="module")
-def golden_dir():
-    return shipped_golden_folder()
+    """Goldens of every shipped case, written once per test process (the folder of conftest's golden_dir)."""
+    return golden_folder(tuple(CASES))
 
 
 # --------------------------------------------------------------------------

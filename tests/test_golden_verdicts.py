@@ -7,7 +7,6 @@ agree row by row (conformance judges through ``golden.compare``, the one compara
 which the spy test below checks). Skipped without an OpenGL 4.3 context (unless CI=true).
 """
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -43,21 +42,7 @@ FIXTURE_MUTANTS = [
 ]
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    try:
-        return conformance.get_context()
-    except conformance.ContextError as exc:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"CI=true but no OpenGL 4.3 context: {exc}")
-        pytest.skip(f"no OpenGL 4.3 context: {exc}")
-
-
-@pytest.fixture(scope="module")
-def gdir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("golden_verdicts")
-    golden.write(d, CASES)
-    return d
+GOLDEN_CASES = CASES  # conftest's gdir writes these (the same folder as golden_dir); ctx: conftest
 
 
 def _three_verdicts(ctx, gdir, tmp_path, glsl, function, case):
