@@ -1,68 +1,19 @@
 """Error against run time: every technique on every scene, measured against the reference.
 
-``moments-ref report [--scene NAME|FILE]... [--technique NAME]... [--all-techniques]
-[--repeats N] [--jobs N] [--full] --out DIR`` (:func:`main`) renders each scene's camera
-view, shades its receiver pixels with the techniques the scene's ``outputs``
-name (or ``--technique``, or with ``--all-techniques`` every one that can run
-on it; :mod:`moments_ref.pipeline`) and writes to DIR:
+``moments-ref report`` (:func:`main`, :func:`run`). What it runs, how it measures
+and what it writes is described once, in the README's section "The report"; the
+arguments are :func:`add_arguments` (shared with the command line). Each scene runs
+its techniques in one stage graph (:func:`moments_ref.pipeline.run`); each row's
+error is its reference's metric (``Technique.truth``,
+:class:`~moments_ref.techniques.Reference`), and each reference used adds its
+figures and, where it has one, its section of report.md.
 
-* ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`
-  (timings: medians of ``repeats`` timed runs after a warm-up with their min and
-  max; ``pareto``: on the scene's Pareto front, dominance judged beyond the
-  timing spread, :mod:`._pareto`);
-* ``stages.json``: per scene a list of ``{"stage", "seconds" (median), "min",
-  "max", "used_by"}`` (:meth:`moments_ref.pipeline.RunResult.stage_table`);
-* ``claims.json``: the paper claims measured on the scenes that ran
-  (:mod:`moments_ref.report.paper_claims`), also appended to report.md as a table;
-* ``report.md``: the settings used (and what was reduced), the machine and a
-  same-run memory-copy rate (:mod:`._machine`), the Pareto front per scene, a
-  cross-scene summary, the
-  error-against-cost plots ``front_<reference>.png`` (one per reference), the
-  error images and the crops where the techniques differ most (:mod:`._crops`).
-
-Metrics over the receiver pixels inside the shadow map, with
-``e = shadow − reference`` (shadow intensities, 1 = fully shadowed; the
-reference is the 9×9-Gaussian PCF at the technique's own depth bias, the exact
-filtered hard shadow, or with translucent occluders the filtered product of
-transmittances): ``rmse``, ``max_error = max |e|``, ``p99_error`` (99th
-percentile of ``|e|``), ``leak_fraction`` (share of pixels lit more than 0.05
-above the reference, ``e < −0.05``) and ``flip_mean``, the mean of NVIDIA ꟻLIP
-(package ``flip-evaluator``, LDR) between the shaded image and the image shaded
-with the reference. ``texel_seconds`` is the CPU time (``time.process_time`` of
-the process running the stage) of the technique's texture stages (shared stages
-counted fully for each technique: its cost alone), ``fragment_seconds`` that of
-its lookups for all receiver pixels, the split of HPG17 Figure 10. Both are NumPy
-times on this machine, not GPU times. CPU time, not wall-clock, because with
-``--jobs N`` (default: the usable cores) the scenes run side by side in worker
-processes (:mod:`._jobs`) and compete for the machine; the results other than
-timings do not depend on ``--jobs``.
-
-Without ``--full`` each scene runs at reduced resolution
-(:func:`moments_ref.pipeline.reduced_settings`: shadow map halved per side,
-camera a quarter per side), printed at the start on stderr and in report.md;
-``--full`` uses the scene's own map size, MSAA and camera resolution (the
-shipped hard-shadow scenes: 2048² maps with 4× MSAA at 1920×1080, HPG17 §5). ``knot`` has an area light: the
-hard-shadow techniques here use its centre as a spot light (their reference is
-the filtered hard shadow of that spot).
-
-Each technique the scene asks for gets a row; the pipeline runs them all in one
-stage graph. Each row's error is its
-reference's metric (``Technique.truth``, :class:`~moments_ref.techniques.Reference`),
-and each reference used adds its figures and, where it has one, its section of
-report.md. Shipped: the filtered hard shadow above (``pcf``); multi-view
-rasterization with many light samples for the area-light rows ``msm_soft``,
-``pcss``, ``vwss`` and ``mvr`` (64 light samples reduced, 512 with ``--full``;
-shadow intensity ``1 − visibility``; ``soft_<scene>.png``); converged ray
-marching (4096 samples per ray) for the scattering rows of scenes with a
-participating medium, whose error is that of the scattering term normalized by
-``t_max`` (``scattering_<scene>.png``). Techniques with measured artifacts add
-them once (``msm_soft``: ``msm_soft_artifacts.png`` and ``.md``, the artifacts the
-slides name).
-
-Package layout: this module runs and writes; :mod:`._text` holds results.csv,
-the claims and report.md, :mod:`._plots` the error-against-cost plots,
-:mod:`._pareto` the fronts and the summary, :mod:`._machine` the machine,
-:mod:`._jobs` the worker processes.
+Package layout: this module runs and writes; :mod:`._text` holds results.csv
+(:data:`COLUMNS`), the claims and report.md, :mod:`._plots` the error-against-cost
+plots, :mod:`._pareto` the fronts and the summary, :mod:`._crops` the crops where
+the techniques differ most, :mod:`._machine` the machine, :mod:`._jobs` the worker
+processes; :mod:`.paper_claims` the papers' claims, :mod:`.vwss` the ``moments-ref
+vwss`` comparison, :mod:`.scattering_temporal` the temporal scattering claim.
 
 References
 ----------
