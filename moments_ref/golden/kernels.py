@@ -67,7 +67,9 @@ SAMPLES = 4
 ZF_PER_TEXEL = 4
 #: Light views, map (H, W) and points of ``kernel-vwss-points``.
 VWSS_MAP = (8, 40, 56)
-VWSS_POINTS = 3000
+#: (count, height range, half-size) of the point groups: receiver floor, occluders, points behind the far plane.
+VWSS_GROUPS = ((1300, (0.0, 0.0), 1.6), (900, (0.9, 1.3), 0.6), (300, (1.95, 2.05), 0.3), (700, (-0.6, -0.2), 1.7))
+VWSS_POINTS = sum(g[0] for g in VWSS_GROUPS)
 #: The decoded depth of a texel no point was written to (below every reversed depth the case has).
 EMPTY_DEPTH = -4.0
 #: Case names, in the order they are listed.
@@ -296,10 +298,8 @@ def view_matrices():
 def _vwss_points(rng, views):
     """Points whose projections keep 0.05 texel from every texel edge and 1e-3 from r = 0 in every view."""
     v, h, w = VWSS_MAP
-    groups = [  # (count, y range, x/z half-size): receiver floor (y 0), occluders, points beyond the far plane
-        (1300, (0.0, 0.0), 1.6), (900, (0.9, 1.3), 0.6), (300, (1.95, 2.05), 0.3), (700, (-0.6, -0.2), 1.7)]
     pts = []
-    for count, (lo, hi), size in groups:
+    for count, (lo, hi), size in VWSS_GROUPS:
         found = np.zeros((0, 3))
         while len(found) < count:
             p = np.column_stack([rng.uniform(-size, size, 4 * count), rng.uniform(lo, hi, 4 * count),

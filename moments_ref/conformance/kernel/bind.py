@@ -113,6 +113,8 @@ def match(interface, contract):
     """
     bound, taken = [], {}
     for r in interface.resources:
+        if r.name.lower().startswith(("mr_", "mrtrace")):  # the harness's own (the shared-memory trace)
+            continue
         if interface.language == "hlsl" and r.kind == "uniform":
             r = type(r)(**{**r.__dict__, "members": tuple(type(m)(**{**m.__dict__, "row_major": not m.row_major})
                                                           for m in r.members)})

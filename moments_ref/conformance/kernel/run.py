@@ -16,8 +16,9 @@ the job runs in the driver process under a watchdog (:mod:`._worker`).
 from __future__ import annotations
 
 import hashlib
+import shutil
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,12 +26,12 @@ from ..._arrays import InputError
 from .._gl import ContextError
 from .._run import language_of, parse_adapter
 from .._source import ShaderError, load_source, one_line_errors
-from . import _spirv, _worker
+from . import _spirv, _worker, trace
 from ._job import POISON, Bind, Job, Output
 from .bind import match
 from .contract import BLOCK, contract, dispatches
 from .reflect import from_spirv, from_wgsl
-from .verdict import DriverRun, format_run, judge
+from .verdict import DriverRun, KernelReport, judge
 
 __all__ = ["KERNEL_DRIVERS", "KernelReport", "run_kernel", "prepare", "Prepared", "numpy_times"]
 
@@ -104,6 +105,73 @@ def _wgsl(path, entry, target):
 def prepare(path, entry, language, target):
     """Compile (cached) and reflect a kernel for one :class:`~moments_ref.conformance._run.Target`."""
     return {"glsl": _glsl, "hlsl": _hlsl, "wgsl": _wgsl}[language](path, entry, target)
+
+
+def _traced(path, entry, language, target):
+    """The kernel with its shared-memory accesses traced (:mod:`.trace`), prepared for ``target``; None if untagged."""
+    text = load_source(path, language).body  # includes resolved (HLSL too: its guards keep it valid)
+    if not any(trace.TAG.search(x) for x in text.splitlines()):
+        return None
+    if language == "wgsl":
+        code = trace.instrument(text, "wgsl", entry)
+        return Prepared(target.driver, target.name, "wgpu", code, entry, from_wgsl(code, entry), "traced WGSL")
+    if language == "glsl":
+        src = load_source(path, "glsl")
+        head = lambda v: f"#version {max(src.version, v)}\n" + "\n".join(src.extensions) + "\n"  # noqa: E731
+        spv = _spirv.glsl_to_spirv(head(450) + trace.instrument(text, "glsl", entry, vulkan=True), src.name)
+        if target.driver == "gl":
+            code = head(430) + trace.instrument(text, "glsl", entry)
+            return Prepared("gl", None, "moderngl", code, "main",
+                            from_spirv(_spirv.reflect_spirv(spv), "glsl", "main"), "traced GLSL", src)
+        code = _spirv.for_naga(spv)
+        return Prepared("vulkan", target.name, "wgpu", code, "main",
+                        from_spirv(_spirv.reflect_spirv(code), "glsl", "main"), "traced GLSL")
+    tmp = trace.write_temp(trace.instrument(text, "hlsl", entry), ".hlsl")
+    try:
+        spv = _spirv.hlsl_to_spirv(tmp, entry)
+    finally:
+        shutil.rmtree(tmp.parent, ignore_errors=True)
+    if target.driver == "gl":
+        return Prepared("gl", None, "moderngl", _spirv.spirv_to_gl(spv, entry), "main",
+                        from_spirv(_spirv.reflect_spirv(spv, entry), "hlsl", entry), "traced HLSL")
+    code = _spirv.for_naga(spv)
+    return Prepared("vulkan", target.name, "wgpu", code, entry,
+                    from_spirv(_spirv.reflect_spirv(code, entry), "hlsl", entry), "traced HLSL")
+
+
+def shared_memory(path, entry, language, target, case, gc, c, time_limit=DISPATCH_SECONDS):
+    """Trace the shared memory of work group (0, 0) of a tagged kernel: accesses, bank conflicts, races.
+
+    Returns None for a kernel without tagged accesses, else a dict: ``driver``,
+    ``accesses`` (per invocation), ``barriers``, ``pattern`` (the trace is
+    :func:`moments_ref.gpu.banks.access_pattern` in program order; filter cases),
+    ``conflicts`` (per phase of gpu.banks, from the trace), ``races`` (:func:`.trace.races`).
+    """
+    prep = _traced(path, entry, language, target)
+    if prep is None:
+        return None
+    kw = gc.meta["kwargs"]
+    bound = match(prep.interface, c)
+    threads = int(np.prod(prep.interface.workgroup))
+    views = gc.arrays["views"] if case == "kernel-vwss-points" else None
+    plan = dispatches(case, kw, views, prep.interface.workgroup[0])
+    job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, _binds(bound), _data(case, gc),
+              _output(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+              dispatch_seconds=float(time_limit), trace_words=threads * trace.RECORDS)
+    try:
+        result = _execute(prep, job)
+    except _worker.KernelTimeout as exc:
+        return {"driver": prep.driver, "error": str(exc)}
+    addr, store, epoch = trace.decode(result.trace, threads)
+    info = {"driver": prep.driver, "accesses": int((addr >= 0).sum(axis=1).max()), "barriers": int(epoch.max()),
+            "races": trace.races(addr, store, epoch)}
+    if case.startswith("kernel-filter") and threads == 256:
+        exp, _, names = trace.expected()
+        w = trace.warp_addresses(addr)
+        info["pattern"] = bool(w[:, : len(names)].shape == exp.shape and np.array_equal(w[:, : len(names)], exp)
+                               and info["accesses"] == len(names))
+        info["conflicts"] = trace.phase_conflicts(addr)
+    return info
 
 
 def _binds(bound):
@@ -225,48 +293,8 @@ def numpy_times(case, gc):
     return out
 
 
-@dataclass
-class KernelReport:
-    """What :func:`run_kernel` found, per driver; ``passed`` and ``format()``."""
-
-    case: str
-    path: str
-    entry: str
-    language: str
-    kwargs: dict
-    runs: list = field(default_factory=list)
-    numpy: dict = field(default_factory=dict)
-    interface: object = None
-    bindings: list = field(default_factory=list)
-
-    @property
-    def passed(self):
-        ran = [r for r in self.runs if not r.skipped]
-        return bool(ran) and all(r.passed for r in ran)
-
-    def format(self):
-        """The report as ``moments-ref conformance --kernel`` prints it."""
-        kw = self.kwargs
-        unit = "view" if self.case == "kernel-vwss-points" else "block"
-        if unit == "block":
-            what = (f"{kw['height']}×{kw['width']} map, {-(-kw['width'] // 32) * -(-kw['height'] // 24)} blocks of "
-                    f"32×24")
-        else:
-            what = f"{kw['points']} points, {kw['views']} views of {kw['height']}×{kw['width']}"
-        drivers = " and ".join(r.driver for r in self.runs if not r.skipped)
-        wg = "×".join(map(str, self.interface.workgroup))
-        lines = [f"{'PASS' if self.passed else 'FAIL'}  kernel {self.entry} ({self.path}, {self.language}) on "
-                 f"{self.case}: {what}; on {drivers}",
-                 f"      work group {wg}; bindings: " + "; ".join(
-                     f"{b.slot.name} <- {b.resource.declared} (set {b.resource.set}, binding {b.resource.binding})"
-                     for b in self.bindings)]
-        for r in self.runs:
-            lines += format_run(self.case, kw, r, self.numpy, unit)
-        return "\n".join(lines)
-
-
 def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, time_limit=None, gc=None,
-               worst_rows=5, timing=True):
+               worst_rows=5, timing=True, shared=True):
     """Run a compute shader on a kernel case and judge it with the one comparator, on each driver.
 
     Parameters
@@ -287,6 +315,9 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
         Seconds one dispatch may run (default :data:`DISPATCH_SECONDS`).
     timing : bool
         Time the NumPy paths on the same map for the report.
+    shared : bool
+        Trace the shared memory of a kernel with tagged accesses (:mod:`.trace`): bank
+        conflicts, and races between barriers (a race fails the report).
 
     Returns
     -------
@@ -314,6 +345,9 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
         report.runs.append(_run_one(prep, case, gc, c, limit, worst_rows))
     if not any(not r.skipped for r in report.runs):
         raise ContextError(f"{report.runs[0].driver}: {report.runs[0].skipped}")
+    ran = next(p for p, r in zip(preps, report.runs) if not r.skipped)
+    if shared:
+        report.shared = shared_memory(path, entry, language, targets[preps.index(ran)], case, gc, c, limit)
     if timing:
         report.numpy = numpy_times(case, gc)
     return report

@@ -29,7 +29,7 @@ from ...golden.kernels import EMPTY_DEPTH, decode_intensity
 from .._report import fmt
 from ..verdict import compare_case
 
-__all__ = ["DriverRun", "judge", "format_run"]
+__all__ = ["DriverRun", "KernelReport", "judge", "format_run"]
 
 
 @dataclass
@@ -185,3 +185,82 @@ def _timing_line(run, numpy_times, unit):
     for name, sec in numpy_times.items():
         parts.append(f"{name} {sec * 1e3:.3f} ms per {unit}")
     return "time: " + "; ".join(parts) if parts else "time: -"
+
+
+@dataclass
+class KernelReport:
+    """What :func:`run_kernel` found, per driver; ``passed`` and ``format()``."""
+
+    case: str
+    path: str
+    entry: str
+    language: str
+    kwargs: dict
+    runs: list = field(default_factory=list)
+    numpy: dict = field(default_factory=dict)
+    interface: object = None
+    bindings: list = field(default_factory=list)
+    shared: dict | None = None  # run.shared_memory's trace of work group (0, 0)
+
+    @property
+    def passed(self):
+        ran = [r for r in self.runs if not r.skipped]
+        race = bool(self.shared and (self.shared.get("races") or self.shared.get("error")))
+        return bool(ran) and all(r.passed for r in ran) and not race
+
+    def format(self):
+        """The report as ``moments-ref conformance --kernel`` prints it."""
+        kw = self.kwargs
+        unit = "view" if self.case == "kernel-vwss-points" else "block"
+        if unit == "block":
+            what = (f"{kw['height']}×{kw['width']} map, {-(-kw['width'] // 32) * -(-kw['height'] // 24)} blocks of "
+                    f"32×24")
+        else:
+            what = f"{kw['points']} points, {kw['views']} views of {kw['height']}×{kw['width']}"
+        drivers = " and ".join(r.driver for r in self.runs if not r.skipped)
+        wg = "×".join(map(str, self.interface.workgroup))
+        lines = [f"{'PASS' if self.passed else 'FAIL'}  kernel {self.entry} ({self.path}, {self.language}) on "
+                 f"{self.case}: {what}; on {drivers}",
+                 f"      work group {wg}; bindings: " + "; ".join(
+                     f"{b.slot.name} <- {b.resource.declared} (set {b.resource.set}, binding {b.resource.binding})"
+                     for b in self.bindings)]
+        if self.shared:
+            lines += _shared_lines(self.shared)
+        for r in self.runs:
+            lines += format_run(self.case, kw, r, self.numpy, unit)
+        return "\n".join(lines)
+
+
+def _cell(a):
+    """Moment and block cell of an HPG17 §4.1 shared-memory word."""
+    from ...gpu.banks import MOMENT_STRIDE
+
+    j, rest = divmod(a, MOMENT_STRIDE)
+    y = min(rest // 40, 31)
+    while y > 0 and 40 * y + y // 4 > rest:
+        y -= 1
+    col = rest - 40 * y - y // 4
+    x = col // 2 if col % 2 == 0 else (col + 39) // 2
+    return f"b{j + 1} cell (x {x}, y {y})"
+
+
+def _shared_lines(s):
+    if "error" in s:
+        return [f"      FAIL shared memory (traced on {s['driver']}): {s['error']}"]
+    head = (f"      shared memory (traced on {s['driver']}, work group (0, 0)): {s['accesses']} accesses per invocation, "
+            f"{s['barriers']} barriers")
+    lines = [head]
+    if "pattern" in s:
+        lines.append(f"        access pattern of gpu.banks (HPG17 Figure 6) in program order: "
+                     f"{'yes' if s['pattern'] else 'NO'}; bank conflicts from the trace: "
+                     + ", ".join(f"{k} {v}" for k, v in s["conflicts"].items()) + " (HPG17 §4.1: none)")
+    if s["races"]:
+        a, e, w, o = s["races"][0]
+        where = _cell(a) if "pattern" in s else f"word {a}"
+        lines.append(f"      FAIL race: {len(s['races'])} shared words are written and touched by other invocations "
+                     f"with no barrier between; first: invocation {w} stores {where} and invocation {o} accesses it "
+                     f"after barrier {e} (a missing barrier; this trace does not depend on the driver's schedule)")
+    else:
+        lines.append("        races: none (every word written by one invocation between two barriers is touched "
+                     "by no other)")
+    return lines
