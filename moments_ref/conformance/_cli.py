@@ -190,8 +190,9 @@ def main(args):
         files = [(lang, get(lang)) for lang in LANGUAGES if get(lang) is not None]
         if len(files) != 1:
             raise InputError(f"conformance: --kernel expects one of --glsl, --hlsl or --wgsl FILE, got {len(files)}")
-        return kernel_cli(files[0][1], get("entry"), get("case"), files[0][0], get("golden"), get("adapter"),
-                          get("time_limit"))
+        language, path = files[0]
+        return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
+                          get("adapter"), get("time_limit"))
     if get("all"):
         from .._io import write_text
 

@@ -183,8 +183,9 @@ def _filter_reference(fmt, h, w):
         else:
             m = _moments64(depth, h, w)
         if fmt == "moments":
-            return (m,)
-        return (decode_intensity(fmt, filter_codes(fmt, m.astype(dt)), zf),)
+            return (m.astype(dt),)
+        # The decode is float64 (it measures the codes alone); the result in the inputs' dtype (the policy).
+        return (decode_intensity(fmt, filter_codes(fmt, m.astype(dt)), zf).astype(dt),)
 
     return reference
 

@@ -105,6 +105,23 @@ def _run(ctx, job, report):
     res.timings["compile"] = time.perf_counter() - t0
     report("compiled")
     t0 = time.perf_counter()
+    objects, out_obj, params, trace = _bind(ctx, cs, job)
+    ctx.finish()
+    res.timings["upload"] = time.perf_counter() - t0
+    _dispatch(ctx, cs, job, params, res, report)
+    t0 = time.perf_counter()
+    res.output = np.frombuffer(out_obj.read(), np.uint32).reshape(job.output.shape).copy()
+    if trace is not None:
+        res.trace = np.frombuffer(trace.read(), np.uint32).copy()
+    res.timings["readback"] = time.perf_counter() - t0
+    for obj in objects + [out_obj, params, trace, cs]:
+        if obj is not None:
+            obj.release()
+    return res
+
+
+def _bind(ctx, cs, job):
+    """Create and bind the input, output, uniform block (and trace buffer): ``(objects, output, params, trace)``."""
     objects, out_obj, params = [], None, None
     for b in job.binds:
         if b.role == "input" and b.kind == "texture_ms":
@@ -130,8 +147,11 @@ def _run(ctx, job, report):
         trace = ctx.buffer(np.zeros(job.trace_words, np.uint32).tobytes())
         trace.bind_to_storage_buffer(7)
         _point(cs, "MrTrace", 7, "buffer")
-    ctx.finish()
-    res.timings["upload"] = time.perf_counter() - t0
+    return objects, out_obj, params, trace
+
+
+def _dispatch(ctx, cs, job, params, res, report):
+    """The warm-up dispatch, then every dispatch timed (wall clock and GL_TIME_ELAPSED)."""
     res.timings["dispatch"], res.timings["driver"] = [], []
     query = ctx.query(time=True)  # GL_TIME_ELAPSED: the dispatch's own time
     if params is not None:  # warm-up: llvmpipe compiles the kernel at its first dispatch
@@ -150,12 +170,3 @@ def _run(ctx, job, report):
         res.timings["dispatch"].append(time.perf_counter() - t0)
         res.timings["driver"].append(query.elapsed * 1e-9)
         report(f"dispatch {k}")
-    t0 = time.perf_counter()
-    res.output = np.frombuffer(out_obj.read(), np.uint32).reshape(job.output.shape).copy()
-    if trace is not None:
-        res.trace = np.frombuffer(trace.read(), np.uint32).copy()
-    res.timings["readback"] = time.perf_counter() - t0
-    for obj in objects + [out_obj, params, trace, cs]:
-        if obj is not None:
-            obj.release()
-    return res

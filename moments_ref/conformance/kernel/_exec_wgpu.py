@@ -159,8 +159,21 @@ def run(job, report):
     res.timings["compile"] = time.perf_counter() - t0
     report("compiled")
     t0 = time.perf_counter()
-    resources, params = {}, None
     out_obj = _output(wgpu, dev, job.output)
+    resources, params, trace = _resources(wgpu, dev, job, out_obj)
+    res.timings["upload"] = time.perf_counter() - t0
+    _dispatch(wgpu, dev, job, pipe, layouts, resources, params, res, report)
+    t0 = time.perf_counter()
+    res.output = _read(dev, out_obj, job.output)
+    if trace is not None:
+        res.trace = np.frombuffer(dev.queue.read_buffer(trace), np.uint32).copy()
+    res.timings["readback"] = time.perf_counter() - t0
+    return res
+
+
+def _resources(wgpu, dev, job, out_obj):
+    """``({(set, binding): resource}, params (set, binding) or None, trace buffer or None)``."""
+    resources, params = {}, None
     for b in job.binds:
         if b.role == "input" and b.kind == "texture_ms":
             resources[(b.set, b.binding)] = _ms_texture(wgpu, dev, job.data).create_view()
@@ -177,7 +190,11 @@ def run(job, report):
         trace = dev.create_buffer_with_data(data=np.zeros(job.trace_words, np.uint32).tobytes(),
                                             usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
         resources[(3, 7)] = {"buffer": trace}
-    res.timings["upload"] = time.perf_counter() - t0
+    return resources, params, trace
+
+
+def _dispatch(wgpu, dev, job, pipe, layouts, resources, params, res, report):
+    """The warm-up dispatch, then every dispatch timed (wall clock and timestamp queries)."""
     res.timings["dispatch"], res.timings["driver"] = [], []
     fence = dev.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_SRC | wgpu.BufferUsage.STORAGE)
     stamps = None
@@ -211,9 +228,3 @@ def run(job, report):
             res.timings["driver"].append(float(ts[1] - ts[0]) * 1e-9)
         res.timings["dispatch"].append(time.perf_counter() - t0)
         report(f"dispatch {k}")
-    t0 = time.perf_counter()
-    res.output = _read(dev, out_obj, job.output)
-    if trace is not None:
-        res.trace = np.frombuffer(dev.queue.read_buffer(trace), np.uint32).copy()
-    res.timings["readback"] = time.perf_counter() - t0
-    return res

@@ -30,16 +30,17 @@ def shipped_kernel(case, language):
 
 
 def kernel_cli(path, entry, case, language, golden_dir=None, adapter=None, time_limit=None, out=None, err=None):
-    """Run a kernel on a case, print the report, return the exit code (0 pass, 1 fail, 2 bad usage or no driver)."""
-    from .._cli import resolve_port
+    """Run a kernel on a case, print the report, return the exit code (0 pass, 1 fail, 2 bad usage or no driver).
 
+    ``path``: the file (a shipped kernel's bare name is resolved by the caller).
+    """
     out, err = out or sys.stdout, err or sys.stderr
     try:
         if entry is None:
             raise InputError("conformance: --entry NAME is required with --kernel (GLSL: main)")
         if case is None:
             raise InputError("conformance: --case CASE is required with --kernel")
-        report = run_kernel(resolve_port(path, language), entry, case, language, adapter, golden_dir, time_limit)
+        report = run_kernel(path, entry, case, language, adapter, golden_dir, time_limit)
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2

@@ -11,6 +11,10 @@ WGSL       wgpu's OpenGL adapter                           wgpu
 Bindings and work-group size come from reflection (:mod:`.reflect`), are matched
 to the case's contract (:mod:`.bind`, :mod:`.contract`) before anything runs, and
 the job runs in the driver process under a watchdog (:mod:`._worker`).
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations

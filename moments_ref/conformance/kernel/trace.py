@@ -23,6 +23,10 @@ From the trace:
   invocations at a time between barriers, so they show most races in the output
   too; a GPU whose 32-lane warps run in lockstep hides a race inside one warp,
   which the trace still sees.)
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations

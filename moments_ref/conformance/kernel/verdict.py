@@ -17,6 +17,10 @@ float32 tolerance column), texel by texel:
 Before that, the poison around and inside the map tells what a kernel did outside
 its contract: texels still holding the poison were never written (their rows
 fail), changed words beyond the map are writes outside the output (the run fails).
+
+References
+----------
+HPG17, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
