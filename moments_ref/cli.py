@@ -106,7 +106,8 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance"]
+        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance",
+                                                                                 "kernels"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -124,6 +125,8 @@ def _cmd_bench(args):
             text += "\n" + bench.agreement_markdown(runs)
     if not args.only or any("conformance" in o for o in args.only):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
+    if not args.only or any("kernels" in o for o in args.only):
+        text += "\n" + bench.kernels_markdown(size=min(args.size, 512) if args.quick else args.size)
     print(text)
     if args.out:
         from ._io import write_text

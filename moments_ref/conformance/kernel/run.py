@@ -37,7 +37,8 @@ from .contract import BLOCK, contract, dispatches
 from .reflect import from_spirv, from_wgsl
 from .verdict import DriverRun, KernelReport, judge
 
-__all__ = ["KERNEL_DRIVERS", "KernelReport", "run_kernel", "prepare", "Prepared", "numpy_times"]
+__all__ = ["KERNEL_DRIVERS", "KernelReport", "run_kernel", "prepare", "Prepared", "numpy_times", "shared_memory",
+           "output_spec", "bind_list", "execute", "DISPATCH_SECONDS"]
 
 KERNEL_DRIVERS = ("gl", "vulkan")
 #: Seconds one dispatch may take before the watchdog stops the kernel (``--time-limit``).
@@ -159,11 +160,11 @@ def shared_memory(path, entry, language, target, case, gc, c, time_limit=DISPATC
     threads = int(np.prod(prep.interface.workgroup))
     views = gc.arrays["views"] if case == "kernel-vwss-points" else None
     plan = dispatches(case, kw, views, prep.interface.workgroup[0])
-    job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, _binds(bound), _data(case, gc),
-              _output(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+    job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
+              output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
               dispatch_seconds=float(time_limit), trace_words=threads * trace.RECORDS)
     try:
-        result = _execute(prep, job)
+        result = execute(prep, job)
     except _worker.KernelTimeout as exc:
         return {"driver": prep.driver, "error": str(exc)}
     addr, store, epoch = trace.decode(result.trace, threads)
@@ -178,12 +179,14 @@ def shared_memory(path, entry, language, target, case, gc, c, time_limit=DISPATC
     return info
 
 
-def _binds(bound):
+def bind_list(bound):
+    """What the driver process binds for each matched resource."""
     return [Bind(b.slot.name, b.slot.role, b.resource.kind, b.resource.set, b.resource.binding, b.resource.name,
                  b.resource.access, b.resource.depth, b.resource.format or b.slot.format) for b in bound]
 
 
-def _output(case, kw, bound, fill):
+def output_spec(case, kw, bound, fill):
+    """The output the harness binds: the map padded by a block (image) or a block row (buffer), pre-filled."""
     out = next(b for b in bound if b.slot.role == "output")
     if case == "kernel-vwss-points":
         n = kw["views"] * kw["height"] * kw["width"]
@@ -214,7 +217,8 @@ def _errors(prep, message):
     return ShaderError(f"the kernel does not compile on {prep.driver} ({prep.toolchain}):\n" + "\n".join(lines))
 
 
-def _execute(prep, job):
+def execute(prep, job):
+    """Run a job in the driver process: compile errors -> ShaderError, driver failures -> ContextError (exit 2)."""
     try:
         result = _worker.run_job(job)
     except _worker.DriverCrash as exc:
@@ -237,11 +241,11 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
     if prep.backend == "wgpu" and prep.driver == "gl" and any(b.resource.kind == "texture_ms" for b in bound):
         run.skipped = GL_MULTISAMPLE
         return run
-    job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, _binds(bound), _data(case, gc),
-              _output(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+    job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
+              output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
               dispatch_seconds=float(time_limit))
     try:
-        result = _execute(prep, job)
+        result = execute(prep, job)
     except _worker.KernelTimeout as exc:
         run.reason = (f"{exc.stage} did not finish within {exc.seconds:g} s: the watchdog stopped the kernel (an "
                       "infinite loop, or a kernel far slower than the case needs; --time-limit sets the limit)")
@@ -252,7 +256,7 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
     if unwritten[0] and case != "kernel-vwss-points" and kw["format"] == "nlq32":
         # Any 32-bit word is a valid nlq32 code: a texel is unwritten only if it holds either poison.
         job.output.fill = POISON[1]
-        again = _execute(prep, job)
+        again = execute(prep, job)
         v2 = judge(case, gc.meta, gc.arrays, again.output, job.output.kind, job.output.fill, worst_rows)
         if v2[1][0] < unwritten[0]:
             verdict, unwritten, outside, codes, out = v2
