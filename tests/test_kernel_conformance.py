@@ -243,3 +243,19 @@ def test_the_report_times_the_driver_beside_numpy(drivers):
 def test_binding_error_is_an_input_error():
     assert issubclass(BindingError, ValueError)
     assert set(SHIPPED_KERNELS) == set(KERNEL_CASES)
+
+
+@pytest.mark.parametrize("language", LANGUAGES)
+def test_shipped_filter_moments_are_the_block_emulations_bit_for_bit(drivers, language):
+    """The shipped kernels repeat gpu.onchip's float32 arithmetic: equal bits on every driver that runs them."""
+    from moments_ref.conformance._cases import load_case
+    from moments_ref.gpu import onchip
+
+    gc = load_case("kernel-filter-moments")
+    kw = gc.meta["kwargs"]
+    z = gc.arrays["depth"].reshape(kw["height"], kw["width"], -1)
+    expect = onchip.filter_moments(z).reshape(-1, 4)
+    path, entry = shipped_kernel("kernel-filter-moments", language)
+    rep = run_kernel(path, entry, "kernel-filter-moments", language, timing=False, shared=False, gc=gc)
+    for r in _ran(rep):
+        assert np.array_equal(r.output.view(np.uint32), expect.view(np.uint32)), r.driver
