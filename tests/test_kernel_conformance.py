@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -259,3 +260,23 @@ def test_shipped_filter_moments_are_the_block_emulations_bit_for_bit(drivers, la
     rep = run_kernel(path, entry, "kernel-filter-moments", language, timing=False, shared=False, gc=gc)
     for r in _ran(rep):
         assert np.array_equal(r.output.view(np.uint32), expect.view(np.uint32)), r.driver
+
+
+PORTS_MD = (Path(__file__).resolve().parents[1] / "docs" / "ports.md").read_text()
+KERNEL_EXAMPLE = re.findall(r"<!-- kernel-example: (\S+) entry=(\S+) case=(\S+) -->\s*```\w+\n(.*?)```", PORTS_MD,
+                            re.S)
+
+
+def test_the_worked_example_runs_as_printed(drivers, tmp_path):
+    (name, entry, case, code), = KERNEL_EXAMPLE
+    path = tmp_path / name
+    path.write_text(code)
+    rep = run_kernel(path, entry, case, timing=False)
+    assert rep.passed and {r.driver for r in rep.runs} == {"gl", "vulkan"}, rep.format()
+    old = "int2(index % 32, index / 32 + 8 * i)"
+    assert code.count(old) == 1
+    path.write_text(code.replace(old, "int2(index % 32 + 1, index / 32 + 8 * i)"))
+    rep = run_kernel(path, entry, case, timing=False)
+    for r in rep.runs:
+        assert not r.passed and r.unwritten == 49 and r.first_unwritten == (0, 0)
+    assert "49 texels were never written (first at x 0, y 0): their rows fail" in rep.format()
