@@ -53,7 +53,9 @@ uint hpg17_index(uint j, uint x, uint y)
     return HPG17_MOMENT_STRIDE * (j - 1) + 40 * y + y / 4 + (x < 20 ? 2 * x : 2 * x - 39);
 }
 
+// Every shared-memory load goes through this function (the harness traces it) ...
 float hpg17_load(uint a) { return hpg17_lds[a]; }            // mr:shared-load
+// ... and every store through this one.
 void hpg17_store(uint a, float v) { hpg17_lds[a] = v; }      // mr:shared-store
 
 // Resolve (Figure 6a): in round r warp w takes column x = 8 r + w, lane l row y = l; the

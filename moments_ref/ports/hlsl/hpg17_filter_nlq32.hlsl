@@ -10,8 +10,8 @@
 
 RWTexture2D<uint> texels : register(u1);
 
-[numthreads(256, 1, 1)]
-void filter_nlq32(uint3 gid : SV_GroupID, uint gi : SV_GroupIndex)
+// One group of 256 threads per 32x24 output block (block origin: the uniform block).
+[numthreads(256, 1, 1)] void filter_nlq32(uint3 gid : SV_GroupID, uint gi : SV_GroupIndex)
 {
     float4 b[3];
     int2 texel[3];

@@ -32,8 +32,8 @@ uint depth_key(float r)
     return (u >> 31) != 0 ? ~u : (u | 0x80000000u);
 }
 
-[numthreads(128, 1, 1)]
-void CS(uint3 threadID : SV_DispatchThreadID)
+// One thread per point; this dispatch's views are origin.z .. origin.z + origin.w - 1.
+[numthreads(128, 1, 1)] void CS(uint3 threadID : SV_DispatchThreadID)
 {
     if (threadID.x >= count.x)   // early exit check
         return;

@@ -54,7 +54,9 @@ fn hpg17_index(j: u32, x: u32, y: u32) -> u32 {
     return HPG17_MOMENT_STRIDE * (j - 1u) + 40u * y + y / 4u + select(2u * x - 39u, 2u * x, x < 20u);
 }
 
+// Every shared-memory load goes through this function (the harness traces it) ...
 fn hpg17_load(a: u32) -> f32 { return hpg17_lds[a]; }            // mr:shared-load
+// ... and every store through this one.
 fn hpg17_store(a: u32, v: f32) { hpg17_lds[a] = v; }             // mr:shared-store
 
 // Resolve (Figure 6a): in round r warp w takes column x = 8 r + w, lane l row y = l; the

@@ -7,8 +7,8 @@
 
 @group(0) @binding(1) var moments: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(256)
-fn filter_moments(@builtin(workgroup_id) gid: vec3<u32>, @builtin(local_invocation_index) gi: u32) {
+// One group of 256 threads per 32x24 output block (block origin: the uniform block).
+@compute @workgroup_size(256) fn filter_moments(@builtin(workgroup_id) gid: vec3<u32>, @builtin(local_invocation_index) gi: u32) {
     let o = hpg17_filter(gid, gi);
     for (var i = 0u; i < 3u; i++) {
         let t = o.texel[i];

@@ -10,8 +10,8 @@
 
 @group(0) @binding(1) var texels: texture_storage_2d<r32uint, write>;
 
-@compute @workgroup_size(256)
-fn filter_nlq32(@builtin(workgroup_id) gid: vec3<u32>, @builtin(local_invocation_index) gi: u32) {
+// One group of 256 threads per 32x24 output block (block origin: the uniform block).
+@compute @workgroup_size(256) fn filter_nlq32(@builtin(workgroup_id) gid: vec3<u32>, @builtin(local_invocation_index) gi: u32) {
     let o = hpg17_filter(gid, gi);
     for (var i = 0u; i < 3u; i++) {
         let t = o.texel[i];

@@ -30,8 +30,8 @@ fn depth_key(r: f32) -> u32 {
     return select(u | 0x80000000u, ~u, (u >> 31u) != 0u);
 }
 
-@compute @workgroup_size(128)
-fn CS(@builtin(global_invocation_id) thread_id: vec3<u32>) {
+// One thread per point; this dispatch's views are origin.z .. origin.z + origin.w - 1.
+@compute @workgroup_size(128) fn CS(@builtin(global_invocation_id) thread_id: vec3<u32>) {
     let i = thread_id.x;
     if (i >= params.count.x) {   // early exit check
         return;
