@@ -55,7 +55,7 @@ from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows
 
 __all__ = ["KERNEL_CASES", "FILTER_FORMATS", "MAPS", "EMPTY_DEPTH", "VWSS_MAP", "case_specs", "filter_codes",
-           "decode_intensity", "kernel_kwargs", "view_matrices"]
+           "vwss_reference", "decode_intensity", "kernel_kwargs", "view_matrices"]
 
 #: Output formats of the filter kernel: name -> (texel dtype, components per texel).
 FILTER_FORMATS = {"nlq64": ("uint16", 4), "nlq32": ("uint32", 1), "msm64": ("uint16", 4), "moments": ("float32", 4)}
@@ -98,7 +98,7 @@ def _regions(h, w):
 
 
 def filter_map(rng, h, w, samples=SAMPLES):
-    """A multisampled depth map for the filter cases: (H, W, S) float64 on the float32 grid, and the region of each texel."""
+    """A multisampled depth map for the filter cases: (H, W, S) float64 on the float32 grid, and each texel's region."""
     v, u = np.mgrid[0:h, 0:w].astype(np.float64)
     u, v = (u + 0.5) / w, (v + 0.5) / h
     base = -0.1 + 0.3 * u + 0.2 * v
@@ -325,7 +325,7 @@ def _clear(p, views, h, w):
 def _vwss_rows(rng, dtype):
     views = view_matrices()
     points = _vwss_points(rng, views)
-    depth = _vwss_reference(points, views.astype(np.float32) if dtype == np.float32 else views)[0]
+    depth = vwss_reference(points, views.astype(np.float32) if dtype == np.float32 else views)[0]
     hits = _vwss_hits(points, views)
     v, h, w = VWSS_MAP
     category = np.where(hits == 0, "edge", np.where(hits > 1, "stiff", "random"))
@@ -352,8 +352,11 @@ def _vwss_hits(points, views):
     return np.bincount(idx, minlength=v * h * w)
 
 
-def _vwss_reference(points, views):
-    """``np.maximum.at`` on the keys of the reversed depths: each texel's largest r, EMPTY_DEPTH where none."""
+def vwss_reference(points, views):
+    """VWSS Listing 2 in NumPy: ``np.maximum.at`` on the keys of the reversed depths.
+
+    Returns each texel's largest r (EMPTY_DEPTH where none), in the points' dtype.
+    """
     from ..techniques.vwss.warp import EMPTY_KEY, depth_key, key_depth
 
     v, h, w = VWSS_MAP
@@ -375,7 +378,7 @@ def _vwss_spread(inputs, dt):
     for s in (3, -3):
         q = p.copy()
         q[:, :3] *= 1 + s * eps
-        found.append(_vwss_reference(q.astype(np.float32), m.astype(np.float32)))
+        found.append(vwss_reference(q.astype(np.float32), m.astype(np.float32)))
     # GPU-style order: clip = M·p as four products summed left to right, then x/w.
     clip = np.zeros((p.shape[0], m.shape[0], 4), np.float32)
     pf, mf = p.astype(np.float32), m.astype(np.float32)
@@ -406,7 +409,7 @@ def _vwss_spec():
     v, h, w = VWSS_MAP
     return dict(
         name="kernel-vwss-points", function="kernels.vwss_points", dtype="float32", inputs=("points", "views"),
-        outputs=("depth",), rows=_vwss_rows, reference=_vwss_reference, truth=None,
+        outputs=("depth",), rows=_vwss_rows, reference=vwss_reference, truth=None,
         kwargs=kernel_kwargs("kernel-vwss-points"), perturb=False, row_inputs=False, spread_hook=_vwss_spread,
         description=f"VWSS Listing 2: {VWSS_POINTS} points reprojected into {v} light views of {h}×{w} texels, "
                     "z-buffered by an atomic maximum on depth_key(r), r = (1 - z_ndc)/2 not clipped; one row per "

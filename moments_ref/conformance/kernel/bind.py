@@ -102,7 +102,8 @@ def _slot_of(r, contract):
     if by_binding:
         return by_binding[0]
     raise BindingError(f"{_where(r)} matches no binding of {contract.case}; expected "
-                       + "; ".join(s.describe() for s in contract.slots) + " (matched by name, else by set and binding)")
+                       + "; ".join(s.describe() for s in contract.slots)
+                       + " (matched by name, else by set and binding)")
 
 
 def match(interface, contract):

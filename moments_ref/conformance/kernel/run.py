@@ -274,13 +274,13 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
 def numpy_times(case, gc):
     """Seconds per block (filter) or per view (VWSS) of the NumPy paths on the case's map, measured now."""
     from ...gpu import filtering, onchip
-    from ...golden.kernels import _vwss_reference
+    from ...golden.kernels import vwss_reference
 
     kw = gc.meta["kwargs"]
     out = {}
     if case == "kernel-vwss-points":
         t0 = time.perf_counter()
-        _vwss_reference(gc.arrays["points"], gc.arrays["views"])
+        vwss_reference(gc.arrays["points"], gc.arrays["views"])
         out["NumPy np.maximum.at"] = (time.perf_counter() - t0) / kw["views"]
         return out
     z = np.asarray(gc.arrays["depth"], np.float32).reshape(kw["height"], kw["width"], kw["samples"])

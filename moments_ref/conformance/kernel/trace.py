@@ -59,11 +59,13 @@ def _decls(language, vulkan):
                 "uint mr_seq = 0u;\nuint mr_epoch = 0u;\n"
                 "void mr_record(uint a, uint kind) {\n"
                 "    if (gl_WorkGroupID == uvec3(0u) && mr_seq < %du)\n"
-                "        mr_trace[gl_LocalInvocationIndex * %du + mr_seq] = (a + 1u) | (kind << 14) | (mr_epoch << 15);\n"
+                "        mr_trace[gl_LocalInvocationIndex * %du + mr_seq] =\n"
+                "            (a + 1u) | (kind << 14) | (mr_epoch << 15);\n"
                 "    mr_seq++;\n}\n") % (RECORDS, RECORDS)
     if language == "hlsl":
         return ("RWStructuredBuffer<uint> mr_trace : register(u7, space3);\n"
-                "static uint mr_seq = 0;\nstatic uint mr_epoch = 0;\nstatic uint mr_gi = 0;\nstatic bool mr_on = false;\n"
+                "static uint mr_seq = 0;\nstatic uint mr_epoch = 0;\n"
+                "static uint mr_gi = 0;\nstatic bool mr_on = false;\n"
                 "void mr_record(uint a, uint kind) {\n"
                 f"    if (mr_on && mr_seq < {RECORDS})\n"
                 f"        mr_trace[mr_gi * {RECORDS} + mr_seq] = (a + 1) | (kind << 14) | (mr_epoch << 15);\n"

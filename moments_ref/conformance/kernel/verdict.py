@@ -251,7 +251,8 @@ def _cell(a):
 def _shared_lines(s):
     if "error" in s:
         return [f"      FAIL shared memory (traced on {s['driver']}): {s['error']}"]
-    head = (f"      shared memory (traced on {s['driver']}, work group (0, 0)): {s['accesses']} accesses per invocation, "
+    head = (f"      shared memory (traced on {s['driver']}, work group (0, 0)): {s['accesses']} accesses per "
+            f"invocation, "
             f"{s['barriers']} barriers")
     lines = [head]
     if "pattern" in s:
