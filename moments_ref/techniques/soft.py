@@ -77,7 +77,9 @@ def _warped_stages(points, variant=""):
         wrp = Stage(f"vwss_warp{suffix}", _warp, (pts.key, LIGHT_SAMPLES), bound=(("cfg", cfg),))
         shade = Stage(f"shade_{technique.name}", _shade_maps, (wrp.key, LIGHT_SAMPLES, ctx.receivers),
                       bound=(("bias", cfg["bias"]),))
-        return Plan((samples_stage(ctx, cfg), pts, wrp, shade), (pts.key, wrp.key), shade.key, result="visibility")
+        # storage: one 32-bit depth map per light sample
+        return Plan((samples_stage(ctx, cfg), pts, wrp, shade), (pts.key, wrp.key), shade.key,
+                    bits=32 * int(cfg["light_samples"]), result="visibility")
 
     return stages
 
@@ -91,7 +93,8 @@ def _mvr_stages(technique, ctx, cfg):
     maps = Stage("mvr_vwss", _mvr_maps, (LIGHT_SAMPLES,), bound=(("scene", ctx.scene), ("cfg", cfg)))
     shade = Stage("shade_mvr_vwss", _shade_maps, ("mvr_vwss", LIGHT_SAMPLES, ctx.receivers),
                   bound=(("bias", cfg["bias"]),))
-    return Plan((samples_stage(ctx, cfg), maps, shade), (maps.key,), shade.key, result="visibility")
+    return Plan((samples_stage(ctx, cfg), maps, shade), (maps.key,), shade.key, bits=32 * int(cfg["light_samples"]),
+                result="visibility")
 
 
 def _not_texel_lookup(name):
