@@ -135,6 +135,10 @@ class Settings:
         Timed repeats of each stage of a technique's cost (its texture stages and
         its shade stage), after a warm-up run whose value is used; the seconds are
         their median (``spread``: median, min, max). The other stages run once.
+    warmup : bool
+        The warm-up run of the cost stages (default). Without it their first run is
+        the first timed repeat: ``repeats=1`` runs each stage once (the
+        ``moments-ref vwss`` comparison, whose stages hold N depth maps).
     clock : {"wall", "cpu"}
         What the seconds measure: wall-clock time (``time.perf_counter``) or the
         CPU time of this process, all its threads (``time.process_time``: not
@@ -154,6 +158,7 @@ class Settings:
     full: bool = False
     gbuffer: str = "fragments"
     repeats: int = 1
+    warmup: bool = True
     clock: str = "wall"
     progress: bool = False
 
@@ -254,7 +259,7 @@ class RunResult:
     techniques : list of str
     stages : list of str, the stages that ran, in order
     seconds : dict stage -> seconds (the median of its timed repeats; wall-clock or CPU, ``run(clock=...)``)
-    times : dict stage -> list of seconds: its timed repeats (after a warm-up run) for
+    times : dict stage -> list of seconds: its timed repeats (after a warm-up run, ``Settings.warmup``) for
         the stages of the techniques' costs, the single run for the others
     repeats : int, timed repeats of the cost stages
     used_by : dict stage -> techniques whose result or reference needs it
@@ -371,12 +376,14 @@ class _Graph:
             visit(t)
         return out
 
-    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1, clock=time.perf_counter):
+    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1, clock=time.perf_counter,
+            warmup=True):
         """Compute the stages ``targets`` need; return ``(order, values, times)``.
 
         A stage in ``timed`` runs once as a warm-up (its value is kept) and then
         ``repeats`` times more, each timed; ``times[stage]`` lists those seconds
         (one entry, the single run, for the other stages), read from ``clock``.
+        Without ``warmup`` the first run is the first of the ``repeats``.
         """
         order = self.order(targets)
         values, times = {}, {}
@@ -391,7 +398,8 @@ class _Graph:
                 values[name] = stage(*args)
                 times[name] = [clock() - t0]
                 if name in timed:
-                    times[name] = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1))]
+                    more = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1) - (not warmup))]
+                    times[name] = more if warmup else times[name] + more
                 if bar is not None:
                     bar.update(1)
         finally:
@@ -609,7 +617,7 @@ def run(scene, outputs=None, settings=None, **old) -> RunResult:
     timed = {k for t in plans.values() for k in (*t.texel, t.shade)}
     repeats = max(int(st.repeats), 1)
     order, values, times = rp.graph.run(rp.targets, progress=st.progress, desc=scene.name, timed=timed,
-                                        repeats=repeats, clock=_clock(st.clock))
+                                        repeats=repeats, clock=_clock(st.clock), warmup=st.warmup)
     seconds = {k: _spread(v)[0] for k, v in times.items()}
     spread = {n: {"texel": _spread(_cost(times, t.texel, repeats)),
                   "fragment": _spread(_cost(times, [t.shade], repeats))} for n, t in plans.items()}

@@ -42,6 +42,24 @@ def test_clock_chooses_the_timer(monkeypatch):
         _run("facade", ["msm128"], clock="gpu")
 
 
+def test_without_warmup_each_cost_stage_runs_repeats_times():
+    from moments_ref.techniques import get
+
+    calls = []
+    lookup = get("msm128").lookup
+
+    def counting(*a):
+        calls.append(1)
+        return lookup(*a)
+
+    t = dataclasses.replace(get("msm128"), name="msm128_counted", lookup=counting)
+    sc = load_scene("facade")
+    for warmup, repeats, runs in ((True, 1, 2), (False, 1, 1), (False, 3, 3), (True, 2, 3)):
+        calls.clear()
+        r = pipeline.run(sc, [t], pipeline.Settings(**SMALL, warmup=warmup, repeats=repeats, reference=False))
+        assert len(calls) == runs and len(r.times["shade_msm128_counted"]) == repeats, (warmup, repeats)
+
+
 def test_knot_one_sample_map_has_no_resolve_and_no_multiview():
     r = _run("knot", ["msm128", "nlq64"], msaa=1)
     assert "compute_moments" in r.stages and "onchip_blur" in r.stages

@@ -272,7 +272,7 @@ def _pipeline_settings(cs, n, reference):
     area = {"map_size": cs.map_size, "light_samples": n, "reference_views": cs.reference_views,
             "views_per_pass": cs.views_per_pass, "seed": cs.seed, "bias": cs.bias, "near": cs.near}
     return pipeline.Settings(resolution=tuple(cs.camera), gbuffer="depth", reference=reference,
-                             overrides={"area": area}, progress=cs.progress)
+                             overrides={"area": area}, warmup=False, progress=cs.progress)
 
 
 @dataclass
