@@ -80,12 +80,17 @@ def test_bounds_biased_precise(dist, zf):
 
 
 def test_float32_needs_stronger_bias():
-    # Z = ¼ δ−1 + ½ δ0 + ¼ δ1, zf = 1: Z(z < zf) = 0.75. With α = 3e-7 the float32 pivot D3
-    # drowns in rounding and the lower bound comes out 1.0; BIAS6_FLOAT32 keeps it bracketed.
+    # One depth at 0.9, zf = 0.9 in float32: Z(z < zf) = 0. With α = 3e-7 the float32 pivots
+    # drown in rounding and the lower bound comes out 1.0; BIAS6_FLOAT32 keeps it bracketed.
+    b32 = power_moments(np.array([0.9]), n=6).astype(np.float32)
+    zf = np.float32(0.9)
+    weak = msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT64), zf)
+    assert weak > 0.0 + 0.1
+    assert msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT32), zf) <= 0.0 + F32_SLACK
+    # Z = ¼ δ−1 + ½ δ0 + ¼ δ1, zf = 1: Z(z < zf) = 0.75. The witness of the weak bias until the
+    # trigonometric cubic was replaced (it gave 1.0; the Sturm count and one root give 0.75).
     z, w = np.array([-1.0, 0.0, 1.0]), np.array([0.25, 0.5, 0.25])
     b32 = power_moments(z, w, n=6).astype(np.float32)
-    weak = msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT64), np.float32(1.0))
-    assert weak > 0.75 + 0.1
     assert msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT32), np.float32(1.0)) <= 0.75 + F32_SLACK
 
 
@@ -327,6 +332,7 @@ def test_broadcasting_and_dtype():
 def test_cubic_solver_measurement():
     m = msm6.cubic_solver_benchmark(n=2000, reference=30)
     assert m["trig_max_rel_err"] < 1e-10 and m["eig_max_rel_err"] < 1e-10
+    assert m["closed_max_rel_err"] < 1e-10
 
 
 def test_unorm10_bias_measurement():
