@@ -51,22 +51,26 @@ literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
 Cubic solver. On 20 000 biased random six-moment cases (float64,
-:func:`cubic_solver_benchmark`), the trig-free closed form with two Newton steps
-is as accurate as the trigonometric method it replaced and as the
-companion-matrix eigenvalues of ``np.linalg.eigvals`` (largest error relative to
-the largest root, against ``mpmath.polyroots`` on 200 of them: 8.6e-15, 4.1e-15
-and 2.4e-14) and faster (1.3 ms against 1.8 ms and 41 ms for all three roots).
-In float32 the trigonometric functions of a NumPy with SIMD ``arctan2``/``cos`` are
-cheap (0.45 ns per element for ``arctan2`` on the bench's cubics, x86-64 with
-AVX-512), elsewhere they are scalar library calls; the closed form costs the same
-everywhere. The kernel's speed comes from needing one root instead of three
-(and one weight): measured with ``moments-ref bench``'s float32 input (2048²,
-same-run copy of the traffic, CPU time), 51 → 21 ns per element, 60× → 22× the
-copy. Newton steps: float64 needs two (one leaves 2.9× the golden tolerance on a
-stiff row); in float32 the rounding of the coefficients dominates the closed
-form's error: on the golden rows and 4000 stiff cases the worst error is the same
-with 0, 1 or 2 steps (2.3e-6, 2.2e-6, 2.1e-6 against mpmath on the golden rows),
-so none is taken.
+:func:`cubic_solver_benchmark`), the trig-free closed form (one Newton step on
+``cos(arccos(r)/3)``, two on the cubic) is exactly as accurate as the trigonometric
+method it replaced and more than the companion-matrix eigenvalues of
+``np.linalg.eigvals`` (largest error relative to the largest root, against
+``mpmath.polyroots`` on 200 of them: 4.1e-15, 4.1e-15 and 2.4e-14), and faster
+(1.3 ms against 1.7 ms and 49 ms for all three roots). In float32 a NumPy with
+SIMD ``arctan2``/``cos`` makes the trigonometric functions cheap (``arctan2``
+0.45 ns per element on the bench's cubics, x86-64 with AVX-512; elsewhere they are
+scalar library calls); the closed form costs the same everywhere. The kernel's
+speed comes from needing one root and one weight instead of three: ``moments-ref
+bench``'s float32 input at 2048², CPU time, 51 → 21 ns per element (60× → 22× a
+same-run copy of the traffic; the copy of the chunk into rows and the finiteness
+check are 2.5 ns of it). Newton steps: float64 needs the step on
+``cos(arccos(r)/3)`` for a root much smaller than the others (without it 5e-3 of
+the root is left after two steps on the cubic, tests/test_msm6.py) and two on the
+cubic (one leaves 2.9× the golden tolerance on a stiff row). In float32 the
+rounding of the coefficients dominates the fit's 1.6e-7: against mpmath on the
+golden rows the worst error is 2.3e-6, 2.2e-6 and 2.1e-6 with 0, 1 and 2 steps on
+the cubic, and on 4000 stiff cases (BIAS6_FLOAT32) the bracket's worst excess is
+2.5e-4 either way, so none is taken.
 
 Degenerate input. When ``B(b)`` is singular the distribution with these moments
 is unique (at most three distinct depths) and ``Z(z < zf)`` is known exactly;
@@ -171,21 +175,24 @@ BIAS6_UNORM10 = BiasPreset(1e-3, BIAS6_TARGET, "unorm10x6")
 _COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
                   -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
 
-#: Newton steps after the closed form in the kernels, per dtype (module docstring, "Cubic solver").
-_NEWTON_STEPS = {"float32": 0, "float64": 2}
+#: Newton steps of the closed form in the kernels, per dtype: on ``4c³ − 3c = r`` after the fit
+#: of cos(arccos(r)/3), then on the cubic (module docstring, "Cubic solver").
+_NEWTON_STEPS = {"float32": (0, 0), "float64": (1, 2)}
 
 
 # ---------------------------------------------------------------------------
 # the cubic
 
 
-def _cos_third(rho):
+def _cos_third(rho, refine=0):
     """``cos(arccos(ρ)/3)``, the largest root of ``4c³ − 3c = ρ``, without trigonometric functions.
 
     Parameters
     ----------
     rho : float array in [−1, 1]
-        Values a little outside (rounding) give the value at the nearer end, nearly.
+        Rounding a little below −1 gives the value at ``−1 + |δ|`` (u takes |1 + ρ|).
+    refine : int
+        Newton steps on ``4c³ − 3c − ρ`` after the fit.
 
     Returns
     -------
@@ -196,7 +203,11 @@ def _cos_third(rho):
     With ``u = √((1 + ρ)/2) = cos(arccos(ρ)/2)`` the value is ``cos(⅔·arccos u)``,
     analytic on [0, 1]: the square-root singularity at ρ = −1 (where the two largest
     roots meet) is taken by u. :data:`_COS_THIRD_POLY`, a degree-6 polynomial in u,
-    holds it to 1.6e-7; the Newton steps of the callers remove the rest.
+    holds it to 1.6e-7 (float32's resolution); each Newton step squares that error
+    (float64 takes one). The steps solve ``(2c − 1)·√(c + 1) = √2·u``, the same
+    equation with its double root at ρ = −1 divided out (Newton on ``4c³ − 3c − ρ``
+    stalls there, where ``12c² − 3`` vanishes: exactly where the closed form needs
+    the digits, for a small root next to a root of opposite sign).
 
     >>> _cos_third(np.array([-1.0, 0.0, 1.0])).round(6)
     array([0.5     , 0.866025, 1.      ])
@@ -207,6 +218,14 @@ def _cos_third(rho):
         c += a
         c *= u
     c += _COS_THIRD_POLY[0]
+    if refine:
+        # (2c − 1)·√(c + 1) = √2·u is 4c³ − 3c = ρ with the double root of ρ = −1 divided out:
+        # increasing in c (slope ≥ √6 at c = 1/2), so Newton on it converges fast everywhere.
+        su = u * np.sqrt(2.0)
+        for _ in range(refine):
+            s = np.sqrt(c + 1)
+            x = 2 * c - 1
+            c -= (x * s - su) / (2 * s + x / (2 * s))
     return c
 
 
@@ -236,7 +255,7 @@ def _newton(c0, c1, c2, c3, t, steps):
     return t
 
 
-def _extreme_root(c0, c1, c2, c3, sigma, newton=2):
+def _extreme_root(c0, c1, c2, c3, sigma, newton=2, refine=2):
     """The largest (σ = +1) or smallest (σ = −1) root of a cubic with three real roots.
 
     Parameters
@@ -244,8 +263,9 @@ def _extreme_root(c0, c1, c2, c3, sigma, newton=2):
     c0, c1, c2, c3 : (n,) float arrays
         Coefficients of ``c0 t³ + c1 t² + c2 t + c3``, highest power first, ``c0 ≠ 0``.
     sigma : (n,) float array of ±1
-    newton : int
-        Newton steps after the closed form.
+    newton, refine : int
+        Newton steps on the cubic after the closed form, and on ``4c³ − 3c = r``
+        inside it (:func:`_cos_third`).
 
     Returns
     -------
@@ -261,7 +281,7 @@ def _extreme_root(c0, c1, c2, c3, sigma, newton=2):
     ``|t| ≪ |B|`` (roots spread over orders of magnitude).
     """
     B, m2, r = _blinn(c0, c1, c2, c3)
-    t = sigma * m2 * _cos_third(sigma * r) - B
+    t = sigma * m2 * _cos_third(sigma * r, refine) - B
     return _newton(c0, c1, c2, c3, t, newton)
 
 
@@ -312,10 +332,11 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
 
 def _solve_cubic(c0, c1, c2, c3, newton=2):
     """:func:`solve_cubic` without validation (the canonical representation's path)."""
+    refine = _NEWTON_STEPS[c0.dtype.name][0]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         B, m2, r = _blinn(c0, c1, c2, c3)
         r = np.fmax(np.fmin(r, 1), -1)  # fmin/fmax: NaN (0/0 at a triple root) counts as 1
-        hi, lo = _cos_third(r), -_cos_third(-r)
+        hi, lo = _cos_third(r, refine), -_cos_third(-r, refine)
         return _polish(c0, c1, c2, c3, np.stack([hi, -hi - lo, lo]) * m2 - B, newton)
 
 
@@ -422,10 +443,11 @@ def _weights(t, zf, b1, b2, b3, ldl, zero):
     return np.fmax(w, zero, out=w)  # an array, not 0: NumPy's array-scalar fmax is 4x slower
 
 
-def _bounds_kernel(b, zf, newton, zero, one):
+def _bounds_kernel(b, zf, steps, zero, one):
     """Lower and upper bound on flat chunks: b (6, n) rows, zf (n,) (module docstring, steps 1–5).
 
-    ``zero`` and ``one`` are constant arrays like zf (array-array loops are the fast ones).
+    ``steps`` is the dtype's entry of :data:`_NEWTON_STEPS`; ``zero`` and ``one`` are
+    constant arrays like zf (array-array loops are the fast ones).
     """
     dt = b.dtype.type
     b1, b2, b3 = b[:3]
@@ -444,7 +466,7 @@ def _bounds_kernel(b, zf, newton, zero, one):
         # one above (two nodes below: largest t); y3 ≥ 0 is one (or three) below.
         odd = pos3.astype(dt)
         sigma = 1 - 2 * odd
-        t = _extreme_root(pz, p1, p2, q3, sigma, newton)
+        t = _extreme_root(pz, p1, p2, q3, sigma, newton=steps[1], refine=steps[0])
         w = _weights(t, zf, b1, b2, b3, ldl, zero)
         # (5) lower = Σ_{z_l < zf} w_l: 0 (no node below), w (one), 1 − w0 − w (two), 1 − w0
         # (three), written so that three nodes below give 1 − w0 exactly (never above 1).
@@ -458,7 +480,7 @@ def _bounds_kernel(b, zf, newton, zero, one):
     return lower, np.fmin(lower + w0, one)
 
 
-def _canonical_kernel(b, zf, newton, zero, one):
+def _canonical_kernel(b, zf, zero, one):
     """``(w0, z (3, n), w (3, n))`` of the canonical representation on flat chunks (all three roots)."""
     b1, b2, b3 = b[:3]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
@@ -466,7 +488,7 @@ def _canonical_kernel(b, zf, newton, zero, one):
         regular = _regular(b, ldl)
         if not regular.all():  # placeholder cubic t³ − t for singular rows (replaced below)
             P = [np.where(regular, x, y).astype(b.dtype) for x, y in zip(P, (1, 0, -1, 0))]
-        t = _solve_cubic(*P, newton=newton)
+        t = _solve_cubic(*P)  # two safeguarded Newton steps for all three roots, either dtype
         w = _weights(t, zf, b1, b2, b3, ldl, zero)
         z = zf + 1 / t  # ±inf for t = ±0
         w0 = np.fmax(1 / P[0], zero)
@@ -530,17 +552,17 @@ def _run(b, zf, want):
     b, zf, shape = lookup_inputs(b, "b", zf, trailing=6)
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("z", "w") else n, dtype=b.dtype) for k in want}
-    newton = _NEWTON_STEPS[b.dtype.name]
+    steps = _NEWTON_STEPS[b.dtype.name]
     zeros, ones = np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
         if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
             refuse_lookup(b, "b", zf)  # raises: a value is NaN or inf
         zero, one = zeros[: stop - start], ones[: stop - start]
         if "z" in want:
-            w0, z, w = _canonical_kernel(bc, zc, newton, zero, one)
+            w0, z, w = _canonical_kernel(bc, zc, zero, one)
             res = {"w0": w0, "z": z.T, "w": w.T}
         else:
-            lower, upper = _bounds_kernel(bc, zc, newton, zero, one)
+            lower, upper = _bounds_kernel(bc, zc, steps, zero, one)
             res = {"lower": lower, "upper": upper}
         for k in want:
             outs[k][start:stop] = res[k]
