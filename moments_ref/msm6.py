@@ -443,17 +443,22 @@ def _weights(t, zf, b1, b2, b3, ldl, zero):
     return np.fmax(w, zero, out=w)  # an array, not 0: NumPy's array-scalar fmax is 4x slower
 
 
-def _bounds_kernel(b, zf, steps, zero, one):
+def _bounds_kernel(b, zf, steps, zero, one, refuse):
     """Lower and upper bound on flat chunks: b (6, n) rows, zf (n,) (module docstring, steps 1–5).
 
     ``steps`` is the dtype's entry of :data:`_NEWTON_STEPS`; ``zero`` and ``one`` are
-    constant arrays like zf (array-array loops are the fast ones).
+    constant arrays like zf (array-array loops are the fast ones); ``refuse()`` raises
+    the error of a NaN or inf in the input.
     """
     dt = b.dtype.type
     b1, b2, b3 = b[:3]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         ldl, (y1, y2, y3), (pz, p1, p2, q3) = _reversed_cubic(b, zf)
         regular = _regular(b, ldl)
+        # A NaN or inf in b1..b6 leaves a pivot NaN or ±inf (not regular) but for b6 = +inf,
+        # which makes D3 = +inf; zf's own show in D3 + zf (finite D3 ≤ b6, so only a |zf|
+        # near the largest float overflows besides: then the full check finds nothing).
+        suspect = ~(regular & np.isfinite(ldl[2] + zf))
         w0 = 1 / pz
         # How many of the three Gauss nodes (roots of P3) lie below zf: the Sturm sequence
         # (P0, .., P3)(zf) = (1, y1, y2, y3) changes sign once per node above zf. Its parity is
@@ -471,7 +476,9 @@ def _bounds_kernel(b, zf, steps, zero, one):
         # (5) lower = Σ_{z_l < zf} w_l: 0 (no node below), w (one), 1 − w0 − w (two), 1 − w0
         # (three), written so that three nodes below give 1 − w0 exactly (never above 1).
         lower = (1 - w0) * two_below + w * (odd - two_below)
-    if not regular.all():
+    if suspect.any():
+        if not (np.isfinite(b).all() and np.isfinite(zf).all()):
+            refuse()
         s = ~regular
         lower[s], w0[s] = _singular(b[:, s], zf[s])[:2]
     # Clamped like saturate (rounding: 1 − w0 − w < 0, a sum of Christoffel numbers above 1);
@@ -547,22 +554,24 @@ def _run(b, zf, want):
 
     ``want`` is drawn from lower, upper (the bounds kernel) or w0 (n,), z, w (n, 3)
     (the canonical kernel); returns ``(dict, zf, shape)``. Each chunk is checked for
-    NaN and inf while it is in cache, instead of a pass over the whole input.
+    NaN and inf while it is in cache (the bounds kernel: only where a texel comes out
+    singular, which a NaN or inf makes it), instead of a pass over the whole input.
     """
     b, zf, shape = lookup_inputs(b, "b", zf, trailing=6)
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("z", "w") else n, dtype=b.dtype) for k in want}
     steps = _NEWTON_STEPS[b.dtype.name]
     zeros, ones = np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)
+    refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
-        if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
-            refuse_lookup(b, "b", zf)  # raises: a value is NaN or inf
         zero, one = zeros[: stop - start], ones[: stop - start]
         if "z" in want:
+            if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
+                refuse()
             w0, z, w = _canonical_kernel(bc, zc, zero, one)
             res = {"w0": w0, "z": z.T, "w": w.T}
         else:
-            lower, upper = _bounds_kernel(bc, zc, steps, zero, one)
+            lower, upper = _bounds_kernel(bc, zc, steps, zero, one, refuse)
             res = {"lower": lower, "upper": upper}
         for k in want:
             outs[k][start:stop] = res[k]

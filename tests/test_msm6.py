@@ -440,3 +440,35 @@ def test_unorm10_bias_measurement():
     share = msm6.measure_unorm10_bias(alphas=(1e-5, msm6.BIAS6_UNORM10.alpha, 5e-3), n=1000)
     assert share[1e-5] < share[msm6.BIAS6_UNORM10.alpha] <= share[5e-3]
     assert share[msm6.BIAS6_UNORM10.alpha] > 0.6
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("neighbour", [False, True])
+def test_every_nonfinite_input_is_refused(dt, bad, neighbour):
+    # The bounds kernel finds NaN and inf through the rows they make singular (and D3 + zf):
+    # every component, every sign, alone in a chunk of regular texels or next to a singular
+    # one. Without the D3 + zf of msm6._bounds_kernel, b6 = +inf and a non-finite zf slip
+    # through.
+    from moments_ref._kernels import CHUNK
+
+    rng = np.random.default_rng(5)
+    n = CHUNK + 100  # the bad value goes into the second chunk
+    b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4)), n=6).astype(dt), msm6.BIAS6_FLOAT32)
+    if neighbour:
+        b[-3] = power_moments(np.array([0.2]), n=6)  # a singular texel in the same chunk
+    zf = rng.uniform(-1, 1, n).astype(dt)
+    for k in range(7):
+        bb, zz = b.copy(), zf.copy()
+        if k < 6:
+            bb[CHUNK + 7, k] = bad
+        else:
+            zz[CHUNK + 7] = bad
+        for bound in ("lower", "upper"):
+            with pytest.raises(InputError) as info:
+                msm6.shadow_intensity(bb, zz, bound)
+            assert f"({CHUNK + 7}" in str(info.value) and ("zf" if k == 6 else "b") in str(info.value)
+    # finite inputs, |zf| near the largest float: D3 + zf overflows, the full check passes
+    huge = np.full(3, np.finfo(dt).max / 2, dtype=dt) * np.array([1, -1, 1], dtype=dt)
+    lo, up = msm6.shadow_bounds(b[:3], huge)
+    assert np.isfinite(lo).all() and np.isfinite(up).all()
