@@ -61,9 +61,9 @@ SIMD ``arctan2``/``cos`` makes the trigonometric functions cheap (``arctan2``
 0.45 ns per element on the bench's cubics, x86-64 with AVX-512; elsewhere they are
 scalar library calls); the closed form costs the same everywhere. The kernel's
 speed comes from needing one root and one weight instead of three: ``moments-ref
-bench``'s float32 input at 2048², CPU time, 51 → 21 ns per element (60× → 22× a
-same-run copy of the traffic; the copy of the chunk into rows and the finiteness
-check are 2.5 ns of it). Newton steps: float64 needs the step on
+bench``'s float32 input at 2048², CPU time, 59 → 22 ns per element, 60× → 23× a
+same-run copy of the traffic (docs/bench.md, "Kernel history"; the copy of the chunk
+into rows is 2.3 ns of it). Newton steps: float64 needs the step on
 ``cos(arccos(r)/3)`` for a root much smaller than the others (without it 5e-3 of
 the root is left after two steps on the cubic, tests/test_msm6.py) and two on the
 cubic (one leaves 2.9× the golden tolerance on a stiff row). In float32 the
@@ -273,10 +273,10 @@ def _extreme_root(c0, c1, c2, c3, sigma, newton=2, refine=2):
 
     Notes
     -----
-    Blinn's form (:func:`solve_cubic`): the largest root is ``2m·cos θ − B`` with
-    ``cos θ = _cos_third(r)``, the smallest ``−2m·cos_third(−r) − B`` (it is minus the
-    largest root of the cubic in −t, whose r changes sign), so
-    ``t = σ·2m·cos_third(σr) − B``: no trigonometric function, one square root
+    Blinn's form (:func:`solve_cubic`): with ``c(r) = cos(arccos(r)/3)``
+    (:func:`_cos_third`) the largest root is ``2m·c(r) − B`` and the smallest
+    ``−2m·c(−r) − B`` (minus the largest root of the cubic in −t, whose r changes
+    sign), so ``t = σ·2m·c(σr) − B``: no trigonometric function, one square root
     besides u's. The Newton steps recover the digits lost to cancellation when
     ``|t| ≪ |B|`` (roots spread over orders of magnitude).
     """
@@ -310,10 +310,11 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
     Hessian ``Δ = (C − B², D − BC, BD − C²)``, ``m = √(−Δ0)`` and
     ``cos 3θ = r = −(Δ1 − 2BΔ0)/(2m³)`` (clamped to [−1, 1]; a triple root, m = 0,
     counts as r = 1), the roots are ``2m·cos(θ + 2πk/3) − B``. The cosines are the
-    roots of ``4c³ − 3c = r``, found without trigonometric functions:
-    ``cos θ = _cos_third(r)`` (:func:`_cos_third`), ``cos(θ + 2π/3) = −cos_third(−r)``
-    and the middle one from their sum, 0. The Newton steps (with a safeguard: a
-    step is dropped where it is not finite or larger than ``|t| + 1``) polish each root.
+    roots of ``4c³ − 3c = r``, found without trigonometric functions: with
+    ``c(r) = cos(arccos(r)/3)`` as a polynomial (:func:`_cos_third`, refined by one
+    Newton step in float64), ``cos θ = c(r)``, ``cos(θ + 2π/3) = −c(−r)`` and the
+    middle one from their sum, 0. The Newton steps (with a safeguard: a step is
+    dropped where it is not finite or larger than ``|t| + 1``) polish each root.
     """
     c0 = real_input(c0, "c0")
     cs = [c0] + [real_input(c, name, dtype=c0.dtype) for c, name in ((c1, "c1"), (c2, "c2"), (c3, "c3"))]
