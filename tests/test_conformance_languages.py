@@ -155,13 +155,19 @@ def test_wrapper_is_the_file_plus_only_harness_lines(tmp_path, language):
         assert not s or s in ("{", "}") or "mr_" in s or s.startswith(harness), line
 
 
-def test_hlsl_wrapper_includes_the_file_and_adds_only_its_entry_point(tmp_path):
+def test_hlsl_wrapper_is_the_file_plus_only_its_entry_point(tmp_path):
+    # HLSL includes are resolved by the harness too (no compiler opens a user file):
+    # the wrapper is the resolved text, then the harness's lines.
+    path = tmp_path / "port.hlsl"
+    path.write_text("float shade(float4 b, float zf) { return b.x + zf; }\n")
+    src = load_source(path, "hlsl")
     ins = [conformance.Slot.of("b", np.float32, (5, 4)), conformance.Slot.of("zf", np.float32, (5,))]
     outs = [conformance.Slot.of("intensity", np.float32, (5,))]
-    text = _wrap.wrap_hlsl("port.hlsl", "shade", ins, outs, space=3)
-    lines = text.splitlines()
-    assert lines[0] == '#include "port.hlsl"'
-    assert all("mr_" in x or x in ("{", "}") or x.startswith("[numthreads") for x in lines[1:] if x.strip())
+    text = _wrap.wrap_hlsl(src, "shade", ins, outs, space=3)
+    assert text.startswith(src.body) and path.read_text() in src.body
+    rest = text[len(src.body):].strip().splitlines()
+    assert rest[0] == "#line 1 0"
+    assert all("mr_" in x or x in ("{", "}") or x.startswith("[numthreads") for x in rest[1:] if x.strip())
 
 
 # --------------------------------------------------------------------------

@@ -88,6 +88,7 @@ def spirv_counts(spirv):
 def hlsl_contraction():
     """What glslang's HLSL front end makes of ``a*b + c``, plain and ``precise``."""
     from ._slots import Slot, signature
+    from ._source import load_source
     from ._toolchain import glslang_hlsl
     from ._wrap import wrap_hlsl
 
@@ -96,9 +97,10 @@ def hlsl_contraction():
         path = Path(tmp) / "probe.hlsl"
         path.write_text(_HLSL)
         found = {}
+        src = load_source(path, "hlsl")
         for fn in ("p_contract", "p_precise"):
-            wrapper = wrap_hlsl(path.name, fn, ins, outs)
-            found[fn] = spirv_counts(glslang_hlsl(path, wrapper, signature("hlsl", fn, ins, outs)))
+            wrapper = wrap_hlsl(src, fn, ins, outs)
+            found[fn] = spirv_counts(glslang_hlsl(wrapper, src.name, signature("hlsl", fn, ins, outs)))
         return found
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,11 +23,12 @@ from . import _gl, _toolchain, _wgpu
 from ._cases import load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
-from ._source import ShaderError, defined_functions, load_source, strip_comments
-from ._wrap import LOCAL_SIZE, free_group, wrap_glsl, wrap_hlsl, wrap_wgsl
+from ._decls import keep_used, used_resources
+from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
+from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
 from .verdict import compare_case
 
-__all__ = ["LANGUAGES", "DRIVERS", "Target", "parse_adapter", "language_of", "run_function", "run_case"]
+__all__ = ["LANGUAGES", "DRIVERS", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
 
 LANGUAGES = ("glsl", "hlsl", "wgsl")
 DRIVERS = ("gl", "vulkan")
@@ -67,12 +68,37 @@ def language_of(path, language=None):
     return lang
 
 
-def _check_defined(src, path, function, sig):
+@dataclass(frozen=True)
+class SourceOptions:
+    """How the harness reads a file: include folders, ``#define`` lines, a prelude, the size budget,
+    and whether declarations the function does not use are compiled too (``keep_unused``)."""
 
+    include_dirs: tuple = ()
+    defines: tuple = ()
+    prelude: str | None = None
+    max_source: int | None = None
+    keep_unused: bool = False
+
+
+def _check_defined(src, path, function, sig):
     if not re.search(rf"\b{re.escape(function)}\s*\(", strip_comments(src.body)):
         names = ", ".join(defined_functions(src.body)) or "none"
         raise ShaderError(f"function: {function!r} is not defined in {path} (functions defined: {names}); "
                           f"expected signature: {sig}")
+
+
+def _only_used(src, function, language, keep_unused):
+    """Blank the declarations ``function`` does not use; refuse resources it needs bound."""
+    if keep_unused:
+        return src
+    body, kept = keep_used(src.body, language, function)
+    for d, what in used_resources(kept, language):
+        line = src.body.count("\n", 0, d.start) + 1
+        raise ShaderError(f"{src.locate(line)}: {function} uses {what} {d.name!r} declared here, which the harness "
+                          "does not bind (it passes only the function's arguments): read it in an adapter function "
+                          "that takes it as an argument, or make it a constant"
+                          + (" (`static const`)" if language == "hlsl" else ""))
+    return replace(src, body=body)
 
 
 def _cached(key_parts, make):
@@ -86,43 +112,49 @@ def _device(target, backend="Vulkan"):
     return _wgpu.get_device("OpenGL" if target.driver == "gl" else backend, target.name)
 
 
-def _prepare(language, target, path, function, ins, outs):
-    """``(execute(arrays, n) -> (results, timings), renderer)`` for one language on one driver."""
-    src = load_source(path, language)
+def _prepare(language, target, path, function, ins, outs, options=None):
+    """``(execute(arrays, n) -> (results, timings), renderer, notes)`` for one language on one driver."""
+    options = options or SourceOptions()
+    check_identifier(function)
+    src = load_source(path, language, options.include_dirs, options.defines, options.prelude, options.max_source)
     sig = signature(language, function, ins, outs)
     _check_defined(src, path, function, sig)
+    src = _only_used(src, function, language, options.keep_unused)
     if language == "glsl" and target.driver == "gl":
         ctx = _gl.get_context()
-        text, local = wrap_glsl(src, function, ins, outs)
-        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx)), _gl.renderer(ctx)
+        gl_max = min(ctx.version_code, 460)
+        text, local = wrap_glsl(src, function, ins, outs, gl_max=gl_max)
+        note = glsl_version(src, False, gl_max)[1]
+        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx)), \
+            _gl.renderer(ctx), [note] if note else []
     if language == "wgsl":
         dev = _device(target)
         group = free_group(src.body, r"@group\s*\(\s*(\d+)\s*\)")
         code = wrap_wgsl(src, function, ins, outs, group)
         return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
-            dev.renderer
+            dev.renderer, []
     if language == "glsl":
         dev = _device(target)
         group = free_group(src.body, r"\bset\s*=\s*(\d+)")
         text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group)
+        note = glsl_version(src, True)[1]
         spv = _cached(["glsl", text], lambda: _toolchain.glslang_glsl(text, src.name, sig))
         return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main")), \
-            dev.renderer
+            dev.renderer, [note] if note else []
     space = free_group(src.body, r"\bspace(\d+)")
-    wrapper = wrap_hlsl(Path(path).name, function, ins, outs, space)
-    spv = _cached(["hlsl", str(Path(path).resolve()), src.body, wrapper],
-                  lambda: _toolchain.glslang_hlsl(path, wrapper, sig))
+    wrapper = wrap_hlsl(src, function, ins, outs, space)
+    spv = _cached(["hlsl", wrapper], lambda: _toolchain.glslang_hlsl(wrapper, src.name, sig))
     if target.driver == "vulkan":
         dev = _device(target)
         return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
-            dev.renderer
+            dev.renderer, []
     ctx = _gl.get_context()
     glsl = _cached(["spirv-cross", hashlib.sha256(spv).hexdigest()], lambda: _toolchain.spirv_to_glsl(spv))
     return (lambda a, n: _gl.run_program(glsl, lambda k: "<spirv-cross output>", sig, ins, outs, a, n,
-                                         LOCAL_SIZE, ctx)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)"
+                                         LOCAL_SIZE, ctx)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)", []
 
 
-def run_function(path, function, inputs, outputs, language=None, adapter=None):
+def run_function(path, function, inputs, outputs, language=None, adapter=None, options=None):
     """Evaluate a shader function once per row on a driver.
 
     Parameters
@@ -138,6 +170,8 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None):
         Default: from the file's suffix.
     adapter : str, optional
         ``gl``, ``vulkan``, ``vulkan:NAME`` or an adapter name; default per language.
+    options : SourceOptions, optional
+        Include folders, defines, prelude, source size budget (see :class:`SourceOptions`).
 
     Returns
     -------
@@ -152,12 +186,13 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None):
     n = len(next(iter(inputs.values())))
     if n == 0:
         raise InputError("inputs: expected at least one row, got 0")
-    execute, _ = _prepare(language, parse_adapter(adapter, language), path, function, ins, outs)
+    execute, _, _ = _prepare(language, parse_adapter(adapter, language), path, function, ins, outs, options)
     results, timings = execute(inputs, n)
     return {k: v.reshape(outputs[k][1]) for k, v in results.items()}, timings
 
 
-def run_case(path, function, case, golden_dir=None, language=None, adapter=None, worst_rows=5, gc=None):
+def run_case(path, function, case, golden_dir=None, language=None, adapter=None, worst_rows=5, gc=None,
+             options=None):
     """Run a shader function on a golden case and judge it with the one comparator (``golden.compare``).
 
     Parameters
@@ -170,7 +205,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
         Golden case name, e.g. ``shadow_intensity-lower-float32``.
     golden_dir : path, optional
         A folder written by ``moments-ref golden``; default: generate the case.
-    language, adapter : see :func:`run_function`.
+    language, adapter, options : see :func:`run_function`.
     worst_rows : int
         Failing rows to list per category.
     gc : GoldenCase, optional
@@ -186,9 +221,9 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     ins = [Slot.of(k, np.asarray(v).dtype, np.shape(v)) for k, v in gc.inputs.items()]
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
-    execute, renderer = _prepare(language, target, path, function, ins, outs)
+    execute, renderer, notes = _prepare(language, target, path, function, ins, outs, options)
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
     v = compare_case(case, gc.meta, gc.arrays, got, worst_rows)
     return ConformanceReport(case, function, str(path), renderer, len(gc.category), v.exact, v.categories, v.worst,
-                             timings, v.notes, v.components, language, target.driver, got, v.metric, v.row_pass)
+                             timings, notes + v.notes, v.components, language, target.driver, got, v.metric, v.row_pass)

@@ -90,13 +90,33 @@ def _wgsl_errors(text, locate):
     return [f"{locate(int(line))}:{col}: {msg.strip()}" for msg, line, col in msgs]
 
 
-def _pipeline(dev, code, locate, signature, entry):
-    key = (id(dev), entry, hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
+def _layout(dev, group, kinds):
+    """Explicit pipeline layout: empty groups below ``group``, then the harness's buffers.
+
+    ``kinds[b]`` is ``"read"`` or ``"write"`` for binding ``b``. An explicit layout
+    (not ``"auto"``) keeps bindings the compiled function does not read (its
+    argument ignored) in the layout, so that the bind group always matches it.
+    """
+    wgpu = _wgpu()
+    types = {"read": wgpu.BufferBindingType.read_only_storage, "write": wgpu.BufferBindingType.storage}
+    d = dev.device
+    empty = d.create_bind_group_layout(entries=[])
+    own = d.create_bind_group_layout(entries=[
+        {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": types[k]}}
+        for b, k in enumerate(kinds)])
+    layouts = [empty] * group + [own]
+    return d.create_pipeline_layout(bind_group_layouts=layouts), layouts
+
+
+def _pipeline(dev, code, locate, signature, entry, group, kinds):
+    key = (id(dev), entry, group, tuple(kinds),
+           hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
     if key not in _PIPELINES:
         try:
             module = dev.device.create_shader_module(code=code)
-            _PIPELINES[key] = dev.device.create_compute_pipeline(
-                layout="auto", compute={"module": module, "entry_point": entry})
+            layout, layouts = _layout(dev, group, kinds)
+            _PIPELINES[key] = (dev.device.create_compute_pipeline(
+                layout=layout, compute={"module": module, "entry_point": entry}), layouts)
         except Exception as exc:
             text = str(exc)
             lines = _wgsl_errors(text, locate) if isinstance(code, str) else [
@@ -113,7 +133,8 @@ def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_
     d = dev.device
     timings = {}
     t0 = time.perf_counter()
-    pipe = _pipeline(dev, code, locate, signature, entry)
+    kinds = ["read"] * len(ins) + ["write"] * len(outs) + ["read"]
+    pipe, layouts = _pipeline(dev, code, locate, signature, entry, group, kinds)
     timings["compile"] = time.perf_counter() - t0
     gx, gy = groups(n, local_size)
     t0 = time.perf_counter()
@@ -123,13 +144,15 @@ def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_
                 for s in outs]
     params = d.create_buffer_with_data(data=np.array([n, gx * local_size, 0, 0], np.uint32).tobytes(), usage=storage)
     entries = [{"binding": b, "resource": {"buffer": buf}} for b, buf in enumerate(bufs + out_bufs + [params])]
-    bind = d.create_bind_group(layout=pipe.get_bind_group_layout(group), entries=entries)
+    binds = [d.create_bind_group(layout=lay, entries=[]) for lay in layouts[:group]]
+    binds.append(d.create_bind_group(layout=layouts[group], entries=entries))
     timings["upload"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     enc = d.create_command_encoder()
     cpass = enc.begin_compute_pass()
     cpass.set_pipeline(pipe)
-    cpass.set_bind_group(group, bind)
+    for g, bind in enumerate(binds):
+        cpass.set_bind_group(g, bind)
     cpass.dispatch_workgroups(gx, gy, 1)
     cpass.end()
     d.queue.submit([enc.finish()])

@@ -4,8 +4,9 @@ Per language the wrapper declares one storage buffer per golden input and output
 (binding = argument order, then the outputs, then ``mr_params`` = (row count,
 threads per dispatch row)), and an entry point that calls the user's function once
 per row. Every harness name starts with ``mr_``. The user's file is included as it
-is (GLSL, WGSL: text with line markers; HLSL: ``#include`` through glslang), so
-its own entry point, resources and includes stay; in GLSL a user ``main`` is
+is (text with line markers, its includes resolved by :mod:`._source`, the
+declarations the function does not use blanked by :mod:`._decls`), so its own
+entry point and helpers may stay; in GLSL a user ``main`` is
 renamed with ``#define main mr_user_main`` around the file, and a user
 ``layout(local_size_x = N) in;`` is kept and used.
 """
@@ -17,7 +18,7 @@ import re
 from .._arrays import InputError
 from ._source import strip_comments
 
-__all__ = ["LOCAL_SIZE", "wrap_glsl", "wrap_hlsl", "wrap_wgsl", "free_group", "user_local_size"]
+__all__ = ["LOCAL_SIZE", "glsl_version", "wrap_glsl", "wrap_hlsl", "wrap_wgsl", "free_group", "user_local_size"]
 
 #: Work-group size of the wrapper (one invocation per golden row).
 LOCAL_SIZE = 64
@@ -99,11 +100,28 @@ def _glsl_buffers(ins, outs, set_prefix):
     return lines
 
 
-def wrap_glsl(src, function, ins, outs, vulkan=False, group=3):
+def glsl_version(src, vulkan=False, gl_max=450):
+    """``(version, note)``: the ``#version`` the wrapper uses on a driver.
+
+    The file's own ``#version`` says what it needs, not which driver runs it, so
+    the harness picks one each driver offers: at least 430 (OpenGL compute) or 450
+    (Vulkan), at most the OpenGL context's (Mesa 22.3: 450) or 460 (glslang).
+    An ES version (``310 es``) is compiled as desktop GLSL.
+    """
+    want = src.version or 0
+    lo, hi = (450, 460) if vulkan else (430, gl_max)
+    use = min(max(want, lo), hi)
+    note = None
+    if want > hi:
+        note = f"#version {want} ({src.version_at}) compiled as {use}, the highest this driver offers"
+    return use, note
+
+
+def wrap_glsl(src, function, ins, outs, vulkan=False, group=3, gl_max=450):
     """GLSL compute shader: the user's resolved source, then the harness (``#line 1 0``)."""
     user_main = re.search(r"\bvoid\s+main\s*\(", strip_comments(src.body)) is not None
     local = user_local_size(src.body)
-    version = max(src.version, 450 if vulkan else 430)
+    version, _ = glsl_version(src, vulkan, gl_max)
     lines = [f"#version {version}", *src.extensions]
     lines += ["#define main mr_user_main"] if user_main else []
     lines += [src.body, "#undef main"] if user_main else [src.body]
@@ -118,9 +136,9 @@ def wrap_glsl(src, function, ins, outs, vulkan=False, group=3):
     return "\n".join(lines) + "\n", local or LOCAL_SIZE
 
 
-def wrap_hlsl(include_name, function, ins, outs, space=3):
-    """HLSL compute shader including the user's file; entry point ``mr_main``."""
-    lines = [f'#include "{include_name}"']
+def wrap_hlsl(src, function, ins, outs, space=3):
+    """HLSL compute shader: the user's resolved source, then the harness (``#line 1 0``); entry ``mr_main``."""
+    lines = [src.body, "#line 1 0"]
     b = 0
     for s in ins:
         lines.append(f"StructuredBuffer<{s.element('hlsl')}> mr_in_{s.name} : register(t{b}, space{space});")
