@@ -237,8 +237,11 @@ class _State:
             found = next((c for c in _resolve(m.group(1), real.parent, self.language, self.include_dirs)
                           if c.is_file()), None)
             if found is None:
+                cands = _resolve(m.group(1), real.parent, self.language, self.include_dirs)
                 where = ", ".join(["the including folder", *(str(d) for d in self.include_dirs)])
                 msg = f'include "{m.group(1)}" not found (searched {where}; add a folder with --include)'
+                if any(c.is_symlink() for c in cands):
+                    msg = f'include "{m.group(1)}" is a broken symbolic link or a symbolic link loop'
                 if self.language == "wgsl":
                     raise ShaderError(f"{p}:{no}: {msg}")
                 self.emit(f"#error {msg}", (k - 1, no))
