@@ -183,7 +183,7 @@ class _CompileFailed(Exception):
 
 
 def open_target(target):
-    """``(renderer, version_code)`` of ``target`` (``("gl",)`` or ``("wgpu", backend, name)``) in the child.
+    """``(renderer, version_code, takes SPIR-V)`` of ``target`` (``("gl",)`` or ``("wgpu", backend, name)``) in the child.
 
     Raises :class:`~._gl.ContextError` when there is no such driver.
     """
@@ -265,7 +265,7 @@ def _handle(message, targets, conn, _gl, _wgpu):
         targets[target] = _gl.open_local() if target[0] == "gl" else _wgpu.open_local(*target[1:])
     driver = targets[target]
     if kind == "open":
-        return driver.renderer, driver.version_code
+        return driver.renderer, driver.version_code, getattr(driver, "spirv", False)
     code, bindings, groups, entry, group = message[2:]
     try:
         compiled = driver.compile(code, entry, group, [b.mode for b in sorted(bindings, key=lambda b: b.binding)])

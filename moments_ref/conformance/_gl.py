@@ -76,10 +76,10 @@ def renderer(ctx):
 
 
 class RemoteContext:
-    """The OpenGL context of the driver process (:mod:`._child`): its renderer and version."""
+    """The OpenGL context of the driver process (:mod:`._child`): renderer, version, SPIR-V support."""
 
-    def __init__(self, renderer, version_code):
-        self.renderer, self.version_code = renderer, version_code
+    def __init__(self, renderer, version_code, spirv=False):
+        self.renderer, self.version_code, self.spirv = renderer, version_code, spirv
 
 
 def get_context():
@@ -125,8 +125,10 @@ def case_results(outs, ins, raw, n):
             .reshape(n, s.width)[:, : s.components].copy() for k, s in enumerate(outs)}
 
 
-def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=None):
-    """Compile (cached) and dispatch a wrapped GLSL compute shader in the driver process; see :mod:`._wrap`.
+def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=None, entry="main"):
+    """Compile (cached) and dispatch a wrapped compute shader in the driver process; see :mod:`._wrap`.
+
+    ``text`` is GLSL, or a SPIR-V module (bytes) with its entry point ``entry``.
 
     Returns ``(results, timings)``; ``timings`` has ``compile``, ``upload``,
     ``dispatch`` and ``readback`` seconds.
@@ -140,7 +142,7 @@ def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=
         return ShaderError(f"the wrapped function does not compile (expected signature: {signature}):\n"
                            + "\n".join(_mesa_errors(log, name_of)))
 
-    raw, timings = dispatch(("gl",), text, bindings, grid, on_compile_error=failed)
+    raw, timings = dispatch(("gl",), text, bindings, grid, entry, on_compile_error=failed)
     return case_results(outs, ins, raw, n), timings
 
 
@@ -156,15 +158,23 @@ class LocalGL:
     """The OpenGL context inside the driver process: compile and dispatch."""
 
     def __init__(self, ctx):
+        from ._glspirv import available
+
         self.ctx = ctx
         self.renderer, self.version_code = renderer(ctx), ctx.version_code
+        with ctx:
+            self.spirv = available(ctx)
 
     def compile(self, code, entry=None, group=None, modes=None):
-        key = hashlib.sha256(code.encode()).hexdigest()
+        """A program from GLSL text (moderngl) or a SPIR-V module (bytes, entry point ``entry``)."""
+        from ._glspirv import SpirvProgram
+
+        key = (entry, hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
         if key not in _PROGRAMS:
             with self.ctx:
                 try:
-                    _PROGRAMS[key] = self.ctx.compute_shader(code)
+                    _PROGRAMS[key] = (SpirvProgram(code, entry or "main") if isinstance(code, bytes)
+                                      else self.ctx.compute_shader(code))
                 except Exception as exc:
                     raise LocalCompileError(str(exc)) from None
         return _PROGRAMS[key]

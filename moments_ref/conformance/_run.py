@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError
-from . import _gl, _toolchain, _wgpu
+from . import _gl, _glspirv, _toolchain, _wgpu
 from ._cases import load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
@@ -70,14 +70,17 @@ def language_of(path, language=None):
 
 @dataclass(frozen=True)
 class SourceOptions:
-    """How the harness reads a file: include folders, ``#define`` lines, a prelude, the size budget,
-    and whether declarations the function does not use are compiled too (``keep_unused``)."""
+    """How the harness reads and compiles a file: include folders, ``#define`` lines, a prelude, the
+    size budget, whether declarations the function does not use are compiled too (``keep_unused``),
+    and whether OpenGL evaluates every operation of an HLSL file as written (``exact``: each result
+    rounded in program order, no reassociation, as if every operation were ``precise``)."""
 
     include_dirs: tuple = ()
     defines: tuple = ()
     prelude: str | None = None
     max_source: int | None = None
     keep_unused: bool = False
+    exact: bool = True
 
 
 def _check_defined(src, path, function, sig):
@@ -149,7 +152,12 @@ def _prepare(language, target, path, function, ins, outs, options=None):
         return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
             dev.renderer, []
     ctx = _gl.get_context()
-    glsl = _cached(["spirv-cross", hashlib.sha256(spv).hexdigest()], lambda: _toolchain.spirv_to_glsl(spv))
+    code = _glspirv.exact_everywhere(spv) if options.exact else spv
+    how = "every operation as written" if options.exact else "the SPIR-V Vulkan gets"
+    if ctx.spirv:  # the driver reads the module itself (GL_ARB_gl_spirv): no GLSL text in between
+        return (lambda a, n: _gl.run_program(code, src.name, sig, ins, outs, a, n, LOCAL_SIZE, ctx, "mr_main")), \
+            _gl.renderer(ctx) + f" (HLSL as SPIR-V: {how})", []
+    glsl = _cached(["spirv-cross", hashlib.sha256(code).hexdigest()], lambda: _toolchain.spirv_to_glsl(code))
     return (lambda a, n: _gl.run_program(glsl, lambda k: "<spirv-cross output>", sig, ins, outs, a, n,
                                          LOCAL_SIZE, ctx)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)", []
 

@@ -116,8 +116,33 @@ def glslang_hlsl(text, describe_string, signature):
         return out.read_bytes()
 
 
+def _as_spirv_states(types=("float", "vec2", "vec3", "vec4")):
+    """GLSL helpers that evaluate ``fma`` and ``mix`` the way SPIR-V defines ``Fma`` and ``FMix``.
+
+    Measured on Mesa 22.3: its GLSL compiler splits a non-``precise`` ``fma`` into a
+    product and a sum and then factors ``fma(-n, lo, fma(-n, hi, x))`` into
+    ``x - n*(hi + lo)`` (Cody-Waite reduction undone), and lowers ``mix(x, y, a)`` to
+    ``x + a*(y - x)``; Mesa's SPIR-V reader (Vulkan) keeps ``Fma`` one operation and
+    evaluates ``FMix`` as GLSL.std.450 defines it, ``x*(1 - a) + y*a``. ``precise``
+    helpers give OpenGL the same. ``mix`` with a boolean selector stays a select.
+    """
+    lines = []
+    for t in types:
+        lines.append(f"{t} mr_fma({t} a, {t} b, {t} c) {{ precise {t} r = fma(a, b, c); return r; }}")
+        lines.append(f"{t} mr_mix({t} x, {t} y, {t} a) {{ precise {t} r = x * (1.0 - a) + y * a; return r; }}")
+        b = "bool" if t == "float" else f"bvec{t[-1]}"
+        lines.append(f"{t} mr_mix({t} x, {t} y, {b} a) {{ return mix(x, y, a); }}")
+        if t != "float":
+            lines.append(f"{t} mr_mix({t} x, {t} y, float a) {{ precise {t} r = x * (1.0 - a) + y * a; return r; }}")
+    return lines
+
+
 def spirv_to_glsl(spirv, version=430):
-    """SPIR-V to desktop GLSL with SPIRV-Cross (``precise`` kept from NoContraction)."""
+    """SPIR-V to desktop GLSL with SPIRV-Cross, evaluated as the SPIR-V states it on Mesa.
+
+    ``precise`` comes from NoContraction; ``fma`` and ``mix`` go through the helpers of
+    :func:`_as_spirv_states`, so that OpenGL computes what Vulkan computes.
+    """
     with tempfile.TemporaryDirectory(prefix="moments-ref-spvc-") as tmp:
         src, out = Path(tmp) / "in.spv", Path(tmp) / "out.glsl"
         src.write_bytes(spirv)
@@ -125,7 +150,9 @@ def spirv_to_glsl(spirv, version=430):
                           "--output", str(out)], "spirv-cross")
         if code != 0 or not out.is_file():
             raise ShaderError(f"spirv-cross could not translate the SPIR-V: {log.strip()}")
-        return out.read_text()
+        text = re.sub(r"\b(fma|mix)\(", r"mr_\1(", out.read_text())
+        head, _, rest = text.partition("\n")
+        return "\n".join([head, *_as_spirv_states(), rest])
 
 
 def tool_versions():

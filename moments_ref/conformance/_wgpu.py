@@ -67,7 +67,7 @@ def get_device(backend="Vulkan", name=None):
     if key not in _DEVICES:
         from ._child import open_target
 
-        renderer, _ = open_target(("wgpu", backend, name))
+        renderer = open_target(("wgpu", backend, name))[0]
         _DEVICES[key] = RemoteDevice(backend, name, renderer)
     return _DEVICES[key]
 
