@@ -294,6 +294,8 @@ def _add_source_options(cf):
                     help="largest source with its prelude and includes (default 4M)")
     cf.add_argument("--keep-unused", action="store_true",
                     help="compile every declaration of the file, not only those the function uses")
+    cf.add_argument("--watchdog", type=float, default=None, metavar="SECONDS",
+                    help="longest dispatch before the driver is stopped (default 10)")
 
 
 def _add_measurements(sub):

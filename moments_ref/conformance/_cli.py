@@ -197,6 +197,10 @@ def main(args):
     """Entry for the CLI: ``args`` has ``glsl``/``hlsl``/``wgsl``, ``function``, ``case``,
     ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None)."""
     get = lambda k: getattr(args, k, None)  # noqa: E731
+    if get("watchdog") is not None:
+        from ._child import set_watchdog
+
+        set_watchdog(get("watchdog"))
     if get("all"):
         from .._io import write_text
 
