@@ -276,7 +276,8 @@ def _add_oracle(sub):
     cf.add_argument("--function", help="the function to test")
     cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME or an adapter name (default per language)")
+    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME, an adapter name, both (gl and vulkan, "
+                                      "and the rows where they differ) or as-written (default per language)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
     _add_source_options(cf)

@@ -365,3 +365,24 @@ def test_glslang_contracts_hlsl_unless_precise(drivers):
     from moments_ref.conformance import _probes
 
     assert _probes.hlsl_contraction() == {"p_contract": (1, 0), "p_precise": (0, 2)}
+
+
+# What each path's compiler changes (docs/ports.md, "What the drivers' compilers change"):
+# measured on Mesa 22.3; the as-written path is the one that changes nothing the source did not ask for.
+_RULES_MEASURED = {
+    ("glsl", "gl"): ("x+a(y-x)", "division", "(1.5x+0.5)-2y", "(w*w)*(w*w)"),
+    ("glsl", "vulkan"): ("x(1-a)+ya", "division", "(1.5x+0.5)-2y", "left to right"),
+    ("glsl", "as-written"): ("x(1-a)+ya", "division", "as written", "left to right"),
+    ("hlsl", "gl"): ("x(1-a)+ya", "x*(1/3)", "as written", "left to right"),
+    ("hlsl", "vulkan"): ("x(1-a)+ya", "x*(1/3)", "(1.5x+0.5)-2y", "left to right"),
+    ("hlsl", "as-written"): ("x(1-a)+ya", "x*(1/3)", "as written", "left to right"),
+    ("wgsl", "gl"): ("x+a(y-x)", "division", "(1.5x+0.5)-2y", "(w*w)*(w*w)"),
+    ("wgsl", "vulkan"): ("x(1-a)+ya", "division", "(1.5x+0.5)-2y", "left to right"),
+}
+
+
+@pytest.mark.parametrize("language,driver", sorted(_RULES_MEASURED))
+def test_what_each_compiler_changes(drivers, language, driver):
+    from moments_ref.conformance import _probes
+
+    assert tuple(_probes.rules(language, driver).values()) == _RULES_MEASURED[(language, driver)]

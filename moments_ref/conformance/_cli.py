@@ -38,7 +38,8 @@ def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=
     Returns
     -------
     int
-        0 every row within its tolerance; 1 a tolerance exceeded; 2 no driver or
+        0 every row within its tolerance (with ``adapter="both"``: on both drivers, which then
+        also list the rows where they differ); 1 a tolerance exceeded; 2 no driver or
         compiler (reason on stderr), bad usage (unknown case, missing function, a
         file that does not compile: the compiler's messages, one line per error), or
         any failure of the harness, a compiler or a driver (one line: never a
@@ -47,8 +48,14 @@ def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=
     out, err = out or sys.stdout, err or sys.stderr
     try:
         language = language_of(path, language)
-        report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter,
-                          options=options)
+        if adapter == "both":
+            from ._agree import compare_drivers
+
+            report = compare_drivers(resolve_port(path, language), function, case, golden_dir, language,
+                                     options=options)
+        else:
+            report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter,
+                              options=options)
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2

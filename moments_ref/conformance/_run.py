@@ -28,10 +28,13 @@ from ._source import ShaderError, check_identifier, defined_functions, load_sour
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
 from .verdict import compare_case
 
-__all__ = ["LANGUAGES", "DRIVERS", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
+__all__ = ["LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
 
 LANGUAGES = ("glsl", "hlsl", "wgsl")
 DRIVERS = ("gl", "vulkan")
+#: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
+#: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).
+AS_WRITTEN = "as-written"
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
 DEFAULT_DRIVER = {"glsl": "gl", "hlsl": "gl", "wgsl": "vulkan"}
 _SUFFIX = {".glsl": "glsl", ".comp": "glsl", ".hlsl": "hlsl", ".hlsli": "hlsl", ".fx": "hlsl", ".wgsl": "wgsl"}
@@ -47,9 +50,12 @@ class Target:
 
 
 def parse_adapter(spec, language):
-    """``None`` → the language's default; ``gl``, ``vulkan``, ``vulkan:NAME`` or ``NAME`` (a Vulkan adapter)."""
+    """``None`` → the language's default; ``gl``, ``vulkan``, ``vulkan:NAME``, ``as-written`` or ``NAME``
+    (a Vulkan adapter)."""
     if spec is None or spec == "":
         return Target(DEFAULT_DRIVER[language])
+    if spec == AS_WRITTEN:
+        return Target(AS_WRITTEN)
     driver, _, name = spec.partition(":")
     if driver.lower() in DRIVERS:
         return Target(driver.lower(), name or None)
@@ -123,43 +129,76 @@ def _prepare(language, target, path, function, ins, outs, options=None):
     sig = signature(language, function, ins, outs)
     _check_defined(src, path, function, sig)
     src = _only_used(src, function, language, options.keep_unused)
-    if language == "glsl" and target.driver == "gl":
-        ctx = _gl.get_context()
-        gl_max = min(ctx.version_code, 460)
-        text, local = wrap_glsl(src, function, ins, outs, gl_max=gl_max)
-        note = glsl_version(src, False, gl_max)[1]
-        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx)), \
-            _gl.renderer(ctx), [note] if note else []
+    if target.driver == AS_WRITTEN:
+        return _as_written(language, src, function, sig, ins, outs)
+    if language == "glsl":
+        return _glsl(target, src, function, sig, ins, outs)
     if language == "wgsl":
         dev = _device(target)
         group = free_group(src.body, r"@group\s*\(\s*(\d+)\s*\)")
         code = wrap_wgsl(src, function, ins, outs, group)
         return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
             dev.renderer, []
-    if language == "glsl":
-        dev = _device(target)
-        group = free_group(src.body, r"\bset\s*=\s*(\d+)")
-        text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group)
-        note = glsl_version(src, True)[1]
-        spv = _cached(["glsl", text], lambda: _toolchain.glslang_glsl(text, src.name, sig))
-        return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main")), \
-            dev.renderer, [note] if note else []
+    return _hlsl(target, src, function, sig, ins, outs, options.exact)
+
+
+def _glsl(target, src, function, sig, ins, outs):
+    if target.driver == "gl":
+        ctx = _gl.get_context()
+        gl_max = min(ctx.version_code, 460)
+        text, local = wrap_glsl(src, function, ins, outs, gl_max=gl_max)
+        note = glsl_version(src, False, gl_max)[1]
+        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx)), \
+            _gl.renderer(ctx), [note] if note else []
+    dev = _device(target)
+    spv, group, local, note = _glsl_spirv(src, function, sig, ins, outs)
+    return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main")), \
+        dev.renderer, [note] if note else []
+
+
+def _glsl_spirv(src, function, sig, ins, outs):
+    group = free_group(src.body, r"\bset\s*=\s*(\d+)")
+    text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group)
+    note = glsl_version(src, True)[1]
+    return _cached(["glsl", text], lambda: _toolchain.glslang_glsl(text, src.name, sig)), group, local, note
+
+
+def _hlsl_spirv(src, function, sig, ins, outs):
     space = free_group(src.body, r"\bspace(\d+)")
     wrapper = wrap_hlsl(src, function, ins, outs, space)
-    spv = _cached(["hlsl", wrapper], lambda: _toolchain.glslang_hlsl(wrapper, src.name, sig))
+    return _cached(["hlsl", wrapper], lambda: _toolchain.glslang_hlsl(wrapper, src.name, sig)), space
+
+
+def _hlsl(target, src, function, sig, ins, outs, exact):
+    spv, space = _hlsl_spirv(src, function, sig, ins, outs)
     if target.driver == "vulkan":
         dev = _device(target)
         return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
             dev.renderer, []
     ctx = _gl.get_context()
-    code = _glspirv.exact_everywhere(spv) if options.exact else spv
-    how = "every operation as written" if options.exact else "the SPIR-V Vulkan gets"
+    code = _glspirv.exact_everywhere(spv) if exact else spv
+    how = "every operation as written" if exact else "the SPIR-V Vulkan gets"
     if ctx.spirv:  # the driver reads the module itself (GL_ARB_gl_spirv): no GLSL text in between
         return (lambda a, n: _gl.run_program(code, src.name, sig, ins, outs, a, n, LOCAL_SIZE, ctx, "mr_main")), \
             _gl.renderer(ctx) + f" (HLSL as SPIR-V: {how})", []
     glsl = _cached(["spirv-cross", hashlib.sha256(code).hexdigest()], lambda: _toolchain.spirv_to_glsl(code))
     return (lambda a, n: _gl.run_program(glsl, lambda k: "<spirv-cross output>", sig, ins, outs, a, n,
                                          LOCAL_SIZE, ctx)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)", []
+
+
+def _as_written(language, src, function, sig, ins, outs):
+    """OpenGL reading glslang's SPIR-V with every float operation ``NoContraction`` (GLSL, HLSL)."""
+    ctx = _gl.get_context()
+    if language == "wgsl" or not ctx.spirv:
+        raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL and an OpenGL driver with GL_ARB_gl_spirv")
+    if language == "glsl":
+        spv, _, local, _ = _glsl_spirv(src, function, sig, ins, outs)
+        entry = "main"
+    else:
+        (spv, _), local, entry = _hlsl_spirv(src, function, sig, ins, outs), LOCAL_SIZE, "mr_main"
+    code = _glspirv.exact_everywhere(spv)
+    return (lambda a, n: _gl.run_program(code, src.name, sig, ins, outs, a, n, local, ctx, entry)), \
+        _gl.renderer(ctx) + " (SPIR-V, every operation as written)", []
 
 
 def run_function(path, function, inputs, outputs, language=None, adapter=None, options=None):
