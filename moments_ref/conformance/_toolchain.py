@@ -48,7 +48,9 @@ def limit_memory(nbytes):
     """Cap this process's data segment (heap and private mappings) at ``nbytes``."""
     import resource
 
-    resource.setrlimit(resource.RLIMIT_DATA, (nbytes, nbytes))
+    _, hard = resource.getrlimit(resource.RLIMIT_DATA)
+    soft = nbytes if hard == resource.RLIM_INFINITY else min(nbytes, hard)
+    resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))  # the soft limit only: a later call may raise it
 
 
 def _run(cmd, what="the compiler"):
