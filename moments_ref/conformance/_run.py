@@ -4,7 +4,7 @@
 language   Vulkan (wgpu; lavapipe without a GPU)            OpenGL (EGL; llvmpipe)
 =========  ===============================================  ===============================
 GLSL       glslang → SPIR-V → wgpu                          moderngl (the default)
-HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V → SPIRV-Cross → moderngl (the default)
+HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V read by the driver, as written (default)
 WGSL       wgpu (the default)                               wgpu's OpenGL adapter
 =========  ===============================================  ===============================
 """
