@@ -237,3 +237,52 @@ def test_a_function_name_is_an_identifier():
 
     with pytest.raises(InputError, match="identifier"):
         run_function("x.glsl", "", {"x": [1.0]}, {"y": ("float32", (1,))}, "glsl", "gl")
+
+
+# Functions that read their moments (or NLQ texels) from a texture: the harness binds the
+# golden inputs as a texture and passes each row's texel (docs/ports.md, "Texture arguments").
+_TEX = {
+    "hlsl": ('#include "msm.hlsl"\n#include "packing.hlsl"\n'
+             "float f(Texture2D<float4> m, int2 p, float zf) { return shadow_intensity_lower(m.Load(int3(p, 0)), zf); }\n"
+             "float4 u64(Texture2D<uint4> t, int2 p) { return unpack64(t.Load(int3(p, 0))); }\n"
+             "float4 up32(Texture2D<uint> t, int2 p) { return unpack32(t.Load(int3(p, 0))); }\n"
+             "float4 dec(Texture2D<float4> t, int2 p) { return from_optimized(t.Load(int3(p, 0))); }\n"),
+    "wgsl": ('#include "msm.wgsl"\n#include "packing.wgsl"\n'
+             "fn f(m: texture_2d<f32>, p: vec2<i32>, zf: f32) -> f32 {\n"
+             "    return shadow_intensity_lower(textureLoad(m, p, 0), zf); }\n"
+             "fn u64(t: texture_2d<u32>, p: vec2<i32>) -> vec4<f32> { return unpack64(textureLoad(t, p, 0)); }\n"
+             "fn up32(t: texture_2d<u32>, p: vec2<i32>) -> vec4<f32> { return unpack32(textureLoad(t, p, 0).x); }\n"
+             "fn dec(t: texture_2d<f32>, p: vec2<i32>) -> vec4<f32> { return from_optimized(textureLoad(t, p, 0)); }\n"),
+    "glsl": ('#include "msm.glsl"\n#include "packing.glsl"\n'
+             "float f(sampler2D m, ivec2 p, float zf) { return shadow_intensity_lower(texelFetch(m, p, 0), zf); }\n"
+             "vec4 u64(usampler2D t, ivec2 p) { return unpack64(texelFetch(t, p, 0)); }\n"
+             "vec4 up32(usampler2D t, ivec2 p) { return unpack32(texelFetch(t, p, 0).x); }\n"
+             "vec4 dec(sampler2D t, ivec2 p) { return from_optimized(texelFetch(t, p, 0)); }\n"),
+}
+#: (function, case, texture format the harness makes)
+_TEX_CASES = [("f", CASE, "rgba32float moments"), ("u64", "unpack64-float32", "rgba16uint NLQ texels"),
+              ("up32", "unpack32-float32", "r32uint NLQ texels"), ("dec", "decode_unorm16-float32", "rgba16unorm")]
+
+
+@pytest.mark.parametrize("language,adapter", [("hlsl", "gl"), ("hlsl", "vulkan"), ("wgsl", "gl"), ("wgsl", "vulkan"),
+                                              ("glsl", "gl")])
+@pytest.mark.parametrize("function,case,what", _TEX_CASES)
+def test_texture_reading_function_passes(golden_dir, tmp_path, language, adapter, function, case, what):
+    from moments_ref.conformance import run_case
+
+    if (language, adapter, function) == ("wgsl", "gl", "dec"):
+        pytest.skip("wgpu's OpenGL adapter has no 16-bit normalized textures")
+    path = tmp_path / f"t.{language}"
+    path.write_text(_TEX[language])
+    report = run_case(path, function, case, language=language, adapter=adapter)
+    assert report.passed, report.format()
+
+
+def test_texture_refusals_are_one_line(golden_dir, tmp_path, capsys):
+    _write(tmp_path, {"t.glsl": _TEX["glsl"],
+                      "c.hlsl": "float f(Texture2D<float4> m, float zf) { return m.Load(int3(0, 0, 0)).x; }\n"})
+    for name, adapter, words in (("t.glsl", "vulkan", ["sampler2D", "--adapter gl"]),
+                                 ("c.hlsl", "gl", ["texel coordinate", "'b'"])):
+        code, _, err = _cli(["conformance", f"--{name[2:]}", str(tmp_path / name), "--function", "f", "--case", CASE,
+                             "--golden", str(golden_dir), "--adapter", adapter], capsys)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and all(w in err for w in words), err

@@ -30,9 +30,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._arrays import InputError, format_bytes, max_memory
-from ._toolchain import COMPILE_SECONDS, limit_memory
+from ._errors import ContextError
+from ._toolchain import COMPILE_SECONDS
 
-__all__ = ["WATCHDOG_SECONDS", "Binding", "DriverError", "open_target", "dispatch", "set_watchdog", "shutdown"]
+__all__ = ["WATCHDOG_SECONDS", "Binding", "DriverError", "CompileFailed", "open_target", "dispatch", "set_watchdog", "shutdown"]
 
 #: Seconds one dispatch may run before the driver process is killed (``--watchdog``).
 WATCHDOG_SECONDS = 10.0
@@ -46,12 +47,20 @@ class DriverError(InputError):
 @dataclass(frozen=True)
 class Binding:
     """One storage buffer: ``binding`` index, initial bytes (or None: ``size`` zero bytes), and
-    ``mode`` ``"read"`` (read-only in the shader) or ``"write"`` (read back after the dispatch)."""
+    ``mode`` ``"read"`` (read-only in the shader) or ``"write"`` (read back after the dispatch);
+    or a 2-D texture (``mode`` ``"texture"``, ``texture`` = (width, height, WebGPU format name),
+    ``data`` its texels)."""
 
     binding: int
     data: bytes | None
     size: int
     mode: str = "read"
+    texture: tuple | None = None
+
+    @property
+    def kind(self):
+        """``read``, ``write`` or ``texture:FORMAT`` (what a pipeline layout needs to know)."""
+        return f"texture:{self.texture[2]}" if self.mode == "texture" else self.mode
 
 
 def set_watchdog(seconds):
@@ -64,7 +73,7 @@ def set_watchdog(seconds):
 
 
 class _Worker:
-    """The driver process: ``python -m moments_ref.conformance._child`` with two pipes.
+    """The driver process: ``python -m moments_ref.conformance._driverproc`` with two pipes.
 
     Not ``multiprocessing``'s spawn, which runs the caller's main script again in
     the child (a script without a ``__main__`` guard would start itself again).
@@ -79,7 +88,8 @@ class _Worker:
         root = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
         env.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())  # silences Mesa on headless machines
-        self.proc = subprocess.Popen([sys.executable, "-m", "moments_ref.conformance._child", str(down_r), str(up_w)],
+        self.proc = subprocess.Popen([sys.executable, "-m", "moments_ref.conformance._driverproc", str(down_r),
+                                      str(up_w)],
                                      pass_fds=(down_r, up_w), stdin=subprocess.DEVNULL, stdout=fd, stderr=fd,
                                      env=env, start_new_session=False)
         for x in (fd, down_r, up_w):
@@ -170,15 +180,13 @@ def _request(message, doing, first_limit):
         if kind == "ok":
             return value
         if kind == "context":
-            from ._gl import ContextError
-
             raise ContextError(value)
         if kind == "compile":
-            raise _CompileFailed(value)
+            raise CompileFailed(value)
         raise DriverError(f"the driver failed while {doing}: {value}")
 
 
-class _CompileFailed(Exception):
+class CompileFailed(Exception):
     """The driver's compiler refused the shader; ``args[0]`` is its raw log (formatted by the caller)."""
 
 
@@ -209,71 +217,7 @@ def dispatch(target, code, bindings, groups, entry="main", group=0, on_compile_e
     try:
         return _request(("dispatch", target, code, list(bindings), tuple(groups), entry, group), "compiling",
                         COMPILE_SECONDS)
-    except _CompileFailed as exc:
+    except CompileFailed as exc:
         if on_compile_error is None:
             raise DriverError(f"the shader does not compile: {exc.args[0]}") from None
         raise on_compile_error(exc.args[0]) from None
-
-
-# ----------------------------------------------------------------------------------------
-# The child
-# ----------------------------------------------------------------------------------------
-
-def _die_with_parent():
-    """Linux: SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG)."""
-    try:
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)
-    except (OSError, AttributeError):
-        pass  # elsewhere the closed pipe ends the loop
-
-
-def _serve(down, up):
-    """The worker's loop: one request at a time, answers ``(kind, value)``."""
-    from multiprocessing.connection import Connection
-
-    from . import _gl, _wgpu
-
-    _die_with_parent()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and kills us
-    recv, conn = Connection(down, writable=False), Connection(up, readable=False)
-
-    targets = {}
-    while True:
-        try:
-            mem, message = recv.recv()
-        except (EOFError, OSError):
-            return  # the parent is gone
-        limit_memory(mem)
-        try:
-            conn.send(("ok", _handle(message, targets, conn, _gl, _wgpu)))
-        except _gl.ContextError as exc:
-            conn.send(("context", str(exc)))
-        except _CompileFailed as exc:
-            conn.send(("compile", exc.args[0]))
-        except MemoryError:
-            conn.send(("error", "out of memory"))
-        except Exception as exc:  # noqa: BLE001 - reported to the parent as one line
-            text = " ".join(x.strip() for x in str(exc).splitlines() if x.strip())
-            conn.send(("error", f"{type(exc).__name__}: {text[:400]}"))
-
-
-def _handle(message, targets, conn, _gl, _wgpu):
-    kind, target = message[0], message[1]
-    if target not in targets:
-        targets[target] = _gl.open_local() if target[0] == "gl" else _wgpu.open_local(*target[1:])
-    driver = targets[target]
-    if kind == "open":
-        return driver.renderer, driver.version_code, getattr(driver, "spirv", False)
-    code, bindings, groups, entry, group = message[2:]
-    try:
-        compiled = driver.compile(code, entry, group, [b.mode for b in sorted(bindings, key=lambda b: b.binding)])
-    except _gl.LocalCompileError as exc:
-        raise _CompileFailed(str(exc)) from None
-    conn.send(("compiled", None))
-    return driver.dispatch(compiled, bindings, groups, group)
-
-
-if __name__ == "__main__":
-    _serve(int(sys.argv[1]), int(sys.argv[2]))

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ._errors import ContextError, LocalCompileError
 from ._slots import as_buffer
 from ._source import ShaderError, one_line_errors
 
@@ -27,10 +28,6 @@ _CONTEXT = None
 _PROGRAMS = {}
 _HINT = ("install the Python package 'moderngl' and an EGL driver "
          "(Debian/Ubuntu: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri)")
-
-
-class ContextError(RuntimeError):
-    """No driver (OpenGL 4.3 compute context, Vulkan adapter or compiler); ``str(exc)`` says why."""
 
 
 def create_context(require=430):
@@ -108,12 +105,17 @@ def groups(n, local_size):
     return gx, -(-total // gx)
 
 
-def case_bindings(ins, outs, arrays, n, local_size):
-    """The harness's buffers of one case: inputs, outputs, ``mr_params``; and the grid."""
+def case_bindings(ins, outs, arrays, n, local_size, tex=None):
+    """The harness's buffers (and textures, :mod:`._textures`) of one case: inputs, outputs, ``mr_params``;
+    and the grid."""
     from ._child import Binding
+    from ._textures import texel_bytes
 
     gx, gy = groups(n, local_size)
-    b = [Binding(k, as_buffer(arrays[s.name], s).tobytes(), 0, "read") for k, s in enumerate(ins)]
+    tex = tex or {}
+    b = [Binding(k, texel_bytes(arrays[s.name], tex[s.name]), 0, "texture",
+                 (tex[s.name].width, tex[s.name].height, tex[s.name].format)) if s.name in tex
+         else Binding(k, as_buffer(arrays[s.name], s).tobytes(), 0, "read") for k, s in enumerate(ins)]
     b += [Binding(len(ins) + k, None, max(16, n * s.width * 4), "write") for k, s in enumerate(outs)]
     b.append(Binding(len(ins) + len(outs), np.array([n, gx * local_size, 0, 0], np.uint32).tobytes(), 0, "read"))
     return b, (gx, gy, 1)
@@ -125,7 +127,7 @@ def case_results(outs, ins, raw, n):
             .reshape(n, s.width)[:, : s.components].copy() for k, s in enumerate(outs)}
 
 
-def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=None, entry="main"):
+def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=None, entry="main", tex=None):
     """Compile (cached) and dispatch a wrapped compute shader in the driver process; see :mod:`._wrap`.
 
     ``text`` is GLSL, or a SPIR-V module (bytes) with its entry point ``entry``.
@@ -136,7 +138,7 @@ def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=
     from ._child import dispatch
 
     get_context() if ctx is None else ctx
-    bindings, grid = case_bindings(ins, outs, arrays, n, local_size)
+    bindings, grid = case_bindings(ins, outs, arrays, n, local_size, tex)
 
     def failed(log):
         return ShaderError(f"the wrapped function does not compile (expected signature: {signature}):\n"
@@ -149,10 +151,6 @@ def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=
 # ----------------------------------------------------------------------------------------
 # In the driver process
 # ----------------------------------------------------------------------------------------
-
-class LocalCompileError(Exception):
-    """A driver's compiler refused a shader; ``str(exc)`` is its log."""
-
 
 class LocalGL:
     """The OpenGL context inside the driver process: compile and dispatch."""
@@ -189,6 +187,24 @@ def open_local():
     return LocalGL(create_context())
 
 
+#: moderngl's (components, dtype) of the texture formats of :mod:`._textures`.
+_TEXTURE_FORMATS = {"r32float": (1, "f4"), "rg32float": (2, "f4"), "rgba32float": (4, "f4"), "r32uint": (1, "u4"),
+                    "rg32uint": (2, "u4"), "rgba32uint": (4, "u4"), "r16uint": (1, "u2"), "rg16uint": (2, "u2"),
+                    "rgba16uint": (4, "u2"), "rgba16unorm": (4, "nu2")}
+
+
+def _texture(ctx, b):
+    """A texture at unit ``b.binding`` holding ``b.data`` (nearest filtering: texel loads)."""
+    import moderngl
+
+    w, h, fmt = b.texture
+    comps, dtype = _TEXTURE_FORMATS[fmt]
+    tex = ctx.texture((w, h), comps, b.data, dtype=dtype)
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.use(location=b.binding)
+    return tex
+
+
 def dispatch(ctx, program, bindings, grid):
     """Bind storage buffers (:class:`~._child.Binding`), dispatch ``grid`` work groups, read back.
 
@@ -198,6 +214,9 @@ def dispatch(ctx, program, bindings, grid):
     try:
         t0 = time.perf_counter()
         for b in bindings:
+            if b.mode == "texture":
+                buffers.append((b, _texture(ctx, b)))
+                continue
             buf = ctx.buffer(b.data) if b.data is not None else ctx.buffer(reserve=b.size)
             buf.bind_to_storage_buffer(b.binding)
             buffers.append((b, buf))

@@ -24,6 +24,7 @@ from ._cases import load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
 from ._decls import keep_used, used_resources
+from ._textures import texture_args
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
 from .verdict import compare_case
@@ -103,10 +104,12 @@ def _only_used(src, function, language, keep_unused):
     body, kept = keep_used(src.body, language, function)
     for d, what in used_resources(kept, language):
         line = src.body.count("\n", 0, d.start) + 1
+        way = ("take the texture as an argument, followed by an integer texel coordinate (docs/ports.md, "
+               "\"Texture arguments\")" if re.search(r"texture|Texture|sampler", what) else
+               "read it in an adapter function that takes it as an argument, or make it a constant"
+               + (" (`static const`)" if language == "hlsl" else ""))
         raise ShaderError(f"{src.locate(line)}: {function} uses {what} {d.name!r} declared here, which the harness "
-                          "does not bind (it passes only the function's arguments): read it in an adapter function "
-                          "that takes it as an argument, or make it a constant"
-                          + (" (`static const`)" if language == "hlsl" else ""))
+                          f"does not bind (it passes only the function's arguments): {way}")
     return replace(src, body=body)
 
 
@@ -121,76 +124,87 @@ def _device(target, backend="Vulkan"):
     return _wgpu.get_device("OpenGL" if target.driver == "gl" else backend, target.name)
 
 
-def _prepare(language, target, path, function, ins, outs, options=None):
-    """``(execute(arrays, n) -> (results, timings), renderer, notes)`` for one language on one driver."""
+def _prepare(language, target, path, function, ins, outs, options=None, inputs=None):
+    """``(execute(arrays, n) -> (results, timings), renderer, notes)`` for one language on one driver.
+
+    ``inputs`` (the arrays) let the harness fill the textures a function reads (:mod:`._textures`).
+    """
     options = options or SourceOptions()
     check_identifier(function)
     src = load_source(path, language, options.include_dirs, options.defines, options.prelude, options.max_source)
     sig = signature(language, function, ins, outs)
     _check_defined(src, path, function, sig)
     src = _only_used(src, function, language, options.keep_unused)
+    tex = {} if inputs is None else texture_args(src.body, function, language, ins,
+                                                  {k: np.asarray(v).dtype for k, v in inputs.items()},
+                                                  len(next(iter(inputs.values()))))
     if target.driver == AS_WRITTEN:
-        return _as_written(language, src, function, sig, ins, outs)
+        return _as_written(language, src, function, sig, ins, outs, tex)
     if language == "glsl":
-        return _glsl(target, src, function, sig, ins, outs)
+        return _glsl(target, src, function, sig, ins, outs, tex)
     if language == "wgsl":
         dev = _device(target)
         group = free_group(src.body, r"@group\s*\(\s*(\d+)\s*\)")
-        code = wrap_wgsl(src, function, ins, outs, group)
-        return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
+        code = wrap_wgsl(src, function, ins, outs, group, tex)
+        return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE, tex=tex)), \
             dev.renderer, []
-    return _hlsl(target, src, function, sig, ins, outs, options.exact)
+    return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
 
 
-def _glsl(target, src, function, sig, ins, outs):
+def _glsl(target, src, function, sig, ins, outs, tex):
     if target.driver == "gl":
         ctx = _gl.get_context()
         gl_max = min(ctx.version_code, 460)
-        text, local = wrap_glsl(src, function, ins, outs, gl_max=gl_max)
+        text, local = wrap_glsl(src, function, ins, outs, gl_max=gl_max, tex=tex)
         note = glsl_version(src, False, gl_max)[1]
-        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx)), \
+        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx, tex=tex)), \
             _gl.renderer(ctx), [note] if note else []
+    if tex:
+        raise InputError(f"function: {function} takes a texture (GLSL sampler2D), which runs on OpenGL only: wgpu's "
+                         "SPIR-V reader takes no combined image sampler; use --adapter gl")
     dev = _device(target)
-    spv, group, local, note = _glsl_spirv(src, function, sig, ins, outs)
-    return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main")), \
+    spv, group, local, note = _glsl_spirv(src, function, sig, ins, outs, tex)
+    return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main", tex)), \
         dev.renderer, [note] if note else []
 
 
-def _glsl_spirv(src, function, sig, ins, outs):
+def _glsl_spirv(src, function, sig, ins, outs, tex=None):
     group = free_group(src.body, r"\bset\s*=\s*(\d+)")
-    text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group)
+    text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group, tex=tex)
     note = glsl_version(src, True)[1]
     return _cached(["glsl", text], lambda: _toolchain.glslang_glsl(text, src.name, sig)), group, local, note
 
 
-def _hlsl_spirv(src, function, sig, ins, outs):
+def _hlsl_spirv(src, function, sig, ins, outs, tex=None):
     space = free_group(src.body, r"\bspace(\d+)")
-    wrapper = wrap_hlsl(src, function, ins, outs, space)
+    wrapper = wrap_hlsl(src, function, ins, outs, space, tex)
     return _cached(["hlsl", wrapper], lambda: _toolchain.glslang_hlsl(wrapper, src.name, sig)), space
 
 
-def _hlsl(target, src, function, sig, ins, outs, exact):
-    spv, space = _hlsl_spirv(src, function, sig, ins, outs)
+def _hlsl(target, src, function, sig, ins, outs, exact, tex):
+    spv, space = _hlsl_spirv(src, function, sig, ins, outs, tex)
     if target.driver == "vulkan":
         dev = _device(target)
-        return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
-            dev.renderer, []
+        return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE,
+                                              tex=tex)), dev.renderer, []
     ctx = _gl.get_context()
     code = _glspirv.exact_everywhere(spv) if exact else spv
     how = "every operation as written" if exact else "the SPIR-V Vulkan gets"
-    if ctx.spirv:  # the driver reads the module itself (GL_ARB_gl_spirv): no GLSL text in between
+    if ctx.spirv and not tex:  # the driver reads the module itself (GL_ARB_gl_spirv): no GLSL text in between
         return (lambda a, n: _gl.run_program(code, src.name, sig, ins, outs, a, n, LOCAL_SIZE, ctx, "mr_main")), \
             _gl.renderer(ctx) + f" (HLSL as SPIR-V: {how})", []
+    # OpenGL's SPIR-V has no texture without a sampler: SPIRV-Cross combines them.
     glsl = _cached(["spirv-cross", hashlib.sha256(code).hexdigest()], lambda: _toolchain.spirv_to_glsl(code))
     return (lambda a, n: _gl.run_program(glsl, lambda k: "<spirv-cross output>", sig, ins, outs, a, n,
-                                         LOCAL_SIZE, ctx)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)", []
+                                         LOCAL_SIZE, ctx, tex=tex)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)", []
 
 
-def _as_written(language, src, function, sig, ins, outs):
+def _as_written(language, src, function, sig, ins, outs, tex):
     """OpenGL reading glslang's SPIR-V with every float operation ``NoContraction`` (GLSL, HLSL)."""
     ctx = _gl.get_context()
-    if language == "wgsl" or not ctx.spirv:
-        raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL and an OpenGL driver with GL_ARB_gl_spirv")
+    if language == "wgsl" or not ctx.spirv or tex:
+        raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL without texture arguments and an OpenGL "
+                         "driver with GL_ARB_gl_spirv")
     if language == "glsl":
         spv, _, local, _ = _glsl_spirv(src, function, sig, ins, outs)
         entry = "main"
@@ -233,7 +247,7 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None, o
     n = len(next(iter(inputs.values())))
     if n == 0:
         raise InputError("inputs: expected at least one row, got 0")
-    execute, _, _ = _prepare(language, parse_adapter(adapter, language), path, function, ins, outs, options)
+    execute, _, _ = _prepare(language, parse_adapter(adapter, language), path, function, ins, outs, options, inputs)
     results, timings = execute(inputs, n)
     return {k: v.reshape(outputs[k][1]) for k, v in results.items()}, timings
 
@@ -268,7 +282,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     ins = [Slot.of(k, np.asarray(v).dtype, np.shape(v)) for k, v in gc.inputs.items()]
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
-    execute, renderer, notes = _prepare(language, target, path, function, ins, outs, options)
+    execute, renderer, notes = _prepare(language, target, path, function, ins, outs, options, gc.inputs)
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
     v = compare_case(case, gc.meta, gc.arrays, got, worst_rows)

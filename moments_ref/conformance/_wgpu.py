@@ -18,7 +18,7 @@ import os
 import re
 import time
 
-from ._gl import ContextError
+from ._errors import ContextError, LocalCompileError
 from ._source import ShaderError
 
 __all__ = ["RemoteDevice", "LocalDevice", "get_device", "adapters", "run_module", "open_local", "dispatch"]
@@ -80,12 +80,12 @@ def _wgsl_errors(text, locate):
     return [f"{locate(int(line))}:{col}: {msg.strip()}" for msg, line, col in msgs]
 
 
-def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_size, entry="mr_main"):
+def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_size, entry="mr_main", tex=None):
     """Compile (cached) and dispatch a WGSL (str) or SPIR-V (bytes) module at ``entry`` in the driver process."""
     from ._child import dispatch
     from ._gl import case_bindings, case_results
 
-    bindings, grid = case_bindings(ins, outs, arrays, n, local_size)
+    bindings, grid = case_bindings(ins, outs, arrays, n, local_size, tex)
 
     def failed(text):
         lines = _wgsl_errors(text, locate) if isinstance(code, str) else [
@@ -107,15 +107,15 @@ class LocalDevice:
 
     def __init__(self, adapter):
         self.adapter = adapter
-        self.device = adapter.request_device_sync()
+        # 16-bit normalized textures (64-bit moment maps) where the adapter has them
+        self.device = adapter.request_device_sync(
+            required_features=[f for f in ("texture-format16bit-norm",) if f in adapter.features])
         info = adapter.info
         self.backend = info.get("backend_type", "?")
         self.renderer = f"{info.get('device', '?')}, {info.get('description', '?')} ({self.backend} through wgpu)"
         self.version_code = 0
 
     def compile(self, code, entry, group, modes):
-        from ._gl import LocalCompileError
-
         key = (id(self), entry, group, tuple(modes), hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
         if key not in _PIPELINES:
             try:
@@ -159,11 +159,27 @@ def _layout(dev, group, modes):
     types = {"read": wgpu.BufferBindingType.read_only_storage, "write": wgpu.BufferBindingType.storage}
     d = dev.device
     empty = d.create_bind_group_layout(entries=[])
-    own = d.create_bind_group_layout(entries=[
-        {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": types[k]}}
-        for b, k in enumerate(modes)])
+    own = d.create_bind_group_layout(entries=[_entry(wgpu, b, k, types) for b, k in enumerate(modes)])
     layouts = [empty] * group + [own]
     return d.create_pipeline_layout(bind_group_layouts=layouts), layouts
+
+
+def _entry(wgpu, b, kind, types):
+    """A bind group layout entry: a storage buffer, or a texture read with loads (no sampler)."""
+    if kind.startswith("texture:"):
+        sample = "uint" if kind.endswith("uint") else "unfilterable-float"
+        return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE,
+                "texture": {"sample_type": sample, "view_dimension": "2d", "multisampled": False}}
+    return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": types[kind]}}
+
+
+def _texture(d, wgpu, b):
+    w, h, fmt = b.texture
+    tex = d.create_texture(size=(w, h, 1), format=fmt,
+                           usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
+    d.queue.write_texture({"texture": tex, "mip_level": 0, "origin": (0, 0, 0)}, b.data,
+                          {"offset": 0, "bytes_per_row": len(b.data) // h, "rows_per_image": h}, (w, h, 1))
+    return tex
 
 
 def dispatch(dev, compiled, bindings, grid, group):
@@ -177,10 +193,12 @@ def dispatch(dev, compiled, bindings, grid, group):
     timings = {"compile": 0.0}
     t0 = time.perf_counter()
     storage = wgpu.BufferUsage.STORAGE
-    bufs = [(b, d.create_buffer_with_data(data=b.data, usage=storage | wgpu.BufferUsage.COPY_SRC)
+    bufs = [(b, _texture(d, wgpu, b) if b.mode == "texture" else
+             d.create_buffer_with_data(data=b.data, usage=storage | wgpu.BufferUsage.COPY_SRC)
              if b.data is not None else d.create_buffer(size=b.size, usage=storage | wgpu.BufferUsage.COPY_SRC))
             for b in sorted(bindings, key=lambda b: b.binding)]
-    entries = [{"binding": b.binding, "resource": {"buffer": buf}} for b, buf in bufs]
+    entries = [{"binding": b.binding, "resource": buf.create_view() if b.mode == "texture" else {"buffer": buf}}
+               for b, buf in bufs]
     binds = [d.create_bind_group(layout=lay, entries=[]) for lay in layouts[:group]]
     binds.append(d.create_bind_group(layout=layouts[group], entries=entries))
     timings["upload"] = time.perf_counter() - t0

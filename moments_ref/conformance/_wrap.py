@@ -45,8 +45,10 @@ def user_local_size(text):
     return int(sizes["x"])
 
 
-def _load(lang, s, idx="i"):
+def _load(lang, s, idx="i", tex=None):
     """(statement or None, expression) loading row ``idx`` of input ``s``."""
+    if tex and s.name in tex:  # the texture and the row's texel (:mod:`._textures`)
+        return None, f"mr_tex_{s.name}, {tex[s.name].texel(lang, idx)}"
     buf = f"mr_in_{s.name}"
     if s.is_array:
         k = s.components
@@ -68,11 +70,11 @@ def _store(lang, s, value):
     return f"mr_out_{s.name}[i] = {value};"
 
 
-def _body(lang, function, ins, outs):
+def _body(lang, function, ins, outs, tex=None):
     """Statements of the entry point after ``i`` is known."""
     lines, args = [], []
     for s in ins:
-        stmt, expr = _load(lang, s)
+        stmt, expr = _load(lang, s, tex=tex)
         if stmt:
             lines.append(stmt)
         args.append(expr)
@@ -85,10 +87,14 @@ def _body(lang, function, ins, outs):
     return lines + [_store(lang, s, f"mr_v_{s.name}") for s in outs]
 
 
-def _glsl_buffers(ins, outs, set_prefix):
+def _glsl_buffers(ins, outs, set_prefix, tex=None):
     lines, b = [], 0
     access = "" if set_prefix else "writeonly "  # naga rejects writeonly storage
     for s in ins:
+        if tex and s.name in tex:
+            lines.append(f"layout({set_prefix}binding = {b}) uniform {tex[s.name].type} mr_tex_{s.name};")
+            b += 1
+            continue
         lines.append(f"layout(std430, {set_prefix}binding = {b}) readonly buffer mr_In_{s.name} "
                      f"{{ {s.element('glsl')} mr_in_{s.name}[]; }};")
         b += 1
@@ -117,7 +123,7 @@ def glsl_version(src, vulkan=False, gl_max=450):
     return use, note
 
 
-def wrap_glsl(src, function, ins, outs, vulkan=False, group=3, gl_max=450):
+def wrap_glsl(src, function, ins, outs, vulkan=False, group=3, gl_max=450, tex=None):
     """GLSL compute shader: the user's resolved source, then the harness (``#line 1 0``)."""
     user_main = re.search(r"\bvoid\s+main\s*\(", strip_comments(src.body)) is not None
     local = user_local_size(src.body)
@@ -128,20 +134,23 @@ def wrap_glsl(src, function, ins, outs, vulkan=False, group=3, gl_max=450):
     lines.append("#line 1 0")
     if local is None:
         lines.append(f"layout(local_size_x = {LOCAL_SIZE}) in;")
-    lines += _glsl_buffers(ins, outs, f"set = {group}, " if vulkan else "")
+    lines += _glsl_buffers(ins, outs, f"set = {group}, " if vulkan else "", tex)
     lines += ["void main() {",
               "    uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * mr_params[1];",
               "    if (i >= mr_params[0]) return;"]
-    lines += ["    " + x for x in _body("glsl", function, ins, outs)] + ["}"]
+    lines += ["    " + x for x in _body("glsl", function, ins, outs, tex)] + ["}"]
     return "\n".join(lines) + "\n", local or LOCAL_SIZE
 
 
-def wrap_hlsl(src, function, ins, outs, space=3):
+def wrap_hlsl(src, function, ins, outs, space=3, tex=None):
     """HLSL compute shader: the user's resolved source, then the harness (``#line 1 0``); entry ``mr_main``."""
     lines = [src.body, "#line 1 0"]
     b = 0
     for s in ins:
-        lines.append(f"StructuredBuffer<{s.element('hlsl')}> mr_in_{s.name} : register(t{b}, space{space});")
+        if tex and s.name in tex:
+            lines.append(f"{tex[s.name].type} mr_tex_{s.name} : register(t{b}, space{space});")
+        else:
+            lines.append(f"StructuredBuffer<{s.element('hlsl')}> mr_in_{s.name} : register(t{b}, space{space});")
         b += 1
     for s in outs:
         lines.append(f"RWStructuredBuffer<{s.element('hlsl')}> mr_out_{s.name} : register(u{b}, space{space});")
@@ -149,16 +158,20 @@ def wrap_hlsl(src, function, ins, outs, space=3):
     lines.append(f"StructuredBuffer<uint> mr_params : register(t{b}, space{space});")
     lines += [f"[numthreads({LOCAL_SIZE}, 1, 1)]", "void mr_main(uint3 mr_id : SV_DispatchThreadID)", "{",
               "    uint i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) return;"]
-    lines += ["    " + x for x in _body("hlsl", function, ins, outs)] + ["}"]
+    lines += ["    " + x for x in _body("hlsl", function, ins, outs, tex)] + ["}"]
     return "\n".join(lines) + "\n"
 
 
-def wrap_wgsl(src, function, ins, outs, group=3):
+def wrap_wgsl(src, function, ins, outs, group=3, tex=None):
     """WGSL module: the user's resolved source, then the harness; entry point ``mr_main``."""
     lines = [src.body]
     b = 0
     for s in ins:
-        lines.append(f"@group({group}) @binding({b}) var<storage, read> mr_in_{s.name}: array<{s.element('wgsl')}>;")
+        if tex and s.name in tex:
+            lines.append(f"@group({group}) @binding({b}) var mr_tex_{s.name}: {tex[s.name].type};")
+        else:
+            lines.append(f"@group({group}) @binding({b}) var<storage, read> mr_in_{s.name}: "
+                         f"array<{s.element('wgsl')}>;")
         b += 1
     for s in outs:
         lines.append(f"@group({group}) @binding({b}) var<storage, read_write> mr_out_{s.name}: "
@@ -168,5 +181,5 @@ def wrap_wgsl(src, function, ins, outs, group=3):
     lines += [f"@compute @workgroup_size({LOCAL_SIZE})",
               "fn mr_main(@builtin(global_invocation_id) mr_id: vec3<u32>) {",
               "    let i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) { return; }"]
-    lines += ["    " + x for x in _body("wgsl", function, ins, outs)] + ["}"]
+    lines += ["    " + x for x in _body("wgsl", function, ins, outs, tex)] + ["}"]
     return "\n".join(lines) + "\n"

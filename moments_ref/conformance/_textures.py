@@ -1,0 +1,164 @@
+"""Functions that read their moments from a texture: the golden inputs as a texture, one texel a row.
+
+An engine's shadow function often takes the shadow map and a texel coordinate and
+loads the moments itself. When the tested function has, in place of a golden
+input, a texture parameter followed by an integer coordinate,
+
+======  ==========================================  ===================================
+GLSL    ``float f(sampler2D m, ivec2 p, float zf)``  ``texelFetch(m, p, 0)``
+HLSL    ``float f(Texture2D<float4> m, int2 p, ...)`` ``m.Load(int3(p, 0))``
+WGSL    ``fn f(m: texture_2d<f32>, p: vec2<i32>, ...)`` ``textureLoad(m, p, 0)``
+======  ==========================================  ===================================
+
+the harness binds a texture holding that input's rows (row ``i`` at texel
+``(i mod W, i div W)``, :data:`WIDTH` texels a line) and passes the texture and the
+texel of each row. The texture's format follows the input and the texture's sample
+type: float moments as ``r/rg/rgba32float`` (exact); UNORM16 codes as
+``rgba16unorm`` to a float texture (the texel is code / 65535, what a 64-bit
+moment texture holds) or ``rgba16uint`` to an unsigned one; 32-bit codes (NLQ
+``pack32``) as ``r32uint``. GLSL ``sampler2D`` arguments run on OpenGL only (wgpu's
+SPIR-V reader takes no combined image sampler). Bilinear ``Sample``/``texture`` at
+texel centres and blue-noise-dithered loads are not covered yet.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._arrays import InputError
+from ._source import strip_comments
+
+__all__ = ["WIDTH", "TextureArg", "parameters", "texture_args", "texel_bytes"]
+
+#: Texels per line of an input texture.
+WIDTH = 256
+_TYPES = {"glsl": re.compile(r"^([iu]?)sampler2D$"),
+          "hlsl": re.compile(r"^Texture2D(?:\s*<\s*(\w+)\s*>)?$"),
+          "wgsl": re.compile(r"^texture_2d\s*<\s*(\w+)\s*>$")}
+_COORD = {"glsl": ("ivec2",), "hlsl": ("int2", "uint2"), "wgsl": ("vec2<i32>", "vec2<u32>")}
+
+
+@dataclass(frozen=True)
+class TextureArg:
+    """The texture standing for input ``name``: its declared type, format and size in texels."""
+
+    name: str
+    type: str  # the parameter's type as written (declared the same way by the harness)
+    format: str  # WebGPU format name: rgba32float, rgba16unorm, rgba16uint, r32uint, ...
+    width: int
+    height: int
+    coord: str = "ivec2"  # the coordinate parameter's type
+
+    def texel(self, lang, i="i"):
+        """The coordinate expression of row ``i``."""
+        w = self.width
+        if lang == "glsl":
+            return f"ivec2(int({i} % {w}u), int({i} / {w}u))"
+        if lang == "hlsl":
+            return f"{self.coord}({i} % {w}, {i} / {w})"
+        scalar = "i32" if "i32" in self.coord else "u32"
+        return f"vec2<{scalar}>({scalar}({i} % {w}u), {scalar}({i} / {w}u))"
+
+
+def parameters(body, function, language):
+    """``[(type, name)]`` of the first definition of ``function`` in a source (``[]`` if not found)."""
+    text = strip_comments(body)
+    pattern = (rf"\bfn\s+{re.escape(function)}\s*\(" if language == "wgsl"
+               else rf"[\w>]\s+{re.escape(function)}\s*\(")
+    m = re.search(pattern, text)
+    if not m:
+        return []
+    depth, i = 1, m.end()
+    while i < len(text) and depth:
+        depth += {"(": 1, ")": -1}.get(text[i], 0)
+        i += 1
+    params, cur, angle = [], "", 0
+    for ch in text[m.end():i - 1] + ",":
+        angle += {"<": 1, ">": -1}.get(ch, 0)
+        if ch == "," and angle == 0:
+            if cur.strip():
+                params.append(cur.strip())
+            cur = ""
+        else:
+            cur += ch
+    out = []
+    for p in params:
+        if language == "wgsl":
+            name, _, typ = p.partition(":")
+            out.append((re.sub(r"\s+", "", typ), name.strip()))
+        else:
+            p = re.sub(r"\b(in|const|uniform|highp|mediump|lowp)\b\s*", "", p).split(":")[0].strip()
+            typ, _, name = p.rpartition(" ")
+            out.append((re.sub(r"\s+", "", typ) if language == "wgsl" else typ.strip(), name.strip()))
+    return out
+
+
+def _sample_kind(typ, language):
+    m = _TYPES[language].match(typ)
+    if not m:
+        return None
+    g = (m.group(1) or "") if language != "glsl" else m.group(1)
+    if language == "glsl":
+        return {"": "f", "u": "u", "i": "i"}[g]
+    return "u" if g.startswith(("u", "uint")) else "i" if g.startswith(("i", "int")) else "f"
+
+
+def _format(slot, kind, dtype):
+    k = slot.components
+    if slot.is_array or k == 3 and kind != "f":
+        return None
+    if kind == "f" and slot.kind == "f":
+        return {1: "r32float", 2: "rg32float", 3: "rgba32float", 4: "rgba32float"}[k]
+    if kind == "f" and dtype == np.uint16 and k == 4:
+        return "rgba16unorm"
+    if kind == "u" and slot.kind == "u":
+        bits = "16" if dtype == np.uint16 else "32"
+        return {1: f"r{bits}uint", 2: f"rg{bits}uint", 4: f"rgba{bits}uint"}.get(k)
+    return None
+
+
+def texture_args(body, function, language, ins, dtypes, n):
+    """``{input name: TextureArg}`` for the inputs the function takes as a texture and a coordinate.
+
+    ``dtypes`` are the golden arrays' dtypes. Raises :class:`InputError` for a texture
+    parameter the harness cannot fill (a format it does not make, no coordinate after it).
+    """
+    params = parameters(body, function, language)
+    found, k = {}, 0
+    for s in ins:
+        if k >= len(params):
+            break
+        typ, pname = params[k]
+        kind = _sample_kind(typ, language)
+        if kind is None:
+            k += 1
+            continue
+        coord = params[k + 1][0] if k + 1 < len(params) else ""
+        fmt = _format(s, kind, np.dtype(dtypes[s.name]))
+        if coord not in _COORD[language] or fmt is None:
+            raise InputError(f"function: {function}'s parameter {pname} ({typ}) stands for the input {s.name!r} "
+                             f"({np.dtype(dtypes[s.name])}, {s.components} values a row); the harness fills a 2-D "
+                             f"texture from it and passes an integer texel coordinate ({' or '.join(_COORD[language])}) "
+                             "as the next parameter")
+        w = min(WIDTH, n)
+        found[s.name] = TextureArg(s.name, typ, fmt, w, -(-n // w), coord)
+        k += 2
+    return found
+
+
+_BYTES = {"float": (np.float32, 4), "uint": (np.uint32, 4), "16uint": (np.uint16, 2), "16unorm": (np.uint16, 2)}
+
+
+def texel_bytes(arr, tex):
+    """The texture's texels (padded rows, zero beyond the last row) as bytes for the driver."""
+    key = "16unorm" if tex.format.endswith("16unorm") else "16uint" if "16uint" in tex.format else (
+        "float" if tex.format.endswith("float") else "uint")
+    dtype, _ = _BYTES[key]
+    comps = {"r": 1, "rg": 2, "rgba": 4}[re.match(r"[a-z]+?(?=\d)", tex.format).group()]
+    a = np.asarray(arr).reshape(len(arr), -1).astype(dtype)
+    out = np.zeros((tex.width * tex.height, comps), dtype)
+    out[: len(a), : a.shape[1]] = a
+    return out.tobytes()
