@@ -276,6 +276,32 @@ def test_texture_reading_function_passes(golden_dir, tmp_path, language, adapter
     path.write_text(_TEX[language])
     report = run_case(path, function, case, language=language, adapter=adapter)
     assert report.passed, report.format()
+    assert report.rows > 100
+
+
+_SAMPLED = {
+    "hlsl": ('#include "msm.hlsl"\n'
+             "float f(Texture2D<float4> m, SamplerState s, float2 uv, float zf) "
+             "{ return shadow_intensity_lower(m.Sample(s, uv), zf); }\n"),
+    "wgsl": ('#include "msm.wgsl"\n'
+             "fn f(m: texture_2d<f32>, s: sampler, uv: vec2<f32>, zf: f32) -> f32 "
+             "{ return shadow_intensity_lower(textureSampleLevel(m, s, uv, 0.0), zf); }\n"),
+    "glsl": ('#include "msm.glsl"\n'
+             "float f(sampler2D m, vec2 uv, float zf) { return shadow_intensity_lower(texture(m, uv), zf); }\n"),
+}
+
+
+@pytest.mark.parametrize("language,adapter", [("hlsl", "gl"), ("hlsl", "vulkan"), ("wgsl", "gl"), ("wgsl", "vulkan"),
+                                              ("glsl", "gl")])
+def test_sampling_function_at_texel_centres_passes(golden_dir, tmp_path, language, adapter):
+    # Sample/texture at each row's texel centre (a point sampler; bilinear filtering gives
+    # the texel there too): a coordinate off by a texel would read a neighbour's moments.
+    from moments_ref.conformance import run_case
+
+    path = tmp_path / f"s.{language}"
+    path.write_text(_SAMPLED[language])
+    report = run_case(path, "f", CASE, golden_dir, language=language, adapter=adapter)
+    assert report.passed, report.format()
 
 
 def test_texture_refusals_are_one_line(golden_dir, tmp_path, capsys):

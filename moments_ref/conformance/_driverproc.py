@@ -67,7 +67,7 @@ def _handle(message, targets, conn, _gl, _wgpu):
         return driver.renderer, driver.version_code, getattr(driver, "spirv", False)
     code, bindings, groups, entry, group = message[2:]
     try:
-        compiled = driver.compile(code, entry, group, [b.kind for b in sorted(bindings, key=lambda b: b.binding)])
+        compiled = driver.compile(code, entry, group, [(b.binding, b.kind) for b in sorted(bindings, key=lambda b: b.binding)])
     except LocalCompileError as exc:
         raise CompileFailed(str(exc)) from None
     conn.send(("compiled", None))

@@ -118,6 +118,8 @@ def case_bindings(ins, outs, arrays, n, local_size, tex=None):
          else Binding(k, as_buffer(arrays[s.name], s).tobytes(), 0, "read") for k, s in enumerate(ins)]
     b += [Binding(len(ins) + k, None, max(16, n * s.width * 4), "write") for k, s in enumerate(outs)]
     b.append(Binding(len(ins) + len(outs), np.array([n, gx * local_size, 0, 0], np.uint32).tobytes(), 0, "read"))
+    nb = len(ins) + len(outs) + 1  # samplers of sampled textures follow mr_params (:mod:`._wrap`)
+    b += [Binding(nb + k, None, 0, "sampler") for k, s in enumerate(ins) if s.name in tex and tex[s.name].sampler]
     return b, (gx, gy, 1)
 
 
@@ -214,6 +216,8 @@ def dispatch(ctx, program, bindings, grid):
     try:
         t0 = time.perf_counter()
         for b in bindings:
+            if b.mode == "sampler":
+                continue  # OpenGL: the texture's own filtering (nearest)
             if b.mode == "texture":
                 buffers.append((b, _texture(ctx, b)))
                 continue

@@ -10,15 +10,18 @@ HLSL    ``float f(Texture2D<float4> m, int2 p, ...)`` ``m.Load(int3(p, 0))``
 WGSL    ``fn f(m: texture_2d<f32>, p: vec2<i32>, ...)`` ``textureLoad(m, p, 0)``
 ======  ==========================================  ===================================
 
-the harness binds a texture holding that input's rows (row ``i`` at texel
+or a texture, a sampler and a float coordinate (``texture(m, uv)``, ``m.Sample(s, uv)``,
+``textureSample(m, s, uv)``), the harness binds a texture holding that input's rows (row ``i`` at texel
 ``(i mod W, i div W)``, :data:`WIDTH` texels a line) and passes the texture and the
-texel of each row. The texture's format follows the input and the texture's sample
+texel of each row (for sampling: the texel's centre, with a point-filtering sampler;
+bilinear filtering at a texel centre gives the texel too). The texture's format follows the input and the texture's sample
 type: float moments as ``r/rg/rgba32float`` (exact); UNORM16 codes as
 ``rgba16unorm`` to a float texture (the texel is code / 65535, what a 64-bit
 moment texture holds) or ``rgba16uint`` to an unsigned one; 32-bit codes (NLQ
 ``pack32``) as ``r32uint``. GLSL ``sampler2D`` arguments run on OpenGL only (wgpu's
-SPIR-V reader takes no combined image sampler). Bilinear ``Sample``/``texture`` at
-texel centres and blue-noise-dithered loads are not covered yet.
+SPIR-V reader takes no combined image sampler). Bilinear filtering between texels
+(its own goldens, the drivers' fixed-point weights) and blue-noise-dithered loads are
+not covered yet.
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ _TYPES = {"glsl": re.compile(r"^([iu]?)sampler2D$"),
           "hlsl": re.compile(r"^Texture2D(?:\s*<\s*(\w+)\s*>)?$"),
           "wgsl": re.compile(r"^texture_2d\s*<\s*(\w+)\s*>$")}
 _COORD = {"glsl": ("ivec2",), "hlsl": ("int2", "uint2"), "wgsl": ("vec2<i32>", "vec2<u32>")}
+_UV = {"glsl": ("vec2",), "hlsl": ("float2",), "wgsl": ("vec2<f32>",)}
+_SAMPLER = {"hlsl": ("SamplerState",), "wgsl": ("sampler",)}
 
 
 @dataclass(frozen=True)
@@ -51,10 +56,20 @@ class TextureArg:
     width: int
     height: int
     coord: str = "ivec2"  # the coordinate parameter's type
+    sampler: str | None = None  # the sampler parameter's type (HLSL, WGSL), or None: texel loads
+    sampled: bool = False  # a float coordinate at the texel's centre (Sample / texture)
 
     def texel(self, lang, i="i"):
-        """The coordinate expression of row ``i``."""
-        w = self.width
+        """The argument expressions after the texture for row ``i``: [sampler,] coordinate."""
+        w, h = self.width, self.height
+        if self.sampled:
+            smp = f"mr_smp_{self.name}, " if self.sampler else ""
+            x, y = f"(float({i} % {w}u) + 0.5) / {w}.0", f"(float({i} / {w}u) + 0.5) / {h}.0"
+            if lang == "wgsl":
+                x, y = x.replace("float(", "f32("), y.replace("float(", "f32(")
+            if lang == "hlsl":
+                x, y = x.replace("u)", ")"), y.replace("u)", ")")
+            return smp + {"glsl": "vec2", "hlsl": "float2", "wgsl": "vec2<f32>"}[lang] + f"({x}, {y})"
         if lang == "glsl":
             return f"ivec2(int({i} % {w}u), int({i} / {w}u))"
         if lang == "hlsl":
@@ -136,16 +151,22 @@ def texture_args(body, function, language, ins, dtypes, n):
         if kind is None:
             k += 1
             continue
-        coord = params[k + 1][0] if k + 1 < len(params) else ""
+        rest = [p[0] for p in params[k + 1:k + 3]] + ["", ""]
+        sampler = rest[0] if rest[0] in _SAMPLER.get(language, ()) else None
+        coord = rest[1] if sampler else rest[0]
+        sampled = coord in _UV[language] and (sampler is not None or language == "glsl")
         fmt = _format(s, kind, np.dtype(dtypes[s.name]))
-        if coord not in _COORD[language] or fmt is None:
+        if sampled and (fmt is None or not fmt.endswith("float")):
+            fmt = None  # sampling: float moments only
+        if (coord not in _COORD[language] and not sampled) or fmt is None:
             raise InputError(f"function: {function}'s parameter {pname} ({typ}) stands for the input {s.name!r} "
                              f"({np.dtype(dtypes[s.name])}, {s.components} values a row); the harness fills a 2-D "
                              f"texture from it and passes an integer texel coordinate ({' or '.join(_COORD[language])}) "
-                             "as the next parameter")
+                             "as the next parameter, or (float moments) a sampler and the texel centre as "
+                             f"{' or '.join(_UV[language])}")
         w = min(WIDTH, n)
-        found[s.name] = TextureArg(s.name, typ, fmt, w, -(-n // w), coord)
-        k += 2
+        found[s.name] = TextureArg(s.name, typ, fmt, w, -(-n // w), coord, sampler, sampled)
+        k += 3 if sampler else 2
     return found
 
 

@@ -151,7 +151,7 @@ def open_local(backend="Vulkan", name=None):
 def _layout(dev, group, modes):
     """Explicit pipeline layout: empty groups below ``group``, then storage buffers ``modes``.
 
-    ``modes[b]`` is ``"read"`` or ``"write"`` for binding ``b``. An explicit layout
+    ``modes`` are ``(binding, kind)``: ``"read"``, ``"write"``, ``"texture:FORMAT"`` or ``"sampler"``. An explicit layout
     (not ``"auto"``) keeps bindings the compiled function does not read (an
     argument it ignores) in the layout, so that the bind group always matches it.
     """
@@ -159,13 +159,15 @@ def _layout(dev, group, modes):
     types = {"read": wgpu.BufferBindingType.read_only_storage, "write": wgpu.BufferBindingType.storage}
     d = dev.device
     empty = d.create_bind_group_layout(entries=[])
-    own = d.create_bind_group_layout(entries=[_entry(wgpu, b, k, types) for b, k in enumerate(modes)])
+    own = d.create_bind_group_layout(entries=[_entry(wgpu, b, k, types) for b, k in modes])
     layouts = [empty] * group + [own]
     return d.create_pipeline_layout(bind_group_layouts=layouts), layouts
 
 
 def _entry(wgpu, b, kind, types):
-    """A bind group layout entry: a storage buffer, or a texture read with loads (no sampler)."""
+    """A bind group layout entry: a storage buffer, a texture (unfiltered float or uint), a point sampler."""
+    if kind == "sampler":
+        return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "sampler": {"type": "non-filtering"}}
     if kind.startswith("texture:"):
         sample = "uint" if kind.endswith("uint") else "unfilterable-float"
         return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE,
@@ -193,12 +195,12 @@ def dispatch(dev, compiled, bindings, grid, group):
     timings = {"compile": 0.0}
     t0 = time.perf_counter()
     storage = wgpu.BufferUsage.STORAGE
-    bufs = [(b, _texture(d, wgpu, b) if b.mode == "texture" else
+    bufs = [(b, _texture(d, wgpu, b) if b.mode == "texture" else d.create_sampler() if b.mode == "sampler" else
              d.create_buffer_with_data(data=b.data, usage=storage | wgpu.BufferUsage.COPY_SRC)
              if b.data is not None else d.create_buffer(size=b.size, usage=storage | wgpu.BufferUsage.COPY_SRC))
             for b in sorted(bindings, key=lambda b: b.binding)]
-    entries = [{"binding": b.binding, "resource": buf.create_view() if b.mode == "texture" else {"buffer": buf}}
-               for b, buf in bufs]
+    entries = [{"binding": b.binding, "resource": buf.create_view() if b.mode == "texture" else
+                buf if b.mode == "sampler" else {"buffer": buf}} for b, buf in bufs]
     binds = [d.create_bind_group(layout=lay, entries=[]) for lay in layouts[:group]]
     binds.append(d.create_bind_group(layout=layouts[group], entries=entries))
     timings["upload"] = time.perf_counter() - t0
@@ -215,6 +217,7 @@ def dispatch(dev, compiled, bindings, grid, group):
     t0 = time.perf_counter()
     out = {b.binding: bytes(d.queue.read_buffer(buf)) for b, buf in bufs if b.mode == "write"}
     timings["readback"] = time.perf_counter() - t0
-    for _, buf in bufs:
-        buf.destroy()
+    for b, buf in bufs:
+        if b.mode != "sampler":
+            buf.destroy()
     return out, timings

@@ -156,6 +156,8 @@ def wrap_hlsl(src, function, ins, outs, space=3, tex=None):
         lines.append(f"RWStructuredBuffer<{s.element('hlsl')}> mr_out_{s.name} : register(u{b}, space{space});")
         b += 1
     lines.append(f"StructuredBuffer<uint> mr_params : register(t{b}, space{space});")
+    lines += [f"SamplerState mr_smp_{s.name} : register(s{b + 1 + k}, space{space});"
+              for k, s in enumerate(ins) if tex and s.name in tex and tex[s.name].sampler]
     lines += [f"[numthreads({LOCAL_SIZE}, 1, 1)]", "void mr_main(uint3 mr_id : SV_DispatchThreadID)", "{",
               "    uint i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) return;"]
     lines += ["    " + x for x in _body("hlsl", function, ins, outs, tex)] + ["}"]
@@ -178,6 +180,8 @@ def wrap_wgsl(src, function, ins, outs, group=3, tex=None):
                      f"array<{s.element('wgsl')}>;")
         b += 1
     lines.append(f"@group({group}) @binding({b}) var<storage, read> mr_params: array<u32>;")
+    lines += [f"@group({group}) @binding({b + 1 + k}) var mr_smp_{s.name}: sampler;"
+              for k, s in enumerate(ins) if tex and s.name in tex and tex[s.name].sampler]
     lines += [f"@compute @workgroup_size({LOCAL_SIZE})",
               "fn mr_main(@builtin(global_invocation_id) mr_id: vec3<u32>) {",
               "    let i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) { return; }"]
