@@ -304,6 +304,40 @@ def test_sampling_function_at_texel_centres_passes(golden_dir, tmp_path, languag
     assert report.passed, report.format()
 
 
+_DITHER = {
+    "hlsl": ('#include "msm.hlsl"\n'
+             "float f(Texture2D<float4> m, float2 c, float2 u, float zf) "
+             "{ return shadow_intensity_lower(m.Load(int3(floor(c + u), 0)), zf); }\n"
+             "float ignores_noise(Texture2D<float4> m, float2 c, float2 u, float zf) "
+             "{ return shadow_intensity_lower(m.Load(int3(floor(c), 0)), zf); }\n"
+             "float rounds(Texture2D<float4> m, float2 c, float2 u, float zf) "
+             "{ return shadow_intensity_lower(m.Load(int3(round(c + u), 0)), zf); }\n"),
+    "wgsl": ('#include "msm.wgsl"\n'
+             "fn f(m: texture_2d<f32>, c: vec2<f32>, u: vec2<f32>, zf: f32) -> f32 "
+             "{ return shadow_intensity_lower(textureLoad(m, vec2<i32>(floor(c + u)), 0), zf); }\n"),
+    "glsl": ('#include "msm.glsl"\n'
+             "float f(sampler2D m, vec2 c, vec2 u, float zf) "
+             "{ return shadow_intensity_lower(texelFetch(m, ivec2(floor(c + u)), 0), zf); }\n"),
+}
+
+
+@pytest.mark.parametrize("language,adapter", [("hlsl", "gl"), ("hlsl", "vulkan"), ("wgsl", "gl"), ("wgsl", "vulkan"),
+                                              ("glsl", "gl")])
+def test_blue_noise_dithered_load_passes_and_its_mutants_fail(golden_dir, tmp_path, language, adapter):
+    # HPG17 §4.2: floor(coordinate + noise) picks the texel; the harness passes 8-bit noise
+    # and a coordinate whose floor is the texel before (even rows) or whose rounding is the
+    # next texel (odd rows), so ignoring the noise or rounding instead of flooring fails.
+    from moments_ref.conformance import run_case
+
+    path = tmp_path / f"d.{language}"
+    path.write_text(_DITHER[language])
+    assert run_case(path, "f", CASE, golden_dir, language=language, adapter=adapter).passed
+    if language == "hlsl":
+        for mutant in ("ignores_noise", "rounds"):
+            report = run_case(path, mutant, CASE, golden_dir, language=language, adapter=adapter)
+            assert report.failures > 100, (mutant, report.failures)
+
+
 def test_texture_refusals_are_one_line(golden_dir, tmp_path, capsys):
     _write(tmp_path, {"t.glsl": _TEX["glsl"],
                       "c.hlsl": "float f(Texture2D<float4> m, float zf) { return m.Load(int3(0, 0, 0)).x; }\n"})

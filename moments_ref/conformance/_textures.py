@@ -10,7 +10,9 @@ HLSL    ``float f(Texture2D<float4> m, int2 p, ...)`` ``m.Load(int3(p, 0))``
 WGSL    ``fn f(m: texture_2d<f32>, p: vec2<i32>, ...)`` ``textureLoad(m, p, 0)``
 ======  ==========================================  ===================================
 
-or a texture, a sampler and a float coordinate (``texture(m, uv)``, ``m.Sample(s, uv)``,
+or a texture, a float coordinate and a noise value (blue-noise dithering, HPG17
+§4.2: ``floor(coordinate + noise)`` picks the texel; :func:`_dithered` says how the
+rows are chosen), or a texture, a sampler and a float coordinate (``texture(m, uv)``, ``m.Sample(s, uv)``,
 ``textureSample(m, s, uv)``), the harness binds a texture holding that input's rows (row ``i`` at texel
 ``(i mod W, i div W)``, :data:`WIDTH` texels a line) and passes the texture and the
 texel of each row (for sampling: the texel's centre, with a point-filtering sampler;
@@ -58,6 +60,13 @@ class TextureArg:
     coord: str = "ivec2"  # the coordinate parameter's type
     sampler: str | None = None  # the sampler parameter's type (HLSL, WGSL), or None: texel loads
     sampled: bool = False  # a float coordinate at the texel's centre (Sample / texture)
+    dithered: bool = False  # a float coordinate and a noise value (HPG17 §4.2)
+
+    def arguments(self, lang, i="i"):
+        """``(statements or None, argument expressions after the texture)`` for row ``i``."""
+        if self.dithered:
+            return _dithered(lang, self.name, self.width, i), f"mr_c_{self.name}, mr_u_{self.name}"
+        return None, self.texel(lang, i)
 
     def texel(self, lang, i="i"):
         """The argument expressions after the texture for row ``i``: [sampler,] coordinate."""
@@ -154,20 +163,44 @@ def texture_args(body, function, language, ins, dtypes, n):
         rest = [p[0] for p in params[k + 1:k + 3]] + ["", ""]
         sampler = rest[0] if rest[0] in _SAMPLER.get(language, ()) else None
         coord = rest[1] if sampler else rest[0]
-        sampled = coord in _UV[language] and (sampler is not None or language == "glsl")
+        dithered = sampler is None and rest[0] in _UV[language] and rest[1] in _UV[language]
+        sampled = coord in _UV[language] and (sampler is not None or language == "glsl") and not dithered
         fmt = _format(s, kind, np.dtype(dtypes[s.name]))
         if sampled and (fmt is None or not fmt.endswith("float")):
             fmt = None  # sampling: float moments only
-        if (coord not in _COORD[language] and not sampled) or fmt is None:
+        if (coord not in _COORD[language] and not sampled and not dithered) or fmt is None:
             raise InputError(f"function: {function}'s parameter {pname} ({typ}) stands for the input {s.name!r} "
                              f"({np.dtype(dtypes[s.name])}, {s.components} values a row); the harness fills a 2-D "
                              f"texture from it and passes an integer texel coordinate ({' or '.join(_COORD[language])}) "
                              "as the next parameter, or (float moments) a sampler and the texel centre as "
                              f"{' or '.join(_UV[language])}")
         w = min(WIDTH, n)
-        found[s.name] = TextureArg(s.name, typ, fmt, w, -(-n // w), coord, sampler, sampled)
-        k += 3 if sampler else 2
+        found[s.name] = TextureArg(s.name, typ, fmt, w, -(-n // w), coord, sampler, sampled, dithered)
+        k += 3 if sampler or dithered else 2
     return found
+
+
+def _dithered(lang, name, w, i):
+    """Statements giving row ``i``'s noise ``mr_u`` and coordinate ``mr_c`` (texel units).
+
+    The noise has 8 bits a channel, in (0, 1), as HPG17's blue-noise tiles; the
+    coordinate is chosen so that ``floor(c + u)`` is the row's texel: on even rows
+    ``t − u/2`` (a function that ignores the noise fetches the texel before), on odd
+    rows ``t + (1 − u)/2`` (one that rounds instead of flooring fetches the next).
+    Every value is a dyadic fraction, exact in float32.
+    """
+    u, tt, c = f"mr_u_{name}", f"mr_t_{name}", f"mr_c_{name}"
+    if lang == "glsl":
+        return [f"vec2 {u} = vec2(float(({i} * 73u + 41u) % 255u + 1u), float(({i} * 151u + 7u) % 255u + 1u)) / 256.0;",
+                f"vec2 {tt} = vec2(float({i} % {w}u), float({i} / {w}u));",
+                f"vec2 {c} = {tt} + ((1.0 - {u}) - step(vec2(0.5), {tt}) * float(1u - {i} % 2u)) * 0.5;"]
+    if lang == "hlsl":
+        return [f"float2 {u} = float2(({i} * 73 + 41) % 255 + 1, ({i} * 151 + 7) % 255 + 1) / 256.0;",
+                f"float2 {tt} = float2({i} % {w}, {i} / {w});",
+                f"float2 {c} = {tt} + ((1.0 - {u}) - step(0.5, {tt}) * (float)(1 - {i} % 2)) * 0.5;"]
+    return [f"let {u} = vec2<f32>(f32(({i} * 73u + 41u) % 255u + 1u), f32(({i} * 151u + 7u) % 255u + 1u)) / 256.0;",
+            f"let {tt} = vec2<f32>(f32({i} % {w}u), f32({i} / {w}u));",
+            f"let {c} = {tt} + ((vec2<f32>(1.0) - {u}) - step(vec2<f32>(0.5), {tt}) * f32(1u - {i} % 2u)) * 0.5;"]
 
 
 _BYTES = {"float": (np.float32, 4), "uint": (np.uint32, 4), "16uint": (np.uint16, 2), "16unorm": (np.uint16, 2)}

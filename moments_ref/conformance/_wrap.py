@@ -48,7 +48,8 @@ def user_local_size(text):
 def _load(lang, s, idx="i", tex=None):
     """(statement or None, expression) loading row ``idx`` of input ``s``."""
     if tex and s.name in tex:  # the texture and the row's texel (:mod:`._textures`)
-        return None, f"mr_tex_{s.name}, {tex[s.name].texel(lang, idx)}"
+        stmts, args = tex[s.name].arguments(lang, idx)
+        return stmts, f"mr_tex_{s.name}, {args}"
     buf = f"mr_in_{s.name}"
     if s.is_array:
         k = s.components
@@ -76,7 +77,7 @@ def _body(lang, function, ins, outs, tex=None):
     for s in ins:
         stmt, expr = _load(lang, s, tex=tex)
         if stmt:
-            lines.append(stmt)
+            lines += stmt if isinstance(stmt, list) else [stmt]
         args.append(expr)
     if len(outs) == 1:
         return lines + [_store(lang, outs[0], f"{function}({', '.join(args)})")]
