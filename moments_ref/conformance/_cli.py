@@ -190,7 +190,8 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
     lines += _timing_table(results, total)
     lines += ["", "## The two drivers agree", "",
               "Golden rows whose outputs differ in any bit between OpenGL and Vulkan (same source file; both",
-              "pass). For HLSL this compares the two toolchains: SPIRV-Cross to GLSL, and wgpu's SPIR-V reader.", ""]
+              "pass). For HLSL this compares OpenGL reading glslang's SPIR-V as written with wgpu's SPIR-V",
+              "reader; the suite pins that every row agrees (docs/ports.md, \"Toolchain\").", ""]
     lines += _agreement_table(results)
     lines += probe_lines
     for language, driver, renderer, rows, _, _ in results:
@@ -213,8 +214,11 @@ def main(args):
 
         try:
             text = summary_markdown(golden_dir=get("golden"), adapter=get("adapter"), progress=True)
-        except (ContextError, ToolError) as exc:
+        except (ContextError, ToolError, InputError) as exc:
             print(f"moments-ref conformance: {exc}", file=sys.stderr)
+            return 2
+        except Exception as exc:  # noqa: BLE001 - a harness failure is exit 2, one line
+            print(f"moments-ref conformance: the harness failed ({harness_failure(exc)})", file=sys.stderr)
             return 2
         print(text)
         if get("out"):

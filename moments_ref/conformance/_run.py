@@ -77,10 +77,14 @@ def language_of(path, language=None):
 
 @dataclass(frozen=True)
 class SourceOptions:
-    """How the harness reads and compiles a file: include folders, ``#define`` lines, a prelude, the
-    size budget, whether declarations the function does not use are compiled too (``keep_unused``),
-    and whether OpenGL evaluates every operation of an HLSL file as written (``exact``: each result
-    rounded in program order, no reassociation, as if every operation were ``precise``)."""
+    """How the harness reads and compiles a file (the CLI's source options).
+
+    ``include_dirs``, ``defines`` (``NAME=VALUE``), ``prelude`` and ``max_source`` (bytes) as
+    for :func:`~._source.load_source`; ``keep_unused`` compiles declarations the function
+    does not use too; ``exact`` (default) makes OpenGL evaluate every operation of an HLSL
+    file as written (each result rounded in program order, no reassociation, as if every
+    operation were ``precise``).
+    """
 
     include_dirs: tuple = ()
     defines: tuple = ()
