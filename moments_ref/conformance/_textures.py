@@ -12,18 +12,22 @@ WGSL    ``fn f(m: texture_2d<f32>, p: vec2<i32>, ...)`` ``textureLoad(m, p, 0)``
 
 or a texture, a float coordinate and a noise value (blue-noise dithering, HPG17
 §4.2: ``floor(coordinate + noise)`` picks the texel; :func:`_dithered` says how the
-rows are chosen), or a texture, a sampler and a float coordinate (``texture(m, uv)``, ``m.Sample(s, uv)``,
-``textureSample(m, s, uv)``), the harness binds a texture holding that input's rows (row ``i`` at texel
-``(i mod W, i div W)``, :data:`WIDTH` texels a line) and passes the texture and the
-texel of each row (for sampling: the texel's centre, with a point-filtering sampler;
-bilinear filtering at a texel centre gives the texel too). The texture's format follows the input and the texture's sample
-type: float moments as ``r/rg/rgba32float`` (exact); UNORM16 codes as
-``rgba16unorm`` to a float texture (the texel is code / 65535, what a 64-bit
+coordinates are chosen), or a texture, a sampler and a float coordinate
+(``texture(m, uv)``, ``m.Sample(s, uv)``, ``textureSampleLevel(m, s, uv, 0.0)``), the
+harness binds a texture holding that input's rows (row ``i`` at texel
+``(i mod W, i div W)``, :data:`WIDTH` texels a line) and passes the texture and each
+row's texel (for sampling its centre, with a point sampler; bilinear filtering at a
+texel centre gives the texel too). The texture's format follows the input and the
+texture's sample type: float moments as ``r/rg/rgba32float`` (exact); UNORM16 codes
+as ``rgba16unorm`` to a float texture (the texel is code / 65535, what a 64-bit
 moment texture holds) or ``rgba16uint`` to an unsigned one; 32-bit codes (NLQ
 ``pack32``) as ``r32uint``. GLSL ``sampler2D`` arguments run on OpenGL only (wgpu's
 SPIR-V reader takes no combined image sampler). Bilinear filtering between texels
-(its own goldens, the drivers' fixed-point weights) and blue-noise-dithered loads are
-not covered yet.
+(its own goldens, the drivers' fixed-point weights) is not covered yet.
+
+References
+----------
+HPG17 : see docs/bib.md.
 """
 
 from __future__ import annotations
