@@ -142,6 +142,8 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     tex = {} if inputs is None else texture_args(src.body, function, language, ins,
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
                                                   len(next(iter(inputs.values()))))
+    if tex:  # the signature the wrapper calls, with the texture arguments
+        sig = signature(language, function, ins, outs, {k: t.declared(language) for k, t in tex.items()})
     if target.driver == AS_WRITTEN:
         return _as_written(language, src, function, sig, ins, outs, tex)
     if language == "glsl":

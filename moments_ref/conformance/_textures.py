@@ -66,6 +66,14 @@ class TextureArg:
     sampled: bool = False  # a float coordinate at the texel's centre (Sample / texture)
     dithered: bool = False  # a float coordinate and a noise value (HPG17 §4.2)
 
+    def declared(self, lang):
+        """The parameters standing for the input, as in a signature: ``Texture2D<float4> b, int2 b_texel``."""
+        params = [(self.type, self.name)] + ([(self.sampler, f"{self.name}_sampler")] if self.sampler else [])
+        params.append((self.coord, f"{self.name}_texel"))
+        if self.dithered:
+            params.append((self.coord, f"{self.name}_noise"))
+        return ", ".join(f"{n}: {t}" if lang == "wgsl" else f"{t} {n}" for t, n in params)
+
     def arguments(self, lang, i="i"):
         """``(statements or None, argument expressions after the texture)`` for row ``i``."""
         if self.dithered:
