@@ -346,3 +346,67 @@ def test_texture_refusals_are_one_line(golden_dir, tmp_path, capsys):
         code, _, err = _cli(["conformance", f"--{name[2:]}", str(tmp_path / name), "--function", "f", "--case", CASE,
                              "--golden", str(golden_dir), "--adapter", adapter], capsys)
         assert code == 2 and len(err.strip().splitlines()) == 1 and all(w in err for w in words), err
+
+
+def _bilinear_weights(u):
+    """Weight of the second texel of a 2×1 rgba32float texture (0, 1) sampled linearly at ``u``,
+    on OpenGL (moderngl) and Vulkan (wgpu), in this process."""
+    import moderngl
+    import numpy as np
+    import wgpu
+
+    texels = np.array([[0, 0, 0, 0], [1, 1, 1, 1]], np.float32)
+    ctx = moderngl.create_standalone_context(backend="egl", require=430)
+    t = ctx.texture((2, 1), 4, texels.tobytes(), dtype="f4")
+    t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    t.use(0)
+    cs = ctx.compute_shader("#version 430\nlayout(local_size_x = 64) in;\nlayout(binding = 0) uniform sampler2D t;\n"
+                            "layout(std430, binding = 1) readonly buffer U { float u[]; };\n"
+                            "layout(std430, binding = 2) buffer O { float o[]; };\n"
+                            "void main() { uint i = gl_GlobalInvocationID.x; "
+                            "o[i] = textureLod(t, vec2(u[i], 0.5), 0.0).x; }\n")
+    bu, bo = ctx.buffer(u.tobytes()), ctx.buffer(reserve=u.nbytes)
+    bu.bind_to_storage_buffer(1)
+    bo.bind_to_storage_buffer(2)
+    cs.run(len(u) // 64)
+    gl = np.frombuffer(bo.read(), np.float32)
+    ctx.release()
+    a = next(x for x in wgpu.gpu.enumerate_adapters_sync() if x.info["backend_type"] == "Vulkan")
+    d = a.request_device_sync(required_features=["float32-filterable"])
+    tx = d.create_texture(size=(2, 1, 1), format="rgba32float",
+                          usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
+    d.queue.write_texture({"texture": tx}, texels.tobytes(), {"bytes_per_row": 32, "rows_per_image": 1}, (2, 1, 1))
+    m = d.create_shader_module(code="@group(0) @binding(0) var t: texture_2d<f32>;\n"
+                               "@group(0) @binding(1) var s: sampler;\n"
+                               "@group(0) @binding(2) var<storage, read> u: array<f32>;\n"
+                               "@group(0) @binding(3) var<storage, read_write> o: array<f32>;\n"
+                               "@compute @workgroup_size(64) fn main(@builtin(global_invocation_id) id: vec3<u32>) "
+                               "{ o[id.x] = textureSampleLevel(t, s, vec2<f32>(u[id.x], 0.5), 0.0).x; }\n")
+    p = d.create_compute_pipeline(layout="auto", compute={"module": m, "entry_point": "main"})
+    bu2 = d.create_buffer_with_data(data=u.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    bo2 = d.create_buffer(size=u.nbytes, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    bg = d.create_bind_group(layout=p.get_bind_group_layout(0), entries=[
+        {"binding": 0, "resource": tx.create_view()},
+        {"binding": 1, "resource": d.create_sampler(mag_filter="linear", min_filter="linear")},
+        {"binding": 2, "resource": {"buffer": bu2}}, {"binding": 3, "resource": {"buffer": bo2}}])
+    e = d.create_command_encoder()
+    cp = e.begin_compute_pass()
+    cp.set_pipeline(p)
+    cp.set_bind_group(0, bg)
+    cp.dispatch_workgroups(len(u) // 64)
+    cp.end()
+    d.queue.submit([e.finish()])
+    return gl, np.frombuffer(d.queue.read_buffer(bo2), np.float32)
+
+
+def test_bilinear_weights_of_float_textures_are_the_exact_fraction(golden_dir):
+    # docs/ports.md, "Texture arguments": llvmpipe and lavapipe filter rgba32float textures
+    # with float weights, the sub-texel fraction itself (GPUs: 8 bits of sub-texel position,
+    # steps of 1/256), so a bilinear golden made here could not see a GPU's spread.
+    import numpy as np
+
+    u = ((0.5 + np.random.default_rng(0).uniform(0.001, 0.999, 4096)) / 2.0).astype(np.float32)
+    f = u.astype(np.float64) * 2 - 0.5  # the fraction between the two texel centres
+    gl, vk = _bilinear_weights(u)
+    assert np.array_equal(gl, vk)
+    assert np.abs(gl - f).max() < 2 ** -24 and len(np.unique(gl)) > 4000
