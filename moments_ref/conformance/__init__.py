@@ -27,6 +27,9 @@ Function contract (:mod:`._slots`): the GLSL one in each language's types, e.g.
 language, :mod:`._source`) and define their own entry points and resources; only the
 declarations the function uses are compiled (:mod:`._decls`).
 
+Compute shaders (the shadow-map filter and point-warp kernels) run on the kernel cases with ``--kernel``:
+:mod:`moments_ref.conformance.kernel`.
+
 Exit codes of :func:`run_cli`: 0 every row within its tolerance, 1 a tolerance
 exceeded, 2 bad usage, a file that does not compile (the compiler's messages, one
 line per error, with the user's file and line numbers), no driver, or any failure of
