@@ -98,6 +98,7 @@ __all__ = [
     "DEPTH_STEP32",
     "DEPTH_STEP64",
     "nlq_texels",
+    "saturate",
 ]
 
 # 32-bit layout (stable): field shifts and widths.
@@ -155,6 +156,23 @@ def _encoder_input(r):
     np.clip(r[..., 2], 0, 1, out=r[..., 2])
     np.maximum(r[..., 3], 0, out=r[..., 3])
     return r
+
+
+def saturate(r):
+    """What the encoders store before quantizing: ``r`` saturated onto the stored ranges.
+
+    Parameters
+    ----------
+    r : (..., 4) float array
+        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+
+    Returns
+    -------
+    (..., 4) float array (a copy): y1, y2 clipped to [-1, 1] with y2 ≥ y1, v2 to [0, 1],
+    ξ4 ≥ 0, as a UNORM texture write does; InputError for non-finite values and for
+    y1 > y2 beyond rounding.
+    """
+    return _encoder_input(r)
 
 
 #: Texels per chunk of the encoders (four float rows and their codes stay in L2).
