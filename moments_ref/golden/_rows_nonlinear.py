@@ -1,8 +1,9 @@
 """Golden rows, part 2: the non-linear representation, Algorithm 3, the texel formats.
 
 Rows follow HPG17 §3.3–§3.5: random representations, the clamps of Algorithm 3
-(§3.4) exactly as the 32-bit decoder produces them (y1 = y2, v2 = 0, v2 = 1), the
-fold boundaries of Figure 5 and the Ψ4 code boundaries.
+(§3.4) exactly as the decoders produce them (y1 = y2 in one 32-bit cell; v2 = 0 and
+v2 = 1 from the 64-bit codes 0 and 65535), the fold boundaries of Figure 5 and the Ψ4
+cell boundaries.
 
 References
 ----------
@@ -55,7 +56,7 @@ _EDGE_REPRESENTATIONS = [
 
 
 def _decoded_representations():
-    """Representations as the decoders produce them (y1 = y2, v2 = 0 or 1 exactly)."""
+    """Representations as the decoders produce them (y1 = y2; v2 = 0 or 1 exactly from the 64-bit decoder)."""
     from ..packing import pack32, pack64, unpack32, unpack64
 
     r = np.array([[0.3, 0.3005, 0.0, 1e-3], [0.3, 0.3005, 1.0, 1e-3], [-0.6004, -0.6, 0.5, 1e-5],
@@ -113,7 +114,7 @@ def _psi4_boundary_xi(dtype=np.float64):
 def _representation_table(decoded=False):
     """(r (n, 4), category, comment, flags) of the hand-picked representations.
 
-    ``decoded``: also the outputs of the decoders (y1 = y2, v2 = 0 or 1 exactly) for
+    ``decoded``: also the outputs of the decoders (y1 = y2; v2 = 0 or 1 from 64 bits) for
     Algorithm 3; the encoders get those in case ``reencode64`` (they sit on ties).
     """
     rs, cats, comments, flags = [], [], [], []
