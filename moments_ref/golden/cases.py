@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
-from . import endtoend, texel_truth
+from . import endtoend, kernels, texel_truth
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
@@ -53,7 +53,8 @@ class Case:
     floor_scale: tuple | float = 1.0  # tolerance floors are ulps of max(|value|, scale), per component
     spread_hook: Callable | None = None  # (inputs, dtype) -> extra legitimate outputs (decoders' constants)
     margin: Callable | None = None  # integer outputs: (**inputs) -> per row, distance to a rounding boundary
-
+    extra: Callable | None = None  # (inputs) -> more arrays for the golden file (a kernel's expected codes)
+    row_inputs: bool = True  # False: inputs are whole-case arrays (points, views), not one entry per row
 
     @property
     def integer_output(self):
@@ -231,7 +232,7 @@ def _cases():
     for dt in ("float32", "float64"):
         cases += _float_cases(dt)
         cases += [Case(**spec) for spec in endtoend.case_specs(dt)]
-    return cases
+    return cases + [Case(**spec) for spec in kernels.case_specs()]
 
 
 CASES = {c.name: c for c in _cases()}

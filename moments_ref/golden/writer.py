@@ -51,6 +51,8 @@ def golden_arrays(case):
     inputs, category, comment, flags = case_table(case)
     arrays = dict(inputs)
     arrays.update(derive(case, inputs, category, comment, flags))
+    if case.extra is not None:
+        arrays.update(case.extra(inputs))
     return arrays
 
 
