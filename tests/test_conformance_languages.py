@@ -175,19 +175,25 @@ _BAD = {"glsl": "float f(float x)\n{\n    return x +;\n}\n",
         "wgsl": "fn f(x: f32) -> f32 {\n    let a = 1.0;\n    return x +;\n}\n"}
 
 
-@pytest.mark.parametrize("language,driver", COMBOS)
-def test_compile_error_names_the_users_file_and_line(drivers, tmp_path, language, driver):
-    path = tmp_path / f"bad.{language}"
-    path.write_text(_BAD[language])
+def _psi4_of(tmp_path, text, language, driver):
+    """``(exit code, stderr lines)`` of ``f`` in ``text`` run on psi4-float32 (signature ``float f(float xi4)``)."""
+    path = tmp_path / f"p.{language}"
+    path.write_text(text)
     err = io.StringIO()
     code = conformance.run_cli(path, "f", "psi4-float32", None, out=io.StringIO(), err=err, language=language,
                                adapter=driver)
-    lines = err.getvalue().strip().splitlines()
-    assert code == 2, err.getvalue()
+    assert "Traceback" not in err.getvalue()
+    return code, err.getvalue().strip().splitlines()
+
+
+@pytest.mark.parametrize("language,driver", COMBOS)
+def test_compile_error_names_the_users_file_and_line(drivers, tmp_path, language, driver):
+    code, lines = _psi4_of(tmp_path, _BAD[language], language, driver)
+    assert code == 2, lines
     assert lines[0].startswith("moments-ref conformance: the wrapped function does not compile")
     # the error is inside the user's function and its signature is right: no signature hint
     assert "expected signature" not in lines[0], lines[0]
-    assert len(lines) == 2 and re.match(rf"{re.escape(str(path))}:3\b", lines[1]), err.getvalue()
+    assert len(lines) == 2 and re.match(rf"{re.escape(str(tmp_path / f'p.{language}'))}:3\b", lines[1]), lines
 
 
 _TWO_ARGUMENTS = {"glsl": "float f(float x, float y)\n{\n    return x;\n}\n",
@@ -199,15 +205,9 @@ _PSI4_SIGNATURE = {"glsl": "float f(float xi4)", "hlsl": "float f(float xi4)", "
 @pytest.mark.parametrize("language,driver", COMBOS)
 def test_a_signature_that_does_not_match_names_the_expected_one(drivers, tmp_path, language, driver):
     # The function compiles on its own; the wrapper's call does not: the head names the signature it calls.
-    path = tmp_path / f"sig.{language}"
-    path.write_text(_TWO_ARGUMENTS[language])
-    err = io.StringIO()
-    code = conformance.run_cli(path, "f", "psi4-float32", None, out=io.StringIO(), err=err, language=language,
-                               adapter=driver)
-    lines = err.getvalue().strip().splitlines()
-    assert code == 2 and "does not compile" in lines[0], err.getvalue()
-    assert f"expected signature: {_PSI4_SIGNATURE[language]}" in lines[0], err.getvalue()
-    assert "Traceback" not in err.getvalue()
+    code, lines = _psi4_of(tmp_path, _TWO_ARGUMENTS[language], language, driver)
+    assert code == 2 and "does not compile" in lines[0], lines
+    assert f"expected signature: {_PSI4_SIGNATURE[language]}" in lines[0], lines
 
 
 @pytest.mark.parametrize("language", conformance.LANGUAGES)
