@@ -1,9 +1,11 @@
-"""Hypothesis profiles (``ci``: derandomized, bounded, no deadline; ``thorough``) and the shared fixtures.
+"""Hypothesis profiles, and the fixtures the test modules share.
 
-CI selects ``ci`` (also the default); run ``pytest --hypothesis-profile thorough``
-for long local runs. Fixtures: ``golden_dir`` (every case the shipped ports cover),
-``gdir`` (the requesting module's ``GOLDEN_CASES``), ``ctx`` (an OpenGL 4.3 context);
-the golden folders are written once per test process (``_oracles.golden_folder``).
+Hypothesis: ``ci`` (derandomized, bounded, no deadline) and ``thorough``. CI selects
+``ci`` (also the default); run ``pytest --hypothesis-profile thorough`` for long
+local runs. Conformance: the drivers, the compilers and the shipped goldens, built
+on tests/_harness.py. Goldens: ``gdir``, the requesting module's ``GOLDEN_CASES``
+(every case when it names none); every golden folder is written once per test
+process (tests/_oracles.py).
 """
 
 import os
@@ -11,6 +13,7 @@ import os
 import pytest
 from hypothesis import HealthCheck, settings
 
+from _harness import need, need_tool, shipped_golden_folder
 from _oracles import golden_folder
 
 settings.register_profile(
@@ -31,16 +34,32 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
-# ---------------------------------------------------------------------------
-# Shared fixtures
+# --------------------------------------------------------------------------
+# Conformance: the drivers, the compilers and the shipped goldens
+
+@pytest.fixture(scope="session")
+def ctx():
+    """The OpenGL 4.3 context of the driver process, or skip (fail under CI)."""
+    from moments_ref import conformance
+
+    return need(conformance.get_context, "an OpenGL 4.3 context")
+
+
+@pytest.fixture(scope="session")
+def drivers(ctx):
+    """Both drivers (OpenGL; Vulkan and wgpu's OpenGL adapter) and both compilers, or skip (fail under CI)."""
+    from moments_ref.conformance import _wgpu
+
+    need(lambda: _wgpu.get_device("Vulkan"), "a Vulkan adapter")
+    need(lambda: _wgpu.get_device("OpenGL"), "wgpu's OpenGL adapter")
+    for tool in ("glslangValidator", "spirv-cross"):
+        need_tool(tool)
 
 
 @pytest.fixture(scope="session")
 def golden_dir():
-    """Goldens of every case a shipped port covers (``conformance.shipped_cases()``), written once."""
-    from moments_ref import conformance
-
-    return golden_folder(tuple(conformance.shipped_cases()))
+    """Goldens of every shipped case (written once per test process)."""
+    return shipped_golden_folder()
 
 
 @pytest.fixture(scope="module")
@@ -48,16 +67,3 @@ def gdir(request):
     """Goldens of the requesting module's ``GOLDEN_CASES`` (every case when it names none), written once."""
     cases = getattr(request.module, "GOLDEN_CASES", None)
     return golden_folder(None if cases is None else tuple(cases))
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    """An OpenGL 4.3 context (moderngl), or a skip; under CI (``CI=true``) its absence fails."""
-    from moments_ref import conformance
-
-    try:
-        return conformance.get_context()
-    except conformance.ContextError as exc:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"CI=true but no OpenGL 4.3 context: {exc}")
-        pytest.skip(f"no OpenGL 4.3 context: {exc}")
