@@ -25,6 +25,7 @@ import tempfile
 from pathlib import Path
 
 from ._arrays import InputError, format_bytes, parse_bytes, set_max_memory
+from ._options import add_report_arguments
 
 
 def _progress(total, desc):
@@ -106,8 +107,7 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance",
-                                                                                 "kernels"]
+        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -176,28 +176,13 @@ def _cmd_banks(args):
 def _cmd_report(args):
     from . import report
 
-    argv = ["--out", str(args.out)]
-    for s in args.scene or []:
-        argv += ["--scene", s]
-    if args.full:
-        argv.append("--full")
-    for t in args.technique or []:
-        argv += ["--technique", t]
-    if args.all_techniques:
-        argv.append("--all-techniques")
-    if args.repeats is not None:
-        argv += ["--repeats", str(args.repeats)]
-    if args.jobs is not None:
-        argv += ["--jobs", str(args.jobs)]
-    if args.no_progress:
-        argv.append("--no-progress")
-    return report.main(argv)
+    return report.main(args)
 
 
 def _cmd_vwss(args):
-    from .techniques.vwss import compare
+    from .report import vwss
 
-    return compare.main(args)
+    return vwss.main(args)
 
 
 def _cmd_conformance(args):
@@ -230,17 +215,7 @@ def build_parser():
 def _add_jobs(sub):
     """The main jobs: the report and the VWSS comparison."""
     rp = sub.add_parser("report", help="error against run time of every technique on the shipped scenes (main job)")
-    rp.add_argument("--scene", action="append", help="scene name or file (repeatable; default: all shipped scenes)")
-    rp.add_argument("--full", action="store_true", help="the scenes' own map size, MSAA and camera resolution")
-    rp.add_argument("--technique", action="append", metavar="NAME", help="this technique instead of the scene's "
-                    "outputs (repeatable)")
-    rp.add_argument("--all-techniques", action="store_true", help="every technique that can run on each scene")
-    rp.add_argument("--repeats", type=_int_in(1), default=None, metavar="N",
-                    help="timed repeats of each cost stage after a warm-up (default 3)")
-    rp.add_argument("--jobs", type=_int_in(1), default=None, metavar="N",
-                    help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
-    rp.add_argument("--out", required=True, type=Path, help="output folder")
-    rp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_report_arguments(rp)
     rp.set_defaults(func=_cmd_report)
 
     vw = sub.add_parser("vwss", help="view-warped soft shadows against MVR and PCSS (VWSS Tables 1 and 2)")

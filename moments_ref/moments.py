@@ -22,6 +22,7 @@ __all__ = [
     "power_moments",
     "hankel",
     "BiasPreset",
+    "bias_preset",
     "BIAS_FLOAT32",
     "BIAS_UNORM16",
     "bias_moments",
@@ -171,7 +172,8 @@ BIAS_FLOAT32 = BiasPreset(3e-7, (0.0, 0.375, 0.0, 0.375), "float32")
 BIAS_UNORM16 = BiasPreset(6e-5, (0.0, 0.628, 0.0, 0.628), "unorm16")
 
 
-def _as_preset(preset) -> BiasPreset:
+def bias_preset(preset) -> BiasPreset:
+    """``preset`` as a :class:`BiasPreset`: a preset itself, or an ``(alpha, target)`` pair (InputError otherwise)."""
     if isinstance(preset, BiasPreset):
         return preset
     try:
@@ -208,7 +210,7 @@ def bias_moments(b, preset=BIAS_FLOAT32):
     target's b0* = 1. Moment vectors slightly outside the moment space after
     rounding are valid input: pulling them inside is the purpose of this step.
     """
-    p = _as_preset(preset)
+    p = bias_preset(preset)
     b = real_input(b, "b", trailing=(4, 6))
     if not (0.0 <= p.alpha <= 1.0):
         raise InputError(f"preset: expected alpha in [0, 1], got {p.alpha!r}")

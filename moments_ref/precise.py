@@ -47,7 +47,7 @@ import mpmath
 import numpy as np
 
 from ._arrays import InputError, broadcast_pair, real_input
-from .moments import BiasPreset, _as_preset
+from .moments import BiasPreset, bias_preset
 from .nonlinear import validate_representation
 
 __all__ = [
@@ -164,7 +164,7 @@ def bias_moments(b, preset, dps=DPS):
     b_biased : (..., 4) or (..., 6) float64 array
     """
     dps = _check_dps(dps)
-    p = preset if isinstance(preset, BiasPreset) else _as_preset(preset)
+    p = preset if isinstance(preset, BiasPreset) else bias_preset(preset)
     b = real_input(b, "b", trailing=(4, 6))
     if len(p.target) != b.shape[-1]:
         raise InputError(f"preset: expected a target of length {b.shape[-1]}, got {len(p.target)}")

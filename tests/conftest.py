@@ -1,9 +1,11 @@
-"""Hypothesis profiles, and the fixtures of the conformance tests.
+"""Hypothesis profiles, and the fixtures the test modules share.
 
 Hypothesis: ``ci`` (derandomized, bounded, no deadline) and ``thorough``. CI selects
 ``ci`` (also the default); run ``pytest --hypothesis-profile thorough`` for long
 local runs. Conformance: the drivers, the compilers and the shipped goldens, built
-on tests/_harness.py.
+on tests/_harness.py. Goldens: ``gdir``, the requesting module's ``GOLDEN_CASES``
+(every case when it names none); every golden folder is written once per test
+process (tests/_oracles.py).
 """
 
 import os
@@ -12,6 +14,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from _harness import need, need_tool, shipped_golden_folder
+from _oracles import golden_folder
 
 settings.register_profile(
     "ci",
@@ -57,3 +60,10 @@ def drivers(ctx):
 def golden_dir():
     """Goldens of every shipped case (written once per test process)."""
     return shipped_golden_folder()
+
+
+@pytest.fixture(scope="module")
+def gdir(request):
+    """Goldens of the requesting module's ``GOLDEN_CASES`` (every case when it names none), written once."""
+    cases = getattr(request.module, "GOLDEN_CASES", None)
+    return golden_folder(None if cases is None else tuple(cases))

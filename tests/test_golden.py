@@ -2,7 +2,6 @@
 
 import hashlib
 import json
-import time
 
 import numpy as np
 import pytest
@@ -15,13 +14,7 @@ SMALL = ["shadow_intensity-lower-float32", "shadow_intensity-upper-float64", "en
          "to_optimized-float64"]
 
 
-@pytest.fixture(scope="module")
-def gdir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("golden")
-    t0 = time.process_time()
-    golden.write(out)
-    out.joinpath(".cpu_seconds").write_text(str(time.process_time() - t0))
-    return out
+# gdir: every case, written once per test process (conftest; its CPU seconds in .cpu_seconds).
 
 
 def reference_results(gdir, names=None, dtype=None):

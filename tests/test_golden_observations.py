@@ -14,11 +14,7 @@ CASES = ["bias_moments-float32-float32", "shade-float32", "pack64-float32", "enc
          "unpack32-float32", "unpack64-float32", "pack32-float32", "shadow_intensity-lower-float32"]
 
 
-@pytest.fixture(scope="module")
-def gdir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("golden_obs")
-    golden.write(out, CASES)
-    return out
+GOLDEN_CASES = CASES  # conftest's gdir writes these
 
 
 def _inputs(gdir, case):

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError, check_memory
+from .._shim import alias
 from .raster import SAMPLE_COUNTS, MAX_SIZE, rasterize_depth
 from .camera import Camera
 from .lights import AreaLight, DirectionalLight
@@ -138,16 +139,19 @@ class Scene:
         v = np.concatenate([self.receiver.vertices, self.occluder.vertices])
         return np.stack([v.min(0), v.max(0)])
 
-    def shadow_view_proj(self, eye=None) -> np.ndarray:
-        """The light's shadow-map matrix.
+    def light_clip_from_world(self, eye=None) -> np.ndarray:
+        """The light's shadow-map matrix: world to the light's clip coordinates.
 
         Directional light: orthographic, fitted to all scene vertices (HPG17 §5).
         Area light: perspective from ``eye`` on the light (default its centre).
         """
         pts = np.concatenate([self.receiver.vertices, self.occluder.vertices])
         if isinstance(self.light, DirectionalLight):
-            return self.light.view_proj(pts)
-        return self.light.view_proj(pts, eye=eye)
+            return self.light.clip_from_world(pts)
+        return self.light.clip_from_world(pts, eye=eye)
+
+    #: Old name (DeprecationWarning).
+    shadow_view_proj = alias("light_clip_from_world")
 
     def occluder_mesh(self, translucent=None, exclude=()) -> Mesh:
         """Occluder triangles: all (None), only opaque (False) or only translucent (True),
@@ -170,7 +174,7 @@ class Scene:
         if np.isscalar(samples) and (np.isscalar(size) or len(size) == 2):
             check_memory(shadow_map_memory(size, samples), f"shadow map {size} with {samples} samples")
         m = self.occluder_mesh(translucent=translucent, exclude=exclude)
-        return rasterize_depth(m.vertices, m.triangles, self.shadow_view_proj(),
+        return rasterize_depth(m.vertices, m.triangles, self.light_clip_from_world(),
                                size, samples=samples, cull=cull)
 
 
