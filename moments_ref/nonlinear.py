@@ -42,6 +42,7 @@ HPG17, Peters and Klein 2015 : see docs/bib.md.
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -58,6 +59,7 @@ __all__ = [
     "PSI4_XI_MIN",
     "PSI4_XI_MAX",
     "SHADE_TOLERANCE",
+    "CLAMP_BAND",
     "ROUNDING_ULPS",
     "rounding_tolerance",
     "validate_representation",
@@ -73,6 +75,11 @@ PSI4_XI_MIN = 1.2e-7
 PSI4_XI_MAX = 0.25
 #: HPG17 §3.4: Algorithm 3 clamps 1e-6 away from y1 = y2, v2 = 0 and v2 = 1.
 SHADE_TOLERANCE = 1e-6
+#: Offsets of the §3.4 clamps that are implementation choices, not bugs: from 1e-7
+#: (below it ``1 − clamp`` is within one float32 spacing of 1, so the clamp of v2 is
+#: lost to rounding) to 1/65535 (one UNORM16 step: up to there the clamp changes the
+#: bound by less than one 64-bit rounding step of v2 does, HPG17 §3.4's criterion).
+CLAMP_BAND = (1e-7, 1 / 65535)
 #: Multiple of eps(dtype) by which a representation may miss its domain by rounding.
 ROUNDING_ULPS = 64
 
@@ -468,8 +475,19 @@ def _clamp_domain(r):
 # Algorithm 3
 
 
-def _kernel_constants(dtype, n):
-    """Constant arrays of length n for the kernel.
+def _clamp_offset(clamp):
+    """``clamp`` as a float inside :data:`CLAMP_BAND`, else :class:`InputError`."""
+    try:
+        c = float(clamp)
+    except (TypeError, ValueError):
+        c = math.nan
+    if isinstance(clamp, (bool, str)) or not CLAMP_BAND[0] <= c <= CLAMP_BAND[1]:
+        raise InputError(f"clamp: expected an offset in [{CLAMP_BAND[0]:g}, 1/65535], got {clamp!r}")
+    return c
+
+
+def _kernel_constants(dtype, n, clamp=SHADE_TOLERANCE):
+    """Constant arrays of length n for the kernel (``clamp``: the §3.4 offset).
 
     NumPy's array–scalar loops of maximum/minimum/clip and of the integer
     bitwise operations are not vectorized and cost about four array–array
@@ -480,8 +498,8 @@ def _kernel_constants(dtype, n):
     fi = np.finfo(dtype)
     full = lambda v: np.full(n, v, dtype=dtype)  # noqa: E731
     return {
-        "lo": full(dt(SHADE_TOLERANCE)),
-        "hi": full(1 - dt(SHADE_TOLERANCE)),
+        "lo": full(dt(clamp)),
+        "hi": full(1 - dt(clamp)),
         "tiny": full(fi.tiny),
         "huge": full(fi.max),
         "one": full(1),
@@ -583,7 +601,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     np.multiply(k, zf > y1, out=out)
 
 
-def shade(r, zf):
+def shade(r, zf, clamp=SHADE_TOLERANCE):
     """HPG17 Algorithm 3: the sharp lower bound of Z(z < zf) from ``(y1, y2, v2, ξ4)``.
 
     Parameters
@@ -595,6 +613,11 @@ def shade(r, zf):
         (then clamped onto it); otherwise :class:`~moments_ref.InputError`.
     zf : (...) float array
         Fragment depth, broadcast against ``r[..., 0]``, cast to r's dtype.
+    clamp : float
+        The offset of the §3.4 clamps (default ``SHADE_TOLERANCE = 1e-6``, the
+        paper's). Any offset in :data:`CLAMP_BAND` keeps the clamp's effect below
+        one 64-bit rounding step of v2 (tests/test_nonlinear.py); ports declare
+        theirs in a profile (docs/ports.md).
 
     Returns
     -------
@@ -666,7 +689,8 @@ def shade(r, zf):
     out = np.empty(n, dtype=r.dtype)
     tol = r.dtype.type(rounding_tolerance(r.dtype))
     chunk = CHUNK
-    consts = _kernel_constants(r.dtype, min(chunk, n))
+    clamp = _clamp_offset(clamp)
+    consts = _kernel_constants(r.dtype, min(chunk, n), clamp)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         for start in range(0, n, chunk):
             stop = min(start + chunk, n)
