@@ -43,8 +43,9 @@ def test_cli_prints_the_table(tmp_path, capsys):
                                         "MUTANTS = [m for m in _ALL if m.port == 'alg3']\n")
     assert main(["mutants", "--corpus", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "| alg3-literal-root | bug | killed | shade-float32:" in out
-    assert "bugs killed 12/12, legitimate variants passing 7/7" in out and "(WRONG)" not in out
+    assert "| alg3-literal-root | bug | killed | killed | shade-float32:" in out
+    assert "contract level: bugs killed 12/12, legitimate variants passing 7/7" in out and "(WRONG)" not in out
+    assert "strict level:" in out
 
 
 def test_table_of_the_default_corpus_is_right(results):
@@ -52,6 +53,15 @@ def test_table_of_the_default_corpus_is_right(results):
     assert "(WRONG)" not in text
     s = mutation.score(results)
     assert s["bugs_killed"] == s["bugs"] and s["legit_passing"] == s["legit"]
+    assert s["robustness"] >= 2 and s["robustness_right"] == s["robustness"]
+
+
+def test_robustness_variants_differ_only_beyond_the_contract(results):
+    # Each passes the verdict and is killed with --strict, only on rows flagged robustness.
+    for r in results:
+        if r.kind == "robustness":
+            assert not r.killed and r.killed_strict, r.name
+            assert all("robustness" in fl for _, _, _, fl in r.killed_by_strict), (r.name, r.killed_by_strict)
 
 
 def test_cli_refuses_a_missing_corpus(tmp_path, capsys):

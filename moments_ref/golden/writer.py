@@ -22,7 +22,7 @@ from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, derive, gated_summary, ulp
 
 __all__ = ["write", "SCHEMA_VERSION", "CATEGORIES", "golden_arrays", "manifest_entry"]
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 CATEGORIES = ("random", "stiff", "edge")
 
 
@@ -30,7 +30,10 @@ def golden_arrays(case):
     """All arrays of ``case``'s golden file (inputs, expected outputs, tolerances, row labels)."""
     inputs, category, comment, flags = case_table(case)
     arrays = dict(inputs)
-    arrays.update(derive(case, inputs, category, comment, flags))
+    if case.deriver is not None:
+        arrays.update(case.deriver(case, inputs, category, comment, flags))
+    else:
+        arrays.update(derive(case, {k: inputs[k] for k in case.inputs}, category, comment, flags))
     return arrays
 
 
@@ -66,10 +69,12 @@ def manifest_entry(case, arrays, data=None):
         "function": f"moments_ref.{case.function}",
         "kwargs": case.kwargs,
         "description": case.description,
+        "contract": case.contract_text,
         "dtype": case.dtype,
         "input_order": list(case.inputs),
         "inputs": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.inputs},
         "outputs": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.outputs},
+        "aux": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.aux},
         "compare": list(case.outputs),
         "metric": case.metric,
         "value_range": list(case.value_range) if case.value_range else None,

@@ -1,9 +1,11 @@
 """The mutant corpus: one-change mutants of the independent ports in ``ports.py``.
 
-``kind`` is ``bug`` (a mistake porters make: the oracle must kill it),
-``legit`` (a legitimate implementation choice: it must pass) or ``equivalent``
-(a change that cannot alter any output: shown so by :func:`fuzz_equivalent`, an
-exhaustive or fuzzed bitwise comparison with the unchanged port, not assumed).
+``kind`` is ``bug`` (a mistake porters make: the oracle must kill it on contract
+rows or engine rows), ``legit`` (a legitimate implementation choice: it must pass),
+``robustness`` (legitimate on the algorithm's contract, different beyond it: it
+passes the verdict and is killed with ``--strict``) or ``equivalent`` (a change
+that cannot alter any output: shown so by :func:`fuzz_equivalent`, an exhaustive
+or fuzzed bitwise comparison with the unchanged port, not assumed).
 
 ``moments-ref mutants --corpus tests/mutants`` prints the table; the suite
 (tests/test_mutants.py) asserts the score.
@@ -91,15 +93,18 @@ MUTANTS = [
     _m("alg1-recip", "legit", "alg1", {"recip": True}, "p, q by one reciprocal of c2 and two products"),
     _m("alg1-sum-weights", "legit", "alg1", {"sum_weights": True}, "lower bound as w1 + w2 instead of 1 - w0"),
     _m("alg1-swap-bound", "bug", "alg1", {"swap_bound": True}, "upper bound returned for the lower and vice versa"),
-    _m("alg1-no-singular", "bug", "alg1", {"no_singular": True},
-       "no singular branch: divides by zero on singular B(b), saturate turns NaN into 0"),
-    _m("alg1-literal-root", "bug", "alg1", {"literal_root": True},
-       "roots as -p/2 ∓ sqrt(p²/4 - q) literally (cancels at the bias floor)"),
+    _m("alg1-no-singular", "robustness", "alg1", {"no_singular": True},
+       "paper-faithful: no singular branch (biased inputs only); divides by zero on unbiased singular B(b), "
+       "outside the contract, where saturate turns NaN into 0"),
+    _m("alg1-literal-root", "legit", "alg1", {"literal_root": True},
+       "roots as -p/2 ∓ sqrt(p²/4 - q), as the slides and Peters' demo code (HDRP's HDIMS.hlsl) print them"),
     _m("alg1-swap-roots", "bug", "alg1", {"swap_roots": True}, "z1 and z2 swapped (z1 > z2)"),
     _m("alg1-d22-sign", "bug", "alg1", {"d22_sign": True}, "D22 = b2 + b1² (sign error)"),
     _m("alg1-no-l32", "bug", "alg1", {"no_l32": True}, "forward substitution forgets L32 c1"),
     _m("alg1-quarter", "bug", "alg1", {"quarter": True}, "discriminant p²/2 - q instead of p²/4 - q"),
-    _m("alg1-le", "bug", "alg1", {"le": True}, "z_l <= zf in the lower bound (strict < expected)"),
+    _m("alg1-le", "robustness", "alg1", {"le": True},
+       "z_l <= zf in the lower bound (strict < expected): on positive definite B(b) no root equals zf, so it "
+       "differs only at a singular input's support point"),
     _m("alg1-half", "bug", "alg1", {"half": True}, "moments read as float16"),
     _m("alg1-depth01", "bug", "alg1", {"depth01": True}, "fragment depth mapped to [0, 1] (the papers use [-1, 1])"),
     _m("alg1-bias-inside", "bug", "alg1", {"bias_inside": True}, "biases inside Algorithm 1 although the caller did"),
