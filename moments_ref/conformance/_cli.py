@@ -32,25 +32,59 @@ def resolve_port(path, language):
     return p
 
 
-def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None):
+def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None,
+            profile=None, strict=False, rows=5, json_path=None):
     """Run one case, print the report, return the exit code.
+
+    ``adapter="both"`` runs OpenGL and Vulkan and names the rows on which they
+    disagree; ``profile`` (golden.profile.Profile) declares the engine's conventions,
+    ``strict`` gates the robustness rows, ``rows`` is the number of failing rows to
+    list per category (``"all"``: every one), ``json_path`` receives every row's verdict.
 
     Returns
     -------
     int
         0 every row within its tolerance; 1 a tolerance exceeded; 2 no driver or
         compiler (reason on stderr) or bad usage (unknown case, missing function,
-        a file that does not compile: the compiler's messages, one line per error).
+        a file that does not compile: the compiler's messages, one line per error;
+        a profile it refuses).
     """
     out, err = out or sys.stdout, err or sys.stderr
     try:
         language = language_of(path, language)
-        report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter)
+        port = resolve_port(path, language)
+        gc = load_case(case, golden_dir)
+        adapters = list(DRIVERS) if adapter == "both" else [adapter]
+        reports = [run_case(port, function, case, golden_dir, language, a, None if rows == "all" else rows, gc=gc,
+                            profile=profile, strict=strict) for a in adapters]
+        if json_path is not None:
+            from ..golden.diagnosis import write_json
+
+            write_json(json_path, [dict(r.record, driver=r.driver) for r in reports],
+                       {"command": "conformance", "function": function, "path": str(path)})
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2
-    print(report.format(), file=out)
-    return 0 if report.passed else 1
+    for rep in reports:
+        print(rep.format(), file=out)
+    if len(reports) == 2:
+        print(_disagreement(reports, gc), file=out)
+    return 0 if all(r.passed for r in reports) else 1
+
+
+def _disagreement(reports, gc):
+    """The rows on which two drivers disagree: in their verdict, and in any bit of the outputs."""
+    a, b = reports
+    tc = np.asarray(gc.arrays["tc_id"])
+    verdict = np.flatnonzero(a.row_pass != b.row_pass)
+    bits = np.zeros(len(a.row_pass), bool)
+    for o in a.outputs:
+        x, y = np.asarray(a.outputs[o]), np.asarray(b.outputs[o])
+        n = len(x)
+        bits |= (x.reshape(n, -1).view(np.uint32) != y.reshape(n, -1).view(np.uint32)).any(axis=1)
+    names = ", ".join(f"tc_id {int(tc[i])} ({'gl' if a.row_pass[i] else 'vulkan'} passes)" for i in verdict)
+    return (f"drivers: {a.driver} and {b.driver} disagree on {len(verdict)} verdicts"
+            f"{': ' + names if names else ''}; outputs differ in some bit on {int(bits.sum())} of {len(bits)} rows")
 
 
 def _targets(adapter):
@@ -204,7 +238,13 @@ def main(args):
     if missing:
         raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
     language, path = files[0]
-    return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"))
+    from ..golden.profile import FLAGS, profile_from_args
+
+    flags = {f[2:].replace("-", "_"): get(f[2:].replace("-", "_")) for f, _, _ in FLAGS}
+    profile = profile_from_args(get("profile"), get("function"), **flags)
+    return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
+                   profile=profile, strict=bool(get("strict")), rows=get("rows") if get("rows") is not None else 5,
+                   json_path=get("json"))
 
 
 def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):
