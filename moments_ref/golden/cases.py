@@ -24,7 +24,7 @@ from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import contract as _contract_mod
 from . import endtoend, engine
-from .paper import alg1_paper_spread
+from .paper import alg1_paper_spread, alg3_paper_spread
 from .variants import alg1_variant, bias_variant, shade_variant
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
@@ -204,7 +204,7 @@ def _nonlinear_cases(dt):
              description="inverse of Ψ4; gated in ulps (ξ4 spans six decades)"),
         Case(f"shade-{dt}", "nonlinear.shade", dt, ("r", "zf"), ("intensity",), _shade_rows,
              _wrap("nonlinear.shade"), _shade_truth, value_range=(0, 1), contract="representation",
-             variant=shade_variant(), profile_keys=("clamp",),
+             variant=shade_variant(), profile_keys=("clamp",), spread_hook=alg3_paper_spread(),
              description="HPG17 Algorithm 3 with its §3.4 clamps (v2 in [1e-6, 1 - 1e-6], y2 - y1 >= 1e-6); "
                          "expected: Algorithm 3 with the clamps in mpmath"),
         Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,

@@ -17,8 +17,8 @@ into those of the same rows as an engine with a :class:`~.profile.Profile` sees 
   moves a singular row inside.
 
 Results are cached in memory and on disk (:func:`cache_dir`), keyed by the case, the
-profile's content, the golden rows and the package version; a profile never
-changes a golden folder.
+profile's content, the golden rows and the package's version and sources; a profile
+never changes a golden folder.
 
 References
 ----------
@@ -112,6 +112,8 @@ def unused_keys(case, profile):
         out.append("bias")
     if profile.clamp is not None and "clamp" not in case.profile_keys:
         out.append("clamp")
+    if profile.clamp_test is not None and "clamp" not in case.profile_keys:
+        out.append("clamp_test")
     if profile.format and "format" not in case.profile_keys:
         out.append("format")
     return out
@@ -131,6 +133,7 @@ def profiled_case(case, profile):
     changes = {}
     if case.variant is not None:
         changes = case.variant(bias=inside, clamp=profile.clamp if "clamp" in case.profile_keys else None,
+                               clamp_test=profile.clamp_test if "clamp" in case.profile_keys else None,
                                fmt=dict(profile.format) if "format" in case.profile_keys else {},
                                before=before, profile=profile)
     out = replace(case, **changes)
@@ -195,8 +198,21 @@ def contract_mask(case, inputs, profile):
     return rows_inside(case.contract, inputs, bias)
 
 
-def _strip(flags):
-    return [tuple(f for f in str(fl).split(",") if f and f not in _DERIVED_FLAGS) for fl in np.asarray(flags)]
+def _strip(flags, biased=False):
+    """The rows' own flags (without those derive sets); under a bias, singular rows are bias-floor rows.
+
+    A bias makes the moments of one or two depths those of a distribution at the bias
+    floor, whose support points are computed: ``singular_hankel`` becomes ``bias_floor``
+    and ``support_point`` there ``near_support_point`` (their notes say what follows).
+    """
+    out = []
+    for fl in np.asarray(flags):
+        names = [f for f in str(fl).split(",") if f and f not in _DERIVED_FLAGS]
+        if biased and "singular_hankel" in names:
+            names = [{"singular_hankel": "bias_floor", "support_point": "near_support_point"}.get(f, f)
+                     for f in names]
+        out.append(tuple(dict.fromkeys(names)))
+    return out
 
 
 def profile_arrays(case, arrays, profile):
@@ -208,7 +224,9 @@ def profile_arrays(case, arrays, profile):
     inside = contract_mask(case, inputs, profile)
     conv = convert_inputs(case, inputs, profile)
     out = dict(conv)
-    labels = (np.asarray(arrays["category"]), list(np.asarray(arrays["comment"])), _strip(arrays["flags"]))
+    before, inside_bias = _biases(case, profile)
+    biased = (before is not None or inside_bias is not None) and case.contract == "moments_inside"
+    labels = (np.asarray(arrays["category"]), list(np.asarray(arrays["comment"])), _strip(arrays["flags"], biased))
     if pcase.deriver is not None:
         out.update(pcase.deriver(pcase, conv, *labels, contract=inside))
     else:
@@ -216,9 +234,23 @@ def profile_arrays(case, arrays, profile):
     return pcase, out
 
 
+_CODE = []
+
+
+def _code_hash():
+    """sha256 of the package's sources: derived goldens change with the code that derives them."""
+    if not _CODE:
+        h = hashlib.sha256()
+        root = Path(__file__).resolve().parents[1]
+        for f in sorted(root.rglob("*.py")):
+            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes())
+        _CODE.append(h.hexdigest())
+    return _CODE[0]
+
+
 def _key(case, arrays, profile):
     h = hashlib.sha256()
-    for part in (case.name, profile.key, __version__, str(case.dtype)):
+    for part in (case.name, profile.key, __version__, _code_hash(), str(case.dtype)):
         h.update(part.encode() + b"\0")
     for k in list(case.inputs) + list(case.aux) + ["category", "flags", "comment"]:
         a = np.ascontiguousarray(arrays[k])

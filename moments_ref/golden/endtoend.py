@@ -40,17 +40,18 @@ BLOCK = (32, 40)
 GUARD = 4
 
 
-def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None):
-    """bias (a BiasPreset or None) -> Φ -> pack -> unpack -> shade (with ``clamp``, default the paper's)."""
+def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored"):
+    """bias (a BiasPreset or None) -> Φ -> pack -> unpack -> shade (``clamp``, ``case_test``: golden.variants)."""
 
     def chain(b, zf):
-        from ..nonlinear import SHADE_TOLERANCE, phi, shade
+        from ..nonlinear import SHADE_TOLERANCE, phi
         from ..packing import pack32, pack64, unpack32, unpack64
+        from .variants import shade_reference
 
         dt = np.asarray(b).dtype
         r = phi(b if bias is None else bias_moments(b, bias))
         r = unpack64(pack64(r), dtype=dt) if fmt == "64" else unpack32(pack32(r), dtype=dt)
-        return (shade(r, zf, clamp=SHADE_TOLERANCE if clamp is None else clamp),)
+        return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(r, zf)
 
     return chain
 
@@ -67,8 +68,8 @@ def _msm64(bias=BIAS_UNORM16):
     return chain
 
 
-def _block(fmt, bias=BIAS_FLOAT32, clamp=None):
-    inner = nlq_chain(fmt, bias, clamp)
+def _block(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored"):
+    inner = nlq_chain(fmt, bias, clamp, case_test)
 
     def chain(depth, zf):
         dt = np.asarray(depth).dtype
@@ -83,14 +84,14 @@ def _block(fmt, bias=BIAS_FLOAT32, clamp=None):
 
 
 def _chain_variant(make, *args):
-    """A profile's bias (inside the chain; None: the caller biased) and clamp for a chain ``make(*args, bias, clamp)``."""
+    """A profile's bias (inside the chain; None: the caller biased), clamp and case test for ``make(*args, ...)``."""
 
-    def variant(bias=None, clamp=None, fmt=None, **_):
+    def variant(bias=None, clamp=None, fmt=None, clamp_test=None, **_):
         from .variants import preset_of
 
         p = None if bias is None else preset_of(bias)
-        ref = make(*args, p) if clamp is None else make(*args, p, clamp)
-        return {"reference": ref}
+        extra = () if clamp is None and clamp_test is None else (clamp, clamp_test or "stored")
+        return {"reference": make(*args, p, *extra)}
 
     return variant
 

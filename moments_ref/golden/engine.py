@@ -17,9 +17,11 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
   the tolerance is how far a *correct* biased MSM may be from it: the largest
   deviation, over the paper's presets and the declared α toward a range of targets
   strictly inside the moment space (:data:`LEGIT_TARGETS`), of the bound of the
-  biased moments (float64) from Z, times 1.25, plus 16 times the float32 spread of
-  the same evaluations (the same safety factor as every golden tolerance), at least
-  4 float32 ulps of 1.
+  biased moments (float64) from Z, plus the jump of Z where zf sits on a depth of
+  the distribution, times 1.25; plus 16 times the spread of float32 evaluations (this
+  package and the papers' own code, on those biased moments and on the port's own
+  input moved by one ulp: the same safety factor as every golden tolerance); at
+  least 4 float32 ulps of 1.
 
 Verdicts come from outputs: a bias toward a singular target fails exactly where its
 outputs leave that band (:func:`singular_target_rows` says which rows the target
@@ -220,19 +222,21 @@ def _chain(ctx, preset, dt):
     """The legitimate pipeline with ``preset``: Algorithm 1 (and the slides' code) or the NLQ chain."""
     from ..moments import bias_moments
     from ..msm import shadow_intensity
-    from .paper import slides_bound
+    from .paper import printed_bound, slides_bound
 
     fmt, bound = ctx.get("fmt"), ctx.get("bound", "lower")
     if fmt is not None:
         from .endtoend import nlq_chain
 
-        return [lambda b, zf: nlq_chain(fmt, preset, ctx.get("clamp"))(b.astype(dt), zf.astype(dt))[0]]
+        chain = nlq_chain(fmt, preset, ctx.get("clamp"), ctx.get("clamp_test") or "stored")
+        return [lambda b, zf: chain(b.astype(dt), zf.astype(dt))[0]]
 
     def biased(b):
         return b.astype(dt) if preset is None else bias_moments(b.astype(dt), preset)
 
     out = [lambda b, zf: shadow_intensity(biased(b), zf.astype(dt), bound=bound)]
     if dt == np.float32:
+        out.append(lambda b, zf: printed_bound(biased(b), zf, bound, dt))
         out.append(lambda b, zf: slides_bound(biased(b), zf, bound, dt))
     return out
 
@@ -244,6 +248,21 @@ def papers_chain32(arrays, preset, ctx, n):
                         np.dtype(np.float32)).astype(np.float64)
     with np.errstate(all="ignore"):
         return np.asarray(_chain(ctx, preset, np.float32)[-1](b, np.asarray(arrays["zf"], np.float64)), np.float64)
+
+
+def _input_spread(ctx, b, zf, dt):
+    """How far legitimate evaluations on the port's own input ``b`` spread (its bias inside, if declared):
+    this package and the papers' code in ``dt``, on b and on b moved by one ulp per component."""
+    inside = ctx.get("inside")
+    b64 = np.asarray(b, np.float64)
+    ref = np.asarray(_chain(ctx, inside, np.float64)[0](b64, zf), np.float64)
+    eps = float(np.finfo(dt).eps)
+    sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
+    out = np.zeros(len(zf))
+    for x in (b64, b64 * (1 + eps * sign), b64 * (1 - eps * sign)):
+        for f in _chain(ctx, inside, dt.type):
+            out = np.fmax(out, np.abs(np.asarray(f(x.astype(dt).astype(np.float64), zf), np.float64) - ref))
+    return out
 
 
 def _exact_z(arrays, n, upper):
@@ -277,10 +296,16 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
             for d in PORT_DTYPES:
                 for f in _chain(ctx, p, np.dtype(d).type):
                     spread[d] = np.fmax(spread[d], np.abs(np.asarray(f(unbiased[d], zf), np.float64) - v64))
+        for d in PORT_DTYPES:  # the rounding of the port's own input, as in every golden case
+            spread[d] = np.fmax(spread[d], _input_spread(ctx, b, zf, np.dtype(d)))
+    # At zf on a depth of the distribution Z jumps by that depth's mass; a correct biased bound lands
+    # anywhere across the jump (its support point is within rounding of zf).
+    below = sup == zf[rows]
+    jump = np.bincount(rows, weights=mass * below, minlength=n)
     expected = 1 - z if ctx.get("visibility") else z
     out = {"b": b, "intensity": expected, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
     for d in PORT_DTYPES:
-        t = ceil2(np.maximum(_SAFETY * dev + _SPREAD * spread[d], 4 * ulp(np.ones(n), d)))
+        t = ceil2(np.maximum(_SAFETY * (dev + jump) + _SPREAD * spread[d], 4 * ulp(np.ones(n), d)))
         out[f"intensity_tolerance_{d}"] = np.minimum(t, 1.0)
     out["category"] = np.asarray(category).astype("U6")
     out["comment"] = np.asarray(comment).astype(f"U{max(1, max(len(c) for c in comment))}")
@@ -334,11 +359,11 @@ def singular_target_rows(arrays, bias, unit=False):
 def _variant(texel, bound):
     """A profile's bias (inside or before), depth convention and output for an engine case."""
 
-    def variant(bias=None, clamp=None, fmt=None, before=None, profile=None, **_):
+    def variant(bias=None, clamp=None, fmt=None, before=None, profile=None, clamp_test=None, **_):
         from .variants import preset_of
 
         declared = profile.bias if profile is not None and profile.bias is not None else None
-        ctx = {"fmt": texel, "bound": bound, "clamp": clamp, "unit": profile is not None and profile.depth == "[0,1]",
+        ctx = {"fmt": texel, "bound": bound, "clamp": clamp, "clamp_test": clamp_test, "unit": profile is not None and profile.depth == "[0,1]",
                "visibility": profile is not None and profile.output == "visibility",
                "before": None if before is None else preset_of(before),
                "inside": None if bias is None else preset_of(bias),

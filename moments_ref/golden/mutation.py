@@ -93,7 +93,7 @@ def _golden(name, cache, profile=None):
             case = CASES[name]
             arrays = golden_arrays(case)
         else:
-            from .profile import profiled_arrays
+            from .conventions import profiled_arrays
 
             case, arrays = profiled_arrays(name, profile)
         cache[key] = (case, arrays, manifest_entry(case, arrays))

@@ -17,6 +17,9 @@ flag (:data:`FLAGS`). The keys (docs/ports.md):
                        harness then biases the inputs). ``bias = "none"``: no bias.
 ``clamp``              Algorithm 3's clamp offset (HPG17 §3.4; default 1e-6), inside
                        :data:`moments_ref.nonlinear.CLAMP_BAND`.
+``clamp_test``         the y2 that Algorithm 3's case test ``zf ≤ y2`` compares with:
+                       ``"stored"`` (default) or ``"clamped"`` (max(y2, y1 + clamp), the
+                       author's demo code); the paper does not say.
 ``[format]``           the texel-format choices the paper leaves open
                        (:data:`FORMAT_KEYS`: decode positions, the rounding of the ξ4
                        code at 64 bits; docs/formats.md).
@@ -53,10 +56,12 @@ from .._arrays import InputError
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["Profile", "Bias", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED", "FORMAT_KEYS",
+           "CLAMP_TESTS",
            "FLAGS", "profile_from_args", "DEFAULT"]
 
 DEPTHS = ("[-1,1]", "[0,1]")
 OUTPUTS = ("intensity", "visibility")
+CLAMP_TESTS = ("stored", "clamped")
 APPLIED = ("inside", "before")
 #: Texel-format choices the paper leaves open (docs/formats.md), with their allowed values
 #: (the first is the paper's reading, the default).
@@ -66,7 +71,7 @@ FORMAT_KEYS = {
     "xi_decode": ("center", "upper"),  # 6-bit Ψ4 code c decoded at (c + 1/2)/63, or at (c + 1)/64
     "xi_rounding64": ("up", "nearest"),  # the 16-bit Ψ4 code rounded up (with the decode check), or to nearest
 }
-_KEYS = ("depth", "output", "bias", "clamp", "format")
+_KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format")
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).
 MAX_PROFILE = 1 << 20
@@ -96,6 +101,7 @@ class Profile:
     output: str | None = None
     bias: Bias | None = None
     clamp: float | None = None
+    clamp_test: str | None = None
     format: tuple = ()  # sorted (key, value) pairs
     functions: tuple = ()  # sorted (name, Profile) pairs
     source: str = "profile"
@@ -116,7 +122,8 @@ class Profile:
         bias = None if self.bias is None else {"alpha": self.bias.alpha, "target": list(self.bias.target),
                                                 "applied": self.bias.applied}
         return {"depth": self.depth, "output": self.output, "bias": bias, "clamp": self.clamp,
-                "format": dict(self.format), "functions": {k: v.canonical for k, v in self.functions}}
+                "clamp_test": self.clamp_test, "format": dict(self.format),
+                "functions": {k: v.canonical for k, v in self.functions}}
 
     @property
     def key(self):
@@ -130,7 +137,7 @@ class Profile:
     def describe(self):
         """One line for reports."""
         c = self.canonical
-        parts = [f"{k} {c[k]}" for k in ("depth", "output", "clamp") if c[k] is not None]
+        parts = [f"{k} {c[k]}" for k in ("depth", "output", "clamp", "clamp_test") if c[k] is not None]
         if self.bias is not None:
             b = self.bias
             parts.append("no bias" if not b.active else f"bias alpha {b.alpha:g} toward {list(b.target)} ({b.applied})")
@@ -222,6 +229,8 @@ def _table(data, src, prefix=""):
             fields["bias"] = _bias(v, src, key)
         elif k == "clamp":
             fields["clamp"] = _clamp(v, src, key)
+        elif k == "clamp_test":
+            fields["clamp_test"] = _choice(v, CLAMP_TESTS, src, key)
         elif k == "format":
             fields["format"] = _format(v, src, key)
         elif k == "functions" and not prefix:
@@ -279,6 +288,7 @@ FLAGS = (
     ("--bias-target", "bias.target", "the bias target b*, comma-separated, in the engine's depth convention"),
     ("--bias-applied", "bias.applied", "where the bias is applied: inside the tested function or before the call"),
     ("--clamp", "clamp", "Algorithm 3's clamp offset (default 1e-6; allowed 1e-7 .. 1/65535)"),
+    ("--clamp-test", "clamp_test", "the y2 of Algorithm 3's case test: stored (default) or clamped"),
     *[(f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(v)})")
       for k, v in FORMAT_KEYS.items()],
 )

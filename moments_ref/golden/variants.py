@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import precise
 
-__all__ = ["alg1_variant", "bias_variant", "shade_variant", "preset_of"]
+__all__ = ["alg1_variant", "bias_variant", "shade_variant", "shade_reference", "shade_truth", "preset_of"]
 
 
 def preset_of(bias):
@@ -39,7 +39,7 @@ def alg1_variant(bound, six=False):
             return {}
         from ..moments import bias_moments
         from ..msm import shadow_intensity
-        from .paper import slides_bound
+        from .paper import printed_bound, slides_bound
 
         p = preset_of(bias)
         exact = precise.shadow_intensity6 if six else precise.shadow_intensity
@@ -53,7 +53,8 @@ def alg1_variant(bound, six=False):
         def hook(inputs, dt):
             if six:
                 return []
-            return [(slides_bound(bias_moments(np.asarray(inputs["b"]).astype(dt), p), inputs["zf"], bound, dt),)]
+            biased = bias_moments(np.asarray(inputs["b"]).astype(dt), p)
+            return [(slides_bound(biased, inputs["zf"], bound, dt),), (printed_bound(biased, inputs["zf"], bound, dt),)]
 
         return {"reference": reference, "truth": truth, "spread_hook": hook}
 
@@ -76,15 +77,36 @@ def bias_variant():
 
 
 def shade_variant():
-    """Algorithm 3 with the engine's clamp offset (HPG17 §3.4)."""
+    """Algorithm 3 with the engine's clamp offset and case test (HPG17 §3.4); the printed formula in the spread."""
 
-    def variant(bias=None, clamp=None, fmt=None, **_):
-        if clamp is None:
+    def variant(bias=None, clamp=None, fmt=None, clamp_test=None, **_):
+        if clamp is None and clamp_test is None:
             return {}
-        from ..nonlinear import shade
-        from .truth import shade_clamped
+        from ..nonlinear import SHADE_TOLERANCE
+        from .paper import alg3_paper_spread
 
-        return {"reference": lambda r, zf: (shade(r, zf, clamp=clamp),),
-                "truth": lambda r, zf: (shade_clamped(r, zf, clamp=clamp),)}
+        c = SHADE_TOLERANCE if clamp is None else clamp
+        test = clamp_test or "stored"
+        return {"reference": shade_reference(c, test), "truth": shade_truth(c, test),
+                "spread_hook": alg3_paper_spread(c, test)}
 
     return variant
+
+
+def shade_reference(clamp, case_test="stored"):
+    """This package's Algorithm 3 with ``clamp``; the clamped case test by raising y2 to y1 + clamp first."""
+    from ..nonlinear import shade
+
+    def reference(r, zf):
+        r = np.array(r, copy=True)
+        if case_test == "clamped":
+            r[..., 1] = np.maximum(r[..., 1], r[..., 0] + r.dtype.type(clamp))
+        return (shade(r, zf, clamp=clamp),)
+
+    return reference
+
+
+def shade_truth(clamp, case_test="stored"):
+    from .truth import shade_clamped
+
+    return lambda r, zf: (shade_clamped(r, zf, clamp=clamp, case_test=case_test),)

@@ -24,7 +24,8 @@ except ImportError:  # pragma: no cover
 
 #: Golden cases (float32) each port is checked on.
 PORT_CASES = {
-    "alg1": ["shadow_intensity-lower-float32", "shadow_intensity-upper-float32"],
+    "alg1": ["shadow_intensity-lower-float32", "shadow_intensity-upper-float32", "engine-lower-float32",
+             "engine-upper-float32"],
     "bias": ["bias_moments-float32-float32", "bias_moments-unorm16-float32"],
     "alg3": ["shade-float32"],
     "psi4": ["psi4-float32"],
@@ -65,21 +66,54 @@ def run_port(port, case, inputs, kwargs, m):
 @dataclass(frozen=True)
 class Mutant:
     name: str
-    kind: str  # "bug", "legit", "equivalent"
+    kind: str  # "bug", "legit", "robustness", "equivalent"
     port: str
     change: dict
     why: str
     cases: tuple = field(default=())
+    profile_table: tuple = ()  # the engine profile the mutant declares, as sorted TOML items
 
     def case_names(self):
         return list(self.cases) or PORT_CASES[self.port]
+
+    @property
+    def profile(self):
+        """The declared conventions (docs/ports.md), or None for the papers' own."""
+        if not self.profile_table:
+            return None
+        from moments_ref.golden.profile import parse_profile
+
+        return parse_profile(_thaw(self.profile_table), self.name)
 
     def run(self, case, inputs, kwargs):
         return run_port(self.port, case, inputs, kwargs, dict(self.change))
 
 
-def _m(name, kind, port, change, why, cases=()):
-    return Mutant(name, kind, port, change, why, tuple(cases))
+def _freeze(d):
+    return tuple(sorted((k, _freeze(v) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else v)
+                        for k, v in d.items()))
+
+
+def _thaw(t):
+    return {k: _thaw(v) if isinstance(v, tuple) and v and isinstance(v[0], tuple) else
+            list(v) if isinstance(v, tuple) else v for k, v in t}
+
+
+def _m(name, kind, port, change, why, cases=(), profile=None):
+    return Mutant(name, kind, port, change, why, tuple(cases), _freeze(profile or {}))
+
+
+#: Targets in the [0, 1] convention: the papers' float32 target (0, 0.375, 0, 0.375) mapped exactly, and
+#: (0.5, 0.5, 0.5, 0.5) = the moments of ½δ0 + ½δ1, the singular target of the 2015 demo code.
+TARGET01 = [0.5, 0.34375, 0.265625, 0.2265625]
+SINGULAR01 = [0.5, 0.5, 0.5, 0.5]
+#: Found in the wild (docs/ports.md): an engine profile per behaviour.
+_HDRP = {"bias": {"alpha": 6e-7, "target": [0.0, 0.628, 0.0, 0.628], "applied": "before"}}
+_ENGINE01 = {"depth": "[0,1]", "output": "visibility",
+             "bias": {"alpha": 3e-6, "target": TARGET01, "applied": "inside"}}
+_SINGULAR = {"depth": "[0,1]", "output": "visibility",
+             "bias": {"alpha": 3e-6, "target": SINGULAR01, "applied": "inside"}}
+_AUTHOR3 = {"clamp": 5e-6, "clamp_test": "clamped"}
 
 
 _LEGIT_ARITH = [("fma", {"fma": True}, "fused multiply-add"), ("f64", {"f64": True}, "float64 arithmetic"),
@@ -108,6 +142,27 @@ MUTANTS = [
     _m("alg1-half", "bug", "alg1", {"half": True}, "moments read as float16"),
     _m("alg1-depth01", "bug", "alg1", {"depth01": True}, "fragment depth mapped to [0, 1] (the papers use [-1, 1])"),
     _m("alg1-bias-inside", "bug", "alg1", {"bias_inside": True}, "biases inside Algorithm 1 although the caller did"),
+    # Found in the wild, each with the profile its engine declares (docs/ports.md).
+    _m("alg1-paper-bias-before", "legit", "alg1", {"literal_root": True, "no_singular": True},
+       "paper-faithful Algorithm 1 (the slides' roots, no singular branch) behind its caller's bias "
+       "(HDRP's HDIMS.hlsl: alpha 6e-7 toward (0, 0.628, 0, 0.628), applied before)", profile=_HDRP),
+    _m("alg1-engine01", "legit", "alg1", {"literal_root": True, "no_singular": True, "visibility": True,
+                                          "bias": (3e-6, TARGET01)},
+       "a [0, 1]-convention port returning visibility, biasing inside toward the papers' target mapped to [0, 1], "
+       "run through its profile", profile=_ENGINE01),
+    _m("alg1-singular-target", "bug", "alg1", {"literal_root": True, "no_singular": True, "visibility": True,
+                                               "bias": (3e-6, SINGULAR01)},
+       "bias toward (0.5, 0.5, 0.5, 0.5) in [0, 1], the moments of ½δ0 + ½δ1 (MJP's MSM.hlsl, Unity's "
+       "ShadowMoments.hlsl): near/far-plane mixtures stay singular and shade lit", profile=_SINGULAR),
+    _m("alg1-factor-1.03", "bug", "alg1", {"factor": 1.03}, "the bound times 1.03 (a light-leak hack)"),
+    _m("alg1-early-exit", "bug", "alg1", {"early_exit": True}, "early exit: receiver at or before the mean b1 is lit"),
+    _m("alg1-pivot-floor", "bug", "alg1", {"pivot_floor": 1e-5}, "pivots D22 and D33 floored at 1e-5"),
+    _m("alg1-nan-guard", "bug", "alg1", {"cholesky": True, "unclamped": True, "bias": (1e-7, TARGET01)},
+       "textbook Cholesky with square roots in a [0, 1] engine biasing by 1e-7 (a point-light setting in the "
+       "wild): a pivot that rounds below 0 gives NaN, which the d <= 0 guards let through",
+       profile={"depth": "[0,1]", "bias": {"alpha": 1e-7, "target": TARGET01, "applied": "inside"}}),
+    _m("alg1-unclamped", "bug", "alg1", {"literal_root": True, "no_singular": True, "unclamped": True},
+       "paper-faithful Algorithm 1 without the final saturate: the bound leaves [0, 1]"),
 
     _m("port-bias", "legit", "bias", {}, "the port as written from HPG17 §3.2"),
     _m("bias-rearranged", "legit", "bias", {"rearranged": True}, "b + alpha (b* - b)"),
@@ -129,7 +184,8 @@ MUTANTS = [
     *[_m(f"alg3-{n}", "legit", "alg3", c, w) for n, c, w in _LEGIT_ARITH],
     _m("alg3-gap-pow", "legit", "alg3", {"gap_pow": True}, "(y2 - y1)^4 as four products instead of two squares"),
     _m("alg3-literal-root", "bug", "alg3", {"literal_root": True},
-       "z_l = -q1/2 - sqrt(q1²/4 - q0) literally (cancels for q1 << 0)"),
+       "z_l = -q1/2 - sqrt(q1²/4 - q0) with the case test zf <= y2: NaN at zf = y2 (q1 = ±inf), saturated to 0 "
+       "(its cancellation below y2 is the printed formula's, part of the spread)"),
     _m("alg3-no-v2-clamp", "bug", "alg3", {"no_v2_clamp": True}, "v2 not clamped to [1e-6, 1 - 1e-6]"),
     _m("alg3-no-upper-v2-clamp", "bug", "alg3", {"no_upper_v2_clamp": True}, "v2 clamped below only"),
     _m("alg3-no-gap-clamp", "bug", "alg3", {"no_gap_clamp": True}, "y2 - y1 not clamped to 1e-6"),
@@ -141,6 +197,12 @@ MUTANTS = [
     _m("alg3-half", "bug", "alg3", {"half": True}, "z'f in float16"),
     _m("alg3-depth01", "bug", "alg3", {"depth01": True}, "fragment depth mapped to [0, 1]"),
     _m("alg3-swap-weights", "bug", "alg3", {"swap_weights": True}, "(1 - v2) and v2 swapped in w_l"),
+    _m("alg3-author", "legit", "alg3", {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
+                                        "unclamped": True},
+       "the author's demo code: clamps at 5e-6, case test z'f < 1 on the clamped gap, the printed root, no guard "
+       "for xi4 = 0, no final clamp; run with its profile", profile=_AUTHOR3),
+    _m("alg3-no-xi-guard", "robustness", "alg3", {"no_xi_guard": True},
+       "no guard for xi4 = 0 (division by zero), which no texel decoder produces"),
 
     _m("port-psi4", "legit", "psi4", {}, "the port as written from HPG17 §3.3"),
     _m("psi4-const32", "legit", "psi4", {"const32": True}, "constants from float32 end points"),
