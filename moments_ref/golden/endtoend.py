@@ -32,6 +32,7 @@ import numpy as np
 from ..gpu.filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows, _msm_rows
+from .gpuspread import block_spread, chain_spread
 
 __all__ = ["case_specs", "nlq_chain", "BLOCK", "GUARD"]
 
@@ -83,15 +84,23 @@ def _block(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored"):
     return chain
 
 
-def _chain_variant(make, *args):
-    """A profile's bias (inside the chain; None: the caller biased), clamp and case test for ``make(*args, ...)``."""
+def _block_spread(fmt, bias, clamp=None, case_test="stored"):
+    return block_spread(fmt, bias, clamp, case_test, GUARD, nlq_chain)
+
+
+def _chain_variant(make, *args, hook=None):
+    """A profile's bias (inside the chain; None: the caller biased), clamp and case test for ``make(*args, ...)``
+    and its GPU spread ``hook(*args, ...)`` (golden.gpuspread)."""
 
     def variant(bias=None, clamp=None, fmt=None, clamp_test=None, **_):
         from .variants import preset_of
 
         p = None if bias is None else preset_of(bias)
         extra = () if clamp is None and clamp_test is None else (clamp, clamp_test or "stored")
-        return {"reference": make(*args, p, *extra)}
+        out = {"reference": make(*args, p, *extra)}
+        if hook is not None:
+            out["spread_hook"] = hook(*args, p, *extra)
+        return out
 
     return variant
 
@@ -129,7 +138,8 @@ def case_specs(dt):
     specs = [dict(name=f"e2e-nlq{f}-{dt}", function=f"endtoend.nlq{f}", dtype=dt, inputs=("b", "zf"),
                   outputs=("intensity",), rows=_msm_rows, reference=nlq_chain(f), truth=None,
                   description=chain.format(f), value_range=(0, 1), **_CHAIN, **nlq,
-                  depth_roles={}, variant=_chain_variant(nlq_chain, f), width=4) for f in ("64", "32")]
+                  depth_roles={}, variant=_chain_variant(nlq_chain, f, hook=chain_spread), width=4,
+                  spread_hook=chain_spread(f, BIAS_FLOAT32)) for f in ("64", "32")]
     specs.append(dict(name=f"e2e-msm64-{dt}", function="endtoend.msm64", dtype=dt, inputs=("b", "zf"),
                       outputs=("intensity",), rows=_msm_rows, reference=_msm64(), truth=None, value_range=(0, 1),
                       **_CHAIN, profile_keys=("bias",), default_bias=("inside", BIAS_UNORM16),
@@ -141,7 +151,7 @@ def case_specs(dt):
             name=f"e2e-block-nlq{f}-{dt}", function=f"endtoend.block_nlq{f}", dtype=dt, inputs=("depth", "zf"),
             outputs=("intensity",), rows=_block_rows, reference=_block(f), truth=None, value_range=(0, 1),
             profile_keys=("bias", "clamp", "format"), default_bias=("inside", BIAS_FLOAT32),
-            variant=_chain_variant(_block, f), width=4,
+            variant=_chain_variant(_block, f, hook=_block_spread), width=4, spread_hook=_block_spread(f, BIAS_FLOAT32),
             description="40×32 block of 4× MSAA depths (HPG17 §4.1, guard band 4) -> resolve b(z) -> "
                         f"9² Gaussian blur (sigma 2.4) -> crop to 32×24 -> " + chain.format(f)))
     return specs

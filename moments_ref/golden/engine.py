@@ -228,8 +228,11 @@ def _chain(ctx, preset, dt):
     if fmt is not None:
         from .endtoend import nlq_chain
 
-        chain = nlq_chain(fmt, preset, ctx.get("clamp"), ctx.get("clamp_test") or "stored")
-        return [lambda b, zf: chain(b.astype(dt), zf.astype(dt))[0]]
+        from .gpuspread import nlq_chain_gpu
+
+        args = (fmt, preset, ctx.get("clamp"), ctx.get("clamp_test") or "stored")
+        chains = [nlq_chain(*args)] + ([nlq_chain_gpu(*args, sign=s) for s in (1, -1)] if dt == np.float32 else [])
+        return [lambda b, zf, c=c: c(b.astype(dt), zf.astype(dt))[0] for c in chains]
 
     def biased(b):
         return b.astype(dt) if preset is None else bias_moments(b.astype(dt), preset)

@@ -1,0 +1,143 @@
+"""What a GPU does differently, as legitimate variants of the chained cases' spread model.
+
+A GPU filters in float32, in whatever order its threads add, and its ``log`` and
+``exp`` are a few ulps off (GLSL 4.30 §4.7.1: 3 ulp, ``exp`` 3 + 2|x| ulp). The
+chained cases (``e2e-*``, ``e2e-block-*``, ``engine-nlq*``, and compute-kernel cases)
+measure their tolerances on these too:
+
+* :func:`float32_filters`: the MSAA resolve and the two 9-tap Gaussian passes of
+  HPG17 §4.1 in float32, with the sums in sequential order ((a + b) + c) + d and in
+  pairwise order (a + b) + (c + d), and the §4.1 shared-memory emulation
+  (:func:`moments_ref.gpu.onchip.filter_moments`);
+* :func:`nlq_chain_gpu`: the NLQ chain with Ψ4's two logarithms and Ψ4⁻¹'s two
+  exponentials :data:`TRANSCENDENTAL_ULPS` ulps off, up or down (as a relative change
+  of ξ4 of the same effect, before encoding and after decoding).
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["float32_filters", "nlq_chain_gpu", "TRANSCENDENTAL_ULPS", "block_spread", "chain_spread"]
+
+#: How far a GPU's log and exp may be off (GLSL 4.30 §4.7.1: 3 ulp outside [0.5, 2]).
+TRANSCENDENTAL_ULPS = 3
+_EPS32 = float(np.finfo(np.float32).eps)
+
+
+def _resolve32(z, pairwise):
+    """MSAA resolve of ``(H, W, S)`` float32 samples into (z, z², z³, z⁴) means, float32, in one sum order."""
+    z = np.asarray(z, np.float32)
+    z2 = z * z
+    powers = (z, z2, z2 * z, z2 * z2)
+    s = z.shape[-1]
+    out = []
+    for p in powers:
+        terms = [p[..., k] for k in range(s)]
+        while len(terms) > 1 and pairwise:
+            terms = [terms[i] + terms[i + 1] if i + 1 < len(terms) else terms[i] for i in range(0, len(terms), 2)]
+        acc = terms[0]
+        for t in terms[1:]:
+            acc = acc + t
+        out.append(acc * np.float32(1 / s) if s & (s - 1) == 0 else acc / np.float32(s))
+    return np.stack(out, axis=-1)
+
+
+def _pass32(m, w, axis, pairwise):
+    """One 9-tap pass with clamp-to-edge borders in float32, in one sum order."""
+    r = len(w) // 2
+    n = m.shape[axis]
+    idx = np.clip(np.arange(n)[:, None] + np.arange(-r, r + 1)[None, :], 0, n - 1)
+    taps = [np.take(m, idx[:, t], axis=axis) * w[t] for t in range(len(w))]
+    while len(taps) > 1 and pairwise:
+        taps = [taps[i] + taps[i + 1] if i + 1 < len(taps) else taps[i] for i in range(0, len(taps), 2)]
+    acc = taps[0]
+    for t in taps[1:]:
+        acc = acc + t
+    return acc
+
+
+def float32_filters(depth):
+    """Filtered moments ``(H, W, 4)`` float32 of one block of MSAA depths, as GPUs compute them (module doc)."""
+    from ..gpu.filtering import SIGMA, TAPS, gaussian_weights
+    from ..gpu.onchip import filter_moments
+
+    w = gaussian_weights(TAPS, SIGMA).astype(np.float32)
+    out = []
+    for pairwise in (False, True):
+        m = _resolve32(depth, pairwise)
+        out.append(_pass32(_pass32(m, w, 1, pairwise), w, 0, pairwise))
+    out.append(np.asarray(filter_moments(np.asarray(depth, np.float32)), np.float32))
+    return out
+
+
+def _nudge_xi(r, sign, decoded):
+    """ξ4 moved as a GPU's log (encoding) or exp (decoding) off by TRANSCENDENTAL_ULPS ulps would move it."""
+    r = np.array(r, copy=True)
+    xi = np.maximum(r[..., 3].astype(np.float64), 1.2e-7)
+    big_l = np.log(xi * 1e7)  # ln(ξ4 · 1e7) in [0.18, 14.7]
+    if decoded:  # ξ4 = 1e-7 exp(exp(x)): outer exp 1 unit, inner exp amplified by its value L
+        rel = 1 + np.abs(big_l)
+    else:  # Ψ4 = (ln ln(1e7 ξ4) − c0)/c1: inner log L, outer log ln L, both relative to ξ4
+        rel = np.abs(big_l) + np.abs(big_l * np.log(np.maximum(big_l, 1e-300)))
+    r[..., 3] = (xi * (1 + sign * TRANSCENDENTAL_ULPS * _EPS32 * rel)).astype(r.dtype)
+    return r
+
+
+def nlq_chain_gpu(fmt, bias, clamp=None, case_test="stored", sign=1):
+    """The NLQ chain of :func:`moments_ref.golden.endtoend.nlq_chain` with a GPU's log and exp (``sign``: up
+    or down)."""
+
+    def chain(b, zf):
+        from ..moments import bias_moments
+        from ..nonlinear import SHADE_TOLERANCE, phi
+        from ..packing import pack32, pack64, unpack32, unpack64
+        from .variants import shade_reference
+
+        dt = np.asarray(b).dtype
+        r = _nudge_xi(phi(b if bias is None else bias_moments(b, bias)), sign, decoded=False)
+        r = unpack64(pack64(r), dtype=dt) if fmt == "64" else unpack32(pack32(r), dtype=dt)
+        return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(
+            _nudge_xi(r, sign, decoded=True), zf)
+
+    return chain
+
+
+def chain_spread(fmt, bias, clamp=None, case_test="stored"):
+    """A ``spread_hook`` for ``e2e-nlq*``: the chain with a GPU's log and exp, in float32 ports' precision."""
+
+    def hook(inputs, dt):
+        if dt != np.float32:
+            return []
+        b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
+        return [nlq_chain_gpu(fmt, bias, clamp, case_test, s)(b, zf) for s in (1, -1)]
+
+    return hook
+
+
+def block_spread(fmt, bias, clamp=None, case_test="stored", guard=4, nlq_chain=None):
+    """A ``spread_hook`` for ``e2e-block-nlq*``: float32 filters, then the chain ``nlq_chain`` (the case's,
+    golden.endtoend) and the same with a GPU's log and exp."""
+
+    def hook(inputs, dt):
+        if dt != np.float32:
+            return []
+        depth, zf = np.asarray(inputs["depth"]), np.asarray(inputs["zf"], dt)
+        chains = [nlq_chain(fmt, bias, clamp, case_test)] + [nlq_chain_gpu(fmt, bias, clamp, case_test, s)
+                                                             for s in (1, -1)]
+        outs = []
+        per_block = [float32_filters(depth[i]) for i in range(len(depth))]  # one block per row
+        for k in range(len(per_block[0])):
+            for chain in chains:
+                out = np.empty(zf.shape, dt)
+                for i in range(len(depth)):
+                    b = per_block[i][k][guard:-guard, guard:-guard].astype(dt)
+                    out[i] = chain(b, zf[i])[0]
+                outs.append((out,))
+        return outs
+
+    return hook
