@@ -254,17 +254,18 @@ def papers_chain32(arrays, preset, ctx, n):
 
 
 def _input_spread(ctx, b, zf, dt):
-    """How far legitimate evaluations on the port's own input ``b`` spread (its bias inside, if declared):
-    this package and the papers' code in ``dt``, on b and on b moved by one ulp per component."""
+    """How far this package's evaluation in ``dt`` spreads on the port's own input ``b`` (its bias inside,
+    if declared) and on b moved by one ulp per component: the rounding of the input. (The papers' own code
+    is legitimate only on moments a correct bias produces: it is measured with the legitimate biases.)"""
     inside = ctx.get("inside")
     b64 = np.asarray(b, np.float64)
     ref = np.asarray(_chain(ctx, inside, np.float64)[0](b64, zf), np.float64)
     eps = float(np.finfo(dt).eps)
     sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
     out = np.zeros(len(zf))
+    f = _chain(ctx, inside, dt.type)[0]
     for x in (b64, b64 * (1 + eps * sign), b64 * (1 - eps * sign)):
-        for f in _chain(ctx, inside, dt.type):
-            out = np.fmax(out, np.abs(np.asarray(f(x.astype(dt).astype(np.float64), zf), np.float64) - ref))
+        out = np.fmax(out, np.abs(np.asarray(f(x.astype(dt).astype(np.float64), zf), np.float64) - ref))
     return out
 
 

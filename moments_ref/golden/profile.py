@@ -63,14 +63,13 @@ DEPTHS = ("[-1,1]", "[0,1]")
 OUTPUTS = ("intensity", "visibility")
 CLAMP_TESTS = ("stored", "clamped")
 APPLIED = ("inside", "before")
-#: Texel-format choices the paper leaves open (docs/formats.md), with their allowed values
-#: (the first is the paper's reading, the default).
-FORMAT_KEYS = {
-    "depth_decode": ("center", "upper"),  # 32-bit depth code c decoded at its cell's centre or upper end
-    "v_decode": ("code", "center"),  # 7-bit √v2 code c decoded as c/127, or at (c + 1/2)/128
-    "xi_decode": ("center", "upper"),  # 6-bit Ψ4 code c decoded at (c + 1/2)/63, or at (c + 1)/64
-    "xi_rounding64": ("up", "nearest"),  # the 16-bit Ψ4 code rounded up (with the decode check), or to nearest
-}
+#: Texel-format choices the paper leaves open (docs/formats.md), with their allowed values; unset
+#: keys keep the format's own choices (:mod:`moments_ref.packing`). ``*_decode``: where the 32-bit
+#: decoder reads a cell (its lower end, centre or upper end); ``xi_rounding``: the 64-bit Ψ4 code
+#: rounded up (the lower-bound guarantee) or to nearest (a UNORM render-target write).
+_POSITIONS = ("lower", "centre", "upper")
+FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
+               "xi_rounding": ("up", "nearest")}
 _KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format")
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).

@@ -42,7 +42,7 @@ def _depth(z, name):
 
 
 def z_unit_from_ndc(z_ndc):
-    """[-1, 1] → [0, 1]: ``(z_ndc + 1) / 2`` (exact in binary floating point but for underflow)."""
+    """[-1, 1] → [0, 1]: ``(z_ndc + 1) / 2``, rounded once (the sum rounds, the halving is exact)."""
     z = _depth(z_ndc, "z_ndc")
     return (z + 1) * z.dtype.type(0.5)
 
