@@ -78,11 +78,15 @@ def check_outputs(out) -> None:
 def _cmd_golden(args):
     from . import golden
 
+    profile = _profile(args)
     names = list(golden.CASES) if not args.case else args.case
     with _progress(len(names), "golden") as bar:
-        manifest = golden.write(args.out, names, progress=lambda name: bar.update(1))
+        manifest = golden.write(args.out, names if args.case else None, progress=lambda name: bar.update(1),
+                                profile=profile)
     n_rows = sum(c["count"] for c in manifest["cases"].values())
     print(f"wrote {len(manifest['cases'])} cases ({n_rows} rows) and manifest.json to {args.out}")
+    if manifest.get("not_written"):
+        print(f"not written: {len(manifest['not_written'])} cases whose conventions the profile contradicts")
     return 0
 
 
@@ -286,6 +290,12 @@ def _add_oracle(sub):
     g = sub.add_parser("golden", help="write golden vectors and manifest.json")
     g.add_argument("--out", required=True, type=Path, help="output folder")
     g.add_argument("--case", action="append", help="only this case (repeatable)")
+    g.add_argument("--function", help="the tested function: selects the profile's [functions.NAME] table")
+    g.add_argument("--profile", type=Path, metavar="FILE.toml", help="write the cases for an engine's conventions")
+    from .golden.profile import FLAGS
+
+    for flag, _, text in FLAGS:
+        g.add_argument(flag, metavar="VALUE", help=text)
     g.set_defaults(func=_cmd_golden)
 
     v = sub.add_parser("verify", help="compare a port's results (.npz) with the goldens")

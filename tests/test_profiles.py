@@ -198,3 +198,26 @@ def test_the_default_profile_is_the_golden_file():
     base = golden.golden_arrays(golden.CASES["shade-float32"])
     for k in base:
         np.testing.assert_array_equal(arrays[k], base[k])
+
+
+def test_golden_writes_a_folder_for_a_profile_that_verify_judges(tmp_path):
+    # A porter running offline: the converted inputs come from `golden --profile`, the port runs on them.
+    f = tmp_path / "mjp.toml"
+    f.write_text('depth = "[0,1]"\noutput = "visibility"\n[bias]\nalpha = 3e-6\ntarget = [0.5, 0.34375, 0.265625, '
+                 '0.2265625]\napplied = "inside"\n')
+    out = tmp_path / "g"
+    r = _cli("golden", "--out", out, "--profile", f)
+    assert r.returncode == 0 and "not written" in r.stdout
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["profile"]["depth"] == "[0,1]" and "shade-float32" in m["not_written"]
+    name = "shadow_intensity-lower-float32"
+    with np.load(out / f"{name}.npz") as g:
+        b, zf = g["b"], g["zf"]
+    import mutants.ports as ports
+
+    got = ports.alg1(b, zf, {"visibility": True, "bias": (3e-6, [0.5, 0.34375, 0.265625, 0.2265625])})
+    np.savez(tmp_path / "r.npz", **{f"{name}.intensity": got})
+    assert _cli("verify", "--golden", out, "--results", tmp_path / "r.npz").returncode == 0
+    assert _cli("verify", "--golden", out, "--results", tmp_path / "r.npz", "--profile", f).returncode == 0
+    other = _cli("verify", "--golden", out, "--results", tmp_path / "r.npz", "--profile", f, "--clamp", "5e-6")
+    assert other.returncode == 2 and "another profile" in other.stderr and other.stderr.count("\n") == 1

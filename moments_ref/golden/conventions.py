@@ -58,22 +58,23 @@ def cache_dir():
     return Path(root) / "profiles"
 
 
-def _contradiction(case, what):
-    raise InputError(f"profile: {what} contradicts case {case.name!r} ({case.description.split(';')[0]})")
+def _contradiction(case, what, why):
+    raise InputError(f"profile: {what} contradicts case {case.name!r}: {why} "
+                     f"({case.description.split(';')[0]})")
 
 
 def _check(case, profile):
     if profile.depth not in (None, "[-1,1]") and not case.depth_roles:
-        _contradiction(case, f"depth = {profile.depth!r}: its quantities are defined for depths in [-1, 1]")
+        _contradiction(case, f"depth = {profile.depth!r}", "its quantities are defined for depths in [-1, 1]")
     if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
-        _contradiction(case, "output = 'visibility': it returns no shadow intensity")
+        _contradiction(case, "output = 'visibility'", "it returns no shadow intensity")
     b = profile.bias
     if b is not None and b.active and "bias" in case.profile_keys:
         width = case.width if case.width else 4
         if len(b.target) != width:
-            _contradiction(case, f"a bias target of {len(b.target)} values: it takes {width} moments")
+            _contradiction(case, f"bias.target with {len(b.target)} values", f"it takes {width} moments")
         if b.applied == "before" and not case.bias_before:
-            _contradiction(case, "bias applied 'before': its function applies the bias itself")
+            _contradiction(case, "bias.applied = 'before'", "its function applies the bias itself")
 
 
 def _engine_frame(target, profile):

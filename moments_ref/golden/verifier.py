@@ -308,6 +308,11 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
     if port_dtype not in (None, "float32", "float64"):
         raise InputError(f"port_dtype: expected float32 or float64, got {port_dtype!r}")
     manifest = load_manifest(golden_dir)
+    if manifest.get("profile_key") is not None and profile is not None and not profile.is_default:
+        if profile.key != manifest["profile_key"]:
+            raise InputError("profile: the golden folder was written for another profile "
+                             f"({manifest.get('profile')}); verify it without --profile or with that one")
+        profile = None  # the folder's expected values are already this profile's
     results = _load_results(results_path, _results_limit(manifest))
     known = {f"{n}.{o}" for n, m in manifest["cases"].items() for o in m["compare"]}
     stray = sorted(set(results) - known)

@@ -91,7 +91,7 @@ def manifest_entry(case, arrays, data=None):
     return entry
 
 
-def write(out_dir, cases=None, progress=None):
+def write(out_dir, cases=None, progress=None, profile=None):
     """Write the golden vectors and ``manifest.json`` to ``out_dir``.
 
     Parameters
@@ -102,6 +102,11 @@ def write(out_dir, cases=None, progress=None):
         Case names (default: all of :data:`CASES`).
     progress : callable, optional
         Called with each case name as it is written (the CLI's progress bar).
+    profile : moments_ref.golden.profile.Profile, optional
+        Write the cases as an engine with these conventions sees them (inputs
+        converted, expected values and tolerances derived: golden.conventions); the
+        manifest records the profile. Without explicit ``cases``, the cases whose
+        conventions the profile contradicts are left out (``manifest["not_written"]``).
 
     Returns
     -------
@@ -112,6 +117,18 @@ def write(out_dir, cases=None, progress=None):
     unknown = [n for n in names if n not in CASES]
     if unknown:
         raise InputError(f"cases: unknown case {unknown[0]!r}; known: {', '.join(CASES)}")
+    derived, skipped = {}, []
+    if profile is not None and not profile.is_default:
+        from .conventions import profiled_arrays
+
+        for name in list(names):
+            try:
+                derived[name] = profiled_arrays(name, profile)
+            except InputError:
+                if cases is not None:
+                    raise
+                names.remove(name)
+                skipped.append(name)
     manifest = {
         "schema_version": SCHEMA_VERSION,
         "package": "moments_ref",
@@ -125,9 +142,12 @@ def write(out_dir, cases=None, progress=None):
         "results": RESULTS,
         "cases": {},
     }
+    if derived or skipped:
+        manifest["profile"] = profile.canonical
+        manifest["profile_key"] = profile.key
+        manifest["not_written"] = skipped
     for name in names:
-        case = CASES[name]
-        arrays = golden_arrays(case)
+        case, arrays = derived[name] if name in derived else (CASES[name], golden_arrays(CASES[name]))
         data = save_npz(out_dir / f"{name}.npz", arrays)
         manifest["cases"][name] = manifest_entry(case, arrays, data)
         if progress is not None:
