@@ -125,7 +125,7 @@ CAUSES = {
     "code_boundary": "a quantity on a code boundary of a fixed-point field",
     "rounding_tie": "an integer code on a rounding tie",
     "wide_spread": "ill-conditioned row: legitimate implementations differ by 0.1 or more",
-    "near_far": "near- and far-plane mixture: a bias toward a target on the same ends keeps the moments singular",
+    "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",
 }
