@@ -155,7 +155,10 @@ def _cmd_bench(args):
         size = min(args.size, 512) if args.quick else args.size
         text += "\n" + bench.end_to_end_markdown(bench.end_to_end(size, 4), size, 4)
     if not args.only or any("targets" in o for o in args.only):
-        text += "\n" + bench.targets_markdown(bench.run_targets(quick=args.quick))
+        runs = [bench.run_targets(quick=args.quick) for _ in range(args.runs)]
+        text += "\n" + bench.targets_markdown(runs[-1])
+        if len(runs) > 1:
+            text += "\n" + bench.agreement_markdown(runs)
     if not args.only or any("conformance" in o for o in args.only):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
     print(text)
@@ -336,6 +339,8 @@ def _add_measurements(sub):
     b.add_argument("--size", type=_int_in(1, 16384), default=2048, help="square input side, 1..16384 (default 2048)")
     b.add_argument("--quick", action="store_true", help="one repetition, small sizes")
     b.add_argument("--only", action="append", help="only benchmarks whose name contains this")
+    b.add_argument("--runs", type=_int_in(1, 10), default=1,
+                   help="measure the speed targets this many times in a row and say whether they agree (default 1)")
     b.set_defaults(func=_cmd_bench)
 
     s = sub.add_parser("stability", help="float32/float64 against mpmath: write stability.md")

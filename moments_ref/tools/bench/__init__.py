@@ -24,10 +24,11 @@ import numpy as np
 from ...gpu import filtering
 from ...gpu import onchip as _onchip
 from ...techniques.vwss import warp
-from ._targets import run_targets, targets_markdown
+from ._targets import agreement_markdown, copier, run_targets, targets_markdown
+from ._timing import PAIRS, paired
 
-__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time", "bench_filtering",
-           "bench_onchip", "bench_entries", "run_targets", "targets_markdown"]
+__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "bench_filtering",
+           "bench_onchip", "bench_entries", "run_targets", "targets_markdown", "agreement_markdown"]
 
 
 @dataclass(frozen=True)
@@ -43,29 +44,6 @@ class Benchmark:
     #: Elements for a ``size`` argument (default ``size²``: texels or fragments).
     count: Callable = staticmethod(lambda size: size * size)
     unit: str = "elem"
-
-
-def best_time(fn, *args, repeat=3):
-    """Best wall time of ``fn(*args)`` over ``repeat`` runs, in seconds."""
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn(*args)
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
-def copy_seconds(nbytes, repeat=3):
-    """Time of copying ``nbytes`` bytes between two preallocated buffers (``np.copyto``).
-
-    A kernel reading ``a`` bytes and writing ``c`` bytes moves ``a + c`` bytes;
-    a copy of ``(a + c) / 2`` bytes also moves ``a + c``. We copy half the
-    bytes so both sides count the same traffic.
-    """
-    n = max(1, nbytes // 2)
-    src = np.ones(n, dtype=np.uint8)
-    dst = np.empty_like(src)
-    return best_time(np.copyto, dst, src, repeat=repeat)
 
 
 def _moments_input(size, dtype):
@@ -399,7 +377,7 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
     """
     if quick:
         size = min(size, 512)
-    repeat = repeat or (1 if quick else 3)
+    repeat = repeat or (1 if quick else PAIRS)
     benches = bench_entries()
     if only:
         benches = [b for b in benches if any(o in b.name for o in only)]
@@ -409,13 +387,14 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
         for bm in benches:
             args = bm.setup(size, bm.dtype)
             n = bm.count(size)
-            t = best_time(bm.fn, *args, repeat=repeat)
             nbytes = n * bm.bytes_per_element
-            tc = copy_seconds(nbytes, repeat=max(repeat, 3))
+            # Interleaved with a copy of the same traffic (reads a, writes c: a copy of (a + c)/2 moves a + c).
+            r = paired(lambda: bm.fn(*args), copier(nbytes), pairs=repeat)
+            t = r.kernel
             rows.append({
                 "name": bm.name, "dtype": bm.dtype, "elements": n, "seconds": t,
-                "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": tc,
-                "ratio_to_copy": tc / t, "note": bm.note, "unit": bm.unit,
+                "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": r.baseline,
+                "ratio_to_copy": 1 / r.median, "spread": (1 / r.high, 1 / r.low), "note": bm.note, "unit": bm.unit,
             })
             if bar is not None:
                 bar.update(1)
@@ -512,16 +491,17 @@ def markdown(rows):
     lines = [
         f"# moments-ref bench ({platform.machine()}, numpy {np.__version__}, one thread of Python)",
         "",
-        "ratio = time of a memory copy of the same bytes (same run) / kernel time; 1 = copy bound.",
+        "ratio = time of a memory copy of the same bytes / kernel time, the median over pairs of the two taken",
+        "one right after the other (CPU seconds); 1 = copy bound. Spread: the quartiles of the pair ratios.",
         "",
-        "| kernel | dtype | elements | seconds | M/s | MB moved | copy s | ratio to copy | note |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---|",
+        "| kernel | dtype | elements | seconds | M/s | MB moved | copy s | ratio to copy | spread | note |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['name']} | {r['dtype']} | {r['elements']} {r['unit']} | {r['seconds']:.4f} | {r['melem_per_s']:.1f} | "
             f"{r['mbytes']:.1f} | {r['copy_seconds']:.4f} | {r['ratio_to_copy']:.3f} (1/{1 / r['ratio_to_copy']:.0f}) | "
-            f"{r['note']} |"
+            f"{r['spread'][0]:.3f}–{r['spread'][1]:.3f} | {r['note']} |"
         )
     return "\n".join(lines) + "\n"
 
