@@ -278,7 +278,7 @@ def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
         raise InputError(f"case: unknown case {name!r}")
     case = CASES[name]
     if arrays is None:
-        from .writer import golden_arrays
+        from .spread import golden_arrays
 
         arrays = golden_arrays(case)
     if profile.is_default:

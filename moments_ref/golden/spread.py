@@ -30,11 +30,11 @@ import math
 
 import numpy as np
 
-from .cases import evaluate_reference, expected_outputs
+from .cases import case_table, evaluate_reference, expected_outputs
 from .notes import ROBUSTNESS, UNGATED, UNGATED32
 from .units import PORT_DTYPES, ceil2, ulp
 
-__all__ = ["derive", "gated_summary", "robust_rows", "ceil2", "row_tolerance", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS",
+__all__ = ["derive", "golden_arrays", "gated_summary", "robust_rows", "ceil2", "row_tolerance", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS",
            "STRUCTURED", "ulp", "PORT_DTYPES"]
 
 SAFETY = 16.0
@@ -298,3 +298,14 @@ def gated_summary(case, arrays):
                     "ungated": _ungated_reasons(arrays, sel & ~gate)}
             for level, sel in (("contract", ~robust), ("robustness", robust))}
     return out
+
+
+def golden_arrays(case):
+    """All arrays of ``case``'s golden file (inputs, expected outputs, tolerances, row labels)."""
+    inputs, category, comment, flags = case_table(case)
+    arrays = dict(inputs)
+    if case.deriver is not None:
+        arrays.update(case.deriver(case, inputs, category, comment, flags))
+    else:
+        arrays.update(derive(case, {k: inputs[k] for k in case.inputs}, category, comment, flags))
+    return arrays

@@ -16,25 +16,14 @@ import numpy as np
 from .. import __version__
 from .._arrays import InputError
 from .._io import save_npz, write_text
-from .cases import CASES, case_table
+from .cases import CASES
 from .notes import NOTES, RESULTS
-from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, derive, gated_summary, ulp
+from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
 
 __all__ = ["write", "SCHEMA_VERSION", "CATEGORIES", "golden_arrays", "manifest_entry"]
 
 SCHEMA_VERSION = 3
 CATEGORIES = ("random", "stiff", "edge")
-
-
-def golden_arrays(case):
-    """All arrays of ``case``'s golden file (inputs, expected outputs, tolerances, row labels)."""
-    inputs, category, comment, flags = case_table(case)
-    arrays = dict(inputs)
-    if case.deriver is not None:
-        arrays.update(case.deriver(case, inputs, category, comment, flags))
-    else:
-        arrays.update(derive(case, {k: inputs[k] for k in case.inputs}, category, comment, flags))
-    return arrays
 
 
 def _legacy_tolerances(case, arrays):
