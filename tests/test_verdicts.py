@@ -188,3 +188,23 @@ def test_verify_groups_failures_lists_every_row_and_writes_json(tmp_path):
     strict = subprocess.run(base + ["--strict"], capture_output=True, text=True)
     assert plain.returncode == 0 and "beyond the algorithm's contract: 35 rows, 9 outside" in plain.stdout
     assert strict.returncode == 1 and "(robustness)" in strict.stdout
+
+
+def test_an_undeclared_clamp_convention_is_labelled_not_counted_as_arithmetic(tmp_path):
+    # The author's Algorithm 3 without its profile: every failing row is explained by clamp = 5e-6 with the
+    # case test on the clamped y2, and the report says so (format/convention failures apart from arithmetic).
+    gdir = tmp_path / "g"
+    golden.write(gdir, ["shade-float32"])
+    with np.load(gdir / "shade-float32.npz") as g:
+        r, zf = g["r"], g["zf"]
+    got = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
+                             "unclamped": True})
+    np.savez(tmp_path / "r.npz", **{"shade-float32.intensity": got})
+    case = golden.verify(gdir, tmp_path / "r.npz").cases[0]
+    assert case.status == "fail" and case.groups[0].level == "convention"
+    assert case.groups[0].count == case.verdict.failures and "clamp = 5e-06" in case.groups[0].flags
+    # An arithmetic bug is not explained by any convention.
+    bad = ports.alg3(r, zf, {"swap_weights": True})
+    np.savez(tmp_path / "b.npz", **{"shade-float32.intensity": bad})
+    case = golden.verify(gdir, tmp_path / "b.npz").cases[0]
+    assert all(g.level in ("contract", "robustness") for g in case.groups)

@@ -22,7 +22,8 @@ import numpy as np
 
 from .notes import ROBUSTNESS, cause
 
-__all__ = ["Group", "groups", "group_lines", "json_rows", "write_json", "target_groups"]
+__all__ = ["Group", "groups", "group_lines", "json_rows", "write_json", "target_groups", "convention_groups",
+           "CLAMP_CANDIDATES"]
 
 
 @dataclass
@@ -63,7 +64,7 @@ def groups(verdict, arrays, extra=()):
         g = out.setdefault(key, Group(level, key[1], [], cause(np.asarray(arrays["flags"])[i],
                                                                 np.asarray(arrays["category"])[i])))
         g.rows.append(int(i))
-    order = {"target": 0, "format": 1, "contract": 2, "robustness": 3}
+    order = {"target": 0, "format": 1, "convention": 1, "contract": 2, "robustness": 3}
     return sorted(list(extra) + list(out.values()), key=lambda g: (order[g.level], -g.count))
 
 
@@ -164,3 +165,76 @@ def write_json(path, cases, extra=None):
     doc = dict(extra or {})
     doc["cases"] = list(cases)
     return write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+
+
+#: Choices a port may have made without declaring them, tried by :func:`convention_groups`.
+CLAMP_CANDIDATES = (1e-6, 5e-6, 1e-5, 1 / 65535)
+
+
+def _candidates(case, profile):
+    """Profiles that differ from ``profile`` in the clamp (with its case test) or in one texel-format key."""
+    from dataclasses import replace
+
+    from .profile import CLAMP_TESTS, FORMAT_KEYS
+
+    out = []
+    if "clamp" in case.profile_keys:
+        for c in CLAMP_CANDIDATES:
+            for t in CLAMP_TESTS:
+                p = replace(profile, clamp=c, clamp_test=t)
+                if p.key != profile.key:
+                    out.append((p, "convention", f"clamp = {c:g}, clamp_test = {t!r}"))
+    if "format" in case.profile_keys:
+        current = dict(profile.format)
+        for k, values in FORMAT_KEYS.items():
+            for v in values:
+                if current.get(k) != v:
+                    p = replace(profile, format=tuple(sorted({**current, k: v}.items())))
+                    out.append((p, "format", f"format.{k} = {v!r}"))
+    return out
+
+
+def _narrowed(got, arrays):
+    """Integer readback words as the codes' dtype (where they fit), as the comparator wants them."""
+    out = {}
+    for o, g in got.items():
+        g = np.asarray(g)
+        want = np.asarray(arrays[o]).dtype if o in arrays else g.dtype
+        if g.dtype.kind in "ui" and want.kind in "ui" and g.dtype != want and g.size and \
+                g.min() >= np.iinfo(want).min and g.max() <= np.iinfo(want).max:
+            g = g.astype(want)
+        out[o] = g
+    return out
+
+
+def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
+    """A ``format`` (texel-format choice) or ``convention`` (Algorithm 3's clamp) group when the port's
+    outputs on its failing rows are those of another choice the paper leaves open: told by outputs, by
+    judging them against that choice's expected values (derived like any profile's, cached)."""
+    from .._arrays import InputError
+    from .cases import CASES
+    from .compare import compare
+    from .conventions import profiled_arrays
+    from .writer import manifest_entry
+
+    fail = ~verdict.row_pass
+    case = CASES.get(name)
+    if case is None or not fail.any() or not {"clamp", "format"} & set(case.profile_keys):
+        return []
+    got = _narrowed(got, base_arrays)
+    best = None
+    for p, level, what in _candidates(case, profile):
+        try:
+            pcase, arrays = profiled_arrays(name, p, arrays=base_arrays)
+            v = compare(manifest_entry(pcase, arrays), arrays, got, port_dtype, case=name)
+        except (InputError, TypeError, ValueError):  # a choice this version cannot evaluate
+            continue
+        explained = fail & v.row_pass
+        if v.failures < verdict.failures and (best is None or explained.sum() > best[0].sum()):
+            best = (explained, level, what)
+    if best is None or best[0].sum() < max(1, fail.sum() // 2):
+        return []
+    explained, level, what = best
+    return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
+                  f"the outputs on these rows are those of {what}: a choice the paper leaves open, not an "
+                  "arithmetic error; declare it in the profile (docs/ports.md)")]

@@ -241,6 +241,18 @@ def _case_result(name, meta, gold, got, port_dtype, keep, strict=False, extra=No
                       gs, json_rows(name, meta, gold, got, verdict, gs))
 
 
+def _causes(name, base, got, profile, target, port_dtype):
+    """``verdict -> [diagnosis.Group]``: a singular bias target, another convention or texel format."""
+    from .diagnosis import convention_groups
+    from .profile import DEFAULT
+
+    def extra(v):
+        found = target(v) if target is not None else []
+        return found or convention_groups(name, v, base, got, profile or DEFAULT, port_dtype)
+
+    return extra
+
+
 def _profiled(name, meta, gold, profile):
     """The case's manifest entry and arrays under ``profile``, and its target diagnosis."""
     from .conventions import profiled_arrays
@@ -325,11 +337,12 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
             report.append(CaseResult(name, "missing", port_dtype or meta["dtype"], [], {}))
             continue
         gold = load_case_arrays(golden_dir, name, meta)
-        extra = None
+        base, target = gold, None
         if profile is not None and not profile.is_default:
-            meta, gold, extra = _profiled(name, meta, gold, profile)
+            meta, gold, target = _profiled(name, meta, gold, profile)
         got = {o: results[k] for o, k in keys.items() if k in results}
-        report.append(_case_result(name, meta, gold, got, port_dtype, worst_rows, strict, extra))
+        report.append(_case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
+                                   _causes(name, base, got, profile, target, port_dtype or meta["dtype"])))
     if not report or all(c.status == "missing" for c in report):
         raise InputError("results: no array matches a golden case output ('<case>.<output>')")
     return VerifyReport(report)
