@@ -143,7 +143,8 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance"]
+        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance",
+                                                                                 "kernels"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -161,6 +162,8 @@ def _cmd_bench(args):
             text += "\n" + bench.agreement_markdown(runs)
     if not args.only or any("conformance" in o for o in args.only):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
+    if not args.only or any("kernels" in o for o in args.only):
+        text += "\n" + bench.kernels_markdown(size=min(args.size, 512) if args.quick else args.size)
     print(text)
     if args.out:
         from ._io import write_text
@@ -316,7 +319,8 @@ def _add_oracle(sub):
     mu.add_argument("--out", type=Path, help="unused; accepted for uniformity")
     mu.set_defaults(func=_cmd_mutants)
 
-    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port on a real driver against a golden case")
+    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port (a function, or with --kernel a compute "
+                                            "shader) on a real driver against a golden case")
     lang = cf.add_mutually_exclusive_group()
     lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
     lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
@@ -326,6 +330,11 @@ def _add_oracle(sub):
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
     cf.add_argument("--adapter", help="driver: gl, vulkan, both (names the rows on which they disagree), vulkan:NAME or an adapter "
                     "name (default per language)")
+    cf.add_argument("--kernel", action="store_true",
+                    help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
+    cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
+    cf.add_argument("--time-limit", type=float, default=None, metavar="S",
+                    help="with --kernel: seconds one dispatch may run before the watchdog stops it (default 60)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     _add_profile(cf)
     cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")

@@ -150,7 +150,9 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         The candidate's precision: the case of that dtype is used, inputs come in
         it and its tolerance column applies.
     n_hypothesis : int
-        Extra rows drawn by hypothesis (derandomized: reproducible).
+        Extra rows drawn by hypothesis (derandomized: reproducible). Kernel cases
+        (``kernel-*``: whole maps, one row per texel) get none: a texel depends on
+        its neighbours.
     seed : int
         Unused (kept for compatibility; the draws are derandomized).
     profile : moments_ref.golden.profile.Profile or path, optional
@@ -176,7 +178,8 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         raise InputError(f"case: unknown case {case!r}; known: {', '.join(stems)}")
     c = CASES[name]
     arrays = golden_arrays(c)
-    if n_hypothesis and c.deriver is None:  # engine cases are distributions, not drawn inputs
+    # Engine cases are distributions, kernel cases whole maps (a texel depends on its neighbours): no draws.
+    if n_hypothesis and c.deriver is None and not c.function.startswith("kernels."):
         arrays = _concat(arrays, _hypothesis_arrays(c, n_hypothesis))
     if profile is not None and not profile.is_default:
         from .golden.conventions import profile_arrays
@@ -204,6 +207,6 @@ def _report(c, name, dtype, arrays, got, verdict):
                          "score": float(verdict.score[sel].max()), "abs": float(a[sel].max())}
     return OracleReport(
         case=name, dtype=dtype, rows=n, failures=verdict.failures, worst_score=float(verdict.score[i]),
-        worst_abs=float(a[i]), worst_rel=float(r[i]), worst_input={k: arrays[k][i] for k in c.inputs},
+        worst_abs=float(a[i]), worst_rel=float(r[i]), worst_input={k: arrays[k][i] for k in c.inputs if c.row_inputs},
         worst_category=str(arrays["category"][i]), worst_got=np.asarray(got[o])[i],
         worst_expected=np.asarray(arrays[o])[i], per_category=per, passed=verdict.passed)

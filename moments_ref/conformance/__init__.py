@@ -23,6 +23,9 @@ Function contract (:mod:`._slots`): the GLSL one in each language's types, e.g.
 ``array<f32, 6>``. Files may ``#include "file"`` (GLSL, WGSL: resolved by the
 harness; HLSL: by glslang) and define their own entry point and resources.
 
+Compute shaders (the shadow-map filter and point-warp kernels) run on the kernel cases with ``--kernel``:
+:mod:`moments_ref.conformance.kernel`.
+
 Exit codes of :func:`run_cli`: 0 every row within its tolerance, 1 a tolerance
 exceeded, 2 bad usage, a file that does not compile (the compiler's messages, one
 line per error, with the user's file and line numbers), or no driver.

@@ -218,6 +218,15 @@ def main(args):
     """Entry for the CLI: ``args`` has ``glsl``/``hlsl``/``wgsl``, ``function``, ``case``,
     ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None)."""
     get = lambda k: getattr(args, k, None)  # noqa: E731
+    if get("kernel"):
+        from .kernel.cli import kernel_cli
+
+        files = [(lang, get(lang)) for lang in LANGUAGES if get(lang) is not None]
+        if len(files) != 1:
+            raise InputError(f"conformance: --kernel expects one of --glsl, --hlsl or --wgsl FILE, got {len(files)}")
+        language, path = files[0]
+        return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
+                          get("adapter"), get("time_limit"))
     if get("all"):
         from .._io import write_text
 

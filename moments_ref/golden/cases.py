@@ -23,7 +23,7 @@ import numpy as np
 from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import contract as _contract_mod
-from . import endtoend, engine
+from . import endtoend, engine, kernels
 from .paper import alg1_paper_spread, alg3_paper_spread
 from .variants import alg1_variant, bias_variant, shade_variant
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
@@ -55,6 +55,8 @@ class Case:
     perturb: bool = True  # measure the spread on inputs scaled by 1 ± 3 ulps (off for biasing)
     floor_scale: tuple | float = 1.0  # tolerance floors are ulps of max(|value|, scale), per component
     spread_hook: Callable | None = None  # (inputs, dtype) -> extra legitimate outputs (decoders' constants)
+    extra: Callable | None = None  # (inputs) -> more arrays for the golden file (a kernel's expected codes)
+    row_inputs: bool = True  # False: inputs are whole-case arrays (points, views), not one entry per row
     contract: str | None = None  # kind of contract (golden.contract.TEXT): rows outside are robustness rows
     # How an engine profile (golden.profile) applies to the case (golden.conventions):
     depth_roles: dict = field(default_factory=dict)  # input -> "moments" | "depth" (a depth-free algorithm)
@@ -236,7 +238,7 @@ def _cases():
         cases += _float_cases(dt)
         cases += [Case(**spec) for spec in endtoend.case_specs(dt)]
         cases += [Case(**spec) for spec in engine.engine_specs(dt)]
-    return cases
+    return cases + [Case(**spec) for spec in kernels.case_specs()]
 
 
 CASES = {c.name: c for c in _cases()}

@@ -6,9 +6,9 @@ chained cases (``e2e-*``, ``e2e-block-*``, ``engine-nlq*``, and compute-kernel c
 measure their tolerances on these too:
 
 * :func:`float32_filters`: the MSAA resolve and the two 9-tap Gaussian passes of
-  HPG17 §4.1 in float32, with the sums in sequential order ((a + b) + c) + d and in
-  pairwise order (a + b) + (c + d), and the §4.1 shared-memory emulation
-  (:func:`moments_ref.gpu.onchip.filter_moments`);
+  HPG17 §4.1 in float32 as the kernels of :mod:`moments_ref.gpu.filter32` compute
+  them (sums in sequential, reversed, pairwise or symmetric order, z⁴ two ways, the
+  weights rounded or computed in float32, and the §4.1 shared-memory emulation);
 * :func:`nlq_chain_gpu`: the NLQ chain with Ψ4's two logarithms and Ψ4⁻¹'s two
   exponentials :data:`TRANSCENDENTAL_ULPS` ulps off, up or down (as a relative change
   of ξ4 of the same effect, before encoding and after decoding).
@@ -29,50 +29,12 @@ TRANSCENDENTAL_ULPS = 3
 _EPS32 = float(np.finfo(np.float32).eps)
 
 
-def _resolve32(z, pairwise):
-    """MSAA resolve of ``(H, W, S)`` float32 samples into (z, z², z³, z⁴) means, float32, in one sum order."""
-    z = np.asarray(z, np.float32)
-    z2 = z * z
-    powers = (z, z2, z2 * z, z2 * z2)
-    s = z.shape[-1]
-    out = []
-    for p in powers:
-        terms = [p[..., k] for k in range(s)]
-        while len(terms) > 1 and pairwise:
-            terms = [terms[i] + terms[i + 1] if i + 1 < len(terms) else terms[i] for i in range(0, len(terms), 2)]
-        acc = terms[0]
-        for t in terms[1:]:
-            acc = acc + t
-        out.append(acc * np.float32(1 / s) if s & (s - 1) == 0 else acc / np.float32(s))
-    return np.stack(out, axis=-1)
-
-
-def _pass32(m, w, axis, pairwise):
-    """One 9-tap pass with clamp-to-edge borders in float32, in one sum order."""
-    r = len(w) // 2
-    n = m.shape[axis]
-    idx = np.clip(np.arange(n)[:, None] + np.arange(-r, r + 1)[None, :], 0, n - 1)
-    taps = [np.take(m, idx[:, t], axis=axis) * w[t] for t in range(len(w))]
-    while len(taps) > 1 and pairwise:
-        taps = [taps[i] + taps[i + 1] if i + 1 < len(taps) else taps[i] for i in range(0, len(taps), 2)]
-    acc = taps[0]
-    for t in taps[1:]:
-        acc = acc + t
-    return acc
-
-
 def float32_filters(depth):
-    """Filtered moments ``(H, W, 4)`` float32 of one block of MSAA depths, as GPUs compute them (module doc)."""
-    from ..gpu.filtering import SIGMA, TAPS, gaussian_weights
-    from ..gpu.onchip import filter_moments
+    """Filtered moments ``(H, W, 4)`` float32 of one block of MSAA depths, as GPUs compute them: every
+    legitimate float32 kernel of :data:`moments_ref.gpu.filter32.VARIANTS` (the one place they live)."""
+    from ..gpu.filter32 import variant_moments
 
-    w = gaussian_weights(TAPS, SIGMA).astype(np.float32)
-    out = []
-    for pairwise in (False, True):
-        m = _resolve32(depth, pairwise)
-        out.append(_pass32(_pass32(m, w, 1, pairwise), w, 0, pairwise))
-    out.append(np.asarray(filter_moments(np.asarray(depth, np.float32)), np.float32))
-    return out
+    return list(variant_moments(np.asarray(depth, np.float32)).values())
 
 
 def _nudge_xi(r, sign, decoded):
