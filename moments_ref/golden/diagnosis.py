@@ -140,6 +140,8 @@ def json_rows(name, meta, arrays, got, verdict, gs=()):
     """Every row's verdict of one case as plain JSON values."""
     o = meta["compare"][0]
     label = {i: g.level for g in gs for i in g.rows}
+    n = len(verdict.row_pass)
+    per_row = [k for k in meta["input_order"] if np.ndim(arrays[k]) and len(arrays[k]) == n]  # not whole-case arrays
     rows = []
     for i in range(len(verdict.row_pass)):
         rows.append({
@@ -149,7 +151,7 @@ def json_rows(name, meta, arrays, got, verdict, gs=()):
             "passed_strict": bool(verdict.strict_pass[i]) if verdict.strict_pass is not None else None,
             "error": _plain(verdict.error[i]), "tolerance": _plain(verdict.tolerance[i]),
             "got": _plain(np.asarray(got[o])[i]), "expected": _plain(np.asarray(arrays[o])[i]),
-            "inputs": {k: _plain(np.asarray(arrays[k])[i]) for k in meta["input_order"]},
+            "inputs": {k: _plain(np.asarray(arrays[k])[i]) for k in per_row},
             "cause": label.get(i, ""), "comment": str(np.asarray(arrays["comment"])[i]),
         })
     return {"case": name, "passed": bool(verdict.passed), "strict": bool(verdict.strict),
