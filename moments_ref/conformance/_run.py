@@ -209,17 +209,18 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     from ..golden.diagnosis import convention_groups
     from ..golden.profile import DEFAULT
 
-    base, target, notes = gc.arrays, None, []
+    base, by_target, notes = gc.arrays, None, []
     if profile is not None and not profile.is_default:
-        gc, target, notes = _profiled(gc, profile)
+        gc, by_target, notes = _profiled(gc, profile)
     ins = [Slot.of(k, np.asarray(v).dtype, np.shape(v)) for k, v in gc.inputs.items()]
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
     execute, renderer = _prepare(language, target, path, function, ins, outs)
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
+
     def extra(v):  # causes told by outputs: a singular bias target, another clamp or texel format
-        found = target(v) if target is not None else []
+        found = by_target(v) if by_target is not None else []
         return found or convention_groups(case, v, base, got, profile or DEFAULT)
 
     v = compare_case(case, gc.meta, gc.arrays, got, worst_rows, strict, extra)
