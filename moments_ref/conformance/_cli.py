@@ -16,11 +16,11 @@ from ..ports import PORTS_DIR
 from ._cases import load_case
 from ._gl import ContextError
 from ._report import fmt
-from ._run import DRIVERS, LANGUAGES, language_of, parse_adapter, run_case, run_function
+from ._run import DRIVERS, LANGUAGES, SourceOptions, language_of, parse_adapter, run_case, run_function
 from ._shipped import shipped_cases, shipped_port
 from ._toolchain import ToolError, tool_versions
 
-__all__ = ["resolve_port", "run_cli", "main", "summary_markdown", "bench_conformance"]
+__all__ = ["resolve_port", "run_cli", "harness_failure", "source_options", "main", "summary_markdown", "bench_conformance"]
 
 
 def resolve_port(path, language):
@@ -32,7 +32,7 @@ def resolve_port(path, language):
     return p
 
 
-def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None,
+def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None, options=None,
             profile=None, strict=False, rows=5, json_path=None):
     """Run one case, print the report, return the exit code.
 
@@ -44,47 +44,47 @@ def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=
     Returns
     -------
     int
-        0 every row within its tolerance; 1 a tolerance exceeded; 2 no driver or
-        compiler (reason on stderr) or bad usage (unknown case, missing function,
-        a file that does not compile: the compiler's messages, one line per error;
-        a profile it refuses).
+        0 every row within its tolerance (with ``adapter="both"``: on both drivers, which then
+        also list the rows where they differ); 1 a tolerance exceeded; 2 no driver or
+        compiler (reason on stderr), bad usage (unknown case, missing function, a
+        file that does not compile: the compiler's messages, one line per error), or
+        any failure of the harness, a compiler or a driver (one line: never a
+        traceback, never the exit code of a failing port); a profile it refuses.
     """
     out, err = out or sys.stdout, err or sys.stderr
     try:
         language = language_of(path, language)
         port = resolve_port(path, language)
-        gc = load_case(case, golden_dir)
-        adapters = list(DRIVERS) if adapter == "both" else [adapter]
-        reports = [run_case(port, function, case, golden_dir, language, a, None if rows == "all" else rows, gc=gc,
-                            profile=profile, strict=strict) for a in adapters]
+        keep = None if rows == "all" else rows
+        if adapter == "both":
+            from ._agree import compare_drivers
+
+            report = compare_drivers(port, function, case, golden_dir, language, options=options, profile=profile,
+                                     strict=strict, worst_rows=keep)
+            records = [dict(r.record, driver=d) for d, r in report.reports.items()]
+        else:
+            report = run_case(port, function, case, golden_dir, language, adapter, keep, options=options,
+                              profile=profile, strict=strict)
+            records = [dict(report.record, driver=report.driver)]
         if json_path is not None:
             from ..golden.diagnosis import write_json
 
-            write_json(json_path, [dict(r.record, driver=r.driver) for r in reports],
-                       {"command": "conformance", "function": function, "path": str(path)})
+            write_json(json_path, records, {"command": "conformance", "function": function, "path": str(path)})
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2
-    for rep in reports:
-        print(rep.format(), file=out)
-    if len(reports) == 2:
-        print(_disagreement(reports, gc), file=out)
-    return 0 if all(r.passed for r in reports) else 1
+    except Exception as exc:  # noqa: BLE001 - a harness failure must never read as a failing port
+        print(f"moments-ref conformance: {path}: the harness failed ({harness_failure(exc)}); "
+              "this is not a verdict on the port", file=err)
+        return 2
+    print(report.format(), file=out)
+    return 0 if report.passed else 1
 
 
-def _disagreement(reports, gc):
-    """The rows on which two drivers disagree: in their verdict, and in any bit of the outputs."""
-    a, b = reports
-    tc = np.asarray(gc.arrays["tc_id"])
-    verdict = np.flatnonzero(a.row_pass != b.row_pass)
-    bits = np.zeros(len(a.row_pass), bool)
-    for o in a.outputs:
-        x, y = np.asarray(a.outputs[o]), np.asarray(b.outputs[o])
-        n = len(x)
-        bits |= (x.reshape(n, -1).view(np.uint32) != y.reshape(n, -1).view(np.uint32)).any(axis=1)
-    names = ", ".join(f"tc_id {int(tc[i])} ({'gl' if a.row_pass[i] else 'vulkan'} passes)" for i in verdict)
-    return (f"drivers: {a.driver} and {b.driver} disagree on {len(verdict)} verdicts"
-            f"{': ' + names if names else ''}; outputs differ in some bit on {int(bits.sum())} of {len(bits)} rows")
+def harness_failure(exc):
+    """One line for an unexpected exception: its type and the first line of its message."""
+    first = next((x.strip() for x in str(exc).splitlines() if x.strip()), "")
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
 
 
 def _targets(adapter):
@@ -204,7 +204,8 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
     lines += _timing_table(results, total)
     lines += ["", "## The two drivers agree", "",
               "Golden rows whose outputs differ in any bit between OpenGL and Vulkan (same source file; both",
-              "pass). For HLSL this compares the two toolchains: SPIRV-Cross to GLSL, and wgpu's SPIR-V reader.", ""]
+              "pass). For HLSL this compares OpenGL reading glslang's SPIR-V as written with wgpu's SPIR-V",
+              "reader; the suite pins that every row agrees (docs/ports.md, \"Toolchain\").", ""]
     lines += _agreement_table(results)
     lines += probe_lines
     for language, driver, renderer, rows, _, _ in results:
@@ -218,6 +219,10 @@ def main(args):
     """Entry for the CLI: ``args`` has ``glsl``/``hlsl``/``wgsl``, ``function``, ``case``,
     ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None)."""
     get = lambda k: getattr(args, k, None)  # noqa: E731
+    if get("watchdog") is not None:
+        from ._child import set_watchdog
+
+        set_watchdog(get("watchdog"))
     if get("kernel"):
         from .kernel.cli import kernel_cli
 
@@ -232,8 +237,11 @@ def main(args):
 
         try:
             text = summary_markdown(golden_dir=get("golden"), adapter=get("adapter"), progress=True)
-        except (ContextError, ToolError) as exc:
+        except (ContextError, ToolError, InputError) as exc:
             print(f"moments-ref conformance: {exc}", file=sys.stderr)
+            return 2
+        except Exception as exc:  # noqa: BLE001 - a harness failure is exit 2, one line
+            print(f"moments-ref conformance: the harness failed ({harness_failure(exc)})", file=sys.stderr)
             return 2
         print(text)
         if get("out"):
@@ -252,8 +260,16 @@ def main(args):
     flags = {f[2:].replace("-", "_"): get(f[2:].replace("-", "_")) for f, _, _ in FLAGS}
     profile = profile_from_args(get("profile"), get("function"), **flags)
     return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
-                   profile=profile, strict=bool(get("strict")), rows=get("rows") if get("rows") is not None else 5,
-                   json_path=get("json"))
+                   options=source_options(args), profile=profile, strict=bool(get("strict")),
+                   rows=get("rows") if get("rows") is not None else 5, json_path=get("json"))
+
+
+def source_options(args):
+    """:class:`SourceOptions` from the CLI's ``--include``, ``--define``, ``--prelude``, ``--max-source``
+    and ``--keep-unused`` (absent ones take their defaults)."""
+    get = lambda k: getattr(args, k, None)  # noqa: E731
+    return SourceOptions(tuple(get("include") or ()), tuple(get("define") or ()), get("prelude"),
+                         get("max_source"), bool(get("keep_unused")))
 
 
 def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):

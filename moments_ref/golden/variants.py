@@ -31,8 +31,11 @@ def preset_of(bias):
     return BiasPreset(bias.alpha, tuple(bias.target), "declared")
 
 
-def alg1_variant(bound, six=False):
-    """Algorithm 1 (four or six moments) with the engine's bias applied inside the function."""
+def alg1_variant(bound, six=False, base_hook=None):
+    """Algorithm 1 (four or six moments) with the engine's bias applied inside the function.
+
+    ``base_hook``: the case's own spread hook (other formulations), run on the biased moments.
+    """
 
     def variant(bias=None, clamp=None, fmt=None, **_):
         if bias is None:
@@ -52,7 +55,8 @@ def alg1_variant(bound, six=False):
 
         def hook(inputs, dt):
             if six:
-                return []
+                biased = bias_moments(np.asarray(inputs["b"]).astype(dt), p)
+                return base_hook({"b": biased, "zf": inputs["zf"]}, dt) if base_hook else []
             biased = bias_moments(np.asarray(inputs["b"]).astype(dt), p)
             return [(slides_bound(biased, inputs["zf"], bound, dt),), (printed_bound(biased, inputs["zf"], bound, dt),)]
 
