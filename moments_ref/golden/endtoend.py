@@ -41,23 +41,27 @@ BLOCK = (32, 40)
 GUARD = 4
 
 
-def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored"):
-    """bias (a BiasPreset or None) -> Φ -> pack -> unpack -> shade (``clamp``, ``case_test``: golden.variants)."""
+def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None):
+    """bias (a BiasPreset or None) -> Φ -> pack -> unpack -> shade (``clamp``, ``case_test``: golden.variants;
+    ``texel``: the profile's texel-format choices, golden.variants.decode32 and rounding64)."""
 
     def chain(b, zf):
         from ..nonlinear import SHADE_TOLERANCE, phi
         from ..packing import pack32, pack64, unpack32, unpack64
-        from .variants import shade_reference
+        from .variants import decode32, rounding64, shade_reference
 
         dt = np.asarray(b).dtype
         r = phi(b if bias is None else bias_moments(b, bias))
-        r = unpack64(pack64(r), dtype=dt) if fmt == "64" else unpack32(pack32(r), dtype=dt)
+        if fmt == "64":
+            r = unpack64(pack64(r, **rounding64(texel)), dtype=dt)
+        else:
+            r = unpack32(pack32(r), dtype=dt, **decode32(texel))
         return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(r, zf)
 
     return chain
 
 
-def _msm64(bias=BIAS_UNORM16):
+def _msm64(bias=BIAS_UNORM16, *_):
     def chain(b, zf):
         from ..affine import decode_unorm16, encode_unorm16
         from ..msm import shadow_intensity
@@ -69,8 +73,8 @@ def _msm64(bias=BIAS_UNORM16):
     return chain
 
 
-def _block(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored"):
-    inner = nlq_chain(fmt, bias, clamp, case_test)
+def _block(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None):
+    inner = nlq_chain(fmt, bias, clamp, case_test, texel)
 
     def chain(depth, zf):
         dt = np.asarray(depth).dtype
@@ -84,19 +88,19 @@ def _block(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored"):
     return chain
 
 
-def _block_spread(fmt, bias, clamp=None, case_test="stored"):
-    return block_spread(fmt, bias, clamp, case_test, GUARD, nlq_chain)
+def _block_spread(fmt, bias, clamp=None, case_test="stored", texel=None):
+    return block_spread(fmt, bias, clamp, case_test, GUARD, nlq_chain, texel)
 
 
 def _chain_variant(make, *args, hook=None):
-    """A profile's bias (inside the chain; None: the caller biased), clamp and case test for ``make(*args, ...)``
-    and its GPU spread ``hook(*args, ...)`` (golden.gpuspread)."""
+    """A profile's bias (inside the chain; None: the caller biased), clamp, case test and texel-format
+    choices for ``make(*args, ...)`` and its GPU spread ``hook(*args, ...)`` (golden.gpuspread)."""
 
     def variant(bias=None, clamp=None, fmt=None, clamp_test=None, **_):
         from .variants import preset_of
 
         p = None if bias is None else preset_of(bias)
-        extra = () if clamp is None and clamp_test is None else (clamp, clamp_test or "stored")
+        extra = (clamp, clamp_test or "stored", dict(fmt or {}))
         out = {"reference": make(*args, p, *extra)}
         if hook is not None:
             out["spread_hook"] = hook(*args, p, *extra)

@@ -231,7 +231,9 @@ def _chain(ctx, preset, dt):
         from .gpuspread import nlq_chain_gpu
 
         args = (fmt, preset, ctx.get("clamp"), ctx.get("clamp_test") or "stored")
-        chains = [nlq_chain(*args)] + ([nlq_chain_gpu(*args, sign=s) for s in (1, -1)] if dt == np.float32 else [])
+        texel = ctx.get("texel")
+        chains = [nlq_chain(*args, texel)] + ([nlq_chain_gpu(*args, sign=s, texel=texel) for s in (1, -1)]
+                                              if dt == np.float32 else [])
         return [lambda b, zf, c=c: c(b.astype(dt), zf.astype(dt))[0] for c in chains]
 
     def biased(b):
@@ -367,7 +369,7 @@ def _variant(texel, bound):
         from .variants import preset_of
 
         declared = profile.bias if profile is not None and profile.bias is not None else None
-        ctx = {"fmt": texel, "bound": bound, "clamp": clamp, "clamp_test": clamp_test, "unit": profile is not None and profile.depth == "[0,1]",
+        ctx = {"fmt": texel, "bound": bound, "clamp": clamp, "clamp_test": clamp_test, "texel": dict(fmt or {}), "unit": profile is not None and profile.depth == "[0,1]",
                "visibility": profile is not None and profile.output == "visibility",
                "before": None if before is None else preset_of(before),
                "inside": None if bias is None else preset_of(bias),

@@ -50,38 +50,41 @@ def _nudge_xi(r, sign, decoded):
     return r
 
 
-def nlq_chain_gpu(fmt, bias, clamp=None, case_test="stored", sign=1):
+def nlq_chain_gpu(fmt, bias, clamp=None, case_test="stored", sign=1, texel=None):
     """The NLQ chain of :func:`moments_ref.golden.endtoend.nlq_chain` with a GPU's log and exp (``sign``: up
-    or down)."""
+    or down; ``texel``: the profile's texel-format choices)."""
 
     def chain(b, zf):
         from ..moments import bias_moments
         from ..nonlinear import SHADE_TOLERANCE, phi
         from ..packing import pack32, pack64, unpack32, unpack64
-        from .variants import shade_reference
+        from .variants import decode32, rounding64, shade_reference
 
         dt = np.asarray(b).dtype
         r = _nudge_xi(phi(b if bias is None else bias_moments(b, bias)), sign, decoded=False)
-        r = unpack64(pack64(r), dtype=dt) if fmt == "64" else unpack32(pack32(r), dtype=dt)
+        if fmt == "64":
+            r = unpack64(pack64(r, **rounding64(texel)), dtype=dt)
+        else:
+            r = unpack32(pack32(r), dtype=dt, **decode32(texel))
         return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(
             _nudge_xi(r, sign, decoded=True), zf)
 
     return chain
 
 
-def chain_spread(fmt, bias, clamp=None, case_test="stored"):
+def chain_spread(fmt, bias, clamp=None, case_test="stored", texel=None):
     """A ``spread_hook`` for ``e2e-nlq*``: the chain with a GPU's log and exp, in float32 ports' precision."""
 
     def hook(inputs, dt):
         if dt != np.float32:
             return []
         b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
-        return [nlq_chain_gpu(fmt, bias, clamp, case_test, s)(b, zf) for s in (1, -1)]
+        return [nlq_chain_gpu(fmt, bias, clamp, case_test, s, texel)(b, zf) for s in (1, -1)]
 
     return hook
 
 
-def block_spread(fmt, bias, clamp=None, case_test="stored", guard=4, nlq_chain=None):
+def block_spread(fmt, bias, clamp=None, case_test="stored", guard=4, nlq_chain=None, texel=None):
     """A ``spread_hook`` for ``e2e-block-nlq*``: float32 filters, then the chain ``nlq_chain`` (the case's,
     golden.endtoend) and the same with a GPU's log and exp."""
 
@@ -89,8 +92,8 @@ def block_spread(fmt, bias, clamp=None, case_test="stored", guard=4, nlq_chain=N
         if dt != np.float32:
             return []
         depth, zf = np.asarray(inputs["depth"]), np.asarray(inputs["zf"], dt)
-        chains = [nlq_chain(fmt, bias, clamp, case_test)] + [nlq_chain_gpu(fmt, bias, clamp, case_test, s)
-                                                             for s in (1, -1)]
+        chains = [nlq_chain(fmt, bias, clamp, case_test, texel)] + [
+            nlq_chain_gpu(fmt, bias, clamp, case_test, s, texel) for s in (1, -1)]
         outs = []
         per_block = [float32_filters(depth[i]) for i in range(len(depth))]  # one block per row
         for k in range(len(per_block[0])):

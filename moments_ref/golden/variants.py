@@ -21,7 +21,8 @@ import numpy as np
 
 from .. import precise
 
-__all__ = ["alg1_variant", "bias_variant", "shade_variant", "shade_reference", "shade_truth", "preset_of"]
+__all__ = ["alg1_variant", "bias_variant", "shade_variant", "shade_reference", "shade_truth", "preset_of",
+           "unpack32_variant", "pack64_variant", "decode32", "rounding64", "xi_decode_spread"]
 
 
 def preset_of(bias):
@@ -114,3 +115,82 @@ def shade_truth(clamp, case_test="stored"):
     from .truth import shade_clamped
 
     return lambda r, zf: (shade_clamped(r, zf, clamp=clamp, case_test=case_test),)
+
+
+def decode32(fmt):
+    """unpack32's keyword arguments for the declared decode positions (the format's own for the rest)."""
+    return {k: v for k, v in (fmt or {}).items() if k in ("depth_decode", "v2_decode", "xi_decode")}
+
+
+def rounding64(fmt):
+    """pack64's keyword arguments for the declared rounding of the ξ4 code."""
+    return {"xi_rounding": fmt["xi_rounding"]} if fmt and "xi_rounding" in fmt else {}
+
+
+def unpack32_variant():
+    """The 32-bit decoder reading its cells at the declared positions (docs/formats.md)."""
+
+    def variant(bias=None, clamp=None, fmt=None, **_):
+        kw = decode32(fmt)
+        if not kw:
+            return {}
+        from fractions import Fraction
+
+        from ..packing import unpack32
+        from . import texel_truth
+
+        offsets = {{"depth_decode": "depth", "v2_decode": "v", "xi_decode": "xi"}[k]:
+                   {"lower": Fraction(0), "centre": Fraction(1, 2), "upper": Fraction(1)}[v] for k, v in kw.items()}
+        return {"reference": lambda p, dtype=np.float64: (unpack32(p, dtype=dtype, **kw),),
+                "truth": lambda p: texel_truth.unpack32(p, offsets), "spread_hook": xi_decode_spread("32", kw)}
+
+    return variant
+
+
+def pack64_variant():
+    """The 64-bit encoder rounding the ξ4 code as declared (docs/formats.md)."""
+
+    def variant(bias=None, clamp=None, fmt=None, **_):
+        kw = rounding64(fmt)
+        if not kw:
+            return {}
+        from ..packing import pack64
+        from . import texel_truth
+
+        rounding = kw["xi_rounding"]
+        return {"reference": lambda r: (pack64(r, **kw),), "truth": lambda r: texel_truth.pack64(r, rounding),
+                "margin": lambda r: texel_truth.pack64(r, rounding, margin=True)[1]}
+
+    return variant
+
+
+def xi_decode_spread(fmt, decode=None):
+    """Decoders: ξ4 with the Ψ4⁻¹ constants off by 3 ulps (c1 from float32 end points is 1 ulp off).
+
+    ``decode``: unpack32's decode positions (``depth_decode``, ``v2_decode``, ``xi_decode``) when a
+    profile declares other ones than the format's.
+    """
+    decode = dict(decode or {})
+
+    def hook(inputs, dt):
+        from ..nonlinear import _PSI_C0, _PSI_C1, psi4_inverse
+        from ..packing import DECODE32, DECODE_POSITIONS, XI_BITS, XI_CELLS, XI_SHIFT, unpack32, unpack64
+
+        code = inputs["q"] if fmt == "64" else inputs["p"]
+        r = unpack64(code, dtype=dt) if fmt == "64" else unpack32(code, dtype=dt, **decode)
+        if fmt == "64":
+            u = code[..., 3].astype(np.float64) / 65535
+        else:
+            xcode = (code.astype(np.int64) >> XI_SHIFT) & ((1 << XI_BITS) - 1)
+            u = (xcode + DECODE_POSITIONS[decode.get("xi_decode", DECODE32["xi"])]) / XI_CELLS
+        eps = 3 * float(np.finfo(dt).eps)
+        out = []
+        for s1, s0 in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+            v = r.copy()
+            shifted = (u * (1 + s1 * eps) + s0 * eps * abs(_PSI_C0) / _PSI_C1).astype(dt)
+            with np.errstate(over="ignore"):
+                v[..., 3] = psi4_inverse(np.clip(shifted, 0, 1))
+            out.append((v,))
+        return out
+
+    return hook
