@@ -208,3 +208,18 @@ def test_an_undeclared_clamp_convention_is_labelled_not_counted_as_arithmetic(tm
     np.savez(tmp_path / "b.npz", **{"shade-float32.intensity": bad})
     case = golden.verify(gdir, tmp_path / "b.npz").cases[0]
     assert all(g.level in ("contract", "robustness") for g in case.groups)
+
+
+def test_an_undeclared_texel_format_choice_is_labelled_format(tmp_path):
+    # An unpack32 reading depths at the centre of their cell (a legitimate reading of HPG17 §3.5, declared
+    # with format.depth_decode = "centre") fails without its profile; the report says which choice it made.
+    gdir = tmp_path / "g"
+    golden.write(gdir, ["unpack32-float32"])
+    with np.load(gdir / "unpack32-float32.npz") as g:
+        p = g["p"]
+    np.savez(tmp_path / "r.npz", **{"unpack32-float32.r": ports.unpack32(p, {"centre": True})})
+    case = golden.verify(gdir, tmp_path / "r.npz").cases[0]
+    assert case.status == "fail" and case.groups[0].level == "format"
+    assert case.groups[0].flags == "format.depth_decode = 'centre'" and case.groups[0].count == case.verdict.failures
+    declared = parse_profile({"format": {"depth_decode": "centre"}})
+    assert golden.verify(gdir, tmp_path / "r.npz", profile=declared).cases[0].status == "pass"

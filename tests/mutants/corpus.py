@@ -231,6 +231,9 @@ MUTANTS = [
     _m("pack64-no-bump", "bug", "pack64", {"no_bump": True},
        "no decode check: float rounding can leave the decoded xi4 below the stored one"),
     _m("pack64-swap-y", "bug", "pack64", {"swap_y": True}, "y1 and y2 channels swapped"),
+    _m("pack64-nearest-declared", "legit", "pack64", {"round_xi": True, "no_bump": True},
+       "Psi4 code rounded to nearest as a UNORM render-target write does (the HPG17 demo), as its profile "
+       "declares (format.xi_rounding = nearest)", profile={"format": {"xi_rounding": "nearest"}}),
     _m("pack64-depth01", "bug", "pack64", {"depth01": True}, "depths stored as if in [0, 1]"),
     _m("port-unpack64", "legit", "unpack64", {}, "the port as written"),
     _m("unpack64-f64", "legit", "unpack64", {"f64": True}, "float64 arithmetic"),
@@ -264,6 +267,13 @@ MUTANTS = [
        "depth at the centre of its cell (the decode before schema 3: over-shadows, docs/formats.md)"),
     _m("unpack32-xi-no-roundup", "bug", "unpack32", {"xi_no_roundup": True}, "xi4 code read at c/64, not rounded up"),
     _m("unpack32-xi-centre", "bug", "unpack32", {"xi_centre": True}, "xi4 code read at (c + 1/2)/64"),
+    # Texel-format choices the paper leaves open, declared in the profile (docs/formats.md): legitimate.
+    _m("unpack32-centre-declared", "legit", "unpack32", {"centre": True},
+       "depths read at the centre of their cell, as its profile declares (format.depth_decode = centre)",
+       profile={"format": {"depth_decode": "centre"}}),
+    _m("unpack32-xi-centre-declared", "legit", "unpack32", {"xi_centre": True},
+       "xi4 code read at (c + 1/2)/64, as its profile declares (format.xi_decode = centre)",
+       profile={"format": {"xi_decode": "centre"}}),
     _m("unpack32-v-127", "bug", "unpack32", {"v_127": True}, "sqrt(v2) = c/127 (the grid before schema 3)"),
     _m("unpack32-v-linear", "bug", "unpack32", {"v_linear": True}, "v2 = (c + 1/2)/128 (not squared)"),
     _m("unpack32-step-511", "bug", "unpack32", {"step_511": True}, "cell width 1/511 instead of 1/511.5"),
