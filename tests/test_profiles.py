@@ -221,3 +221,18 @@ def test_golden_writes_a_folder_for_a_profile_that_verify_judges(tmp_path):
     assert _cli("verify", "--golden", out, "--results", tmp_path / "r.npz", "--profile", f).returncode == 0
     other = _cli("verify", "--golden", out, "--results", tmp_path / "r.npz", "--profile", f, "--clamp", "5e-6")
     assert other.returncode == 2 and "another profile" in other.stderr and other.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("args,key", [
+    (["--profile", "BAD"], "depht"),
+    (["--depth", "[0,1]"], "depth"),  # contradicts shade's texel-format depths
+    (["--clamp", "0.5"], "clamp"),
+    (["--bias-alpha", "1e-4", "--bias-target", "0,0.1,0,0.005", "--bias-applied", "inside"], "bias.target"),
+])
+def test_conformance_refuses_a_profile_with_exit_2_and_one_line(tmp_path, args, key):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('depht = "[0,1]"\n')
+    args = [str(bad) if a == "BAD" else a for a in args]
+    r = _cli("conformance", "--glsl", "nonlinear.glsl", "--function", "shade", "--case", "shade-float32", *args)
+    assert r.returncode == 2 and r.stdout == "", (r.stdout, r.stderr)
+    assert r.stderr.count("\n") == 1 and key in r.stderr and "Traceback" not in r.stderr
