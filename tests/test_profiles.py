@@ -236,3 +236,15 @@ def test_conformance_refuses_a_profile_with_exit_2_and_one_line(tmp_path, args, 
     r = _cli("conformance", "--glsl", "nonlinear.glsl", "--function", "shade", "--case", "shade-float32", *args)
     assert r.returncode == 2 and r.stdout == "", (r.stdout, r.stderr)
     assert r.stderr.count("\n") == 1 and key in r.stderr and "Traceback" not in r.stderr
+
+
+def test_oracle_check_takes_a_profile_for_golden_and_drawn_rows():
+    from moments_ref import oracle
+    from mutants import corpus, ports
+
+    engine = {"literal_root": True, "no_singular": True, "visibility": True, "bias": (3e-6, corpus.TARGET01)}
+    port = lambda b, zf: ports.alg1(b, zf, engine)  # noqa: E731
+    path = str(__import__("pathlib").Path(__file__).parent / "fixtures" / "wild" / "engine01.toml")
+    with_profile = oracle.check(port, "shadow_intensity-lower", dtype="float32", n_hypothesis=20, profile=path)
+    assert with_profile.passed and with_profile.rows == 403
+    assert not oracle.check(port, "shadow_intensity-lower", dtype="float32", n_hypothesis=20).passed
