@@ -24,3 +24,11 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def pytest_configure(config):
+    """Derived goldens of engine profiles go to a folder of the test run, not to the user's cache."""
+    import tempfile
+
+    if not os.environ.get("MOMENTS_REF_CACHE"):
+        os.environ["MOMENTS_REF_CACHE"] = tempfile.mkdtemp(prefix="moments-ref-test-cache-")
