@@ -1,7 +1,8 @@
 """Hypothesis profiles: ``ci`` (derandomized, bounded, no deadline) and ``thorough``.
 
 CI selects ``ci`` (also the default); run ``pytest --hypothesis-profile thorough``
-for long local runs.
+for long local runs. Derived goldens of engine profiles (golden.conventions) are cached
+in a temporary folder of the run (``MOMENTS_REF_CACHE``).
 """
 
 import os
