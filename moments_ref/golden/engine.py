@@ -108,17 +108,18 @@ def _receivers(z, rng):
 def _engine_rows(rng, dtype):
     rng = np.random.default_rng(20170723)  # the same distributions in every engine case (HPG17's year and month)
     dists = _synthetic() + _footprints(rng)
-    zf, cat, com, flags, sup, mass, row_of = [], [], [], [], [], [], []
+    k = max(len(z) for z, *_ in dists)
+    zf, cat, com, flags, sup, mass = [], [], [], [], [], []
     for z, w, c, what, fl in dists:
         z, w = _points(z, w)
         for x in _receivers(z, rng):
-            row = len(zf)
             zf.append(x), cat.append(c), com.append(f"{what}; zf = {x:.9g}; expected Z(z < zf) of the distribution")
             flags.append(fl + (("support_point",) if np.any(z == x) else ()))
-            sup.append(z), mass.append(w), row_of.append(np.full(len(z), row, np.int32))
-    support, mass, row_of = np.concatenate(sup), np.concatenate(mass), np.concatenate(row_of)
-    b = moments_of_rows(support, mass, row_of, len(zf), np.dtype(dtype))  # rounded once
-    inputs = {"b": b.astype(np.float64), "zf": np.array(zf), "support": support, "mass": mass, "row_of": row_of}
+            # One row per distribution, padded with points of mass 0 (they change no moment and no Z).
+            sup.append(np.pad(z, (0, k - len(z)))), mass.append(np.pad(w, (0, k - len(w))))
+    support, mass = np.array(sup), np.array(mass)
+    b = moments_of_rows(support, mass, np.dtype(dtype))  # rounded once
+    inputs = {"b": b.astype(np.float64), "zf": np.array(zf), "support": support, "mass": mass}
     return Rows(inputs, cat, com, flags)
 
 
@@ -165,15 +166,12 @@ def _dd_round(hi, lo, dtype):
     return np.where(r < -down / 2, np.nextafter(x, np.float32(-np.inf)), x)
 
 
-def moments_of_rows(support, mass, row_of, n, dtype, bias=None):
-    """``(n, 4)``: each row's distribution's moments ``Σ m z^k / Σ m``, biased (``bias``: a BiasPreset applied
-    as ``b − α (b − b*)``), in double-double arithmetic (about 2^-100 relative) and rounded once to ``dtype``."""
-    order = np.argsort(row_of, kind="stable")
-    counts = np.bincount(row_of, minlength=n)
-    k = int(counts.max()) if n else 0
-    col = np.arange(len(order)) - np.repeat(np.cumsum(counts) - counts, counts)
-    z, w = np.zeros((n, k)), np.zeros((n, k))
-    z[row_of[order], col], w[row_of[order], col] = support[order], mass[order]
+def moments_of_rows(support, mass, dtype, bias=None):
+    """``(n, 4)``: each row's distribution's moments ``Σ m z^k / Σ m`` (``support``, ``mass``: ``(n, K)``, points of
+    mass 0 for padding), biased (``bias``: a BiasPreset applied as ``b − α (b − b*)``), in double-double
+    arithmetic (about 2^-100 relative) and rounded once to ``dtype``."""
+    z, w = np.asarray(support, np.float64), np.asarray(mass, np.float64)
+    n, k = z.shape
     zero = np.zeros(n)
     tot, acc = (zero, zero), [(zero, zero)] * 4
     for j in range(k):  # compensated sums over each row's points, vectorized over rows
@@ -249,8 +247,7 @@ def _chain(ctx, preset, dt):
 def papers_chain32(arrays, preset, ctx, n):
     """The papers' own formulation (last of :func:`_chain`) in float32 with ``preset``, on the rows'
     unbiased moments: for the diagnosis of a bias target."""
-    b = moments_of_rows(np.asarray(arrays["support"]), np.asarray(arrays["mass"]), np.asarray(arrays["row_of"]), n,
-                        np.dtype(np.float32)).astype(np.float64)
+    b = moments_of_rows(arrays["support"], arrays["mass"], np.dtype(np.float32)).astype(np.float64)
     with np.errstate(all="ignore"):
         return np.asarray(_chain(ctx, preset, np.float32)[-1](b, np.asarray(arrays["zf"], np.float64)), np.float64)
 
@@ -271,17 +268,17 @@ def _input_spread(ctx, b, zf, dt):
     return out
 
 
-def _exact_z(arrays, n, upper):
-    s, m, r, zf = arrays["support"], arrays["mass"], arrays["row_of"], np.asarray(arrays["zf"], np.float64)
-    below = (s <= zf[r]) if upper else (s < zf[r])
-    return np.bincount(r, weights=m * below, minlength=n)
+def _exact_z(arrays, upper):
+    s, m, zf = np.asarray(arrays["support"]), np.asarray(arrays["mass"]), np.asarray(arrays["zf"], np.float64)
+    below = (s <= zf[:, None]) if upper else (s < zf[:, None])
+    return (m * below).sum(axis=1) / m.sum(axis=1)
 
 
 def derive_engine(case, arrays, category, comment, flags, contract=None):
     """Arrays of an engine case: the port's input b, expected Z, per-row tolerances (module docstring).
 
-    ``arrays`` holds the rows' ``zf`` and distributions (``support``, ``mass``,
-    ``row_of``) in the engine's depth convention; ``case.engine`` the context (the
+    ``arrays`` holds the rows' ``zf`` and distributions (``support``, ``mass``: per row,
+    padded with points of mass 0) in the engine's depth convention; ``case.engine`` the context (the
     bias the harness applies before the call, the declared α, the output).
     """
     from .units import PORT_DTYPES, ceil2, ulp
@@ -289,10 +286,10 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
     ctx = case.engine
     n = len(category)
     dt = np.dtype(case.dtype)
-    sup, mass, rows = (np.asarray(arrays[k]) for k in ("support", "mass", "row_of"))
-    b = moments_of_rows(sup, mass, rows, n, dt, bias=ctx.get("before"))
-    z = _exact_z(arrays, n, ctx.get("bound") == "upper")
-    unbiased = {d: moments_of_rows(sup, mass, rows, n, np.dtype(d)).astype(np.float64) for d in PORT_DTYPES}
+    sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
+    b = moments_of_rows(sup, mass, dt, bias=ctx.get("before"))
+    z = _exact_z(arrays, ctx.get("bound") == "upper")
+    unbiased = {d: moments_of_rows(sup, mass, np.dtype(d)).astype(np.float64) for d in PORT_DTYPES}
     zf = np.asarray(arrays["zf"], np.float64)
     dev, spread = np.zeros(n), {d: np.zeros(n) for d in PORT_DTYPES}
     with np.errstate(all="ignore"):
@@ -306,8 +303,7 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
             spread[d] = np.fmax(spread[d], _input_spread(ctx, b, zf, np.dtype(d)))
     # At zf on a depth of the distribution Z jumps by that depth's mass; a correct biased bound lands
     # anywhere across the jump (its support point is within rounding of zf).
-    below = sup == zf[rows]
-    jump = np.bincount(rows, weights=mass * below, minlength=n)
+    jump = (mass * (sup == zf[:, None])).sum(axis=1) / mass.sum(axis=1)
     expected = 1 - z if ctx.get("visibility") else z
     out = {"b": b, "intensity": expected, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
     for d in PORT_DTYPES:
@@ -352,8 +348,7 @@ def singular_target_rows(arrays, bias, unit=False):
     if target_support(bias.target) is None:
         return np.zeros(len(arrays["zf"]), bool)
     n = len(arrays["zf"])
-    b = moments_of_rows(np.asarray(arrays["support"]), np.asarray(arrays["mass"]), np.asarray(arrays["row_of"]), n,
-                        np.dtype(np.float64))
+    b = moments_of_rows(arrays["support"], arrays["mass"], np.dtype(np.float64))
     biased = (1 - bias.alpha) * b + bias.alpha * np.asarray(bias.target, np.float64)
     return hankel_lambda_min(biased) <= PD_MIN
 
@@ -398,7 +393,7 @@ def _default_ctx(fmt, bound):
 def engine_specs(dt):
     """Keyword dicts for :class:`moments_ref.golden.cases.Case`, one per engine case."""
     common = dict(dtype=dt, inputs=("b", "zf"), outputs=("intensity",), rows=_engine_rows, truth=None,
-                  value_range=(0, 1), aux=("support", "mass", "row_of"), deriver=derive_engine, width=4,
+                  value_range=(0, 1), aux=("support", "mass"), deriver=derive_engine, width=4,
                   default_bias=("before", BIAS_FLOAT32), bias_before=True)
     specs = []
     for bound in ("lower", "upper"):
