@@ -16,7 +16,6 @@ import pytest
 from moments_ref import conformance
 from moments_ref.golden.profile import load_profile
 
-from test_conformance_languages import drivers  # noqa: F401  (the fixture)
 
 WILD = Path(__file__).resolve().parent / "fixtures" / "wild"
 ALG1 = ["shadow_intensity-lower-float32", "engine-lower-float32"]
