@@ -79,19 +79,56 @@ def check_outputs(out) -> None:
 def _cmd_golden(args):
     from . import golden
 
+    profile = _profile(args)
     names = list(golden.CASES) if not args.case else args.case
     with _progress(len(names), "golden") as bar:
-        manifest = golden.write(args.out, names, progress=lambda name: bar.update(1))
+        manifest = golden.write(args.out, names if args.case else None, progress=lambda name: bar.update(1),
+                                profile=profile)
     n_rows = sum(c["count"] for c in manifest["cases"].values())
     print(f"wrote {len(manifest['cases'])} cases ({n_rows} rows) and manifest.json to {args.out}")
+    if manifest.get("not_written"):
+        print(f"not written: {len(manifest['not_written'])} cases whose conventions the profile contradicts")
     return 0
+
+
+def _profile(args):
+    """The profile of ``--profile FILE`` and the per-key flags (golden.profile), for ``--function``."""
+    from .golden.profile import FLAGS, profile_from_args
+
+    flags = {f[2:].replace("-", "_"): getattr(args, f[2:].replace("-", "_"), None) for f, _, _ in FLAGS}
+    return profile_from_args(getattr(args, "profile", None), getattr(args, "function", None), **flags)
+
+
+def _add_profile(sp):
+    """``--profile FILE``, one flag per profile key, ``--strict``, ``--rows``, ``--json`` (docs/ports.md)."""
+    from .golden.profile import FLAGS
+
+    sp.add_argument("--profile", type=Path, metavar="FILE.toml", help="the engine's conventions (docs/ports.md)")
+    for flag, _, text in FLAGS:
+        sp.add_argument(flag, metavar="VALUE", help=text)
+    sp.add_argument("--strict", action="store_true",
+                    help="gate the rows beyond the algorithm's contract too (robustness rows)")
+    sp.add_argument("--rows", type=_rows_arg, default=None, metavar="N|all",
+                    help="failing rows to list per case (default 5; all: every one)")
+    sp.add_argument("--json", type=Path, metavar="FILE", help="write every row's verdict as JSON")
+
+
+def _rows_arg(text):
+    if text == "all":
+        return "all"
+    return _int_in(0)(text)
 
 
 def _cmd_verify(args):
     from . import golden
+    from .golden.diagnosis import write_json
 
-    report = golden.verify(args.golden, args.results, port_dtype=args.dtype)
-    print(report.format(worst_rows=args.worst))
+    report = golden.verify(args.golden, args.results, port_dtype=args.dtype, strict=args.strict,
+                           profile=_profile(args))
+    rows = args.rows if args.rows is not None else args.worst
+    print(report.format(worst_rows=None if rows == "all" else rows))
+    if args.json:
+        write_json(args.json, [c.record for c in report.checked], {"command": "verify"})
     return 1 if report.failed else 0
 
 
@@ -234,6 +271,12 @@ def _add_oracle(sub):
     g = sub.add_parser("golden", help="write golden vectors and manifest.json")
     g.add_argument("--out", required=True, type=Path, help="output folder")
     g.add_argument("--case", action="append", help="only this case (repeatable)")
+    g.add_argument("--function", help="the tested function: selects the profile's [functions.NAME] table")
+    g.add_argument("--profile", type=Path, metavar="FILE.toml", help="write the cases for an engine's conventions")
+    from .golden.profile import FLAGS
+
+    for flag, _, text in FLAGS:
+        g.add_argument(flag, metavar="VALUE", help=text)
     g.set_defaults(func=_cmd_golden)
 
     v = sub.add_parser("verify", help="compare a port's results (.npz) with the goldens")
@@ -241,6 +284,8 @@ def _add_oracle(sub):
     v.add_argument("--results", required=True, type=Path, help=".npz with arrays '<case>.<output>'")
     v.add_argument("--dtype", choices=("float32", "float64"), help="the port's precision (default: each case's)")
     v.add_argument("--worst", type=_int_in(0), default=5, help="worst rows to print per failing case")
+    v.add_argument("--function", help="the tested function: selects the profile's [functions.NAME] table")
+    _add_profile(v)
     v.add_argument("--out", type=Path, help="unused; accepted for uniformity")
     v.set_defaults(func=_cmd_verify)
 
@@ -266,6 +311,7 @@ def _add_oracle(sub):
     cf.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                     help="deprecated alias of --watchdog (kept for old scripts)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
+    _add_profile(cf)
     cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
     _add_source_options(cf)
     cf.set_defaults(func=_cmd_conformance)

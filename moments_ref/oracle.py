@@ -134,7 +134,7 @@ def _call(candidate, c, arrays, vectorized):
     return dict(zip(c.outputs, (np.asarray(g) for g in got)))
 
 
-def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized=True):
+def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized=True, profile=None, strict=False):
     """Run ``candidate`` on golden and hypothesis rows and judge it like ``verify``.
 
     Parameters
@@ -155,6 +155,12 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         its neighbours.
     seed : int
         Unused (kept for compatibility; the draws are derandomized).
+    profile : moments_ref.golden.profile.Profile or path, optional
+        The engine's declared conventions (depth convention, output, bias, clamp,
+        texel format; docs/ports.md): the candidate gets the rows converted for them,
+        expected values and tolerances are derived for them.
+    strict : bool
+        Robustness rows (beyond the algorithm's contract) fail the verdict too.
 
     Returns
     -------
@@ -162,16 +168,25 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
     """
     if dtype not in ("float32", "float64"):
         raise InputError(f"dtype: expected 'float32' or 'float64', got {dtype!r}")
+    if profile is not None and not hasattr(profile, "is_default"):
+        from .golden.profile import load_profile
+
+        profile = load_profile(profile)
     name = case if case in CASES else f"{case}-{dtype}"
     if name not in CASES:
         stems = sorted({n.rsplit("-", 1)[0] for n in CASES})
         raise InputError(f"case: unknown case {case!r}; known: {', '.join(stems)}")
     c = CASES[name]
     arrays = golden_arrays(c)
-    if n_hypothesis and not c.function.startswith("kernels."):  # a kernel case's texels depend on their neighbours
+    # Engine cases are distributions, kernel cases whole maps (a texel depends on its neighbours): no draws.
+    if n_hypothesis and c.deriver is None and not c.function.startswith("kernels."):
         arrays = _concat(arrays, _hypothesis_arrays(c, n_hypothesis))
+    if profile is not None and not profile.is_default:
+        from .golden.conventions import profile_arrays
+
+        c, arrays = profile_arrays(c, arrays, profile)
     got = _call(candidate, c, arrays, vectorized)
-    verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name)
+    verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name, strict=strict)
     return _report(c, name, dtype, arrays, got, verdict)
 
 

@@ -5,7 +5,8 @@ Hypothesis: ``ci`` (derandomized, bounded, no deadline) and ``thorough``. CI sel
 local runs. Conformance: the drivers, the compilers and the shipped goldens, built
 on tests/_harness.py. Goldens: ``gdir``, the requesting module's ``GOLDEN_CASES``
 (every case when it names none); every golden folder is written once per test
-process (tests/_oracles.py).
+process (tests/_oracles.py). Derived goldens of engine profiles (golden.conventions)
+are cached in a temporary folder of the run (``MOMENTS_REF_CACHE``).
 """
 
 import os
@@ -32,6 +33,14 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def pytest_configure(config):
+    """Derived goldens of engine profiles go to a folder of the test run, not to the user's cache."""
+    import tempfile
+
+    if not os.environ.get("MOMENTS_REF_CACHE"):
+        os.environ["MOMENTS_REF_CACHE"] = tempfile.mkdtemp(prefix="moments-ref-test-cache-")
 
 
 # --------------------------------------------------------------------------

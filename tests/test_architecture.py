@@ -262,10 +262,7 @@ def test_the_import_checks_fail_on_violations(tmp_path):
 
 #: Modules still importing another module's private names, each with its reason (their
 #: owners rework them; the test fails when one is fixed, so the entry goes).
-PRIVATE_PENDING = {
-    "golden.cases": "nonlinear._PSI_C0, _PSI_C1 for the Ψ4 rows (the golden cases' own issue)",
-    "packing": "nonlinear._phi_rows, _psi4_clamped (the texel formats' own issue)",
-}
+PRIVATE_PENDING = {}
 
 
 def _package_of(name: str, is_package: bool) -> str:

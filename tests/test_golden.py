@@ -81,7 +81,13 @@ def test_rows_gate_tightly(gdir):
     m = json.loads((gdir / "manifest.json").read_text())
     frac = {n: e["gated"]["float32"]["gated_below_0.1"] / e["count"] for n, e in m["cases"].items()
             if "gated_below_0.1" in e["gated"]["float32"]}
-    assert frac["shade-float32"] >= 0.98, frac["shade-float32"]
+    # The printed root of Algorithm 3 (a legitimate formulation, golden.paper) cancels just below y2:
+    # about ten rows there gate at its measured spread, above 0.1.
+    assert frac["shade-float32"] >= 0.97, frac["shade-float32"]
+    for name, e in m["cases"].items():  # every contract row is gated, or ungated for a reason in the notes
+        levels = e["gated"]["float32"].get("levels", {}).get("contract")
+        if levels:
+            assert set(levels["ungated"]) <= set(m["notes"]), (name, levels["ungated"])
     assert m["cases"]["shade-float64"]["gated"]["float64"]["gated_below_0.1"] / m["cases"]["shade-float64"]["count"] > 0.99
     for name in ("shadow_intensity-lower-float32", "shadow_intensity-upper-float32"):
         # Of the rows where the bound is defined (not outside the moment space); the rest:

@@ -25,7 +25,11 @@ summaries. The rule, the same for every harness:
   value, measured as the case's ``metric`` says: ``abs`` (absolute difference) or
   ``ulps`` (units in the last place of the port's precision at the expected
   value). Rows with an infinite tolerance (``result`` acceptable: the value is
-  undefined there) need only a finite value within the case's ``value_range``.
+  undefined there) need only a finite value within the case's ``value_range``;
+* rows flagged ``robustness`` (beyond the algorithm's contract,
+  :mod:`moments_ref.golden.contract`) are judged by the same rule, but only
+  ``strict=True`` lets them fail the verdict; otherwise what they would fail for
+  (``strict_pass``, ``nonfinite``, ``outside_range``) is counted and shown.
 """
 
 from __future__ import annotations
@@ -35,7 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._arrays import InputError
-from .spread import ulp
+from .spread import robust_rows
+from .units import ulp
 
 __all__ = ["compare", "Verdict", "OutputSummary", "check_dtypes", "port_precision"]
 
@@ -67,6 +72,11 @@ class Verdict:
     error: np.ndarray | None = None  # (n,) the error (metric's unit) at each row's worst value
     tolerance: np.ndarray | None = None  # (n,) its tolerance (0: exact codes, inf: ungated)
     gated: np.ndarray | None = None  # (n,) bool: the row is held to an expected value (not only a range)
+    robust: np.ndarray | None = None  # (n,) bool: robustness rows (beyond the algorithm's contract)
+    strict: bool = False  # robustness rows gate the verdict
+    strict_pass: np.ndarray | None = None  # (n,) bool: the row passes when robustness rows are gated too
+    nonfinite: np.ndarray | None = None  # (n,) bool: a NaN or infinite output value
+    outside_range: np.ndarray | None = None  # (n,) bool: a finite value outside the case's value_range
 
     @property
     def passed(self):
@@ -75,6 +85,19 @@ class Verdict:
     @property
     def failures(self):
         return int((~self.row_pass).sum())
+
+    @property
+    def level(self):
+        """``(n,)`` str: ``contract`` or ``robustness`` per row."""
+        robust = np.zeros(len(self.row_pass), bool) if self.robust is None else self.robust
+        return np.where(robust, "robustness", "contract")
+
+    def robustness_tally(self):
+        """Robustness rows: how many, how many would fail with ``strict``, NaN and out-of-range among them."""
+        robust = np.zeros(len(self.row_pass), bool) if self.robust is None else self.robust
+        fail = robust & ~self.strict_pass
+        return {"rows": int(robust.sum()), "would_fail": int(fail.sum()),
+                "nonfinite": int((fail & self.nonfinite).sum()), "outside_range": int((fail & self.outside_range).sum())}
 
     def worst_rows(self, k):
         """Indices of the ``k`` failing rows with the largest score (all failing rows if k is None)."""
@@ -144,10 +167,11 @@ def _float(o, entry, expected, cand, n, dt):
     flat = lambda x: x.reshape(n, -1)  # noqa: E731
     k = np.argmax(flat(ratio), axis=1)
     rows = np.arange(n)
-    return (flat(ok).all(axis=1), flat(ratio).max(axis=1), flat(err)[rows, k], flat(tol)[rows, k])
+    bad = (~flat(finite).all(axis=1), (flat(finite) & ~flat(inside)).any(axis=1))
+    return (flat(ok).all(axis=1), flat(ratio).max(axis=1), flat(err)[rows, k], flat(tol)[rows, k]), bad
 
 
-def compare(entry, expected, candidate, port_dtype=None, case=""):
+def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
     """Judge a port's outputs on one golden case; see the module docstring.
 
     Parameters
@@ -162,6 +186,8 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
         The port's precision (which tolerance column applies); default the case's.
     case : str
         The case name, for messages.
+    strict : bool
+        Robustness rows (flag ``robustness``) fail the verdict too.
 
     Returns
     -------
@@ -174,6 +200,9 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
     row_pass = np.ones(n, bool)
     score = np.full(n, -1.0)
     row_err, row_tol, row_gated = np.zeros(n), np.zeros(n), ~acceptable_rows
+    nonfinite, outside = np.zeros(n, bool), np.zeros(n, bool)
+    robust = robust_rows(expected, n)
+    lenient = robust & (not strict)  # robustness rows do not decide the verdict unless strict
     outputs = {}
     for o in entry["compare"]:
         cand = np.asarray(candidate[o])
@@ -184,15 +213,19 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
             ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows)
             gated = int((~acceptable_rows).sum())
         else:
-            ok, s, err, tol = _float(o, entry, expected, cand, n, dt)
+            (ok, s, err, tol), (nf, out) = _float(o, entry, expected, cand, n, dt)
+            nonfinite, outside = nonfinite | nf, outside | out
             finite = np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
             row_gated = row_gated & finite
             gated = int((~acceptable_rows & finite).sum())
+        judged = ok | lenient.reshape((n,) + (1,) * (np.ndim(ok) - 1))
         row_pass &= ok
         worse = s > score
         row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)
         score = np.maximum(score, s)
         w = int(np.argmax(s)) if n else 0
-        outputs[o] = OutputSummary(o, entry["metric"], n, gated, int((~ok).sum()), w, float(s[w]) if n else 0.0,
+        outputs[o] = OutputSummary(o, entry["metric"], n, gated, int((~judged).sum()), w, float(s[w]) if n else 0.0,
                                    float(err[w]) if n else 0.0, float(tol[w]) if n else 0.0)
-    return Verdict(case, dt, row_pass, np.maximum(score, 0.0), outputs, row_err, row_tol, row_gated)
+    verdict_pass = row_pass | lenient
+    return Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), outputs, row_err, row_tol, row_gated, robust,
+                   bool(strict), row_pass, nonfinite, outside)

@@ -97,7 +97,8 @@ def load_manifest(golden_dir):
 def _size_limit(meta):
     """Bytes a case file may have at most, from the manifest's shapes."""
     total = 0
-    for spec in list(meta["inputs"].values()) + list(meta["outputs"].values()):
+    aux = meta.get("aux") if isinstance(meta.get("aux"), dict) else {}  # engine cases' distributions
+    for spec in list(meta["inputs"].values()) + list(meta["outputs"].values()) + list(aux.values()):
         try:
             count = int(np.prod([int(s) for s in spec["shape"]], dtype=np.int64))
             total += count * np.dtype(spec["dtype"]).itemsize
@@ -157,6 +158,8 @@ class CaseResult:
     per_category: dict  # category -> (rows, failures, worst score)
     message: str = ""
     verdict: object = None  # the compare.Verdict
+    groups: list = None  # diagnosis.Group: failing rows by level and flag, with their cause
+    record: dict = None  # every row's verdict (diagnosis.json_rows), for --json
 
 
 @dataclass
@@ -172,6 +175,9 @@ class VerifyReport:
         return [c for c in self.cases if c.status in ("pass", "fail")]
 
     def format(self, worst_rows=5):
+        """The report; ``worst_rows=None`` lists every failing row (``--rows all``)."""
+        from .diagnosis import group_lines
+
         lines = []
         for c in self.cases:
             if c.status == "missing":
@@ -180,7 +186,9 @@ class VerifyReport:
             lines.append(head + (f": {c.message}" if c.message else ""))
             for cat, (rows, fails, score) in c.per_category.items():
                 lines.append(f"      {cat:6} rows {rows:4d}  failures {fails:4d}  worst error/tolerance {score:.3g}")
-            for r in c.worst[:worst_rows]:
+            lines += [f"      {x}" for x in group_lines(c.groups or [], c.verdict.failures, c.verdict.strict)]
+            lines += [f"      {x}" for x in _robustness_line(c.verdict)]
+            for r in c.worst[:worst_rows] if worst_rows is not None else c.worst:
                 ins = ", ".join(f"{k}={np.array2string(np.asarray(v), precision=9)}" for k, v in r["inputs"].items())
                 lines.append(f"      row {r['index']} (tc_id {r['tc_id']}) [{r['category']}"
                              f"{'; ' + r['flags'] if r['flags'] else ''}] error {r['error']:.3g} > {r['tolerance']:.3g}: "
@@ -195,8 +203,19 @@ class VerifyReport:
         return "\n".join(lines)
 
 
-def _case_result(name, meta, gold, got, port_dtype, keep):
-    verdict = compare(meta, gold, got, port_dtype, case=name)
+def _robustness_line(v):
+    t = v.robustness_tally()
+    if not t["rows"]:
+        return []
+    mode = "gated (--strict)" if v.strict else "not gated; --strict gates them"
+    return [f"beyond the algorithm's contract: {t['rows']} rows, {t['would_fail']} outside their tolerance "
+            f"({t['nonfinite']} NaN or infinite, {t['outside_range']} out of range); {mode}"]
+
+
+def _case_result(name, meta, gold, got, port_dtype, keep, strict=False, extra=None):
+    from .diagnosis import groups, json_rows
+
+    verdict = compare(meta, gold, got, port_dtype, case=name, strict=strict)
     category = gold["category"]
     o = meta["compare"][0]
     worst = []
@@ -217,7 +236,32 @@ def _case_result(name, meta, gold, got, port_dtype, keep):
         if sel.any():
             per_cat[c] = (int(sel.sum()), int((~verdict.row_pass[sel]).sum()), float(verdict.score[sel].max()))
     msg = f"{verdict.failures} of {len(category)} rows fail" if not verdict.passed else ""
-    return CaseResult(name, "pass" if verdict.passed else "fail", verdict.port_dtype, worst, per_cat, msg, verdict)
+    gs = groups(verdict, gold, extra(verdict) if extra else ())
+    return CaseResult(name, "pass" if verdict.passed else "fail", verdict.port_dtype, worst, per_cat, msg, verdict,
+                      gs, json_rows(name, meta, gold, got, verdict, gs))
+
+
+def _causes(name, base, got, profile, target, port_dtype):
+    """``verdict -> [diagnosis.Group]``: a singular bias target, another convention or texel format."""
+    from .diagnosis import convention_groups
+    from .profile import DEFAULT
+
+    def extra(v):
+        found = target(v) if target is not None else []
+        return found or convention_groups(name, v, base, got, profile or DEFAULT, port_dtype)
+
+    return extra
+
+
+def _profiled(name, meta, gold, profile):
+    """The case's manifest entry and arrays under ``profile``, and its target diagnosis."""
+    from .conventions import profiled_arrays
+    from .diagnosis import target_groups
+    from .writer import manifest_entry
+
+    pcase, arrays = profiled_arrays(name, profile, arrays=gold)
+    entry = dict(meta, **{k: v for k, v in manifest_entry(pcase, arrays).items() if k not in ("sha256", "size")})
+    return entry, arrays, (lambda v: target_groups(v, arrays, profile.bias, pcase.engine))
 
 
 def _row_error(meta, gold, got, o, i, dt):
@@ -236,7 +280,7 @@ def _row_tolerance(meta, gold, o, i, dt):
     return float(np.min(gold[f"{o}_tolerance_{dt}"][i]))
 
 
-def verify(golden_dir, results_path, port_dtype=None, worst_rows=None):
+def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=False, profile=None):
     """Compare a foreign implementation's outputs with the goldens.
 
     Parameters
@@ -253,6 +297,12 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None):
         dtype the results must have); default: each case's own dtype.
     worst_rows : int, optional
         Failing rows to keep per case (default: all).
+    strict : bool
+        Robustness rows (beyond the algorithm's contract) fail the verdict too.
+    profile : moments_ref.golden.profile.Profile, optional
+        The engine's declared conventions: the results were computed on the case's
+        inputs converted for it (``moments-ref golden --profile``), and expected
+        values and tolerances are derived for it (golden.conventions; cached).
 
     Returns
     -------
@@ -270,6 +320,11 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None):
     if port_dtype not in (None, "float32", "float64"):
         raise InputError(f"port_dtype: expected float32 or float64, got {port_dtype!r}")
     manifest = load_manifest(golden_dir)
+    if manifest.get("profile_key") is not None and profile is not None and not profile.is_default:
+        if profile.key != manifest["profile_key"]:
+            raise InputError("profile: the golden folder was written for another profile "
+                             f"({manifest.get('profile')}); verify it without --profile or with that one")
+        profile = None  # the folder's expected values are already this profile's
     results = _load_results(results_path, _results_limit(manifest))
     known = {f"{n}.{o}" for n, m in manifest["cases"].items() for o in m["compare"]}
     stray = sorted(set(results) - known)
@@ -282,8 +337,12 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None):
             report.append(CaseResult(name, "missing", port_dtype or meta["dtype"], [], {}))
             continue
         gold = load_case_arrays(golden_dir, name, meta)
+        base, target = gold, None
+        if profile is not None and not profile.is_default:
+            meta, gold, target = _profiled(name, meta, gold, profile)
         got = {o: results[k] for o, k in keys.items() if k in results}
-        report.append(_case_result(name, meta, gold, got, port_dtype, worst_rows))
+        report.append(_case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
+                                   _causes(name, base, got, profile, target, port_dtype or meta["dtype"])))
     if not report or all(c.status == "missing" for c in report):
         raise InputError("results: no array matches a golden case output ('<case>.<output>')")
     return VerifyReport(report)

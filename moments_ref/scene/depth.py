@@ -51,9 +51,10 @@ from .._arrays import real_input
 
 __all__ = ["z_unit_from_ndc", "z_ndc_from_unit", "z_reversed_from_unit", "z_unit_from_reversed", "z_reversed_from_ndc",
            "z_ndc_from_reversed", "d_view_from_ndc", "z_ndc_from_view", "PROJECTIONS", "warped_positive",
-           "warped_negative", "moments_affine", "moments_unit_from_ndc", "moments_ndc_from_unit",
-           "moments_reversed_from_unit", "moments_unit_from_reversed", "x_window_from_ndc", "y_window_from_ndc",
-           "window_from_ndc", "x_ndc_from_window", "y_ndc_from_window", "ndc_from_window", "window_scale"]
+           "warped_negative", "moments_affine", "moments_affine_rational", "round_rational", "moments_unit_from_ndc",
+           "moments_ndc_from_unit", "moments_reversed_from_unit", "moments_unit_from_reversed", "x_window_from_ndc",
+           "y_window_from_ndc", "window_from_ndc", "x_ndc_from_window", "y_ndc_from_window", "ndc_from_window",
+           "window_scale"]
 
 #: The projections of :func:`d_view_from_ndc` and :func:`z_ndc_from_view`.
 PROJECTIONS = ("perspective", "orthographic")
@@ -64,7 +65,7 @@ def _depth(z, name):
 
 
 def z_unit_from_ndc(z_ndc):
-    """[-1, 1] → [0, 1]: ``(z_ndc + 1) / 2`` (exact in binary floating point but for underflow)."""
+    """[-1, 1] → [0, 1]: ``(z_ndc + 1) / 2``, rounded once (the sum rounds, the halving is exact)."""
     z = _depth(z_ndc, "z_ndc")
     return (z + 1) * z.dtype.type(0.5)
 
@@ -154,7 +155,7 @@ def warped_negative(z_ndc, c):
     return -np.exp(-_warp_exponent(z, c) * z)
 
 
-def moments_affine(b, scale, offset):
+def moments_affine(b, scale, offset, exact=False):
     """Power moments of ``scale · z + offset`` from those of ``z``, by the binomial theorem.
 
     Parameters
@@ -162,6 +163,10 @@ def moments_affine(b, scale, offset):
     b : (..., n) float array
         ``(b1, ..., bn)`` of a distribution of z (b0 = 1 implicit).
     scale, offset : float
+    exact : bool
+        Evaluate each sum in exact rational arithmetic (the floats given are exact
+        binary fractions) and round once: the correctly rounded moments, also for
+        float64 input. Element by element in Python; for golden rows, not for maps.
 
     Returns
     -------
@@ -171,7 +176,8 @@ def moments_affine(b, scale, offset):
     -----
     ``b'_k = sum_{j=0..k} C(k, j) scale^j offset^(k-j) b_j``. The sum is evaluated
     in float64 whatever the input and rounded once to the input's dtype, so a
-    float32 moment vector is converted as exactly as float32 can hold it.
+    float32 moment vector is converted as exactly as float32 can hold it (a
+    float64 one to within a few float64 roundings; ``exact=True`` for one rounding).
 
     Examples
     --------
@@ -187,6 +193,9 @@ def moments_affine(b, scale, offset):
 
         raise InputError(f"b: expected moments (..., n) with n >= 1, got shape {arr.shape}")
     n = arr.shape[-1]
+    if exact:
+        q = moments_affine_rational(arr, scale, offset)
+        return np.array([round_rational(x, arr.dtype) for x in q.reshape(-1)]).reshape(arr.shape).astype(arr.dtype)
     x = arr.astype(np.float64)
     out = np.empty_like(x)
     s, o = float(scale), float(offset)
@@ -196,6 +205,47 @@ def moments_affine(b, scale, offset):
             acc = acc + comb(k, j) * s ** j * o ** (k - j) * x[..., j - 1]
         out[..., k - 1] = acc
     return out.astype(arr.dtype, copy=False)
+
+
+def moments_affine_rational(b, scale, offset):
+    """:func:`moments_affine` in exact rational arithmetic: an object array of ``Fraction`` (b's shape).
+
+    The floats given are exact binary fractions, so nothing is rounded; round each
+    value once with :func:`round_rational`. Element by element in Python: for golden
+    rows, not for maps.
+    """
+    from fractions import Fraction
+
+    arr = np.asarray(b)
+    n = arr.shape[-1]
+    s, o = Fraction(float(scale)), Fraction(float(offset))
+    coef = [[comb(k, j) * s ** j * o ** (k - j) for j in range(k + 1)] for k in range(1, n + 1)]
+    flat = arr.reshape(-1, n)
+    out = np.empty(flat.shape, dtype=object)
+    for i, row in enumerate(flat.tolist()):  # exact sums, element by element
+        x = [Fraction(1)] + [Fraction(v) for v in row]
+        for k in range(n):
+            out[i, k] = sum(c * x[j] for j, c in enumerate(coef[k]))
+    return out.reshape(arr.shape)
+
+
+def round_rational(q, dtype):
+    """The rational ``q`` rounded once (to nearest, ties to even) to ``dtype``: a Python float.
+
+    float64 by Python's correctly rounded ``int / int``; float32 by choosing among the
+    float32 neighbours of that float64 the one nearest to ``q``, so that no double
+    rounding can occur.
+    """
+    from fractions import Fraction
+
+    q = Fraction(q)
+    near = q.numerator / q.denominator
+    if np.dtype(dtype) == np.float64:
+        return near
+    x = np.float32(near)
+    cands = [x, np.nextafter(x, np.float32(-np.inf)), np.nextafter(x, np.float32(np.inf))]
+    best = min(cands, key=lambda c: (abs(Fraction(float(c)) - q), int(np.float32(c).view(np.int32)) & 1))
+    return float(best)
 
 
 def moments_unit_from_ndc(b_ndc):
