@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import float_dtype
+
 __all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
 
@@ -28,7 +30,7 @@ SINGULAR_RTOL = {"float32": 0.0, "float64": 8.0}
 
 def singular_thresholds(dtype):
     """The relative singularity threshold ``SINGULAR_RTOL[dtype]·eps`` of float32 or float64."""
-    dt = np.dtype(dtype)
+    dt = float_dtype(dtype)
     return SINGULAR_RTOL[dt.name] * np.finfo(dt).eps
 
 
