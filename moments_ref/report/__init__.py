@@ -87,7 +87,9 @@ from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded
 from . import paper_claims, scattering_temporal
 from .. import pipeline
 from .. import techniques as _techniques
+from ..scene.gbuffer import check_shaded
 from ..techniques import REFERENCES, get_reference
+from ..techniques._interface import PROJECTION
 from ..techniques.area import soft_statements
 from ._crops import crop_figures
 from ._jobs import WorkerDied, Workers, usable_cores
@@ -207,12 +209,16 @@ def _announce(acc, sc, names, used, ref_settings, full):
                              "techniques": list(names), "reduced": reduced}
     note = (f"not the scene's own: {', '.join(reduced)}; --full runs the scene's own settings"
             if reduced else "the scene's own settings")
-    print(f"{sc.name}: {', '.join(names)}; shadow map {'×'.join(map(str, size))}, MSAA {samples}×, camera "
-          f"{'×'.join(map(str, res))}, reference {refs}, {acc.repeats} timed repeats ({note})", file=sys.stderr)
+    return (f"{sc.name}: {', '.join(names)}; shadow map {'×'.join(map(str, size))}, MSAA {samples}×, camera "
+            f"{'×'.join(map(str, res))}, reference {refs}, {acc.repeats} timed repeats ({note})")
 
 
 def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_techniques=False):
-    """``(techniques, pipeline keywords)`` of a scene, its settings announced; ``None`` when nothing runs on it."""
+    """``(techniques, pipeline keywords, settings line)`` of a scene; ``None`` when nothing runs on it.
+
+    A scene whose camera would shade no receiver pixel at the run's settings is
+    refused here, before any work (:func:`moments_ref.scene.gbuffer.check_shaded`).
+    """
     size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
     names = _scene_techniques(sc, requested, all_techniques)
@@ -220,8 +226,23 @@ def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_tec
         return None
     kw = dict(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles, settings=overrides,
               full=full, given=given)
-    _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, **kw)[2]["settings"], full)
-    return names, kw
+    graph, targets, meta = pipeline.plan(sc, names, **kw)
+    if PROJECTION in graph.order(targets):
+        check_shaded(sc, res, sc.shadow_view_proj(), size)
+    return names, kw, _announce(acc, sc, names, (size, samples, res), meta["settings"], full)
+
+
+def _check_unique(scenes, loaded):
+    """Refuse two scenes of the same name: their rows, stages and images would overwrite each other."""
+    given = {}
+    for arg, sc in zip(scenes, loaded):
+        if sc.name in given:
+            first = given[sc.name]
+            what = (f"scene {str(arg)!r} is given twice" if str(first) == str(arg) else
+                    f"two scenes are named {sc.name!r} ({first} and {arg}); give one of them another name "
+                    "(name = \"...\" in its file)")
+            raise InputError(f"scene: {what}: their rows and images would overwrite each other")
+        given[sc.name] = arg
 
 
 def _png(fig):
@@ -349,13 +370,40 @@ def _write(acc, out, flip_ok, done, fronts):
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
         temporal=False)
-    paths = {name: write_bytes(out / name, data) for name, data in files.items()}
-    paths.update({name: write_bytes(out / name, data) for name, data in {**acc.pngs, **fronts}.items()})
-    for name, text in texts.items():
-        paths[name] = write_text(out / name, text)
+    blobs = {**files, **acc.pngs, **fronts, **{name: text.encode("utf-8") for name, text in texts.items()}}
+    paths = _write_set(out, blobs)
     return {"rows": acc.rows, "stages": acc.stages, "claims": json.loads(texts["claims.json"]),
             "soft": statements.get("mvr", {}),
             "artifacts": artifacts, "paths": paths, "settings": acc.references}
+
+
+#: The file that marks a report folder whose writing did not finish (see :func:`_write_set`).
+INCOMPLETE = "INCOMPLETE"
+
+
+def _write_set(out, blobs):
+    """Write ``{file name: bytes}`` into ``out``, marked :data:`INCOMPLETE` until the last file is written.
+
+    Each file is written atomically; the set is not: the marker is written first
+    and removed after the last file, so that a folder whose writing failed (a full
+    disk, a folder in the way) or was killed says so. A failure is an
+    :class:`InputError` naming the file, the reason and how many files were written.
+    """
+    bad = [n for n in blobs if Path(n).name != n or n in (".", "..", INCOMPLETE)]
+    if bad:  # names are made from checked scene names; this guards the folder anyway
+        raise InputError(f"out: refusing to write {bad[0]!r} (not a plain file name inside {out})")
+    marker, paths, name = out / INCOMPLETE, {}, INCOMPLETE
+    try:
+        write_text(marker, f"This report was not completely written: {len(blobs)} files were to be written, "
+                           f"{', '.join(blobs)}. Rerun moments-ref report to replace it.\n")
+        for name, data in blobs.items():
+            paths[name] = write_bytes(out / name, data)
+        marker.unlink()
+    except OSError as exc:
+        state = ("nothing was written" if name == INCOMPLETE else
+                 f"the report in {out} is incomplete ({len(paths)} of {len(blobs)} files written; {marker} says so)")
+        raise InputError(f"out: could not write {out / name} ({exc.strerror or exc}); {state}") from None
+    return paths
 
 
 def _timing_line(jobs, cores, repeats):
@@ -430,13 +478,19 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     Raises
     ------
     InputError
-        Unknown scene or technique names (listing the known ones), a scene
-        without receiver or camera (with the reason).
+        Unknown scene or technique names (listing the known ones), two scenes of
+        the same name, a scene without receiver or camera or whose camera shades
+        no receiver pixel (with the reason), a write that failed (the folder is
+        then marked incomplete, :func:`_write`).
     """
     from ..scene import list_scenes, load_scene
 
+    if isinstance(out_dir, str) and not out_dir.strip():
+        raise InputError(f"out_dir: expected a folder, got {out_dir!r}")
     out = Path(out_dir)
-    loaded = [load_scene(s) for s in (list_scenes() if not scenes else list(scenes))]  # refuse bad names first
+    scenes = list_scenes() if not scenes else list(scenes)
+    loaded = [load_scene(s) for s in scenes]  # refuse bad names first
+    _check_unique(scenes, loaded)
     for sc in loaded:
         pipeline.check_scene(sc)
     if techniques is not None:
@@ -451,6 +505,9 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                   noise_tiles, all_techniques)) is not None]
+    for _, (_, _, line) in plans:  # every scene checked first: no line precedes a refusal
+        print(line, file=sys.stderr)
+    plans = [(sc, (names, kw)) for sc, (names, kw, _) in plans]
     tasks = _tasks(plans, full, jobs, acc.repeats, progress)
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]

@@ -16,6 +16,10 @@ and every value is checked before it is used:
   and names over :data:`MAX_NAME_BYTES` bytes of UTF-8;
 * **parameters**: every key of ``[params]`` is one of :data:`PARAMS`, each value
   of its type and in its range.
+
+References
+----------
+VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
