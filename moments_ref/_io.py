@@ -2,18 +2,62 @@
 
 An interrupted run never leaves a half-written file behind: either the old file
 (or none) or the complete new one is on disk.
+
+Temporaries. :func:`atomic_path` creates its temporary file and registers it in
+one step during which SIGINT, SIGTERM and SIGHUP are held back
+(``signal.pthread_sigmask``), so that no signal lands between the two: a signal
+raised inside the block removes the temporary, and one delivered as the block is
+left (before its cleanup can run) finds it registered, and
+:func:`remove_temporaries` (the command line's exit path, and ``atexit``) removes
+it. A writer killed outright (SIGKILL) leaves its temporary, which the next
+writer of the same file removes (:func:`clean_stale`).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import glob
 import io
 import os
+import signal
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "clean_stale", "write_bytes", "write_text", "save_npz", "save_figure"]
+__all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
+           "save_figure"]
+
+#: Temporaries of this process's unfinished writes.
+_LIVE = set()
+_HELD = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)}
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Hold SIGINT, SIGTERM and SIGHUP back for the block; they are delivered when it is left."""
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+    except (AttributeError, OSError, ValueError):  # no POSIX signal masks here
+        old = None
+    try:
+        yield
+    finally:
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def remove_temporaries() -> list[str]:
+    """Remove the temporaries of this process's unfinished :func:`atomic_path` writes; return their paths."""
+    removed = []
+    for tmp in list(_LIVE):
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+            removed.append(tmp)
+        _LIVE.discard(tmp)
+    return removed
+
+
+atexit.register(remove_temporaries)
 
 
 def _mode() -> int:
@@ -67,12 +111,14 @@ def atomic_path(path, suffix=None):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_stale(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=suffix or path.suffix,
-                               dir=path.parent)
-    try:
-        os.fchmod(fd, _mode())
-    finally:
-        os.close(fd)
+    with _signals_held():  # created and registered in one step (module docstring)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=suffix or path.suffix,
+                                   dir=path.parent)
+        _LIVE.add(tmp)
+        try:
+            os.fchmod(fd, _mode())
+        finally:
+            os.close(fd)
     try:
         yield Path(tmp)
         fd = os.open(tmp, os.O_RDONLY)
@@ -85,6 +131,8 @@ def atomic_path(path, suffix=None):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    finally:
+        _LIVE.discard(tmp)
 
 
 def write_bytes(path, data: bytes) -> Path:
