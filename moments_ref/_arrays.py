@@ -241,12 +241,13 @@ def lookup_inputs(x, name: str, zf, trailing: int = 4):
     return x, zf, shape
 
 
-def brief(value) -> str:
-    """``repr(value)`` for a message, a huge integer shortened to its first digits and its length."""
+def brief(value, width: int = 80) -> str:
+    """``repr(value)`` for a one-line message: a huge integer as its first digits and its length, anything
+    else cut to ``width`` characters."""
     text = repr(value)
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and len(text) > 24:
         return f"{text[:12]}… ({len(text.lstrip('-'))} digits)"
-    return text
+    return text if len(text) <= width else text[:width - 1] + "…"
 
 
 def check_axis(axis, ndim: int, of: str) -> int:
