@@ -11,9 +11,11 @@ are classified like them (``stiff`` where legitimate implementations differ by
 instead, read by the one strict loader of ``verify`` and ``conformance``
 (:mod:`moments_ref.golden.loader`).
 
-hypothesis is a dependency of the package, imported only when rows are drawn
-(``n_hypothesis > 0``): ``import moments_ref.oracle`` works without it, and a check
-that needs it says which package to install.
+hypothesis comes with the ``test`` extra, not with the base install: it is
+imported only when rows are drawn (``n_hypothesis > 0``), so ``import
+moments_ref.oracle`` and ``check(..., n_hypothesis=0)`` work without it, and a
+check that draws rows without it raises an :class:`~moments_ref.InputError`
+naming the extra.
 
 Example
 -------
@@ -84,9 +86,9 @@ def _strategies():
     except ModuleNotFoundError as exc:
         if exc.name != "hypothesis":
             raise
-        raise InputError("n_hypothesis: drawing rows needs the package hypothesis, a dependency of moments_ref "
-                         "missing here: pip install hypothesis (or the test extra, pip install -e '.[test]'), "
-                         "or pass n_hypothesis=0 for the golden rows alone") from None
+        raise InputError("n_hypothesis: rows drawn by hypothesis need the test extra (pip install "
+                         "'moments_ref[test]', in a checkout pip install -e '.[test]'); pass n_hypothesis=0 to "
+                         "check the golden rows alone") from None
     return strategies
 
 
