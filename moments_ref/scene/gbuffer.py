@@ -178,11 +178,10 @@ def _refuse_unshaded(g, inside, camera, what):
     w, h = g.resolution
     seen = np.bincount(g.kind.reshape(-1), minlength=4)
     reason = (f"the {g.pixel.size} receiver pixels it sees lie outside the light's shadow map" if g.pixel.size else
-              f"occluders hide every receiver ({seen[OCCLUDER]} occluder pixels: occluders fill the view, or the "
-              "eye is inside one)"
-              if seen[OCCLUDER] else
-              "no receiver covers a pixel centre (receivers out of view, edge-on, of zero area, or the field of "
-              "view too narrow or too wide)")
+              f"it sees only occluders ({seen[OCCLUDER]} pixels): the receivers are out of view, edge-on, of zero "
+              "area or hidden (is the eye inside an occluder?)" if seen[OCCLUDER] else
+              "it sees no geometry: the receivers are out of view, edge-on or of zero area, or the field of view "
+              "is too narrow or too wide")
     view = "" if camera is None else f" (eye {camera.eye.tolist()}, target {camera.target.tolist()}, fov {camera.fov})"
     raise InputError(f"camera: shades no pixel of {what} at {w}×{h}{view}: {reason}; nothing to measure")
 
