@@ -45,6 +45,7 @@ __all__ = [
     "check_broadcast",
     "check_axis",
     "brief",
+    "one_line",
     "first_index",
     "real_input",
     "lookup_inputs",
@@ -248,6 +249,11 @@ def brief(value, width: int = 80) -> str:
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and len(text) > 24:
         return f"{text[:12]}… ({len(text.lstrip('-'))} digits)"
     return text if len(text) <= width else text[:width - 1] + "…"
+
+
+def one_line(text) -> str:
+    """``text`` as one line: line breaks and other unprintable characters as escapes (a path may hold them)."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
 
 
 def check_axis(axis, ndim: int, of: str) -> int:

@@ -4,10 +4,10 @@ An interrupted run never leaves a half-written file behind: either the old file
 (or none) or the complete new one is on disk.
 
 Temporaries. :func:`atomic_path` creates its temporary file and registers it in
-one step during which SIGINT, SIGTERM and SIGHUP are held back
-(``signal.pthread_sigmask``), so that no signal lands between the two: a signal
-raised inside the block removes the temporary, and one delivered as the block is
-left (before its cleanup can run) finds it registered, and
+one step during which the Python handlers of SIGINT, SIGTERM and SIGHUP are
+deferred, so that no ``KeyboardInterrupt`` lands between the two: a signal
+raised inside the guarded block removes the temporary, and one handed over as
+the creation step ends (before that block is entered) finds it registered, and
 :func:`remove_temporaries` (the command line's exit path, and ``atexit``) removes
 it. A writer killed outright (SIGKILL) leaves its temporary, which the next
 writer of the same file removes (:func:`clean_stale`).
@@ -22,6 +22,7 @@ import io
 import os
 import signal
 import tempfile
+import threading
 from pathlib import Path
 
 __all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
@@ -34,16 +35,31 @@ _HELD = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if ha
 
 @contextlib.contextmanager
 def _signals_held():
-    """Hold SIGINT, SIGTERM and SIGHUP back for the block; they are delivered when it is left."""
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
-    except (AttributeError, OSError, ValueError):  # no POSIX signal masks here
-        old = None
+    """Defer the Python handlers of SIGINT, SIGTERM and SIGHUP to the end of the block.
+
+    Python runs signal handlers in the main thread, between two bytecodes: a
+    handler that raises (``KeyboardInterrupt``) can land between any two lines.
+    A thread-level signal mask would not keep it out (the kernel hands a
+    process-wide signal to another thread, OpenBLAS's, and the handler still
+    runs here), so the handlers are swapped for one that notes the signal, and
+    the noted signals are handed to the real handlers when the block is left.
+    Other threads are never interrupted by a Python handler and need nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted, old = [], {}
+    for s in _HELD:
+        handler = signal.getsignal(s)
+        if callable(handler):  # SIG_DFL and SIG_IGN raise nothing here
+            old[s] = signal.signal(s, lambda signum, frame: noted.append((signum, frame)))
     try:
         yield
     finally:
-        if old is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for signum, frame in noted:
+            old[signum](signum, frame)
 
 
 def remove_temporaries() -> list[str]:

@@ -28,7 +28,7 @@ import threading
 import warnings
 from pathlib import Path
 
-from ._arrays import InputError, format_bytes, parse_bytes, set_max_memory
+from ._arrays import InputError, format_bytes, one_line, parse_bytes, set_max_memory
 
 
 def _progress(total, desc):
@@ -330,7 +330,7 @@ def _add_common(sub):
 
 
 def _fail(args, reason) -> int:
-    print(f"moments-ref {getattr(args, 'command', '')}: {reason}", file=sys.stderr)
+    print(one_line(f"moments-ref {getattr(args, 'command', '')}: {reason}"), file=sys.stderr)
     return 2
 
 

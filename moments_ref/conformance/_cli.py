@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, one_line
 from ..ports import PORTS_DIR
 from ._cases import load_case
 from ._gl import ContextError
@@ -47,7 +47,7 @@ def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=
         language = language_of(path, language)
         report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter)
     except (ContextError, ToolError, InputError) as exc:
-        print(f"moments-ref conformance: {exc}", file=err)
+        print(one_line(f"moments-ref conformance: {exc}"), file=err)
         return 2
     print(report.format(), file=out)
     return 0 if report.passed else 1
@@ -190,7 +190,7 @@ def main(args):
         try:
             text = summary_markdown(golden_dir=get("golden"), adapter=get("adapter"), progress=True)
         except (ContextError, ToolError) as exc:
-            print(f"moments-ref conformance: {exc}", file=sys.stderr)
+            print(one_line(f"moments-ref conformance: {exc}"), file=sys.stderr)
             return 2
         print(text)
         if get("out"):

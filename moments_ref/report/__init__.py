@@ -81,7 +81,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, one_line
 from .._io import figure_png, write_bytes, write_text
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from . import paper_claims, scattering_temporal
@@ -569,7 +569,7 @@ def main(argv=None) -> int:
                   techniques=args.technique, all_techniques=args.all_techniques, repeats=args.repeats,
                   jobs=args.jobs)
     except InputError as exc:
-        print(f"moments-ref report: {exc}", file=sys.stderr)
+        print(one_line(f"moments-ref report: {exc}"), file=sys.stderr)
         return 2
     print(f"wrote {', '.join(str(p) for p in res['paths'].values())}")
     # The paper claims as claims.json judges them (the paper's own figures; report.md has the table).
