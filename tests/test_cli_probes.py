@@ -319,8 +319,8 @@ def finish(p, cwd, timeout=300):
     return Run(p.returncode, outs["out"], outs["err"], rss, time.perf_counter() - t0)
 
 
-def run_probe(probe, tmp, root=ROOT):
-    """Set the probe up in ``tmp`` and run it; its :class:`Run`."""
+def run_real(probe, tmp, root=ROOT):
+    """Set the probe up in ``tmp`` and run it as its own process; its :class:`Run`."""
     if probe.setup:
         probe.setup(tmp)
     if probe.python is not None:
@@ -660,7 +660,7 @@ def probe_runs(golden_dir, tmp_path_factory):
 
     def one(p):
         tmp = tmp_path_factory.mktemp("probe")
-        return p.id, (p, tmp, run_probe(p, tmp))
+        return p.id, (p, tmp, run_real(p, tmp))
 
     with ThreadPoolExecutor(2) as pool:
         runs = dict(pool.map(one, probes))
