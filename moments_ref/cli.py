@@ -117,7 +117,8 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance"]
+        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance",
+                                                                                 "kernels"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -129,9 +130,14 @@ def _cmd_bench(args):
         size = min(args.size, 512) if args.quick else args.size
         text += "\n" + bench.end_to_end_markdown(bench.end_to_end(size, 4), size, 4)
     if not args.only or any("targets" in o for o in args.only):
-        text += "\n" + bench.targets_markdown(bench.run_targets(quick=args.quick))
+        runs = [bench.run_targets(quick=args.quick) for _ in range(args.runs)]
+        text += "\n" + bench.targets_markdown(runs[-1])
+        if len(runs) > 1:
+            text += "\n" + bench.agreement_markdown(runs)
     if not args.only or any("conformance" in o for o in args.only):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
+    if not args.only or any("kernels" in o for o in args.only):
+        text += "\n" + bench.kernels_markdown(size=min(args.size, 512) if args.quick else args.size)
     print(text)
     if args.out:
         from ._io import write_text
@@ -279,7 +285,8 @@ def _add_oracle(sub):
     mu.add_argument("--out", type=_folder, help="unused; accepted for uniformity")
     mu.set_defaults(func=_cmd_mutants)
 
-    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port on a real driver against a golden case")
+    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port (a function, or with --kernel a compute "
+                                            "shader) on a real driver against a golden case")
     lang = cf.add_mutually_exclusive_group()
     lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
     lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
@@ -287,10 +294,32 @@ def _add_oracle(sub):
     cf.add_argument("--function", help="the function to test")
     cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME or an adapter name (default per language)")
+    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME, an adapter name, both (gl and vulkan, "
+                                      "and the rows where they differ) or as-written (default per language)")
+    cf.add_argument("--kernel", action="store_true",
+                    help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
+    cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
+    cf.add_argument("--time-limit", type=float, default=None, metavar="S",
+                    help="with --kernel: seconds one dispatch may run before the watchdog stops it (default 60)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     cf.add_argument("--out", type=_folder, help="with --all: also write conformance.md here")
+    _add_source_options(cf)
     cf.set_defaults(func=_cmd_conformance)
+
+
+def _add_source_options(cf):
+    """How ``conformance`` reads a shader file (docs/ports.md, "What your file may contain")."""
+    cf.add_argument("--include", action="append", metavar="DIR", type=Path,
+                    help="also search includes here (after the including file's folder; repeatable)")
+    cf.add_argument("--define", action="append", metavar="NAME=VALUE",
+                    help="#define NAME VALUE before the file (engine macros; repeatable; GLSL, HLSL)")
+    cf.add_argument("--prelude", metavar="FILE", type=Path, help="a file placed before yours (engine macros)")
+    cf.add_argument("--max-source", type=_memory, default=None, metavar="SIZE",
+                    help="largest source with its prelude and includes (default 4M)")
+    cf.add_argument("--keep-unused", action="store_true",
+                    help="compile every declaration of the file, not only those the function uses")
+    cf.add_argument("--watchdog", type=float, default=None, metavar="SECONDS",
+                    help="longest dispatch before the driver is stopped (default 10)")
 
 
 def _add_measurements(sub):
@@ -300,6 +329,8 @@ def _add_measurements(sub):
     b.add_argument("--size", type=_int_in(1, 16384), default=2048, help="square input side, 1..16384 (default 2048)")
     b.add_argument("--quick", action="store_true", help="one repetition, small sizes")
     b.add_argument("--only", action="append", help="only benchmarks whose name contains this")
+    b.add_argument("--runs", type=_int_in(1, 10), default=1,
+                   help="measure the speed targets this many times in a row and say whether they agree (default 1)")
     b.set_defaults(func=_cmd_bench)
 
     s = sub.add_parser("stability", help="float32/float64 against mpmath: write stability.md")

@@ -1,7 +1,7 @@
-"""The issue-17 targets of ``moments-ref bench``: every target is printed with a ratio and a mark.
+"""The speed targets of ``moments-ref bench``: every target is printed with a ratio and a mark.
 
 No timing is asserted (targets are read, not enforced); these tests check that the
-measurement alternates candidate and baseline, that every target is reported, and
+measurement interleaves candidate and baseline and takes the median of the pair ratios, that every target is reported, and
 that a missing llvmpipe is reported with its reason instead of a number.
 """
 
@@ -10,22 +10,45 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from moments_ref.tools.bench import _llvmpipe, _targets
+from moments_ref.tools.bench import _llvmpipe, _targets, _timing
 
 
-def test_measure_alternates_and_takes_medians():
+def _reporting(times, calls, tag):
+    """A callable that reports the given (cpu) times in turn (as the llvmpipe worker does)."""
+    it = iter(times)
+    return lambda: (calls.append(tag), {"cpu": (c := next(it)), "wall": 2 * c})[1]
+
+
+def test_paired_interleaves_and_takes_the_median_of_pair_ratios():
     calls = []
-    times = iter([{"cpu": c, "wall": 2 * c} for c in (9.0, 5.0, 1.0, 3.0)])  # the first is the warm-up
-    got = _targets.measure([lambda: calls.append("a"), lambda: (calls.append("b"), next(times))[1]], repeat=3,
-                           least=0)
-    assert calls == ["a", "b"] * 4
-    assert got[1] == (3.0, 6.0)  # the median of the reported times, not the last one
+    # first value of each: the calibration call; then pairs (1, 1), (5, 20), (10, 30)
+    k = _reporting([9.0, 1.0, 20.0, 30.0], calls, "k")
+    b = _reporting([9.0, 1.0, 5.0, 10.0], calls, "b")
+    r = _timing.paired(k, b, pairs=3, least=0)
+    assert calls == ["k", "b"] + ["b", "k"] * 3  # calibration, then baseline right before kernel
+    assert r.median == 3.0  # pair ratios 1, 4, 3; the ratio of the medians would say 20 / 5 = 4
+    assert (r.low, r.high) == (2.0, 3.5) and r.kernel == 20.0 and r.baseline == 5.0 and r.kernel_wall == 40.0
 
 
-def test_measure_repeats_quick_calls_within_a_sample():
+def test_a_target_is_marked_only_when_its_spread_allows():
+    r = _timing.Ratio(1.0, 0.9, 1.1, 1, 1, 1, 1, 9)
+    assert r.mark(1.2) == "pass" and r.mark(0.8) == "miss" and r.mark(1.0) == "undecided (noisy)"
+    assert r.mark(1.1) == "pass" and r.mark(0.9) == "undecided (noisy)"
+    assert abs(r.spread - 0.1) < 1e-12
+
+
+def test_quick_calls_are_repeated_within_a_sample():
     calls = []
-    _targets.measure([lambda: calls.append(1)], repeat=3, least=1e-3)
-    assert len(calls) > 4  # one warm-up, then more than one call per sample
+    _timing.paired(lambda: calls.append(1), lambda: None, pairs=3, least=1e-3)
+    assert len(calls) > 4  # one calibration call, then more than one call per sample
+
+
+def test_agreement_table_flags_runs_that_differ():
+    row = lambda t, x: {"target": t, "ratio": x}  # noqa: E731
+    runs = [[row("a", 1.0), row("b", 2.0), row("c", None)], [row("a", 1.1), row("b", 2.5), row("c", None)]]
+    text = _targets.agreement_markdown(runs)
+    assert "| a | 1.00× | 1.10× | 1.100 | yes |" in text
+    assert "| b | 2.00× | 2.50× | 1.250 | NO |" in text and "not measured" in text
 
 
 def test_every_target_has_a_ratio_and_a_mark(monkeypatch):
@@ -45,9 +68,11 @@ def test_every_target_has_a_ratio_and_a_mark(monkeypatch):
     assert "not measured" in text
     for r in rows:
         if r["ratio"] is not None:
-            assert np.isfinite(r["ratio"]) and r["ratio"] > 0
-            assert (r["ratio"] <= r["limit"]) == r["passed"]
-            assert ("pass" if r["passed"] else "MISS") in text
+            assert np.isfinite(r["ratio"]) and 0 < r["low"] <= r["ratio"] <= r["high"]
+            assert r["mark"] == ("pass" if r["high"] <= r["limit"] else "miss" if r["low"] > r["limit"]
+                                 else "undecided (noisy)")
+            assert r["passed"] == {"pass": True, "miss": False}.get(r["mark"])
+            assert f"| {r['mark']} |" in text
 
 
 def test_llvmpipe_worker_draws_the_same_scene():

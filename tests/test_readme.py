@@ -13,7 +13,7 @@ def _commands():
 def test_readme_starts_with_two_commands():
     main, tests = _commands()[:2]
     assert main.startswith("pip install -e . && moments-ref report")
-    assert tests == 'pip install -e ".[test]" && python -m pytest -q'
+    assert tests == 'pip install -e ".[test]" && python -m pytest -q -n auto'  # pytest-xdist: every core
 
 
 def test_ci_runs_the_readme_test_command():

@@ -24,7 +24,8 @@ def tiny(tmp_path_factory):
 def test_files_columns_and_plot(tiny):
     out, res = tiny
     assert {p.name for p in out.iterdir()} == {"results.csv", "stages.json", "report.md", "front_pcf.png",
-                                               "errors_translucent.png", "claims.json", "crops_translucent_pcf.png"}
+                                               "errors_translucent.png", "claims.json", "crops_translucent_pcf.png",
+                                               "winners.csv"}
     with open(out / "results.csv", newline="") as f:
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == report.COLUMNS
@@ -37,6 +38,26 @@ def test_files_columns_and_plot(tiny):
     stages = json.loads((out / "stages.json").read_text())
     assert "translucency_pass" in [s["stage"] for s in stages["translucent"]]
     assert report.read_results(out / "results.csv")[0].keys() == set(report.COLUMNS)
+
+
+def test_winners_name_the_lowest_rmse_of_results_within_each_budget(tiny):
+    """winners.csv and report.md's answer, checked against results.csv by a plain search."""
+    out, _ = tiny
+    rows = report.read_results(out / "results.csv")
+    with open(out / "winners.csv", newline="") as f:
+        found = list(csv.DictReader(f))
+    assert found and {w["budget_kind"] for w in found} == {"bits_per_texel", "total_seconds"}
+    for w in found:
+        b = float(w["budget"])
+        key = "bits_per_texel" if w["budget_kind"] == "bits_per_texel" else "own_total_seconds"
+        fit = [r for r in rows if r["scene"] == w["scene"] and float(r[key]) <= b * (1 + 1e-5)]
+        assert min(float(r["rmse"]) for r in fit) == pytest.approx(float(w["rmse"]), rel=1e-5)
+        assert w["technique"] in {r["technique"] for r in fit if float(r["rmse"]) == pytest.approx(float(w["rmse"]),
+                                                                                                   rel=1e-5)}
+    pcf = next(r for r in rows if r["technique"] == "pcf")
+    assert int(pcf["bits_per_texel"]) == 32 * 4  # every MSAA sample of the 4× map is read
+    md = (out / "report.md").read_text()
+    assert "## The answer: lowest RMSE at each budget" in md and "**translucent** (reference `pcf`)" in md
 
 
 def test_claims_are_the_papers_terms_only(tiny):

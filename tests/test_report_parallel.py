@@ -20,7 +20,8 @@ from moments_ref.report import _jobs
 
 TINY = dict(progress=False, shadow_map_size=48, resolution=(48, 27), noise_tiles=1, repeats=1)
 TIMING = {"texel_seconds", "texel_seconds_min", "texel_seconds_max", "fragment_seconds", "fragment_seconds_min",
-          "fragment_seconds_max", "pareto"}  # pareto: the front over the costs, so it follows the timings
+          "fragment_seconds_max", "own_total_seconds", "own_total_seconds_min", "own_total_seconds_max",
+          "pareto"}  # pareto: the front over the costs, so it follows the timings
 
 
 def _outputs(out):
@@ -29,13 +30,15 @@ def _outputs(out):
         rows = [{k: v for k, v in r.items() if k not in TIMING} for r in csv.DictReader(f)]
     stages = {s: [(x["stage"], x["used_by"]) for x in v] for s, v in json.loads((out / "stages.json").read_text()).items()}
     images = {p.name: p.read_bytes() for p in sorted(out.glob("*.png")) if not p.name.startswith("front_")}
-    return rows, stages, json.loads((out / "claims.json").read_text()), images
+    with open(out / "winners.csv", newline="") as f:  # the memory budgets do not depend on timings
+        memory = [w for w in csv.DictReader(f) if w["budget_kind"] == "bits_per_texel"]
+    return rows, stages, json.loads((out / "claims.json").read_text()), images, memory
 
 
 def _same(a, b):
-    rows_a, stages_a, claims_a, images_a = a
-    rows_b, stages_b, claims_b, images_b = b
-    assert rows_a == rows_b
+    rows_a, stages_a, claims_a, images_a, memory_a = a
+    rows_b, stages_b, claims_b, images_b, memory_b = b
+    assert rows_a == rows_b and memory_a == memory_b
     assert stages_a == stages_b
     assert claims_a == claims_b  # no claim is measured on the timings
     assert images_a.keys() == images_b.keys() and images_a

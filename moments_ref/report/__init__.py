@@ -10,14 +10,17 @@ on it; :mod:`moments_ref.pipeline`) and writes to DIR:
   (timings: medians of ``repeats`` timed runs after a warm-up with their min and
   max; ``pareto``: on the scene's Pareto front, dominance judged beyond the
   timing spread, :mod:`._pareto`);
+* ``winners.csv``: per scene and reference the technique of lowest RMSE at each
+  memory budget (bits per texel) and each total-cost budget (:mod:`._winners`);
 * ``stages.json``: per scene a list of ``{"stage", "seconds" (median), "min",
   "max", "used_by"}`` (:meth:`moments_ref.pipeline.RunResult.stage_table`);
 * ``claims.json``: the paper claims measured on the scenes that ran
   (:mod:`moments_ref.report.paper_claims`), also appended to report.md as a table;
 * ``report.md``: the settings used (and what was reduced), the machine and a
-  same-run memory-copy rate (:mod:`._machine`), the Pareto front per scene, a
-  cross-scene summary, the
-  error-against-cost plots ``front_<reference>.png`` (one per reference), the
+  same-run memory-copy rate (:mod:`._machine`), the winners in one sentence per
+  budget, the Pareto front per scene, a cross-scene summary, the two-objective
+  fronts ``front_<reference>.png`` (RMSE against bits per texel and against total
+  cost, one figure per reference), the
   error images and the crops where the techniques differ most (:mod:`._crops`).
 
 Metrics over the receiver pixels inside the shadow map, with
@@ -94,8 +97,9 @@ from ..techniques.area import soft_statements
 from ._crops import crop_figures
 from ._jobs import WorkerDied, Workers, usable_cores
 from ._machine import copy_rate, machine, machine_lines
-from ._pareto import front_lines, mark_pareto, pareto_mask, summary_lines
+from ._pareto import front_lines, mark_pareto, pareto_mask, summary_lines, truth_of
 from ._plots import plot_error_vs_runtime, plot_fronts
+from ._winners import own_scale, own_total, winner_lines, winners, winners_csv
 from ._text import CLEARLY_BELOW, CLOSE_REL, COLUMNS, csv_text, evaluate_claims, markdown, read_results
 
 __all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
@@ -286,6 +290,10 @@ def _collect(acc, sc, part):
     acc.stages[sc.name] = part["stages"]
     if part["measured"] is not None:
         acc.measured[sc.name] = part["measured"]
+    scale = own_scale(acc.settings[sc.name])
+    for row in part["rows"]:
+        for suffix in ("", "_min", "_max"):
+            row[f"own_total_seconds{suffix}"] = own_total(row, scale, suffix)
     acc.rows += part["rows"]
     for ref_name, cfg in part["references"].items():
         acc.references.setdefault(ref_name, {})[sc.name] = cfg
@@ -346,8 +354,6 @@ def _fronts_task(rows):
 
 def _front_tasks(rows):
     """One :func:`_fronts_task` per reference (each plot needs only its own scenes' rows)."""
-    from ._pareto import truth_of
-
     refs = dict.fromkeys(truth_of(r) for r in rows)
     return [(("front", ref), _fronts_task, ([r for r in rows if truth_of(r) == ref],)) for ref in refs]
 
@@ -362,11 +368,15 @@ def _write(acc, out, flip_ok, done, fronts):
     # Every text and image is complete before the first file is written; each file is
     # written atomically (temporary file, then rename), so an interrupted run
     # leaves no half-written file.
+    found = winners(acc.rows, truth_of)
+    own = {s: f"{'×'.join(map(str, cfg['own'][0]))} map, {'×'.join(map(str, cfg['own'][2]))} camera"
+           for s, cfg in acc.settings.items()}
     texts = {"results.csv": csv_text(acc.rows), "stages.json": json.dumps(acc.stages, indent=2) + "\n",
+             "winners.csv": winners_csv(found),
              "report.md": markdown(acc.rows, acc.stages, acc.settings,
                                    {"fronts": list(fronts), **acc.images}, flip_ok, refs, lines,
-                                   answer=acc.machine + front_lines(acc.rows) + summary_lines(acc.rows),
-                                   repeats=acc.repeats)}
+                                   answer=acc.machine + winner_lines(found, own) + front_lines(acc.rows)
+                                   + summary_lines(acc.rows), repeats=acc.repeats)}
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
         temporal=False)

@@ -142,14 +142,16 @@ def _panel(ax, rows, key, label, colors):
 
 
 def plot_fronts(rows):
-    """Per reference one figure ``front_<reference>.png``: RMSE against texel and against fragment seconds.
+    """Per reference one figure ``front_<reference>.png``: the two two-objective fronts of each scene.
 
-    Filled markers: on the Pareto front over (RMSE, texel, fragment) of their
-    scene (``row["pareto"]``, judged beyond the timing spread:
-    :mod:`._pareto`); hollow: dominated. Horizontal bars: the min–max of the
-    timed repeats (``_min``, ``_max``). The line is the lower envelope of the
-    medians in the plane of the panel. Axes linear unless the data span over a decade (then
-    log, or symlog with a zero drawn at zero).
+    Left: RMSE against bits per texel (memory, the papers' axis: hardware-independent).
+    Right: RMSE against the total cost, texel + fragment seconds at the scene's own
+    resolution (``own_total_seconds``, :mod:`._winners`), with the min–max of the
+    timed repeats as horizontal bars. The line of each scene is its front in that
+    plane (the winners of winners.csv are its steps). Filled markers: on the
+    scene's three-objective front over (RMSE, texel, fragment), judged beyond the
+    timing spread (:mod:`._pareto`); hollow: dominated there. Axes linear unless
+    the data span over a decade (then log, or symlog with a zero drawn at zero).
     """
     import matplotlib
 
@@ -163,13 +165,19 @@ def plot_fronts(rows):
     for ref in dict.fromkeys(truth_of(r) for r in rows):
         rs = [r for r in rows if truth_of(r) == ref]
         fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
-        _panel(axes[0], rs, "texel_seconds", "texel cost: texture stages, median s (NumPy)", colors)
-        _panel(axes[1], rs, "fragment_seconds", "fragment cost: lookups at the receiver pixels, median s", colors)
+        _panel(axes[0], rs, "bits_per_texel", "memory: bits per shadow-map texel (what the lookup reads)", colors)
+        bits = sorted({float(r["bits_per_texel"]) for r in rs if float(r["bits_per_texel"]) > 0})
+        if bits and bits[-1] / bits[0] >= 2:  # powers of two: a log2 axis with a tick at each storage size
+            axes[0].set_xscale("log", base=2)
+            axes[0].set_xticks(bits, [f"{b:g}" for b in bits])
+            axes[0].minorticks_off()
+        _panel(axes[1], rs, "own_total_seconds",
+               "time: texel + fragment s at the scene's own resolution (NumPy, median)", colors)
         axes[0].set_ylabel("RMSE of the result against the reference")
         axes[1].legend(fontsize="small", loc="best")
-        fig.suptitle(TITLES.get(ref, ref) + "\nfilled: on the scene's Pareto front over (RMSE, texel, fragment), "
-                     "judged beyond the timing spread; hollow: dominated\nbars: min–max of the timed repeats; "
-                     "line: the lower envelope of the medians", fontsize="medium")
+        fig.suptitle(TITLES.get(ref, ref) + "\nline: each scene's front in the plane (the lowest RMSE within a "
+                     "budget); bars: min–max of the timed repeats\nfilled: on the scene's front over (RMSE, texel, "
+                     "fragment) beyond the timing spread; hollow: dominated there", fontsize="medium")
         fig.tight_layout()
         out[f"front_{ref}.png"] = fig
     return out

@@ -26,7 +26,8 @@ __all__ = ["COLUMNS", "CLOSE_REL", "CLEARLY_BELOW", "read_results", "evaluate_cl
 #: Columns of results.csv, in order.
 COLUMNS = ("scene", "technique", "bits_per_texel", "rmse", "max_error", "p99_error", "leak_fraction",
            "flip_mean", "texel_seconds", "texel_seconds_min", "texel_seconds_max", "fragment_seconds",
-           "fragment_seconds_min", "fragment_seconds_max", "repeats", "pareto")
+           "fragment_seconds_min", "fragment_seconds_max", "own_total_seconds", "own_total_seconds_min",
+           "own_total_seconds_max", "repeats", "pareto")
 #: The float columns (all but scene, technique, bits_per_texel, repeats and pareto).
 _FLOATS = COLUMNS[3:-2]
 #: Relative tolerances of the verdicts (stated in report.md).

@@ -37,11 +37,13 @@ HPG17, Reeves et al. 1987, Isidoro 2006 : see docs/bib.md.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..gpu.filtering import gaussian_weights
 from ..scene.raster import SAMPLE_COUNTS, sample_positions
-from ._interface import Technique, is_layered, register
+from ._interface import Technique, is_layered, register, texture_stages
 
 __all__ = ["pcf_filtered", "tap_weights", "tap_centres", "PCF"]
 
@@ -215,10 +217,16 @@ def _lookup(texture, uv, zf, noise):
     return pcf_filtered(texture, uv, zf)
 
 
-#: PCF: 32-bit depth per MSAA sample, no filtered texture; cost is per fragment.
+def _stages(technique, ctx, settings=None):
+    """:func:`texture_stages`, storing every MSAA sample: 32 bits per depth sample, ``32 S`` bits per texel."""
+    return replace(texture_stages(technique, ctx, settings), bits=32 * ctx.samples)
+
+
+#: PCF: 32-bit depth per MSAA sample (``32 S`` bits per texel), no filtered texture; cost is per fragment.
 PCF = register(Technique(
     name="pcf",
     bits_per_texel=32,
+    stages=_stages,
     depth_bias=1e-3,
     slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.scene.gbuffer.receiver_depth)
     make_steps=_steps,

@@ -50,7 +50,9 @@ def _vwss_stages(technique, ctx, cfg):
     pts = Stage("vwss_points", _points, (LIGHT_SAMPLES,), bound=bound)
     wrp = Stage("vwss_warp", _warp, ("vwss_points", LIGHT_SAMPLES), bound=(("cfg", cfg),))
     shade = Stage("shade_vwss", _shade_maps, ("vwss_warp", LIGHT_SAMPLES, PROJECTION), bound=(("bias", cfg["bias"]),))
-    return Plan((samples_stage(ctx, cfg), pts, wrp, shade), (pts.key, wrp.key), shade.key)
+    # storage: one 32-bit depth map per light sample
+    return Plan((samples_stage(ctx, cfg), pts, wrp, shade), (pts.key, wrp.key), shade.key,
+                bits=32 * int(cfg["light_samples"]))
 
 
 def _mvr_maps(ls, scene, cfg):
@@ -62,7 +64,7 @@ def _mvr_stages(technique, ctx, cfg):
     maps = Stage("mvr_vwss", _mvr_maps, (LIGHT_SAMPLES,), bound=(("scene", ctx.scene), ("cfg", cfg)))
     shade = Stage("shade_mvr_vwss", _shade_maps, ("mvr_vwss", LIGHT_SAMPLES, PROJECTION),
                   bound=(("bias", cfg["bias"]),))
-    return Plan((samples_stage(ctx, cfg), maps, shade), (maps.key,), shade.key)
+    return Plan((samples_stage(ctx, cfg), maps, shade), (maps.key,), shade.key, bits=32 * int(cfg["light_samples"]))
 
 
 def _not_texel_lookup(name):

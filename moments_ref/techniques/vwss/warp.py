@@ -37,7 +37,7 @@ import numpy as np
 
 from ..._arrays import InputError, first_index, positive_int, real_input
 
-__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes"]
+__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes", "depth_key", "key_depth", "EMPTY_KEY"]
 
 # Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes`: the temporaries stay in cache and
 # the thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18),
@@ -59,6 +59,55 @@ def _check_resolution(resolution):
     if not ok:
         raise InputError(f"resolution: expected a positive int or (H, W), got {resolution!r}")
     return h, w
+
+
+#: The key of a texel no point was written to (the clear value; below every depth's key).
+EMPTY_KEY = 0
+
+
+def depth_key(depth):
+    """Order-preserving 32-bit key of float32 depths: ``asuint`` with the sign transform.
+
+    Parameters
+    ----------
+    depth : float array
+        Depths, any sign (rounded to float32); −0.0 is taken as +0.0.
+
+    Returns
+    -------
+    key : uint32 array
+        ``asuint(d) ^ 0x80000000`` for ``d ≥ 0`` (the sign bit set), ``asuint(d) ^
+        0xFFFFFFFF`` for ``d < 0`` (every bit flipped), so that ``key(a) < key(b)``
+        exactly when ``a < b``: an ``InterlockedMax`` on keys is a maximum of depths of
+        any sign. Every key of a non-NaN depth is above :data:`EMPTY_KEY`.
+
+    Notes
+    -----
+    VWSS Listing 2 runs ``InterlockedMax`` on ``asuint(cp.z)``, which orders only
+    non-negative floats: a negative float has its sign bit set and orders above
+    every positive one (module docstring). Listing 2 clips no depth, so a point
+    behind the far plane (reversed depth below 0) would win the z-test; the sign
+    transform is the standard repair. For ``d ≥ 0`` the key is the paper's
+    ``asuint(d)`` with the top bit set.
+
+    Examples
+    --------
+    >>> [hex(k) for k in depth_key(np.float32([-1.0, -0.0, 0.0, 0.5]))]
+    ['0x407fffff', '0x80000000', '0x80000000', '0xbf000000']
+    """
+    d = np.asarray(depth, np.float32) + np.float32(0.0)  # -0.0 -> +0.0
+    u = d.view(np.uint32)
+    return np.where(u >> np.uint32(31) == 1, ~u, u | np.uint32(0x80000000)).astype(np.uint32)
+
+
+def key_depth(key):
+    """Inverse of :func:`depth_key`: float32 depths of uint32 keys (:data:`EMPTY_KEY` decodes to NaN)."""
+    k = np.asarray(key)
+    if k.dtype.kind != "u":
+        raise InputError(f"key: expected an unsigned integer array, got dtype {k.dtype}")
+    k = k.astype(np.uint32)
+    u = np.where(k >> np.uint32(31) == 1, k & np.uint32(0x7FFFFFFF), ~k).astype(np.uint32)
+    return u.view(np.float32)
 
 
 def _zmax_into(buf, index, depth):
@@ -151,7 +200,7 @@ def _points(points):
     return p
 
 
-def project_to_texels(points, view_proj, resolution):
+def project_to_texels(points, view_proj, resolution, clip_depth=True):
     """Project points into views and snap them to texels (the per-point work of Listing 2).
 
     Parameters
@@ -160,15 +209,19 @@ def project_to_texels(points, view_proj, resolution):
         World positions; float32 input is projected in float32 (as a shader).
     view_proj : (K, 4, 4) float array
     resolution : int or (H, W)
+    clip_depth : bool
+        Drop pairs whose NDC depth is outside [−1, 1] (a depth-map pass's clip
+        test). ``False`` keeps them, as Listing 2 does (it tests no depth): their
+        reversed depth is then below 0 (behind the far plane) or above 1.
 
     Returns
     -------
     flat : (M,) intp array
         ``view * H * W + row * W + col`` for each (point, view) pair that lands
-        inside a view: ``w > 0``, window position inside the map and NDC depth in
-        [−1, 1] (the clip tests of a depth-map pass).
+        inside a view: ``w > 0``, window position inside the map and (with
+        ``clip_depth``) NDC depth in [−1, 1].
     reversed_depth : (M,) float array of the working dtype
-        ``r = (1 − z_ndc) / 2`` in [0, 1] (1 = near plane).
+        ``r = (1 − z_ndc) / 2``, in [0, 1] with ``clip_depth`` (1 = near plane).
 
     Notes
     -----
@@ -179,15 +232,15 @@ def project_to_texels(points, view_proj, resolution):
     """
     p = _points(points)
     m = _views(view_proj).astype(p.dtype)
-    return _project_to_texels(p, m, *_check_resolution(resolution))
+    return _project_to_texels(p, m, *_check_resolution(resolution), clip_depth=bool(clip_depth))
 
 
-def _project_to_texels(p, m, h, w):
+def _project_to_texels(p, m, h, w, clip_depth=True):
     """:func:`project_to_texels` of checked points ``p`` (N, 3) and views ``m`` (k, 4, 4) of p's dtype."""
     k = m.shape[0]
     mt = _stacked(m)
     step = max(1, _BLOCK // k)
-    parts = [_texel_block(p[lo:lo + step], mt, k, h, w) for lo in range(0, p.shape[0], step)]
+    parts = [_texel_block(p[lo:lo + step], mt, k, h, w, clip_depth) for lo in range(0, p.shape[0], step)]
     if len(parts) == 1:
         return parts[0]
     if not parts:
@@ -200,7 +253,7 @@ def _stacked(m):
     return m.transpose(2, 1, 0).reshape(4, 4 * m.shape[0])
 
 
-def _texel_block(p, mt, k, h, w):
+def _texel_block(p, mt, k, h, w, clip_depth=True):
     """Texels and reversed depths of one block of points, in (point, view) order."""
     dt, ut = p.dtype.type, _uint_of(p.dtype)
     hom = np.concatenate([p, np.ones((p.shape[0], 1), p.dtype)], axis=1)
@@ -223,7 +276,8 @@ def _texel_block(p, mt, k, h, w):
     ok = cw > 0
     ok &= x.view(ut) < np.array(w, p.dtype).view(ut)
     ok &= y.view(ut) < np.array(h, p.dtype).view(ut)
-    ok &= r.view(ut) <= np.array(1, p.dtype).view(ut)
+    if clip_depth:
+        ok &= r.view(ut) <= np.array(1, p.dtype).view(ut)
     i = np.flatnonzero(ok)  # = point * k + view
     col = x.reshape(-1).take(i).astype(np.intp)
     row = y.reshape(-1).take(i).astype(np.intp)

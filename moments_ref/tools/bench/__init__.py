@@ -24,10 +24,12 @@ import numpy as np
 from ...gpu import filtering
 from ...gpu import onchip as _onchip
 from ...techniques.vwss import warp
-from ._targets import run_targets, targets_markdown
+from ._targets import agreement_markdown, copier, run_targets, targets_markdown
+from ._timing import PAIRS, paired
 
-__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "copy_seconds", "best_time", "bench_filtering",
-           "bench_onchip", "bench_entries", "run_targets", "targets_markdown"]
+__all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "bench_filtering",
+           "bench_onchip", "bench_entries", "run_targets", "targets_markdown", "agreement_markdown",
+           "kernels_markdown"]
 
 
 @dataclass(frozen=True)
@@ -43,29 +45,6 @@ class Benchmark:
     #: Elements for a ``size`` argument (default ``size²``: texels or fragments).
     count: Callable = staticmethod(lambda size: size * size)
     unit: str = "elem"
-
-
-def best_time(fn, *args, repeat=3):
-    """Best wall time of ``fn(*args)`` over ``repeat`` runs, in seconds."""
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn(*args)
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
-def copy_seconds(nbytes, repeat=3):
-    """Time of copying ``nbytes`` bytes between two preallocated buffers (``np.copyto``).
-
-    A kernel reading ``a`` bytes and writing ``c`` bytes moves ``a + c`` bytes;
-    a copy of ``(a + c) / 2`` bytes also moves ``a + c``. We copy half the
-    bytes so both sides count the same traffic.
-    """
-    n = max(1, nbytes // 2)
-    src = np.ones(n, dtype=np.uint8)
-    dst = np.empty_like(src)
-    return best_time(np.copyto, dst, src, repeat=repeat)
 
 
 def _moments_input(size, dtype):
@@ -399,7 +378,7 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
     """
     if quick:
         size = min(size, 512)
-    repeat = repeat or (1 if quick else 3)
+    repeat = repeat or (1 if quick else PAIRS)
     benches = bench_entries()
     if only:
         benches = [b for b in benches if any(o in b.name for o in only)]
@@ -409,13 +388,14 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
         for bm in benches:
             args = bm.setup(size, bm.dtype)
             n = bm.count(size)
-            t = best_time(bm.fn, *args, repeat=repeat)
             nbytes = n * bm.bytes_per_element
-            tc = copy_seconds(nbytes, repeat=max(repeat, 3))
+            # Interleaved with a copy of the same traffic (reads a, writes c: a copy of (a + c)/2 moves a + c).
+            r = paired(lambda: bm.fn(*args), copier(nbytes), pairs=repeat)
+            t = r.kernel
             rows.append({
                 "name": bm.name, "dtype": bm.dtype, "elements": n, "seconds": t,
-                "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": tc,
-                "ratio_to_copy": tc / t, "note": bm.note, "unit": bm.unit,
+                "melem_per_s": n / t / 1e6, "mbytes": nbytes / 1e6, "copy_seconds": r.baseline,
+                "ratio_to_copy": 1 / r.median, "spread": (1 / r.high, 1 / r.low), "note": bm.note, "unit": bm.unit,
             })
             if bar is not None:
                 bar.update(1)
@@ -502,6 +482,33 @@ def conformance_markdown(repeat=3):
     return "\n".join(lines) + "\n"
 
 
+def kernels_markdown(size=2048, samples=4, adapter="vulkan"):
+    """The shipped HPG17 §4.1 kernels on lavapipe (NLQ64) beside the NumPy paths, as same-run ratios."""
+    from ...conformance import ContextError, ToolError
+    from ...conformance.kernel.bench import bench_kernel
+
+    head = (f"## Shipped filter kernels: {size}² {samples}× MSAA -> NLQ64 on {adapter} "
+            "(ratio = NumPy seconds / kernel seconds, same run)")
+    rows = []
+    for language in ("glsl", "hlsl", "wgsl"):
+        try:
+            rows.append(bench_kernel(language, adapter, size, samples, "nlq64"))
+        except (ContextError, ToolError) as exc:
+            return f"{head}\n\nskipped: {exc}\n"
+    lines = [head, "", f"Renderer: {rows[0]['renderer']}. Kernel time: {rows[0]['timer']} of the "
+             f"{rows[0]['dispatches']} dispatches ({rows[0]['blocks']} blocks), after a warm-up dispatch.", "",
+             "| kernel | kernel s | wall s | global NumPy path s | ratio | NumPy block emulation s | ratio | "
+             "codes = global path | codes = emulation |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| hpg17_filter_nlq64.{r['language']} | {r['kernel_s']:.3f} | {r['wall_s']:.3f} | "
+                     f"{r['global_s']:.3f} | {r['ratio_global']:.2f} | {r['emulation_s']:.3f} | "
+                     f"{r['ratio_emulation']:.2f} | {100 * r['codes_equal']:.0f}% | "
+                     f"{100 * r['codes_equal_emulation']:.0f}% |")
+    lines += ["", "Codes differ where Φ is ill-conditioned (nearly flat texels of this map); the moments of the "
+              "shipped kernels equal the block emulation's bit for bit (tests/test_kernel_conformance.py)."]
+    return "\n".join(lines) + "\n"
+
+
 def markdown(rows):
     """A markdown table of :func:`run`'s rows (empty string for no rows)."""
     import platform
@@ -512,16 +519,17 @@ def markdown(rows):
     lines = [
         f"# moments-ref bench ({platform.machine()}, numpy {np.__version__}, one thread of Python)",
         "",
-        "ratio = time of a memory copy of the same bytes (same run) / kernel time; 1 = copy bound.",
+        "ratio = time of a memory copy of the same bytes / kernel time, the median over pairs of the two taken",
+        "one right after the other (CPU seconds); 1 = copy bound. Spread: the quartiles of the pair ratios.",
         "",
-        "| kernel | dtype | elements | seconds | M/s | MB moved | copy s | ratio to copy | note |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---|",
+        "| kernel | dtype | elements | seconds | M/s | MB moved | copy s | ratio to copy | spread | note |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['name']} | {r['dtype']} | {r['elements']} {r['unit']} | {r['seconds']:.4f} | {r['melem_per_s']:.1f} | "
             f"{r['mbytes']:.1f} | {r['copy_seconds']:.4f} | {r['ratio_to_copy']:.3f} (1/{1 / r['ratio_to_copy']:.0f}) | "
-            f"{r['note']} |"
+            f"{r['spread'][0]:.3f}–{r['spread'][1]:.3f} | {r['note']} |"
         )
     return "\n".join(lines) + "\n"
 

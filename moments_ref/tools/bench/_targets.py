@@ -1,9 +1,10 @@
 """The speed targets of ``moments-ref bench``: same-run ratios with a pass/miss mark.
 
 Each target compares the reference with a baseline measured in the same run,
-alternating the two (candidate, baseline, candidate, ...) and taking the median
-of at least three CPU times (``time.process_time``: on a shared machine wall
-time mostly measures the neighbours). The baselines:
+interleaved (baseline, candidate, baseline, candidate, ...): the figure is the
+median of the per-pair ratios and its spread their quartiles
+(:mod:`moments_ref.tools.bench._timing`); a target is marked pass or miss only
+when the spread lies on one side of its limit. The baselines:
 
 * a memory copy (``np.copyto`` between two preallocated, touched buffers) of
   the same traffic: a kernel that reads ``a`` bytes and writes ``c`` copies
@@ -22,8 +23,6 @@ HPG17 : see docs/bib.md.
 from __future__ import annotations
 
 import os
-import statistics
-import time
 import tracemalloc
 
 import numpy as np
@@ -35,43 +34,17 @@ from ...msm6 import BIAS6_FLOAT32
 from ...nonlinear import phi, shade
 from ...scene.raster import rasterize_depth
 from ._cases import raster_case
+from ._timing import PAIRS, Ratio, paired
 
-__all__ = ["raster_case", "measure", "run_targets", "targets_markdown", "GROWTH_LIMIT"]
+__all__ = ["raster_case", "copier", "run_targets", "targets_markdown", "agreement_markdown", "GROWTH_LIMIT", "AGREEMENT"]
 
 #: Largest accepted growth of the per-element cost from the smallest to the largest size.
 GROWTH_LIMIT = 1.2
+#: Largest relative difference of one ratio between consecutive runs that counts as agreement.
+AGREEMENT = 0.15
 
 
-def measure(fns, repeat=3, least=0.05):
-    """Alternate the callables ``fns`` ``repeat`` times; median ``(cpu, wall)`` seconds per call of each.
-
-    A callable returning a dict ``{"cpu", "wall"}`` (the llvmpipe worker) reports
-    its own times. Otherwise the call is timed here, after one untimed warm-up
-    call, and a call quicker than ``least`` seconds is repeated within each
-    sample until the sample lasts about ``least`` (a memory copy of 64 MiB takes
-    a few ms, below the noise of one CPU-time reading on a shared machine).
-    """
-    loops = [1] * len(fns)
-    for k, fn in enumerate(fns):
-        c0 = time.process_time()
-        if not isinstance(fn(), dict):
-            loops[k] = min(64, max(1, int(least / max(time.process_time() - c0, 1e-6))))
-    cpu = [[] for _ in fns]
-    wall = [[] for _ in fns]
-    for _ in range(max(3, repeat)):
-        for k, fn in enumerate(fns):
-            c0, t0 = time.process_time(), time.perf_counter()
-            for _ in range(loops[k]):
-                got = fn()
-            c, w = (time.process_time() - c0) / loops[k], (time.perf_counter() - t0) / loops[k]
-            if isinstance(got, dict):
-                c, w = got["cpu"], got["wall"]
-            cpu[k].append(c)
-            wall[k].append(w)
-    return [(statistics.median(c), statistics.median(w)) for c, w in zip(cpu, wall)]
-
-
-def _copier(nbytes):
+def copier(nbytes):
     """A callable copying ``nbytes / 2`` bytes between touched buffers (moves ``nbytes``)."""
     src = np.ones(max(1, int(nbytes) // 2), np.uint8)
     dst = np.zeros_like(src)
@@ -79,8 +52,14 @@ def _copier(nbytes):
 
 
 def _row(target, ratio, limit, detail, seconds=None):
-    return {"target": target, "ratio": float(ratio), "limit": float(limit), "passed": bool(ratio <= limit),
-            "detail": detail, "seconds": seconds}
+    """One target: the :class:`~._timing.Ratio` (or None, not measured) against ``limit``."""
+    row = {"target": target, "limit": float(limit), "detail": detail, "seconds": seconds,
+           "ratio": None, "low": None, "high": None, "mark": "not measured", "passed": None}
+    if ratio is not None:
+        mark = ratio.mark(limit)
+        row.update(ratio=float(ratio.median), low=float(ratio.low), high=float(ratio.high), mark=mark,
+                   passed={"pass": True, "miss": False}.get(mark))
+    return row
 
 
 # ---------------------------------------------------------------------------
@@ -93,18 +72,17 @@ def _raster_rows(cases, repeat):
     try:
         lp = Llvmpipe()
     except LlvmpipeUnavailable as exc:
-        return [{"target": f"rasterizer {label} vs llvmpipe", "ratio": None, "limit": limit, "passed": None,
-                 "detail": f"not measured: {exc}", "seconds": None} for _, label, limit in cases]
+        return [_row(f"rasterizer {label} vs llvmpipe", None, limit, f"not measured: {exc}")
+                for _, label, limit in cases]
     rows = []
     with lp:
         for name, label, limit in cases:
             v, t, vp, size, samples = raster_case(name)
             lp.case(name)
-            (c_ref, w_ref), (c_lp, w_lp) = measure(
-                [lambda: rasterize_depth(v, t, vp, size, samples=samples), lp.time], repeat)
-            rows.append(_row(f"rasterizer {label} vs llvmpipe", c_ref / c_lp, limit,
-                             f"CPU {c_ref:.3f} s vs {c_lp:.3f} s (wall {w_ref:.3f} / {w_lp:.3f} s); "
-                             f"{lp.renderer}, LP_NUM_THREADS=0", c_ref))
+            r = paired(lambda: rasterize_depth(v, t, vp, size, samples=samples), lp.time, repeat)
+            rows.append(_row(f"rasterizer {label} vs llvmpipe", r, limit,
+                             f"CPU {r.kernel:.3f} s vs {r.baseline:.3f} s (wall {r.kernel_wall:.3f} / "
+                             f"{r.baseline_wall:.3f} s); {lp.renderer}, LP_NUM_THREADS=0", r.kernel))
     return rows
 
 
@@ -123,16 +101,16 @@ def global_nlq(z, fmt="nlq64"):
 
 def _nlq_rows(size, repeat):
     z = filtering.bench_depth_map(size, 4, np.float32)
-    copy = _copier(2 * z.nbytes)
+    copy = copier(2 * z.nbytes)
     rows = []
     for fmt in ("nlq64", "nlq32"):
-        (cg, _), (cc, _), (co, _) = measure(
-            [lambda: global_nlq(z, fmt), copy, lambda: onchip.filter_and_quantize(z, fmt)], repeat)
         mib = z.nbytes / 2**20
-        rows.append(_row(f"{size}² 4× → {fmt.upper()} global path vs copy of the samples", cg / cc, 60,
-                         f"CPU {cg:.3f} s vs copy of {mib:.0f} MiB {cc:.4f} s", cg))
-        rows.append(_row(f"{size}² 4× → {fmt.upper()} on-chip vs global path", co / cg, 1.5,
-                         f"CPU {co:.3f} s vs {cg:.3f} s", co))
+        g = paired(lambda: global_nlq(z, fmt), copy, repeat)
+        rows.append(_row(f"{size}² 4× → {fmt.upper()} global path vs copy of the samples", g, 60,
+                         f"CPU {g.kernel:.3f} s vs copy of {mib:.0f} MiB {g.baseline:.3g} s", g.kernel))
+        o = paired(lambda: onchip.filter_and_quantize(z, fmt), lambda: global_nlq(z, fmt), repeat)
+        rows.append(_row(f"{size}² 4× → {fmt.upper()} on-chip vs global path", o, 1.5,
+                         f"CPU {o.kernel:.3f} s vs {o.baseline:.3f} s", o.kernel))
     return rows
 
 
@@ -170,13 +148,14 @@ def _kernel_rows(size, repeat):
     rows = []
     limits = {"shadow_intensity float32": 8, "shade float32": 8, "shadow_intensity six moments float32": 16}
     for name, (fn, args, traffic) in kernel_inputs(size * size).items():
-        copy = _copier(traffic)
-        (ck, _), (cc, _) = measure([lambda: fn(*args), copy], repeat)
-        rows.append(_row(f"{name} vs copy of its traffic ({size}²)", ck / cc, limits[name],
-                         f"CPU {ck:.4f} s vs copy of {traffic / 2**20:.0f} MiB moved {cc:.4f} s", ck))
+        r = paired(lambda: fn(*args), copier(traffic), repeat)
+        rows.append(_row(f"{name} vs copy of its traffic ({size}²)", r, limits[name],
+                         f"CPU {r.kernel:.4f} s vs copy of {traffic / 2**20:.0f} MiB moved {r.baseline:.3g} s",
+                         r.kernel))
         if "six" in name:
             peak, out = peak_memory(fn, *args)
-            rows.append(_row(f"{name} peak memory / output", peak / out, 2,
+            exact = Ratio(peak / out, peak / out, peak / out, 0.0, 0.0, 0.0, 0.0, 1)  # a count, not a timing
+            rows.append(_row(f"{name} peak memory / output", exact, 2,
                              f"{peak / 2**20:.1f} MiB allocated at peak for a {out / 2**20:.1f} MiB result"))
     return rows
 
@@ -186,23 +165,27 @@ def _kernel_rows(size, repeat):
 
 
 def _growth_rows(sizes, triangles, repeat):
-    """Per-element CPU cost at three sizes for each kernel and the rasterizer."""
-    costs = {}
+    """Per-element CPU cost of the largest size over the smallest, interleaved, for each kernel and the rasterizer."""
+    calls = {}
     for s in sizes:
         for name, (fn, args, _) in kernel_inputs(s * s).items():
-            costs.setdefault(name, []).append((s * s, measure([lambda: fn(*args)], repeat)[0][0] / (s * s)))
+            calls.setdefault(name, []).append((s * s, (lambda fn=fn, args=args: fn(*args))))
         z = filtering.bench_depth_map(s, 4, np.float32)
-        costs.setdefault("4× MSAA map → NLQ64 (global path)", []).append(
-            (s * s, measure([lambda: global_nlq(z)], repeat)[0][0] / (s * s)))
+        calls.setdefault("4× MSAA map → NLQ64 (global path)", []).append((s * s, (lambda z=z: global_nlq(z))))
     for n in triangles:
         v, t, vp, size, samples = raster_case(f"small-{n}-1x")
-        c = measure([lambda: rasterize_depth(v, t, vp, size, samples=samples)], repeat)[0][0]
-        costs.setdefault("rasterizer 1× (small triangles, 1024²)", []).append((n, c / n))
+        calls.setdefault("rasterizer 1× (small triangles, 1024²)", []).append(
+            (n, (lambda v=v, t=t, vp=vp, size=size, samples=samples: rasterize_depth(v, t, vp, size, samples=samples))))
     rows = []
-    for name, pts in costs.items():
-        growth = pts[-1][1] / pts[0][1]
-        per = ", ".join(f"{_count(n)}: {1e9 * c:.1f} ns" for n, c in pts)
-        rows.append(_row(f"linear growth: {name}", growth, GROWTH_LIMIT, f"per element {per}"))
+    for name, pts in calls.items():
+        (n0, small), (n1, large) = pts[0], pts[-1]
+        r = paired(large, small, repeat)
+        per = n0 / n1  # ratio of totals -> ratio of per-element costs
+        g = Ratio(r.median * per, r.low * per, r.high * per, r.kernel, r.baseline, r.kernel_wall, r.baseline_wall,
+                  r.pairs)
+        rows.append(_row(f"linear growth: {name}", g, GROWTH_LIMIT,
+                         f"per element {_count(n0)}: {1e9 * r.baseline / n0:.1f} ns, "
+                         f"{_count(n1)}: {1e9 * r.kernel / n1:.1f} ns"))
     return rows
 
 
@@ -210,8 +193,10 @@ def _count(n):
     return f"{n // 2**20} M" if n >= 2**20 else f"{n // 2**10} k"
 
 
-def run_targets(quick=False, repeat=3, raster=True):
+def run_targets(quick=False, repeat=None, raster=True):
     """Measure every target; one dict per target (``ratio`` None where it could not be measured).
+
+    ``repeat``: pairs per ratio (default :data:`._timing.PAIRS`, 3 with ``quick``).
 
     ``quick`` shrinks every size (a smoke run whose numbers mean little).
     """
@@ -222,6 +207,7 @@ def run_targets(quick=False, repeat=3, raster=True):
              ("railing-4x", "railing 2048² 4×", 2.0)]
     if quick:
         cases = cases[:1]
+    repeat = repeat or (3 if quick else PAIRS)
     load = os.getloadavg()
     rows = _raster_rows(cases, repeat) if raster else []
     rows += _nlq_rows(big, repeat) + _kernel_rows(big, repeat)
@@ -238,15 +224,35 @@ def targets_markdown(rows):
     if not rows:
         return ""
     (a, _, _), (b, _, _) = rows[0]["load"]
-    lines = [f"## Targets of issue 17 (same-run ratios, medians of CPU time; load average {a:.2f} before, "
-             f"{b:.2f} after, 2 cores)", "",
-             "| target | ratio | limit | mark | measured |", "|---|---:|---:|---|---|"]
+    lines = [f"## Speed targets (same-run ratios: median of interleaved pairs, quartiles as the spread; "
+             f"load average {a:.2f} before, {b:.2f} after)", "",
+             "A target is marked pass or miss only when its whole spread lies on one side of the limit.", "",
+             "| target | ratio | spread | limit | mark | measured |", "|---|---:|---|---:|---|---|"]
     for r in rows:
         if r["ratio"] is None:
-            lines.append(f"| {r['target']} | - | {r['limit']:g}× | not measured | {r['detail']} |")
+            lines.append(f"| {r['target']} | - | - | {r['limit']:g}× | not measured | {r['detail']} |")
             continue
-        mark = "pass" if r["passed"] else "MISS"
-        lines.append(f"| {r['target']} | {r['ratio']:.2f}× | {r['limit']:g}× | {mark} | {r['detail']} |")
-    lines += ["", "The target that the default `moments-ref report` runs within 45 s using both cores "
-              "belongs to the report and pipeline, not to this bench."]
+        lines.append(f"| {r['target']} | {r['ratio']:.2f}× | {r['low']:.2f}–{r['high']:.2f} | {r['limit']:g}× | "
+                     f"{r['mark']} | {r['detail']} |")
+    lines += ["", "The default `moments-ref report`'s run time belongs to the report and pipeline, not to this bench."]
+    return "\n".join(lines) + "\n"
+
+
+def agreement_markdown(runs):
+    """Consecutive runs of :func:`run_targets` side by side: does every ratio agree within :data:`AGREEMENT`?"""
+    if not runs:
+        return ""
+    names = [r["target"] for r in runs[0]]
+    lines = [f"## {len(runs)} consecutive runs of the targets (agreement: largest / smallest ratio ≤ "
+             f"{1 + AGREEMENT:g})", "",
+             "| target | " + " | ".join(f"run {i + 1}" for i in range(len(runs))) + " | largest / smallest | agree |",
+             "|---|" + "---:|" * len(runs) + "---:|---|"]
+    for k, name in enumerate(names):
+        vals = [run[k]["ratio"] for run in runs]
+        if any(v is None for v in vals):
+            lines.append(f"| {name} | " + " | ".join("-" for _ in vals) + " | - | not measured |")
+            continue
+        spread = max(vals) / min(vals)
+        lines.append(f"| {name} | " + " | ".join(f"{v:.2f}×" for v in vals) +
+                     f" | {spread:.3f} | {'yes' if spread <= 1 + AGREEMENT else 'NO'} |")
     return "\n".join(lines) + "\n"

@@ -1,0 +1,48 @@
+"""``moments-ref conformance --kernel (--glsl | --hlsl | --wgsl) FILE --entry NAME --case CASE``."""
+
+from __future__ import annotations
+
+import sys
+
+from ..._arrays import InputError
+from .._gl import ContextError
+from .._toolchain import ToolError
+from .run import run_kernel
+
+__all__ = ["kernel_cli", "SHIPPED_KERNELS", "shipped_kernel"]
+
+#: Kernel case -> (file stem, entry point per language) of the shipped kernels in moments_ref/ports/.
+SHIPPED_KERNELS = {
+    **{f"kernel-filter-{f}": (f"hpg17_filter_{f}", {"glsl": "main", "hlsl": f"filter_{f}", "wgsl": f"filter_{f}"})
+       for f in ("nlq64", "nlq32", "msm64", "moments")},
+    "kernel-vwss-points": ("vwss_points", {"glsl": "main", "hlsl": "CS", "wgsl": "CS"}),
+}
+
+
+def shipped_kernel(case, language):
+    """``(path, entry)`` of the shipped kernel of a kernel case in ``language``."""
+    from ...ports import PORTS_DIR
+
+    if case not in SHIPPED_KERNELS:
+        raise InputError(f"case: no shipped kernel for {case!r}; kernel cases: {', '.join(SHIPPED_KERNELS)}")
+    stem, entries = SHIPPED_KERNELS[case]
+    return PORTS_DIR / language / f"{stem}.{language}", entries[language]
+
+
+def kernel_cli(path, entry, case, language, golden_dir=None, adapter=None, time_limit=None, out=None, err=None):
+    """Run a kernel on a case, print the report, return the exit code (0 pass, 1 fail, 2 bad usage or no driver).
+
+    ``path``: the file (a shipped kernel's bare name is resolved by the caller).
+    """
+    out, err = out or sys.stdout, err or sys.stderr
+    try:
+        if entry is None:
+            raise InputError("conformance: --entry NAME is required with --kernel (GLSL: main)")
+        if case is None:
+            raise InputError("conformance: --case CASE is required with --kernel")
+        report = run_kernel(path, entry, case, language, adapter, golden_dir, time_limit)
+    except (ContextError, ToolError, InputError) as exc:
+        print(f"moments-ref conformance: {exc}", file=err)
+        return 2
+    print(report.format(), file=out)
+    return 0 if report.passed else 1
