@@ -12,7 +12,8 @@ device) of at most :data:`MAX_MANIFEST` bytes, UTF-8 JSON nested at most
 a plain case name, a file name inside the folder, ``dtype`` float32 or float64,
 ``metric`` abs, ulps or exact (``exact`` saying the same), an integer ``count`` in
 [1, :data:`MAX_ROWS`], inputs and outputs with numeric dtypes and integer shapes
-whose first axis is ``count`` (at most :data:`MAX_ELEMENTS` elements each), the
+(at most :data:`MAX_ELEMENTS` elements each; the outputs' first axis is ``count``,
+and the inputs' too but for kernel cases, whose inputs are whole maps), the
 compared outputs of the metric's kind, a finite ``value_range`` with lo ≤ hi,
 and a sha256 of 64 hex digits.
 
@@ -143,8 +144,9 @@ def _is_number(v):
     return (_is_int(v) and abs(v) <= 1e300) or (isinstance(v, float) and np.isfinite(v))
 
 
-def _spec(where, spec, count):
-    """An input's or output's ``{dtype, shape}``: a numeric dtype and integer shape starting with ``count``."""
+def _spec(where, spec, count, rows=True):
+    """An input's or output's ``{dtype, shape}``: a numeric dtype and an integer shape, starting with ``count``
+    for ``rows`` (outputs; inputs too except those of kernel cases, which hold whole maps or views)."""
     if not isinstance(spec, dict) or "shape" not in spec or "dtype" not in spec:
         raise InputError(f"{where}: expected {{'dtype': ..., 'shape': [...]}}, got {brief(spec)}")
     try:
@@ -157,9 +159,10 @@ def _spec(where, spec, count):
     shape = spec["shape"]
     if (not isinstance(shape, list) or not 1 <= len(shape) <= 4
             or not all(_is_int(s) and 0 <= s <= MAX_ELEMENTS for s in shape)
-            or shape[0] != count or np.prod(shape, dtype=np.float64) > MAX_ELEMENTS):
-        raise InputError(f"{where}.shape: expected a list of 1 to 4 integers starting with the count {count}, "
-                         f"at most {MAX_ELEMENTS} elements, got {brief(shape)}")
+            or (rows and shape[0] != count) or np.prod(shape, dtype=np.float64) > MAX_ELEMENTS):
+        start = f" starting with the count {count}" if rows else ""
+        raise InputError(f"{where}.shape: expected a list of 1 to 4 integers{start}, at most {MAX_ELEMENTS} "
+                         f"elements, got {brief(shape)}")
     return dt
 
 
@@ -190,7 +193,7 @@ def check_entry(name, meta):
                                                                    for x in meta[k]):
             raise InputError(f"{where}: expected {k!r} as a non-empty object name -> {{dtype, shape}}")
         for x, spec in meta[k].items():
-            _spec(f"{where}: {k}.{x}", spec, count)
+            _spec(f"{where}: {k}.{x}", spec, count, rows=k == "outputs")
     _check_compare(where, meta)
     rng = meta.get("value_range")
     if rng is not None and (not isinstance(rng, list) or len(rng) != 2 or not all(map(_is_number, rng))
