@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError, one_line
+from .._arrays import InputError
 from ..ports import PORTS_DIR
 from ._cases import load_case
 from ._gl import ContextError
@@ -57,7 +57,7 @@ def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=
             report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter,
                               options=options)
     except (ContextError, ToolError, InputError) as exc:
-        print(one_line(f"moments-ref conformance: {exc}"), file=err)
+        print(f"moments-ref conformance: {exc}", file=err)
         return 2
     except Exception as exc:  # noqa: BLE001 - a harness failure must never read as a failing port
         print(f"moments-ref conformance: {path}: the harness failed ({harness_failure(exc)}); "
@@ -224,7 +224,7 @@ def main(args):
         try:
             text = summary_markdown(golden_dir=get("golden"), adapter=get("adapter"), progress=True)
         except (ContextError, ToolError, InputError) as exc:
-            print(one_line(f"moments-ref conformance: {exc}"), file=sys.stderr)
+            print(f"moments-ref conformance: {exc}", file=sys.stderr)
             return 2
         except Exception as exc:  # noqa: BLE001 - a harness failure is exit 2, one line
             print(f"moments-ref conformance: the harness failed ({harness_failure(exc)})", file=sys.stderr)
