@@ -380,8 +380,7 @@ def _write(acc, out, flip_ok, done, fronts):
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
         temporal=False)
-    blobs = {**files, **acc.pngs, **fronts, **{name: text.encode("utf-8") for name, text in texts.items()}}
-    paths = _write_set(out, blobs)
+    paths = _write_set(out, {**files, **acc.pngs, **fronts, **texts})
     return {"rows": acc.rows, "stages": acc.stages, "claims": json.loads(texts["claims.json"]),
             "soft": statements.get("mvr", {}),
             "artifacts": artifacts, "paths": paths, "settings": acc.references}
@@ -392,7 +391,7 @@ INCOMPLETE = "INCOMPLETE"
 
 
 def _write_set(out, blobs):
-    """Write ``{file name: bytes}`` into ``out``, marked :data:`INCOMPLETE` until the last file is written.
+    """Write ``{file name: bytes or text}`` into ``out``, marked :data:`INCOMPLETE` until the last file is written.
 
     Each file is written atomically; the set is not: the marker is written first
     and removed after the last file, so that a folder whose writing failed (a full
@@ -407,7 +406,7 @@ def _write_set(out, blobs):
         write_text(marker, f"This report was not completely written: {len(blobs)} files were to be written, "
                            f"{', '.join(blobs)}. Rerun moments-ref report to replace it.\n")
         for name, data in blobs.items():
-            paths[name] = write_bytes(out / name, data)
+            paths[name] = (write_text if isinstance(data, str) else write_bytes)(out / name, data)
         marker.unlink()
     except OSError as exc:
         state = ("nothing was written" if name == INCOMPLETE else
