@@ -10,6 +10,15 @@ huge torus knot, a 20000² camera); missing or special input files; and output
 piped into a reader that closes early (BrokenPipeError).
 
 Every probe must fail fast: the outputs and inputs are checked before any work.
+
+The second table (further down) runs each probe as a real process under a memory
+limit and also judges its peak memory and what it left on disk: hostile scene
+files (names as paths, ``[params]``, TOML nesting and number sizes), cameras that
+shade no receiver pixel, hostile golden folders through ``verify`` and
+``conformance --golden``, results files (zip bombs, integer codes of another
+width), OBJ files against ``--max-memory``, the API under huge numbers; then the
+signals (no orphan worker, no temporary file), a write phase that fails (the
+folder marked ``INCOMPLETE``) and warnings that never precede a refusal.
 """
 
 from __future__ import annotations
@@ -312,7 +321,8 @@ def finish(p, cwd, timeout=300):
         p.kill()
         p.wait()
     for r in readers:
-        r.join()
+        r.join(10)  # an orphaned child holding the pipes must not hang the test
+    outs = {"out": outs.get("out", ""), "err": outs.get("err", "")}
     peak = Path(cwd) / ".peak"
     rss = int(peak.read_text()) * 1024 if peak.exists() else 0
     peak.unlink(missing_ok=True)
@@ -506,7 +516,9 @@ def _bomb(path_or_buf, key, nbytes, extra=None):
             b = io.BytesIO()
             np.save(b, v)
             zf.writestr(f"{k}.npy", b.getvalue())
-        with zf.open(zipfile.ZipInfo(f"{key}.npy"), "w", force_zip64=True) as f:
+        info = zipfile.ZipInfo(f"{key}.npy")
+        info.compress_type = zipfile.ZIP_DEFLATED
+        with zf.open(info, "w", force_zip64=True) as f:
             f.write(header.getvalue())
             zero = bytes(1 << 20)
             for _ in range(nbytes >> 20):
@@ -618,7 +630,8 @@ def _results_probes(clean):
 
     verify = ["verify", "--golden", "{tmp}/g", "--results", "{tmp}/r.npz"]
     return [
-        Probe("results-zip-bomb", "results", verify, results(lambda p, g: _bomb(p, f"{CODES}.p", 1 << 30))),
+        # 960 MiB of zeros in 0.98 MB: within the file-size limit the shapes imply.
+        Probe("results-zip-bomb", "results", verify, results(lambda p, g: _bomb(p, f"{CODES}.p", 960 << 20))),
         Probe("results-int32-codes-pass", "results", verify, results(codes(lambda p: p.view(np.int32))), code=0),
         Probe("results-int64-codes-pass", "results", verify, results(codes(lambda p: p.astype(np.int64))), code=0),
         Probe("results-sign-extended-codes", "results", verify,
@@ -629,16 +642,30 @@ def _results_probes(clean):
     ]
 
 
+#: Peak resident memory of the interpreter with NumPy, SciPy and matplotlib, beyond which a
+#: command's own allocations count against ``--max-memory``.
+INTERPRETER = 100 << 20
+
+
 def _obj_probes():
-    # 300,000 vertices: 48 MB by the generators' estimate (160 B per vertex and triangle).
-    def setup(tmp):
+    def vertices(tmp):  # 300,000 vertices: 48 MB by the generators' estimate (160 B per vertex and triangle)
         (tmp / "m.obj").write_text("v 0 0 0\n" * 300_000 + "f 1 2 3\n")
-        (tmp / "s.toml").write_text(_LIGHT + _CAMERA + _REC + "[[objects]]\nname = \"m\"\nobj = \"m.obj\"\n"
-                                    "role = \"occluder\"\n")
+        (tmp / "s.toml").write_text("shadow_map_size = 64\n" + _LIGHT + _CAMERA + _REC + _MESH)
+
+    def fans(tmp):  # 1,000 polygons of 2,001 corners: 2 million triangles from 4 MB (the old estimate: 64 MB)
+        (tmp / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n" + ("f" + " 1 2 3" * 667 + "\n") * 1000)
+        (tmp / "s.toml").write_text("shadow_map_size = 64\n" + _LIGHT + _CAMERA + _REC + _MESH)
+
     fig4 = ["figure4", "--out", "{tmp}/o", "--scene", "{tmp}/s.toml", "--size", "16"]
-    return [Probe("obj-300k-vertices-under-32M", "obj", [*fig4, "--max-memory", "32M"], setup),
-            Probe("obj-300k-vertices-under-64M", "obj", [*fig4, "--max-memory", "64M"], setup, code=0,
-                  rss=RSS_REFUSAL)]
+    return [Probe("obj-300k-vertices-under-32M", "obj", [*fig4, "--max-memory", "32M"], vertices,
+                  rss=INTERPRETER + (32 << 20)),
+            Probe("obj-300k-vertices-under-64M", "obj", [*fig4, "--max-memory", "64M"], vertices, code=0,
+                  rss=INTERPRETER + (64 << 20)),
+            Probe("obj-2M-fan-triangles-under-128M", "obj", [*fig4, "--max-memory", "128M"], fans,
+                  rss=INTERPRETER + (128 << 20))]
+
+
+_MESH = "[[objects]]\nname = \"m\"\nobj = \"m.obj\"\nrole = \"occluder\"\n"
 
 
 def all_probes(clean):
@@ -649,7 +676,8 @@ def all_probes(clean):
 
 _IDS = ([p.id for p in SCENE_PROBES + API_PROBES] + [f"{k}-{i}" for k in ("golden", "conformance") for i, _ in GOLDEN_EDITS]
         + ["results-zip-bomb", "results-int32-codes-pass", "results-int64-codes-pass", "results-sign-extended-codes",
-           "results-pickled", "obj-300k-vertices-under-32M", "obj-300k-vertices-under-64M"])
+           "results-pickled", "obj-300k-vertices-under-32M", "obj-300k-vertices-under-64M",
+           "obj-2M-fan-triangles-under-128M"])
 
 
 @pytest.fixture(scope="module")
