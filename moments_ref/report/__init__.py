@@ -213,15 +213,16 @@ def _announce(acc, sc, names, used, ref_settings, full):
                              "techniques": list(names), "reduced": reduced}
     note = (f"not the scene's own: {', '.join(reduced)}; --full runs the scene's own settings"
             if reduced else "the scene's own settings")
-    return (f"{sc.name}: {', '.join(names)}; shadow map {'×'.join(map(str, size))}, MSAA {samples}×, camera "
-            f"{'×'.join(map(str, res))}, reference {refs}, {acc.repeats} timed repeats ({note})")
+    print(f"{sc.name}: {', '.join(names)}; shadow map {'×'.join(map(str, size))}, MSAA {samples}×, camera "
+          f"{'×'.join(map(str, res))}, reference {refs}, {acc.repeats} timed repeats ({note})", file=sys.stderr)
 
 
 def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_techniques=False):
-    """``(techniques, pipeline keywords, settings line)`` of a scene; ``None`` when nothing runs on it.
+    """``(techniques, pipeline keywords, what to announce)`` of a scene; ``None`` when nothing runs on it.
 
     A scene whose camera would shade no receiver pixel at the run's settings is
-    refused here, before any work (:func:`moments_ref.scene.gbuffer.check_shaded`).
+    refused here, before any work (:func:`moments_ref.scene.gbuffer.check_shaded`);
+    its settings are announced (:func:`_announce`) once every scene passed.
     """
     size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
@@ -233,7 +234,7 @@ def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_tec
     graph, targets, meta = pipeline.plan(sc, names, **kw)
     if PROJECTION in graph.order(targets):
         check_shaded(sc, res, sc.shadow_view_proj(), size)
-    return names, kw, _announce(acc, sc, names, (size, samples, res), meta["settings"], full)
+    return names, kw, (names, (size, samples, res), meta["settings"], full)
 
 
 def _check_unique(scenes, loaded):
@@ -514,8 +515,8 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                   noise_tiles, all_techniques)) is not None]
-    for _, (_, _, line) in plans:  # every scene checked first: no line precedes a refusal
-        print(line, file=sys.stderr)
+    for sc, (_, _, announce) in plans:  # every scene checked first: no line precedes a refusal
+        _announce(acc, sc, *announce)
     plans = [(sc, (names, kw)) for sc, (names, kw, _) in plans]
     tasks = _tasks(plans, full, jobs, acc.repeats, progress)
     jobs = min(jobs, len(tasks)) or 1
