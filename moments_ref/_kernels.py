@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._arrays import float_dtype
+
 __all__ = ["CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "WARP_BLOCK",
            "SHADING_BLOCK", "FILTER_BAND_BYTES", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
@@ -52,7 +54,7 @@ SINGULAR_RTOL = {"float32": 0.0, "float64": 8.0}
 
 def singular_thresholds(dtype):
     """The relative singularity threshold ``SINGULAR_RTOL[dtype]·eps`` of float32 or float64."""
-    dt = np.dtype(dtype)
+    dt = float_dtype(dtype)
     return SINGULAR_RTOL[dt.name] * np.finfo(dt).eps
 
 

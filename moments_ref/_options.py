@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ["positive_int_arg", "add_report_arguments"]
+__all__ = ["positive_int_arg", "folder_arg", "add_report_arguments"]
 
 
 def positive_int_arg(text):
@@ -24,6 +24,13 @@ def positive_int_arg(text):
     if n < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
     return n
+
+
+def folder_arg(text):
+    """argparse type of ``--out``: a path, not the empty string (which would mean the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a folder, got {text!r} (write '.' for the current folder)")
+    return Path(text)
 
 
 def add_report_arguments(parser):
@@ -41,6 +48,6 @@ def add_report_arguments(parser):
                    help="timed repeats of each cost stage after a warm-up (default 3)")
     p.add_argument("--jobs", type=positive_int_arg, default=None, metavar="N",
                    help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
-    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--out", required=True, type=folder_arg, help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p

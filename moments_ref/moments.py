@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._arrays import InputError, as_real, check_finite, first_index, real_input
+from ._arrays import InputError, as_real, check_axis, check_finite, first_index, real_input
 
 __all__ = [
     "power_moments",
@@ -75,6 +75,7 @@ def power_moments(z, weights=None, axis=-1, n=4):
     z = real_input(z, "z")
     if z.ndim == 0:
         raise InputError("z: expected at least one axis of samples, got a scalar")
+    axis = check_axis(axis, z.ndim, "z")
     w = None
     if weights is not None:
         w = real_input(weights, "weights", dtype=z.dtype)

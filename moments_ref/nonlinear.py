@@ -47,7 +47,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._arrays import InputError, first_index, lookup_inputs, real_input, refuse_lookup
+from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
 from ._kernels import copysign_exact, copysign_inplace
 
 __all__ = [
@@ -90,7 +90,7 @@ ROUNDING_ULPS = 64
 
 def rounding_tolerance(dtype) -> float:
     """``ROUNDING_ULPS · eps(dtype)``: how far outside the domain rounding may put r."""
-    return ROUNDING_ULPS * float(np.finfo(dtype).eps)
+    return ROUNDING_ULPS * float(np.finfo(float_dtype(dtype)).eps)
 
 
 #: Ψ4's constants (HPG17 §3.3): Ψ4(ξ) = (ln ln(ξ·1e7) − c0) / c1, so that Ψ4(1.2e-7) = 0 and Ψ4(0.25) = 1.

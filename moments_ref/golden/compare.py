@@ -14,10 +14,16 @@ It returns a :class:`Verdict`: per row pass/fail (``row_pass``), a per-row score
 (worst error over tolerance, ``inf`` for NaN or a wrong code) and per-output
 summaries. The rule, the same for every harness:
 
-* the candidate's dtype must have the manifest's kind and width: integer outputs
-  an integer dtype of the expected width, float outputs a real float dtype of the
-  port's precision (``port_dtype``, default the case's dtype); anything else is an
+* the candidate's dtype must have the manifest's kind: integer outputs any
+  integer dtype, float outputs a real float dtype of the port's precision
+  (``port_dtype``, default the case's dtype); anything else is an
   :class:`~moments_ref.InputError` naming the array, the expected and the found dtype;
+* integer codes compare by value in the manifest's width: a signed array of
+  that width holds the codes' bits (an int32 array of uint32 codes, as a shader's
+  ``int`` buffer does); any other integer array holds the codes' values (uint32,
+  int64, ...). A negative value there is no code (a sign extension?): an
+  :class:`~moments_ref.InputError` naming the array and the row. A value beyond
+  the width is a wrong code;
 * integer outputs: every component equals the expected code or, on rows whose
   ``result`` is ``acceptable``, one of the codes stored for it in
   ``<output>_acceptable`` (rounding ties);
@@ -124,8 +130,8 @@ def check_dtypes(entry, candidate, port_dtype=None, prefix=""):
         got = np.asarray(candidate[o]).dtype
         want = np.dtype(entry["outputs"][o]["dtype"])
         if entry["metric"] == "exact":
-            ok = got.kind in "ui" and got.itemsize == want.itemsize
-            expect = f"an integer dtype of {want.itemsize * 8} bits ({want})"
+            ok = got.kind in "ui"
+            expect = f"an integer dtype ({want} codes)"
         else:
             ok = got.kind == "f" and got.itemsize == np.dtype(dt).itemsize
             expect = f"a real {dt} array (the port's precision)"
@@ -133,16 +139,29 @@ def check_dtypes(entry, candidate, port_dtype=None, prefix=""):
             raise InputError(f"results: {name!r} expected {expect}, found dtype {got}")
 
 
-def _exact(o, expected, cand, n, acceptable_rows):
-    e = np.asarray(expected[o]).astype(np.int64)
-    c = np.asarray(cand).astype(np.int64)
+def _codes(cand, want, name, n):
+    """The candidate's integer codes as uint64 values in the manifest's width (module docstring)."""
+    c = np.asarray(cand)
+    if c.dtype.kind == "i" and c.dtype.itemsize == want.itemsize:
+        return c.astype(f"u{want.itemsize}").astype(np.uint64)  # the same bits, read unsigned
+    if c.dtype.kind == "i" and (c < 0).any():
+        row = int(np.flatnonzero((c < 0).reshape(n, -1).any(axis=1))[0])
+        raise InputError(f"results: {name!r} row {row} holds the negative code {int(c.reshape(n, -1)[row].min())} "
+                         f"({c.dtype}); codes are {want} values: save them as {want} (or as "
+                         f"int{want.itemsize * 8} holding the same bits)")
+    return c.astype(np.uint64)
+
+
+def _exact(o, expected, cand, n, acceptable_rows, want, name):
+    e = np.asarray(expected[o]).astype(np.uint64)
+    c = _codes(cand, want, name, n)
     ok = c == e
     alts = expected.get(f"{o}_acceptable")
     if alts is not None:
-        a = np.asarray(alts).astype(np.int64)
+        a = np.asarray(alts).astype(np.uint64)
         alt_ok = (a == c[:, None]).any(axis=1)
         ok |= alt_ok & acceptable_rows.reshape((n,) + (1,) * (c.ndim - 1))
-    err = np.abs(c - e).astype(np.float64).reshape(n, -1).max(axis=1)
+    err = np.abs(c.astype(np.float64) - e.astype(np.float64)).reshape(n, -1).max(axis=1)
     row_ok = ok.reshape(n, -1).all(axis=1)
     score = np.where(row_ok, 0.0, np.inf)
     return row_ok, score, err, np.zeros(n)
@@ -210,7 +229,8 @@ def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
         if cand.shape != want:
             raise InputError(f"results: {case + '.' if case else ''}{o!r} has shape {cand.shape}, expected {want}")
         if entry["metric"] == "exact":
-            ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows)
+            ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows, np.dtype(entry["outputs"][o]["dtype"]),
+                                     f"{case}.{o}" if case else o)
             gated = int((~acceptable_rows).sum())
         else:
             (ok, s, err, tol), (nf, out) = _float(o, entry, expected, cand, n, dt)

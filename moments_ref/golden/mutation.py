@@ -68,7 +68,7 @@ def load_corpus(path):
     """The ``MUTANTS`` list of ``path/corpus.py`` (or of a ``.py`` file)."""
     path = Path(path)
     file = path / "corpus.py" if path.is_dir() else path
-    if not file.is_file():
+    if not file.is_file() or file.suffix != ".py":
         raise InputError(f"corpus: expected a folder with corpus.py or a .py file, got {str(path)!r}")
     sys.path.insert(0, str(file.parent))
     try:
@@ -76,10 +76,12 @@ def load_corpus(path):
         module = importlib.util.module_from_spec(spec)
         sys.modules[spec.name] = module
         spec.loader.exec_module(module)
+    except (SyntaxError, ImportError, UnicodeDecodeError) as exc:
+        raise InputError(f"corpus: could not import {str(file)!r}: {type(exc).__name__}: {exc}") from None
     finally:
         sys.path.remove(str(file.parent))
     mutants = getattr(module, "MUTANTS", None)
-    if not mutants:
+    if not mutants or not isinstance(mutants, (list, tuple)):
         raise InputError(f"corpus: {str(file)!r} defines no MUTANTS list")
     return mutants
 

@@ -1,21 +1,18 @@
 """Verify a foreign implementation's results against the golden vectors.
 
-Reads only what it must, and only safely: ``manifest.json`` and each case's file
-must be regular files (no links, FIFOs or devices) directly inside the golden
-folder, no larger than the manifest's shapes imply, with the recorded sha256.
-Anything else (malformed JSON, missing keys, a missing or corrupt ``.npz``, missing
-arrays, results of the wrong dtype, names matching no case) raises
+Reads only what it must, and only through the one strict loader
+(:mod:`moments_ref.golden.loader`, shared with ``conformance`` and ``oracle``):
+``manifest.json`` and each case's file must be regular files directly inside the
+golden folder, every entry well-formed, every archive within the size its shapes
+imply before anything is decompressed, with the recorded sha256. Anything else
+(malformed JSON, missing keys, a missing or corrupt ``.npz``, missing arrays, NaN
+tolerances, results of the wrong dtype or shape, names matching no case) raises
 :class:`~moments_ref.InputError` with one line, which the command line turns into
 exit status 2. Differences found by the comparison are the report (exit status 1).
 """
 
 from __future__ import annotations
 
-import hashlib
-import io
-import json
-import os
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,128 +20,11 @@ import numpy as np
 
 from .._arrays import InputError
 from .compare import compare
+from .loader import load_case_arrays, load_manifest, load_results, read_regular
 from .spread import ulp
-from .writer import CATEGORIES, SCHEMA_VERSION
+from .writer import CATEGORIES
 
 __all__ = ["verify", "VerifyReport", "CaseResult", "load_manifest", "load_case_arrays", "read_regular"]
-
-#: Largest manifest accepted (bytes).
-MAX_MANIFEST = 16 << 20
-_ENTRY_KEYS = ("file", "compare", "inputs", "outputs", "dtype", "metric", "count", "sha256")
-_ROW_OVERHEAD = 4096  # bytes per row for labels, comments, tolerances and acceptable codes
-
-
-def read_regular(path, limit, what):
-    """The bytes of ``path`` if it is a regular file (not a link) of at most ``limit`` bytes."""
-    path = Path(path)
-    try:
-        st = os.lstat(path)
-    except OSError:
-        raise InputError(f"{what}: expected a file, got {str(path)!r} (not found)") from None
-    if stat.S_ISLNK(st.st_mode) or not stat.S_ISREG(st.st_mode):
-        raise InputError(f"{what}: expected a regular file, got {str(path)!r} (a link, device, FIFO or folder)")
-    if st.st_size > limit:
-        raise InputError(f"{what}: expected at most {limit} bytes, got {str(path)!r} with {st.st_size} bytes")
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise InputError(f"{what}: could not open {str(path)!r}: {exc.strerror}") from None
-    with os.fdopen(fd, "rb") as f:
-        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
-            raise InputError(f"{what}: expected a regular file, got {str(path)!r}")
-        return f.read(limit + 1)[:limit + 1]
-
-
-def _check_entry(name, meta):
-    if not isinstance(meta, dict):
-        raise InputError(f"manifest: case {name!r}: expected an object, got {type(meta).__name__}")
-    missing = [k for k in _ENTRY_KEYS if k not in meta]
-    if missing:
-        raise InputError(f"manifest: case {name!r} lacks the key {missing[0]!r} (expected {', '.join(_ENTRY_KEYS)})")
-    f = meta["file"]
-    if (not isinstance(f, str) or not f or f in (".", "..") or "/" in f or "\\" in f or os.path.isabs(f)
-            or "\0" in f):
-        raise InputError(f"manifest: case {name!r}: expected a file name inside the golden folder, got {f!r}")
-    for k in ("inputs", "outputs"):
-        if not isinstance(meta[k], dict) or not all(isinstance(v, dict) and "shape" in v and "dtype" in v
-                                                   for v in meta[k].values()):
-            raise InputError(f"manifest: case {name!r}: expected {k!r} as name -> {{dtype, shape}}")
-    if not isinstance(meta["compare"], list) or not all(o in meta["outputs"] for o in meta["compare"]):
-        raise InputError(f"manifest: case {name!r}: 'compare' must list outputs of the case")
-
-
-def load_manifest(golden_dir):
-    """The parsed, checked ``manifest.json`` of ``golden_dir``."""
-    golden_dir = Path(golden_dir)
-    if not golden_dir.is_dir():
-        raise InputError(f"golden_dir: expected a folder with manifest.json, got {str(golden_dir)!r}")
-    blob = read_regular(golden_dir / "manifest.json", MAX_MANIFEST, "golden_dir")
-    try:
-        manifest = json.loads(blob.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"manifest: expected JSON, could not parse manifest.json: {exc}") from None
-    if not isinstance(manifest, dict) or not isinstance(manifest.get("cases"), dict):
-        raise InputError("manifest: expected an object with a 'cases' object")
-    if manifest.get("schema_version") != SCHEMA_VERSION:
-        raise InputError(f"manifest: expected schema_version {SCHEMA_VERSION}, got "
-                         f"{manifest.get('schema_version')!r} (regenerate with 'moments-ref golden')")
-    for name, meta in manifest["cases"].items():
-        _check_entry(name, meta)
-    return manifest
-
-
-def _size_limit(meta):
-    """Bytes a case file may have at most, from the manifest's shapes."""
-    total = 0
-    aux = meta.get("aux") if isinstance(meta.get("aux"), dict) else {}  # engine cases' distributions
-    for spec in list(meta["inputs"].values()) + list(meta["outputs"].values()) + list(aux.values()):
-        try:
-            count = int(np.prod([int(s) for s in spec["shape"]], dtype=np.int64))
-            total += count * np.dtype(spec["dtype"]).itemsize
-        except (TypeError, ValueError):
-            raise InputError(f"manifest: a shape or dtype is malformed: {spec!r}") from None
-    # Expected values, tolerances (2 columns) and acceptable codes: at most ~8 times the outputs.
-    return 8 * total + _ROW_OVERHEAD * int(meta["count"]) + (1 << 16)
-
-
-def load_case_arrays(golden_dir, name, meta):
-    """The arrays of one case file, after the file and sha256 checks."""
-    blob = read_regular(Path(golden_dir) / meta["file"], _size_limit(meta), f"golden file of {name}")
-    if hashlib.sha256(blob).hexdigest() != meta["sha256"]:
-        raise InputError(f"golden: {meta['file']} does not match the sha256 in manifest.json")
-    try:
-        with np.load(io.BytesIO(blob), allow_pickle=False) as g:
-            arrays = {k: g[k] for k in g.files}
-    except Exception as exc:  # zipfile, format and value errors of a corrupt file
-        raise InputError(f"golden: {meta['file']} is not a readable .npz: {exc}") from None
-    need = list(meta["inputs"]) + list(meta["compare"]) + ["category", "comment", "result", "tc_id"]
-    missing = [k for k in need if k not in arrays]
-    if missing:
-        raise InputError(f"golden: {meta['file']} lacks the array {missing[0]!r}")
-    return arrays
-
-
-def _results_limit(manifest):
-    """Bytes a results file may have: every compared output at 8 bytes a value, twice, plus 1 MiB."""
-    total = 0
-    try:
-        for meta in manifest["cases"].values():
-            for o in meta["compare"]:
-                total += 8 * int(np.prod([int(x) for x in meta["outputs"][o]["shape"]], dtype=np.int64))
-    except (TypeError, ValueError):
-        raise InputError("manifest: an output shape is malformed (expected a list of integers)") from None
-    return 2 * total + (1 << 20)
-
-
-def _load_results(path, limit):
-    blob = read_regular(path, limit, "results")
-    try:
-        with np.load(io.BytesIO(blob), allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
-    except Exception as exc:
-        raise InputError(f"results: expected an .npz file, could not read {str(path)!r}: {exc}") from None
-
 
 @dataclass
 class CaseResult:
@@ -325,11 +205,7 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
             raise InputError("profile: the golden folder was written for another profile "
                              f"({manifest.get('profile')}); verify it without --profile or with that one")
         profile = None  # the folder's expected values are already this profile's
-    results = _load_results(results_path, _results_limit(manifest))
-    known = {f"{n}.{o}" for n, m in manifest["cases"].items() for o in m["compare"]}
-    stray = sorted(set(results) - known)
-    if stray:
-        raise InputError(f"results: {stray[0]!r} matches no golden case output; known: {', '.join(sorted(known))}")
+    results = load_results(results_path, manifest)
     report = []
     for name, meta in manifest["cases"].items():
         keys = {o: f"{name}.{o}" for o in meta["compare"]}

@@ -32,13 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, one_line
 from .._io import figure_png, write_bytes, write_text
 from .._options import add_report_arguments
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from . import paper_claims, scattering_temporal
 from .. import pipeline
 from .. import techniques as _techniques
+from ..scene.gbuffer import check_shaded
+from ..techniques._interface import PROJECTION
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
 from ._crops import crop_figures
@@ -166,7 +168,12 @@ def _announce(acc, sc, names, used, ref_settings, full):
 
 
 def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_techniques=False):
-    """``(techniques, pipeline.Settings)`` of a scene, its settings announced; ``None`` when nothing runs on it."""
+    """``(techniques, pipeline.Settings, what to announce)`` of a scene; ``None`` when nothing runs on it.
+
+    A scene whose camera would shade no receiver pixel at the run's settings is
+    refused here, before any work (:func:`moments_ref.scene.gbuffer.check_shaded`);
+    its settings are announced (:func:`_announce`) once every scene passed.
+    """
     size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
     names = _scene_techniques(sc, requested, all_techniques)
@@ -174,8 +181,23 @@ def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_tec
         return None
     st = pipeline.Settings(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles,
                            overrides=overrides, full=full, repeats=acc.repeats, clock="cpu")
-    _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, st).settings, full)
-    return names, st
+    p = pipeline.plan(sc, names, st)
+    if PROJECTION in p.graph.order(p.targets):
+        check_shaded(sc, res, sc.light_clip_from_world(), size)
+    return names, st, (names, (size, samples, res), p.settings, full)
+
+
+def _check_unique(scenes, loaded):
+    """Refuse two scenes of the same name: their rows, stages and images would overwrite each other."""
+    given = {}
+    for arg, sc in zip(scenes, loaded):
+        if sc.name in given:
+            first = given[sc.name]
+            what = (f"scene {str(arg)!r} is given twice" if str(first) == str(arg) else
+                    f"two scenes are named {sc.name!r} ({first} and {arg}); give one of them another name "
+                    "(name = \"...\" in its file)")
+            raise InputError(f"scene: {what}: their rows and images would overwrite each other")
+        given[sc.name] = arg
 
 
 def _png(fig):
@@ -309,13 +331,39 @@ def _write(acc, out, flip_ok, done, fronts):
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
         temporal=False)
-    paths = {name: write_bytes(out / name, data) for name, data in files.items()}
-    paths.update({name: write_bytes(out / name, data) for name, data in {**acc.pngs, **fronts}.items()})
-    for name, text in texts.items():
-        paths[name] = write_text(out / name, text)
+    paths = _write_set(out, {**files, **acc.pngs, **fronts, **texts})
     return {"rows": acc.rows, "stages": acc.stages, "claims": json.loads(texts["claims.json"]),
             "soft": statements.get("mvr", {}),
             "artifacts": artifacts, "paths": paths, "settings": acc.references}
+
+
+#: The file that marks a report folder whose writing did not finish (see :func:`_write_set`).
+INCOMPLETE = "INCOMPLETE"
+
+
+def _write_set(out, blobs):
+    """Write ``{file name: bytes or text}`` into ``out``, marked :data:`INCOMPLETE` until the last file is written.
+
+    Each file is written atomically; the set is not: the marker is written first
+    and removed after the last file, so that a folder whose writing failed (a full
+    disk, a folder in the way) or was killed says so. A failure is an
+    :class:`InputError` naming the file, the reason and how many files were written.
+    """
+    bad = [n for n in blobs if Path(n).name != n or n in (".", "..", INCOMPLETE)]
+    if bad:  # names are made from checked scene names; this guards the folder anyway
+        raise InputError(f"out: refusing to write {bad[0]!r} (not a plain file name inside {out})")
+    marker, paths, name = out / INCOMPLETE, {}, INCOMPLETE
+    try:
+        write_text(marker, f"This report was not completely written: {len(blobs)} files were to be written, "
+                           f"{', '.join(blobs)}. Rerun moments-ref report to replace it.\n")
+        for name, data in blobs.items():
+            paths[name] = (write_text if isinstance(data, str) else write_bytes)(out / name, data)
+        marker.unlink()
+    except OSError as exc:
+        state = ("nothing was written" if name == INCOMPLETE else
+                 f"the report in {out} is incomplete ({len(paths)} of {len(blobs)} files written; {marker} says so)")
+        raise InputError(f"out: could not write {out / name} ({exc.strerror or exc}); {state}") from None
+    return paths
 
 
 def _timing_line(jobs, cores, repeats):
@@ -390,13 +438,19 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     Raises
     ------
     InputError
-        Unknown scene or technique names (listing the known ones), a scene
-        without receiver or camera (with the reason).
+        Unknown scene or technique names (listing the known ones), two scenes of
+        the same name, a scene without receiver or camera or whose camera shades
+        no receiver pixel (with the reason), a write that failed (the folder is
+        then marked incomplete, :func:`_write`).
     """
     from ..scene import list_scenes, load_scene
 
+    if isinstance(out_dir, str) and not out_dir.strip():
+        raise InputError(f"out_dir: expected a folder, got {out_dir!r}")
     out = Path(out_dir)
-    loaded = [load_scene(s) for s in (list_scenes() if not scenes else list(scenes))]  # refuse bad names first
+    scenes = list_scenes() if not scenes else list(scenes)
+    loaded = [load_scene(s) for s in scenes]  # refuse bad names first
+    _check_unique(scenes, loaded)
     for sc in loaded:
         pipeline.check_scene(sc)
     if techniques is not None:
@@ -411,6 +465,9 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                   noise_tiles, all_techniques)) is not None]
+    for sc, (_, _, announce) in plans:  # every scene checked first: no line precedes a refusal
+        _announce(acc, sc, *announce)
+    plans = [(sc, (names, st)) for sc, (names, st, _) in plans]
     tasks = _tasks(plans, full, jobs, progress)
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
@@ -455,7 +512,7 @@ def main(args=None) -> int:
                   techniques=args.technique, all_techniques=args.all_techniques, repeats=args.repeats,
                   jobs=args.jobs)
     except InputError as exc:
-        print(f"moments-ref report: {exc}", file=sys.stderr)
+        print(one_line(f"moments-ref report: {exc}"), file=sys.stderr)
         return 2
     print(f"wrote {', '.join(str(p) for p in res['paths'].values())}")
     # The paper claims as claims.json judges them (the paper's own figures; report.md has the table).

@@ -8,7 +8,8 @@ depth buffer and unprojects each pixel centre (VWSS §4's deferred G-buffer pass
 coordinates, its unbiased depth in the light's shadow map, its signed depth
 gradient per texel along the receiver (``gradient``) and the gradient's length
 (``slope``); :func:`z_ndc_lookup` is the depth a lookup compares, with or
-without the receiver-slope bias (:data:`SLOPE_BIAS_TEXELS`).
+without the receiver-slope bias (:data:`SLOPE_BIAS_TEXELS`). :func:`check_shaded`
+refuses, before a run, a camera that would shade no receiver pixel.
 
 Depth bias (HPG17 §5). The filterable techniques use the constant bias alone
 ("With non-linear quantization we use a constant depth bias of 10⁻³ depth units
@@ -30,12 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._arrays import real_input
+from .._arrays import InputError, real_input
 from .._shim import alias, renamed, renamed_keywords
 from .raster import project_points, rasterize_depth, rasterize_fragments, unproject_points
 
-__all__ = ["GBuffer", "camera_gbuffer", "depth_gbuffer", "light_projection", "z_ndc_lookup", "SLOPE_BIAS_TEXELS", "BACKGROUND",
-           "RECEIVER", "OCCLUDER", "OUTSIDE_LIGHT"]
+__all__ = ["GBuffer", "camera_gbuffer", "depth_gbuffer", "light_projection", "z_ndc_lookup", "check_shaded",
+           "SLOPE_BIAS_TEXELS", "BACKGROUND", "RECEIVER", "OCCLUDER", "OUTSIDE_LIGHT"]
 
 #: kind image codes of :class:`GBuffer`.
 BACKGROUND, RECEIVER, OCCLUDER, OUTSIDE_LIGHT = 0, 1, 2, 3
@@ -217,6 +218,44 @@ def _depth_slope(plane):
     return np.where(finite, slope, slope[finite].max() if finite.any() else 0.0)
 
 
+def _inside_map(g, clip_from_world, size):
+    """Texel coordinates and depth of ``g``'s receiver points, and which of them fall inside the shadow map."""
+    h, w = size
+    xy, depth = project_points(g.position, clip_from_world, (h, w))
+    inside = (np.isfinite(depth) & (depth >= -1) & (depth <= 1)
+              & (xy[:, 0] >= 0) & (xy[:, 0] <= w) & (xy[:, 1] >= 0) & (xy[:, 1] <= h))
+    return xy, depth, inside
+
+
+def _refuse_unshaded(g, inside, camera, what):
+    """:class:`InputError` saying why no receiver pixel of ``g`` is shaded, unless one is."""
+    if inside.any():
+        return
+    w, h = g.resolution
+    seen = np.bincount(g.kind.reshape(-1), minlength=4)
+    reason = (f"the {g.pixel.size} receiver pixels it sees lie outside the light's shadow map" if g.pixel.size else
+              f"it sees only occluders ({seen[OCCLUDER]} pixels): the receivers are out of view, edge-on, of zero "
+              "area or hidden (is the eye inside an occluder?)" if seen[OCCLUDER] else
+              "it sees no geometry: the receivers are out of view, edge-on or of zero area, or the field of view "
+              "is too narrow or too wide")
+    view = "" if camera is None else f" (eye {camera.eye.tolist()}, target {camera.target.tolist()}, fov {camera.fov})"
+    raise InputError(f"camera: shades no pixel of {what} at {w}×{h}{view}: {reason}; nothing to measure")
+
+
+def check_shaded(scene, resolution, clip_from_world, size, what=None):
+    """Refuse (:class:`InputError`, with the reason) a scene whose camera shades no receiver pixel.
+
+    Exact, not conservative: the camera's G-buffer at ``resolution``
+    (:func:`camera_gbuffer`) and its projection into the ``size`` shadow map of
+    ``clip_from_world`` (:func:`light_projection`) are computed as the pipeline computes
+    them, and at least one receiver pixel must be seen (not hidden by an occluder)
+    and inside the shadow map. Costs one G-buffer pass.
+    """
+    g = camera_gbuffer(scene, resolution)
+    _refuse_unshaded(g, _inside_map(g, clip_from_world, size)[2], scene.camera,
+                     what or f"the receivers of scene {getattr(scene, 'name', '?')!r}")
+
+
 @renamed_keywords(view_proj="clip_from_world")
 def light_projection(g, clip_from_world, size):
     """Texel coordinates, unbiased depth, depth gradient and slope of the receiver points in the shadow map.
@@ -226,14 +265,12 @@ def light_projection(g, clip_from_world, size):
     reference; ``slope`` its length (:func:`_depth_slope`), from which
     :func:`z_ndc_lookup` forms the receiver-slope bias of PCF.
     """
-    h, w = size
-    xy, depth = project_points(g.position, clip_from_world, (h, w))
-    inside = (np.isfinite(depth) & (depth >= -1) & (depth <= 1)
-              & (xy[:, 0] >= 0) & (xy[:, 0] <= w) & (xy[:, 1] >= 0) & (xy[:, 1] <= h))
+    xy, depth, inside = _inside_map(g, clip_from_world, size)
+    _refuse_unshaded(g, inside, None, "the receivers")  # (checked before the run by check_shaded)
     kind = g.kind.reshape(-1).copy()
     kind[g.pixel[~inside]] = OUTSIDE_LIGHT
     pos, nrm = g.position[inside], g.normal[inside]
-    plane = _plane_gradient(pos, nrm, clip_from_world, (h, w))  # once: the gradient and its length
+    plane = _plane_gradient(pos, nrm, clip_from_world, tuple(size))  # once: the gradient and its length
     gradient, slope = _depth_gradient(plane), _depth_slope(plane)
     return GBuffer(resolution=g.resolution, kind=kind.reshape(g.kind.shape), pixel=g.pixel[inside],
                    position=pos, lambert=g.lambert[inside], normal=nrm,
