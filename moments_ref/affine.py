@@ -83,6 +83,7 @@ from fractions import Fraction
 import numpy as np
 
 from ._arrays import InputError, first_index, real_input
+from ._docs import fill_doc
 
 __all__ = [
     "OPTIMIZED_MATRIX",
@@ -253,13 +254,13 @@ def _code_input(u, name, dtype, size):
 # ---------------------------------------------------------------------------
 
 
+@fill_doc
 def to_optimized(b):
     """Map moments b1..b4 to the optimized basis (R, G, B, A).
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4 (b0 = 1 implicit).
+    %(b)s
 
     Returns
     -------
@@ -425,13 +426,14 @@ def unorm_to_float(u, bits=16, dtype=np.float64):
     return arr.astype(dt) / dt.type(top)
 
 
+@fill_doc
 def encode_unorm16(b):
     """Quantize moments to a 64-bit R16G16B16A16_UNORM texel.
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4 (biasing is not applied here).
+    %(b)s
+        Biasing is not applied here.
 
     Returns
     -------

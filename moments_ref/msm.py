@@ -64,6 +64,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._arrays import InputError, lookup_inputs, real_input, refuse_lookup
+from ._docs import fill_doc
 from ._kernels import SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
 
 __all__ = [
@@ -291,6 +292,7 @@ def _six(b) -> bool:
     return len(shape) > 0 and shape[-1] == 6
 
 
+@fill_doc
 def shadow_intensity(b, zf, bound="lower"):
     """Sharp bound of the filtered shadow intensity Z(z < zf) from four (or six) moments.
 
@@ -301,8 +303,8 @@ def shadow_intensity(b, zf, bound="lower"):
         :func:`moments_ref.moments.bias_moments`. A trailing axis of 6 (b1..b6)
         dispatches to :func:`moments_ref.msm6.shadow_intensity`, the six-moment
         bounds (four support points, one at zf).
-    zf : (...) float array
-        Fragment depth, broadcast against ``b[..., 0]``; cast to b's dtype.
+    %(zf)s
+        Cast to b's dtype.
     bound : {"lower", "upper"}
         ``"lower"``: HPG17 Algorithm 1, the sharp lower bound of Z(z < zf).
         ``"upper"``: the lower bound plus w0, the sharp upper bound of Z(z ≤ zf).
@@ -338,15 +340,14 @@ def shadow_intensity(b, zf, bound="lower"):
     return out[bound].reshape(shape)
 
 
+@fill_doc
 def canonical_representation(b, zf):
     """The three-point distribution attaining Algorithm 1's bounds (HPG17 Fig. 2).
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4.
-    zf : (...) float array
-        Fragment depth.
+    %(b)s
+    %(zf)s
 
     Returns
     -------

@@ -141,6 +141,7 @@ import time
 import numpy as np
 
 from ._arrays import InputError, brief, check_broadcast, first_index, lookup_inputs, real_input, refuse_lookup
+from ._docs import fill_doc
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
 from ._kernels import two_point as _two_point
@@ -580,6 +581,7 @@ def _run(b, zf, want):
     return outs, zf, shape
 
 
+@fill_doc
 def shadow_bounds(b, zf):
     """Both sharp bounds from six moments: ``(lower, upper)``.
 
@@ -588,8 +590,8 @@ def shadow_bounds(b, zf):
     b : (..., 6) float array
         Moments b1..b6 (b0 = 1 implicit), normally biased
         (:data:`BIAS6_FLOAT64`, :data:`BIAS6_FLOAT32`, :data:`BIAS6_UNORM10`).
-    zf : (...) float array
-        Fragment depth, broadcast against ``b[..., 0]``; cast to b's dtype.
+    %(zf)s
+        Cast to b's dtype.
 
     Returns
     -------
@@ -600,6 +602,7 @@ def shadow_bounds(b, zf):
     return outs["lower"].reshape(shape), outs["upper"].reshape(shape)
 
 
+@fill_doc
 def shadow_intensity(b, zf, bound="lower"):
     """Sharp bound of ``Z(z < zf)`` (or of ``Z(z ≤ zf)``) from six moments.
 
@@ -607,8 +610,7 @@ def shadow_intensity(b, zf, bound="lower"):
     ----------
     b : (..., 6) float array
         Moments b1..b6, normally biased.
-    zf : (...) float array
-        Fragment depth, broadcast against ``b[..., 0]``.
+    %(zf)s
     bound : {"lower", "upper"}
 
     Returns

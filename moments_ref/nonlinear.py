@@ -48,6 +48,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
+from ._docs import fill_doc
 from ._kernels import copysign_exact, copysign_inplace
 
 __all__ = [
@@ -102,13 +103,14 @@ PSI4_C1 = float(np.log(np.log(0.25e7))) - PSI4_C0
 # Φ and Φ⁻¹
 
 
+@fill_doc
 def phi(b):
     """HPG17 Algorithm 2: the non-linear representation ``(y1, y2, v2, ξ4) = Φ(b)``.
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4 (b0 = 1 implicit), *already biased*: HPG17 applies
+    %(b)s
+        *Already biased*: HPG17 applies
         ``bias_moments(b, BIAS_FLOAT32)`` to the input of Algorithm 2 (§3.1, §3.2),
         which ensures σ² > 0 and y1 ≠ y2.
 
@@ -269,13 +271,13 @@ def _phi_degenerate(b1, b4, sigma2, out):
         np.copyto(xi4, b4 - b1sq * b1sq, where=single)
 
 
+@fill_doc
 def phi_inverse(r):
     """Moments of a non-linear representation, HPG17 Eq. (4).
 
     Parameters
     ----------
-    r : (..., 4) float array
-        ``(y1, y2, v2, ξ4)``.
+    %(r)s
 
     Returns
     -------
@@ -415,13 +417,13 @@ def psi4_inverse(u):
 # Validation of representations (shared with packing)
 
 
+@fill_doc
 def validate_representation(r, name="r"):
     """Check a ``(..., 4)`` representation and clamp rounding noise onto its domain.
 
     Parameters
     ----------
-    r : (..., 4) float array
-        ``(y1, y2, v2, ξ4)``.
+    %(r)s
     name : str
         Argument name for error messages.
 
@@ -603,6 +605,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     np.add(k, t, out=out)
 
 
+@fill_doc
 def shade(r, zf, clamp=SHADE_TOLERANCE):
     """HPG17 Algorithm 3: the sharp lower bound of Z(z < zf) from ``(y1, y2, v2, ξ4)``.
 
@@ -613,8 +616,8 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
         of a decoder in :mod:`moments_ref.packing`). Must lie in the domain
         ``y1 ≤ y2``, ``0 ≤ v2 ≤ 1``, ``ξ4 ≥ 0`` up to :func:`rounding_tolerance`
         (then clamped onto it); otherwise :class:`~moments_ref.InputError`.
-    zf : (...) float array
-        Fragment depth, broadcast against ``r[..., 0]``, cast to r's dtype.
+    %(zf)s
+        Cast to r's dtype.
     clamp : float
         The offset of the §3.4 clamps (default ``SHADE_TOLERANCE = 1e-6``, the
         paper's). Any offset in :data:`CLAMP_BAND` keeps the clamp's effect below

@@ -69,6 +69,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._arrays import InputError, as_array, first_index, float_dtype, real_input
+from ._docs import fill_doc
 from .moments import BIAS_FLOAT32, bias_moments
 from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, phi_rows, psi4_clamped, phi, psi4_inverse,
                         rounding_tolerance, validate_representation)
@@ -158,13 +159,13 @@ def _encoder_input(r):
     return r
 
 
+@fill_doc
 def saturate(r):
     """What the encoders store before quantizing: ``r`` saturated onto the stored ranges.
 
     Parameters
     ----------
-    r : (..., 4) float array
-        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+    %(r)s
 
     Returns
     -------
@@ -317,13 +318,13 @@ def _codes(x, name, hi):
 # 64 bits
 
 
+@fill_doc
 def pack64(r, *, xi_rounding="up"):
     """Store ``(y1, y2, v2, ξ4)`` in four UNORM16 channels (HPG17 §3.3).
 
     Parameters
     ----------
-    r : (..., 4) float array
-        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+    %(r)s
     xi_rounding : {"up", "nearest"}
         The Ψ4 code: ``"up"`` (default) ``ceil(65535·Ψ4(ξ4))`` and the decode check,
         so the decoded ξ4 is never below the stored one (HPG17 §3.5's principle, which
@@ -465,13 +466,13 @@ def unfold(f1, f2):
     return np.where(flipped, 1023 - f1, f1), np.where(flipped, 1022 - f2, f2)
 
 
+@fill_doc
 def pack32(r):
     """Pack ``(y1, y2, v2, ξ4)`` into one uint32 (HPG17 §3.5, Figure 5).
 
     Parameters
     ----------
-    r : (..., 4) float array
-        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+    %(r)s
 
     Returns
     -------

@@ -47,6 +47,7 @@ import mpmath
 import numpy as np
 
 from ._arrays import InputError, brief, broadcast_pair, check_axis, real_input
+from ._docs import fill_doc
 from .moments import BiasPreset, bias_preset
 from .nonlinear import validate_representation
 
@@ -328,15 +329,15 @@ def _prepare(b, zf, n=4):
     return np.broadcast_to(b, shape + (n,)), np.broadcast_to(zf, shape), shape
 
 
+@fill_doc
 def shadow_bounds(b, zf, dps=DPS):
     """Both bounds of HPG17 Algorithm 1 at once, in mpmath.
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4 (any float dtype; converted exactly).
-    zf : (...) float array
-        Fragment depth, broadcast against ``b[..., 0]``.
+    %(b)s
+        Any float dtype; converted exactly.
+    %(zf)s
     dps : int
         Working precision in decimal digits.
 
@@ -360,15 +361,15 @@ def shadow_bounds(b, zf, dps=DPS):
     return lower, upper
 
 
+@fill_doc
 def shadow_intensity(b, zf, bound="lower", dps=DPS):
     """mpmath twin of :func:`moments_ref.msm.shadow_intensity` (HPG17 Algorithm 1).
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4, any float dtype, converted exactly.
-    zf : (...) float array
-        Fragment depth, broadcast against ``b[..., 0]``.
+    %(b)s
+        Any float dtype; converted exactly.
+    %(zf)s
     bound : {"lower", "upper"}
         Sharp lower bound of Z(z < zf), or sharp upper bound of Z(z ≤ zf).
     dps : int
@@ -472,13 +473,14 @@ def _phi_inverse_mp(y1, y2, v2, xi4):
     return b
 
 
+@fill_doc
 def phi(b, dps=DPS):
     """mpmath twin of ``nonlinear.phi`` (HPG17 Algorithm 2).
 
     Parameters
     ----------
-    b : (..., 4) float array
-        Moments b1..b4 (any float dtype; converted exactly). HPG17 applies the
+    %(b)s
+        Any float dtype; converted exactly. HPG17 applies the
         float32 bias before Algorithm 2; this function takes b as given.
 
     Returns
@@ -498,13 +500,13 @@ def phi(b, dps=DPS):
     return out
 
 
+@fill_doc
 def phi_inverse(r, dps=DPS):
     """mpmath twin of ``nonlinear.phi_inverse`` (HPG17 Eq. (4)).
 
     Parameters
     ----------
-    r : (..., 4) float array
-        ``(y1, y2, v2, ξ4)``.
+    %(r)s
 
     Returns
     -------
@@ -558,15 +560,15 @@ def psi4_inverse(u, dps=DPS):
     return out
 
 
+@fill_doc
 def shade(r, zf, dps=DPS):
     """Exact lower bound for a non-linear representation: Algorithm 1 on Eq. (4).
 
     Parameters
     ----------
-    r : (..., 4) float array
-        ``(y1, y2, v2, ξ4)`` (any float dtype; converted exactly).
-    zf : (...) float array
-        Fragment depth, broadcast against ``r[..., 0]``.
+    %(r)s
+        Any float dtype; converted exactly.
+    %(zf)s
 
     Returns
     -------
@@ -682,6 +684,7 @@ def _bounds6_mp(b, zf, tol):
     return clamp(lower), clamp(upper)
 
 
+@fill_doc
 def shadow_bounds6(b, zf, dps=DPS):
     """mpmath twin of :func:`moments_ref.msm6.shadow_bounds` (six moments).
 
@@ -689,8 +692,7 @@ def shadow_bounds6(b, zf, dps=DPS):
     ----------
     b : (..., 6) float array
         Moments b1..b6 (any float dtype; converted exactly).
-    zf : (...) float array
-        Fragment depth, broadcast against ``b[..., 0]``.
+    %(zf)s
     dps : int
         Working precision in decimal digits.
 

@@ -4,6 +4,8 @@ import importlib
 import pkgutil
 from pathlib import Path
 
+import pytest
+
 import moments_ref
 from moments_ref.tools import apidoc as _apidoc
 
@@ -58,3 +60,34 @@ def test_layout_tables_are_generated_from_the_folders():
     folders = {f"moments_ref/{p.name}/" for p in (ROOT / "moments_ref").iterdir()
                if (p / "__init__.py").is_file() and not _apidoc.layout.is_shim(p.name)}
     assert folders <= rows and "moments_ref/gpu/" in rows and "moments_ref/tools/" in rows
+
+
+def test_shared_parameter_docs_are_written_once_and_filled():
+    """`b`, `zf` and `r` are documented once (moments_ref._docs) and filled into every docstring that names them."""
+    import inspect
+    import textwrap
+
+    from moments_ref import _docs, msm, nonlinear, precise
+
+    filled = _docs.fill("    Parameters\n    ----------\n    %(zf)s\n        Cast to b's dtype.\n")
+    assert filled.splitlines()[2] == "    zf : (...) float array"
+    assert filled.splitlines()[3].startswith("        Fragment depth in the light's NDC")
+    assert filled.rstrip().endswith("        Cast to b's dtype.")
+    with pytest.raises(KeyError):
+        _docs.fill("    %(nothing)s\n")
+    for fn in (msm.shadow_intensity, nonlinear.shade, precise.shadow_intensity):
+        doc = inspect.getdoc(fn)
+        assert "%(" not in doc and "zf : (...) float array" in doc, fn.__name__
+    sources = {p: p.read_text(encoding="utf-8") for p in (ROOT / "moments_ref").rglob("*.py")}
+    for name, entry in _docs.PARAMETERS.items():
+        description = textwrap.dedent(entry.split("\n", 1)[1]).split("\n")[0]
+        where = [str(p) for p, s in sources.items() if description in s]
+        assert where == [str(ROOT / "moments_ref" / "_docs.py")], (name, where)
+    assert not [str(p) for p, s in sources.items() if "Fragment depth, broadcast against ``b" in s]
+    for m in pkgutil.walk_packages(moments_ref.__path__, "moments_ref."):
+        if m.name.endswith("__main__"):
+            continue
+        mod = importlib.import_module(m.name)
+        for obj in vars(mod).values():
+            if inspect.isfunction(obj) and obj.__module__ == m.name and obj.__doc__:
+                assert "%(" not in obj.__doc__ or "fill" in obj.__name__, f"{m.name}.{obj.__name__}: unfilled"

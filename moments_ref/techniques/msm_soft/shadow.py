@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._docs import fill_doc
 from ...affine import from_optimized, to_optimized
 from ...gpu.filtering import resolve_moments
 from ...moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments
@@ -304,15 +305,15 @@ def prepare(depth_samples, light, clip_from_world, max_kernel=None, depth="linea
     return prepare_moments(resolve_moments(z), light, clip_from_world, max_kernel, depth)
 
 
+@fill_doc
 def average_blocker_depth(b, zf, epsilon=EPSILON):
     """Average depth of the blockers in front of ``zf`` from four moments.
 
     Parameters
     ----------
-    b : (..., 4) float array
-        (Biased) moments of the search region.
-    zf : (...) float array
-        Fragment depth.
+    %(b)s
+        Biased: the moments of the search region.
+    %(zf)s
     epsilon : float
         ε of the slides (10⁻³).
 
