@@ -94,172 +94,186 @@ def _constants(dtype, n):
     }
 
 
-def _kernel(b, zf, want, c, dest):
-    """Algorithm 1 on flat chunks: b (4, n) contiguous rows b1..b4, zf (n,) -> dict.
+def _cholesky(b):
+    """Step (2) begins with the Cholesky decomposition ``B(b) = L D Lᵀ``, without square roots.
 
-    ``want`` is a set drawn from {"lower", "upper", "canonical"}; ``c`` holds the
-    constant arrays of :func:`_constants` (same length); a bound in ``want`` is
-    written into ``dest[bound]`` when ``dest`` has it (saves a copy). Every case is computed
-    for every element and the result is selected by multiplying with 0/1 masks:
-    in NumPy ``np.where``, masked ufuncs, ``np.clip`` with scalars and
-    ``np.copysign`` each cost several arithmetic passes, so they are avoided here.
+    ``L = [[1], [b1, 1], [b2, L32, 1]]`` and ``D = diag(1, σ², ξ4)`` with ``σ² = b2 − b1²``,
+    ``L32 = (b3 − b1 b2)/σ²`` and ``ξ4 = b4 − b2² − L32² σ²`` (HPG17 Eq. (3)).
+    """
+    b1, b2, b3, b4 = b
+    sigma2 = b2 - b1 * b1
+    l32 = b3 - b1 * b2
+    l32 /= sigma2
+    b4_two_point = l32 * l32  # E_S(z⁴) = b2² + L32² σ², S the two-point distribution (HPG17 Eq. (1))
+    b4_two_point *= sigma2
+    b4_two_point += b2 * b2
+    xi4 = b4 - b4_two_point
+    return sigma2, l32, xi4
 
-    Kept in one function on purpose (a hot kernel over the 60-line limit): its
-    steps share a dozen in-place temporaries of one chunk. Measured with
-    ``moments-ref bench`` kernels, 1024², CPU time, best of 9 in 3 interleaved runs,
-    before and after moving ``CHUNK`` and the copysign to :mod:`moments_ref._kernels`:
-    float32 27.7 -> 24.8 ms, float64 54.8 -> 51.6 ms (no slowdown; noise ±20 %).
-    The chunk checks of :func:`_run`, ``CHUNK = 32768``, float masks in step (5) and
-    bounds written into the output: 2048² float32 0.132 -> 0.094 s CPU, 16.6× -> 11.0×
-    a same-run copy of the traffic (bench targets, load 4.5 on 2 cores).
+
+def _singular_rows(b, sigma2, xi4, c):
+    """Singular B(b) (module docstring): ``σ² ≤ τ·b2`` or ``ξ4 ≤ τ·max(b4, σ²)``."""
+    if c["rtol"] == 0:  # float32: the pivots' signs only
+        return (sigma2 <= c["zero"]) | (xi4 <= c["zero"])
+    _, b2, _, b4 = b
+    return (sigma2 <= b2 * c["rtol"]) | (xi4 <= np.maximum(b4, sigma2) * c["rtol"])
+
+
+def _solve(b, zf, sigma2, l32, xi4):
+    """Step (2): ``B(b) q = (1, zf, zf²)``, and ``w0 = 1 / ((1, zf, zf²) B⁻¹ (1, zf, zf²)ᵀ)``.
+
+    Returns ``(q0, q1, q2, w0)``. w0 is the weight of zf in the canonical representation
+    (Peters and Klein 2015, Prop. 10): ``1 / (1 + y2²/σ² + y3²/ξ4)`` with y from the
+    forward substitution, a sum of squares (no cancellation).
+    """
+    b1, b2 = b[0], b[1]
+    # Forward substitution to solve L y = (1, zf, zf²): y1 = 1.
+    y2 = zf - b1
+    y3 = zf * zf
+    y3 -= b2
+    y3 -= l32 * y2
+    # Scaling to solve D c = y: c1 = 1, c3 = q2.
+    c2 = y2 / sigma2
+    q2 = y3 / xi4
+    # Back substitution to solve Lᵀ q = c.
+    q1 = c2 - l32 * q2
+    b_dot_q = b1 * q1
+    b_dot_q += b2 * q2
+    q0 = 1 - b_dot_q  # the first row of B q = (1, zf, zf²): q0 + b1 q1 + b2 q2 = 1
+    # 1/w0 = 1 + y2 c2 + y3 c3.
+    inv_w0 = y2 * c2
+    inv_w0 += y3 * q2
+    inv_w0 += 1
+    return q0, q1, q2, 1 / inv_w0
+
+
+def _roots(q0, q1, q2, b4, c):
+    """Step (3): the roots ``z1 ≤ z2`` of ``q2 z² + q1 z + q0``, and where they are finite.
+
+    Without cancellation: ``s = −q1/2 − sign(q1)·√(q1²/4 − q2 q0)`` has none, and the
+    roots are ``s/q2`` and ``q0/s`` (Vieta). ``q2 → 0`` (zf at a support point of the
+    two-point representation) sends one root to ±∞ instead of giving 0/0. A non-finite
+    discriminant (q1² or q2·q0 overflowing: ξ4 at the rounding level of b4 in float32)
+    marks the texel singular; ``d + b4`` also catches ``b4 = +∞``, the one non-finite
+    input that leaves the pivots and the discriminant finite (d ≤ 2e19 in float32, so
+    only a b4 within that of the largest float overflows besides).
+    """
+    h = q1 * -0.5
+    disc = h * h
+    disc -= q2 * q0
+    root = np.sqrt(np.maximum(disc, c["zero"]))
+    finite = np.isfinite(root + b4)
+    s = h + copysign_inplace(root, h, c["sign"])  # root takes h's sign in place
+    ra, rb = s / q2, q0 / s
+    return np.minimum(ra, rb), np.maximum(ra, rb), finite
+
+
+def _weights(z1, b, sigma2, l32, xi4, w0, c):
+    """Step (4): ``w1 = 1 / ((1, z1, z1²) B⁻¹ (1, z1, z1²)ᵀ)`` and ``w2 = 1 − w0 − w1``.
+
+    HPG17 §3.4 (Peters and Klein 2015, Prop. 10) instead of the Vandermonde solve of the
+    algorithm box: ``u = L⁻¹(1, z1, z1²)``, ``w1 = 1 / (1 + u2²/σ² + u3²/ξ4)``, positive
+    by construction and 0 for a root at infinity (its NaN, ∞ − ∞, becomes 0). ``w2``
+    uses b0 = 1; ``w0 + w1`` may round above 1 (−4.5e−6 seen in float32), so w2 ≥ 0.
+    """
+    b1, b2 = b[0], b[1]
+    u2 = z1 - b1
+    u3 = z1 * z1
+    u3 -= b2
+    u3 -= l32 * u2
+    inv_w1 = u2 * u2
+    inv_w1 /= sigma2
+    inv_w1 += u3 * u3 / xi4
+    inv_w1 += 1
+    w1 = np.fmax(1 / inv_w1, c["zero"])
+    w2 = 1 - w0
+    w2 -= w1
+    return w1, np.maximum(w2, c["zero"], out=w2)
+
+
+def _kernel(b, zf, want, c, dest, refuse):
+    """HPG17 Algorithm 1 on flat chunks: b (4, n) rows b1..b4, zf (n,) -> dict.
+
+    One function per step of the algorithm box (step (1), B(b), stays implicit in the
+    rows b): :func:`_cholesky` and :func:`_solve` (2), :func:`_roots` (3),
+    :func:`_weights` (4), the sum below (5). ``want`` is drawn from {"lower", "upper",
+    "canonical"}; ``c`` holds the constant arrays of :func:`_constants` (same length);
+    a bound in ``want`` is written into ``dest[bound]`` when ``dest`` has it;
+    ``refuse()`` raises the error of a NaN or inf in the input. Every case is computed
+    for every element and step (5) multiplies by 0/1 masks: ``np.where``, masked
+    ufuncs and array–scalar ``np.maximum`` cost several arithmetic passes each in NumPy.
+    The per-chunk cost is in docs/bench.md ("Kernel history").
     """
     dt = b.dtype.type
-    n = zf.shape[0]
-    b1, b2, b3, b4 = b
-    rtol = c["rtol"]
-    t = np.empty(n, dtype=b.dtype)
-    # LDLᵀ of the Hankel matrix B(b): L21 = b1, L31 = b2, D = diag(1, σ², ξ4),
-    # L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32² σ² (HPG17 Eq. (3)).
-    sigma2 = b1 * b1
-    np.subtract(b2, sigma2, out=sigma2)
-    l32 = b1 * b2
-    np.subtract(b3, l32, out=l32)
-    xi4 = b2 * b2
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        l32 /= sigma2
-        np.multiply(l32, l32, out=t)
-        t *= sigma2
-        xi4 += t
-        np.subtract(b4, xi4, out=xi4)
-        # Singular B(b) (module docstring): σ² ≤ τ b2 or ξ4 ≤ τ max(b4, σ²).
-        if rtol == 0:
-            singular = sigma2 <= c["zero"]
-            singular |= xi4 <= c["zero"]
-        else:
-            np.multiply(b2, rtol, out=t)
-            singular = sigma2 <= t
-            np.maximum(b4, sigma2, out=t)
-            t *= rtol
-            singular |= xi4 <= t
-        # Step (2), forward substitution L·y = (1, zf, zf²): y = (1, zf − b1, zf² − b2 − L32·y2).
-        y2 = zf - b1
-        y3 = zf * zf
-        y3 -= b2
-        np.multiply(l32, y2, out=t)
-        y3 -= t
-        # Scaling D·c = y and back substitution Lᵀ·q = c.
-        c2 = y2 / sigma2
-        q2 = y3 / xi4
-        q1 = l32 * q2
-        np.subtract(c2, q1, out=q1)
-        q0 = b1 * q1
-        np.multiply(b2, q2, out=t)
-        q0 += t
-        np.subtract(c["one"], q0, out=q0)
-        # w0 = 1 / (vᵀ B⁻¹ v) with v = (1, zf, zf²): 1 / (1 + y2²/σ² + y3²/ξ4).
-        w0 = y2 * c2
-        np.multiply(y3, q2, out=t)
-        w0 += t
-        w0 += 1
-        np.divide(c["one"], w0, out=w0)
-        # Step (3): roots of q2 z² + 2h z + q0 (h = q1/2) without cancellation:
-        # s = h + sign(h)·√(h² − q2 q0); the roots are −s/q2 and −q0/s.
-        h = q1
-        h *= dt(0.5)
-        d = h * h
-        np.multiply(q2, q0, out=t)
-        d -= t
-        np.maximum(d, c["zero"], out=d)
-        np.sqrt(d, out=d)
-        # Overflow of h² or q2·q0 (ξ4 at the rounding level of b4 in float32): B(b) is
-        # numerically singular; the quadratic's roots would be ±inf or NaN.
-        finite = np.isfinite(d)
-        np.less_equal(finite, singular, out=singular)  # singular |= ~finite
-        copysign_inplace(d, h, c["sign"])
-        d += h
-        ra = np.divide(q2, d, out=q2)  # −1/root: keeps the sign bookkeeping in one place
-        np.divide(q0, d, out=q0)
-        np.negative(q0, out=q0)  # rb = −q0/s
-        np.divide(c["one"], ra, out=ra)
-        np.negative(ra, out=ra)  # ra = −s/q2
-        z1 = np.minimum(ra, q0, out=y2)
-        z2 = np.maximum(ra, q0, out=ra)
-        # w1 = 1 / (1 + u2²/σ² + u3²/ξ4), u = L⁻¹(1, z1, z1²) (Prop. 10); 0 for |z1| = ∞.
-        u2 = z1 - b1
-        u3 = z1 * z1
-        u3 -= b2
-        np.multiply(l32, u2, out=t)
-        u3 -= t
-        u2 *= u2
-        u2 /= sigma2
-        u3 *= u3
-        u3 /= xi4
-        u2 += u3
-        u2 += 1
-        w1 = np.divide(c["one"], u2, out=u2)
-        np.fmax(w1, c["zero"], out=w1)  # NaN (∞ − ∞ at an infinite root) -> 0
-        # Step (5): lower = [zf > z1]·(w1 + [zf > z2]·(w2)), w2 = 1 − w0 − w1.
-        w2 = np.subtract(c["one"], w0, out=q1)
-        w2 -= w1
-        np.maximum(w2, c["zero"], out=w2)  # w0 + w1 may round above 1 (−4.5e−6 seen in float32)
-        # The 0/1 masks as floats (a bool operand costs a casting pass; same products). Comparing
-        # straight into the float array was not faster (its ufunc casts through a buffer).
-        mask = np.greater(zf, z2, out=singular.copy())
-        fmask = c2
-        np.copyto(fmask, mask)
-        lower = np.multiply(w2, fmask, out=t)
-        lower += w1
-        np.greater(zf, z1, out=mask)
-        np.copyto(fmask, mask)
-        lower *= fmask
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        sigma2, l32, xi4 = _cholesky(b)
+        q0, q1, q2, w0 = _solve(b, zf, sigma2, l32, xi4)
+        z1, z2, finite = _roots(q0, q1, q2, b[3], c)
+        w1, w2 = _weights(z1, b, sigma2, l32, xi4, w0, c)
+        # Step (5): lower = Σ_{z_l < zf} w_l = [zf > z1]·(w1 + [zf > z2]·w2) (z1 ≤ z2).
+        lower = (w2 * (zf > z2).astype(dt) + w1) * (zf > z1).astype(dt)
+        singular = _singular_rows(b, sigma2, xi4, c)
+        singular |= ~finite
     if singular.any():
-        # Singular B(b): the unique distribution (1 − v2) δ_y1 + v2 δ_y2.
-        s = singular
-        sb1, sb2 = b1[s], b2[s]
-        ssig = sb2 - sb1 * sb1
-        ty1, ty2, tv2 = _two_point(sb1, sb2, b3[s], ssig)
-        one = ssig <= rtol * sb2
-        ty1 = np.where(one, sb1, ty1)
-        ty2 = np.where(one, sb1, ty2)
-        tv2 = np.where(one, 0, tv2).astype(b.dtype)
-        tv1 = 1 - tv2
-        zs = zf[s]
-        at1, at2 = ty1 == zs, ty2 == zs
-        lower[s] = tv1 * (ty1 < zs) + tv2 * (ty2 < zs)
-        z1[s], z2[s] = ty1, ty2
-        w0[s] = tv1 * at1 + tv2 * at2
-        w1[s] = np.where(at1, 0, tv1)
-        w2[s] = np.where(at2, 0, tv2)
+        # A NaN or inf in b or zf makes its texel singular (a pivot or the discriminant is
+        # not finite, see _roots), so the chunk needs its full check only here.
+        if not (np.isfinite(b).all() and np.isfinite(zf).all()):
+            refuse()
+        _unique_distribution(b, zf, singular, c["rtol"], lower, w0, (z1, z2), (w1, w2))
     out = {}
+    # Clamped to 1 like saturate (w0 + w1, or w1 + w2 computed from it, may round above 1);
+    # every term is ≥ 0, so the bounds are.
     if "upper" in want:
         upper = lower + w0
-        np.minimum(upper, c["one"], out=upper)
-        out["upper"] = np.maximum(upper, c["zero"], out=dest.get("upper", upper))
+        out["upper"] = np.minimum(upper, c["one"], out=dest.get("upper", upper))
     if "lower" in want:
-        np.minimum(lower, c["one"], out=lower)
-        out["lower"] = np.maximum(lower, c["zero"], out=dest.get("lower", lower))
+        out["lower"] = np.minimum(lower, c["one"], out=dest.get("lower", lower))
     if "canonical" in want:
         out["depths"] = np.stack([zf, z1, z2], axis=-1)
         out["weights"] = np.stack([w0, w1, w2], axis=-1)
     return out
 
 
+def _unique_distribution(b, zf, singular, rtol, lower, w0, z, w):
+    """Singular B(b): the unique distribution ``(1 − v2) δ_y1 + v2 δ_y2``, written into the rows.
+
+    Exact ``Z(z < zf)`` into ``lower``; the canonical representation ``(zf, y1, y2)``
+    with the mass at a support point equal to zf moved to w0, so that
+    ``upper = lower + w0`` holds in every case.
+    """
+    s = singular
+    sb1, sb2 = b[0][s], b[1][s]
+    ssig = sb2 - sb1 * sb1
+    ty1, ty2, tv2 = _two_point(sb1, sb2, b[2][s], ssig)
+    one = ssig <= rtol * sb2  # one depth at b1
+    ty1 = np.where(one, sb1, ty1)
+    ty2 = np.where(one, sb1, ty2)
+    tv2 = np.where(one, 0, tv2).astype(b.dtype)
+    tv1 = 1 - tv2
+    zs = zf[s]
+    at1, at2 = ty1 == zs, ty2 == zs
+    lower[s] = tv1 * (ty1 < zs) + tv2 * (ty2 < zs)
+    z[0][s], z[1][s] = ty1, ty2
+    w0[s] = tv1 * at1 + tv2 * at2
+    w[0][s] = np.where(at1, 0, tv1)
+    w[1][s] = np.where(at2, 0, tv2)
+
+
 def _run(b, zf, shape, want, keys):
     """The kernel over :func:`~moments_ref._kernels.broadcast_chunks` (broadcasts never materialized).
 
-    Each chunk is checked for NaN and inf while it is in cache, instead of a pass
-    over the whole input.
+    NaN and inf are found by the kernel (their texels come out singular), instead of a
+    pass over the whole input.
     """
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("depths", "weights") else (n,), dtype=b.dtype) for k in keys}
     consts = _constants(b.dtype, min(CHUNK, max(n, 1)))
+    refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
         m = stop - start
-        if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
-            refuse_lookup(b, "b", zf)  # raises: a value is NaN or inf
         c = consts if m == CHUNK or n <= CHUNK else {k: v[:m] if np.ndim(v) else v for k, v in consts.items()}
         dest = {k: outs[k][start:stop] for k in keys if k in ("lower", "upper")}
-        res = _kernel(bc, zc, want, c, dest)
+        res = _kernel(bc, zc, want, c, dest, refuse)
         for k in keys:
             if k not in dest:
                 outs[k][start:stop] = res[k]

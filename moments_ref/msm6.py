@@ -9,41 +9,68 @@ of support ``zf, z1, z2, z3`` (the *canonical representation*); ``z1, z2, z3``
 are the roots of the cubic ``q3 z³ + q2 z² + q1 z + q0`` with
 ``B(b) q = (1, zf, zf², zf³)`` and B(b) the 4×4 Hankel matrix ``B[i, j] = b_{i+j}``.
 
-Algorithm (what the kernel does, step by step):
+Algorithm (what the kernels do, step by step):
 
 1. ``B(b) = L D Lᵀ`` (L unit lower triangular, ``D = diag(1, D1, D2, D3)``): the
    Cholesky factorization the slides insist on, without square roots.
 2. Solve ``B q = v(zf)``, ``v(z) = (1, z, z², z³)``: forward substitution
-   ``L y = v(zf)``, scaling ``c = D⁻¹ y``, back substitution ``Lᵀ q = c``.
-3. The roots of ``p(z) = q3 z³ + q2 z² + q1 z + q0``. They are found as roots
+   ``L y = v(zf)``, scaling ``c = D⁻¹ y``, back substitution ``Lᵀ q = c``. The
+   forward substitution gives ``y = (1, P1(zf), P2(zf), P3(zf))``, the monic
+   orthogonal polynomials of the moments at zf (``P3``'s roots ``x1 < x2 < x3`` are
+   the Gauss nodes of b).
+3. The roots of ``p(z) = q3 z³ + q2 z² + q1 z + q0``, found as roots
    ``t_l = 1 / (z_l − zf)`` of the reversed Taylor polynomial at zf,
 
        P(t) = p(zf) t³ + p'(zf) t² + p''(zf)/2 t + q3,
 
    whose leading coefficient ``p(zf) = vᵀ B⁻¹ v = 1/w0 ≥ 1`` never vanishes
    (``q3``, the leading coefficient of p, does: then a root z runs off to
-   infinity, which is ``t = 0`` here, harmless). ``t < 0`` is exactly
-   ``z < zf``, so step 5 needs only the sign of t. The cubic is solved by the
-   trigonometric method (Blinn; Peters, "How to solve a cubic equation,
-   revisited") and polished by two Newton steps; all three roots are real for
-   positive definite B (they are nodes of a Gauss–Radau quadrature).
+   infinity, which is ``t = 0`` here, harmless). ``t < 0`` is exactly ``z < zf``.
+   All three roots are real, and with zf they interlace with the Gauss nodes: one
+   of ``zf, z1, z2, z3`` (∞ included) in each of ``(−∞, x1), (x1, x2), (x2, x3),
+   (x3, ∞)``. So the number k of Gauss nodes below zf says which roots lie below
+   zf, and k costs nothing: the Sturm sequence ``(1, y1, y2, y3)`` changes sign
+   once per Gauss node above zf. The bounds need at most one root: none below
+   (k = 0), the only root below zf, the smallest t (k = 1), the only root above,
+   the largest t (k = 2), all three (k = 3, ``lower = 1 − w0``). That extreme root
+   comes from Blinn's form of the cubic's closed form (Blinn, "How to solve a cubic
+   equation"; Peters, "How to solve a cubic equation, revisited") without
+   trigonometric functions: ``cos(arccos(r)/3)`` is a degree-6 polynomial in
+   ``√((1 + r)/2)`` (error 1.6e-7), followed by Newton steps on P(t) (two in
+   float64, none in float32, see "Cubic solver"). The canonical representation
+   needs all three roots: :func:`solve_cubic`, the same closed form.
 4. Weights ``w_l = 1 / (v_lᵀ B⁻¹ v_l)`` (Peters and Klein 2015, Prop. 10, as
-   :mod:`moments_ref.msm` uses), evaluated as ``Σ (L⁻¹ g)_i² / D_i`` with
-   ``g = t³ v(zf + 1/t)``, a polynomial in t, so ``w = t⁶ / Σ (L⁻¹ g)_i² / D_i``
-   is 0 (not NaN) at a root at infinity. ``w0 = 1 / Σ y_i² / D_i``.
-5. ``lower = Σ_{z_l < zf} w_l = Σ_{t_l < 0} w_l``; ``upper = lower + w0``.
+   :mod:`moments_ref.msm` uses) at ``z_l = zf + 1/t_l``, evaluated as
+   ``Σ (L⁻¹ v_l)_i² / D_i``; a root at infinity (or one whose z³ overflows) has
+   weight 0. ``w0 = 1 / p(zf)``.
+5. ``lower = Σ_{z_l < zf} w_l``: 0, ``w(t_min)``, ``1 − w0 − w(t_max)`` or
+   ``1 − w0`` for k = 0, 1, 2, 3; ``upper = lower + w0``.
 
 The mpmath twin :func:`moments_ref.precise.shadow_intensity6` does steps 2–4
 literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
-Cubic solver: measured on 20 000 biased random six-moment cases (float64,
-:func:`cubic_solver_benchmark`), the trigonometric method with two Newton steps
-is as accurate as the companion-matrix eigenvalues of ``np.linalg.eigvals``
-(largest error relative to the largest root, against ``mpmath.polyroots`` on 200
-of them: 1.0e-14 trigonometric, 2.2e-14 eigvals) and five times faster (4.9 ms
-against 26.5 ms), and it stays in the working dtype (float32 for float32 input,
-as a shader would).
+Cubic solver. On 20 000 biased random six-moment cases (float64,
+:func:`cubic_solver_benchmark`), the trig-free closed form (one Newton step on
+``cos(arccos(r)/3)``, two on the cubic) is exactly as accurate as the trigonometric
+method it replaced and more than the companion-matrix eigenvalues of
+``np.linalg.eigvals`` (largest error relative to the largest root, against
+``mpmath.polyroots`` on 200 of them: 4.1e-15, 4.1e-15 and 2.4e-14), and faster
+(1.3 ms against 1.7 ms and 49 ms for all three roots). In float32 a NumPy with
+SIMD ``arctan2``/``cos`` makes the trigonometric functions cheap (``arctan2``
+0.45 ns per element on the bench's cubics, x86-64 with AVX-512; elsewhere they are
+scalar library calls); the closed form costs the same everywhere. The kernel's
+speed comes from needing one root and one weight instead of three: ``moments-ref
+bench``'s float32 input at 2048², CPU time, 59 → 22 ns per element, 60× → 23× a
+same-run copy of the traffic (docs/bench.md, "Kernel history"; the copy of the chunk
+into rows is 2.3 ns of it). Newton steps: float64 needs the step on
+``cos(arccos(r)/3)`` for a root much smaller than the others (without it 5e-3 of
+the root is left after two steps on the cubic, tests/test_msm6.py) and two on the
+cubic (one leaves 2.9× the golden tolerance on a stiff row). In float32 the
+rounding of the coefficients dominates the fit's 1.6e-7: against mpmath on the
+golden rows the worst error is 2.3e-6, 2.2e-6 and 2.1e-6 with 0, 1 and 2 steps on
+the cubic, and on 4000 stiff cases (BIAS6_FLOAT32) the bracket's worst excess is
+2.5e-4 either way, so none is taken.
 
 Degenerate input. When ``B(b)`` is singular the distribution with these moments
 is unique (at most three distinct depths) and ``Z(z < zf)`` is known exactly;
@@ -83,7 +110,10 @@ B(b*) is positive definite: the six-moment sibling of HPG17's
   depths, clustered, at ±1; zf at and next to every support point), the worst
   ``lower − Z(z < zf)`` / ``Z(z ≤ zf) − upper`` is 1.0 / 1.0 for α = 3e-7,
   2.1e-3 / 6.6e-3 for 1e-5, 1.2e-3 / 2.2e-3 for 1e-4, 2.5e-4 / 6.9e-4 for 3e-4,
-  8.5e-4 / 8.5e-4 for 1e-3.
+  8.5e-4 / 8.5e-4 for 1e-3. (That was the trigonometric kernel. The trig-free one,
+  on a sample drawn the same way: 1.0 / 1.0, 3.8e-5 / 3.4e-5, 8.5e-5 / 8.5e-5,
+  2.5e-4 / 2.5e-4, 8.5e-4 / 8.5e-4; it would allow a weaker bias, but the preset
+  is part of the golden cases and stays.)
 * :data:`BIAS6_UNORM10` (α = 1e-3, the 2×R10G10B10A2 storage of the slides).
   Two measurements decided it. (a) :func:`measure_unorm10_bias` (4000 quantized
   moment vectors of 1–6 random depths): the share inside the moment space after
@@ -110,9 +140,9 @@ import time
 
 import numpy as np
 
-from ._arrays import InputError, broadcast_pair, first_index, real_input
+from ._arrays import InputError, first_index, lookup_inputs, real_input, refuse_lookup
 from .moments import BiasPreset, power_moments
-from ._kernels import SINGULAR_RTOL, broadcast_chunks, singular_thresholds
+from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
 from ._kernels import two_point as _two_point
 
 __all__ = [
@@ -140,11 +170,119 @@ BIAS6_FLOAT32 = BiasPreset(3e-4, BIAS6_TARGET, "float32x6")
 #: Six moments in 2×R10G10B10A2_UNORM (Slides, "6 moments"), α by :func:`measure_unorm10_bias`.
 BIAS6_UNORM10 = BiasPreset(1e-3, BIAS6_TARGET, "unorm10x6")
 
-_SQRT3_2 = np.sqrt(3.0) / 2
+#: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
+#: 4001 Chebyshev points of [0, 1], largest error 1.6e-7 (2.2e-7 evaluated in float32).
+_COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
+                  -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
+
+#: Newton steps of the closed form in the kernels, per dtype: on ``4c³ − 3c = r`` after the fit
+#: of cos(arccos(r)/3), then on the cubic (module docstring, "Cubic solver").
+_NEWTON_STEPS = {"float32": (0, 0), "float64": (1, 2)}
 
 
 # ---------------------------------------------------------------------------
 # the cubic
+
+
+def _cos_third(rho, refine=0):
+    """``cos(arccos(ρ)/3)``, the largest root of ``4c³ − 3c = ρ``, without trigonometric functions.
+
+    Parameters
+    ----------
+    rho : float array in [−1, 1]
+        Rounding a little below −1 gives the value at ``−1 + |δ|`` (u takes |1 + ρ|).
+    refine : int
+        Newton steps on ``4c³ − 3c − ρ`` after the fit.
+
+    Returns
+    -------
+    c : float array in [1/2, 1], dtype of rho
+
+    Notes
+    -----
+    With ``u = √((1 + ρ)/2) = cos(arccos(ρ)/2)`` the value is ``cos(⅔·arccos u)``,
+    analytic on [0, 1]: the square-root singularity at ρ = −1 (where the two largest
+    roots meet) is taken by u. :data:`_COS_THIRD_POLY`, a degree-6 polynomial in u,
+    holds it to 1.6e-7 (float32's resolution); each Newton step squares that error
+    (float64 takes one). The steps solve ``(2c − 1)·√(c + 1) = √2·u``, the same
+    equation with its double root at ρ = −1 divided out (Newton on ``4c³ − 3c − ρ``
+    stalls there, where ``12c² − 3`` vanishes: exactly where the closed form needs
+    the digits, for a small root next to a root of opposite sign).
+
+    >>> _cos_third(np.array([-1.0, 0.0, 1.0])).round(6)
+    array([0.5     , 0.866025, 1.      ])
+    """
+    u = np.sqrt(np.abs(rho * 0.5 + 0.5))  # |·|: ρ < −1 by rounding gives u ≈ 0, not NaN
+    c = u * _COS_THIRD_POLY[-1]  # Horner
+    for a in _COS_THIRD_POLY[-2:0:-1]:
+        c += a
+        c *= u
+    c += _COS_THIRD_POLY[0]
+    if refine:
+        # (2c − 1)·√(c + 1) = √2·u is 4c³ − 3c = ρ with the double root of ρ = −1 divided out:
+        # increasing in c (slope ≥ √6 at c = 1/2), so Newton on it converges fast everywhere.
+        su = u * np.sqrt(2.0)
+        for _ in range(refine):
+            s = np.sqrt(c + 1)
+            x = 2 * c - 1
+            c -= (x * s - su) / (2 * s + x / (2 * s))
+    return c
+
+
+def _blinn(c0, c1, c2, c3):
+    """``(B, 2m, r)`` of Blinn's form: the roots are ``2m·cos θ_k − B`` with ``cos 3θ = r``.
+
+    ``B = c1/(3c0)``, ``C = c2/(3c0)``, ``D = c3/c0``; the Hessian ``Δ0 = C − B²`` (≤ 0 for
+    three real roots), ``m = √(−Δ0)`` and ``r = −(Δ1 − 2BΔ0)/(2m³)`` with ``Δ1 = D − BC``
+    (the depressed cubic's constant term over its natural scale).
+    """
+    c0_3 = 3 * c0
+    B, C, D = c1 / c0_3, c2 / c0_3, c3 / c0
+    d0 = C - B * B
+    minus_dep = B * (C + 2 * d0) - D  # −(Δ1 − 2BΔ0)
+    minus_d0 = np.abs(d0)  # |·|: rounding may leave Δ0 a little above 0
+    m2 = np.sqrt(4 * minus_d0)
+    r = minus_dep / (m2 * minus_d0)  # 2m³ = 2m·(−Δ0)
+    return B, m2, r
+
+
+def _newton(c0, c1, c2, c3, t, steps):
+    """``steps`` Newton steps on ``c0 t³ + c1 t² + c2 t + c3`` from t (no safeguard: t is close)."""
+    for _ in range(steps):
+        f = ((c0 * t + c1) * t + c2) * t + c3
+        fp = (3 * c0 * t + 2 * c1) * t + c2
+        t = t - f / fp
+    return t
+
+
+def _extreme_root(c0, c1, c2, c3, sigma, newton=2, refine=2):
+    """The largest (σ = +1) or smallest (σ = −1) root of a cubic with three real roots.
+
+    Parameters
+    ----------
+    c0, c1, c2, c3 : (n,) float arrays
+        Coefficients of ``c0 t³ + c1 t² + c2 t + c3``, highest power first, ``c0 ≠ 0``.
+    sigma : (n,) float array of ±1
+    newton, refine : int
+        Newton steps on the cubic after the closed form, and on ``4c³ − 3c = r``
+        inside it (:func:`_cos_third`).
+
+    Returns
+    -------
+    t : (n,) float array
+
+    Notes
+    -----
+    Blinn's form (:func:`solve_cubic`): with ``c(r) = cos(arccos(r)/3)``
+    (:func:`_cos_third`) the largest root is ``2m·c(r) − B`` and the smallest
+    ``−2m·c(−r) − B`` (minus the largest root of the cubic in −t, whose r changes
+    sign), so ``t = σ·2m·c(σr) − B``: no trigonometric function, one square root
+    besides u's. The Newton steps recover the digits lost to cancellation when
+    ``|t| ≪ |B|`` (roots spread over orders of magnitude).
+    """
+    B, m2, r = _blinn(c0, c1, c2, c3)
+    t = sigma * m2 * _cos_third(sigma * r, refine) - B
+    return _newton(c0, c1, c2, c3, t, newton)
 
 
 def solve_cubic(c0, c1, c2, c3, newton=2):
@@ -167,12 +305,16 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
 
     Notes
     -----
-    Trigonometric solution in the form of Peters' "SolveCubic" (Blinn, "How to
-    solve a cubic equation"): with ``B = c1/(3c0)``, ``C = c2/(3c0)``,
-    ``D = c3/c0``, the Hessian ``Δ = (C − B², D − BC, BD − C²)``, the
-    discriminant ``4 Δ0 Δ2 − Δ1²`` (≥ 0 for three real roots; rounding below 0 is
-    clamped), ``θ = atan2(√disc, −(Δ1 − 2BΔ0))/3`` and roots
-    ``2√(−Δ0)·(cos θ, cos(θ + 2π/3), cos(θ − 2π/3)) − B``.
+    Blinn's form of the trigonometric solution ("How to solve a cubic equation";
+    Peters' "SolveCubic"): with ``B = c1/(3c0)``, ``C = c2/(3c0)``, ``D = c3/c0``, the
+    Hessian ``Δ = (C − B², D − BC, BD − C²)``, ``m = √(−Δ0)`` and
+    ``cos 3θ = r = −(Δ1 − 2BΔ0)/(2m³)`` (clamped to [−1, 1]; a triple root, m = 0,
+    counts as r = 1), the roots are ``2m·cos(θ + 2πk/3) − B``. The cosines are the
+    roots of ``4c³ − 3c = r``, found without trigonometric functions: with
+    ``c(r) = cos(arccos(r)/3)`` as a polynomial (:func:`_cos_third`, refined by one
+    Newton step in float64), ``cos θ = c(r)``, ``cos(θ + 2π/3) = −c(−r)`` and the
+    middle one from their sum, 0. The Newton steps (with a safeguard: a step is
+    dropped where it is not finite or larger than ``|t| + 1``) polish each root.
     """
     c0 = real_input(c0, "c0")
     cs = [c0] + [real_input(c, name, dtype=c0.dtype) for c, name in ((c1, "c1"), (c2, "c2"), (c3, "c3"))]
@@ -190,33 +332,29 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
 
 
 def _solve_cubic(c0, c1, c2, c3, newton=2):
-    """:func:`solve_cubic` without validation (the kernels' path)."""
-    dt = c0.dtype.type
-    B = c1 / (3 * c0)
-    C = c2 / (3 * c0)
-    D = c3 / c0
-    d0 = C - B * B
-    d1 = D - B * C
-    d2 = B * D - C * C
-    disc = np.maximum(4 * d0 * d2 - d1 * d1, dt(0))
-    dep = d1 - 2 * B * d0  # constant coefficient of the depressed cubic (times 1)
-    theta = np.arctan2(np.sqrt(disc), -dep) / dt(3)
-    cs, sn = np.cos(theta), np.sin(theta)
-    scale = 2 * np.sqrt(np.maximum(-d0, dt(0)))
-    r = np.stack([cs, -0.5 * cs + dt(_SQRT3_2) * sn, -0.5 * cs - dt(_SQRT3_2) * sn]).astype(c0.dtype)
-    r = r * scale - B
-    # Newton polish on c0 t³ + c1 t² + c2 t + c3: the closed form loses digits in the
-    # root of smallest magnitude when the roots spread over many orders of magnitude.
-    with np.errstate(divide="ignore", invalid="ignore"):
+    """:func:`solve_cubic` without validation (the canonical representation's path)."""
+    refine = _NEWTON_STEPS[c0.dtype.name][0]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        B, m2, r = _blinn(c0, c1, c2, c3)
+        r = np.fmax(np.fmin(r, 1), -1)  # fmin/fmax: NaN (0/0 at a triple root) counts as 1
+        hi, lo = _cos_third(r, refine), -_cos_third(-r, refine)
+        return _polish(c0, c1, c2, c3, np.stack([hi, -hi - lo, lo]) * m2 - B, newton)
+
+
+def _polish(c0, c1, c2, c3, roots, newton):
+    """Newton steps on each of the roots (3, n), each dropped where it is not finite or exceeds ``|t| + 1``.
+
+    The closed form loses digits in the root of smallest magnitude when the roots
+    spread over many orders of magnitude.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         for _ in range(newton):
-            f = ((c0 * r + c1) * r + c2) * r + c3
-            fp = (3 * c0 * r + 2 * c1) * r + c2
+            f = ((c0 * roots + c1) * roots + c2) * roots + c3
+            fp = (3 * c0 * roots + 2 * c1) * roots + c2
             step = f / fp
-            keep = np.isfinite(step) & (np.abs(step) <= np.abs(r) + 1)
-            if not keep.all():  # np.where(keep, step, 0), without the full copy when every step is kept
-                step[~keep] = 0
-            r = r - step
-    return r
+            keep = np.isfinite(step) & (np.abs(step) <= np.abs(roots) + 1)
+            roots = roots - np.where(keep, step, 0).astype(roots.dtype)
+    return roots
 
 
 # ---------------------------------------------------------------------------
@@ -224,13 +362,19 @@ def _solve_cubic(c0, c1, c2, c3, newton=2):
 
 
 def _ldl(b1, b2, b3, b4, b5, b6):
-    """LDLᵀ of the 4×4 Hankel matrix: (D1, D2, D3, L21, L31, L32); L10..L30 = b1..b3."""
+    """LDLᵀ of the 4×4 Hankel matrix: (D1, D2, D3, L21, L31, L32); L10..L30 = b1..b3.
+
+    Each ``L_ij D_j`` is kept as the numerator it is divided from, so that
+    ``L_ij² D_j = L_ij · (L_ij D_j)`` costs one product.
+    """
     D1 = b2 - b1 * b1
-    L21 = (b3 - b1 * b2) / D1
-    L31 = (b4 - b1 * b3) / D1
-    D2 = b4 - b2 * b2 - L21 * L21 * D1
-    L32 = (b5 - b2 * b3 - L21 * L31 * D1) / D2
-    D3 = b6 - b3 * b3 - L31 * L31 * D1 - L32 * L32 * D2
+    L21D1 = b3 - b1 * b2
+    L31D1 = b4 - b1 * b3
+    L21, L31 = L21D1 / D1, L31D1 / D1
+    D2 = b4 - b2 * b2 - L21 * L21D1
+    L32D2 = b5 - b2 * b3 - L21 * L31D1
+    L32 = L32D2 / D2
+    D3 = b6 - b3 * b3 - L31 * L31D1 - L32 * L32D2
     return D1, D2, D3, L21, L31, L32
 
 
@@ -242,67 +386,141 @@ def _forward(g0, g1, g2, g3, b1, b2, b3, L21, L31, L32):
     return g0, u1, u2, u3
 
 
-def _kernel(b, zf):
-    """Bounds and canonical representation on flat chunks: b (6, n) rows, zf (n,)."""
-    dt = b.dtype.type
-    one, zero = dt(1), dt(0)
+def _regular(b, ldl):
+    """True where B(b) is regular: every pivot above its threshold (module docstring)."""
+    D1, D2, D3 = ldl[:3]
+    rtol = b.dtype.type(singular_thresholds(b.dtype))
+    if rtol == 0:  # float32: the pivots' signs only (a NaN pivot, after a zero one, is singular)
+        return np.minimum(np.minimum(D1, D2), D3) > 0
+    _, b2, _, b4, _, b6 = b
+    return (D1 > rtol * b2) & (D2 > rtol * np.maximum(b4, D1)) & (D3 > rtol * np.maximum(b6, D2))
+
+
+def _reversed_cubic(b, zf):
+    """Steps 1–3 on flat chunks, b (6, n) rows, zf (n,): ``(ldl, y, P)``.
+
+    ``ldl = (D1, D2, D3, L21, L31, L32)``; ``y = (y1, y2, y3)`` the forward substitution
+    of ``v(zf)`` without its leading 1, i.e. the monic orthogonal polynomials P1..P3
+    at zf; ``P = (p(zf), p'(zf), p''(zf)/2, q3)`` the coefficients of the reversed
+    Taylor cubic P(t), highest power first.
+    """
     b1, b2, b3, b4, b5, b6 = b
-    rtol = dt(singular_thresholds(b.dtype))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # (1) B = L D Lᵀ.
-        D1, D2, D3, L21, L31, L32 = _ldl(b1, b2, b3, b4, b5, b6)
-        single = D1 <= rtol * b2
-        two = ~single & ~(D2 > rtol * np.maximum(b4, D1))
-        three = ~single & ~two & ~(D3 > rtol * np.maximum(b6, D2))
-        singular = single | two | three
-        # (2) L y = v(zf), c = D⁻¹ y, Lᵀ q = c.
-        zf2 = zf * zf
-        _, y1, y2, y3 = _forward(one, zf, zf2, zf2 * zf, b1, b2, b3, L21, L31, L32)
-        c1, c2, c3 = y1 / D1, y2 / D2, y3 / D3
-        q3 = c3
-        q2 = c2 - L32 * q3
-        q1 = c1 - L21 * q2 - L31 * q3
-        q0 = one - b1 * q1 - b2 * q2 - b3 * q3
-        # p(zf) = vᵀ B⁻¹ v = 1/w0 (the sum of squares, not Horner: no cancellation).
-        pz = one + y1 * c1 + y2 * c2 + y3 * c3
-        w0 = one / pz
-        # (3) Taylor coefficients of p at zf, reversed: P(t) = p t³ + p' t² + p''/2 t + q3.
-        p1 = q1 + (2 * q2 + 3 * q3 * zf) * zf
-        p2 = q2 + 3 * q3 * zf
-        ok = ~singular
-        pairs = ((pz, one), (p1, zero), (p2, -one), (q3, zero))
-        # np.where(ok, x, y); when no row is singular that is x itself (no copies).
-        cf = [x for x, _ in pairs] if ok.all() else [np.where(ok, x, y) for x, y in pairs]
-        t = _solve_cubic(*cf)  # (3, n); placeholder cubic t³ − t for singular rows
-        # (4) weights w = t⁶ / Σ (L⁻¹ g)_i² / D_i, g = t³ v(zf + 1/t) = (t³, t²(1 + zf t), t(1 + zf t)², (1 + zf t)³).
-        s = 1 + zf * t
-        g = (t * t * t, t * t * s, t * s * s, s * s * s)
-        u0, u1, u2, u3 = _forward(*g, b1, b2, b3, L21, L31, L32)
-        k = u0 * u0 + u1 * u1 / D1 + u2 * u2 / D2 + u3 * u3 / D3
-        t3 = g[0]
-        w = t3 * t3 / k
-        bad = ~(np.isfinite(w) & (w > 0))
-        if bad.any():  # np.where(finite and positive, w, 0), in place
-            w[bad] = zero
-        z = zf + one / t  # ±inf for t = ±0
-        # (5) lower = Σ_{z_l < zf} w_l.
-        lower = (w * (t < 0)).sum(axis=0)
-        w0[~np.isfinite(w0)] = zero  # np.where(isfinite, w0, 0), in place
-    if singular.any():
-        lower, w0, z, w = _singular(b, zf, single, two, three, singular, lower, w0, z, w,
-                                    (D1, D2, L21, L31, L32))
-    upper = np.clip(lower + w0, zero, one)
-    lower = np.clip(lower, zero, one)
-    return lower, upper, w0, z, w
+    # (1) Cholesky decomposition without square roots: B = L D Lᵀ.
+    ldl = _ldl(b1, b2, b3, b4, b5, b6)
+    D1, D2, D3, L21, L31, L32 = ldl
+    # (2) Forward substitution L y = v(zf) = (1, zf, zf², zf³).
+    zf2 = zf * zf
+    y1 = zf - b1
+    y2 = zf2 - b2 - L21 * y1
+    y3 = zf2 * zf - b3 - L31 * y1 - L32 * y2
+    # Scaling D c = y, back substitution Lᵀ q = c (q0 is not needed: P(t) uses p's derivatives at zf).
+    c1, c2, c3 = y1 / D1, y2 / D2, y3 / D3
+    q3 = c3
+    q2 = c2 - L32 * q3
+    q1 = c1 - L21 * q2 - L31 * q3
+    # p(zf) = vᵀ B⁻¹ v = 1/w0 (the sum of squares, not Horner: no cancellation).
+    pz = 1 + y1 * c1 + y2 * c2 + y3 * c3
+    # (3) P(t) = p(zf) t³ + p'(zf) t² + p''(zf)/2 t + q3, p'' / 2 = q2 + 3 q3 zf.
+    p2 = q2 + 3 * q3 * zf
+    p1 = q1 + (q2 + p2) * zf  # p'(zf) = q1 + 2 q2 zf + 3 q3 zf²
+    return ldl, (y1, y2, y3), (pz, p1, p2, q3)
 
 
-def _singular(b, zf, single, two, three, singular, lower, w0, z, w, ldl):
-    """The unique distribution of singular B(b) (module docstring), written into the outputs."""
+def _weights(t, zf, b1, b2, b3, ldl, zero):
+    """(4) ``w = 1 / (v(z)ᵀ B⁻¹ v(z)) = 1 / Σ (L⁻¹ v(z))_i² / D_i`` at the roots ``z = zf + 1/t``.
+
+    t broadcasts against zf ((n,) or (3, n)); ``zero`` is an array of zeros like zf. A root
+    at infinity (t = 0) or so far out that z³ overflows has weight 0 (exactly:
+    ``w ≈ t⁶ D3``): its NaN (∞ − ∞) or ``1/∞`` becomes 0, as does any other weight that
+    is not a positive number.
+    """
+    D1, D2, D3, L21, L31, L32 = ldl
+    z = zf + 1 / t
+    z2 = z * z
+    u1 = z - b1  # forward substitution L u = v(z)
+    u2 = z2 - b2 - L21 * u1
+    u3 = z2 * z - b3 - L31 * u1 - L32 * u2
+    w = 1 / (1 + u1 * u1 / D1 + u2 * u2 / D2 + u3 * u3 / D3)
+    return np.fmax(w, zero, out=w)  # an array, not 0: NumPy's array-scalar fmax is 4x slower
+
+
+def _bounds_kernel(b, zf, steps, zero, one, refuse):
+    """Lower and upper bound on flat chunks: b (6, n) rows, zf (n,) (module docstring, steps 1–5).
+
+    ``steps`` is the dtype's entry of :data:`_NEWTON_STEPS`; ``zero`` and ``one`` are
+    constant arrays like zf (array-array loops are the fast ones); ``refuse()`` raises
+    the error of a NaN or inf in the input.
+    """
+    dt = b.dtype.type
+    b1, b2, b3 = b[:3]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        ldl, (y1, y2, y3), (pz, p1, p2, q3) = _reversed_cubic(b, zf)
+        regular = _regular(b, ldl)
+        # A NaN or inf in b1..b6 leaves a pivot NaN or ±inf (not regular) but for b6 = +inf,
+        # which makes D3 = +inf; zf's own show in D3 + zf (finite D3 ≤ b6, so only a |zf|
+        # near the largest float overflows besides: then the full check finds nothing).
+        suspect = ~(regular & np.isfinite(ldl[2] + zf))
+        w0 = 1 / pz
+        # How many of the three Gauss nodes (roots of P3) lie below zf: the Sturm sequence
+        # (P0, .., P3)(zf) = (1, y1, y2, y3) changes sign once per node above zf. Its parity is
+        # the sign of y3 = P3(zf); "at least two below" is "at most one change": the signs
+        # never turn back from − to +.
+        pos1, pos2, pos3 = y1 >= 0, y2 >= 0, y3 >= 0
+        two_below = ((pos2 <= pos1) & (pos3 <= pos2)).astype(dt)
+        # The roots of p interlace with the Gauss nodes, so the one root needed is the only
+        # root of p below zf (one node below: smallest t, since t < 0 is z < zf) or the only
+        # one above (two nodes below: largest t); y3 ≥ 0 is one (or three) below.
+        odd = pos3.astype(dt)
+        sigma = 1 - 2 * odd
+        t = _extreme_root(pz, p1, p2, q3, sigma, newton=steps[1], refine=steps[0])
+        w = _weights(t, zf, b1, b2, b3, ldl, zero)
+        # (5) lower = Σ_{z_l < zf} w_l: 0 (no node below), w (one), 1 − w0 − w (two), 1 − w0
+        # (three), written so that three nodes below give 1 − w0 exactly (never above 1).
+        lower = (1 - w0) * two_below + w * (odd - two_below)
+    if suspect.any():
+        if not (np.isfinite(b).all() and np.isfinite(zf).all()):
+            refuse()
+        s = ~regular
+        lower[s], w0[s] = _singular(b[:, s], zf[s])[:2]
+    # Clamped like saturate (rounding: 1 − w0 − w < 0, a sum of Christoffel numbers above 1);
+    # fmax/fmin also turn a NaN from overflow into 0 and 1.
+    lower = np.fmin(np.fmax(lower, zero, out=lower), one, out=lower)
+    return lower, np.fmin(lower + w0, one)
+
+
+def _canonical_kernel(b, zf, zero, one):
+    """``(w0, z (3, n), w (3, n))`` of the canonical representation on flat chunks (all three roots)."""
+    b1, b2, b3 = b[:3]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        ldl, _, P = _reversed_cubic(b, zf)
+        regular = _regular(b, ldl)
+        if not regular.all():  # placeholder cubic t³ − t for singular rows (replaced below)
+            P = [np.where(regular, x, y).astype(b.dtype) for x, y in zip(P, (1, 0, -1, 0))]
+        t = _solve_cubic(*P)  # two safeguarded Newton steps for all three roots, either dtype
+        w = _weights(t, zf, b1, b2, b3, ldl, zero)
+        z = zf + 1 / t  # ±inf for t = ±0
+        w0 = np.fmax(1 / P[0], zero)
+    if not regular.all():
+        s = ~regular
+        _, w0[s], z[:, s], w[:, s] = _singular(b[:, s], zf[s])
+    return w0, z, w
+
+
+def _singular(b, zf):
+    """The unique distribution of singular B(b) (module docstring): ``(lower, w0, z, w)``.
+
+    For rows b (6, m) and zf (m,) whose B(b) is singular; z and w are (3, m), unused
+    slots +inf with weight 0, mass at zf moved to w0.
+    """
     dt = b.dtype.type
     one = dt(1)
-    b1, b2, b3, b4, b5, b6 = (x[singular] for x in b)
-    D1, D2, L21, L31, L32 = (x[singular] for x in ldl)
-    sg, tw, th = single[singular], two[singular], three[singular]
+    rtol = dt(singular_thresholds(b.dtype))
+    b1, b2, b3, b4, b5, b6 = b
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        D1, D2, D3, L21, L31, L32 = _ldl(b1, b2, b3, b4, b5, b6)
+    sg = D1 <= rtol * b2
+    tw = ~sg & ~(D2 > rtol * np.maximum(b4, D1))
+    th = ~sg & ~tw  # the remaining rows: D3 ≤ τ·max(b6, D2)
     m = b1.shape[0]
     pts = np.full((3, m), np.inf, dtype=b.dtype)
     wts = np.zeros((3, m), dtype=b.dtype)
@@ -320,42 +538,42 @@ def _singular(b, zf, single, two, three, singular, lower, w0, z, w, ldl):
         a1, a2, a3, l21, l31, l32 = b1[th], b2[th], b3[th], L21[th], L31[th], L32[th]
         d1, d2 = D1[th], D2[th]
         r = _solve_cubic(np.ones_like(a1), -l32, l32 * l21 - l31, l31 * a1 + l32 * a2 - l32 * l21 * a1 - a3)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
             u0, u1, u2, _ = _forward(np.ones_like(r), r, r * r, r * r * r, a1, a2, a3, l21, l31, l32)
             lam = one / (u0 * u0 + u1 * u1 / d1 + u2 * u2 / d2)  # Christoffel numbers
         lam = np.where(np.isfinite(lam) & (lam > 0), lam, 0)
         lam = lam / lam.sum(axis=0)
         pts[:, th] = r
         wts[:, th] = lam
-    zs = zf[singular]
-    lt = (wts * (pts < zs)).sum(axis=0)
-    at = (wts * (pts == zs)).sum(axis=0)
-    lower[singular] = lt
-    w0[singular] = at
-    z[:, singular] = pts
-    w[:, singular] = np.where(pts == zs, 0, wts)
-    return lower, w0, z, w
-
-
-def _prepare(b, zf):
-    b = real_input(b, "b", trailing=6)
-    zf = real_input(zf, "zf", dtype=b.dtype)
-    shape = broadcast_pair(b[..., 0], "b[..., 0]", zf, "zf")
-    return b, zf, shape
+    lower = (wts * (pts < zf)).sum(axis=0)
+    w0 = (wts * (pts == zf)).sum(axis=0)
+    return lower, w0, pts, np.where(pts == zf, 0, wts)
 
 
 def _run(b, zf, want):
-    """The kernel over chunks; only the outputs named in ``want`` are allocated.
+    """The kernels over chunks; only the outputs named in ``want`` are allocated.
 
-    ``want`` is drawn from lower, upper, w0 (n,) and z, w (n, 3); returns
-    ``(dict, zf, shape)``.
+    ``want`` is drawn from lower, upper (the bounds kernel) or w0 (n,), z, w (n, 3)
+    (the canonical kernel); returns ``(dict, zf, shape)``. Each chunk is checked for
+    NaN and inf while it is in cache (the bounds kernel: only where a texel comes out
+    singular, which a NaN or inf makes it), instead of a pass over the whole input.
     """
-    b, zf, shape = _prepare(b, zf)
+    b, zf, shape = lookup_inputs(b, "b", zf, trailing=6)
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("z", "w") else n, dtype=b.dtype) for k in want}
+    steps = _NEWTON_STEPS[b.dtype.name]
+    zeros, ones = np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)
+    refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
-        lo, up, ww0, zz, wl = _kernel(bc, zc)
-        res = {"lower": lo, "upper": up, "w0": ww0, "z": zz.T, "w": wl.T}
+        zero, one = zeros[: stop - start], ones[: stop - start]
+        if "z" in want:
+            if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
+                refuse()
+            w0, z, w = _canonical_kernel(bc, zc, zero, one)
+            res = {"w0": w0, "z": z.T, "w": w.T}
+        else:
+            lower, upper = _bounds_kernel(bc, zc, steps, zero, one, refuse)
+            res = {"lower": lower, "upper": upper}
         for k in want:
             outs[k][start:stop] = res[k]
     return outs, zf, shape
@@ -459,7 +677,7 @@ def pivots(b):
     b = real_input(b, "b", trailing=6)
     rtol = b.dtype.type(singular_thresholds(b.dtype))
     b1, b2, b3, b4, b5, b6 = np.moveaxis(b, -1, 0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         D1, D2, D3, *_ = _ldl(b1, b2, b3, b4, b5, b6)
     single = D1 <= rtol * b2
     D2 = np.where(single, 0, D2).astype(b.dtype)
@@ -499,17 +717,30 @@ def measure_unorm10_bias(alphas=(1e-3, 2e-3, 3e-3, 5e-3), n=4000, seed=0):
     return out
 
 
+def _trig_roots(c0, c1, c2, c3, newton=2):
+    """The trigonometric method (``arctan2``, cos, sin) that :func:`solve_cubic` replaced, for the benchmark."""
+    dt = c0.dtype.type
+    B, m2, r = _blinn(c0, c1, c2, c3)
+    theta = np.arctan2(np.sqrt(np.maximum(1 - r * r, 0)), r) / dt(3)
+    cs, sn = np.cos(theta), np.sin(theta)
+    roots = np.stack([cs, -cs / 2 + dt(np.sqrt(0.75)) * sn, -cs / 2 - dt(np.sqrt(0.75)) * sn]) * m2 - B
+    return _polish(c0, c1, c2, c3, roots, newton)
+
+
 def cubic_solver_benchmark(n=20000, seed=0, reference=200):
-    """Accuracy and speed of the trigonometric solver against np.linalg.eigvals.
+    """Accuracy and speed of the trig-free solver against the trigonometric one and np.linalg.eigvals.
 
     Builds the reversed cubics P(t) of the kernel for biased random six-moment
-    vectors and fragment depths, solves them both ways in float64, and compares
-    ``reference`` of them with mpmath.polyroots.
+    vectors and fragment depths, solves them three ways in float64 (each with two
+    Newton steps but eigvals), compares ``reference`` of them with mpmath.polyroots,
+    and times the two closed forms in float32 as well.
 
     Returns
     -------
-    dict with ``trig_seconds``, ``eig_seconds``, ``trig_max_rel_err``,
-    ``eig_max_rel_err`` (relative to the largest |root| per cubic).
+    dict with ``closed_seconds``, ``trig_seconds``, ``eig_seconds`` (float64),
+    ``closed32_seconds``, ``trig32_seconds`` (float32, no Newton step) and
+    ``closed_max_rel_err``, ``trig_max_rel_err``, ``eig_max_rel_err`` (relative to
+    the largest |root| per cubic).
     """
     import mpmath
 
@@ -520,30 +751,37 @@ def cubic_solver_benchmark(n=20000, seed=0, reference=200):
     wt = rng.uniform(0.05, 1, (n, 5))
     b = bias_moments(power_moments(z, wt, n=6), BIAS6_FLOAT64)
     zf = rng.uniform(-1, 1, n)
-    b1, b2, b3, b4, b5, b6 = b.T
-    D1, D2, D3, L21, L31, L32 = _ldl(b1, b2, b3, b4, b5, b6)
-    _, y1, y2, y3 = _forward(1.0, zf, zf * zf, zf ** 3, b1, b2, b3, L21, L31, L32)
-    c1, c2, c3 = y1 / D1, y2 / D2, y3 / D3
-    q3 = c3
-    q2 = c2 - L32 * q3
-    q1 = c1 - L21 * q2 - L31 * q3
-    pz = 1 + y1 * c1 + y2 * c2 + y3 * c3
-    p1 = q1 + (2 * q2 + 3 * q3 * zf) * zf
-    p2 = q2 + 3 * q3 * zf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        _, _, P = _reversed_cubic(b.T, zf)
+    P32 = [p.astype(np.float32) for p in P]
+    pz, p1, p2, q3 = P
+    out = {}
+    for name, fn, args in (("closed", _solve_cubic, P), ("trig", _trig_roots, P),
+                           ("closed32", lambda *c: _solve_cubic(*c, newton=0), P32),
+                           ("trig32", lambda *c: _trig_roots(*c, newton=0), P32)):
+        seconds = []
+        for _ in range(3):  # best of three
+            t0 = time.perf_counter()
+            roots = fn(*args)
+            seconds.append(time.perf_counter() - t0)
+        out[f"{name}_seconds"] = min(seconds)
+        if name in ("closed", "trig"):
+            out[name] = np.sort(roots, axis=0).T
     t0 = time.perf_counter()
-    r_trig = np.sort(solve_cubic(pz, p1, p2, q3), axis=0).T
-    t1 = time.perf_counter()
     comp = np.zeros((n, 3, 3))
     comp[:, 0, :] = -np.stack([p1, p2, q3], axis=-1) / pz[:, None]
     comp[:, 1, 0] = comp[:, 2, 1] = 1
-    r_eig = np.sort(np.linalg.eigvals(comp).real, axis=-1)
-    t2 = time.perf_counter()
-    err_t, err_e = 0.0, 0.0
+    out["eig"] = np.sort(np.linalg.eigvals(comp).real, axis=-1)
+    out["eig_seconds"] = time.perf_counter() - t0
+    err = dict.fromkeys(("closed", "trig", "eig"), 0.0)
     with mpmath.workdps(40):
         for i in range(min(reference, n)):
             ex = sorted(float(mpmath.re(r)) for r in mpmath.polyroots(
                 [mpmath.mpf(float(x)) for x in (pz[i], p1[i], p2[i], q3[i])], maxsteps=200, extraprec=200))
             sc = max(abs(x) for x in ex)
-            err_t = max(err_t, max(abs(a - e) for a, e in zip(r_trig[i], ex)) / sc)
-            err_e = max(err_e, max(abs(a - e) for a, e in zip(r_eig[i], ex)) / sc)
-    return {"trig_seconds": t1 - t0, "eig_seconds": t2 - t1, "trig_max_rel_err": err_t, "eig_max_rel_err": err_e}
+            for k in err:
+                err[k] = max(err[k], max(abs(a - e) for a, e in zip(out[k][i], ex)) / sc)
+    for k, e in err.items():
+        out[f"{k}_max_rel_err"] = e
+        del out[k]
+    return out

@@ -499,8 +499,9 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     modified in place. Every case is computed for every element and the result is
     selected at the end (no per-element branching); temporaries are reused
     through ``out=``. Masked ufuncs, boolean indexing and ``np.where`` cost as
-    much as 5–30 arithmetic passes in NumPy, so the final selections multiply by
-    booleans instead (the values selected there are finite).
+    much as 5–30 arithmetic passes in NumPy, so the final selection multiplies by
+    a boolean instead (the values selected there are finite: z'f ≥ 0 keeps every
+    lane's formula NaN-free).
     """
     dt = y1.dtype.type
     # Clamps of §3.4 (they also remove rounding noise): v2 ∈ [1e-6, 1 − 1e-6]
@@ -511,8 +512,11 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     gap = y2 - y1 if gap is None else gap
     np.maximum(gap, c["lo"], out=gap)
     # Affine change to y1 = 0, y2 = 1 (HPG17 §3.4, proofs/lemma_4):
-    # z'f := (zf − y1)/(y2 − y1) and ξ'4 := ξ4/(y2 − y1)⁴.
+    # z'f := (zf − y1)/(y2 − y1) and ξ'4 := ξ4/(y2 − y1)⁴. The early return for zf ≤ y1
+    # is z'f clamped at 0: the formulas below give w_l = 1/∞ = 0 there (the limit
+    # z'f → 0⁺: P = ∞ sends z_l to −∞), without a mask and a NaN guard.
     zp = zf - y1
+    np.maximum(zp, c["zero"], out=zp)
     zp /= gap
     gap *= gap
     gap *= gap
@@ -574,13 +578,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     t = k * dt(-2)
     t += 1
     t *= above
-    k += t
-    # Early return 0 if zf ≤ y1: multiply by [zf > y1]. The branch computed for
-    # those lanes can be NaN (z'f ≤ 0 makes P < 0 and h² + P < 0 under the root);
-    # fmax turns NaN into 0 first, so that NaN·0 cannot leak into the result. Where
-    # zf > y1 every quantity above is finite and k ∈ [0, 1], so fmax changes nothing.
-    np.fmax(k, c["zero"], out=k)
-    np.multiply(k, zf > y1, out=out)
+    np.add(k, t, out=out)
 
 
 def shade(r, zf):
@@ -603,9 +601,9 @@ def shade(r, zf):
     Notes
     -----
     HPG17 Algorithm 3, vectorized: every case is computed for every element and
-    the result is selected afterwards (a bit blend for z_l, multiplication by
-    the 0/1 masks ``[zf > y2]`` and ``[zf > y1]`` for the returned value, which
-    realizes the early return); no per-element branching:
+    the result is selected afterwards (a bit blend for z_l, multiplication by the
+    0/1 mask ``[zf > y2]`` for the returned value; the early return is z'f clamped
+    at 0, where the formulas give exactly 0); no per-element branching:
 
     * if ``zf ≤ y1``: 0;
     * ``z'f = (zf − y1)/(y2 − y1)``, ``ξ'4 = ξ4/(y2 − y1)⁴``, ``z_l = z'f``;
@@ -649,10 +647,8 @@ def shade(r, zf):
     chunk; finiteness and the domain are checked on the loaded chunk by eight
     min/max reductions (the full checks run only to raise); about 50 in-place
     ufunc passes, the z_l selection as a four-pass bit blend (``np.where`` cost
-    as much as 15 passes at this chunk size). float32 on 2048² texels: 0.092 s
-    CPU, 10.4–11.5× a same-run copy of its 96 MiB of traffic (load 4.5 on 2
-    cores; 15.4–16.2× before these changes). The result does not depend on the
-    chunk size.
+    as much as 15 passes at this chunk size). The result does not depend on the
+    chunk size; the measurements are in docs/bench.md ("Kernel history").
 
     Examples
     --------
@@ -667,12 +663,14 @@ def shade(r, zf):
     tol = r.dtype.type(rounding_tolerance(r.dtype))
     chunk = CHUNK
     consts = _kernel_constants(r.dtype, min(chunk, n))
+    rows = np.empty((4, min(chunk, n)), dtype=r.dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         for start in range(0, n, chunk):
             stop = min(start + chunk, n)
-            # One transposing copy per chunk: contiguous columns for the ufuncs
-            # (always a copy: the kernel works in place and r may be read-only).
-            cols = np.array(rflat[start:stop].T, order="C", copy=True)
+            # One transposing copy per chunk into the same rows: contiguous columns for the
+            # ufuncs (always a copy: the kernel works in place and r may be read-only).
+            cols = rows[:, : stop - start]
+            np.copyto(cols, rflat[start:stop].T)
             zc = np.ascontiguousarray(zflat[start:stop])
             gap = np.subtract(cols[1], cols[0])
             if not _chunk_ok(cols, zc, gap, tol):

@@ -480,3 +480,30 @@ def test_reduce_light_leaking(values, factor, dt):
     # atol: float32 subnormals carry fewer significant bits than eps promises.
     np.testing.assert_allclose(out, expect, rtol=2 * np.finfo(dt).eps, atol=np.finfo(dt).smallest_subnormal)
     assert (out >= x).all() and (out <= 1).all()
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("neighbour", [False, True])
+def test_every_nonfinite_input_is_refused(dt, bad, neighbour):
+    # The kernel finds NaN and inf through the singular texels they make (msm._roots): every
+    # component, every sign, in a chunk of regular (biased) texels, alone or next to a
+    # singular texel. Without the d + b4 of msm._roots, b4 = +inf alone slips through.
+    from moments_ref.msm import CHUNK
+
+    rng = np.random.default_rng(5)
+    n = CHUNK + 100  # the bad value goes into the second chunk
+    b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 3))), BIAS_FLOAT32).astype(dt)
+    if neighbour:
+        b[-3] = power_moments(np.array([0.2]))  # a singular texel in the same chunk
+    zf = rng.uniform(-1, 1, n).astype(dt)
+    for k in range(5):
+        bb, zz = b.copy(), zf.copy()
+        if k < 4:
+            bb[CHUNK + 7, k] = bad
+        else:
+            zz[CHUNK + 7] = bad
+        for bound in ("lower", "upper"):
+            with pytest.raises(InputError) as info:
+                shadow_intensity(bb, zz, bound)
+            assert f"({CHUNK + 7}" in str(info.value) and ("zf" if k == 4 else "b") in str(info.value)

@@ -80,12 +80,17 @@ def test_bounds_biased_precise(dist, zf):
 
 
 def test_float32_needs_stronger_bias():
-    # Z = ¼ δ−1 + ½ δ0 + ¼ δ1, zf = 1: Z(z < zf) = 0.75. With α = 3e-7 the float32 pivot D3
-    # drowns in rounding and the lower bound comes out 1.0; BIAS6_FLOAT32 keeps it bracketed.
+    # One depth at 0.9, zf = 0.9 in float32: Z(z < zf) = 0. With α = 3e-7 the float32 pivots
+    # drown in rounding and the lower bound comes out 1.0; BIAS6_FLOAT32 keeps it bracketed.
+    b32 = power_moments(np.array([0.9]), n=6).astype(np.float32)
+    zf = np.float32(0.9)
+    weak = msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT64), zf)
+    assert weak > 0.0 + 0.1
+    assert msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT32), zf) <= 0.0 + F32_SLACK
+    # Z = ¼ δ−1 + ½ δ0 + ¼ δ1, zf = 1: Z(z < zf) = 0.75. The witness of the weak bias until the
+    # trigonometric cubic was replaced (it gave 1.0; the Sturm count and one root give 0.75).
     z, w = np.array([-1.0, 0.0, 1.0]), np.array([0.25, 0.5, 0.25])
     b32 = power_moments(z, w, n=6).astype(np.float32)
-    weak = msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT64), np.float32(1.0))
-    assert weak > 0.75 + 0.1
     assert msm6.shadow_intensity(bias_moments(b32, msm6.BIAS6_FLOAT32), np.float32(1.0)) <= 0.75 + F32_SLACK
 
 
@@ -149,6 +154,107 @@ def test_canonical_check_has_power():
     d, w = msm6.canonical_representation(b, 0.1)
     w = w[[0, 2, 1, 3]]  # mutant: two weights swapped
     assert abs((w * d).sum() - b[0]) > 1e-3
+
+
+# ---------------------------------------------------------------------------
+# the trig-free cubic: cos(arccos(r)/3), the extreme root, the Sturm count
+
+
+@pytest.mark.parametrize("dt, refine, tol", [(np.float64, 0, 2e-7), (np.float64, 1, 2e-14), (np.float32, 0, 4e-7)])
+def test_cos_third_against_trigonometry(dt, refine, tol):
+    r = np.linspace(-1, 1, 20001).astype(dt)
+    exact = np.cos(np.arccos(r.astype(np.float64)) / 3)
+    got = msm6._cos_third(r, refine)
+    assert got.dtype == dt
+    assert np.abs(got - exact).max() <= tol
+    # ρ a little beyond ±1 (rounding): the value next to the end, no NaN
+    out = msm6._cos_third(np.array([-1 - 1e-7, 1 + 1e-7], dtype=dt), refine)
+    assert np.isfinite(out).all() and abs(out[0] - msm6._cos_third(np.array([-1 + 1e-7], dtype=dt))[0]) <= 1e-6
+    assert abs(out[1] - 1) <= 1e-6
+
+
+def _cubics(rng, n, sigma):
+    """Cubics as in the kernel: the σ-extreme root alone on its side of 0, magnitudes 1e-4..1e3."""
+    one = sigma * 10.0 ** rng.uniform(-4, 3, n)
+    others = -sigma * 10.0 ** rng.uniform(-4, 3, (n, 2))
+    roots = np.column_stack([one, others])
+    c0 = 10.0 ** rng.uniform(0, 3, n)
+    c1 = -c0 * roots.sum(1)
+    c2 = c0 * (roots[:, 0] * roots[:, 1] + roots[:, 0] * roots[:, 2] + roots[:, 1] * roots[:, 2])
+    return (c0, c1, c2, -c0 * roots.prod(1)), roots
+
+
+@pytest.mark.parametrize("sigma", [1.0, -1.0])
+def test_extreme_root_against_known_roots(sigma):
+    # float64 steps (one on cos(arccos(r)/3), two on the cubic): the root to its own size,
+    # also when it is 1e7 times smaller than the others (measured worst 8e-16). Without the
+    # step on cos(arccos(r)/3) the fit's 1.6e-7 leaves 5e-3 there (the check has power).
+    (c0, c1, c2, c3), roots = _cubics(np.random.default_rng(21), 4000, sigma)
+    with np.errstate(all="ignore"):
+        t = msm6._extreme_root(c0, c1, c2, c3, np.full(4000, sigma), newton=2, refine=1)
+        weak = msm6._extreme_root(c0, c1, c2, c3, np.full(4000, sigma), newton=2, refine=0)
+    rel = np.abs(t - roots[:, 0]) / np.abs(roots[:, 0])
+    assert rel.max() <= 1e-13
+    assert (np.abs(weak - roots[:, 0]) / np.abs(roots[:, 0])).max() > 1e-6
+    # all three: two roots of one side may nearly meet (ill-conditioned: 6e-8 seen for a gap of 6 %)
+    three = np.sort(msm6.solve_cubic(c0, c1, c2, c3), axis=0)
+    np.testing.assert_allclose(three, np.sort(roots.T, axis=0), rtol=1e-6, atol=0)
+
+
+def test_solve_cubic_multiple_roots():
+    # a triple root (m = 0: r is 0/0) and a double one
+    np.testing.assert_allclose(msm6.solve_cubic([1.0, 1.0], [-3.0, 0.0], [3.0, -3.0], [-1.0, -2.0]),
+                               [[1, 2], [1, -1], [1, -1]], atol=1e-5)
+
+
+@given(depth_distributions(min_points=2), st.floats(-1, 1))
+def test_sturm_count_is_the_number_of_roots_below_zf(dist, zf):
+    # The signs of y = (1, P1, P2, P3)(zf) decide the case of step 5; checked against the
+    # canonical representation of the mpmath twin (roots of q by polyroots, 50 digits).
+    z, w = dist
+    b = bias_moments(power_moments(z, w, n=6), msm6.BIAS6_FLOAT64)
+    with np.errstate(all="ignore"):
+        ldl, (y1, y2, y3), _ = msm6._reversed_cubic(b[:, None], np.array([zf]))
+    assume(min(abs(y1[0]), abs(y2[0]), abs(y3[0])) > 1e-9)  # not at a node: the count is exact
+    signs = [True, y1[0] >= 0, y2[0] >= 0, y3[0] >= 0]
+    changes = sum(a != b for a, b in zip(signs, signs[1:]))  # Gauss nodes above zf
+    d, _ = precise.canonical_representation6(b, zf)
+    below = int((d[1:] < zf).sum())  # a root at infinity (+inf here) needs y3 = 0, excluded
+    assert 3 - changes == below
+
+
+def test_sturm_count_has_power():
+    # Mutant: the root of the wrong side (sigma flipped) breaks the bracket of the bounds.
+    z, w = np.array([-0.8, -0.3, 0.1, 0.5, 0.9]), np.array([0.2, 0.2, 0.2, 0.2, 0.2])
+    zf = _zf_candidates(z, 0.3)
+    real = msm6._extreme_root
+
+    def flipped(c0, c1, c2, c3, sigma, newton=2, refine=2):
+        return real(c0, c1, c2, c3, -sigma, newton, refine)
+
+    check_bounds(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
+    msm6._extreme_root = flipped
+    try:
+        with pytest.raises(AssertionError):
+            check_bounds(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
+    finally:
+        msm6._extreme_root = real
+
+
+@pytest.mark.parametrize("dt, tol", [(np.float32, 5e-6), (np.float64, 1e-11)])
+def test_stiff_golden_rows_match_precise(dt, tol):
+    # The golden case's stiff and edge rows (six depths within 0 .. 1e-2 of 0.3 with zf = b1,
+    # three depths −1, 0, 1, zf at or beyond ±1). Measured: float32 3.3e-7 (the trigonometric
+    # kernel: 1.6e-5), float64 4.3e-13.
+    from moments_ref.golden._rows import _msm6_rows
+
+    rows = _msm6_rows(np.random.default_rng(3), dt)
+    hard = np.asarray(rows.category) != "random"
+    b = np.asarray(rows.inputs["b"])[hard].astype(dt)
+    zf = np.asarray(rows.inputs["zf"])[hard].astype(dt)
+    lo, up = msm6.shadow_bounds(b, zf)
+    plo, pup = precise.shadow_bounds6(b, zf)
+    assert np.abs(lo - plo).max() <= tol and np.abs(up - pup).max() <= tol
 
 
 # ---------------------------------------------------------------------------
@@ -327,9 +433,42 @@ def test_broadcasting_and_dtype():
 def test_cubic_solver_measurement():
     m = msm6.cubic_solver_benchmark(n=2000, reference=30)
     assert m["trig_max_rel_err"] < 1e-10 and m["eig_max_rel_err"] < 1e-10
+    assert m["closed_max_rel_err"] < 1e-10
 
 
 def test_unorm10_bias_measurement():
     share = msm6.measure_unorm10_bias(alphas=(1e-5, msm6.BIAS6_UNORM10.alpha, 5e-3), n=1000)
     assert share[1e-5] < share[msm6.BIAS6_UNORM10.alpha] <= share[5e-3]
     assert share[msm6.BIAS6_UNORM10.alpha] > 0.6
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("neighbour", [False, True])
+def test_every_nonfinite_input_is_refused(dt, bad, neighbour):
+    # The bounds kernel finds NaN and inf through the rows they make singular (and D3 + zf):
+    # every component, every sign, alone in a chunk of regular texels or next to a singular
+    # one. Without the D3 + zf of msm6._bounds_kernel, b6 = +inf and a non-finite zf slip
+    # through.
+    from moments_ref._kernels import CHUNK
+
+    rng = np.random.default_rng(5)
+    n = CHUNK + 100  # the bad value goes into the second chunk
+    b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4)), n=6).astype(dt), msm6.BIAS6_FLOAT32)
+    if neighbour:
+        b[-3] = power_moments(np.array([0.2]), n=6)  # a singular texel in the same chunk
+    zf = rng.uniform(-1, 1, n).astype(dt)
+    for k in range(7):
+        bb, zz = b.copy(), zf.copy()
+        if k < 6:
+            bb[CHUNK + 7, k] = bad
+        else:
+            zz[CHUNK + 7] = bad
+        for bound in ("lower", "upper"):
+            with pytest.raises(InputError) as info:
+                msm6.shadow_intensity(bb, zz, bound)
+            assert f"({CHUNK + 7}" in str(info.value) and ("zf" if k == 6 else "b") in str(info.value)
+    # finite inputs, |zf| near the largest float: D3 + zf overflows, the full check passes
+    huge = np.full(3, np.finfo(dt).max / 2, dtype=dt) * np.array([1, -1, 1], dtype=dt)
+    lo, up = msm6.shadow_bounds(b[:3], huge)
+    assert np.isfinite(lo).all() and np.isfinite(up).all()

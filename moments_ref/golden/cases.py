@@ -123,6 +123,34 @@ def _xi_decode_spread(fmt):
     return hook
 
 
+def _six_all_roots(bound):
+    """Six moments the shipped ports' way: all three roots of the cubic, then the weights below zf.
+
+    The reference needs one root (msm6, step 3); the ports and the reference before it
+    solve for all three (two Newton steps each) and sum the weights of the roots below zf,
+    which rounds differently in float32. Evaluated through
+    :func:`moments_ref.msm6.canonical_representation` on the inputs as given and scaled
+    by 1 ± 3 ulps, like the reference's own variants (``golden.spread``).
+    """
+
+    def hook(inputs, dt):
+        from ..msm6 import canonical_representation
+
+        eps = 3 * float(np.finfo(dt).eps)
+        out = []
+        for f in (1.0, 1 + eps, 1 - eps):
+            b = (np.asarray(inputs["b"], np.float64) * f).astype(dt)
+            zf = np.asarray(inputs["zf"], np.float64)
+            zf = np.where(np.abs(zf * f) > 1, zf, zf * f).astype(dt)  # depths in [-1, 1] stay there
+            d, w = canonical_representation(b, zf)
+            lower = (w[..., 1:] * (d[..., 1:] < d[..., :1])).sum(axis=-1)
+            value = lower if bound == "lower" else lower + w[..., 0]
+            out.append((np.clip(value, 0, 1),))
+        return out
+
+    return hook
+
+
 def _float_cases(dt):
     cases = []
     for bound in ("lower", "upper"):
@@ -158,7 +186,7 @@ def _float_cases(dt):
              description="six moments from 2×R10G10B10A2_UNORM"),
         *[Case(f"shadow_intensity6-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
                _msm6_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity6", bound=bound),
-               {"bound": bound}, value_range=(0, 1),
+               {"bound": bound}, value_range=(0, 1), spread_hook=_six_all_roots(bound),
                description=f"six-moment {bound} bound (slides, 'Prefiltered single scattering'); b (n, 6); "
                            "expected from the mpmath twin")
           for bound in ("lower", "upper")],
