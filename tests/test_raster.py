@@ -697,3 +697,58 @@ def test_shared_and_unshared_vertices_give_the_same_map(cull, samples):
                              samples=samples, cull=cull)
     assert d1.tobytes() == d2.tobytes() and s1 == s2
     assert s1.nonfinite > 0 and s1.degenerate > 0 and (d1 < 1).any()
+
+
+
+
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4]))
+def test_span_rows_are_flagged_inside_exactly_when_their_depths_are_in_range(seed, samples):
+    # _iter_spans marks a row "inside" (no per-sample depth clip needed) from its first and
+    # last sample. Depth is monotone along a row, so the flag must equal "every depth of
+    # the row in [-1, 1]"; and every depth is the plane through the three vertices. Depth
+    # planes crossing -1 and 1 inside the map (no geometric clip here), two lying at
+    # exactly 1 and -1; one row per batch (each row's flag seen) and batches of many rows
+    # (the batch's flag: all its rows inside).
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
+    from moments_ref.scene.raster._triangles import _edge_equations
+
+    rng = np.random.default_rng(seed)
+    h, w, n = 10, 12, 5
+    X = rng.integers(-200, w * 256 + 200, (3, n))
+    Y = rng.integers(-200, h * 256 + 200, (3, n))
+    zv = rng.uniform(-2.5, 2.5, (3, n))
+    zv[:, 0], zv[:, 1] = 1.0, -1.0
+    area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
+    keep = area2 != 0
+    X, Y, zv = X[:, keep].copy(), Y[:, keep].copy(), zv[:, keep].copy()
+    s = _edge_equations(X, Y, zv, area2[keep], np.arange(X.shape[1]), None, False)  # orients X, Y, zv in place
+    # The plane z = alpha + beta x + gamma y through the (oriented) vertices, solved per triangle.
+    M = np.stack([np.ones_like(X, dtype=float), X.astype(float), Y.astype(float)], axis=-1).transpose(1, 0, 2)
+    coef = np.linalg.solve(M, zv.T[..., None])[..., 0]
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
+    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
+    kept = {k: np.take(s[k], sel, axis=-1) for k in ("A", "B", "F0", "X", "Y", "z0", "za", "zb")}
+    old = _spans._SAMPLE_BUDGET
+    try:
+        for budget in (1, 40, old):
+            _spans._SAMPLE_BUDGET = budget
+            _check_span_batches(_spans._iter_spans(kept, c0[sel], c1[sel], r0[sel], r1[sel], safe[sel], sx, sy, w,
+                                                   True), coef[sel], w, samples, sx, sy, one_row=budget == 1)
+    finally:
+        _spans._SAMPLE_BUDGET = old
+
+
+def _check_span_batches(batches, coef, w, samples, sx, sy, one_row):
+    for flat, z, inside, (tri, row, col, samp) in batches:
+        if one_row:
+            assert len(set(zip(tri.tolist(), row.tolist(), samp.tolist()))) == 1
+        x, y = col * 256 + 128 + sx[samp], row * 256 + 128 + sy[samp]
+        a, b, c = coef[tri].T
+        np.testing.assert_allclose(z, a + b * x + c * y, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(flat, (row * w + col) * samples + samp)
+        assert inside == bool(np.all((z >= -1) & (z <= 1))), (tri[0], row[0], z.min(), z.max())
