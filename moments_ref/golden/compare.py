@@ -11,8 +11,8 @@ Entry point: :func:`compare(entry, expected, candidate, port_dtype=None)
 * ``candidate``: ``{output name: array}`` from the port.
 
 It returns a :class:`Verdict`: per row pass/fail (``row_pass``), a per-row score
-(worst error over tolerance, ``inf`` for NaN or a wrong code) and per-output
-summaries. The rule, the same for every harness:
+(worst error over tolerance, ``inf`` for NaN or a wrong code), and the error and
+tolerance at each row's worst value. The rule, the same for every harness:
 
 * the candidate's dtype must have the manifest's kind and width: integer outputs
   an integer dtype of the expected width, float outputs a real float dtype of the
@@ -30,29 +30,14 @@ summaries. The rule, the same for every harness:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._arrays import InputError
 from .spread import ulp
 
-__all__ = ["compare", "Verdict", "OutputSummary", "check_dtypes", "port_precision"]
-
-
-@dataclass
-class OutputSummary:
-    """How one output of a case fared."""
-
-    name: str
-    metric: str
-    rows: int
-    gated: int
-    failures: int
-    worst_row: int  # index of the row with the largest score
-    worst_score: float  # error / tolerance there (0 = exact, > 1 fails)
-    worst_error: float  # in the metric's unit
-    worst_tolerance: float
+__all__ = ["compare", "Verdict", "check_dtypes", "port_precision"]
 
 
 @dataclass
@@ -63,7 +48,6 @@ class Verdict:
     port_dtype: str
     row_pass: np.ndarray  # (n,) bool
     score: np.ndarray  # (n,) float: max error / tolerance over the row's values
-    outputs: dict = field(default_factory=dict)  # name -> OutputSummary
     error: np.ndarray | None = None  # (n,) the error (metric's unit) at each row's worst value
     tolerance: np.ndarray | None = None  # (n,) its tolerance (0: exact codes, inf: ungated)
     gated: np.ndarray | None = None  # (n,) bool: the row is held to an expected value (not only a range)
@@ -174,7 +158,6 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
     row_pass = np.ones(n, bool)
     score = np.full(n, -1.0)
     row_err, row_tol, row_gated = np.zeros(n), np.zeros(n), ~acceptable_rows
-    outputs = {}
     for o in entry["compare"]:
         cand = np.asarray(candidate[o])
         want = np.asarray(expected[o]).shape
@@ -182,17 +165,12 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
             raise InputError(f"results: {case + '.' if case else ''}{o!r} has shape {cand.shape}, expected {want}")
         if entry["metric"] == "exact":
             ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows)
-            gated = int((~acceptable_rows).sum())
         else:
             ok, s, err, tol = _float(o, entry, expected, cand, n, dt)
             finite = np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
             row_gated = row_gated & finite
-            gated = int((~acceptable_rows & finite).sum())
         row_pass &= ok
         worse = s > score
         row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)
         score = np.maximum(score, s)
-        w = int(np.argmax(s)) if n else 0
-        outputs[o] = OutputSummary(o, entry["metric"], n, gated, int((~ok).sum()), w, float(s[w]) if n else 0.0,
-                                   float(err[w]) if n else 0.0, float(tol[w]) if n else 0.0)
-    return Verdict(case, dt, row_pass, np.maximum(score, 0.0), outputs, row_err, row_tol, row_gated)
+    return Verdict(case, dt, row_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated)

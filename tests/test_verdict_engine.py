@@ -1,0 +1,231 @@
+"""The verdict engine's own rules, stated as specifications: golden.compare (what passes, what a row's
+error and score are), golden.spread (ulps, tolerance rounding, the legitimate variants a tolerance
+must hold) and conformance.verdict (readback words, ulp distance, the rows shown).
+
+Each expectation is written from the rule in the module's docstring, with hand-built manifest
+entries and golden arrays, never from the code's output.
+"""
+
+import numpy as np
+import pytest
+
+from moments_ref import InputError
+from moments_ref.conformance.verdict import compare_case, select_worst, ulp_distance
+from moments_ref.golden.compare import compare
+from moments_ref.golden.spread import _ceil2, ulp
+
+F32 = np.float32
+
+
+def _entry(metric="abs", dtype="float32", out_dtype="float32", value_range=None, exact=False):
+    e = {"compare": ["y"], "outputs": {"y": {"dtype": out_dtype}}, "dtype": dtype, "metric": metric,
+         "inputs": ["x"], "exact": exact}
+    if value_range is not None:
+        e["value_range"] = value_range
+    return e
+
+
+def _golden(y, tol32, tol64=None, result=None):
+    y = np.asarray(y, np.float64)
+    n = len(y)
+    return {"y": y, "y_tolerance_float32": np.broadcast_to(np.asarray(tol32, np.float64), y.shape).copy(),
+            "y_tolerance_float64": np.broadcast_to(np.asarray(tol64 if tol64 is not None else tol32, np.float64),
+                                                   y.shape).copy(),
+            "result": np.asarray(result if result is not None else ["valid"] * n), "tc_id": np.arange(1, n + 1),
+            "x": np.zeros(n), "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n),
+            "comment": np.asarray([""] * n)}
+
+
+# ---------------------------------------------------------------------------
+# golden.compare: the rule
+
+
+def test_a_value_exactly_at_its_tolerance_passes_and_the_next_float_fails():
+    tol = 2.0 ** -10  # exactly representable: the error 0.5 + 2^-10 - 0.5 is exactly 2^-10
+    g = _golden([0.5, 0.5, 0.5], tol)
+    got = np.array([0.5 + tol, 0.5 - tol, np.nextafter(F32(0.5 + tol), F32(1))], F32)
+    v = compare(_entry(), g, {"y": got})
+    assert v.row_pass.tolist() == [True, True, False]
+    assert v.score[:2].tolist() == [1.0, 1.0] and v.score[2] > 1
+    assert not v.passed and v.failures == 1
+
+
+def test_nan_and_inf_fail_with_an_infinite_score_even_on_ungated_rows():
+    g = _golden([0.5, 0.5, 0.5, 0.5], [0.1, 0.1, np.inf, np.inf], result=["valid", "valid", "acceptable",
+                                                                            "acceptable"])
+    got = np.array([np.nan, np.inf, np.nan, 0.25], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.row_pass.tolist() == [False, False, False, True]
+    assert np.isinf(v.score[:3]).all() and v.score[3] == 0
+    assert v.gated.tolist() == [True, True, False, False]
+
+
+def test_ungated_rows_need_only_a_finite_value_in_the_value_range():
+    g = _golden([0.5] * 4, np.inf, result=["acceptable"] * 4)
+    got = np.array([0.0, 1.0, -1e-3, 1.001], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.row_pass.tolist() == [True, True, False, False]
+    assert v.score.tolist() == [0.0, 0.0, np.inf, np.inf]
+    assert compare(_entry(), g, {"y": got}).passed  # no range stated: any finite value
+
+
+def test_the_worst_component_of_a_vector_output_decides_the_row():
+    # Per component tolerances; component 2 is the worst relative to its tolerance although
+    # component 0 has the largest absolute error.
+    e = np.zeros((2, 4))
+    tol = np.array([[1e-2, 1e-3, 1e-4, 1e-3]] * 2)
+    g = _golden(e, tol)
+    got = np.array([[5e-3, 0, 5e-4, 0], [0, 0, 0, 5e-4]], F32)
+    v = compare(_entry(), g, {"y": got})
+    assert v.row_pass.tolist() == [False, True]
+    np.testing.assert_allclose(v.score, [5e-4 / 1e-4, 0.5], rtol=1e-6)
+    np.testing.assert_allclose(v.error, [5e-4, 5e-4], rtol=1e-6)
+    np.testing.assert_allclose(v.tolerance, [1e-4, 1e-3])
+    assert v.worst_rows(None) == [0]
+
+
+def test_ulps_are_counted_in_the_ports_precision_at_the_expected_value():
+    # Just above 2: the float32 spacing is 2^-22, below 2 it is 2^-23.
+    above, below = float(np.nextafter(F32(2), F32(3))), float(np.nextafter(F32(2), F32(0)))
+    g = _golden([above, below], 2.0)
+    got = np.array([above + 2 * 2.0 ** -22, below - 3 * 2.0 ** -23], F32)
+    v = compare(_entry(metric="ulps"), g, {"y": got})
+    assert v.row_pass.tolist() == [True, False]
+    np.testing.assert_allclose(v.error, [2.0, 3.0])
+    # In float64 the same differences are many ulps.
+    v64 = compare(_entry(metric="ulps", dtype="float64"), g, {"y": got.astype(np.float64)}, port_dtype="float64")
+    assert not v64.row_pass.any()
+    assert v64.error[0] == 2 * 2.0 ** -22 / np.spacing(above)
+
+
+def test_worst_rows_are_the_failing_rows_by_score_each_once():
+    g = _golden([0.0] * 6, 1.0)
+    got = np.array([3.0, 0.5, 7.0, 2.0, 7.0, 0.0], F32)
+    v = compare(_entry(), g, {"y": got})
+    assert v.worst_rows(None) == [2, 4, 0, 3]  # largest score first, ties in row order, passing rows never
+    assert v.worst_rows(2) == [2, 4] and v.worst_rows(0) == []
+
+
+def test_integer_codes_accept_the_stored_alternatives_only_on_acceptable_rows():
+    e = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact"}
+    g = {"q": np.array([[10, 20], [10, 20], [10, 20]], np.uint16),
+         "q_acceptable": np.array([[[10, 20], [11, 20]]] * 3, np.uint16),
+         "result": np.array(["acceptable", "valid", "acceptable"]), "tc_id": np.arange(1, 4)}
+    got = np.array([[11, 20], [11, 20], [12, 20]], np.uint16)
+    v = compare(e, g, {"q": got})
+    assert v.row_pass.tolist() == [True, False, False]
+    assert v.score.tolist() == [0.0, np.inf, np.inf]
+    assert v.error.tolist() == [1.0, 1.0, 2.0]  # the distance to the golden code, also where accepted
+    assert v.gated.tolist() == [False, True, False]
+    with pytest.raises(InputError, match="integer dtype of 16 bits"):
+        compare(e, g, {"q": got.astype(np.uint32)})
+    with pytest.raises(InputError, match="has shape"):
+        compare(e, g, {"q": got[:2]})
+
+
+@pytest.mark.parametrize("port, arr, ok", [("float32", np.float32, True), ("float32", np.float64, False),
+                                          ("float64", np.float64, True), ("float64", np.float32, False)])
+def test_float_outputs_must_be_in_the_ports_precision(port, arr, ok):
+    g = _golden([0.5], 1.0)
+    call = lambda: compare(_entry(), g, {"y": np.array([0.5], arr)}, port_dtype=port)  # noqa: E731
+    if ok:
+        assert call().passed
+    else:
+        with pytest.raises(InputError, match=port):
+            call()
+    with pytest.raises(InputError, match="missing"):
+        compare(_entry(), g, {"z": np.array([0.5], arr)}, port_dtype=port)
+    with pytest.raises(InputError, match="float16"):
+        compare(_entry(), g, {"y": np.array([0.5], arr)}, port_dtype="float16")
+
+
+def test_the_port_precision_picks_the_tolerance_column():
+    g = _golden([0.5], 1e-3, tol64=1e-9)
+    got32 = np.array([0.5 + 1e-4], F32)
+    assert compare(_entry(), g, {"y": got32}).passed
+    assert not compare(_entry(), g, {"y": got32.astype(np.float64)}, port_dtype="float64").passed
+
+
+# ---------------------------------------------------------------------------
+# golden.spread: ulps and tolerance rounding
+
+
+def test_ulp_is_the_spacing_above_the_expected_magnitude():
+    for x, want in [(1.0, 2.0 ** -23), (float(np.nextafter(F32(1), F32(0))), 2.0 ** -24),
+                    (float(np.nextafter(F32(4), F32(5))), 2.0 ** -21), (-3.0, 2.0 ** -22), (0.0, 2.0 ** -149)]:
+        assert ulp(x, np.float32) == want, x
+    # below the smallest normal: the smallest normal's spacing, also in float64
+    assert ulp(1e-40, np.float32) == 2.0 ** -149 and ulp(1e-310, np.float64) == 2.0 ** -1074
+    assert ulp(1.0, np.float64) == 2.0 ** -52
+    assert ulp(np.array([1.0, np.nan]), np.float32)[0] == 2.0 ** -23 and np.isnan(ulp(np.nan, np.float32))
+
+
+def test_tolerances_round_up_to_two_significant_digits():
+    t = np.array([1.234e-5, 1.2e-5, 9.91, 0.0, np.inf, 1e-300, 3.0 * (1 + 4e-16)])
+    out = _ceil2(t)
+    np.testing.assert_allclose(out[:3], [1.3e-5, 1.2e-5, 10.0], rtol=1e-12)
+    assert out[3] == 0.0 and out[4] == np.inf and out[5] == 1e-300  # left alone
+    assert out[6] == pytest.approx(3.0, rel=1e-12)  # a representation error above 3.0 is not a digit
+    rng = np.random.default_rng(1)
+    t = 10.0 ** rng.uniform(-30, 5, 2000)
+    out = _ceil2(t)
+    e = np.floor(np.log10(t)) - 1
+    assert np.all(out >= t * (1 - 1e-12))
+    assert np.all(out - t < 10 ** e * (1 + 1e-9))  # less than one unit in the second digit above
+    mant = out / 10 ** e
+    np.testing.assert_allclose(mant, np.round(mant), rtol=0, atol=1e-6)  # two digits
+
+
+# ---------------------------------------------------------------------------
+# conformance.verdict: readback words, ulp distance, the rows shown
+
+
+def test_ulp_distance_counts_float32_values_across_zero():
+    tiny = np.float32(2.0 ** -149)
+    values = np.array([-2 * tiny, -tiny, 0.0, tiny, 2 * tiny, 3 * tiny], F32)
+    for i, a in enumerate(values):
+        for j, b in enumerate(values):
+            assert ulp_distance(np.array([a]), np.array([b], np.float64))[0] == abs(i - j)
+    assert ulp_distance(F32([-0.0]), np.array([0.0]))[0] == 0
+    # -1 and 1: every positive float below 1 counted on each side
+    assert ulp_distance(F32([-1.0]), np.array([1.0]))[0] == 2 * 0x3F800000
+    assert ulp_distance(F32([1.0]), np.array([-1.0]))[0] == 2 * 0x3F800000
+
+
+def test_ulp_distance_nan_in_either_is_inf_and_overflow_rounds_to_inf():
+    d = ulp_distance(F32([np.nan, 1.0, np.nan, 1.0]), np.array([1.0, np.nan, np.nan, 1.0]))
+    assert d.tolist() == [np.inf, np.inf, np.inf, 0.0]
+    big = np.finfo(F32).max
+    assert ulp_distance(F32([big]), np.array([1e39]))[0] == 1  # 1e39 rounds to +inf, one past the largest
+    assert ulp_distance(F32([np.inf]), np.array([1e39]))[0] == 0
+
+
+def _exact_case(codes, words, result=None):
+    n = len(codes)
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"]}
+    arrays = {"q": np.asarray(codes, np.uint16), "q_acceptable": np.asarray(codes, np.uint16)[:, None],
+              "result": np.asarray(result or ["valid"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
+              "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n),
+              "comment": np.asarray([""] * n)}
+    return compare_case("pack-test", meta, arrays, {"q": np.asarray(words, np.uint32)})
+
+
+def test_a_readback_word_wider_than_the_format_fails_even_where_clipping_gives_the_code():
+    v = _exact_case([0xFFFF, 0, 7], [0x1FFFF, 0, 7])  # 0x1FFFF clips to 0xFFFF, the expected code
+    assert v.row_pass.tolist() == [False, True, True]
+    assert any("wider than the format" in n for n in v.notes)
+    assert v.worst[0]["index"] == 0 and v.worst[0]["score"] == np.inf
+    assert _exact_case([0xFFFF, 0], [0xFFFF, 0]).passed and not _exact_case([0xFFFF], [0xFFFF]).notes
+
+
+def test_rows_shown_per_category_worst_first_each_once():
+    category = np.array(["random"] * 5 + ["stiff"] * 5 + ["edge"] * 3)
+    score = np.array([0.5, 3.0, 2.0, 9.0, 0.1, 0.2, 0.9, 0.0, 0.4, 0.3, 0.0, 0.0, 0.0])
+    row_pass = score <= 1
+    # random fails (rows 1, 2, 3): the worst `keep` of them, largest first; stiff passes: its
+    # three closest rows; edge passes with all scores 0: nothing to show; extra rows once.
+    assert select_worst(category, score, row_pass, 2) == [3, 1, 6, 8, 9]
+    assert select_worst(category, score, row_pass, 5, extra=[6, 12]) == [3, 1, 2, 6, 8, 9, 12]
+    score[[1, 2, 3]] = 0.7
+    assert select_worst(category, score, score <= 1, 2) == [1, 6, 8, 9]  # a passing random shows one row
