@@ -175,3 +175,33 @@ def test_timing_noise_keeps_a_technique_on_the_front():
 def test_a_spread_not_around_its_median_is_refused():
     with pytest.raises(report.InputError, match=r"low <= points <= high.*index \(1, 1\)"):
         report.pareto_mask([[0, 1], [0, 1]], [[0, 1], [0, 1.5]], [[0, 1], [0, 2]])
+
+
+def test_a_cost_whose_slowest_repeat_equals_anothers_fastest_is_no_slower_but_not_faster():
+    frag = (0.10, 0.09, 0.11)  # the same stage charged to both: equal
+    a = _timed_row("msm64", 0.05, (1.00, 0.90, 1.10), frag)
+    b = _timed_row("nlq64", 0.05, (1.50, 1.10, 1.80), frag)  # its fastest repeat is a's slowest
+    # Same RMSE: a is no slower, but better in nothing beyond the spread: both stay.
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, True]
+    # A lower RMSE makes a better in one coordinate: b is beaten.
+    a["rmse"] = 0.04
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, False]
+    # b's fastest repeat just below a's slowest: no longer beaten beyond the spread.
+    b["texel_seconds_min"] = 1.09
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, True]
+    # Strictly faster beyond the spread with equal RMSE: beaten.
+    a["rmse"], b["texel_seconds_min"] = 0.05, 1.11
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, False]
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+@pytest.mark.parametrize("key", ["rmse", "texel_seconds_max", "fragment_seconds"])
+def test_a_row_with_a_nan_or_infinite_coordinate_is_off_the_front_and_beats_nothing(bad, key):
+    frag = (0.10, 0.09, 0.11)
+    rows = [_timed_row("msm64", 0.01, (0.5, 0.4, 0.6), frag), _timed_row("nlq64", 0.05, (1.0, 0.9, 1.1), frag)]
+    rows[0][key] = bad
+    if key == "fragment_seconds":
+        rows[0]["fragment_seconds_max"] = bad  # a spread around a non-finite median
+    d = _pareto.dominates(*_pareto._spread(rows))
+    assert not d.any()
+    assert [r["pareto"] for r in report.mark_pareto(rows)] == [False, True]

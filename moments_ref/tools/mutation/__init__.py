@@ -84,20 +84,54 @@ def _save_state(state):
     (STATE / "results.json").write_text(json.dumps(state, indent=1, sort_keys=True))
 
 
-def _coverage(files, pytest_args, reuse):
-    f = STATE / "coverage.json"
-    key = {"files": {p: _sha((ROOT / p).read_text()) for p in files}, "args": pytest_args}
-    if reuse and f.is_file():
-        cached = json.loads(f.read_text())
-        if cached["key"] == key:
-            return ({p: {int(k): v for k, v in d.items()} for p, d in cached["lines"].items()},
-                    cached["durations"], cached["failed"])
-    print(f"mutation: per-test coverage of {len(files)} module(s) over pytest {' '.join(pytest_args) or '(testpaths)'}",
-          file=sys.stderr)
-    lines, durations, failed = collect_coverage(files, pytest_args)
-    STATE.mkdir(exist_ok=True)
-    f.write_text(json.dumps({"key": key, "lines": lines, "durations": durations, "failed": failed}))
+def _by_file(lines, durations, failed):
+    """Split one coverage run by test file: ``{test file: {"lines", "durations", "failed"}}``."""
+    out = {}
+    for t, sec in durations.items():
+        out.setdefault(t.split("::")[0], {"lines": {}, "durations": {}, "failed": []})["durations"][t] = sec
+    for t in failed:
+        out.setdefault(t.split("::")[0], {"lines": {}, "durations": {}, "failed": []})["failed"].append(t)
+    for path, by_line in lines.items():
+        for line, tests in by_line.items():
+            for t in tests:
+                f = out.setdefault(t.split("::")[0], {"lines": {}, "durations": {}, "failed": []})
+                f["lines"].setdefault(path, {}).setdefault(str(line), []).append(t)
+    return out
+
+
+def _merged(cache, files):
+    lines, durations, failed = {p: {} for p in files}, {}, []
+    for entry in cache["by_file"].values():
+        durations.update(entry["durations"])
+        failed += entry["failed"]
+        for p in files:
+            for line, tests in entry["lines"].get(p, {}).items():
+                lines[p].setdefault(int(line), []).extend(tests)
     return lines, durations, failed
+
+
+def _coverage(files, pytest_args, reuse):
+    """Per-test coverage of ``files``: from the cache (``reuse``, the files unchanged), where
+    ``pytest_args`` name test files only those recollected; else over ``pytest_args``."""
+    f = STATE / "coverage.json"
+    shas = {p: _sha((ROOT / p).read_text()) for p in files}
+    cache = json.loads(f.read_text()) if reuse and f.is_file() else None
+    if cache is not None and any(cache["modules"].get(p) != sha for p, sha in shas.items()):
+        print("mutation: a module changed since the cached coverage: collecting it again", file=sys.stderr)
+        cache = None
+    if cache is None or pytest_args:
+        print(f"mutation: per-test coverage of {len(files)} module(s) over pytest "
+              f"{' '.join(pytest_args) or '(testpaths)'}", file=sys.stderr)
+        fresh = _by_file(*collect_coverage(list(cache["modules"]) if cache else files, pytest_args))
+        if cache is None:
+            cache = {"modules": shas, "by_file": {}}
+        else:
+            for arg in pytest_args:  # the named test files are replaced whole
+                cache["by_file"] = {k: v for k, v in cache["by_file"].items() if not k.startswith(arg.split("::")[0])}
+        cache["by_file"].update(fresh)
+        STATE.mkdir(exist_ok=True)
+        f.write_text(json.dumps(cache))
+    return _merged(cache, files)
 
 
 def _tests_of(mutant, lines):
@@ -159,7 +193,9 @@ def _args(argv):
     ap.add_argument("modules", nargs="*", help="files, folders or dotted names (default: TARGETS)")
     ap.add_argument("--tests", nargs="+", default=[], metavar="ARG",
                     help="pytest arguments of the coverage run (default: the whole suite, pyproject's testpaths)")
-    ap.add_argument("--reuse-coverage", action="store_true", help="reuse .mutation/coverage.json if it matches")
+    ap.add_argument("--reuse-coverage", action="store_true",
+                    help="reuse .mutation/coverage.json while the modules are unchanged; with --tests, collect only "
+                         "those test files again and merge them in")
     ap.add_argument("--only", nargs="+", default=[], metavar="TEXT", help="only mutants whose id contains TEXT")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--report", action="store_true", help="print the table of the last runs, run nothing")
