@@ -57,15 +57,22 @@ def _forked(fn, timeout, quiet=True):
             os.dup2(null, 2)
         code = 3
         try:
-            payload = fn()
-            os.write(wfd, payload)
+            view = memoryview(fn())
+            while view:
+                view = view[os.write(wfd, view):]
             code = 0
         finally:
             os._exit(code)
     os.close(wfd)
+    os.set_blocking(rfd, False)
     deadline = time.monotonic() + timeout
-    timed_out = False
-    while True:
+    chunks, timed_out = [], False
+    while True:  # drain the pipe while waiting: a payload over the pipe's buffer would block the child
+        try:
+            while chunk := os.read(rfd, 1 << 20):
+                chunks.append(chunk)
+        except BlockingIOError:
+            pass
         done, status = os.waitpid(pid, os.WNOHANG)
         if done:
             break
@@ -75,8 +82,10 @@ def _forked(fn, timeout, quiet=True):
             status, timed_out = -1, True
             break
         time.sleep(0.02)
+    os.set_blocking(rfd, True)
     with os.fdopen(rfd, "rb") as f:
-        data = f.read()
+        chunks.append(f.read())
+    data = b"".join(chunks)
     return status, data, timed_out
 
 
