@@ -283,7 +283,8 @@ def _add_oracle(sub):
     cf.add_argument("--function", help="the function to test")
     cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME or an adapter name (default per language)")
+    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME, an adapter name, both (gl and vulkan, "
+                                      "and the rows where they differ) or as-written (default per language)")
     cf.add_argument("--kernel", action="store_true",
                     help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
     cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
@@ -291,7 +292,23 @@ def _add_oracle(sub):
                     help="with --kernel: seconds one dispatch may run before the watchdog stops it (default 60)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
+    _add_source_options(cf)
     cf.set_defaults(func=_cmd_conformance)
+
+
+def _add_source_options(cf):
+    """How ``conformance`` reads a shader file (docs/ports.md, "What your file may contain")."""
+    cf.add_argument("--include", action="append", metavar="DIR", type=Path,
+                    help="also search includes here (after the including file's folder; repeatable)")
+    cf.add_argument("--define", action="append", metavar="NAME=VALUE",
+                    help="#define NAME VALUE before the file (engine macros; repeatable; GLSL, HLSL)")
+    cf.add_argument("--prelude", metavar="FILE", type=Path, help="a file placed before yours (engine macros)")
+    cf.add_argument("--max-source", type=_memory, default=None, metavar="SIZE",
+                    help="largest source with its prelude and includes (default 4M)")
+    cf.add_argument("--keep-unused", action="store_true",
+                    help="compile every declaration of the file, not only those the function uses")
+    cf.add_argument("--watchdog", type=float, default=None, metavar="SECONDS",
+                    help="longest dispatch before the driver is stopped (default 10)")
 
 
 def _add_measurements(sub):

@@ -19,28 +19,36 @@ Decoding is plain UNORM: ``c / 65535`` (what a texture fetch returns), then
 
     bits  0.. 9  (10 bits)  ỹ2  after the fold
     bits 10..18  ( 9 bits)  ỹ1  after the fold
-    bits 19..25  ( 7 bits)  round(127 · √v2)
-    bits 26..31  ( 6 bits)  round(63 · Ψ4(ξ4))   (decoded rounded up)
+    bits 19..25  ( 7 bits)  ⌊128 · √v2⌋, at most 127
+    bits 26..31  ( 6 bits)  ⌊64 · Ψ4(ξ4)⌋, at most 63
 
-Depths: ``ỹ = ⌊511.5 · (y + 1)⌋`` clamped to 0..1022 (y = 1 alone would give 1023;
-it joins the top cell). Since y1 ≤ y2 the pairs (ỹ1, ỹ2) fill a triangle; the
-fold of Figure 5 replaces ``ỹ1, ỹ2`` by ``1023 − ỹ1, 1022 − ỹ2`` when ``ỹ1 ≥ 512``,
-after which ``ỹ1 ≤ 511`` fits 9 bits and ``ỹ2 ≤ 1022`` fits 10 bits. A stored pair
-with ``ỹ2 < ỹ1`` was folded (unfolded pairs keep ỹ1 ≤ ỹ2, folded ones have
+Every field is the index of a *cell*: depths ``ỹ = ⌊511.5 · (y + 1)⌋`` clamped to
+0..1022 (y = 1 alone would give 1023; it joins the top cell), √v2 in cells of 1/128,
+Ψ4 in cells of 1/64. Since y1 ≤ y2 the pairs (ỹ1, ỹ2) fill a triangle; the fold of
+Figure 5 replaces ``ỹ1, ỹ2`` by ``1023 − ỹ1, 1022 − ỹ2`` when ``ỹ1 ≥ 512``, after
+which ``ỹ1 ≤ 511`` fits 9 bits and ``ỹ2 ≤ 1022`` fits 10 bits. A stored pair with
+``ỹ2 < ỹ1`` was folded (unfolded pairs keep ỹ1 ≤ ỹ2, folded ones have
 ``1022 − ỹ2 < 1023 − ỹ1``), so the decoder inverts the fold without a flag.
-Depths decode at the centre of their cell, ``y = (ỹ + 0.5)/511.5 − 1``, so the
-depth error is at most half a cell, ``1/1023 ≈ 9.8e-4``.
 
-Lower bound guarantee. HPG17 §3.5 rounds ξ4 up during loading "to guarantee a
-lower bound to the shadow intensity": the lower bound of Algorithm 1 can only
-decrease as ξ4 grows (tests/test_figures.py checks it). Both formats here make
-sure that the decoded ξ4 is never below the stored one (after the clamp of Ψ4 at
-1.2e-7): the 32-bit decoder reads the 6-bit code ``c`` as ``min(1, (c + 0.5)/63)``
-(the upper end of the rounding interval), the 64-bit encoder stores
-``ceil(65535 Ψ4)`` because a UNORM fetch cannot round up. Floating-point rounding
-in Ψ4 and Ψ4⁻¹ could still put the decoded value one ulp low; the encoders check
-the decoded value in the working dtype and bump the code where needed, so the
-guarantee is exact (tested exhaustively over the 64 codes).
+The decoder reads each cell at a *decode position* (:data:`DECODE32`), chosen by
+HPG17 §3.5's principle: "During loading, we ensure that it is rounded up to
+guarantee a lower bound to the shadow intensity". Depths decode at the **upper**
+end of their cell, ``y = (ỹ + 1)/511.5 − 1`` (an occluder never moves towards the
+light: the error is in [0, 1/511.5)); Ψ4 at the upper end ``(c + 1)/64`` (the lower
+bound of Algorithm 1 never increases with ξ4); √v2 at the **centre** ``(c + ½)/128``,
+so that v2 is never exactly 0 or 1 (a decoded v2 of 0 or 1 drops a depth and
+over-shadows by up to 0.8, docs/formats.md). These are the positions of the HPG17
+demo's decoder; docs/formats.md has the measurements behind them, and ``unpack32``
+takes the positions as keyword arguments (``depth_decode``, ``v2_decode``,
+``xi_decode``) for the variants ports implement.
+
+Lower bound guarantee. The decoded ξ4 is never below the stored one (after the
+clamp of Ψ4 at 1.2e-7): the 32-bit decoder reads the upper end of the Ψ4 cell, the
+64-bit encoder stores ``ceil(65535 Ψ4)`` (``xi_rounding="up"``) because a UNORM
+fetch cannot round up. Floating-point rounding in Ψ4 and Ψ4⁻¹ could still put the
+decoded value one ulp low; the encoders check the decoded value in the working
+dtype and bump the code where needed, so the guarantee is exact (tested
+exhaustively over the 64 codes).
 
 Input. Encoders saturate each quantity onto its stored range (y1, y2 to [-1, 1],
 v2 to [0, 1], ξ4 ≥ 0) as a UNORM texture write does: float32 Algorithm 2 on real
@@ -75,12 +83,22 @@ __all__ = [
     "depth_code",
     "Y_BITS",
     "Y1_SHIFT",
+    "Y1_BITS",
     "Y2_SHIFT",
+    "Y2_BITS",
     "V_SHIFT",
+    "V_BITS",
     "XI_SHIFT",
+    "XI_BITS",
+    "V_CELLS",
+    "XI_CELLS",
+    "DECODE_POSITIONS",
+    "DECODE32",
+    "XI_ROUNDINGS",
     "DEPTH_STEP32",
     "DEPTH_STEP64",
     "nlq_texels",
+    "saturate",
 ]
 
 # 32-bit layout (stable): field shifts and widths.
@@ -91,11 +109,24 @@ XI_SHIFT, XI_BITS = 26, 6
 #: Bits used by both depths together after the fold (HPG17 §3.5).
 Y_BITS = Y1_BITS + Y2_BITS
 
-_V_MAX = (1 << V_BITS) - 1  # 127
-_XI_MAX = (1 << XI_BITS) - 1  # 63
+#: √v2 is stored in cells of width 1/128, Ψ4(ξ4) in cells of width 1/64 (the field's code range).
+V_CELLS = 1 << V_BITS
+XI_CELLS = 1 << XI_BITS
+_V_MAX = V_CELLS - 1  # 127
+_XI_MAX = XI_CELLS - 1  # 63
 _U16 = 65535
 
-#: Width of a 32-bit depth cell, 1/511.5; decoded depths are within half of it.
+#: Where a decoder reads a cell ``[c, c + 1)``: offset from the cell's lower end, in cells.
+DECODE_POSITIONS = {"lower": 0.0, "centre": 0.5, "upper": 1.0}
+#: The 32-bit format's decode positions (HPG17 §3.5's principle; the HPG17 demo's decoder):
+#: depths and Ψ4 at the upper end of their cell, √v2 at its centre. Keyword defaults of
+#: :func:`unpack32` (``depth_decode``, ``v2_decode``, ``xi_decode``).
+DECODE32 = {"depth": "upper", "v2": "centre", "xi": "upper"}
+#: Roundings of the 64-bit Ψ4 code (:func:`pack64`'s ``xi_rounding``): "up" (ours, the
+#: lower-bound guarantee) and "nearest" (a UNORM render-target write, the HPG17 demo).
+XI_ROUNDINGS = ("up", "nearest")
+
+#: Width of a 32-bit depth cell, 1/511.5; a decoded depth lies in [y, y + DEPTH_STEP32).
 DEPTH_STEP32 = 1 / 511.5
 #: Width of a 64-bit depth step, 2/65535; decoded depths are within half of it.
 DEPTH_STEP64 = 2 / 65535
@@ -125,6 +156,23 @@ def _encoder_input(r):
     np.clip(r[..., 2], 0, 1, out=r[..., 2])
     np.maximum(r[..., 3], 0, out=r[..., 3])
     return r
+
+
+def saturate(r):
+    """What the encoders store before quantizing: ``r`` saturated onto the stored ranges.
+
+    Parameters
+    ----------
+    r : (..., 4) float array
+        Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+
+    Returns
+    -------
+    (..., 4) float array (a copy): y1, y2 clipped to [-1, 1] with y2 ≥ y1, v2 to [0, 1],
+    ξ4 ≥ 0, as a UNORM texture write does; InputError for non-finite values and for
+    y1 > y2 beyond rounding.
+    """
+    return _encoder_input(r)
 
 
 #: Texels per chunk of the encoders (four float rows and their codes stay in L2).
@@ -212,24 +260,34 @@ def _decoded_xi32(dtype):
 
 
 def _xi_codes(xi4, scale, rounding, table, c):
-    """The Ψ4 code of saturated ξ4 rows (``rounding`` = np.ceil or np.rint), bumped where its decode < ξ4.
+    """The Ψ4 code of saturated ξ4 rows, ``rounding`` (np.ceil, np.floor or np.rint) of ``Ψ4 · scale``.
 
-    ``code = rounding(Ψ4(clamp(ξ4))·scale)``, then ``code + 1`` where the code's
-    decoded ξ4 is below the clamped ξ4 (float rounding of Ψ4 and Ψ4⁻¹) and the
-    code is not the largest; the decoded value of a code is looked up in
-    ``table`` (the decoder applied once to every code) instead of evaluating
-    Ψ4⁻¹ (two exp) per texel.
+    ``code = min(rounding(Ψ4(clamp(ξ4))·scale), len(table) − 1)``, then ``code + 1``
+    where the code's decoded ξ4 is below the clamped ξ4 (float rounding of Ψ4 and
+    Ψ4⁻¹) and the code is not the largest; the decoded value of a code is looked up
+    in ``table`` (the decoder applied once to every code) instead of evaluating Ψ4⁻¹
+    (two exp) per texel. ``table`` None: no decode check (rounding to nearest).
     """
     x = np.maximum(xi4, c["xi_min"])
     np.minimum(x, c["xi_max"], out=x)
     u = _psi4_clamped(x, c["0"], c["1"])
     u *= scale
     code = rounding(u, out=u).astype(np.intp)
+    if table is None:
+        return code
     cmax = len(table) - 1
+    np.minimum(code, cmax, out=code)
     low = table[code] < x
     low &= code < cmax
     code += low
     return code
+
+
+def _choice(value, name, allowed):
+    """``value`` if it is one of ``allowed``, else InputError naming the argument."""
+    if not isinstance(value, str) or value not in allowed:
+        raise InputError(f"{name}: expected one of {', '.join(map(repr, allowed))}, got {value!r}")
+    return value
 
 
 def _uint_input(q, name, dtype, trailing=None):
@@ -259,20 +317,25 @@ def _codes(x, name, hi):
 # 64 bits
 
 
-def pack64(r):
+def pack64(r, *, xi_rounding="up"):
     """Store ``(y1, y2, v2, ξ4)`` in four UNORM16 channels (HPG17 §3.3).
 
     Parameters
     ----------
     r : (..., 4) float array
         Non-linear representation (output of :func:`moments_ref.nonlinear.phi`).
+    xi_rounding : {"up", "nearest"}
+        The Ψ4 code: ``"up"`` (default) ``ceil(65535·Ψ4(ξ4))`` and the decode check,
+        so the decoded ξ4 is never below the stored one (HPG17 §3.5's principle, which
+        the paper states for 32 bits only); ``"nearest"`` ``round(65535·Ψ4(ξ4))``,
+        what a UNORM render-target write does (the HPG17 demo). docs/formats.md
+        measures both.
 
     Returns
     -------
     q : (..., 4) uint16 array
         ``round(65535·(y1+1)/2)``, ``round(65535·(y2+1)/2)``, ``round(65535·v2)``,
-        ``ceil(65535·Ψ4(ξ4))`` (the last rounded up so the decoded ξ4 is never
-        below the stored one; see the module docstring).
+        the Ψ4 code.
 
     Notes
     -----
@@ -285,10 +348,10 @@ def pack64(r):
     >>> pack64([-1.0, 1.0, 0.5, 0.25])
     array([    0, 65535, 32768, 65535], dtype=uint16)
     """
-    return _pack(r, "nlq64")
+    return _pack(r, "nlq64", _choice(xi_rounding, "xi_rounding", XI_ROUNDINGS))
 
 
-def _encode64(rows, c, out):
+def _encode64(rows, c, out, xi_rounding="up"):
     """:func:`pack64` of saturated rows ``(y1, y2, v2, ξ4)`` (overwritten) into ``out`` (m, 4) uint16."""
     y1, y2, v2, xi4 = rows
     dt = rows.dtype.type
@@ -299,10 +362,13 @@ def _encode64(rows, c, out):
         y *= dt(0.5)
         y *= scale
         out[:, k] = np.rint(y, out=y)
-    # Channel 2: round(65535 · v2); channel 3: ceil(65535 · Ψ4(ξ4)), bumped up.
+    # Channel 2: round(65535 · v2); channel 3: ceil(65535 · Ψ4(ξ4)) bumped up, or round.
     v2 *= scale
     out[:, 2] = np.rint(v2, out=v2)
-    out[:, 3] = _xi_codes(xi4, scale, np.ceil, _decoded_xi64(rows.dtype), c)
+    if xi_rounding == "up":
+        out[:, 3] = _xi_codes(xi4, scale, np.ceil, _decoded_xi64(rows.dtype), c)
+    else:
+        out[:, 3] = _xi_codes(xi4, scale, np.rint, None, c)
 
 
 def unpack64(q, dtype=np.float64):
@@ -411,15 +477,18 @@ def pack32(r):
     -------
     p : (...) uint32 array
         Layout (LSB first): ỹ2 (10 bits), ỹ1 (9 bits) after the fold,
-        ``round(127 √v2)`` (7 bits), ``round(63 Ψ4(ξ4))`` (6 bits); see the module
-        docstring and docs/formats.md.
+        ``min(⌊128 √v2⌋, 127)`` (7 bits), ``min(⌊64 Ψ4(ξ4)⌋, 63)`` (6 bits, bumped
+        where float rounding would decode it below ξ4); see the module docstring and
+        docs/formats.md.
 
     Notes
     -----
     HPG17 §3.5: Ψ4(ξ4) "is simply stored as fixed-point number in six bits",
     √v2 "as fixed-point number in seven bits", and the depths as
     ``ỹl = ⌊511.5 (yl + 1)⌋`` with the fold "if ỹ1 ≥ 512, the integers ỹ1 and ỹ2
-    are replaced by 1023 − ỹ1 and 1022 − ỹ2".
+    are replaced by 1023 − ỹ1 and 1022 − ỹ2". The paper leaves the fixed-point
+    scale open; the cells of 1/128 and 1/64, truncated, are the HPG17 demo's, whose
+    decoder reads them at the positions :data:`DECODE32`.
 
     Examples
     --------
@@ -446,11 +515,13 @@ def _encode32(rows, c, out):
     flip = y1 >= 512
     np.subtract(1023, y1, out=y1, where=flip)
     np.subtract(1022, y2, out=y2, where=flip)
-    # round(127 √v2) and round(63 Ψ4(ξ4)) (bumped up where it decodes below ξ4).
+    # min(⌊128 √v2⌋, 127) and min(⌊64 Ψ4(ξ4)⌋, 63) (bumped up where it decodes below ξ4);
+    # the scales are powers of two, so the products are exact.
     np.sqrt(v2, out=v2)
-    v2 *= dt(_V_MAX)
-    np.rint(v2, out=v2)
-    xcode = _xi_codes(xi4, dt(_XI_MAX), np.rint, _decoded_xi32(rows.dtype), c)
+    v2 *= dt(V_CELLS)
+    np.floor(v2, out=v2)
+    np.minimum(v2, _V_MAX, out=v2)
+    xcode = _xi_codes(xi4, dt(XI_CELLS), np.floor, _decoded_xi32(rows.dtype), c)
     # Shift and or, in uint32 (every field fits its bits; ỹ2 sits at Y2_SHIFT = 0).
     out[:] = y2
     out |= y1.astype(np.uint32) << Y1_SHIFT
@@ -462,10 +533,6 @@ def _encode32(rows, c, out):
 # moments -> texels in one pass
 
 
-#: The encoder of each texel format (rows of (y1, y2, v2, ξ4) -> texels).
-_ENCODERS = {"nlq64": _encode64, "nlq32": _encode32}
-
-
 def _texel_output(lead_shape, fmt):
     """Empty texels of ``fmt`` for ``lead_shape`` texels and their flat view (one row or entry per texel)."""
     if fmt == "nlq64":
@@ -475,17 +542,24 @@ def _texel_output(lead_shape, fmt):
     return out, out.reshape(-1)
 
 
-def _pack(r, fmt):
+def _pack(r, fmt, xi_rounding="up"):
     """:func:`pack64` / :func:`pack32`: encode ``r`` in L2 chunks of rows; finiteness checked per chunk."""
     r = real_input(r, "r", trailing=4, finite=False)
     out, flat = _texel_output(r.shape[:-1], fmt)
-    encode = _ENCODERS[fmt]
+    encode = _encoder(fmt, xi_rounding)
     for lo, hi, rows, c in _encoder_rows(r):
         encode(rows, c, flat[lo:hi])
     return out
 
 
-def nlq_texels(b, fmt="nlq64"):
+def _encoder(fmt, xi_rounding):
+    """The encoder of ``fmt`` (rows, c, out), the 64-bit one with its Ψ4 rounding."""
+    if fmt == "nlq32":
+        return _encode32
+    return lambda rows, c, out: _encode64(rows, c, out, xi_rounding)
+
+
+def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
     """``pack64(phi(bias_moments(b, BIAS_FLOAT32)))`` (or pack32) bit for bit, one L2 chunk at a time.
 
     Parameters
@@ -493,6 +567,8 @@ def nlq_texels(b, fmt="nlq64"):
     b : (..., 4) float array
         Moments b1..b4 (float32 in the shader), not yet biased.
     fmt : {"nlq64", "nlq32"}
+    xi_rounding : {"up", "nearest"}
+        The 64-bit Ψ4 code's rounding (:func:`pack64`); the 32-bit format has one.
 
     Returns
     -------
@@ -509,6 +585,7 @@ def nlq_texels(b, fmt="nlq64"):
     """
     if fmt not in ("nlq64", "nlq32"):
         raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
+    encode = _encoder(fmt, _choice(xi_rounding, "xi_rounding", XI_ROUNDINGS))
     b = real_input(b, "b", trailing=4, finite=False)
     out, oflat = _texel_output(b.shape[:-1], fmt)
     flat = b.reshape(-1, 4)
@@ -521,7 +598,7 @@ def nlq_texels(b, fmt="nlq64"):
         m = rows.shape[1]
         c = full if m == _ENCODE_CHUNK else {k: v[:m] for k, v in full.items()}
         if not _all_finite(rows):
-            return _nlq_separately(b, fmt)
+            return _nlq_separately(b, fmt, xi_rounding)
         # Bias: b·(1 − α) + α b* (moments.bias_moments), row k gets α b*_k (a scalar
         # per row: NumPy's array + scalar loop is vectorized, a broadcast column is not).
         rows *= scale
@@ -529,15 +606,15 @@ def nlq_texels(b, fmt="nlq64"):
             rows[k] += shift[k]
         _phi_rows(rows, res[:, :m])
         if not _saturated(res[:, :m], c, tol):
-            return _nlq_separately(b, fmt)
-        _ENCODERS[fmt](res[:, :m], c, oflat[lo : lo + m])
+            return _nlq_separately(b, fmt, xi_rounding)
+        encode(res[:, :m], c, oflat[lo : lo + m])
     return out
 
 
-def _nlq_separately(b, fmt):
+def _nlq_separately(b, fmt, xi_rounding="up"):
     """The three steps of :func:`nlq_texels` one after the other (the reference, and the error path)."""
     r = phi(bias_moments(b, BIAS_FLOAT32))
-    return pack64(r) if fmt == "nlq64" else pack32(r)
+    return pack64(r, xi_rounding=xi_rounding) if fmt == "nlq64" else pack32(r)
 
 
 @lru_cache(maxsize=4)
@@ -549,14 +626,14 @@ def _bias_rows(dtype):
     return dt(1) - alpha, tuple(shift)
 
 
-def _decode_xi32(code, dt):
-    """6-bit Ψ4 code -> ξ4, read at the upper end of its rounding interval."""
+def _decode_xi32(code, dt, xi_decode="upper"):
+    """6-bit Ψ4 code -> ξ4: ``Ψ4⁻¹((c + offset)/64)``, by default at the upper end of its cell."""
     dt = np.dtype(dt)
-    u = np.minimum((code.astype(dt) + dt.type(0.5)) / dt.type(_XI_MAX), dt.type(1))
+    u = (code.astype(dt) + dt.type(DECODE_POSITIONS[xi_decode])) / dt.type(XI_CELLS)
     return psi4_inverse(u)
 
 
-def unpack32(p, dtype=np.float64):
+def unpack32(p, dtype=np.float64, *, depth_decode="upper", v2_decode="centre", xi_decode="upper"):
     """Decode :func:`pack32` texels -> ``(y1, y2, v2, ξ4)``.
 
     Parameters
@@ -564,24 +641,33 @@ def unpack32(p, dtype=np.float64):
     p : (...) uint32 array
     dtype : {float64, float32}
         Working and output dtype (float32 emulates a shader).
+    depth_decode, v2_decode, xi_decode : {"lower", "centre", "upper"}
+        Where each field's cell is read (:data:`DECODE_POSITIONS`: offset 0, ½ or 1
+        cell). The defaults (:data:`DECODE32`) are the format's, chosen by HPG17
+        §3.5's lower-bound principle and measured in docs/formats.md; the others
+        are the variants a port may implement (the oracle's profiles pass them).
 
     Returns
     -------
     r : (..., 4) float array
-        Depths at the centre of their cell ``(ỹ + 0.5)/511.5 − 1`` after undoing
-        the fold, ``v2 = (c/127)²``, ``ξ4 = Ψ4⁻¹(min(1, (c + 0.5)/63))`` (rounded
-        up: never below the ξ4 that was packed).
+        After undoing the fold, by default: depths at the upper end of their cell
+        ``(ỹ + 1)/511.5 − 1`` (never in front of the packed depth), ``v2 = ((c + ½)/128)²``
+        (never 0 or 1), ``ξ4 = Ψ4⁻¹((c + 1)/64)`` (never below the packed ξ4).
 
     Examples
     --------
     >>> r = unpack32(np.array([0], dtype=np.uint32))[0]
-    >>> r[:3]  # both depths in the lowest cell, v2 = 0
-    array([-0.99902248, -0.99902248,  0.        ])
+    >>> r[:2]  # both depths in the lowest cell, read at its upper end
+    array([-0.99804497, -0.99804497])
+    >>> float(r[2]) == (0.5 / 128) ** 2  # √v2 code 0 read at its cell's centre
+    True
     >>> bool(r[3] > 1.2e-7)  # the lowest Ψ4 code decodes rounded up
     True
     """
     p = _uint_input(p, "p", np.uint32)
     dt = float_dtype(dtype)
+    pos = {k: dt.type(DECODE_POSITIONS[_choice(v, f"{k}_decode", tuple(DECODE_POSITIONS))])
+           for k, v in (("depth", depth_decode), ("v2", v2_decode), ("xi", xi_decode))}
     w = p.astype(np.int64)
     f2 = (w >> Y2_SHIFT) & ((1 << Y2_BITS) - 1)
     f1 = (w >> Y1_SHIFT) & ((1 << Y1_BITS) - 1)
@@ -589,10 +675,10 @@ def unpack32(p, dtype=np.float64):
     xcode = (w >> XI_SHIFT) & _XI_MAX
     t1, t2 = unfold(f1, f2)
     r = np.empty(p.shape + (4,), dtype=dt)
-    half, step = dt.type(0.5), dt.type(511.5)
-    r[..., 0] = (t1.astype(dt) + half) / step - 1
-    r[..., 1] = (t2.astype(dt) + half) / step - 1
-    sv = vcode.astype(dt) / dt.type(_V_MAX)
+    step = dt.type(511.5)
+    r[..., 0] = (t1.astype(dt) + pos["depth"]) / step - 1
+    r[..., 1] = (t2.astype(dt) + pos["depth"]) / step - 1
+    sv = (vcode.astype(dt) + pos["v2"]) / dt.type(V_CELLS)
     r[..., 2] = sv * sv
-    r[..., 3] = _decode_xi32(xcode, dt)
+    r[..., 3] = _decode_xi32(xcode, dt, xi_decode)
     return r

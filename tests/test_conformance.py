@@ -49,6 +49,12 @@ def golden_dir():
     return shipped_golden_folder()
 
 
+def assert_ties_are_the_float32_reference(report, golden_dir, case):
+    from test_conformance_languages import assert_ties_are_the_float32_reference as check
+
+    check(report, golden_dir, case)
+
+
 def _run(ctx, golden_dir, path, function, case, **kw):
     return conformance.run_case(path, function, case, golden_dir, "glsl", "gl", **kw)
 
@@ -73,13 +79,16 @@ def test_shipped_ports_cover_the_issue_functions():
 @pytest.mark.parametrize("case", SHIPPED_CASES)
 def test_shipped_port_passes(ctx, golden_dir, case):
     path, function = conformance.shipped_port(case)
-    report = _run(ctx, golden_dir, path, function, case)
+    report = _run(ctx, golden_dir, path, function, case, worst_rows=1000)
     assert report.passed, report.format()
     text = report.format()
     assert text.startswith("PASS")
     if report.exact:
-        # Packing: bit-exact on every row, without using the rounding-tie allowance.
-        assert all(c.mismatches == 0 and c.ties == 0 for c in report.categories.values()), text
+        # Packing: bit-exact with the reference in float32 on every row. The expected codes are
+        # exact (golden/texel_truth.py); where the reference's float32 code differs from them,
+        # the row is a rounding tie and the port must store the reference's code.
+        assert all(c.mismatches == c.ties for c in report.categories.values()), text
+        assert_ties_are_the_float32_reference(report, golden_dir, case)
     if "stiff" in report.categories and not report.exact:
         # Stiff rows are reported, never hidden: they appear among the listed rows.
         assert any(r["category"] == "stiff" for r in report.worst), text
@@ -176,25 +185,37 @@ def test_mutant_exits_1_through_the_cli(ctx, golden_dir):
 
 
 def test_packing_mutant_is_caught(ctx, golden_dir):
-    report = _run(ctx, golden_dir, fixture("pack64_xi_rounded.glsl"), "pack64_xi_rounded", "pack64-float32")
-    assert not report.passed
-    assert report.components["mismatch"][:3] == [0, 0, 0] and report.components["mismatch"][3] > 0
+    report = _run(ctx, golden_dir, fixture("pack64_xi_rounded.glsl"), "pack64_xi_rounded", "pack64-float32",
+                  worst_rows=1000)
+    assert not report.passed and report.components["mismatch"][3] > 0
+    # Only the Ψ4 channel is wrong: the others differ from the exact expected code only on
+    # rounding-tie rows, where they are the codes the reference stores in float32.
+    with np.load(golden_dir / "pack64-float32.npz") as g:
+        acceptable = g["q_acceptable"]
+    for r in report.worst:
+        if not r["passed"]:
+            assert any(np.array_equal(np.asarray(r["got"])[:3], a[:3]) for a in acceptable[r["index"]]), r
 
 
 def test_paper_literal_algorithm3_is_nan_only_at_zf_equal_y2(ctx, golden_dir):
     # The printed formula: q1 = +-inf at zf = y2 and z_l = inf - inf. Random rows pass
     # (the tolerances do not demand more than float32 gives); each failure is such a NaN,
     # or the cancellation of the literal root where the gap y2 - y1 is small (the decoders'
-    # one-cell rows, the fold, the §3.4 gap clamp), which the per-row tolerances gate.
+    # one-cell rows, the fold, the §3.4 gap clamp), where zf is within 1e-5 of y2 (v2 - v2 zp
+    # cancels) or where v2 is the 32-bit decoder's smallest, (0.5/128)², which the per-row
+    # tolerances gate.
     report = _run(ctx, golden_dir, fixture("shade_paper_literal.glsl"), "shade_paper_literal", "shade-float32",
                   worst_rows=100)
     assert report.categories["random"].failures == 0
     failing = [r for r in report.worst if not r["passed"]]
     assert failing and len(failing) == report.failures
     for r in failing:
-        # NaN at zf = y2, or cancellation where y2 - y1 is at most two 32-bit cells (1 / 511.5).
-        y1, y2 = np.float32(r["inputs"]["r"][0]), np.float32(r["inputs"]["r"][1])
-        assert (np.isnan(r["got"]) and np.float32(r["inputs"]["zf"]) == y2) or y2 - y1 <= 2 / 511.5, r
+        # NaN at zf = y2, or cancellation where y2 - y1 is at most two 32-bit cells (1 / 511.5),
+        # zf is next to y2 or v2 is the smallest 32-bit v2.
+        y1, y2, v2 = (np.float32(x) for x in r["inputs"]["r"][:3])
+        zf = np.float32(r["inputs"]["zf"])
+        assert ((np.isnan(r["got"]) and zf == y2) or y2 - y1 <= 2 / 511.5 or abs(zf - y2) <= 1e-5
+                or v2 <= np.float32((0.5 / 128) ** 2)), r
     assert "got nan" in report.format()
 
 
@@ -261,9 +282,12 @@ def test_includes_resolved_once_and_errors_name_the_file(ctx, tmp_path):
     x = np.linspace(0, 1, 5, dtype=np.float32)
     got, _ = conformance.run_glsl(src, "f", {"x": x}, {"y": (np.float32, (5,))}, ctx)
     assert np.array_equal(got["y"], x + 1)
-    (tmp_path / "c.glsl").write_text('#include "missing.glsl"\n')
-    with pytest.raises(ShaderError, match="missing.glsl"):
-        conformance.load_source(tmp_path / "c.glsl")
+    # A missing include is an #error line at the include, so that the compiler's own
+    # preprocessor decides (inside `#if 0` it does not matter); it names the file and line.
+    (tmp_path / "c.glsl").write_text('#if 0\n#include "unused.glsl"\n#endif\n#include "missing.glsl"\n'
+                                     "float f(float x) { return x; }\n")
+    with pytest.raises(ShaderError, match=r"c\.glsl:4:.*missing\.glsl\" not found"):
+        conformance.run_glsl(tmp_path / "c.glsl", "f", {"x": x}, {"y": (np.float32, (5,))}, ctx)
     (tmp_path / "d.glsl").write_text("float g(float x)\n{\n    return x +;\n}\n")
     with pytest.raises(ShaderError) as exc:
         conformance.run_glsl(tmp_path / "d.glsl", "g", {"x": x}, {"y": (np.float32, (5,))}, ctx)

@@ -48,7 +48,7 @@ def test_same_version_writes_same_bytes_in_under_30_cpu_seconds(gdir, tmp_path):
 
 def test_manifest_describes_every_file(gdir):
     m = json.loads((gdir / "manifest.json").read_text())
-    assert m["schema_version"] == golden.SCHEMA_VERSION == 2
+    assert m["schema_version"] == golden.SCHEMA_VERSION == 3
     assert m["numpy_version"] == np.__version__
     assert set(m["cases"]) == set(golden.CASES)
     assert all(set(v) == {"description", "effect"} for v in m["notes"].values())

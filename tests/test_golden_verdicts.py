@@ -30,9 +30,13 @@ GLSL_MUTANTS = [
     ("no-bias", "bias_moments-float32-float32", "msm.glsl", "bias_moments_float32",
      "return bias_moments(b, 3.0e-7,", "return bias_moments(b, 0.0,"),
     ("cell-corner", "unpack32-float32", "packing.glsl", "unpack32",
-     "precise float y1 = (float(f1) + 0.5) / 511.5 - 1.0;", "precise float y1 = float(f1) / 511.5 - 1.0;"),
-    ("xi-64", "pack32-float32", "packing.glsl", "pack32",
-     "precise float sx = psi4(r.w) * 63.0;", "precise float sx = psi4(r.w) * 64.0;"),
+     "precise float y1 = (float(f1) + 1.0) / 511.5 - 1.0;", "precise float y1 = float(f1) / 511.5 - 1.0;"),
+    ("cell-centre", "unpack32-float32", "packing.glsl", "unpack32",
+     "precise float y1 = (float(f1) + 1.0) / 511.5 - 1.0;", "precise float y1 = (float(f1) + 0.5) / 511.5 - 1.0;"),
+    ("xi-nearest", "pack32-float32", "packing.glsl", "pack32",
+     "uint x = min(uint(floor(sx)), 63u);", "uint x = min(uint(roundEven(sx)), 63u);"),
+    ("v-centre-127", "unpack32-float32", "packing.glsl", "unpack32",
+     "precise float sv = (float(v) + 0.5) / 128.0;", "precise float sv = float(v) / 127.0;"),
 ]
 FIXTURE_MUTANTS = [
     ("paper-literal", "shade-float32", "shade_paper_literal.glsl", "shade_paper_literal"),

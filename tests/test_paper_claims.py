@@ -73,3 +73,26 @@ def test_three_occluder_claim_counts_footprint_depths():
 
     n = paper_claims._occluder_layers(R(), np.array([True, True]))
     assert n.tolist() == [3, 1]
+
+
+def test_claims_name_rows_of_the_implementation_choices_table(railing):
+    """Every choice a claim depends on is a row of docs/formats.md's table, and the table has the seven rows."""
+    import re
+    from pathlib import Path
+
+    from moments_ref.report import metrics
+
+    doc = (Path(__file__).parent.parent / "docs" / "formats.md").read_text(encoding="utf-8")
+    section = doc.split("## Implementation-defined choices", 1)[1].split("\n## ", 1)[0]
+    rows = [m.group(1).strip() for m in re.finditer(r"^\| ([^|]+) \|", section, re.M)]
+    rows = [r for r in rows if r not in ("choice",) and not set(r) <= set("-")]
+    assert rows == ["clamp offsets", "decode positions", "code rounding", "bias presets and targets",
+                    "depth convention", "10-bit fold edge rows", "blur edge handling"]
+    named = {c for cs in paper_claims.IMPLEMENTATION_CHOICES.values() for c in cs}
+    assert named <= set(rows)
+    results = [{"scene": "railing", "technique": n, **metrics(railing.shadow[n], railing.reference[n])}
+               for n in railing.techniques]
+    claims = json.loads(paper_claims.gather(results, {"railing": paper_claims.scene_measurements(railing)}, "")[0])
+    nlq32 = next(c for c in claims if c["id"] == "hpg17-nlq32-close-to-nlq64")
+    assert "decode positions" in nlq32["settings"]["implementation_choices"]
+    assert all(c["settings"]["implementation_choices"] for c in claims)

@@ -12,23 +12,28 @@ tolerance, flags, inputs and reason.
 
 Drivers (:mod:`._run`): GLSL runs on OpenGL through moderngl (EGL, Mesa llvmpipe
 without a GPU) or on Vulkan (glslang to SPIR-V, then wgpu; Mesa lavapipe without a
-GPU); HLSL goes through glslang's HLSL front end to SPIR-V and runs on OpenGL after
-SPIRV-Cross (the default: it keeps ``precise``, docs/ports.md) or on Vulkan through
-wgpu; WGSL runs through wgpu on Vulkan (the default) or on wgpu's OpenGL adapter. ``--adapter`` picks the driver (``gl``, ``vulkan``) or an
-adapter by name; the report names renderer and driver.
+GPU); HLSL goes through glslang's HLSL front end to SPIR-V, which the OpenGL driver
+reads itself with every operation as written (the default, :mod:`._glspirv`) or
+wgpu runs on Vulkan; WGSL runs through wgpu on Vulkan (the default) or on wgpu's
+OpenGL adapter. ``--adapter`` picks the driver (``gl``, ``vulkan``, ``both`` with
+the rows where they differ (:mod:`._agree`), ``as-written``) or an adapter by name;
+the report names renderer and driver. Compilers and drivers run in child processes
+under memory and time limits (:mod:`._child`).
 
 Function contract (:mod:`._slots`): the GLSL one in each language's types, e.g.
 ``float NAME(vec4 b, float zf)``, ``float NAME(float4 b, float zf)``,
 ``fn NAME(b: vec4<f32>, zf: f32) -> f32``; six moments as ``float b[6]`` /
-``array<f32, 6>``. Files may ``#include "file"`` (GLSL, WGSL: resolved by the
-harness; HLSL: by glslang) and define their own entry point and resources.
+``array<f32, 6>``. Files may ``#include "file"`` (resolved by the harness for every
+language, :mod:`._source`) and define their own entry points and resources; only the
+declarations the function uses are compiled (:mod:`._decls`).
 
 Compute shaders (the shadow-map filter and point-warp kernels) run on the kernel cases with ``--kernel``:
 :mod:`moments_ref.conformance.kernel`.
 
 Exit codes of :func:`run_cli`: 0 every row within its tolerance, 1 a tolerance
 exceeded, 2 bad usage, a file that does not compile (the compiler's messages, one
-line per error, with the user's file and line numbers), or no driver.
+line per error, with the user's file and line numbers), no driver, or any failure of
+the harness, a compiler or a driver (one line, never a traceback).
 """
 
 from __future__ import annotations
@@ -40,7 +45,9 @@ from ._cases import GoldenCase, load_case
 from ._cli import bench_conformance, main, run_cli, summary_markdown
 from ._gl import ContextError, create_context, get_context, renderer
 from ._report import ConformanceReport
-from ._run import DEFAULT_DRIVER, DRIVERS, LANGUAGES, run_case, run_function
+from ._agree import DriverComparison, compare_drivers
+from ._child import DriverError
+from ._run import AS_WRITTEN, DEFAULT_DRIVER, DRIVERS, LANGUAGES, SourceOptions, run_case, run_function
 from ._shipped import SHIPPED, SHIPPED_FUNCTIONS, shipped_cases, shipped_port
 from ._slots import Slot, signature
 from ._source import ShaderError, defined_functions, load_source
@@ -49,7 +56,8 @@ from .verdict import ulp_distance
 
 __all__ = [
     "ContextError", "ToolError", "ShaderError", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR", "PORTS_DIR",
-    "LANGUAGES", "DRIVERS", "DEFAULT_DRIVER", "SHIPPED", "SHIPPED_FUNCTIONS",
+    "LANGUAGES", "DRIVERS", "DEFAULT_DRIVER", "AS_WRITTEN", "SourceOptions", "DriverError", "DriverComparison",
+    "compare_drivers", "SHIPPED", "SHIPPED_FUNCTIONS",
     "create_context", "get_context", "renderer", "load_source", "defined_functions",
     "shipped_port", "shipped_cases", "Slot", "signature", "glsl_signature", "run_glsl", "run_function",
     "GoldenCase", "load_case", "run_case", "ConformanceReport", "ulp_distance",

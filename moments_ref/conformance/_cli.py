@@ -16,11 +16,11 @@ from ..ports import PORTS_DIR
 from ._cases import load_case
 from ._gl import ContextError
 from ._report import fmt
-from ._run import DRIVERS, LANGUAGES, language_of, parse_adapter, run_case, run_function
+from ._run import DRIVERS, LANGUAGES, SourceOptions, language_of, parse_adapter, run_case, run_function
 from ._shipped import shipped_cases, shipped_port
 from ._toolchain import ToolError, tool_versions
 
-__all__ = ["resolve_port", "run_cli", "main", "summary_markdown", "bench_conformance"]
+__all__ = ["resolve_port", "run_cli", "harness_failure", "source_options", "main", "summary_markdown", "bench_conformance"]
 
 
 def resolve_port(path, language):
@@ -32,25 +32,45 @@ def resolve_port(path, language):
     return p
 
 
-def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None):
+def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None, options=None):
     """Run one case, print the report, return the exit code.
 
     Returns
     -------
     int
-        0 every row within its tolerance; 1 a tolerance exceeded; 2 no driver or
-        compiler (reason on stderr) or bad usage (unknown case, missing function,
-        a file that does not compile: the compiler's messages, one line per error).
+        0 every row within its tolerance (with ``adapter="both"``: on both drivers, which then
+        also list the rows where they differ); 1 a tolerance exceeded; 2 no driver or
+        compiler (reason on stderr), bad usage (unknown case, missing function, a
+        file that does not compile: the compiler's messages, one line per error), or
+        any failure of the harness, a compiler or a driver (one line: never a
+        traceback, never the exit code of a failing port).
     """
     out, err = out or sys.stdout, err or sys.stderr
     try:
         language = language_of(path, language)
-        report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter)
+        if adapter == "both":
+            from ._agree import compare_drivers
+
+            report = compare_drivers(resolve_port(path, language), function, case, golden_dir, language,
+                                     options=options)
+        else:
+            report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter,
+                              options=options)
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2
+    except Exception as exc:  # noqa: BLE001 - a harness failure must never read as a failing port
+        print(f"moments-ref conformance: {path}: the harness failed ({harness_failure(exc)}); "
+              "this is not a verdict on the port", file=err)
+        return 2
     print(report.format(), file=out)
     return 0 if report.passed else 1
+
+
+def harness_failure(exc):
+    """One line for an unexpected exception: its type and the first line of its message."""
+    first = next((x.strip() for x in str(exc).splitlines() if x.strip()), "")
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
 
 
 def _targets(adapter):
@@ -170,7 +190,8 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
     lines += _timing_table(results, total)
     lines += ["", "## The two drivers agree", "",
               "Golden rows whose outputs differ in any bit between OpenGL and Vulkan (same source file; both",
-              "pass). For HLSL this compares the two toolchains: SPIRV-Cross to GLSL, and wgpu's SPIR-V reader.", ""]
+              "pass). For HLSL this compares OpenGL reading glslang's SPIR-V as written with wgpu's SPIR-V",
+              "reader; the suite pins that every row agrees (docs/ports.md, \"Toolchain\").", ""]
     lines += _agreement_table(results)
     lines += probe_lines
     for language, driver, renderer, rows, _, _ in results:
@@ -184,6 +205,10 @@ def main(args):
     """Entry for the CLI: ``args`` has ``glsl``/``hlsl``/``wgsl``, ``function``, ``case``,
     ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None)."""
     get = lambda k: getattr(args, k, None)  # noqa: E731
+    if get("watchdog") is not None:
+        from ._child import set_watchdog
+
+        set_watchdog(get("watchdog"))
     if get("kernel"):
         from .kernel.cli import kernel_cli
 
@@ -198,8 +223,11 @@ def main(args):
 
         try:
             text = summary_markdown(golden_dir=get("golden"), adapter=get("adapter"), progress=True)
-        except (ContextError, ToolError) as exc:
+        except (ContextError, ToolError, InputError) as exc:
             print(f"moments-ref conformance: {exc}", file=sys.stderr)
+            return 2
+        except Exception as exc:  # noqa: BLE001 - a harness failure is exit 2, one line
+            print(f"moments-ref conformance: the harness failed ({harness_failure(exc)})", file=sys.stderr)
             return 2
         print(text)
         if get("out"):
@@ -213,7 +241,16 @@ def main(args):
     if missing:
         raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
     language, path = files[0]
-    return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"))
+    return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
+                   options=source_options(args))
+
+
+def source_options(args):
+    """:class:`SourceOptions` from the CLI's ``--include``, ``--define``, ``--prelude``, ``--max-source``
+    and ``--keep-unused`` (absent ones take their defaults)."""
+    get = lambda k: getattr(args, k, None)  # noqa: E731
+    return SourceOptions(tuple(get("include") or ()), tuple(get("define") or ()), get("prelude"),
+                         get("max_source"), bool(get("keep_unused")))
 
 
 def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):

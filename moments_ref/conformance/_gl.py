@@ -1,4 +1,8 @@
-"""OpenGL backend: moderngl on EGL (Mesa llvmpipe without a GPU).
+"""OpenGL backend: moderngl on EGL (Mesa llvmpipe without a GPU), in the driver process.
+
+The context lives in the driver process of :mod:`._child`; :func:`get_context`
+returns its description and :func:`run_program` sends it work. :func:`dispatch`
+is the general backend function there (any storage buffers, any grid).
 
 Requirements: ``pip install moderngl`` and an EGL driver; on Debian/Ubuntu
 ``apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri``.
@@ -11,10 +15,12 @@ import time
 
 import numpy as np
 
+from ._errors import ContextError, LocalCompileError
 from ._slots import as_buffer
 from ._source import ShaderError, one_line_errors
 
-__all__ = ["ContextError", "create_context", "get_context", "renderer", "run_program"]
+__all__ = ["ContextError", "create_context", "get_context", "renderer", "run_program", "dispatch", "open_local",
+           "LocalGL", "LocalCompileError", "RemoteContext", "case_bindings", "case_results"]
 
 #: Most work groups per dispatch dimension that every driver guarantees.
 MAX_GROUPS = 65535
@@ -22,10 +28,6 @@ _CONTEXT = None
 _PROGRAMS = {}
 _HINT = ("install the Python package 'moderngl' and an EGL driver "
          "(Debian/Ubuntu: apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri)")
-
-
-class ContextError(RuntimeError):
-    """No driver (OpenGL 4.3 compute context, Vulkan adapter or compiler); ``str(exc)`` says why."""
 
 
 def create_context(require=430):
@@ -63,26 +65,37 @@ def get_context():
 
 def renderer(ctx):
     """``'llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 (Core Profile) Mesa 22.3.6'``."""
+    if isinstance(ctx, RemoteContext):
+        return ctx.renderer
     with ctx:  # wgpu's OpenGL adapter may have made its own context current
         info = ctx.info
     return f"{info.get('GL_RENDERER', '?')}, OpenGL {info.get('GL_VERSION', '?')}"
+
+
+class RemoteContext:
+    """The OpenGL context of the driver process (:mod:`._child`): renderer, version, SPIR-V support."""
+
+    def __init__(self, renderer, version_code, spirv=False):
+        self.renderer, self.version_code, self.spirv = renderer, version_code, spirv
+
+
+def get_context():
+    """The OpenGL context of the driver process (started on first use, then reused).
+
+    Raises :class:`ContextError` without a driver (the reason and the packages).
+    """
+    global _CONTEXT
+    if _CONTEXT is None:
+        from ._child import open_target
+
+        _CONTEXT = RemoteContext(*open_target(("gl",)))
+    return _CONTEXT
 
 
 def _mesa_errors(log, name_of):
     """Mesa's ``k:line(col): error: ...`` lines as ``file:line:col: error: ...``."""
     return one_line_errors(log, r"\b(\d+):(\d+)\((\d+)\)",
                            lambda m: f"{name_of(int(m.group(1)))}:{m.group(2)}:{m.group(3)}")
-
-
-def _program(ctx, text, name_of, signature):
-    key = (id(ctx), hashlib.sha256(text.encode()).hexdigest())
-    if key not in _PROGRAMS:
-        try:
-            _PROGRAMS[key] = ctx.compute_shader(text)
-        except Exception as exc:
-            raise ShaderError(f"the wrapped function does not compile (expected signature: {signature}):\n"
-                              + "\n".join(_mesa_errors(str(exc), name_of))) from None
-    return _PROGRAMS[key]
 
 
 def groups(n, local_size):
@@ -92,46 +105,135 @@ def groups(n, local_size):
     return gx, -(-total // gx)
 
 
-def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=None):
-    """Compile (cached) and dispatch a wrapped GLSL compute shader; see :mod:`._wrap`.
+def case_bindings(ins, outs, arrays, n, local_size, tex=None):
+    """The harness's buffers (and textures, :mod:`._textures`) of one case: inputs, outputs, ``mr_params``;
+    and the grid."""
+    from ._child import Binding
+    from ._textures import texel_bytes
+
+    gx, gy = groups(n, local_size)
+    tex = tex or {}
+    b = [Binding(k, texel_bytes(arrays[s.name], tex[s.name]), 0, "texture",
+                 (tex[s.name].width, tex[s.name].height, tex[s.name].format)) if s.name in tex
+         else Binding(k, as_buffer(arrays[s.name], s).tobytes(), 0, "read") for k, s in enumerate(ins)]
+    b += [Binding(len(ins) + k, None, max(16, n * s.width * 4), "write") for k, s in enumerate(outs)]
+    b.append(Binding(len(ins) + len(outs), np.array([n, gx * local_size, 0, 0], np.uint32).tobytes(), 0, "read"))
+    nb = len(ins) + len(outs) + 1  # samplers of sampled textures follow mr_params (:mod:`._wrap`)
+    b += [Binding(nb + k, None, 0, "sampler") for k, s in enumerate(ins) if s.name in tex and tex[s.name].sampler]
+    return b, (gx, gy, 1)
+
+
+def case_results(outs, ins, raw, n):
+    """Readback bytes of the output bindings as ``{name: (n, components) array}``."""
+    return {s.name: np.frombuffer(raw[len(ins) + k], dtype=s.upload)[: n * s.width]
+            .reshape(n, s.width)[:, : s.components].copy() for k, s in enumerate(outs)}
+
+
+def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=None, entry="main", tex=None):
+    """Compile (cached) and dispatch a wrapped compute shader in the driver process; see :mod:`._wrap`.
+
+    ``text`` is GLSL, or a SPIR-V module (bytes) with its entry point ``entry``.
 
     Returns ``(results, timings)``; ``timings`` has ``compile``, ``upload``,
     ``dispatch`` and ``readback`` seconds.
     """
-    ctx = ctx or get_context()
-    # wgpu's OpenGL adapter makes its own EGL context current: make ours current again.
-    with ctx:
-        return _run(ctx, text, name_of, signature, ins, outs, arrays, n, local_size)
+    from ._child import dispatch
+
+    get_context() if ctx is None else ctx
+    bindings, grid = case_bindings(ins, outs, arrays, n, local_size, tex)
+
+    def failed(log):
+        return ShaderError(f"the wrapped function does not compile (expected signature: {signature}):\n"
+                           + "\n".join(_mesa_errors(log, name_of)))
+
+    raw, timings = dispatch(("gl",), text, bindings, grid, entry, on_compile_error=failed)
+    return case_results(outs, ins, raw, n), timings
 
 
-def _run(ctx, text, name_of, signature, ins, outs, arrays, n, local_size):
-    timings = {}
-    t0 = time.perf_counter()
-    program = _program(ctx, text, name_of, signature)
-    timings["compile"] = time.perf_counter() - t0
-    gx, gy = groups(n, local_size)
-    params = np.array([n, gx * local_size], np.uint32)
-    buffers = []
+# ----------------------------------------------------------------------------------------
+# In the driver process
+# ----------------------------------------------------------------------------------------
+
+class LocalGL:
+    """The OpenGL context inside the driver process: compile and dispatch."""
+
+    def __init__(self, ctx):
+        from ._glspirv import available
+
+        self.ctx = ctx
+        self.renderer, self.version_code = renderer(ctx), ctx.version_code
+        with ctx:
+            self.spirv = available(ctx)
+
+    def compile(self, code, entry=None, group=None, modes=None):
+        """A program from GLSL text (moderngl) or a SPIR-V module (bytes, entry point ``entry``)."""
+        from ._glspirv import SpirvProgram
+
+        key = (entry, hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
+        if key not in _PROGRAMS:
+            with self.ctx:
+                try:
+                    _PROGRAMS[key] = (SpirvProgram(code, entry or "main") if isinstance(code, bytes)
+                                      else self.ctx.compute_shader(code))
+                except Exception as exc:
+                    raise LocalCompileError(str(exc)) from None
+        return _PROGRAMS[key]
+
+    def dispatch(self, program, bindings, grid, group=None):
+        with self.ctx:
+            return dispatch(self.ctx, program, bindings, grid)
+
+
+def open_local():
+    """A :class:`LocalGL` on a new EGL context (in the driver process)."""
+    return LocalGL(create_context())
+
+
+#: moderngl's (components, dtype) of the texture formats of :mod:`._textures`.
+_TEXTURE_FORMATS = {"r32float": (1, "f4"), "rg32float": (2, "f4"), "rgba32float": (4, "f4"), "r32uint": (1, "u4"),
+                    "rg32uint": (2, "u4"), "rgba32uint": (4, "u4"), "r16uint": (1, "u2"), "rg16uint": (2, "u2"),
+                    "rgba16uint": (4, "u2"), "rgba16unorm": (4, "nu2")}
+
+
+def _texture(ctx, b):
+    """A texture at unit ``b.binding`` holding ``b.data`` (nearest filtering: texel loads)."""
+    import moderngl
+
+    w, h, fmt = b.texture
+    comps, dtype = _TEXTURE_FORMATS[fmt]
+    tex = ctx.texture((w, h), comps, b.data, dtype=dtype)
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.use(location=b.binding)
+    return tex
+
+
+def dispatch(ctx, program, bindings, grid):
+    """Bind storage buffers (:class:`~._child.Binding`), dispatch ``grid`` work groups, read back.
+
+    Returns ``({binding: bytes} of the "write" buffers, timings)``.
+    """
+    timings, buffers = {"compile": 0.0}, []
     try:
         t0 = time.perf_counter()
-        for s in ins:
-            buffers.append(ctx.buffer(as_buffer(arrays[s.name], s).tobytes()))
-        out_bufs = [ctx.buffer(reserve=n * s.width * 4) for s in outs]
-        buffers += out_bufs + [ctx.buffer(params.tobytes())]
-        for b, buf in enumerate(buffers):
-            buf.bind_to_storage_buffer(b)
+        for b in bindings:
+            if b.mode == "sampler":
+                continue  # OpenGL: the texture's own filtering (nearest)
+            if b.mode == "texture":
+                buffers.append((b, _texture(ctx, b)))
+                continue
+            buf = ctx.buffer(b.data) if b.data is not None else ctx.buffer(reserve=b.size)
+            buf.bind_to_storage_buffer(b.binding)
+            buffers.append((b, buf))
         ctx.finish()
         timings["upload"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        program.run(group_x=gx, group_y=gy)
+        program.run(*grid)
         ctx.finish()
         timings["dispatch"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        results = {s.name: np.frombuffer(buf.read(), dtype=s.upload).reshape(n, s.width)[:, : s.components].copy()
-                   for s, buf in zip(outs, out_bufs)}
+        out = {b.binding: buf.read() for b, buf in buffers if b.mode == "write"}
         timings["readback"] = time.perf_counter() - t0
     finally:
-        for buf in buffers:
+        for _, buf in buffers:
             buf.release()
-    return results, timings
-
+    return out, timings

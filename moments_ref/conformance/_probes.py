@@ -13,24 +13,31 @@ from pathlib import Path
 
 import numpy as np
 
+from .._arrays import InputError
 from ._gl import ContextError
 from ._run import DRIVERS, LANGUAGES, run_function
 from ._toolchain import ToolError
 from .verdict import ulp_distance
 
-__all__ = ["PROBES", "measure", "spirv_counts", "hlsl_contraction", "probe_markdown"]
+__all__ = ["PROBES", "measure", "rules", "spirv_counts", "hlsl_contraction", "probe_markdown"]
 
-_GLSL = """vec4 p_round(vec4 x) { precise float r = x.x * x.y + x.z;
+_GLSL = """vec4 p_rules(vec4 x) { return vec4(mix(x.x, x.y, x.z), x.x / 3.0, (1.5 * x.x - 2.0 * x.y) + 0.5,
+    x.w * x.w * x.w * x.w); }
+vec4 p_round(vec4 x) { precise float r = x.x * x.y + x.z;
     return vec4(fma(x.x, x.y, x.z), x.x * x.y + x.z, r, clamp(x.w, 0.0, 1.0)); }
 vec2 p_ops(vec4 x) { return vec2(x.x / x.y, sqrt(x.x)); }
 """
-_HLSL = """float4 p_round(float4 x) { precise float r = x.x * x.y + x.z;
+_HLSL = """float4 p_rules(float4 x) { return float4(lerp(x.x, x.y, x.z), x.x / 3.0, (1.5 * x.x - 2.0 * x.y) + 0.5,
+    x.w * x.w * x.w * x.w); }
+float4 p_round(float4 x) { precise float r = x.x * x.y + x.z;
     return float4(mad(x.x, x.y, x.z), x.x * x.y + x.z, r, clamp(x.w, 0.0, 1.0)); }
 float2 p_ops(float4 x) { return float2(x.x / x.y, sqrt(x.x)); }
 float p_contract(float4 x) { return x.x * x.y + x.z; }
 float p_precise(float4 x) { precise float r = x.x * x.y + x.z; return r; }
 """
-_WGSL = """fn p_round(x: vec4<f32>) -> vec4<f32> {
+_WGSL = """fn p_rules(x: vec4<f32>) -> vec4<f32> { return vec4<f32>(mix(x.x, x.y, x.z), x.x / 3.0,
+    (1.5 * x.x - 2.0 * x.y) + 0.5, x.w * x.w * x.w * x.w); }
+fn p_round(x: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(fma(x.x, x.y, x.z), x.x * x.y + x.z, 0.0, clamp(x.w, 0.0, 1.0)); }
 fn p_ops(x: vec4<f32>) -> vec2<f32> { return vec2<f32>(x.x / x.y, sqrt(x.x)); }
 """
@@ -71,6 +78,35 @@ def measure(language, adapter):
     return found
 
 
+#: The rewrites :func:`rules` tells apart: per probe, candidate evaluations in float32.
+_RULES = {
+    "mix": {"x(1-a)+ya": lambda x, y, a, w: x * (np.float32(1) - a) + y * a,
+            "x+a(y-x)": lambda x, y, a, w: x + a * (y - x)},
+    "x/3": {"division": lambda x, y, a, w: x / np.float32(3),
+            "x*(1/3)": lambda x, y, a, w: x * (np.float32(1) / np.float32(3))},
+    "(1.5x-2y)+0.5": {"as written": lambda x, y, a, w: (np.float32(1.5) * x - np.float32(2) * y) + np.float32(0.5),
+                      "(1.5x+0.5)-2y": lambda x, y, a, w: (np.float32(1.5) * x + np.float32(0.5)) - np.float32(2) * y},
+    "w*w*w*w": {"left to right": lambda x, y, a, w: ((w * w) * w) * w,
+                "(w*w)*(w*w)": lambda x, y, a, w: (w * w) * (w * w)},
+}
+
+
+def rules(language, adapter):
+    """``{probe: candidate}``: which evaluation each driver's compiler chose (``mixed`` if none fits every row)."""
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-2, 2, (4096, 4)).astype(np.float32)
+    with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
+        path = Path(tmp) / f"probe.{language}"
+        path.write_text(PROBES[language])
+        got = run_function(path, "p_rules", {"x": x}, {"y": (np.float32, (len(x), 4))}, language, adapter)[0]["y"]
+    found = {}
+    for k, (probe, cands) in enumerate(_RULES.items()):
+        with np.errstate(all="ignore"):
+            fits = [name for name, f in cands.items() if np.array_equal(f(*x.T), got[:, k])]
+        found[probe] = fits[0] if fits else "mixed"
+    return found
+
+
 def spirv_counts(spirv):
     """``(Fma instructions, NoContraction decorations)`` in a SPIR-V module."""
     words = np.frombuffer(spirv, np.uint32)
@@ -88,6 +124,7 @@ def spirv_counts(spirv):
 def hlsl_contraction():
     """What glslang's HLSL front end makes of ``a*b + c``, plain and ``precise``."""
     from ._slots import Slot, signature
+    from ._source import load_source
     from ._toolchain import glslang_hlsl
     from ._wrap import wrap_hlsl
 
@@ -96,9 +133,10 @@ def hlsl_contraction():
         path = Path(tmp) / "probe.hlsl"
         path.write_text(_HLSL)
         found = {}
+        src = load_source(path, "hlsl")
         for fn in ("p_contract", "p_precise"):
-            wrapper = wrap_hlsl(path.name, fn, ins, outs)
-            found[fn] = spirv_counts(glslang_hlsl(path, wrapper, signature("hlsl", fn, ins, outs)))
+            wrapper = wrap_hlsl(src, fn, ins, outs)
+            found[fn] = spirv_counts(glslang_hlsl(wrapper, src.name, signature("hlsl", fn, ins, outs)))
         return found
 
 
@@ -119,6 +157,19 @@ def probe_markdown():
                 continue
             lines.append(f"| {language} | {driver} | {f['p_fma']} | {f['p_contract']} | {f['p_precise']} | "
                          f"{f['p_clamp']} | {f['p_div']} | {f['p_sqrt']} |")
+    lines += ["", "## What the drivers' compilers change (measured)", "",
+              "Which evaluation each path gives, on 4096 random inputs in [-2, 2] (`mixed`: none of the two",
+              "fits every row). `as-written` is glslang's SPIR-V on OpenGL with every operation `NoContraction`",
+              "(the default for HLSL on OpenGL; `--adapter as-written` for GLSL).", "",
+              "| language | driver | mix / lerp | x / 3.0 | (1.5x − 2y) + 0.5 | w·w·w·w |", "|---|---|---|---|---|---|"]
+    for language in LANGUAGES:
+        for driver in DRIVERS + (("as-written",) if language != "wgsl" else ()):
+            try:
+                f = rules(language, driver)
+            except (ContextError, ToolError, InputError) as exc:
+                lines.append(f"| {language} | {driver} | skipped: {exc} ||||")
+                continue
+            lines.append(f"| {language} | {driver} | " + " | ".join(f.values()) + " |")
     try:
         c = hlsl_contraction()
         lines += ["", "In the SPIR-V glslang makes of the HLSL probe, `a*b + c` holds "

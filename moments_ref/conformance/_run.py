@@ -4,7 +4,7 @@
 language   Vulkan (wgpu; lavapipe without a GPU)            OpenGL (EGL; llvmpipe)
 =========  ===============================================  ===============================
 GLSL       glslang → SPIR-V → wgpu                          moderngl (the default)
-HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V → SPIRV-Cross → moderngl (the default)
+HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V read by the driver, as written (default)
 WGSL       wgpu (the default)                               wgpu's OpenGL adapter
 =========  ===============================================  ===============================
 """
@@ -13,24 +13,29 @@ from __future__ import annotations
 
 import hashlib
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .._arrays import InputError
-from . import _gl, _toolchain, _wgpu
+from . import _gl, _glspirv, _toolchain, _wgpu
 from ._cases import load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
-from ._source import ShaderError, defined_functions, load_source, strip_comments
-from ._wrap import LOCAL_SIZE, free_group, wrap_glsl, wrap_hlsl, wrap_wgsl
+from ._decls import keep_used, used_resources
+from ._textures import texture_args
+from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
+from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
 from .verdict import compare_case
 
-__all__ = ["LANGUAGES", "DRIVERS", "Target", "parse_adapter", "language_of", "run_function", "run_case"]
+__all__ = ["LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
 
 LANGUAGES = ("glsl", "hlsl", "wgsl")
 DRIVERS = ("gl", "vulkan")
+#: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
+#: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).
+AS_WRITTEN = "as-written"
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
 DEFAULT_DRIVER = {"glsl": "gl", "hlsl": "gl", "wgsl": "vulkan"}
 _SUFFIX = {".glsl": "glsl", ".comp": "glsl", ".hlsl": "hlsl", ".hlsli": "hlsl", ".fx": "hlsl", ".wgsl": "wgsl"}
@@ -46,9 +51,12 @@ class Target:
 
 
 def parse_adapter(spec, language):
-    """``None`` → the language's default; ``gl``, ``vulkan``, ``vulkan:NAME`` or ``NAME`` (a Vulkan adapter)."""
+    """``None`` → the language's default; ``gl``, ``vulkan``, ``vulkan:NAME``, ``as-written`` or ``NAME``
+    (a Vulkan adapter)."""
     if spec is None or spec == "":
         return Target(DEFAULT_DRIVER[language])
+    if spec == AS_WRITTEN:
+        return Target(AS_WRITTEN)
     driver, _, name = spec.partition(":")
     if driver.lower() in DRIVERS:
         return Target(driver.lower(), name or None)
@@ -67,12 +75,46 @@ def language_of(path, language=None):
     return lang
 
 
-def _check_defined(src, path, function, sig):
+@dataclass(frozen=True)
+class SourceOptions:
+    """How the harness reads and compiles a file (the CLI's source options).
 
+    ``include_dirs``, ``defines`` (``NAME=VALUE``), ``prelude`` and ``max_source`` (bytes) as
+    for :func:`~._source.load_source`; ``keep_unused`` compiles declarations the function
+    does not use too; ``exact`` (default) makes OpenGL evaluate every operation of an HLSL
+    file as written (each result rounded in program order, no reassociation, as if every
+    operation were ``precise``).
+    """
+
+    include_dirs: tuple = ()
+    defines: tuple = ()
+    prelude: str | None = None
+    max_source: int | None = None
+    keep_unused: bool = False
+    exact: bool = True
+
+
+def _check_defined(src, path, function, sig):
     if not re.search(rf"\b{re.escape(function)}\s*\(", strip_comments(src.body)):
         names = ", ".join(defined_functions(src.body)) or "none"
         raise ShaderError(f"function: {function!r} is not defined in {path} (functions defined: {names}); "
                           f"expected signature: {sig}")
+
+
+def _only_used(src, function, language, keep_unused):
+    """Blank the declarations ``function`` does not use; refuse resources it needs bound."""
+    if keep_unused:
+        return src
+    body, kept = keep_used(src.body, language, function)
+    for d, what in used_resources(kept, language):
+        line = src.body.count("\n", 0, d.start) + 1
+        way = ("take the texture as an argument, followed by an integer texel coordinate (docs/ports.md, "
+               "\"Texture arguments\")" if re.search(r"texture|Texture|sampler", what) else
+               "read it in an adapter function that takes it as an argument, or make it a constant"
+               + (" (`static const`)" if language == "hlsl" else ""))
+        raise ShaderError(f"{src.locate(line)}: {function} uses {what} {d.name!r} declared here, which the harness "
+                          f"does not bind (it passes only the function's arguments): {way}")
+    return replace(src, body=body)
 
 
 def _cached(key_parts, make):
@@ -86,43 +128,100 @@ def _device(target, backend="Vulkan"):
     return _wgpu.get_device("OpenGL" if target.driver == "gl" else backend, target.name)
 
 
-def _prepare(language, target, path, function, ins, outs):
-    """``(execute(arrays, n) -> (results, timings), renderer)`` for one language on one driver."""
-    src = load_source(path, language)
+def _prepare(language, target, path, function, ins, outs, options=None, inputs=None):
+    """``(execute(arrays, n) -> (results, timings), renderer, notes)`` for one language on one driver.
+
+    ``inputs`` (the arrays) let the harness fill the textures a function reads (:mod:`._textures`).
+    """
+    options = options or SourceOptions()
+    check_identifier(function)
+    src = load_source(path, language, options.include_dirs, options.defines, options.prelude, options.max_source)
     sig = signature(language, function, ins, outs)
     _check_defined(src, path, function, sig)
-    if language == "glsl" and target.driver == "gl":
-        ctx = _gl.get_context()
-        text, local = wrap_glsl(src, function, ins, outs)
-        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx)), _gl.renderer(ctx)
+    src = _only_used(src, function, language, options.keep_unused)
+    tex = {} if inputs is None else texture_args(src.body, function, language, ins,
+                                                  {k: np.asarray(v).dtype for k, v in inputs.items()},
+                                                  len(next(iter(inputs.values()))))
+    if tex:  # the signature the wrapper calls, with the texture arguments
+        sig = signature(language, function, ins, outs, {k: t.declared(language) for k, t in tex.items()})
+    if target.driver == AS_WRITTEN:
+        return _as_written(language, src, function, sig, ins, outs, tex)
+    if language == "glsl":
+        return _glsl(target, src, function, sig, ins, outs, tex)
     if language == "wgsl":
         dev = _device(target)
         group = free_group(src.body, r"@group\s*\(\s*(\d+)\s*\)")
-        code = wrap_wgsl(src, function, ins, outs, group)
-        return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
-            dev.renderer
-    if language == "glsl":
-        dev = _device(target)
-        group = free_group(src.body, r"\bset\s*=\s*(\d+)")
-        text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group)
-        spv = _cached(["glsl", text], lambda: _toolchain.glslang_glsl(text, src.name, sig))
-        return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main")), \
-            dev.renderer
+        code = wrap_wgsl(src, function, ins, outs, group, tex)
+        return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE, tex=tex)), \
+            dev.renderer, []
+    return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
+
+
+def _glsl(target, src, function, sig, ins, outs, tex):
+    if target.driver == "gl":
+        ctx = _gl.get_context()
+        gl_max = min(ctx.version_code, 460)
+        text, local = wrap_glsl(src, function, ins, outs, gl_max=gl_max, tex=tex)
+        note = glsl_version(src, False, gl_max)[1]
+        return (lambda a, n: _gl.run_program(text, src.name, sig, ins, outs, a, n, local, ctx, tex=tex)), \
+            _gl.renderer(ctx), [note] if note else []
+    if tex:
+        raise InputError(f"function: {function} takes a texture (GLSL sampler2D), which runs on OpenGL only: wgpu's "
+                         "SPIR-V reader takes no combined image sampler; use --adapter gl")
+    dev = _device(target)
+    spv, group, local, note = _glsl_spirv(src, function, sig, ins, outs, tex)
+    return (lambda a, n: _wgpu.run_module(dev, spv, group, src.locate, sig, ins, outs, a, n, local, "main", tex)), \
+        dev.renderer, [note] if note else []
+
+
+def _glsl_spirv(src, function, sig, ins, outs, tex=None):
+    group = free_group(src.body, r"\bset\s*=\s*(\d+)")
+    text, local = wrap_glsl(src, function, ins, outs, vulkan=True, group=group, tex=tex)
+    note = glsl_version(src, True)[1]
+    return _cached(["glsl", text], lambda: _toolchain.glslang_glsl(text, src.name, sig)), group, local, note
+
+
+def _hlsl_spirv(src, function, sig, ins, outs, tex=None):
     space = free_group(src.body, r"\bspace(\d+)")
-    wrapper = wrap_hlsl(Path(path).name, function, ins, outs, space)
-    spv = _cached(["hlsl", str(Path(path).resolve()), src.body, wrapper],
-                  lambda: _toolchain.glslang_hlsl(path, wrapper, sig))
+    wrapper = wrap_hlsl(src, function, ins, outs, space, tex)
+    return _cached(["hlsl", wrapper], lambda: _toolchain.glslang_hlsl(wrapper, src.name, sig)), space
+
+
+def _hlsl(target, src, function, sig, ins, outs, exact, tex):
+    spv, space = _hlsl_spirv(src, function, sig, ins, outs, tex)
     if target.driver == "vulkan":
         dev = _device(target)
-        return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE)), \
-            dev.renderer
+        return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE,
+                                              tex=tex)), dev.renderer, []
     ctx = _gl.get_context()
-    glsl = _cached(["spirv-cross", hashlib.sha256(spv).hexdigest()], lambda: _toolchain.spirv_to_glsl(spv))
+    code = _glspirv.exact_everywhere(spv) if exact else spv
+    how = "every operation as written" if exact else "the SPIR-V Vulkan gets"
+    if ctx.spirv and not tex:  # the driver reads the module itself (GL_ARB_gl_spirv): no GLSL text in between
+        return (lambda a, n: _gl.run_program(code, src.name, sig, ins, outs, a, n, LOCAL_SIZE, ctx, "mr_main")), \
+            _gl.renderer(ctx) + f" (HLSL as SPIR-V: {how})", []
+    # OpenGL's SPIR-V has no texture without a sampler: SPIRV-Cross combines them.
+    glsl = _cached(["spirv-cross", hashlib.sha256(code).hexdigest()], lambda: _toolchain.spirv_to_glsl(code))
     return (lambda a, n: _gl.run_program(glsl, lambda k: "<spirv-cross output>", sig, ins, outs, a, n,
-                                         LOCAL_SIZE, ctx)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)"
+                                         LOCAL_SIZE, ctx, tex=tex)), _gl.renderer(ctx) + " (HLSL through SPIRV-Cross)", []
 
 
-def run_function(path, function, inputs, outputs, language=None, adapter=None):
+def _as_written(language, src, function, sig, ins, outs, tex):
+    """OpenGL reading glslang's SPIR-V with every float operation ``NoContraction`` (GLSL, HLSL)."""
+    ctx = _gl.get_context()
+    if language == "wgsl" or not ctx.spirv or tex:
+        raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL without texture arguments and an OpenGL "
+                         "driver with GL_ARB_gl_spirv")
+    if language == "glsl":
+        spv, _, local, _ = _glsl_spirv(src, function, sig, ins, outs)
+        entry = "main"
+    else:
+        (spv, _), local, entry = _hlsl_spirv(src, function, sig, ins, outs), LOCAL_SIZE, "mr_main"
+    code = _glspirv.exact_everywhere(spv)
+    return (lambda a, n: _gl.run_program(code, src.name, sig, ins, outs, a, n, local, ctx, entry)), \
+        _gl.renderer(ctx) + " (SPIR-V, every operation as written)", []
+
+
+def run_function(path, function, inputs, outputs, language=None, adapter=None, options=None):
     """Evaluate a shader function once per row on a driver.
 
     Parameters
@@ -138,6 +237,8 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None):
         Default: from the file's suffix.
     adapter : str, optional
         ``gl``, ``vulkan``, ``vulkan:NAME`` or an adapter name; default per language.
+    options : SourceOptions, optional
+        Include folders, defines, prelude, source size budget (see :class:`SourceOptions`).
 
     Returns
     -------
@@ -152,12 +253,13 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None):
     n = len(next(iter(inputs.values())))
     if n == 0:
         raise InputError("inputs: expected at least one row, got 0")
-    execute, _ = _prepare(language, parse_adapter(adapter, language), path, function, ins, outs)
+    execute, _, _ = _prepare(language, parse_adapter(adapter, language), path, function, ins, outs, options, inputs)
     results, timings = execute(inputs, n)
     return {k: v.reshape(outputs[k][1]) for k, v in results.items()}, timings
 
 
-def run_case(path, function, case, golden_dir=None, language=None, adapter=None, worst_rows=5, gc=None):
+def run_case(path, function, case, golden_dir=None, language=None, adapter=None, worst_rows=5, gc=None,
+             options=None):
     """Run a shader function on a golden case and judge it with the one comparator (``golden.compare``).
 
     Parameters
@@ -170,7 +272,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
         Golden case name, e.g. ``shadow_intensity-lower-float32``.
     golden_dir : path, optional
         A folder written by ``moments-ref golden``; default: generate the case.
-    language, adapter : see :func:`run_function`.
+    language, adapter, options : see :func:`run_function`.
     worst_rows : int
         Failing rows to list per category.
     gc : GoldenCase, optional
@@ -186,9 +288,9 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     ins = [Slot.of(k, np.asarray(v).dtype, np.shape(v)) for k, v in gc.inputs.items()]
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
-    execute, renderer = _prepare(language, target, path, function, ins, outs)
+    execute, renderer, notes = _prepare(language, target, path, function, ins, outs, options, gc.inputs)
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
     v = compare_case(case, gc.meta, gc.arrays, got, worst_rows)
     return ConformanceReport(case, function, str(path), renderer, len(gc.category), v.exact, v.categories, v.worst,
-                             timings, v.notes, v.components, language, target.driver, got, v.metric, v.row_pass)
+                             timings, notes + v.notes, v.components, language, target.driver, got, v.metric, v.row_pass)

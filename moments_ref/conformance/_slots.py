@@ -93,9 +93,13 @@ class Slot:
         return self.type("glsl")
 
 
-def signature(lang, function, inputs, outputs):
-    """The signature the harness calls, e.g. ``float f(vec4 b, float zf)``."""
-    args = [s.declare(lang) for s in inputs]
+def signature(lang, function, inputs, outputs, replaced=None):
+    """The signature the harness calls, e.g. ``float f(vec4 b, float zf)``.
+
+    ``replaced`` maps an input to the parameters written in its place (texture arguments).
+    """
+    replaced = replaced or {}
+    args = [replaced.get(s.name) or s.declare(lang) for s in inputs]
     if lang == "wgsl":
         if len(outputs) == 1:
             return f"fn {function}({', '.join(args)}) -> {outputs[0].type(lang)}"

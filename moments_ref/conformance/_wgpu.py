@@ -1,5 +1,9 @@
 """Vulkan backend: wgpu (wgpu-py) on the platform's adapter, Mesa lavapipe without a GPU.
 
+Devices live in the driver process of :mod:`._child`; :func:`get_device`
+returns a description and :func:`run_module` sends it work. :func:`dispatch` is
+the general backend function there (storage buffers at one bind group, any grid).
+
 WGSL modules and SPIR-V (from glslang) both go through wgpu's shader translator
 (naga) to the driver. wgpu's OpenGL adapter (EGL, llvmpipe) runs the same WGSL
 on OpenGL. Requirements: ``pip install wgpu`` and a Vulkan driver (Debian/Ubuntu:
@@ -14,28 +18,14 @@ import os
 import re
 import time
 
-import numpy as np
-
-from ._gl import ContextError, groups
-from ._slots import as_buffer
+from ._errors import ContextError, LocalCompileError
 from ._source import ShaderError
 
-__all__ = ["Device", "get_device", "adapters", "run_module"]
+__all__ = ["RemoteDevice", "LocalDevice", "get_device", "adapters", "run_module", "open_local", "dispatch"]
 
 _DEVICES = {}
 _PIPELINES = {}
 _HINT = "install the Python package 'wgpu' and a Vulkan driver (Debian/Ubuntu: apt-get install mesa-vulkan-drivers)"
-
-
-class Device:
-    """A wgpu device on one adapter, with the adapter's description."""
-
-    def __init__(self, adapter):
-        self.adapter = adapter
-        self.device = adapter.request_device_sync()
-        info = adapter.info
-        self.backend = info.get("backend_type", "?")
-        self.renderer = f"{info.get('device', '?')}, {info.get('description', '?')} ({self.backend} through wgpu)"
 
 
 def _wgpu():
@@ -51,34 +41,34 @@ def _wgpu():
 
 
 def adapters():
-    """``[(backend, device name, description)]`` of every adapter wgpu finds."""
+    """``[(backend, device name, description)]`` of every adapter wgpu finds (in this process)."""
     wgpu = _wgpu()
     return [(a.info.get("backend_type"), a.info.get("device"), a.info.get("description"))
             for a in wgpu.gpu.enumerate_adapters_sync()]
 
 
+class RemoteDevice:
+    """A wgpu device of the driver process (:mod:`._child`): backend, adapter name asked for, renderer."""
+
+    def __init__(self, backend, name, renderer):
+        self.backend, self.name, self.renderer = backend, name, renderer
+
+    @property
+    def target(self):
+        return ("wgpu", self.backend, self.name)
+
+
 def get_device(backend="Vulkan", name=None):
-    """The cached device on the first adapter of ``backend`` whose name contains ``name``.
+    """The device on the first adapter of ``backend`` whose name contains ``name``, in the driver process.
 
     Raises :class:`ContextError` when there is none (naming the adapters found).
     """
     key = (backend, name)
     if key not in _DEVICES:
-        wgpu = _wgpu()
-        try:
-            found = wgpu.gpu.enumerate_adapters_sync()
-        except Exception as exc:
-            raise ContextError(f"wgpu finds no adapter: {type(exc).__name__}: {exc}; {_HINT}") from None
-        for a in found:
-            info = a.info
-            if info.get("backend_type") == backend and (name is None or name.lower() in
-                                                        f"{info.get('device')} {info.get('vendor')}".lower()):
-                _DEVICES[key] = Device(a)
-                break
-        else:
-            have = "; ".join(f"{a.info.get('backend_type')}: {a.info.get('device')}" for a in found) or "none"
-            want = backend + (f" adapter matching {name!r}" if name else " adapter")
-            raise ContextError(f"no {want} (wgpu found: {have}); {_HINT}")
+        from ._child import open_target
+
+        renderer = open_target(("wgpu", backend, name))[0]
+        _DEVICES[key] = RemoteDevice(backend, name, renderer)
     return _DEVICES[key]
 
 
@@ -90,54 +80,144 @@ def _wgsl_errors(text, locate):
     return [f"{locate(int(line))}:{col}: {msg.strip()}" for msg, line, col in msgs]
 
 
-def _pipeline(dev, code, locate, signature, entry):
-    key = (id(dev), entry, hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
-    if key not in _PIPELINES:
-        try:
-            module = dev.device.create_shader_module(code=code)
-            _PIPELINES[key] = dev.device.create_compute_pipeline(
-                layout="auto", compute={"module": module, "entry_point": entry})
-        except Exception as exc:
-            text = str(exc)
-            lines = _wgsl_errors(text, locate) if isinstance(code, str) else [
-                " ".join(x.strip() for x in text.splitlines() if x.strip())]
-            kind = "WGSL" if isinstance(code, str) else "SPIR-V (naga)"
-            raise ShaderError(f"the wrapped function does not compile ({kind}; expected signature: {signature}):\n"
-                              + "\n".join(lines)) from None
-    return _PIPELINES[key]
+def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_size, entry="mr_main", tex=None):
+    """Compile (cached) and dispatch a WGSL (str) or SPIR-V (bytes) module at ``entry`` in the driver process."""
+    from ._child import dispatch
+    from ._gl import case_bindings, case_results
+
+    bindings, grid = case_bindings(ins, outs, arrays, n, local_size, tex)
+
+    def failed(text):
+        lines = _wgsl_errors(text, locate) if isinstance(code, str) else [
+            " ".join(x.strip() for x in text.splitlines() if x.strip())]
+        kind = "WGSL" if isinstance(code, str) else "SPIR-V (naga)"
+        return ShaderError(f"the wrapped function does not compile ({kind}; expected signature: {signature}):\n"
+                           + "\n".join(lines))
+
+    raw, timings = dispatch(dev.target, code, bindings, grid, entry, group, on_compile_error=failed)
+    return case_results(outs, ins, raw, n), timings
 
 
-def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_size, entry="mr_main"):
-    """Compile (cached) and dispatch a WGSL (str) or SPIR-V (bytes) module at ``entry``."""
+# ----------------------------------------------------------------------------------------
+# In the driver process
+# ----------------------------------------------------------------------------------------
+
+class LocalDevice:
+    """A wgpu device inside the driver process: compile (explicit layouts) and dispatch."""
+
+    def __init__(self, adapter):
+        self.adapter = adapter
+        # 16-bit normalized textures (64-bit moment maps) where the adapter has them
+        self.device = adapter.request_device_sync(
+            required_features=[f for f in ("texture-format16bit-norm",) if f in adapter.features])
+        info = adapter.info
+        self.backend = info.get("backend_type", "?")
+        self.renderer = f"{info.get('device', '?')}, {info.get('description', '?')} ({self.backend} through wgpu)"
+        self.version_code = 0
+
+    def compile(self, code, entry, group, modes):
+        key = (id(self), entry, group, tuple(modes), hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
+        if key not in _PIPELINES:
+            try:
+                module = self.device.create_shader_module(code=code)
+                layout, layouts = _layout(self, group, modes)
+                _PIPELINES[key] = (self.device.create_compute_pipeline(
+                    layout=layout, compute={"module": module, "entry_point": entry}), layouts)
+            except Exception as exc:
+                raise LocalCompileError(str(exc)) from None
+        return _PIPELINES[key]
+
+    def dispatch(self, compiled, bindings, grid, group):
+        return dispatch(self, compiled, bindings, grid, group)
+
+
+def open_local(backend="Vulkan", name=None):
+    """A :class:`LocalDevice` on the first matching adapter (in the driver process)."""
+    wgpu = _wgpu()
+    try:
+        found = wgpu.gpu.enumerate_adapters_sync()
+    except Exception as exc:
+        raise ContextError(f"wgpu finds no adapter: {type(exc).__name__}: {exc}; {_HINT}") from None
+    for a in found:
+        info = a.info
+        if info.get("backend_type") == backend and (name is None or name.lower() in
+                                                    f"{info.get('device')} {info.get('vendor')}".lower()):
+            return LocalDevice(a)
+    have = "; ".join(f"{a.info.get('backend_type')}: {a.info.get('device')}" for a in found) or "none"
+    want = backend + (f" adapter matching {name!r}" if name else " adapter")
+    raise ContextError(f"no {want} (wgpu found: {have}); {_HINT}")
+
+
+def _layout(dev, group, modes):
+    """Explicit pipeline layout: empty groups below ``group``, then storage buffers ``modes``.
+
+    ``modes`` are ``(binding, kind)``: ``"read"``, ``"write"``, ``"texture:FORMAT"`` or ``"sampler"``. An explicit layout
+    (not ``"auto"``) keeps bindings the compiled function does not read (an
+    argument it ignores) in the layout, so that the bind group always matches it.
+    """
+    wgpu = _wgpu()
+    types = {"read": wgpu.BufferBindingType.read_only_storage, "write": wgpu.BufferBindingType.storage}
+    d = dev.device
+    empty = d.create_bind_group_layout(entries=[])
+    own = d.create_bind_group_layout(entries=[_entry(wgpu, b, k, types) for b, k in modes])
+    layouts = [empty] * group + [own]
+    return d.create_pipeline_layout(bind_group_layouts=layouts), layouts
+
+
+def _entry(wgpu, b, kind, types):
+    """A bind group layout entry: a storage buffer, a texture (unfiltered float or uint), a point sampler."""
+    if kind == "sampler":
+        return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "sampler": {"type": "non-filtering"}}
+    if kind.startswith("texture:"):
+        sample = "uint" if kind.endswith("uint") else "unfilterable-float"
+        return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE,
+                "texture": {"sample_type": sample, "view_dimension": "2d", "multisampled": False}}
+    return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": types[kind]}}
+
+
+def _texture(d, wgpu, b):
+    w, h, fmt = b.texture
+    tex = d.create_texture(size=(w, h, 1), format=fmt,
+                           usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
+    d.queue.write_texture({"texture": tex, "mip_level": 0, "origin": (0, 0, 0)}, b.data,
+                          {"offset": 0, "bytes_per_row": len(b.data) // h, "rows_per_image": h}, (w, h, 1))
+    return tex
+
+
+def dispatch(dev, compiled, bindings, grid, group):
+    """Bind storage buffers (:class:`~._child.Binding`) at ``group``, dispatch ``grid``, read back.
+
+    Returns ``({binding: bytes} of the "write" buffers, timings)``.
+    """
     wgpu = _wgpu()
     d = dev.device
-    timings = {}
-    t0 = time.perf_counter()
-    pipe = _pipeline(dev, code, locate, signature, entry)
-    timings["compile"] = time.perf_counter() - t0
-    gx, gy = groups(n, local_size)
+    pipe, layouts = compiled
+    timings = {"compile": 0.0}
     t0 = time.perf_counter()
     storage = wgpu.BufferUsage.STORAGE
-    bufs = [d.create_buffer_with_data(data=as_buffer(arrays[s.name], s).tobytes(), usage=storage) for s in ins]
-    out_bufs = [d.create_buffer(size=max(16, n * s.width * 4), usage=storage | wgpu.BufferUsage.COPY_SRC)
-                for s in outs]
-    params = d.create_buffer_with_data(data=np.array([n, gx * local_size, 0, 0], np.uint32).tobytes(), usage=storage)
-    entries = [{"binding": b, "resource": {"buffer": buf}} for b, buf in enumerate(bufs + out_bufs + [params])]
-    bind = d.create_bind_group(layout=pipe.get_bind_group_layout(group), entries=entries)
+    bufs = [(b, _texture(d, wgpu, b) if b.mode == "texture" else d.create_sampler() if b.mode == "sampler" else
+             d.create_buffer_with_data(data=b.data, usage=storage | wgpu.BufferUsage.COPY_SRC)
+             if b.data is not None else d.create_buffer(size=b.size, usage=storage | wgpu.BufferUsage.COPY_SRC))
+            for b in sorted(bindings, key=lambda b: b.binding)]
+    entries = [{"binding": b.binding, "resource": buf.create_view() if b.mode == "texture" else
+                buf if b.mode == "sampler" else {"buffer": buf}} for b, buf in bufs]
+    binds = [d.create_bind_group(layout=lay, entries=[]) for lay in layouts[:group]]
+    binds.append(d.create_bind_group(layout=layouts[group], entries=entries))
     timings["upload"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     enc = d.create_command_encoder()
     cpass = enc.begin_compute_pass()
     cpass.set_pipeline(pipe)
-    cpass.set_bind_group(group, bind)
-    cpass.dispatch_workgroups(gx, gy, 1)
+    for g, bind in enumerate(binds):
+        cpass.set_bind_group(g, bind)
+    cpass.dispatch_workgroups(*grid)
     cpass.end()
     d.queue.submit([enc.finish()])
     timings["dispatch"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    results = {s.name: np.frombuffer(d.queue.read_buffer(buf), dtype=s.upload)[: n * s.width]
-               .reshape(n, s.width)[:, : s.components].copy() for s, buf in zip(outs, out_bufs)}
+    out = {b.binding: bytes(d.queue.read_buffer(buf)) for b, buf in bufs if b.mode == "write"}
     timings["readback"] = time.perf_counter() - t0
-    for buf in bufs + out_bufs + [params]:
-        buf.destroy()
-    return results, timings
+    for b, buf in bufs:
+        if b.mode != "sampler":
+            buf.destroy()
+    return out, timings

@@ -4,8 +4,9 @@ Per language the wrapper declares one storage buffer per golden input and output
 (binding = argument order, then the outputs, then ``mr_params`` = (row count,
 threads per dispatch row)), and an entry point that calls the user's function once
 per row. Every harness name starts with ``mr_``. The user's file is included as it
-is (GLSL, WGSL: text with line markers; HLSL: ``#include`` through glslang), so
-its own entry point, resources and includes stay; in GLSL a user ``main`` is
+is (text with line markers, its includes resolved by :mod:`._source`, the
+declarations the function does not use blanked by :mod:`._decls`), so its own
+entry point and helpers may stay; in GLSL a user ``main`` is
 renamed with ``#define main mr_user_main`` around the file, and a user
 ``layout(local_size_x = N) in;`` is kept and used.
 """
@@ -17,7 +18,7 @@ import re
 from .._arrays import InputError
 from ._source import strip_comments
 
-__all__ = ["LOCAL_SIZE", "wrap_glsl", "wrap_hlsl", "wrap_wgsl", "free_group", "user_local_size"]
+__all__ = ["LOCAL_SIZE", "glsl_version", "wrap_glsl", "wrap_hlsl", "wrap_wgsl", "free_group", "user_local_size"]
 
 #: Work-group size of the wrapper (one invocation per golden row).
 LOCAL_SIZE = 64
@@ -44,8 +45,11 @@ def user_local_size(text):
     return int(sizes["x"])
 
 
-def _load(lang, s, idx="i"):
+def _load(lang, s, idx="i", tex=None):
     """(statement or None, expression) loading row ``idx`` of input ``s``."""
+    if tex and s.name in tex:  # the texture and the row's texel (:mod:`._textures`)
+        stmts, args = tex[s.name].arguments(lang, idx)
+        return stmts, f"mr_tex_{s.name}, {args}"
     buf = f"mr_in_{s.name}"
     if s.is_array:
         k = s.components
@@ -67,13 +71,13 @@ def _store(lang, s, value):
     return f"mr_out_{s.name}[i] = {value};"
 
 
-def _body(lang, function, ins, outs):
+def _body(lang, function, ins, outs, tex=None):
     """Statements of the entry point after ``i`` is known."""
     lines, args = [], []
     for s in ins:
-        stmt, expr = _load(lang, s)
+        stmt, expr = _load(lang, s, tex=tex)
         if stmt:
-            lines.append(stmt)
+            lines += stmt if isinstance(stmt, list) else [stmt]
         args.append(expr)
     if len(outs) == 1:
         return lines + [_store(lang, outs[0], f"{function}({', '.join(args)})")]
@@ -84,10 +88,14 @@ def _body(lang, function, ins, outs):
     return lines + [_store(lang, s, f"mr_v_{s.name}") for s in outs]
 
 
-def _glsl_buffers(ins, outs, set_prefix):
+def _glsl_buffers(ins, outs, set_prefix, tex=None):
     lines, b = [], 0
     access = "" if set_prefix else "writeonly "  # naga rejects writeonly storage
     for s in ins:
+        if tex and s.name in tex:
+            lines.append(f"layout({set_prefix}binding = {b}) uniform {tex[s.name].type} mr_tex_{s.name};")
+            b += 1
+            continue
         lines.append(f"layout(std430, {set_prefix}binding = {b}) readonly buffer mr_In_{s.name} "
                      f"{{ {s.element('glsl')} mr_in_{s.name}[]; }};")
         b += 1
@@ -99,56 +107,84 @@ def _glsl_buffers(ins, outs, set_prefix):
     return lines
 
 
-def wrap_glsl(src, function, ins, outs, vulkan=False, group=3):
+def glsl_version(src, vulkan=False, gl_max=450):
+    """``(version, note)``: the ``#version`` the wrapper uses on a driver.
+
+    The file's own ``#version`` says what it needs, not which driver runs it, so
+    the harness picks one each driver offers: at least 430 (OpenGL compute) or 450
+    (Vulkan), at most the OpenGL context's (Mesa 22.3: 450) or 460 (glslang).
+    An ES version (``310 es``) is compiled as desktop GLSL.
+    """
+    want = src.version or 0
+    lo, hi = (450, 460) if vulkan else (430, gl_max)
+    use = min(max(want, lo), hi)
+    note = None
+    if want > hi:
+        note = f"#version {want} ({src.version_at}) compiled as {use}, the highest this driver offers"
+    return use, note
+
+
+def wrap_glsl(src, function, ins, outs, vulkan=False, group=3, gl_max=450, tex=None):
     """GLSL compute shader: the user's resolved source, then the harness (``#line 1 0``)."""
     user_main = re.search(r"\bvoid\s+main\s*\(", strip_comments(src.body)) is not None
     local = user_local_size(src.body)
-    version = max(src.version, 450 if vulkan else 430)
+    version, _ = glsl_version(src, vulkan, gl_max)
     lines = [f"#version {version}", *src.extensions]
     lines += ["#define main mr_user_main"] if user_main else []
     lines += [src.body, "#undef main"] if user_main else [src.body]
     lines.append("#line 1 0")
     if local is None:
         lines.append(f"layout(local_size_x = {LOCAL_SIZE}) in;")
-    lines += _glsl_buffers(ins, outs, f"set = {group}, " if vulkan else "")
+    lines += _glsl_buffers(ins, outs, f"set = {group}, " if vulkan else "", tex)
     lines += ["void main() {",
               "    uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * mr_params[1];",
               "    if (i >= mr_params[0]) return;"]
-    lines += ["    " + x for x in _body("glsl", function, ins, outs)] + ["}"]
+    lines += ["    " + x for x in _body("glsl", function, ins, outs, tex)] + ["}"]
     return "\n".join(lines) + "\n", local or LOCAL_SIZE
 
 
-def wrap_hlsl(include_name, function, ins, outs, space=3):
-    """HLSL compute shader including the user's file; entry point ``mr_main``."""
-    lines = [f'#include "{include_name}"']
+def wrap_hlsl(src, function, ins, outs, space=3, tex=None):
+    """HLSL compute shader: the user's resolved source, then the harness (``#line 1 0``); entry ``mr_main``."""
+    lines = [src.body, "#line 1 0"]
     b = 0
     for s in ins:
-        lines.append(f"StructuredBuffer<{s.element('hlsl')}> mr_in_{s.name} : register(t{b}, space{space});")
+        if tex and s.name in tex:
+            lines.append(f"{tex[s.name].type} mr_tex_{s.name} : register(t{b}, space{space});")
+        else:
+            lines.append(f"StructuredBuffer<{s.element('hlsl')}> mr_in_{s.name} : register(t{b}, space{space});")
         b += 1
     for s in outs:
         lines.append(f"RWStructuredBuffer<{s.element('hlsl')}> mr_out_{s.name} : register(u{b}, space{space});")
         b += 1
     lines.append(f"StructuredBuffer<uint> mr_params : register(t{b}, space{space});")
+    lines += [f"SamplerState mr_smp_{s.name} : register(s{b + 1 + k}, space{space});"
+              for k, s in enumerate(ins) if tex and s.name in tex and tex[s.name].sampler]
     lines += [f"[numthreads({LOCAL_SIZE}, 1, 1)]", "void mr_main(uint3 mr_id : SV_DispatchThreadID)", "{",
               "    uint i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) return;"]
-    lines += ["    " + x for x in _body("hlsl", function, ins, outs)] + ["}"]
+    lines += ["    " + x for x in _body("hlsl", function, ins, outs, tex)] + ["}"]
     return "\n".join(lines) + "\n"
 
 
-def wrap_wgsl(src, function, ins, outs, group=3):
+def wrap_wgsl(src, function, ins, outs, group=3, tex=None):
     """WGSL module: the user's resolved source, then the harness; entry point ``mr_main``."""
     lines = [src.body]
     b = 0
     for s in ins:
-        lines.append(f"@group({group}) @binding({b}) var<storage, read> mr_in_{s.name}: array<{s.element('wgsl')}>;")
+        if tex and s.name in tex:
+            lines.append(f"@group({group}) @binding({b}) var mr_tex_{s.name}: {tex[s.name].type};")
+        else:
+            lines.append(f"@group({group}) @binding({b}) var<storage, read> mr_in_{s.name}: "
+                         f"array<{s.element('wgsl')}>;")
         b += 1
     for s in outs:
         lines.append(f"@group({group}) @binding({b}) var<storage, read_write> mr_out_{s.name}: "
                      f"array<{s.element('wgsl')}>;")
         b += 1
     lines.append(f"@group({group}) @binding({b}) var<storage, read> mr_params: array<u32>;")
+    lines += [f"@group({group}) @binding({b + 1 + k}) var mr_smp_{s.name}: sampler;"
+              for k, s in enumerate(ins) if tex and s.name in tex and tex[s.name].sampler]
     lines += [f"@compute @workgroup_size({LOCAL_SIZE})",
               "fn mr_main(@builtin(global_invocation_id) mr_id: vec3<u32>) {",
               "    let i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) { return; }"]
-    lines += ["    " + x for x in _body("wgsl", function, ins, outs)] + ["}"]
+    lines += ["    " + x for x in _body("wgsl", function, ins, outs, tex)] + ["}"]
     return "\n".join(lines) + "\n"

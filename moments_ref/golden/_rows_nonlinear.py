@@ -1,8 +1,9 @@
 """Golden rows, part 2: the non-linear representation, Algorithm 3, the texel formats.
 
 Rows follow HPG17 §3.3–§3.5: random representations, the clamps of Algorithm 3
-(§3.4) exactly as the 32-bit decoder produces them (y1 = y2, v2 = 0, v2 = 1), the
-fold boundaries of Figure 5 and the Ψ4 code boundaries.
+(§3.4) exactly as the decoders produce them (y1 = y2 in one 32-bit cell; v2 = 0 and
+v2 = 1 from the 64-bit codes 0 and 65535), the fold boundaries of Figure 5 and the Ψ4
+cell boundaries.
 
 References
 ----------
@@ -55,7 +56,7 @@ _EDGE_REPRESENTATIONS = [
 
 
 def _decoded_representations():
-    """Representations as the decoders produce them (y1 = y2, v2 = 0 or 1 exactly)."""
+    """Representations as the decoders produce them (y1 = y2; v2 = 0 or 1 exactly from the 64-bit decoder)."""
     from ..packing import pack32, pack64, unpack32, unpack64
 
     r = np.array([[0.3, 0.3005, 0.0, 1e-3], [0.3, 0.3005, 1.0, 1e-3], [-0.6004, -0.6, 0.5, 1e-5],
@@ -103,16 +104,17 @@ def _ceil_xi(rng, count=6, n=200000):
 
 
 def _psi4_boundary_xi(dtype=np.float64):
-    """ξ4 on the rounding boundaries of the 6-bit Ψ4 code (Ψ4 · 63 = k + 1/2)."""
+    """ξ4 on the cell boundaries of the 6-bit Ψ4 code (Ψ4 · 64 = k)."""
     from ..nonlinear import psi4_inverse
+    from ..packing import XI_CELLS
 
-    return psi4_inverse((np.array([0, 10, 31, 62]) + 0.5) / 63)
+    return psi4_inverse(np.array([1, 10, 31, 63]) / XI_CELLS)
 
 
 def _representation_table(decoded=False):
     """(r (n, 4), category, comment, flags) of the hand-picked representations.
 
-    ``decoded``: also the outputs of the decoders (y1 = y2, v2 = 0 or 1 exactly) for
+    ``decoded``: also the outputs of the decoders (y1 = y2; v2 = 0 or 1 from 64 bits) for
     Algorithm 3; the encoders get those in case ``reencode64`` (they sit on ties).
     """
     rs, cats, comments, flags = [], [], [], []
@@ -147,7 +149,7 @@ def _reencode_rows(rng, dtype):
     comments += what
     for xi in _psi4_boundary_xi():
         rs.append((-0.3, 0.45, 0.5, float(xi)))
-        comments.append(f"ξ4 = {xi:.9g} on a 6-bit Ψ4 rounding boundary")
+        comments.append(f"ξ4 = {xi:.9g} on a 6-bit Ψ4 cell boundary")
     r = _random_representations(rng, 40)
     return Rows.concat([
         Rows({"r": np.array(rs)}, ["edge"] * len(rs), comments, [("code_boundary",)] * len(rs)),
@@ -192,13 +194,16 @@ def _psi4_rows(rng, dtype):
 
 
 def _psi4_inverse_rows(rng, dtype):
+    from ..packing import XI_CELLS
+
     k = np.arange(0, 64, 9)
     return Rows.concat([
         _rows({"u": rng.uniform(0, 1, 120)}, "random", "u uniform in [0, 1]"),
         _rows({"u": np.array([0.0, 1.0, 0.5])}, "edge", ["u = 0", "u = 1", "u = 0.5"]),
-        _rows({"u": np.concatenate([k / 63, np.minimum((k + 0.5) / 63, 1)])}, "edge",
-              [f"u = {x}/63 (a 6-bit code)" for x in k] + [f"u = ({x} + 1/2)/63 (a 6-bit code read rounded up)"
-                                                           for x in k], ("code_boundary",)),
+        _rows({"u": np.concatenate([k / XI_CELLS, (k + 1) / XI_CELLS])}, "edge",
+              [f"u = {x}/64 (the lower end of a 6-bit Ψ4 cell)" for x in k]
+              + [f"u = ({x} + 1)/64 (a 6-bit Ψ4 code read at the upper end of its cell)" for x in k],
+              ("code_boundary",)),
     ])
 
 
@@ -210,10 +215,10 @@ def _pack64_input_rows(rng, dtype):
 
 
 def _pack32_input_rows(rng, dtype):
-    from ..packing import V_SHIFT, XI_SHIFT, pack32
+    from ..packing import V_SHIFT, XI_SHIFT, Y1_SHIFT, Y2_SHIFT, pack32
 
     r = _representation_rows(rng, dtype)
-    base = (300 << 10) | 700  # ỹ1 = 300, ỹ2 = 700 (unfolded)
+    base = (300 << Y1_SHIFT) | (700 << Y2_SHIFT)  # ỹ1 = 300, ỹ2 = 700 (unfolded)
     codes = np.concatenate([base | (np.arange(64) << XI_SHIFT) | (64 << V_SHIFT),
                             base | (np.arange(128) << V_SHIFT) | (20 << XI_SHIFT)]).astype(np.int64)
     every = Rows({"p": codes}, ["edge"] * 192,

@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
-from . import endtoend, kernels
+from . import endtoend, kernels, texel_truth
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
@@ -52,6 +52,7 @@ class Case:
     perturb: bool = True  # measure the spread on inputs scaled by 1 ± 3 ulps (off for biasing)
     floor_scale: tuple | float = 1.0  # tolerance floors are ulps of max(|value|, scale), per component
     spread_hook: Callable | None = None  # (inputs, dtype) -> extra legitimate outputs (decoders' constants)
+    margin: Callable | None = None  # integer outputs: (**inputs) -> per row, distance to a rounding boundary
     extra: Callable | None = None  # (inputs) -> more arrays for the golden file (a kernel's expected codes)
     row_inputs: bool = True  # False: inputs are whole-case arrays (points, views), not one entry per row
 
@@ -85,6 +86,17 @@ def _wrap(path, **kwargs):
     return ref
 
 
+def _texel(name):
+    """Ground truth ``moments_ref.golden.texel_truth.<name>`` (independent of packing and affine)."""
+    return getattr(texel_truth, name)
+
+
+def _margin(name):
+    """Per row, how far the exact scaled values lie from a rounding boundary (texel_truth, ``margin=True``)."""
+    fn = getattr(texel_truth, name)
+    return lambda **inputs: fn(**inputs, margin=True)[1]
+
+
 def _shade_truth(r, zf):
     return (shade_clamped(r, zf),)
 
@@ -102,14 +114,15 @@ def _xi_decode_spread(fmt):
 
     def hook(inputs, dt):
         from ..nonlinear import _PSI_C0, _PSI_C1, psi4_inverse
-        from ..packing import unpack32, unpack64
+        from ..packing import DECODE32, DECODE_POSITIONS, XI_BITS, XI_CELLS, XI_SHIFT, unpack32, unpack64
 
         code = inputs["q"] if fmt == "64" else inputs["p"]
         r = unpack64(code, dtype=dt) if fmt == "64" else unpack32(code, dtype=dt)
         if fmt == "64":
             u = code[..., 3].astype(np.float64) / 65535
         else:
-            u = np.minimum(((code.astype(np.int64) >> 26) & 63) / 63 + 0.5 / 63, 1)
+            xcode = (code.astype(np.int64) >> XI_SHIFT) & ((1 << XI_BITS) - 1)
+            u = (xcode + DECODE_POSITIONS[DECODE32["xi"]]) / XI_CELLS
         eps = 3 * float(np.finfo(dt).eps)
         out = []
         for s1, s0 in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
@@ -168,22 +181,28 @@ def _float_cases(dt):
                         f"b* = {list(preset.target)}; gated in ulps (the change is a few ulps)"))
     cases += [
         Case(f"to_optimized-{dt}", "affine.to_optimized", dt, ("b",), ("q",), _moment_rows,
-             _wrap("affine.to_optimized"), description="Slides, 'Compute moments in resolve'"),
+             _wrap("affine.to_optimized"), _texel("to_optimized"),
+             description="Slides, 'Compute moments in resolve'; expected from the slide's matrix in mpmath"),
         Case(f"from_optimized-{dt}", "affine.from_optimized", dt, ("q",), ("b",), _optimized_rows,
-             _wrap("affine.from_optimized"), description="Slides, 'Retrieve moments'"),
+             _wrap("affine.from_optimized"), _texel("from_optimized"),
+             description="Slides, 'Retrieve moments'; expected from the inverse of the slide's matrix in mpmath"),
         Case(f"encode_unorm16-{dt}", "affine.encode_unorm16", dt, ("b",), ("u",), _moment_rows,
-             _wrap("affine.encode_unorm16"), metric="exact",
-             description="64-bit affine texel: four UNORM16 of the optimized basis"),
+             _wrap("affine.encode_unorm16"), _texel("encode_unorm16"), metric="exact",
+             margin=_margin("encode_unorm16"),
+             description="64-bit affine texel: four UNORM16 of the optimized basis; expected codes exact"),
         Case(f"decode_unorm16-{dt}", "affine.decode_unorm16", dt, ("u",), ("b",), _unorm16_rows,
-             _wrap("affine.decode_unorm16"), integer_inputs=_U16, description="64-bit affine texel decode"),
+             _wrap("affine.decode_unorm16"), _texel("decode_unorm16"), integer_inputs=_U16,
+             description="64-bit affine texel decode; expected from the slide's inverse in mpmath"),
         Case(f"to_optimized6-{dt}", "affine.to_optimized6", dt, ("b",), ("q",), _moment6_rows,
-             _wrap("affine.to_optimized6"), description="Slides, six-moment 'Quantization transform'"),
+             _wrap("affine.to_optimized6"), _texel("to_optimized6"),
+             description="Slides, six-moment 'Quantization transform'; expected from the printed matrices"),
         Case(f"encode_r10g10b10a2-{dt}", "affine.encode_r10g10b10a2", dt, ("b",), ("p",), _moment6_rows,
-             _wrap("affine.encode_r10g10b10a2"), metric="exact",
-             description="six moments in 2×R10G10B10A2_UNORM"),
+             _wrap("affine.encode_r10g10b10a2"), _texel("encode_r10g10b10a2"), metric="exact",
+             margin=_margin("encode_r10g10b10a2"),
+             description="six moments in 2×R10G10B10A2_UNORM; expected codes exact"),
         Case(f"decode_r10g10b10a2-{dt}", "affine.decode_r10g10b10a2", dt, ("p",), ("b",), _r10_rows,
-             _wrap("affine.decode_r10g10b10a2"), integer_inputs=_U32,
-             description="six moments from 2×R10G10B10A2_UNORM"),
+             _wrap("affine.decode_r10g10b10a2"), _texel("decode_r10g10b10a2"), integer_inputs=_U32,
+             description="six moments from 2×R10G10B10A2_UNORM; expected from the printed matrices' inverses"),
         *[Case(f"shadow_intensity6-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
                _msm6_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity6", bound=bound),
                {"bound": bound}, value_range=(0, 1), spread_hook=_six_all_roots(bound),
@@ -212,25 +231,27 @@ def _nonlinear_cases(dt):
              description="HPG17 Algorithm 3 with its §3.4 clamps (v2 in [1e-6, 1 - 1e-6], y2 - y1 >= 1e-6); "
                          "expected: Algorithm 3 with the clamps in mpmath"),
         Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
-             _wrap("packing.pack64"), metric="exact", description="64-bit texel, docs/formats.md"),
+             _wrap("packing.pack64"), _texel("pack64"), metric="exact", margin=_margin("pack64"),
+             description="64-bit texel, docs/formats.md; expected codes exact"),
         Case(f"reencode64-{dt}", "packing.pack64", dt, ("r",), ("q",), _reencode_rows,
-             _wrap("packing.pack64"), metric="exact",
+             _wrap("packing.pack64"), _texel("pack64"), metric="exact", margin=_margin("pack64"),
              description="64-bit texel of representations whose ξ4 is a decoded code, or one ulp above one "
                          "(the encoder's decode check of docs/formats.md)"),
         Case(f"unpack64-{dt}", "packing.unpack64", dt, ("q",), ("r",), _pack64_input_rows,
-             _wrap("packing.unpack64"), integer_inputs={"q": "uint16"}, floor_scale=_R_SCALE,
+             _wrap("packing.unpack64"), _texel("unpack64"), integer_inputs={"q": "uint16"}, floor_scale=_R_SCALE,
              spread_hook=_xi_decode_spread("64"),
-             description="64-bit texel decode, docs/formats.md"),
+             description="64-bit texel decode, docs/formats.md; expected from the layout in mpmath"),
         Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
-             _wrap("packing.pack32"), metric="exact",
-             description="32-bit texel with the triangle fold, docs/formats.md"),
+             _wrap("packing.pack32"), _texel("pack32"), metric="exact", margin=_margin("pack32"),
+             description="32-bit texel with the triangle fold, docs/formats.md; expected codes exact"),
         Case(f"reencode32-{dt}", "packing.pack32", dt, ("r",), ("p",), _reencode_rows,
-             _wrap("packing.pack32"), metric="exact",
-             description="32-bit texel of decoded representations and of ξ4 on 6-bit Ψ4 rounding boundaries"),
+             _wrap("packing.pack32"), _texel("pack32"), metric="exact", margin=_margin("pack32"),
+             description="32-bit texel of decoded representations and of ξ4 on 6-bit Ψ4 cell boundaries"),
         Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
-             _wrap("packing.unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,
+             _wrap("packing.unpack32"), _texel("unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,
              spread_hook=_xi_decode_spread("32"),
-             description="32-bit texel decode (ξ4 rounded up), docs/formats.md"),
+             description="32-bit texel decode (depths and ξ4 at the upper end of their cell, √v2 at its centre), "
+                         "docs/formats.md; expected from the layout in mpmath"),
     ]
 
 
@@ -278,9 +299,15 @@ def evaluate_reference(case, inputs, dtype):
 
 
 def expected_outputs(case, inputs):
-    """Expected values: exact codes for encoders (in the case's dtype), else the ground truth."""
-    if case.integer_output:
+    """Expected values: the ground truth (exact codes for encoders) where there is one, else the reference.
+
+    Without a ground truth, encoders' codes are the reference's in the case's dtype and
+    other outputs the reference's in float64.
+    """
+    if case.integer_output and case.truth is None:
         return evaluate_reference(case, inputs, case.dtype)
+    if case.integer_output:
+        return case.truth(**inputs)
     if case.truth is not None:
         as64 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.float64)) for k, v in inputs.items()}
         return case.truth(**as64)

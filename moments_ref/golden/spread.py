@@ -18,10 +18,15 @@ port's precision. Rows whose value is undefined (flags in
 :data:`moments_ref.golden.notes.UNGATED`) get an infinite tolerance and result
 ``acceptable``.
 
-Integer outputs are exact. A row whose code differs between the reference in float32,
-in float64 and on inputs nudged by ``8 eps(float32)`` sits on a rounding tie: the
-codes seen are stored as the row's acceptable set, the row is ``acceptable`` and
-carries the flag ``rounding_tie``.
+Integer outputs are exact: the expected code is the ground truth's (the exact code of
+the real number the formula gives, :mod:`moments_ref.golden.texel_truth`) where the
+case has one. A row whose code differs between the ground truth, the reference in
+float32, in float64 and on inputs nudged by ``8 eps(float32)`` sits on a rounding
+tie: the codes seen are stored as the row's acceptable set, the row is
+``acceptable`` and carries the flag ``rounding_tie``. A tie is legitimate only where
+the exact scaled value lies within :data:`TIE_BAND` of the code range from a
+rounding boundary (the case's ``margin``); a reference that disagrees with the
+ground truth anywhere else is a bug, and :func:`derive` refuses to write the row.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ from .cases import evaluate_reference, expected_outputs
 from .notes import UNGATED, UNGATED32
 
 __all__ = ["derive", "gated_summary", "row_tolerance", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS",
-           "STRUCTURED", "ulp", "PORT_DTYPES"]
+           "STRUCTURED", "ulp", "PORT_DTYPES", "TIE_BAND", "TruthMismatch"]
 
 SAFETY = 16.0
 FLOOR_ULPS = 4
@@ -44,6 +49,13 @@ INDEPENDENT_ULPS = 1
 PORT_DTYPES = ("float32", "float64")
 _NUDGE = 8 * float(np.finfo(np.float32).eps)
 _WIDE = 0.1
+#: Where a float implementation may store the neighbouring code: the exact scaled value
+#: within 64 float32 ulps of the code range (2⁻¹⁸ of it) of a rounding boundary.
+TIE_BAND = 64 * 2.0**-24
+
+
+class TruthMismatch(AssertionError):
+    """The reference's codes disagree with the ground truth away from a rounding boundary."""
 
 
 def ulp(x, dtype):
@@ -180,12 +192,28 @@ def _ties(case, inputs, expected, n, category, comment, flags):
         stack = np.stack(alts, axis=1)  # (n, K, ...)
         tie |= np.any((stack != e[:, None]).reshape(n, -1), axis=1)
         acceptable[o] = stack
+    if case.margin is not None:
+        _check_truth(case, inputs, tie)
     for r in np.flatnonzero(tie):
         flags[r] = tuple(flags[r]) + ("rounding_tie",)
         if category[r] != "stiff":
             category[r] = "stiff"
             comment[r] = comment[r] + " [on a rounding boundary: the code changes within float32 rounding of the inputs]"
     return acceptable, tie
+
+
+def _check_truth(case, inputs, tie):
+    """Raise :class:`TruthMismatch` where a tie (a code other than the truth's) is not near a boundary."""
+    margin = np.asarray(case.margin(**inputs), np.float64)
+    bad = np.flatnonzero(tie & (margin > TIE_BAND))
+    if bad.size:
+        ref = evaluate_reference(case, inputs, case.dtype)
+        i = int(bad[0])
+        raise TruthMismatch(
+            f"{case.name}: the reference disagrees with the ground truth on {bad.size} rows away from a rounding "
+            f"boundary; first row {i}: inputs {[np.asarray(v)[i].tolist() for v in inputs.values()]}, reference "
+            f"{[np.asarray(o)[i].tolist() for o in ref]}, truth {[np.asarray(o)[i].tolist() for o in case.truth(**inputs)]}, "
+            f"margin {margin[i]:.3g} > {TIE_BAND:.3g}")
 
 
 def derive(case, inputs, category, comment, flags):

@@ -3,6 +3,10 @@
 Deterministic: the same version writes the same bytes (seeded rows, deterministic
 zip entries, sorted JSON). Every file is written atomically (temporary file, fsync,
 rename), so an interrupted run never leaves a half-written file.
+
+References
+----------
+HPG17 (and the HPG17 demo's texel format) : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -20,9 +24,25 @@ from .cases import CASES, case_table
 from .notes import NOTES, RESULTS
 from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, derive, gated_summary, ulp
 
-__all__ = ["write", "SCHEMA_VERSION", "CATEGORIES", "golden_arrays", "manifest_entry"]
+__all__ = ["write", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+#: What each schema version changed (the manifest's ``schema_history``; docs/golden.md). Golden
+#: vectors of an older version hold that version's formats: regenerate them, do not mix.
+SCHEMA_HISTORY = {
+    "2": "per-row tolerances, acceptable code sets for rounding ties, the notes table",
+    "3": "32-bit NLQ texel (pack32, unpack32, reencode32, e2e-nlq32, e2e-block-nlq32): √v2 and Ψ4 are stored "
+         "in cells of 1/128 and 1/64 (⌊128 √v2⌋ and ⌊64 Ψ4(ξ4)⌋, at most 127 and 63) instead of round(127 √v2) "
+         "and round(63 Ψ4(ξ4)), and decoded at the HPG17 demo's positions: depths (ỹ + 1)/511.5 − 1 instead of "
+         "(ỹ + 1/2)/511.5 − 1, √v2 (c + 1/2)/128 instead of c/127, Ψ4 (c + 1)/64 instead of min(1, (c + 1/2)/63); "
+         "goldens of schema 2 use the old grid. The expected values of the texel and affine cases (pack64, "
+         "unpack64, pack32, unpack32, reencode64, reencode32, to_optimized, from_optimized, encode_unorm16, "
+         "decode_unorm16, to_optimized6, encode_r10g10b10a2, decode_r10g10b10a2) come from an independent "
+         "ground truth (exact arithmetic and mpmath from the formats' tables and the slides' matrices) instead "
+         "of the package's own functions: float values move by up to a few ulps, and on rounding-tie rows the "
+         "expected code is the exact one (the acceptable set still holds the codes legitimate float "
+         "implementations store)",
+}
 CATEGORIES = ("random", "stiff", "edge")
 
 
@@ -111,6 +131,7 @@ def write(out_dir, cases=None, progress=None):
         raise InputError(f"cases: unknown case {unknown[0]!r}; known: {', '.join(CASES)}")
     manifest = {
         "schema_version": SCHEMA_VERSION,
+        "schema_history": SCHEMA_HISTORY,
         "package": "moments_ref",
         "package_version": __version__,
         "numpy_version": np.__version__,

@@ -28,6 +28,9 @@ Claims (HPG17 §5 unless stated):
   results are only slightly worse". Read on railing (the figure's scene) as:
   NLQ32's RMSE exceeds NLQ64's by less than MSM64's and NLQ64's differ (the two
   64-bit moment techniques the figure tells apart); the other scenes are listed.
+  It rests on the 32-bit decode positions (docs/formats.md): read at the cell
+  centre with a √v2 grid reaching v2 = 1, the texels over-shadowed railing's lit
+  ground in speckles at ``--full``; :data:`NLQ32_DECODE_NOTE` says what was traced.
 * ``hpg17-four-moment-leak-three-occluders`` (§6, Figure 9): "When the filter
   region in the shadow map contains three or more occluders, light will leak onto
   fully shadowed surfaces." Measured on the fully shadowed receiver pixels
@@ -52,12 +55,24 @@ from ..scene.gbuffer import receiver_depth
 from . import scattering_temporal
 from .. import techniques as _techniques
 
-__all__ = ["PAPER_PIXELS", "scene_measurements", "pixel_statistic", "claims", "gather"]
+__all__ = ["PAPER_PIXELS", "IMPLEMENTATION_CHOICES", "scene_measurements", "pixel_statistic", "claims", "gather"]
 
 #: HPG17 §5: 16 pixels above 3 % out of a 1920×1080 screenshot, none at 10 %.
 PAPER_PIXELS = {"above_3pct": 16, "above_10pct": 0, "image_pixels": 1920 * 1080}
 #: A receiver pixel counts as fully shadowed at or above this reference intensity.
 FULL_SHADOW = 0.999
+#: Per claim, the rows of docs/formats.md's table of implementation-defined choices its
+#: measurement depends on (written to the claim's settings).
+IMPLEMENTATION_CHOICES = {
+    "hpg17-nlq32-close-to-nlq64": ["clamp offsets", "decode positions", "code rounding", "bias presets and targets",
+                                   "depth convention", "10-bit fold edge rows", "blur edge handling"],
+    "hpg17-nlq64-close-to-msm128": ["clamp offsets", "code rounding", "bias presets and targets",
+                                    "depth convention", "blur edge handling"],
+    "hpg17-nlq64-vs-msm128-pixels": ["clamp offsets", "code rounding", "bias presets and targets",
+                                     "depth convention", "blur edge handling"],
+    "hpg17-evsm128-leaks-less": ["depth convention", "blur edge handling"],
+    "hpg17-four-moment-leak-three-occluders": ["bias presets and targets", "depth convention", "blur edge handling"],
+}
 
 
 def _texture(result, name):
@@ -179,7 +194,8 @@ def _pixels_claim(measured, full):
                            "intensity and none by 10 %",
                  paper="16 pixels above 3 % in a 1920×1080 image (7.7e-6 of it), highest difference below 10 %",
                  measured={s: {k: v for k, v in p.items() if k not in ("worst", "as_rendered")} for s, p in per.items()},
-                 settings={"mode": _mode(full), **{s: measured[s]["settings"] for s in per}},
+                 settings={"mode": _mode(full), **{s: measured[s]["settings"] for s in per},
+                           **_choices("hpg17-nlq64-vs-msm128-pixels")},
                  verdict=verdict_of(ok),
                  why=why + ". Holds means no pixel at 10 % and at most the paper's rate above 3 %")
 
@@ -196,7 +212,8 @@ def _evsm_claim(rows, full):
                  paper="Figure 1 (images): EVSM64 strong light leaking; EVSM128 and MSM128 very little",
                  measured={"leak_fraction": {"evsm64": e64, "evsm128": e128, "msm128": m128},
                            "rmse": {t: r[t]["rmse"] for t in r}},
-                 settings={"scene": "railing", "mode": _mode(full)}, verdict=verdict_of(holds),
+                 settings={"scene": "railing", "mode": _mode(full), **_choices("hpg17-evsm128-leaks-less")},
+                 verdict=verdict_of(holds),
                  why=(f"EVSM128 leaks on {e128:.1%} of the pixels, EVSM64 on {e64:.1%}, MSM128 on {m128:.1%}: "
                       f"{'nearer to MSM128' if holds else 'nearer to EVSM64'}. The two differ only in the positive "
                       "warp exp(c+ z), which weighs a lit depth D behind the fragment by exp(c+ D) and gives no "
@@ -207,7 +224,12 @@ def _evsm_claim(rows, full):
                       "leaking pixels have a surface 0.1 or more behind them in the 9×9 region (the ground behind "
                       "the banner's edges), where HPG17 §2 says EVSM misrepresents shadows at object boundaries; "
                       "two thirds of the others are contact shadows of the receiver-plane reference (over 0.05 "
-                      "darker than with PCF's slope bias) that EVSM lacks"))
+                      "darker than with PCF's slope bias) that EVSM lacks. No unstated parameter of the setup "
+                      "flips the verdict within its plausible range (docs/formats.md, \"Parameters the papers "
+                      "leave open\"): the exponents on depth in [0, 1] instead of [-1, 1], a light frustum fitted "
+                      "0.5 to 1.1 times as deep (a tight hull fit is 1.04), c+ from 20 to 42, the minimum "
+                      "variance, a depth bias of 0 to 2e-3, resolving the depths before the warp, the blur width "
+                      "and the leak threshold"))
 
 
 def _nlq64_claim(rows, measured, full):
@@ -223,7 +245,8 @@ def _nlq64_claim(rows, measured, full):
                  measured={"rmse": {"nlq64": a, "msm128": b, "msm64": c},
                            "nearest_neighbour_pixels": None if p is None else
                            {k: p[k] for k in ("above_3pct", "above_10pct", "max")}},
-                 settings={"scene": "railing", "mode": _mode(full)}, verdict=verdict_of(holds),
+                 settings={"scene": "railing", "mode": _mode(full), **_choices("hpg17-nlq64-close-to-msm128")},
+                 verdict=verdict_of(holds),
                  why=(f"RMSE against the filtered hard shadow: NLQ64 {a:.4f}, MSM128 {b:.4f}, MSM64 {c:.4f}; "
                       "holds means NLQ64 lies nearer to MSM128 than MSM64 (the figure's strong leaker) does"))
 
@@ -243,22 +266,30 @@ def _nlq32_claim(rows, full):
                  statement="NLQ at 32 bits is only slightly worse than at 64 bits (banding of short-range shadows "
                            "aside, Figure 8)",
                  paper="Figure 1: \"Even at 32 bits per texel, the results are only slightly worse\" (no number)",
-                 measured={"rmse": per}, settings={"scene": "railing", "mode": _mode(full)},
+                 measured={"rmse": per},
+                 settings={"scene": "railing", "mode": _mode(full), **_choices("hpg17-nlq32-close-to-nlq64")},
                  verdict=verdict_of(holds),
                  why=(f"railing RMSE NLQ32 {rail['nlq32']:.4f}, NLQ64 {rail['nlq64']:.4f}, MSM64 {rail['msm64']:.4f}: "
                       "holds means NLQ32 exceeds NLQ64 by less than MSM64 and NLQ64 (the figure's two 64-bit "
-                      "moment techniques) differ; other scenes are listed, not judged"
-                      + ("" if holds else NLQ32_BIAS_NOTE)))
+                      "moment techniques) differ; other scenes are listed, not judged. " + NLQ32_DECODE_NOTE))
 
 
-#: Why NLQ32 can fail the claim (measured in tests/test_packing.py): its depths are
-#: stored in 10 bits, ⌊511.5 (y + 1)⌋ decoded at the cell centre (HPG17 §3.5), an error
-#: of up to 1/1023 = 9.8e-4, which leaves 2e-5 of the constant bias 1e-3 (§5).
-NLQ32_BIAS_NOTE = ("; the method, not the implementation: NLQ32 stores depths in 10 bits (HPG17 §3.5), up to "
-                   "9.8e-4 off, which uses up all but 2e-5 of the constant bias 1e-3 (§5), so a lit fragment a "
-                   "few 1e-4 behind its texel's depth (a sloped receiver, a bilinear or dithered neighbour) is "
-                   "over-shadowed in speckles where NLQ64 is not; with the narrow footprints of large maps "
-                   "(--full) this outweighs the rest")
+def _choices(claim_id):
+    """The claim's rows of docs/formats.md's table of implementation-defined choices, for its settings."""
+    return {"implementation_choices": list(IMPLEMENTATION_CHOICES.get(claim_id, ()))}
+
+
+#: What decides this claim (traced pixel by pixel on railing at --full, docs/formats.md).
+NLQ32_DECODE_NOTE = ("The 32-bit texels are read as HPG17 §3.5 prescribes (\"rounded up to guarantee a lower "
+                     "bound\"): depths at the upper end of their 10-bit cell, so an occluder never moves towards "
+                     "the light and the constant bias 1e-3 (§5) stays whole, and √v2 at the centre of its cell, so "
+                     "v2 never decodes to 1. Decoded at the cell centre with a √v2 grid reaching 1 (schema 2), "
+                     "they over-shadowed railing's lit ground in speckles at --full (10136 pixels over by more "
+                     "than 0.1 where NLQ64 was not, 87% of NLQ32's squared error, RMSE 0.0339): the receiver's own "
+                     "depth decoded up to 9.8e-4 in front of it and its weight v2 of 0.994 to 0.9999 decoded as 1. "
+                     "The upper end costs light leaks within one cell behind an occluder (railing's leak fraction "
+                     "NLQ32 1.9% against NLQ64's 1.1% at the default settings), and works as extra depth bias, "
+                     "which is why NLQ32's RMSE can come out below NLQ64's")
 
 
 def _three_occluder_claim(measured, full):
@@ -274,7 +305,8 @@ def _three_occluder_claim(measured, full):
                            "onto fully shadowed surfaces",
                  paper="Figure 9 (image, no number): NLQ64 leaks on the ground line shadowed by umbrella, roof and "
                        "railing",
-                 measured=leaks, settings={"scene": "three-occluders", "mode": _mode(full), **m["settings"]},
+                 measured=leaks, settings={"scene": "three-occluders", "mode": _mode(full), **m["settings"],
+                                           **_choices("hpg17-four-moment-leak-three-occluders")},
                  verdict=verdict_of(holds),
                  why=("fully shadowed pixels (reference >= 0.999), largest leak (reference minus shadow) where the "
                       "9x9 footprint holds three or more occluder depths against where it holds one or two: "

@@ -305,12 +305,16 @@ def pack32(r, m):
     flip = t1 >= at
     f1 = np.where(flip, 1023 - t1, t1)
     f2 = np.where(flip, (1023 if m.get("fold_1023") else 1022) - t2, t2)
-    vcode = np.rint((v2 if m.get("v_linear") else A.sqrt(v2)) * 127).astype(np.int64)
-    xmax = 64 if m.get("xi_64") else 63
+    sv = v2 if m.get("v_linear") else A.sqrt(v2)
+    if m.get("v_127"):  # the grid of 127 steps, rounded (the format before schema 3)
+        vcode = np.rint(sv * 127).astype(np.int64)
+    else:  # cells of 1/128, truncated
+        vcode = np.minimum(np.floor(sv * 128).astype(np.int64), 127)
     u = psi4(xi4, {"f64": m.get("f64")}, raw=True)
-    xcode = np.minimum(np.rint(u * xmax).astype(np.int64), 63)
-    dec = psi4_inverse(np.minimum((xcode + 0.5) / 63, 1).astype(A.dt), {"f64": m.get("f64")}, raw=True)
-    xcode = xcode + ((dec < np.clip(xi4, 1.2e-7, 0.25).astype(A.dt)) & (xcode < 63))
+    xcode = np.minimum((np.rint(u * 63) if m.get("xi_63") else np.floor(u * 64)).astype(np.int64), 63)
+    if not m.get("no_bump"):  # the decoded xi4, Psi4^-1((c + 1) / 64), must not be below the stored one
+        dec = psi4_inverse(((xcode + 1) / 64).astype(A.dt), {"f64": m.get("f64")}, raw=True)
+        xcode = xcode + ((dec < np.clip(xi4, 1.2e-7, 0.25).astype(A.dt)) & (xcode < 63))
     p = (f2 & 1023) | ((f1 & 511) << 10) | ((vcode & 127) << 19) | ((xcode & 63) << 26)
     return p.astype(np.uint32)
 
@@ -325,14 +329,18 @@ def unpack32(p, m):
         flipped = np.zeros_like(flipped)
     t1, t2 = np.where(flipped, 1023 - f1, f1), np.where(flipped, 1022 - f2, f2)
     step = A.c(511 if m.get("step_511") else 511.5)
-    half = A.c(0 if m.get("corner") else 0.5)
+    # Depths at the upper end of their cell (HPG17 §3.5's "rounded up"); mutants: the corner, the centre.
+    top = A.c(0 if m.get("corner") else 0.5 if m.get("centre") else 1)
     if m.get("recip"):
-        y = lambda t: (A.c(t) + half) * A.div(1, step) - 1  # noqa: E731
+        y = lambda t: (A.c(t) + top) * A.div(1, step) - 1  # noqa: E731
+    elif m.get("mad"):  # the HPG17 demo's form: t · (1/511.5) + (−1 + 2/1023)
+        y = lambda t: A.c(t) * A.div(1, step) + A.c(-1 + 2 / 1023)  # noqa: E731
     else:
-        y = lambda t: A.div(A.c(t) + half, step) - 1  # noqa: E731
-    sv = A.div(A.c(vcode), 127)
+        y = lambda t: A.div(A.c(t) + top, step) - 1  # noqa: E731
+    sv = A.div(A.c(vcode), 127) if m.get("v_127") else A.div(A.c(vcode) + A.c(0.5), 128)
     v2 = sv if m.get("v_linear") else sv * sv
-    u = A.div(A.c(xcode) + A.c(0 if m.get("xi_no_roundup") else 0.5), 63)
+    xoff = 0 if m.get("xi_no_roundup") else 0.5 if m.get("xi_centre") else 1
+    u = A.div(A.c(xcode) + A.c(xoff), 64)
     xi = psi4_inverse(np.minimum(u, 1), {"f64": m.get("f64"), "const32": m.get("const32")}).astype(A.dt)
     return A.out(np.stack([y(t1), y(t2), v2, xi], axis=-1))
 

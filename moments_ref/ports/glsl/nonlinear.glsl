@@ -66,9 +66,14 @@ vec4 phi(vec4 b)
 vec4 phi_inverse(vec4 r)
 {
     float y1 = r.x, y2 = r.y, v2 = r.z, v1 = 1.0 - v2;
-    vec4 p1 = vec4(y1, y1 * y1, y1 * y1 * y1, y1 * y1 * y1 * y1);
-    vec4 p2 = vec4(y2, y2 * y2, y2 * y2 * y2, y2 * y2 * y2 * y2);
-    return v1 * p1 + v2 * p2 + vec4(0.0, 0.0, 0.0, r.w);
+    // Powers as squares (y^4 = (y^2)^2) and one sum at a time: Mesa's GLSL compiler rebalances
+    // a chain like y*y*y*y into (y*y)*(y*y) and SPIR-V compilers do not, so the chain would
+    // round differently on OpenGL and Vulkan; written this way every compiler evaluates it alike.
+    float s1 = y1 * y1, s2 = y2 * y2;
+    vec4 p1 = vec4(y1, s1, s1 * y1, s1 * s1);
+    vec4 p2 = vec4(y2, s2, s2 * y2, s2 * s2);
+    vec4 m = v1 * p1 + v2 * p2;
+    return vec4(m.xyz, m.w + r.w);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -26,9 +26,12 @@
 // Every depth distribution on [-1, 1] maps into [0, 1]^4.
 float4 to_optimized(float4 b)
 {
-    return float4(1.5 * b.x - 2.0 * b.z + 0.5,
+    // The offset added first: Mesa's Vulkan compiler (through wgpu, which drops `precise`) moves
+    // a constant term next to the first product, and the harness's OpenGL path evaluates
+    // exactly as written; in this order both round alike.
+    return float4((1.5 * b.x + 0.5) - 2.0 * b.z,
                 4.0 * b.y - 4.0 * b.w,
-                0.8660254 * b.x - 0.38490018 * b.z + 0.5,
+                (0.8660254 * b.x + 0.5) - 0.38490018 * b.z,
                 0.5 * b.y + 0.5 * b.w);
 }
 

@@ -66,9 +66,16 @@ float4 phi(float4 b)
 float4 phi_inverse(float4 r)
 {
     float y1 = r.x, y2 = r.y, v2 = r.z, v1 = 1.0 - v2;
-    float4 p1 = float4(y1, y1 * y1, y1 * y1 * y1, y1 * y1 * y1 * y1);
-    float4 p2 = float4(y2, y2 * y2, y2 * y2 * y2, y2 * y2 * y2 * y2);
-    return v1 * p1 + v2 * p2 + float4(0.0, 0.0, 0.0, r.w);
+    // Powers as squares (y^4 = (y^2)^2) and one sum at a time: Mesa's GLSL compiler rebalances
+    // a chain like y*y*y*y into (y*y)*(y*y) and SPIR-V compilers do not, so the chain would
+    // round differently on OpenGL and Vulkan; written this way every compiler evaluates it alike.
+    float s1 = y1 * y1, s2 = y2 * y2;
+    float4 p1 = float4(y1, s1, s1 * y1, s1 * s1);
+    float4 p2 = float4(y2, s2, s2 * y2, s2 * s2);
+    // b4 = (v1 y1^4 + xi4) + v2 y2^4: the order Mesa's Vulkan compiler gives the sum (it
+    // reassociates what `precise` does not pin, and wgpu drops `precise`), written out.
+    float4 m = v1 * p1 + v2 * p2;
+    return float4(m.xyz, (v1 * p1.w + r.w) + v2 * p2.w);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -66,7 +66,9 @@ float4 unpack64(uint4 q)
 // 32 bits (HPG17 §3.5, Figure 5)
 // ---------------------------------------------------------------------------------------
 //   bits  0.. 9  y~2 (folded)     bits 10..18  y~1 (folded)
-//   bits 19..25  round(127 sqrt(v2))      bits 26..31  round(63 Psi4(xi4)) (+1, see below)
+//   bits 19..25  floor(128 sqrt(v2)) <= 127   bits 26..31  floor(64 Psi4(xi4)) <= 63 (+1, see below)
+// Every field is a cell index; the decoder reads depths and Psi4 at the upper end of their
+// cell and sqrt(v2) at its centre (HPG17 §3.5: "rounded up to guarantee a lower bound").
 
 // Depth code y~ = floor(511.5 (y + 1)), clamped to 0..1022 (y = 1 joins the top cell).
 uint packing_depth_code(float y)
@@ -75,12 +77,12 @@ uint packing_depth_code(float y)
     return uint(clamp(floor(s), 0.0, 1022.0));
 }
 
-// The 6-bit Psi4 code c decodes at the upper end of its rounding interval,
-// Psi4^-1(min(1, (c + 0.5) / 63)): "during loading ... rounded up to guarantee a lower
-// bound to the shadow intensity" (HPG17 §3.5).
+// The 6-bit Psi4 code c decodes at the upper end of its cell, Psi4^-1((c + 1) / 64):
+// "during loading ... rounded up to guarantee a lower bound to the shadow intensity"
+// (HPG17 §3.5).
 float packing_decode_xi32(uint c)
 {
-    precise float u = min((float(c) + 0.5) / 63.0, 1.0);
+    precise float u = (float(c) + 1.0) / 64.0;
     return psi4_inverse(u);
 }
 
@@ -96,10 +98,11 @@ uint pack32(float4 r)
         t1 = 1023u - t1;
         t2 = 1022u - t2;
     }
-    precise float sv = sqrt(r.z) * 127.0;
-    uint v = uint(round(sv));
-    precise float sx = psi4(r.w) * 63.0;
-    uint x = uint(round(sx));
+    // Cells of 1/128 and 1/64 (powers of two: the products are exact), truncated.
+    precise float sv = sqrt(r.z) * 128.0;
+    uint v = min(uint(floor(sv)), 127u);
+    precise float sx = psi4(r.w) * 64.0;
+    uint x = min(uint(floor(sx)), 63u);
     // Bump where log/exp rounding would decode below the stored xi4.
     float xi = clamp(r.w, PSI4_XI_MIN, PSI4_XI_MAX);
     if (packing_decode_xi32(x) < xi && x < 63u)
@@ -107,8 +110,8 @@ uint pack32(float4 r)
     return t2 | (t1 << 10) | (v << 19) | (x << 26);
 }
 
-// One uint32 -> (y1, y2, v2, xi4): depths at the centre of their cell, (y~ + 0.5)/511.5 - 1,
-// v2 = (c / 127)^2, xi4 rounded up.
+// One uint32 -> (y1, y2, v2, xi4): depths at the upper end of their cell, (y~ + 1)/511.5 - 1
+// (never in front of the packed depth), v2 = ((c + 0.5) / 128)^2 (never 0 or 1), xi4 rounded up.
 float4 unpack32(uint p)
 {
     uint f2 = ((p >> 0u) & 1023u);
@@ -120,9 +123,9 @@ float4 unpack32(uint p)
         f1 = 1023u - f1;
         f2 = 1022u - f2;
     }
-    precise float y1 = (float(f1) + 0.5) / 511.5 - 1.0;
-    precise float y2 = (float(f2) + 0.5) / 511.5 - 1.0;
-    precise float sv = float(v) / 127.0;
+    precise float y1 = (float(f1) + 1.0) / 511.5 - 1.0;
+    precise float y2 = (float(f2) + 1.0) / 511.5 - 1.0;
+    precise float sv = (float(v) + 0.5) / 128.0;
     precise float v2 = sv * sv;
     return float4(y1, y2, v2, packing_decode_xi32(x));
 }

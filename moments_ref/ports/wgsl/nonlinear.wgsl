@@ -66,9 +66,15 @@ fn phi_inverse(r: vec4<f32>) -> vec4<f32> {
     let y2 = r.y;
     let v2 = r.z;
     let v1 = 1.0 - v2;
-    let p1 = vec4<f32>(y1, y1 * y1, y1 * y1 * y1, y1 * y1 * y1 * y1);
-    let p2 = vec4<f32>(y2, y2 * y2, y2 * y2 * y2, y2 * y2 * y2 * y2);
-    return v1 * p1 + v2 * p2 + vec4<f32>(0.0, 0.0, 0.0, r.w);
+    // Powers as squares (y^4 = (y^2)^2) and one sum at a time: Mesa's GLSL compiler rebalances
+    // a chain like y*y*y*y into (y*y)*(y*y) and SPIR-V compilers do not, so the chain would
+    // round differently on OpenGL and Vulkan; written this way every compiler evaluates it alike.
+    let s1 = y1 * y1;
+    let s2 = y2 * y2;
+    let p1 = vec4<f32>(y1, s1, s1 * y1, s1 * s1);
+    let p2 = vec4<f32>(y2, s2, s2 * y2, s2 * s2);
+    let m = v1 * p1 + v2 * p2;
+    return vec4<f32>(m.xyz, m.w + r.w);
 }
 
 // ---------------------------------------------------------------------------------------

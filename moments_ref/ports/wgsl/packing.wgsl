@@ -60,7 +60,9 @@ fn unpack64(q: vec4<u32>) -> vec4<f32> {
 // 32 bits (HPG17 §3.5, Figure 5)
 // ---------------------------------------------------------------------------------------
 //   bits  0.. 9  y~2 (folded)     bits 10..18  y~1 (folded)
-//   bits 19..25  round(127 sqrt(v2))      bits 26..31  round(63 Psi4(xi4)) (+1, see below)
+//   bits 19..25  floor(128 sqrt(v2)) <= 127   bits 26..31  floor(64 Psi4(xi4)) <= 63 (+1, see below)
+// Every field is a cell index; the decoder reads depths and Psi4 at the upper end of their
+// cell and sqrt(v2) at its centre (HPG17 §3.5: "rounded up to guarantee a lower bound").
 
 // Depth code y~ = floor(511.5 (y + 1)), clamped to 0..1022 (y = 1 joins the top cell).
 fn packing_depth_code(y: f32) -> u32 {
@@ -68,11 +70,11 @@ fn packing_depth_code(y: f32) -> u32 {
     return u32(clamp(floor(s), 0.0, 1022.0));
 }
 
-// The 6-bit Psi4 code c decodes at the upper end of its rounding interval,
-// Psi4^-1(min(1, (c + 0.5) / 63)): "during loading ... rounded up to guarantee a lower
-// bound to the shadow intensity" (HPG17 §3.5).
+// The 6-bit Psi4 code c decodes at the upper end of its cell, Psi4^-1((c + 1) / 64):
+// "during loading ... rounded up to guarantee a lower bound to the shadow intensity"
+// (HPG17 §3.5).
 fn packing_decode_xi32(c: u32) -> f32 {
-    let u = min((f32(c) + 0.5) / 63.0, 1.0);
+    let u = (f32(c) + 1.0) / 64.0;
     return psi4_inverse(u);
 }
 
@@ -87,10 +89,11 @@ fn pack32(r_in: vec4<f32>) -> u32 {
         t1 = 1023u - t1;
         t2 = 1022u - t2;
     }
-    let sv = sqrt(r.z) * 127.0;
-    let v = u32(round(sv));
-    let sx = psi4(r.w) * 63.0;
-    var x = u32(round(sx));
+    // Cells of 1/128 and 1/64 (powers of two: the products are exact), truncated.
+    let sv = sqrt(r.z) * 128.0;
+    let v = min(u32(floor(sv)), 127u);
+    let sx = psi4(r.w) * 64.0;
+    var x = min(u32(floor(sx)), 63u);
     // Bump where log/exp rounding would decode below the stored xi4.
     let xi = clamp(r.w, PSI4_XI_MIN, PSI4_XI_MAX);
     if (packing_decode_xi32(x) < xi && x < 63u) {
@@ -99,8 +102,8 @@ fn pack32(r_in: vec4<f32>) -> u32 {
     return t2 | (t1 << 10u) | (v << 19u) | (x << 26u);
 }
 
-// One u32 -> (y1, y2, v2, xi4): depths at the centre of their cell, (y~ + 0.5)/511.5 - 1,
-// v2 = (c / 127)^2, xi4 rounded up.
+// One u32 -> (y1, y2, v2, xi4): depths at the upper end of their cell, (y~ + 1)/511.5 - 1
+// (never in front of the packed depth), v2 = ((c + 0.5) / 128)^2 (never 0 or 1), xi4 rounded up.
 fn unpack32(p: u32) -> vec4<f32> {
     var f2 = extractBits(p, 0u, 10u);
     var f1 = extractBits(p, 10u, 9u);
@@ -111,9 +114,9 @@ fn unpack32(p: u32) -> vec4<f32> {
         f1 = 1023u - f1;
         f2 = 1022u - f2;
     }
-    let y1 = (f32(f1) + 0.5) / 511.5 - 1.0;
-    let y2 = (f32(f2) + 0.5) / 511.5 - 1.0;
-    let sv = f32(v) / 127.0;
+    let y1 = (f32(f1) + 1.0) / 511.5 - 1.0;
+    let y2 = (f32(f2) + 1.0) / 511.5 - 1.0;
+    let sv = (f32(v) + 0.5) / 128.0;
     let v2 = sv * sv;
     return vec4<f32>(y1, y2, v2, packing_decode_xi32(x));
 }

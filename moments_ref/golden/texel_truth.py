@@ -1,0 +1,306 @@
+"""Ground truth of the texel formats and the affine bases, written from the papers.
+
+The golden cases of :mod:`moments_ref.packing` and :mod:`moments_ref.affine` take
+their expected values from here, not from the functions under test. Nothing here
+imports those modules: the bit layouts are the tables of docs/formats.md typed
+again, the affine matrices the ones printed on the slides ("Compute moments in
+resolve", "Retrieve moments", the six-moment "Quantization transform"), and every
+value is computed in exact rational arithmetic (depths, √v2, UNORM codes) or in
+mpmath at 50 digits (Ψ4, √3, matrix inverses). ``tests/test_golden.py`` checks
+that the constants of the modules under test agree with the tables here.
+
+Encoders return exact codes: the code of the real number the formula gives for the
+stored input. A float implementation may differ where that number lies within its
+rounding of a code boundary; the golden writer accepts such a row only where the
+reference's own legitimate evaluations disagree there too (a rounding tie), and
+refuses to write when the reference disagrees with the truth anywhere else
+(:func:`moments_ref.golden.spread.derive`).
+
+References
+----------
+HPG17, Slides : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import mpmath
+import numpy as np
+
+__all__ = ["LAYOUT32", "CELLS32", "DECODE_OFFSETS32", "pack64", "unpack64", "pack32", "unpack32",
+           "to_optimized", "from_optimized", "encode_unorm16", "decode_unorm16", "to_optimized6",
+           "encode_r10g10b10a2", "decode_r10g10b10a2"]
+
+_DPS = 50
+
+#: docs/formats.md, 32 bits: field -> (lowest bit, width).
+LAYOUT32 = {"y2": (0, 10), "y1": (10, 9), "v": (19, 7), "xi": (26, 6)}
+#: Cells per unit of the stored quantity: depth cells of 1/511.5 on y + 1, √v2 cells of
+#: 1/128, Ψ4 cells of 1/64 (docs/formats.md; the HPG17 demo's grids).
+CELLS32 = {"depth": Fraction(1023, 2), "v": 128, "xi": 64}
+#: Where the decoder reads each cell (docs/formats.md): depth and Ψ4 at the upper end,
+#: √v2 at the centre (HPG17 §3.5: "rounded up to guarantee a lower bound").
+DECODE_OFFSETS32 = {"depth": Fraction(1), "v": Fraction(1, 2), "xi": Fraction(1)}
+#: Slides, "Compute moments in resolve" (√3 written out where the slide has it).
+_OPTIMIZED = (("1.5", "0", "-2", "0"), ("0", "4", "0", "-4"), ("√3·1/2", "0", "√3·-2/9", "0"),
+              ("0", "0.5", "0", "0.5"))
+_OPTIMIZED_OFFSET = ("0.5", "0", "0.5", "0")
+#: Slides, six moments, "Quantization transform" (rows as printed; applied transposed).
+_M0 = (("2.5", "-1.87499864", "1.26583039"), ("-10", "4.20757543", "-1.47644883"),
+       ("8", "-1.83257679", "0.71061660"))
+_M1 = (("4", "9", "-0.57759806"), ("-4", "-24", "4.61936648"), ("0", "16", "-3.07953907"))
+_OFFSET6 = (("0.5", "0.5", "0.5"), ("0", "0", "0.018888946"))
+#: DXGI_FORMAT_R10G10B10A2_UNORM read as a little-endian word: R, G, B at bits 0, 10, 20.
+_R10_SHIFTS = (0, 10, 20)
+
+
+def _mp(text):
+    """A printed entry as an mpf: a decimal or fraction, or ``√3·q`` for √3 times the fraction q."""
+    if text.startswith("√3·"):
+        q = Fraction(text[3:])
+        return mpmath.sqrt(3) * q.numerator / q.denominator
+    q = Fraction(text)
+    return mpmath.mpf(q.numerator) / q.denominator
+
+
+def _matrix(rows, transpose=False):
+    m = mpmath.matrix([[_mp(v) for v in row] for row in rows])
+    return m.T if transpose else m
+
+
+def _psi4(x):
+    """HPG17 §3.3 at 50 digits, ξ4 clamped to [1.2e-7, 0.25] (Ψ4 in [0, 1])."""
+    lo, hi = mpmath.mpf("1.2e-7"), mpmath.mpf("0.25")
+    c0 = mpmath.log(mpmath.log(mpmath.mpf("1.2")))
+    c1 = mpmath.log(mpmath.log(hi * 10**7)) - c0
+    x = min(max(x, lo), hi)
+    return (mpmath.log(mpmath.log(x * 10**7)) - c0) / c1
+
+
+def _psi4_inverse(u):
+    c0 = mpmath.log(mpmath.log(mpmath.mpf("1.2")))
+    c1 = mpmath.log(mpmath.log(mpmath.mpf("0.25") * 10**7)) - c0
+    return mpmath.exp(mpmath.exp(c0 + u * c1)) / 10**7
+
+
+def _saturated(row):
+    """docs/formats.md, Input: y1, y2 to [-1, 1] (y2 at least y1), v2 to [0, 1], ξ4 ≥ 0; exact."""
+    y1, y2, v2, xi = (Fraction(float(v)) for v in row)
+    y1 = min(max(y1, Fraction(-1)), Fraction(1))
+    y2 = max(min(max(y2, Fraction(-1)), Fraction(1)), y1)
+    return y1, y2, min(max(v2, Fraction(0)), Fraction(1)), max(xi, Fraction(0))
+
+
+def _round_half_even(x):
+    return int(round(x))  # Fraction.__round__ rounds half to even
+
+
+def _to_half(x):
+    """Distance of x to the nearest half-integer (the boundaries of rounding to nearest)."""
+    return abs(x - math.floor(x) - Fraction(1, 2)) if isinstance(x, Fraction) else \
+        abs(x - mpmath.floor(x) - mpmath.mpf("0.5"))
+
+
+def _to_integer(x):
+    """Distance of x to the nearest integer (the boundaries of floor and ceil)."""
+    return abs(x - round(x)) if isinstance(x, Fraction) else abs(x - mpmath.nint(x))
+
+
+def _mpq(q):
+    return mpmath.mpf(q.numerator) / q.denominator
+
+
+def _pack64_row(row, xi_rounding):
+    y1, y2, v2, xi = _saturated(row)
+    s = [65535 * (y1 + 1) / 2, 65535 * (y2 + 1) / 2, 65535 * v2]
+    u = _psi4(_mpq(xi)) * 65535
+    code = int(mpmath.ceil(u)) if xi_rounding == "up" else int(mpmath.nint(u))
+    margin = min(min(float(_to_half(x)) for x in s), float(_to_integer(u) if xi_rounding == "up" else _to_half(u)))
+    return [_round_half_even(x) for x in s] + [code], margin / 65535
+
+
+def pack64(r, xi_rounding="up", margin=False):
+    """docs/formats.md, 64 bits: round(65535 (y + 1)/2), round(65535 v2), ceil (or round) 65535 Ψ4(ξ4).
+
+    ``margin``: also return, per row, the distance of the exact scaled values to the
+    nearest rounding boundary, in units of the code range (where a float
+    implementation may legitimately store the neighbouring code).
+    """
+    r = np.asarray(r, np.float64).reshape(-1, 4)
+    out, m = np.empty((len(r), 4), np.uint16), np.empty(len(r))
+    with mpmath.workdps(_DPS):
+        for i, row in enumerate(r):
+            out[i], m[i] = _pack64_row(row, xi_rounding)
+    return (out, m) if margin else (out,)
+
+
+def unpack64(q):
+    """UNORM16 -> y = 2c/65535 − 1, v2 = c/65535, ξ4 = Ψ4⁻¹(c/65535)."""
+    q = np.asarray(q).reshape(-1, 4).astype(np.int64)
+    out = np.empty(q.shape, np.float64)
+    with mpmath.workdps(_DPS):
+        for i, (a, b, c, d) in enumerate(q):
+            out[i] = [float(Fraction(2 * a, 65535) - 1), float(Fraction(2 * b, 65535) - 1), float(Fraction(c, 65535)),
+                      float(_psi4_inverse(mpmath.mpf(int(d)) / 65535))]
+    return (out,)
+
+
+def _codes32(row):
+    """The four cell indices of a row and the margin (distance to a cell boundary / cells)."""
+    y1, y2, v2, xi = _saturated(row)
+    s = [CELLS32["depth"] * (y + 1) for y in (y1, y2)]
+    t1, t2 = (min(max(math.floor(x), 0), 1022) for x in s)
+    if t1 >= 512:  # HPG17 Figure 5: the upper half of the triangle is rotated
+        t1, t2 = 1023 - t1, 1022 - t2
+    # ⌊128 √v2⌋ = isqrt(⌊16384 v2⌋), exactly
+    v = min(math.isqrt(math.floor(CELLS32["v"] ** 2 * v2)), CELLS32["v"] - 1)
+    sv = mpmath.sqrt(_mpq(v2)) * CELLS32["v"]
+    u = _psi4(_mpq(xi)) * CELLS32["xi"]
+    x = min(int(mpmath.floor(u)), CELLS32["xi"] - 1)
+    margin = min(min(float(_to_integer(t)) / 1023 for t in s), float(_to_integer(sv)) / CELLS32["v"],
+                 float(_to_integer(u)) / CELLS32["xi"])
+    return {"y2": t2, "y1": t1, "v": v, "xi": x}, margin
+
+
+def pack32(r, margin=False):
+    """docs/formats.md, 32 bits: the four cell indices at the bits of :data:`LAYOUT32` (``margin``: see pack64)."""
+    r = np.asarray(r, np.float64).reshape(-1, 4)
+    out, m = np.empty(len(r), np.uint32), np.empty(len(r))
+    with mpmath.workdps(_DPS):
+        for i, row in enumerate(r):
+            codes, m[i] = _codes32(row)
+            out[i] = sum(c << LAYOUT32[k][0] for k, c in codes.items())
+    return (out, m) if margin else (out,)
+
+
+def unpack32(p):
+    """Fields by :data:`LAYOUT32`, the fold undone, each cell read at :data:`DECODE_OFFSETS32`."""
+    p = np.asarray(p).reshape(-1).astype(np.int64)
+    out = np.empty((len(p), 4), np.float64)
+    with mpmath.workdps(_DPS):
+        for i, w in enumerate(p):
+            f = {k: (int(w) >> s) & ((1 << n) - 1) for k, (s, n) in LAYOUT32.items()}
+            t1, t2 = f["y1"], f["y2"]
+            if t2 < t1:  # a folded pair (unfolded pairs keep t1 ≤ t2)
+                t1, t2 = 1023 - t1, 1022 - t2
+            y = [(t + DECODE_OFFSETS32["depth"]) / CELLS32["depth"] - 1 for t in (t1, t2)]
+            sv = (f["v"] + DECODE_OFFSETS32["v"]) / CELLS32["v"]
+            u = (f["xi"] + DECODE_OFFSETS32["xi"]) / CELLS32["xi"]
+            out[i] = [float(y[0]), float(y[1]), float(sv * sv),
+                      float(_psi4_inverse(mpmath.mpf(u.numerator) / u.denominator))]
+    return (out,)
+
+
+def _apply(matrix, offset, x):
+    """``matrix · x + offset`` per row of x (float64 in, mpmath at 50 digits, float64 out)."""
+    x = np.asarray(x, np.float64)
+    out = np.empty(x.shape[:-1] + (matrix.rows,), np.float64)
+    flat_in, flat_out = x.reshape(-1, x.shape[-1]), out.reshape(-1, matrix.rows)
+    for i, row in enumerate(flat_in):
+        v = matrix * mpmath.matrix([mpmath.mpf(float(t)) for t in row]) + offset
+        flat_out[i] = [float(t) for t in v]
+    return out
+
+
+def _optimized():
+    return _matrix(_OPTIMIZED), mpmath.matrix([_mp(v) for v in _OPTIMIZED_OFFSET])
+
+
+def to_optimized(b):
+    """Slides, "Compute moments in resolve": (R, G, B, A) = M·b + c."""
+    with mpmath.workdps(_DPS):
+        m, c = _optimized()
+        return (_apply(m, c, b),)
+
+
+def from_optimized(q):
+    """Slides, "Retrieve moments": b = M⁻¹·(q − c), M⁻¹ computed here at 50 digits."""
+    with mpmath.workdps(_DPS):
+        m, c = _optimized()
+        inv = mpmath.inverse(m)
+        return (_apply(inv, -(inv * c), q),)
+
+
+def _unorm(x, top):
+    """Direct3D FLOAT -> UNORM: clamp to [0, 1], × top, round half up (x an mpf at 50 digits)."""
+    return int(mpmath.floor(min(max(x, mpmath.mpf(0)), mpmath.mpf(1)) * top + mpmath.mpf("0.5")))
+
+
+def _unorm_margin(values, top):
+    """Distance of the clamped, scaled values to the nearest rounding boundary, / top."""
+    return min(float(_to_half(min(max(t, mpmath.mpf(0)), mpmath.mpf(1)) * top)) for t in values) / top
+
+
+def encode_unorm16(b, margin=False):
+    """Four UNORM16 codes of the optimized basis (``margin``: see pack64)."""
+    b = np.asarray(b, np.float64).reshape(-1, 4)
+    out, mg = np.empty(b.shape, np.uint16), np.empty(len(b))
+    with mpmath.workdps(_DPS):
+        m, c = _optimized()
+        for i, row in enumerate(b):
+            v = m * mpmath.matrix([mpmath.mpf(float(t)) for t in row]) + c
+            out[i], mg[i] = [_unorm(t, 65535) for t in v], _unorm_margin(v, 65535)
+    return (out, mg) if margin else (out,)
+
+
+def decode_unorm16(u):
+    """Slides, "Retrieve moments" on u / 65535, exactly."""
+    codes, top = np.asarray(u).reshape(-1, 4), 65535
+    with mpmath.workdps(_DPS):
+        m, c = _optimized()
+        inv = mpmath.inverse(m)
+        out = np.empty(codes.shape, np.float64)
+        for i, row in enumerate(codes.astype(np.int64)):
+            v = inv * (mpmath.matrix([mpmath.mpf(int(t)) / top for t in row]) - c)
+            out[i] = [float(t) for t in v]
+    return (out,)
+
+
+def _six():
+    """((M0ᵀ, offset0), (M1ᵀ, offset1)) at 50 digits."""
+    return ((_matrix(_M0, True), mpmath.matrix([_mp(v) for v in _OFFSET6[0]])),
+            (_matrix(_M1, True), mpmath.matrix([_mp(v) for v in _OFFSET6[1]])))
+
+
+def _to6(row):
+    (m0, c0), (m1, c1) = _six()
+    odd = m0 * mpmath.matrix([mpmath.mpf(float(row[k])) for k in (0, 2, 4)]) + c0
+    even = m1 * mpmath.matrix([mpmath.mpf(float(row[k])) for k in (1, 3, 5)]) + c1
+    return list(odd) + list(even)
+
+
+def to_optimized6(b):
+    """Slides, six moments: (R0, G0, B0) = M0ᵀ·(b1, b3, b5) + 0.5, (R1, G1, B1) = M1ᵀ·(b2, b4, b6) + c1."""
+    b = np.asarray(b, np.float64).reshape(-1, 6)
+    with mpmath.workdps(_DPS):
+        return (np.array([[float(t) for t in _to6(row)] for row in b]),)
+
+
+def encode_r10g10b10a2(b, margin=False):
+    """Two R10G10B10A2_UNORM words: 10-bit codes of (R0, G0, B0) and (R1, G1, B1), alpha 0."""
+    b = np.asarray(b, np.float64).reshape(-1, 6)
+    out, mg = np.empty((len(b), 2), np.uint32), np.empty(len(b))
+    with mpmath.workdps(_DPS):
+        for i, row in enumerate(b):
+            q = _to6(row)
+            codes = [_unorm(t, 1023) for t in q]
+            out[i] = [sum(c << s for c, s in zip(codes[k:k + 3], _R10_SHIFTS)) for k in (0, 3)]
+            mg[i] = _unorm_margin(q, 1023)
+    return (out, mg) if margin else (out,)
+
+
+def decode_r10g10b10a2(p):
+    """The six 10-bit codes / 1023 through the exact inverses of M0ᵀ and M1ᵀ (alpha ignored)."""
+    p = np.asarray(p).reshape(-1, 2).astype(np.int64)
+    out = np.empty((len(p), 6), np.float64)
+    with mpmath.workdps(_DPS):
+        (m0, c0), (m1, c1) = _six()
+        i0, i1 = mpmath.inverse(m0), mpmath.inverse(m1)
+        for i, (w0, w1) in enumerate(p):
+            q = [[mpmath.mpf((int(w) >> s) & 1023) / 1023 for s in _R10_SHIFTS] for w in (w0, w1)]
+            odd = i0 * (mpmath.matrix(q[0]) - c0)
+            even = i1 * (mpmath.matrix(q[1]) - c1)
+            out[i] = [float(odd[0]), float(even[0]), float(odd[1]), float(even[1]), float(odd[2]), float(even[2])]
+    return (out,)

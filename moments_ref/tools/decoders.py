@@ -1,0 +1,167 @@
+"""The 32-bit decoder choice of docs/formats.md, measured: ``python -m moments_ref.tools.decoders``.
+
+HPG17 §3.5 reads the 32-bit texel "rounded up to guarantee a lower bound to the
+shadow intensity". This tool measures how well a decoder keeps that guarantee, the
+way docs/formats.md reports it:
+
+* :func:`against_bound`: shade of the decoded texel minus shade of the unquantized
+  representation ``phi(bias_moments(b, BIAS_FLOAT32))`` (both HPG17 Algorithm 3 with
+  its §3.4 clamps), over rows ``(b, zf)`` such as the ``e2e-nlq32`` golden rows;
+* :func:`against_z`: the same decoded shade against the exact ``Z(z < zf)`` of random
+  depth distributions (:func:`random_distributions`);
+* :func:`scene_texels`: both, per receiver pixel of a shipped scene (the NLQ
+  pipeline's filtered moments, bilinear lookup, the constant bias 1e-3 of §5).
+
+Decoders (:data:`DECODERS`): the format (:func:`moments_ref.packing.unpack32` of
+:func:`moments_ref.packing.pack32`, the HPG17 demo's cells and positions), the same
+with depths read at the cell centre, and the schema-2 format this package stored
+before (:func:`schema2_roundtrip`: ``round(127 √v2)``, ``round(63 Ψ4)``, depths at the
+cell centre), kept here only to reproduce the comparison.
+
+References
+----------
+HPG17, HPG17 demo : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..moments import BIAS_FLOAT32, bias_moments, power_moments
+from ..nonlinear import phi, psi4, psi4_inverse, shade
+from .. import packing
+
+__all__ = ["DECODERS", "schema2_roundtrip", "schema3_roundtrip", "against_bound", "against_z",
+           "random_distributions", "e2e_rows", "scene_texels", "main"]
+
+
+def schema2_roundtrip(r):
+    """Pack and decode ``r`` (n, 4) in the schema-2 32-bit format (float64): the comparison's baseline."""
+    r = packing.saturate(r)
+    t = np.clip(np.floor(511.5 * (r[:, :2] + 1)), 0, 1022)
+    sv = np.rint(127 * np.sqrt(r[:, 2])) / 127
+    c = np.rint(63 * psi4(r[:, 3]))
+    return np.column_stack([(t + 0.5) / 511.5 - 1, sv * sv, psi4_inverse(np.minimum((c + 0.5) / 63, 1))])
+
+
+def schema3_roundtrip(r, **positions):
+    """``unpack32(pack32(r), **positions)`` in float64 (the format; keywords of :func:`packing.unpack32`)."""
+    return packing.unpack32(packing.pack32(r), **positions)
+
+
+def _demo_clamp(r, offset=5e-6):
+    """The HPG17 demo's clamps (``ClampingOffset = 5e-6`` on v2 and y2 − y1) applied before Algorithm 3's own."""
+    r = np.array(r, copy=True)
+    r[:, 2] = np.clip(r[:, 2], offset, 1 - offset)
+    r[:, 1] = np.maximum(r[:, 1], r[:, 0] + offset)
+    return r
+
+
+#: The decoders compared (name -> r (n, 4) -> decoded r).
+DECODERS = {
+    "schema 3 (HPG17 demo)": schema3_roundtrip,
+    "schema 3 with the demo's clamp offset 5e-6": lambda r: _demo_clamp(schema3_roundtrip(r)),
+    "schema 3, depths at the cell centre": lambda r: schema3_roundtrip(r, depth_decode="centre"),
+    "schema 2": schema2_roundtrip,
+}
+
+
+def _stats(err):
+    over, leak = np.maximum(err, 0), np.maximum(-err, 0)
+    return {"over_max": float(err.max()), "over_mean": float(over.mean()), "abs_mean": float(np.abs(err).mean()),
+            "leak_max": float(leak.max()), "leak_mean": float(leak.mean()), "rows": int(err.size)}
+
+
+def _representation(b):
+    return packing.saturate(phi(bias_moments(np.asarray(b, np.float64), BIAS_FLOAT32)))
+
+
+def against_bound(b, zf, decoder):
+    """Statistics of ``shade(decoder(r), zf) − shade(r, zf)``, r the unquantized representation of ``b``."""
+    r = _representation(b)
+    zf = np.asarray(zf, np.float64)
+    return _stats(shade(decoder(r), zf) - shade(r, zf))
+
+
+def random_distributions(n=3000, seed=0):
+    """``(b, zf, Z)`` rows of n seeded distributions (1–6 depths: uniform, one surface, two clusters).
+
+    Fragments on a grid of 41 depths and at, 1e-5, 1e-3 and 3e-3 behind and 1e-3 in front
+    of each depth; ``Z`` the exact ``Z(z < zf)``.
+    """
+    rng = np.random.default_rng(seed)
+    bs, zs, Zs = [], [], []
+    for _ in range(n):
+        k, kind = rng.integers(1, 7), rng.integers(0, 3)
+        if kind == 0:
+            z = rng.uniform(-1, 1, k)
+        elif kind == 1:
+            z = np.clip(rng.uniform(-1, 1) + rng.uniform(-1, 1, k) * 10 ** rng.uniform(-4, -1), -1, 1)
+        else:
+            z = np.clip(rng.uniform(-1, 1, 2)[rng.integers(0, 2, k)] + rng.normal(0, 1e-4, k), -1, 1)
+        w = rng.dirichlet(np.ones(k))
+        zf = np.clip(np.concatenate([np.linspace(-1, 1, 41), z, z + 1e-3, z + 3e-3, z - 1e-3, z + 1e-5]), -1, 1)
+        bs.append(np.repeat(power_moments(z, w)[None], len(zf), 0))
+        zs.append(zf)
+        Zs.append((w[None, :] * (z[None, :] < zf[:, None])).sum(1))
+    return np.concatenate(bs), np.concatenate(zs), np.concatenate(Zs)
+
+
+def against_z(b, zf, Z, decoder):
+    """Over-shadowing against the exact Z: max and share of rows above 0.01 of ``shade(decoder(r), zf) − Z``."""
+    e = shade(decoder(_representation(b)), np.asarray(zf, np.float64)) - Z
+    return {"over_max": float(e.max()), "share_over_0.01": float(np.mean(e > 0.01))}
+
+
+def e2e_rows(dtype="float64"):
+    """``(b, zf)`` of the golden case ``e2e-nlq32-<dtype>``."""
+    from ..golden.cases import CASES, case_rows
+
+    inputs, _, _ = case_rows(CASES[f"e2e-nlq32-{dtype}"])
+    return inputs["b"].astype(np.float64), inputs["zf"].astype(np.float64)
+
+
+def scene_texels(name, decoder, full=False):
+    """Per receiver pixel of a shipped scene: decoded minus unquantized bilinear shade (float32, bias 1e-3)."""
+    from .. import pipeline
+    from ..gpu.bluenoise import lookup_bilinear
+    from ..scene import load_scene
+    from ..scene.gbuffer import receiver_depth
+
+    sc = load_scene(name)
+    size, samples, res = (None, None, None) if full else pipeline.reduced_settings(sc)
+    out = pipeline.run(sc, ["nlq32"], reference=False, full=full, shadow_map_size=size, msaa=samples,
+                       resolution=res)
+    b = out.values["onchip_resolve_blur" if out.msaa > 1 else "onchip_blur"]
+    r = packing.saturate(phi(bias_moments(b, BIAS_FLOAT32)).reshape(-1, 4)).astype(np.float32)
+    d = decoder(r.astype(np.float64)).astype(np.float32)
+    uv = out.gbuffer.uv.astype(np.float32)
+    zf = (receiver_depth(out.gbuffer, False) - 1e-3).astype(np.float32)
+    look = [lookup_bilinear(t.reshape(b.shape), uv, shade, zf).astype(np.float64) for t in (r, d)]
+    e = look[1] - look[0]
+    return {**_stats(e), "share_over_0.05": float(np.mean(e > 0.05)), "share_leak_0.05": float(np.mean(e < -0.05))}
+
+
+def main(scenes=("railing", "facade", "three-occluders")):
+    """Print docs/formats.md's tables (e2e rows, random distributions, the scenes' texels)."""
+    b, zf = e2e_rows()
+    print("| rows | decoder | over max | mean |error| | leak max | leak mean |\n|---|---|---|---|---|---|")
+    for name, dec in DECODERS.items():
+        s = against_bound(b, zf, dec)
+        print(f"| e2e-nlq32-float64 | {name} | {s['over_max']:.3f} | {s['abs_mean']:.4f} | {s['leak_max']:.3f} | "
+              f"{s['leak_mean']:.4f} |")
+    b, zf, Z = random_distributions()
+    for name, dec in DECODERS.items():
+        s, z = against_bound(b, zf, dec), against_z(b, zf, Z, dec)
+        print(f"| random distributions | {name} | {s['over_max']:.3f} (vs Z {z['over_max']:.3f}) | "
+              f"over {s['over_mean']:.4f} | {s['leak_max']:.3f} | {s['leak_mean']:.4f} |")
+    for sc in scenes:
+        for name, dec in ((k, v) for k, v in DECODERS.items() if "clamp" not in k):
+            s = scene_texels(sc, dec)
+            print(f"| {sc} | {name} | {s['over_max']:.3f} (share > 0.05: {s['share_over_0.05']:.1e}) | "
+                  f"{s['abs_mean']:.1e} | {s['leak_max']:.3f} (share > 0.05: {s['share_leak_0.05']:.1e}) | "
+                  f"{s['leak_mean']:.1e} |")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
