@@ -56,8 +56,10 @@ def module_files(names):
     return out
 
 
-def load_equivalents(path=EQUIVALENTS):
-    """``{mutant id: reason}`` from the equivalents file (``[[equivalent]]`` tables: id, why)."""
+def load_equivalents(path=None):
+    """``{mutant id: reason}`` from the equivalents file (``[[equivalent]]`` tables: id, why;
+    default ``tests/mutation_equivalents.toml``)."""
+    path = EQUIVALENTS if path is None else path
     if not Path(path).is_file():
         return {}
     with open(path, "rb") as f:
