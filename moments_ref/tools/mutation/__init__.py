@@ -57,8 +57,10 @@ def module_files(names):
 
 
 def load_equivalents(path=None):
-    """``{mutant id: reason}`` from the equivalents file (``[[equivalent]]`` tables: id, why;
-    default ``tests/mutation_equivalents.toml``)."""
+    """``{mutant id: reason}`` from the equivalents file (default ``tests/mutation_equivalents.toml``).
+
+    The file holds ``[[equivalent]]`` tables with ``id`` and ``why``.
+    """
     path = EQUIVALENTS if path is None else path
     if not Path(path).is_file():
         return {}
@@ -205,6 +207,7 @@ def _args(argv):
 
 
 def main(argv=None):
+    """``python -m moments_ref.tools.mutation``: measure, print the table and the survivors; returns 0."""
     args = _args(argv)
     files = module_files(args.modules or TARGETS)
     if args.list:

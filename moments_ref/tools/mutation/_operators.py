@@ -36,10 +36,13 @@ _DROP_CALL = {"abs", "fabs", "round", "rint", "copysign"}
 
 @dataclass(frozen=True)
 class Mutant:
-    """One change: ``id`` (stable), ``path``, ``function`` (qualified name), ``top`` (the
-    outermost function around it: the one whose code is swapped), ``lines`` (first and last
-    line of the statement it changes, the header of a compound one), ``before`` and
-    ``after`` (the changed expression's text)."""
+    """One mutant: its stable ``id``, where it is and what it changes.
+
+    ``path``, ``function`` (qualified name), ``top`` (the outermost function around it:
+    the one whose code is swapped), ``lines`` (first and last line of the statement it
+    changes, the header of a compound one), ``before`` and ``after`` (the changed
+    expression's text).
+    """
 
     id: str
     path: str
