@@ -145,6 +145,15 @@ def _tests_of(mutant, lines):
     return tests
 
 
+def _cheapest_first(tests, durations):
+    """Test ids grouped by file, the file whose tests take least time first, then by duration."""
+    per_file = {}
+    for t in tests:
+        f = t.split("::")[0]
+        per_file[f] = per_file.get(f, 0.0) + durations.get(t, 1.0)
+    return sorted(tests, key=lambda t: (per_file[t.split("::")[0]], t.split("::")[0], durations.get(t, 1.0)))
+
+
 def _run_module(path, lines, durations, only, results):
     source = (ROOT / path).read_text()
     mutants = [m for m in mutants_of(source, path) if not only or any(o in m.id for o in only)]
@@ -154,7 +163,7 @@ def _run_module(path, lines, durations, only, results):
     if not ok:
         raise SystemExit(f"mutation: {path}: the unmutated module fails its tests ({first})")
     for i, m in enumerate(mutants):
-        tests = sorted(_tests_of(m, lines), key=lambda t: durations.get(t, 1.0))
+        tests = _cheapest_first(_tests_of(m, lines), durations)
         if not tests:
             results[m.id] = ["no tests", ""]
         else:

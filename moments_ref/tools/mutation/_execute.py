@@ -166,12 +166,12 @@ def _child_run(module_name, top, code, test_ids):
     return f"{int(rc)}\n{rec.failed[0] if rec.failed else ''}".encode()
 
 
-def _batches(test_ids, first=4):
-    """The fastest tests first, alone: most mutants die there, before the other files are collected."""
-    i, size = 0, first
-    while i < len(test_ids):
-        yield test_ids[i:i + size]
-        i, size = i + size, size * 8
+def _batches(test_ids):
+    """One test file at a time, in the given order: most mutants die in the first, before the others are collected."""
+    files = {}
+    for t in test_ids:
+        files.setdefault(t.split("::")[0], []).append(t)
+    yield from files.values()
 
 
 def run_mutant(module_name, top, code, test_ids, timeout):
