@@ -590,6 +590,7 @@ def test_span_interval_is_exact_also_beyond_float_precision():
     # Just off an exact quotient with |L| > 2^53, where float64 rounds L itself.
     q, d = rng.integers(2**46, 2**48, n // 4), rng.integers(1, 64, n // 4) * 256
     L[1::4], a[1::4] = q * d + rng.choice([-1, 0, 1], n // 4), d * rng.choice([-1, 1], n // 4)
+    L[3::4], a[3::4] = -(q * d + rng.choice([-1, 0, 1], n // 4)), d * rng.choice([-1, 1], n // 4)  # L < -2^53
     lo = np.full(n, -2**62)
     hi = np.full(n, 2**62)
     _solve_interval(L, a, np.where(a == 0, 1, -a), lo, hi)
