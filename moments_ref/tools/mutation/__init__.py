@@ -168,7 +168,7 @@ def _run_module(path, lines, durations, only, results):
             results[m.id] = ["no tests", ""]
         else:
             timeout = 30 + 5 * sum(durations.get(t, 1.0) for t in tests)
-            results[m.id] = list(run_mutant(name, m.top, mutated_code(source, path, m), tests, timeout))
+            results[m.id] = list(run_mutant(name, m.top, mutated_code(source, path, m), tests, timeout, durations))
         print(f"[{i + 1}/{len(mutants)}] {results[m.id][0]:8s} {m.id}", file=sys.stderr)
     return mutants
 

@@ -145,7 +145,7 @@ def _live_function(module, qualname):
     return obj
 
 
-def _child_run(module_name, top, code, test_ids):
+def _child_run(module_name, top, code, test_ids, durations):
     """In the forked child: swap the code of ``top`` in ``module_name``, run ``test_ids``."""
     import importlib
 
@@ -160,7 +160,10 @@ def _child_run(module_name, top, code, test_ids):
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = tmp  # failures found under a mutant stay out of .hypothesis
         for batch in _batches(test_ids):
+            # each file within a few times its measured time: a mutant that loops forever dies early (SIGALRM)
+            signal.alarm(int(10 + 3 * sum(durations.get(t, 1.0) for t in batch)))
             rc = _pytest(["-x", *batch], rec)
+            signal.alarm(0)
             if rc != 0:
                 break
     return f"{int(rc)}\n{rec.failed[0] if rec.failed else ''}".encode()
@@ -174,10 +177,14 @@ def _batches(test_ids):
     yield from files.values()
 
 
-def run_mutant(module_name, top, code, test_ids, timeout):
-    """``(status, first failing test)`` of one mutant: ``killed``, ``survived``, ``timeout`` or ``error``."""
-    status, data, timed_out = _forked(lambda: _child_run(module_name, top, code, test_ids), timeout)
-    if timed_out:
+def run_mutant(module_name, top, code, test_ids, timeout, durations=None):
+    """``(status, first failing test)`` of one mutant: ``killed``, ``survived``, ``timeout`` or ``error``.
+
+    ``durations`` (test id -> seconds, measured unmutated): each test file may take ``10 s + 3×`` its time.
+    """
+    durations = {t: timeout for t in test_ids} if durations is None else durations
+    status, data, timed_out = _forked(lambda: _child_run(module_name, top, code, test_ids, durations), timeout)
+    if timed_out or (os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGALRM):
         return "timeout", ""
     if os.WIFSIGNALED(status):  # the tests crashed the process (out of memory, a fault)
         return "killed", f"(signal {os.WTERMSIG(status)})"
