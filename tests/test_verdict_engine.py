@@ -229,3 +229,59 @@ def test_rows_shown_per_category_worst_first_each_once():
     assert select_worst(category, score, row_pass, 5, extra=[6, 12]) == [3, 1, 2, 6, 8, 9, 12]
     score[[1, 2, 3]] = 0.7
     assert select_worst(category, score, score <= 1, 2) == [1, 6, 8, 9]  # a passing random shows one row
+
+
+# ---------------------------------------------------------------------------
+# golden.spread: the tolerances hold the legitimate ports they are derived from
+
+
+def _alternating(case, inputs, eps, sign, free):
+    """Every float input component times 1 ± eps, the sign alternating over the components of
+    all inputs in order (a port whose loads and first operations each round once), on ``free`` rows."""
+    out, k = {}, 0
+    for name, v in inputs.items():
+        if name in case.integer_inputs:
+            out[name] = v
+            continue
+        v = np.asarray(v, np.float64)
+        m = int(np.prod(v.shape[1:], dtype=np.int64))
+        s = np.array([sign if (k + j) % 2 == 0 else -sign for j in range(m)], np.float64).reshape(v.shape[1:])
+        k += m
+        f = 1 + eps * s[None] * free.reshape((-1,) + (1,) * (v.ndim - 1))
+        p = v * f
+        out[name] = np.where((np.abs(p) > 1) & (np.abs(v) <= 1), v, p)  # inputs in [-1, 1] stay there
+    return out
+
+
+def _joint(case, inputs, eps, sign):
+    """Every float input times 1 + sign 3 eps (one rounding direction of a port 3 ulps off)."""
+    return {k: v if k in case.integer_inputs else
+            np.where((np.abs(v * (1 + 3 * sign * eps)) > 1) & (np.abs(v) <= 1), v, v * (1 + 3 * sign * eps))
+            for k, v in ((k, np.asarray(v, np.float64)) for k, v in inputs.items())}
+
+
+@pytest.mark.parametrize("name", ["shadow_intensity-lower-float32", "phi-float32", "shade-float32"])
+@pytest.mark.parametrize("sign", [1, -1])
+def test_a_port_with_every_input_one_ulp_off_in_alternating_directions_passes(name, sign):
+    from moments_ref.golden.cases import CASES, evaluate_reference
+    from moments_ref.golden.spread import STRUCTURED
+    from moments_ref.golden.writer import golden_arrays, manifest_entry
+
+    case = CASES[name]
+    arrays = golden_arrays(case)
+    inputs = {k: arrays[k] for k in case.inputs}
+    flags = [str(f).split(",") for f in arrays["flags"]]
+    x = np.sort(np.abs(np.concatenate([np.asarray(v, np.float64).reshape(len(flags), -1) for k, v in inputs.items()
+                                       if k not in case.integer_inputs], axis=1)), axis=1)
+    equal = np.any((np.diff(x, axis=1) == 0) & (x[:, 1:] != 0) & (x[:, 1:] != 1), axis=1)
+    free = np.array([not any(f in STRUCTURED for f in fl) for fl in flags]) & ~equal
+    assert free.mean() > 0.5
+    eps = float(np.finfo(np.float32).eps)
+    entry = manifest_entry(case, arrays)
+    got = evaluate_reference(case, _alternating(case, inputs, eps, sign, free), np.float32)
+    v = compare(entry, arrays, {o: np.asarray(g, np.float32) for o, g in zip(case.outputs, got)})
+    assert v.row_pass[free].all(), np.flatnonzero(free & ~v.row_pass)[:5]
+    # Every input scaled by 1 ± 3 eps together (the backward error of operations 3 ulps off): every row.
+    got = evaluate_reference(case, _joint(case, inputs, eps, sign), np.float32)
+    v = compare(entry, arrays, {o: np.asarray(g, np.float32) for o, g in zip(case.outputs, got)})
+    assert v.passed, np.flatnonzero(~v.row_pass)[:5]
