@@ -154,7 +154,7 @@ def _cheapest_first(tests, durations):
     return sorted(tests, key=lambda t: (per_file[t.split("::")[0]], t.split("::")[0], durations.get(t, 1.0)))
 
 
-def _run_module(path, lines, durations, only, results):
+def _run_module(path, lines, durations, only, results, save=lambda: None):
     source = (ROOT / path).read_text()
     mutants = [m for m in mutants_of(source, path) if not only or any(o in m.id for o in only)]
     name = module_name_of(path)
@@ -170,6 +170,7 @@ def _run_module(path, lines, durations, only, results):
             timeout = 30 + 5 * sum(durations.get(t, 1.0) for t in tests)
             results[m.id] = list(run_mutant(name, m.top, mutated_code(source, path, m), tests, timeout, durations))
         print(f"[{i + 1}/{len(mutants)}] {results[m.id][0]:8s} {m.id}", file=sys.stderr)
+        save()  # an interrupted run keeps what it measured
     return mutants
 
 
@@ -238,9 +239,8 @@ def main(argv=None):
         for p in files:
             sha, old = _sha((ROOT / p).read_text()), state.get(p, {})
             results = dict(old["mutants"]) if args.only and old.get("sha") == sha else {}
-            _run_module(p, lines.get(p, {}), durations, args.only, results)
             state[p] = {"sha": sha, "mutants": results}
-            _save_state(state)
+            _run_module(p, lines.get(p, {}), durations, args.only, results, lambda: _save_state(state))
     rows, survivors, stale = score_table(state, files, load_equivalents())
     print("\n".join(rows))
     for mid, status in survivors:
