@@ -198,10 +198,11 @@ def test_a_cost_whose_slowest_repeat_equals_anothers_fastest_is_no_slower_but_no
 @pytest.mark.parametrize("key", ["rmse", "texel_seconds_max", "fragment_seconds"])
 def test_a_row_with_a_nan_or_infinite_coordinate_is_off_the_front_and_beats_nothing(bad, key):
     frag = (0.10, 0.09, 0.11)
-    rows = [_timed_row("msm64", 0.01, (0.5, 0.4, 0.6), frag), _timed_row("nlq64", 0.05, (1.0, 0.9, 1.1), frag)]
+    rows = [_timed_row("msm64", 0.06, (2.0, 1.9, 2.1), frag), _timed_row("nlq64", 0.05, (1.0, 0.9, 1.1), frag)]
+    assert _pareto.dominates(*_pareto._spread(rows)).tolist() == [[False, False], [True, False]]  # finite: beaten
     rows[0][key] = bad
     if key == "fragment_seconds":
         rows[0]["fragment_seconds_max"] = bad  # a spread around a non-finite median
     d = _pareto.dominates(*_pareto._spread(rows))
-    assert not d.any()
+    assert not d.any()  # neither dominated nor dominating
     assert [r["pareto"] for r in report.mark_pareto(rows)] == [False, True]
