@@ -206,3 +206,10 @@ def test_a_row_with_a_nan_or_infinite_coordinate_is_off_the_front_and_beats_noth
     d = _pareto.dominates(*_pareto._spread(rows))
     assert not d.any()  # neither dominated nor dominating
     assert [r["pareto"] for r in report.mark_pareto(rows)] == [False, True]
+    if key == "rmse":  # the table prints the RMSE as it is
+        assert f"| msm64 | no | {bad} |" in "\n".join(_pareto.front_lines(rows))
+
+
+def test_an_empty_group_has_an_empty_front():
+    assert report.pareto_mask([]).shape == (0,) and report.pareto_mask([]).dtype == bool
+    assert report.mark_pareto([]) == []
