@@ -213,3 +213,13 @@ def test_a_row_with_a_nan_or_infinite_coordinate_is_off_the_front_and_beats_noth
 def test_an_empty_group_has_an_empty_front():
     assert report.pareto_mask([]).shape == (0,) and report.pareto_mask([]).dtype == bool
     assert report.mark_pareto([]) == []
+
+
+def test_a_beaten_row_names_the_front_row_of_least_rmse_then_least_total_cost():
+    rows = [_row("a", "msm64", 0.02, 0.6, 0.1), _row("a", "nlq64", 0.02, 0.3, 0.5),  # both on the front
+            _row("a", "nlq32", 0.03, 0.7, 0.6), _row("a", "vsm", 0.01, 5.0, 5.0)]
+    report.mark_pareto(rows)
+    assert [r["pareto"] for r in rows] == [True, True, False, True]
+    md = "\n".join(_pareto.front_lines(rows))
+    # msm64 and nlq64 both beat nlq32 with the same RMSE: the cheaper in texel + fragment (0.7 < 0.8) is named
+    assert "| nlq32 | no | 0.03 | 0.7 | 0.6 | msm64 (RMSE 0.03 vs 0.02, texel 0.7 vs 0.6, fragment 0.6 vs 0.1) |" in md
