@@ -223,3 +223,15 @@ def test_a_beaten_row_names_the_front_row_of_least_rmse_then_least_total_cost():
     md = "\n".join(_pareto.front_lines(rows))
     # msm64 and nlq64 both beat nlq32 with the same RMSE: the cheaper in texel + fragment (0.7 < 0.8) is named
     assert "| nlq32 | no | 0.03 | 0.7 | 0.6 | msm64 (RMSE 0.03 vs 0.02, texel 0.7 vs 0.6, fragment 0.6 vs 0.1) |" in md
+
+
+def test_the_summary_has_one_table_per_reference_and_bolds_the_finite_best():
+    rows = [_row("a", "msm64", float("nan"), 0.1, 0.1), _row("a", "pcf", 0.02, 0.5, 0.5),
+            _row("a", "nlq32", 0.03, 0.2, 0.2), _row("a", "mvr", 0.0, 9.0, 9.0), _row("b", "nlq32", 0.5, 5.0, 5.0)]
+    md = "\n".join(_pareto.summary_lines(rows))
+    hard, soft = md.split(f"**{techniques.get_reference('mvr').label}**")
+    assert "| mvr |" in soft and "| mvr |" not in hard
+    assert all(f"| {t} |" in hard and f"| {t} |" not in soft for t in ("msm64", "pcf", "nlq32"))
+    assert "| msm64 | nan | **0.2** | — | — |" in hard  # a NaN RMSE is never the best
+    assert "| pcf | **0.02** | 1 | — | — |" in hard
+    assert "| nlq32 | 0.03 | 0.4 | **0.5** | **10** |" in hard
