@@ -285,3 +285,68 @@ def test_a_port_with_every_input_one_ulp_off_in_alternating_directions_passes(na
     got = evaluate_reference(case, _joint(case, inputs, eps, sign), np.float32)
     v = compare(entry, arrays, {o: np.asarray(g, np.float32) for o, g in zip(case.outputs, got)})
     assert v.passed, np.flatnonzero(~v.row_pass)[:5]
+
+
+def test_the_worst_output_of_a_case_decides_the_rows_error_and_tolerance():
+    e = {"compare": ["y", "z"], "outputs": {"y": {"dtype": "float32"}, "z": {"dtype": "float32"}},
+         "dtype": "float32", "metric": "abs"}
+    g = _golden([0.0, 0.0, 0.0], [1e-2, 1e-2, np.inf], result=["valid", "valid", "valid"])
+    g.update({"z": np.zeros(3), "z_tolerance_float32": np.array([1e-3, 1e-3, 1e-3]),
+              "z_tolerance_float64": np.ones(3)})
+    v = compare(e, g, {"y": np.float32([5e-3, 2e-3, 7.0]), "z": np.float32([1e-4, 2e-3, 0.0])})
+    assert v.row_pass.tolist() == [True, False, True]
+    np.testing.assert_allclose(v.score, [0.5, 2.0, 0.0], rtol=1e-6)
+    # row 0: y's error, row 1: z's; row 2 (both scores 0): the first output's, ungated
+    np.testing.assert_allclose(v.error, [5e-3, 2e-3, 7.0], rtol=1e-6)
+    np.testing.assert_allclose(v.tolerance, [1e-2, 1e-3, np.inf])
+    assert v.gated.tolist() == [True, True, False]  # an infinite tolerance on a valid row: not gated
+
+
+def test_one_dimensional_codes_accept_alternatives_on_acceptable_rows():
+    e = {"compare": ["p"], "outputs": {"p": {"dtype": "uint32"}}, "dtype": "float32", "metric": "exact"}
+    g = {"p": np.array([5, 5], np.uint32), "p_acceptable": np.array([[5, 6], [5, 6]], np.uint32),
+         "result": np.array(["acceptable", "valid"]), "tc_id": np.arange(1, 3)}
+    v = compare(e, g, {"p": np.array([6, 6], np.uint32)})
+    assert v.row_pass.tolist() == [True, False]
+
+
+def _float_case(y, tol, got, category, dtype="float32"):
+    n = len(y)
+    meta = {**_entry(dtype=dtype), "exact": False}
+    arrays = _golden(y, tol)
+    arrays["category"] = np.asarray(category)
+    return compare_case("f-test", meta, arrays, {"y": np.asarray(got, np.float32)})
+
+
+def test_float_case_summaries_per_category():
+    y = [1.0, 1.0, 2.0, 0.5, 0.25]
+    got = [1.0, 1.0 + 2 ** -20, 2.0 - 2 ** -10, 0.5, np.nan]
+    v = _float_case(y, [1e-3, 1e-3, 1e-4, 1e-3, 1e-3], got, ["random", "random", "stiff", "stiff", "edge"])
+    r, s, e = v.categories["random"], v.categories["stiff"], v.categories["edge"]
+    assert (r.rows, r.gated, r.failures) == (2, 2, 0) and (s.failures, e.failures) == (1, 1)
+    assert r.worst_score == pytest.approx(2 ** -20 / 1e-3, rel=1e-6) and r.worst_error == pytest.approx(2 ** -20)
+    assert s.worst_score == pytest.approx(2 ** -10 / 1e-4, rel=1e-6) and s.worst_tolerance == 1e-4
+    assert e.worst_score == np.inf
+    worst = {w["index"]: w for w in v.worst}
+    assert set(worst) == {1, 2, 4}  # random passes: its closest row; stiff and edge: their failures
+    assert worst[2]["abs"] == pytest.approx(2 ** -10) and worst[2]["rel"] == pytest.approx(2 ** -11)
+    assert worst[2]["ulps"] == 2 ** 13  # float32 spacing below 2 is 2^-23
+    assert worst[4]["abs"] == np.inf and worst[4]["ulps"] == np.inf
+    assert not v.passed and v.notes == [] and v.components is None
+
+
+def test_float64_cases_are_judged_by_their_float32_column_with_a_note():
+    v = _float_case([0.5], [1e-3], [0.5 + 1e-4], ["random"], dtype="float64")
+    assert v.passed and any("float32 tolerance column" in n for n in v.notes)
+
+
+def test_vector_outputs_report_the_worst_ulps_per_component():
+    meta = {**_entry(), "exact": False}
+    arrays = _golden(np.ones((3, 4)), 1.0)
+    got = np.ones((3, 4), np.float32)
+    got[0, 1] = np.nextafter(np.float32(1), np.float32(2))
+    got[2, 3] = np.float32(1 + 5 * 2 ** -23)
+    v = compare_case("v-test", meta, arrays, {"y": got})
+    assert v.components == {"ulps": "[0, 1, 0, 5]"}
+    v = _exact_case([1, 2, 3], [1, 9, 3])
+    assert v.components is None  # one code per row
