@@ -81,13 +81,13 @@ def test_each_case_binds_its_slots_and_checks_its_work_groups():
                 c.check_workgroup(size, "k")
         assert "32×24 output block" in c.workgroup_note
     v = contract("kernel-vwss-points")
-    assert v.input.name == "points" and v.output.name == "depth" and v.output.binding == 1
+    assert v.input.name == "points" and v.output.name == "depth" and [s.binding for s in v.slots] == [0, 1, 2]
     for size in [(1, 1, 1), (64, 1, 1), (100, 1, 1)]:
         v.check_workgroup(size, "k")
     for size in [(8, 8, 1), (64, 1, 2)]:
         with pytest.raises(InputError, match="N×1×1"):
             v.check_workgroup(size, "k")
     assert "multisampled" in contract("kernel-filter-nlq32").input.describe()
-    for bad in ["kernel-filter-nlq16", "filter-nlq64", "kernel-vwss"]:
+    for bad in ["kernel-filter-nlq16", "filter-nlq64", "kernel-vwss", "nlq64", ""]:
         with pytest.raises(InputError, match="not a kernel case"):
             contract(bad)
