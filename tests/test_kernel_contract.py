@@ -48,8 +48,14 @@ def test_filter_dispatches_cover_every_block_once(h, w):
         covered += [(oy // BLOCK[1], ox // BLOCK[0] + g) for g in range(d.groups[0])]
     want = [(r, c) for r in range(-(-h // BLOCK[1])) for c in range(bx)]
     assert sorted(covered) == want  # each block once, none beyond the map
-    if bx > 1:  # tiles narrower than the grid: a kernel ignoring the origin writes the wrong blocks
-        assert max(d.groups[0] for d in ds) < bx
+    # tiles of half the grid's width: a kernel ignoring the origin writes the wrong blocks
+    assert max(d.groups[0] for d in ds) == -(-bx // 2)
+    for d in ds:  # members the filter does not use are zero
+        assert _member(d.params, "origin")[2:].tolist() == [0, 0] and not _member(d.params, "count").any()
+        np.testing.assert_array_equal(_member(d.params, "bias_target"), np.float32([0, 0.375, 0, 0.375]))
+    # no bias in the case: alpha 0 and a zero target
+    plain = dispatches("kernel-filter-nlq64", {"height": h, "width": w, "samples": 4})
+    assert all(not _member(d.params, "bias").any() and not _member(d.params, "bias_target").any() for d in plain)
 
 
 @pytest.mark.parametrize("views, per", [(8, 8), (9, 4), (32, 5), (1, 3)])
@@ -64,7 +70,8 @@ def test_vwss_dispatches_cover_every_view_once(views, per, local_x):
         seen += list(range(first, first + count))
         assert d.groups == (-(-1000 // local_x), 1, 1) and d.groups[0] * local_x >= 1000
         assert _member(d.params, "size").tolist() == [20, 16, 0, views]
-        assert _member(d.params, "count")[0] == 1000
+        assert _member(d.params, "count").tolist() == [1000, 0, 0, 0]
+        assert _member(d.params, "origin")[:2].tolist() == [0, 0]
     assert seen == list(range(views))
 
 
