@@ -753,3 +753,38 @@ def _check_span_batches(batches, coef, w, samples, sx, sy, one_row):
         np.testing.assert_allclose(z, a + b * x + c * y, rtol=0, atol=1e-9)
         np.testing.assert_array_equal(flat, (row * w + col) * samples + samp)
         assert inside == bool(np.all((z >= -1) & (z <= 1))), (tri[0], row[0], z.min(), z.max())
+
+
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4]))
+def test_span_rows_are_exact_for_triangles_reaching_far_into_the_guard_band(seed, samples):
+    # A vertex up to 2^20 pixels away (clipping's guard band): the edge values at the map's
+    # samples exceed float64's exact integers (2^53), so such a triangle must take the int64
+    # path even when its box on the map is small. Against the definition, in Python integers.
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
+
+    rng = np.random.default_rng(seed)
+    h, w, n = 10, 12, 6
+    X = rng.integers(-300, w * 256 + 300, (3, n))
+    Y = rng.integers(-300, h * 256 + 300, (3, n))
+    X[0] = rng.integers(2**26, 2**28, n) * rng.choice([-1, 1], n)  # the far vertex, in 1/256 pixel
+    Y[0] = rng.integers(2**26, 2**28, n) * rng.choice([-1, 1], n)
+    s, X, Y = _setup_from_window(X, Y)
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
+    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
+    assert not safe[sel].any()
+    got = set()
+    kept = {k: np.take(s[k], sel, axis=1) for k in ("A", "B", "F0")}
+    for pt, row, samp, col0, cnt in _spans._row_batches(kept, c0[sel], c1[sel] - c0[sel] + 1, r0[sel],
+                                                         r1[sel] - r0[sel] + 1, safe[sel], sx, sy):
+        for p, r, q, a, c in zip(*(x.tolist() for x in (sel[pt], row, samp, col0, cnt))):
+            got.update((p, r, q, col) for col in range(a, a + c))
+    A, B, F0 = (s[k].tolist() for k in ("A", "B", "F0"))
+    want = {(i, r, q, col) for i in range(X.shape[1]) for r in range(h) for q in range(samples) for col in range(w)
+            if all(A[e][i] * (col * 256 + 128 + int(sx[q])) + B[e][i] * (r * 256 + 128 + int(sy[q])) + F0[e][i] >= 0
+                   for e in range(3))}
+    assert got == want
