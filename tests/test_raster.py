@@ -788,3 +788,46 @@ def test_span_rows_are_exact_for_triangles_reaching_far_into_the_guard_band(seed
             if all(A[e][i] * (col * 256 + 128 + int(sx[q])) + B[e][i] * (r * 256 + 128 + int(sy[q])) + F0[e][i] >= 0
                    for e in range(3))}
     assert got == want
+
+
+@settings(max_examples=25)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4]))
+def test_dense_span_rows_are_exact_for_long_edges_through_samples(seed, samples):
+    # Triangles whose boxes have at most 32 rows (the dense float path) across a wide map, vertices on
+    # the pixel grid so that edges pass exactly through samples: edge values reach 2^26 there,
+    # beyond float32's integers, and a sample one unit inside or outside an edge must be told apart.
+    # Against the edge functions evaluated at every sample of each box in int64 (exact).
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
+
+    rng = np.random.default_rng(seed)
+    h, w, n = 30, 1500, 8
+    X = rng.integers(-20, w + 20, (3, n)) * 256
+    Y = rng.integers(-2, 30, (3, n)) * 256 + rng.choice([0, 128], (3, n))
+    # and steep or wide ones with a vertex up to 2^24 units away (still the float path): edge
+    # coefficients beyond float32's 24 bits
+    far = (2**24 - rng.integers(1, 2**16, n)) * rng.choice([-1, 1], n)
+    X[0, : n // 4], Y[0, n // 4 : n // 2] = far[: n // 4], far[n // 4 : n // 2]
+    s, X, Y = _setup_from_window(X, Y)
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
+    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
+    kept = {k: np.take(s[k], sel, axis=1) for k in ("A", "B", "F0")}
+    got = []
+    for pt, row, samp, col0, cnt in _spans._row_batches(kept, c0[sel], c1[sel] - c0[sel] + 1, r0[sel],
+                                                         r1[sel] - r0[sel] + 1, safe[sel], sx, sy):
+        rep = np.repeat(np.arange(cnt.size), cnt)
+        col = np.repeat(col0, cnt) + np.arange(rep.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        got.append((((sel[pt][rep] * h + row[rep]) * samples + samp[rep]) * w + col))
+    got = np.sort(np.concatenate(got)) if got else np.zeros(0, np.int64)
+    want = []
+    cols = np.arange(w)
+    for i in range(X.shape[1]):
+        for r in range(h):
+            for q in range(samples):
+                x, y = cols * 256 + 128 + sx[q], r * 256 + 128 + sy[q]
+                inside = np.all([s["A"][e][i] * x + s["B"][e][i] * y + s["F0"][e][i] >= 0 for e in range(3)], axis=0)
+                want.append(((i * h + r) * samples + q) * w + cols[inside])
+    np.testing.assert_array_equal(got, np.sort(np.concatenate(want)))
