@@ -288,8 +288,8 @@ def _add_oracle(sub):
     cf.add_argument("--kernel", action="store_true",
                     help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
     cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
-    cf.add_argument("--time-limit", type=float, default=None, metavar="S",
-                    help="with --kernel: seconds one dispatch may run before the watchdog stops it (default 60)")
+    cf.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                    help="deprecated alias of --watchdog (kept for old scripts)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
     _add_source_options(cf)
@@ -308,7 +308,8 @@ def _add_source_options(cf):
     cf.add_argument("--keep-unused", action="store_true",
                     help="compile every declaration of the file, not only those the function uses")
     cf.add_argument("--watchdog", type=float, default=None, metavar="SECONDS",
-                    help="longest dispatch before the driver is stopped (default 10)")
+                    help="longest one dispatch may run before the driver process is stopped, for functions and "
+                         "kernels (default 10)")
 
 
 def _add_measurements(sub):

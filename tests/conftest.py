@@ -1,12 +1,17 @@
-"""Hypothesis profiles: ``ci`` (derandomized, bounded, no deadline) and ``thorough``.
+"""Hypothesis profiles, and the fixtures of the conformance tests.
 
-CI selects ``ci`` (also the default); run ``pytest --hypothesis-profile thorough``
-for long local runs.
+Hypothesis: ``ci`` (derandomized, bounded, no deadline) and ``thorough``. CI selects
+``ci`` (also the default); run ``pytest --hypothesis-profile thorough`` for long
+local runs. Conformance: the drivers, the compilers and the shipped goldens, built
+on tests/_harness.py.
 """
 
 import os
 
+import pytest
 from hypothesis import HealthCheck, settings
+
+from _harness import need, need_tool, shipped_golden_folder
 
 settings.register_profile(
     "ci",
@@ -24,3 +29,31 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+# --------------------------------------------------------------------------
+# Conformance: the drivers, the compilers and the shipped goldens
+
+@pytest.fixture(scope="session")
+def ctx():
+    """The OpenGL 4.3 context of the driver process, or skip (fail under CI)."""
+    from moments_ref import conformance
+
+    return need(conformance.get_context, "an OpenGL 4.3 context")
+
+
+@pytest.fixture(scope="session")
+def drivers(ctx):
+    """Both drivers (OpenGL; Vulkan and wgpu's OpenGL adapter) and both compilers, or skip (fail under CI)."""
+    from moments_ref.conformance import _wgpu
+
+    need(lambda: _wgpu.get_device("Vulkan"), "a Vulkan adapter")
+    need(lambda: _wgpu.get_device("OpenGL"), "wgpu's OpenGL adapter")
+    for tool in ("glslangValidator", "spirv-cross"):
+        need_tool(tool)
+
+
+@pytest.fixture(scope="session")
+def golden_dir():
+    """Goldens of every shipped case (written once per test process)."""
+    return shipped_golden_folder()

@@ -1,6 +1,6 @@
 """docs/ports.md: every adapter example runs, as printed, on both drivers; docs/conformance.md is sane.
 
-Drivers absent: skipped, or failed under CI (see test_conformance_languages.py).
+Drivers absent: skipped, or failed under CI (the `drivers` fixture of conftest.py).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 from moments_ref import conformance
 from moments_ref.conformance import _cli
 
-from test_conformance_languages import COMBOS, drivers  # noqa: F401  (the fixture)
+from test_conformance_languages import COMBOS
 
 ROOT = Path(__file__).resolve().parents[1]
 PORTS_MD = (ROOT / "docs" / "ports.md").read_text()

@@ -7,56 +7,22 @@ where a missing driver or compiler is a failure (.ci/run installs them).
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import io
-import os
 import re
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from moments_ref import InputError, cli, conformance, golden
-from moments_ref.conformance import ContextError, ToolError, _run, _wgpu, _wrap
+from moments_ref import InputError, cli, conformance
+from moments_ref.conformance import ContextError, _run, _wgpu, _wrap
 from moments_ref.conformance._source import load_source
+
+from _harness import assert_ties_are_the_float32_reference
 
 COMBOS = [(lang, drv) for lang in conformance.LANGUAGES for drv in conformance.DRIVERS]
 CASES = conformance.shipped_cases()
-
-
-def _need(make, what):
-    try:
-        return make()
-    except (ContextError, ToolError) as exc:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"CI=true but {what} is missing: {exc}")
-        pytest.skip(f"{what} is missing: {exc}")
-
-
-@pytest.fixture(scope="module")
-def drivers():
-    """Both drivers and both compilers, or skip (fail under CI)."""
-    _need(conformance.get_context, "an OpenGL 4.3 context")
-    _need(lambda: _wgpu.get_device("Vulkan"), "a Vulkan adapter")
-    _need(lambda: _wgpu.get_device("OpenGL"), "wgpu's OpenGL adapter")
-    for tool in ("glslangValidator", "spirv-cross"):
-        _need(lambda: conformance._toolchain._tool(tool), tool)
-
-
-@functools.lru_cache(maxsize=None)
-def shipped_golden_folder():
-    """Goldens of every shipped case, written once per test process (shared by the conformance tests)."""
-    d = tempfile.mkdtemp(prefix="moments-ref-test-golden-")
-    golden.write(d, CASES)
-    return Path(d)
-
-
-@pytest.fixture(scope="module")
-def golden_dir():
-    return shipped_golden_folder()
 
 
 # --------------------------------------------------------------------------
@@ -95,26 +61,6 @@ def test_shipped_port_passes_on_both_drivers(drivers, golden_dir, language, driv
     assert report.driver == driver and ("llvmpipe" in report.renderer or "lavapipe" in report.renderer)
     if report.exact:  # packing: bit-exact with the reference in float32 on every golden row
         assert_ties_are_the_float32_reference(report, golden_dir, case)
-
-
-def assert_ties_are_the_float32_reference(report, golden_dir, case):
-    """An encoder port equals the reference in float32 on every row.
-
-    The expected codes are exact (golden/texel_truth.py); where the reference's float32
-    code differs from them the row is a rounding tie, and there the port must store the
-    reference's float32 code (a tie used anywhere else is a difference).
-    """
-    from moments_ref.golden.cases import CASES, evaluate_reference
-
-    text = report.format()
-    assert all(c.mismatches == c.ties for c in report.categories.values()), text
-    c = CASES[case]
-    with np.load(Path(golden_dir) / f"{case}.npz") as g:
-        inputs = {k: g[k] for k in c.inputs}
-    reference = np.asarray(evaluate_reference(c, inputs, np.float32)[0])
-    for r in report.worst:
-        if r["tie"]:
-            assert np.array_equal(np.asarray(r["got"]), reference[r["index"]]), (r, text)
 
 
 _RUNS = {}
@@ -229,18 +175,39 @@ _BAD = {"glsl": "float f(float x)\n{\n    return x +;\n}\n",
         "wgsl": "fn f(x: f32) -> f32 {\n    let a = 1.0;\n    return x +;\n}\n"}
 
 
-@pytest.mark.parametrize("language,driver", COMBOS)
-def test_compile_error_names_the_users_file_and_line(drivers, tmp_path, language, driver):
-    path = tmp_path / f"bad.{language}"
-    path.write_text(_BAD[language])
+def _psi4_of(tmp_path, text, language, driver):
+    """``(exit code, stderr lines)`` of ``f`` in ``text`` run on psi4-float32 (signature ``float f(float xi4)``)."""
+    path = tmp_path / f"p.{language}"
+    path.write_text(text)
     err = io.StringIO()
     code = conformance.run_cli(path, "f", "psi4-float32", None, out=io.StringIO(), err=err, language=language,
                                adapter=driver)
-    lines = err.getvalue().strip().splitlines()
-    assert code == 2, err.getvalue()
+    assert "Traceback" not in err.getvalue()
+    return code, err.getvalue().strip().splitlines()
+
+
+@pytest.mark.parametrize("language,driver", COMBOS)
+def test_compile_error_names_the_users_file_and_line(drivers, tmp_path, language, driver):
+    code, lines = _psi4_of(tmp_path, _BAD[language], language, driver)
+    assert code == 2, lines
     assert lines[0].startswith("moments-ref conformance: the wrapped function does not compile")
-    assert "expected signature: " in lines[0]
-    assert len(lines) == 2 and re.match(rf"{re.escape(str(path))}:3\b", lines[1]), err.getvalue()
+    # the error is inside the user's function and its signature is right: no signature hint
+    assert "expected signature" not in lines[0], lines[0]
+    assert len(lines) == 2 and re.match(rf"{re.escape(str(tmp_path / f'p.{language}'))}:3\b", lines[1]), lines
+
+
+_TWO_ARGUMENTS = {"glsl": "float f(float x, float y)\n{\n    return x;\n}\n",
+                  "hlsl": "float f(float x, float y)\n{\n    return x;\n}\n",
+                  "wgsl": "fn f(x: f32, y: f32) -> f32 {\n    return x;\n}\n"}
+_PSI4_SIGNATURE = {"glsl": "float f(float xi4)", "hlsl": "float f(float xi4)", "wgsl": "fn f(xi4: f32) -> f32"}
+
+
+@pytest.mark.parametrize("language,driver", COMBOS)
+def test_a_signature_that_does_not_match_names_the_expected_one(drivers, tmp_path, language, driver):
+    # The function compiles on its own; the wrapper's call does not: the head names the signature it calls.
+    code, lines = _psi4_of(tmp_path, _TWO_ARGUMENTS[language], language, driver)
+    assert code == 2 and "does not compile" in lines[0], lines
+    assert f"expected signature: {_PSI4_SIGNATURE[language]}" in lines[0], lines
 
 
 @pytest.mark.parametrize("language", conformance.LANGUAGES)

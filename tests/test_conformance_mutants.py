@@ -3,7 +3,7 @@
 The fixtures are written by tests/fixtures/make_mutants.py from the shipped ports, so
 each differs from the shipped function by exactly the change its header names. Every
 mutant must fail with a report that names the failing rows, their inputs and reason.
-Drivers absent: skipped, or failed under CI (see test_conformance_languages.py).
+Drivers absent: skipped, or failed under CI (the `drivers` fixture of conftest.py).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures"
 sys.path.insert(0, str(FIXTURES))
 import make_mutants  # noqa: E402
 
-from test_conformance_languages import COMBOS, drivers, shipped_golden_folder  # noqa: E402,F401  (drivers: the fixture)
+from test_conformance_languages import COMBOS  # noqa: E402
 
 CASE = {"shade": "shade-float32", "unpack64": "unpack64-float32"}
 CAUGHT = list(make_mutants.MUTANTS)
@@ -30,11 +30,6 @@ CAUGHT = list(make_mutants.MUTANTS)
 GLSL_ONLY = {"msm_slides_verbatim": ("ComputeMSMShadowIntensity", "shadow_intensity-lower-float32"),
              "pack64_xi_rounded": ("pack64_xi_rounded", "pack64-float32"),
              "shade_paper_literal": ("shade_paper_literal", "shade-float32")}
-
-
-@pytest.fixture(scope="module")
-def golden_dir():
-    return shipped_golden_folder()
 
 
 def _run(name, language, driver, golden_dir, **kw):

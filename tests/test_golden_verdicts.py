@@ -7,13 +7,14 @@ agree row by row (conformance judges through ``golden.compare``, the one compara
 which the spy test below checks). Skipped without an OpenGL 4.3 context (unless CI=true).
 """
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from moments_ref import conformance, golden, oracle
+
+from _harness import one_change
 
 FIXTURES = Path(__file__).parent / "fixtures" / "glsl"
 CASES = conformance.shipped_cases()  # float32 and float64 cases (a shader computes in float32)
@@ -47,28 +48,11 @@ FIXTURE_MUTANTS = [
 ]
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    try:
-        return conformance.get_context()
-    except conformance.ContextError as exc:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"CI=true but no OpenGL 4.3 context: {exc}")
-        pytest.skip(f"no OpenGL 4.3 context: {exc}")
-
-
-@pytest.fixture(scope="module")
-def gdir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("golden_verdicts")
-    golden.write(d, CASES)
-    return d
-
-
-def _three_verdicts(ctx, gdir, tmp_path, glsl, function, case):
+def _three_verdicts(ctx, golden_dir, tmp_path, glsl, function, case):
     """``(conformance, verify, oracle.check)`` pass/fail; asserts they fail the same rows."""
-    report = conformance.run_case(glsl, function, case, golden_dir=gdir)
-    meta = golden.load_manifest(gdir)["cases"][case]
-    arrays = golden.load_case_arrays(gdir, case, meta)
+    report = conformance.run_case(glsl, function, case, golden_dir=golden_dir)
+    meta = golden.load_manifest(golden_dir)["cases"][case]
+    arrays = golden.load_case_arrays(golden_dir, case, meta)
     specs = {o: (arrays[o].dtype if meta["exact"] else np.float32, arrays[o].shape) for o in meta["compare"]}
     inputs = {k: arrays[k] for k in meta["inputs"]}
     got, _ = conformance.run_glsl(conformance.load_source(glsl), function, inputs, specs, ctx=ctx)
@@ -78,7 +62,7 @@ def _three_verdicts(ctx, gdir, tmp_path, glsl, function, case):
             got[o] = got[o].astype(want)
     path = tmp_path / "gpu.npz"
     np.savez(path, **{f"{case}.{o}": v for o, v in got.items()})
-    result = next(c for c in golden.verify(gdir, path, port_dtype="float32").cases if c.name == case)
+    result = next(c for c in golden.verify(golden_dir, path, port_dtype="float32").cases if c.name == case)
     # The same GPU outputs, the same rows: a float64 case gives verify the float32 column too.
     assert np.array_equal(report.row_pass, result.verdict.row_pass), (case, report.format())
     outs = tuple(got[o] for o in meta["compare"])
@@ -92,29 +76,23 @@ def _killed_by_all(verdicts, what):
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_shipped_ports_same_verdict(ctx, gdir, tmp_path, case):
+def test_shipped_ports_same_verdict(ctx, golden_dir, tmp_path, case):
     path, function = conformance.shipped_port(case)
-    assert _three_verdicts(ctx, gdir, tmp_path, path, function, case) == (True, True, True)
+    assert _three_verdicts(ctx, golden_dir, tmp_path, path, function, case) == (True, True, True)
 
 
 @pytest.mark.parametrize("name,case,fname,function,old,new", GLSL_MUTANTS, ids=[m[0] for m in GLSL_MUTANTS])
-def test_glsl_mutants_killed_by_all_three(ctx, gdir, tmp_path, name, case, fname, function, old, new):
-    src = (conformance.GLSL_DIR / fname).read_text()
-    assert src.count(old) == 1, "the mutation no longer applies to the shipped port"
-    mutant = tmp_path / fname
-    mutant.write_text(src.replace(old, new))
-    for inc in conformance.GLSL_DIR.glob("*.glsl"):  # includes of the shipped file
-        if not (tmp_path / inc.name).exists():
-            (tmp_path / inc.name).write_text(inc.read_text())
-    _killed_by_all(_three_verdicts(ctx, gdir, tmp_path, mutant, function, case), name)
+def test_glsl_mutants_killed_by_all_three(ctx, golden_dir, tmp_path, name, case, fname, function, old, new):
+    mutant = one_change(tmp_path, conformance.GLSL_DIR, fname, old, new)  # beside the file's includes
+    _killed_by_all(_three_verdicts(ctx, golden_dir, tmp_path, mutant, function, case), name)
 
 
 @pytest.mark.parametrize("name,case,fname,function", FIXTURE_MUTANTS, ids=[m[0] for m in FIXTURE_MUTANTS])
-def test_glsl_fixture_mutants_killed_by_all_three(ctx, gdir, tmp_path, name, case, fname, function):
-    _killed_by_all(_three_verdicts(ctx, gdir, tmp_path, FIXTURES / fname, function, case), name)
+def test_glsl_fixture_mutants_killed_by_all_three(ctx, golden_dir, tmp_path, name, case, fname, function):
+    _killed_by_all(_three_verdicts(ctx, golden_dir, tmp_path, FIXTURES / fname, function, case), name)
 
 
-def test_conformance_judges_through_golden_compare(ctx, gdir, monkeypatch):
+def test_conformance_judges_through_golden_compare(ctx, golden_dir, monkeypatch):
     # No second set of rules: conformance's verdict is golden.compare's, whatever that says.
     from moments_ref.conformance import verdict
     from moments_ref.golden.compare import compare as real_compare
@@ -130,6 +108,6 @@ def test_conformance_judges_through_golden_compare(ctx, gdir, monkeypatch):
 
     monkeypatch.setattr(verdict, "compare", spy)
     path, function = conformance.shipped_port("psi4-float32")
-    report = conformance.run_case(path, function, "psi4-float32", golden_dir=gdir)
+    report = conformance.run_case(path, function, "psi4-float32", golden_dir=golden_dir)
     assert calls == [("psi4-float32", "float32")]
     assert not report.passed and report.failures == report.rows

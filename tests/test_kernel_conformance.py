@@ -8,44 +8,30 @@ CI (``CI=true``), where a missing driver or tool is a failure.
 from __future__ import annotations
 
 import io
-import os
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from moments_ref import cli
-from moments_ref.conformance import ContextError, ToolError, get_context
-from moments_ref.conformance import _wgpu
 from moments_ref.conformance.kernel import BindingError, run_kernel, trace
 from moments_ref.conformance.kernel.cli import SHIPPED_KERNELS, shipped_kernel
 from moments_ref.golden.kernels import KERNEL_CASES
 from moments_ref.gpu import banks
 from moments_ref.ports import PORTS_DIR
 
+from _harness import need_tool, one_change
+
 FIXTURES = Path(__file__).parent / "fixtures" / "kernels"
 LANGUAGES = ("glsl", "hlsl", "wgsl")
 
 
-def _need(make, what):
-    try:
-        return make()
-    except (ContextError, ToolError) as exc:
-        if os.environ.get("CI", "").lower() == "true":
-            pytest.fail(f"CI=true but {what} is missing: {exc}")
-        pytest.skip(f"{what} is missing: {exc}")
-
-
 @pytest.fixture(scope="module")
-def drivers():
-    """Both drivers and the tools, or skip (fail under CI)."""
-    _need(get_context, "an OpenGL 4.3 context")
-    _need(lambda: _wgpu.get_device("Vulkan"), "a Vulkan adapter")
-    for tool in ("glslangValidator", "spirv-cross", "spirv-dis", "spirv-as"):
-        if shutil.which(tool) is None:
-            _need(lambda: (_ for _ in ()).throw(ToolError(f"{tool} is not installed")), tool)
+def drivers(drivers):
+    """conftest's drivers and compilers, and spirv-tools (the kernels' SPIR-V for naga), or skip (fail under CI)."""
+    for tool in ("spirv-dis", "spirv-as"):
+        need_tool(tool)
 
 
 def _ran(report):
@@ -126,11 +112,7 @@ MUTANTS = [
 
 def mutant_file(tmp_path, language, fname, old, new, case):
     """The shipped kernel of ``case`` with one change in ``fname``, in a folder with its includes."""
-    for f in (PORTS_DIR / language).glob(f"*.{language}"):
-        shutil.copy(f, tmp_path / f.name)
-    src = (tmp_path / fname).read_text()
-    assert src.count(old) == 1, "the mutation no longer applies to the shipped kernel"
-    (tmp_path / fname).write_text(src.replace(old, new))
+    one_change(tmp_path, PORTS_DIR / language, fname, old, new)
     path, entry = shipped_kernel(case, language)
     return tmp_path / path.name, entry
 

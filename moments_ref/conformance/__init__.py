@@ -18,7 +18,7 @@ wgpu runs on Vulkan; WGSL runs through wgpu on Vulkan (the default) or on wgpu's
 OpenGL adapter. ``--adapter`` picks the driver (``gl``, ``vulkan``, ``both`` with
 the rows where they differ (:mod:`._agree`), ``as-written``) or an adapter by name;
 the report names renderer and driver. Compilers and drivers run in child processes
-under memory and time limits (:mod:`._child`).
+under memory and time limits, one driver process for functions and kernels (:mod:`._supervisor`).
 
 Function contract (:mod:`._slots`): the GLSL one in each language's types, e.g.
 ``float NAME(vec4 b, float zf)``, ``float NAME(float4 b, float zf)``,
@@ -46,7 +46,7 @@ from ._cli import bench_conformance, main, run_cli, summary_markdown
 from ._gl import ContextError, create_context, get_context, renderer
 from ._report import ConformanceReport
 from ._agree import DriverComparison, compare_drivers
-from ._child import DriverError
+from ._supervisor import WATCHDOG_SECONDS, DriverError, set_watchdog, watchdog
 from ._run import AS_WRITTEN, DEFAULT_DRIVER, DRIVERS, LANGUAGES, SourceOptions, run_case, run_function
 from ._shipped import SHIPPED, SHIPPED_FUNCTIONS, shipped_cases, shipped_port
 from ._slots import Slot, signature
@@ -57,6 +57,7 @@ from .verdict import ulp_distance
 __all__ = [
     "ContextError", "ToolError", "ShaderError", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR", "PORTS_DIR",
     "LANGUAGES", "DRIVERS", "DEFAULT_DRIVER", "AS_WRITTEN", "SourceOptions", "DriverError", "DriverComparison",
+    "WATCHDOG_SECONDS", "set_watchdog", "watchdog",
     "compare_drivers", "SHIPPED", "SHIPPED_FUNCTIONS",
     "create_context", "get_context", "renderer", "load_source", "defined_functions",
     "shipped_port", "shipped_cases", "Slot", "signature", "glsl_signature", "run_glsl", "run_function",

@@ -18,6 +18,7 @@ from ._gl import ContextError
 from ._report import fmt
 from ._run import DRIVERS, LANGUAGES, SourceOptions, language_of, parse_adapter, run_case, run_function
 from ._shipped import shipped_cases, shipped_port
+from ._supervisor import using_watchdog
 from ._toolchain import ToolError, tool_versions
 
 __all__ = ["resolve_port", "run_cli", "harness_failure", "source_options", "main", "summary_markdown", "bench_conformance"]
@@ -203,12 +204,15 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
 
 def main(args):
     """Entry for the CLI: ``args`` has ``glsl``/``hlsl``/``wgsl``, ``function``, ``case``,
-    ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None)."""
+    ``golden``, ``adapter``, ``all`` and ``out`` (absent ones count as None); ``watchdog``
+    (or its old name ``time_limit``) holds for this run only."""
     get = lambda k: getattr(args, k, None)  # noqa: E731
-    if get("watchdog") is not None:
-        from ._child import set_watchdog
+    with using_watchdog(get("watchdog")), using_watchdog(get("time_limit"), "time_limit"):
+        return _main(args)
 
-        set_watchdog(get("watchdog"))
+
+def _main(args):
+    get = lambda k: getattr(args, k, None)  # noqa: E731
     if get("kernel"):
         from .kernel.cli import kernel_cli
 
@@ -217,7 +221,7 @@ def main(args):
             raise InputError(f"conformance: --kernel expects one of --glsl, --hlsl or --wgsl FILE, got {len(files)}")
         language, path = files[0]
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
-                          get("adapter"), get("time_limit"))
+                          get("adapter"))
     if get("all"):
         from .._io import write_text
 

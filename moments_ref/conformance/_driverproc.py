@@ -1,9 +1,14 @@
-"""The driver process (:mod:`._child` starts it): OpenGL context and wgpu devices, one request at a time.
+"""The driver process (:mod:`._supervisor` starts it): opens the drivers once, runs one job at a time.
 
-Run as ``python -m moments_ref.conformance._driverproc READ_FD WRITE_FD``; answers
-each request ``(memory limit, message)`` with ``(kind, value)``: ``compiled`` once
-the shader is built, then ``ok`` and the result, or ``context``, ``compile`` or
-``error`` and a one-line reason. Dies with its parent (Linux: a parent-death signal).
+Run as ``python -m moments_ref.conformance._driverproc READ_FD WRITE_FD``. Each
+request is ``(memory limit, job)``; the answers are ``("beat", done)`` heartbeats
+while the job runs, then ``("ok", result)``, or ``context``, ``compile`` or
+``error`` with a one-line reason. Dies with its parent (Linux: a parent-death signal).
+
+:class:`Drivers` is the one place where the drivers are set up, for functions and
+kernels alike: the OpenGL 4.3 context through EGL (:func:`._gl.open_local`) and the
+wgpu device of an adapter with the limits the kernels need
+(:func:`._wgpu.open_local`).
 """
 
 from __future__ import annotations
@@ -11,11 +16,29 @@ from __future__ import annotations
 import signal
 import sys
 
-from ._child import CompileFailed
 from ._errors import ContextError, LocalCompileError
 from ._toolchain import limit_memory
 
-__all__ = []
+__all__ = ["Drivers"]
+
+
+class Drivers:
+    """The drivers of this process, each opened on first use and kept.
+
+    ``open(("gl",))`` is a :class:`~._gl.LocalGL`; ``open(("wgpu", backend, name))``
+    a :class:`~._wgpu.LocalDevice` on the first ``backend`` adapter (``Vulkan`` or
+    ``OpenGL``) whose name contains ``name``. Raises ContextError without one.
+    """
+
+    def __init__(self):
+        self._open = {}
+
+    def open(self, target):
+        if target not in self._open:
+            from . import _gl, _wgpu
+
+            self._open[target] = _gl.open_local() if target[0] == "gl" else _wgpu.open_local(*target[1:])
+        return self._open[target]
 
 
 def _die_with_parent():
@@ -28,51 +51,39 @@ def _die_with_parent():
         pass  # elsewhere the closed pipe ends the loop
 
 
-def _serve(down, up):
-    """The worker's loop: one request at a time, answers ``(kind, value)``."""
+def _one_line(exc):
+    text = " ".join(x.strip() for x in str(exc).splitlines() if x.strip())
+    return f"{type(exc).__name__}: {text[:400]}" if text else type(exc).__name__
+
+
+def serve(down, up):
+    """The loop: read a job, run it with heartbeats, answer ``(kind, value)``; return when the parent is gone."""
     from multiprocessing.connection import Connection
 
-    from . import _gl, _wgpu
-
     _die_with_parent()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and kills us
     recv, conn = Connection(down, writable=False), Connection(up, readable=False)
+    drivers = Drivers()
 
-    targets = {}
+    def beat(done):
+        conn.send(("beat", done))
+
     while True:
         try:
-            mem, message = recv.recv()
+            mem, job = recv.recv()
         except (EOFError, OSError):
             return  # the parent is gone
         limit_memory(mem)
         try:
-            conn.send(("ok", _handle(message, targets, conn, _gl, _wgpu)))
+            conn.send(("ok", job.run(drivers, beat)))
         except ContextError as exc:
             conn.send(("context", str(exc)))
-        except CompileFailed as exc:
-            conn.send(("compile", exc.args[0]))
+        except LocalCompileError as exc:
+            conn.send(("compile", str(exc)))
         except MemoryError:
             conn.send(("error", "out of memory"))
         except Exception as exc:  # noqa: BLE001 - reported to the parent as one line
-            text = " ".join(x.strip() for x in str(exc).splitlines() if x.strip())
-            conn.send(("error", f"{type(exc).__name__}: {text[:400]}"))
-
-
-def _handle(message, targets, conn, _gl, _wgpu):
-    kind, target = message[0], message[1]
-    if target not in targets:
-        targets[target] = _gl.open_local() if target[0] == "gl" else _wgpu.open_local(*target[1:])
-    driver = targets[target]
-    if kind == "open":
-        return driver.renderer, driver.version_code, getattr(driver, "spirv", False)
-    code, bindings, groups, entry, group = message[2:]
-    try:
-        compiled = driver.compile(code, entry, group, [(b.binding, b.kind) for b in sorted(bindings, key=lambda b: b.binding)])
-    except LocalCompileError as exc:
-        raise CompileFailed(str(exc)) from None
-    conn.send(("compiled", None))
-    return driver.dispatch(compiled, bindings, groups, group)
+            conn.send(("error", _one_line(exc)))
 
 
 if __name__ == "__main__":
-    _serve(int(sys.argv[1]), int(sys.argv[2]))
+    serve(int(sys.argv[1]), int(sys.argv[2]))

@@ -1,6 +1,6 @@
 """OpenGL backend: moderngl on EGL (Mesa llvmpipe without a GPU), in the driver process.
 
-The context lives in the driver process of :mod:`._child`; :func:`get_context`
+The context lives in the driver process of :mod:`._supervisor`; :func:`get_context`
 returns its description and :func:`run_program` sends it work. :func:`dispatch`
 is the general backend function there (any storage buffers, any grid).
 
@@ -17,7 +17,7 @@ import numpy as np
 
 from ._errors import ContextError, LocalCompileError
 from ._slots import as_buffer
-from ._source import ShaderError, one_line_errors
+from ._source import one_line_errors, wrapped_compile_error
 
 __all__ = ["ContextError", "create_context", "get_context", "renderer", "run_program", "dispatch", "open_local",
            "LocalGL", "LocalCompileError", "RemoteContext", "case_bindings", "case_results"]
@@ -55,14 +55,6 @@ def create_context(require=430):
     return ctx
 
 
-def get_context():
-    """The process-wide context (created on first use, then reused)."""
-    global _CONTEXT
-    if _CONTEXT is None:
-        _CONTEXT = create_context()
-    return _CONTEXT
-
-
 def renderer(ctx):
     """``'llvmpipe (LLVM 15.0.6, 256 bits), OpenGL 4.5 (Core Profile) Mesa 22.3.6'``."""
     if isinstance(ctx, RemoteContext):
@@ -73,7 +65,7 @@ def renderer(ctx):
 
 
 class RemoteContext:
-    """The OpenGL context of the driver process (:mod:`._child`): renderer, version, SPIR-V support."""
+    """The OpenGL context of the driver process (:mod:`._supervisor`): renderer, version, SPIR-V support."""
 
     def __init__(self, renderer, version_code, spirv=False):
         self.renderer, self.version_code, self.spirv = renderer, version_code, spirv
@@ -86,7 +78,7 @@ def get_context():
     """
     global _CONTEXT
     if _CONTEXT is None:
-        from ._child import open_target
+        from ._dispatch import open_target
 
         _CONTEXT = RemoteContext(*open_target(("gl",)))
     return _CONTEXT
@@ -108,7 +100,7 @@ def groups(n, local_size):
 def case_bindings(ins, outs, arrays, n, local_size, tex=None):
     """The harness's buffers (and textures, :mod:`._textures`) of one case: inputs, outputs, ``mr_params``;
     and the grid."""
-    from ._child import Binding
+    from ._dispatch import Binding
     from ._textures import texel_bytes
 
     gx, gy = groups(n, local_size)
@@ -137,14 +129,13 @@ def run_program(text, name_of, signature, ins, outs, arrays, n, local_size, ctx=
     Returns ``(results, timings)``; ``timings`` has ``compile``, ``upload``,
     ``dispatch`` and ``readback`` seconds.
     """
-    from ._child import dispatch
+    from ._dispatch import dispatch
 
     get_context() if ctx is None else ctx
     bindings, grid = case_bindings(ins, outs, arrays, n, local_size, tex)
 
     def failed(log):
-        return ShaderError(f"the wrapped function does not compile (expected signature: {signature}):\n"
-                           + "\n".join(_mesa_errors(log, name_of)))
+        return wrapped_compile_error("", _mesa_errors(log, name_of), signature)
 
     raw, timings = dispatch(("gl",), text, bindings, grid, entry, on_compile_error=failed)
     return case_results(outs, ins, raw, n), timings
@@ -208,7 +199,7 @@ def _texture(ctx, b):
 
 
 def dispatch(ctx, program, bindings, grid):
-    """Bind storage buffers (:class:`~._child.Binding`), dispatch ``grid`` work groups, read back.
+    """Bind storage buffers (:class:`~._dispatch.Binding`), dispatch ``grid`` work groups, read back.
 
     Returns ``({binding: bytes} of the "write" buffers, timings)``.
     """

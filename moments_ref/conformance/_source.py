@@ -31,12 +31,14 @@ from .._arrays import InputError
 from ..ports import PORTS_DIR
 
 __all__ = ["ShaderError", "ShaderSource", "MAX_SOURCE_BYTES", "MAX_INCLUDE_DEPTH", "load_source", "read_text",
-           "defined_functions", "strip_comments", "one_line_errors", "check_identifier"]
+           "defined_functions", "strip_comments", "one_line_errors", "wrapped_compile_error", "check_identifier", "WRAPPER"]
 
 #: Default budget for a source file with its prelude and includes (``--max-source``).
 MAX_SOURCE_BYTES = 4 << 20
 #: Deepest include chain accepted (a file that includes a file ... 64 times).
 MAX_INCLUDE_DEPTH = 64
+#: How compiler messages name the harness's own lines (the wrapper that calls the function).
+WRAPPER = "<harness wrapper>"
 
 
 class ShaderError(InputError):
@@ -69,15 +71,15 @@ class ShaderSource:
     notes: list = field(default_factory=list)
 
     def locate(self, line):
-        """``file:line`` of ``body`` line ``line`` (1-based), or ``<harness wrapper>``."""
+        """``file:line`` of ``body`` line ``line`` (1-based), or :data:`WRAPPER`."""
         if 1 <= line <= len(self.lines) and self.lines[line - 1] is not None:
             k, no = self.lines[line - 1]
             return f"{self.files[k]}:{no}"
-        return "<harness wrapper>"
+        return WRAPPER
 
     def name(self, k):
-        """Path of source string ``k`` (1-based), ``<harness wrapper>`` for 0."""
-        return str(self.files[k - 1]) if 0 < k <= len(self.files) else "<harness wrapper>"
+        """Path of source string ``k`` (1-based), :data:`WRAPPER` for 0."""
+        return str(self.files[k - 1]) if 0 < k <= len(self.files) else WRAPPER
 
 
 def check_identifier(name, what="function"):
@@ -278,20 +280,38 @@ def defined_functions(body):
                    if m.group(1).split()[-1] not in _KEYWORDS})
 
 
-def one_line_errors(log, pattern, rename):
+def one_line_errors(log, pattern, rename, noise=None):
     """Error lines of a compiler log, one per error, locations rewritten by ``rename(match)``.
 
     ``pattern`` finds a location in a line; ``rename`` turns its match into ``file:line``.
-    Lines that are not errors (warnings, summaries) are dropped unless nothing is left.
+    Lines that are not errors (warnings, summaries, and lines matching the regex ``noise``:
+    a compiler's repetitions without a location) are dropped unless nothing is left.
     """
     out = []
     for line in log.splitlines():
         low = line.lower()
         if "error" not in low or re.search(r"\d+ compilation errors|no code generated", low):
             continue
+        if noise and re.search(noise, line.replace("ERROR: ", "").strip()):
+            continue
         out.append(re.sub(pattern, rename, line.replace("ERROR: ", "").strip()))
     if not out:
         return [re.sub(pattern, rename, log.strip())]
     # Errors in the user's files make the harness's own lines fail too: drop those echoes.
-    own = [x for x in out if "<harness wrapper>" not in x and not x.startswith("Linking")]
+    own = [x for x in out if WRAPPER not in x and not x.startswith("Linking")]
     return own or out
+
+
+def wrapped_compile_error(compiler, errors, signature):
+    """The :class:`ShaderError` of a wrapped function that does not compile: a head line, then ``errors``.
+
+    The head names the signature the wrapper calls only where an error is on the
+    wrapper's own lines (the call: a signature that does not match, a function the
+    file does not define as expected); an error inside the user's file says nothing
+    about the signature, and a hint there would send the porter to the wrong line.
+    """
+    notes = [compiler] if compiler else []
+    if any(WRAPPER in e for e in errors):
+        notes.append(f"expected signature: {signature}")
+    head = "the wrapped function does not compile" + (f" ({'; '.join(notes)})" if notes else "")
+    return ShaderError(head + ":\n" + "\n".join(errors))

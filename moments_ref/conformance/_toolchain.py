@@ -21,7 +21,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from ._source import ShaderError, one_line_errors
+from ._source import ShaderError, one_line_errors, wrapped_compile_error
 
 __all__ = ["ToolError", "COMPILE_SECONDS", "limit_memory", "glslang_glsl", "glslang_hlsl", "spirv_to_glsl", "tool_versions"]
 
@@ -94,8 +94,7 @@ def glslang_glsl(text, describe_string, signature):
             errors = one_line_errors(log, r"\b(\d+):(\d+):",
                                      lambda m: f"{describe_string(int(m.group(1)))}:{m.group(2)}:")
             errors = [e for e in errors if not e.startswith(str(src))]
-            raise ShaderError(f"the wrapped function does not compile (glslang; expected signature: {signature}):\n"
-                              + "\n".join(errors))
+            raise wrapped_compile_error("glslang", errors, signature)
         return out.read_bytes()
 
 
@@ -107,14 +106,14 @@ def glslang_hlsl(text, describe_string, signature):
         cmd = [_tool("glslangValidator"), "-D", "-V", "-S", "comp", "-e", "mr_main", "-o", str(out), str(src)]
         code, log = _run(cmd, "glslang")
         if code != 0 or not out.is_file():
+            # "(9): error at column 34, HLSL parsing failed." repeats the error before it, without the file
             errors = one_line_errors(log, r"\b(\d+):(\d+):",
-                                     lambda m: f"{describe_string(int(m.group(1)))}:{m.group(2)}:")
-            errors = [e for e in errors if e != str(src) and not e.startswith(str(src))
-                      and "Entry point not found" not in e and not re.match(r"\(\d+\): error at column", e)]
+                                     lambda m: f"{describe_string(int(m.group(1)))}:{m.group(2)}:",
+                                     noise=r"^\(\d+\): error at column|Entry point not found")
+            errors = [e for e in errors if e != str(src) and not e.startswith(str(src))]
             # glslang's HLSL parser repeats a syntax error as "'declaration' : Expected" on its line.
             errors = [e for e in errors if not e.endswith("'declaration' : Expected")] or errors
-            raise ShaderError(f"the wrapped function does not compile (glslang HLSL; expected signature: "
-                              f"{signature}):\n" + "\n".join(errors))
+            raise wrapped_compile_error("glslang HLSL", errors, signature)
         return out.read_bytes()
 
 

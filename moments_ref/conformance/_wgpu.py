@@ -1,6 +1,6 @@
 """Vulkan backend: wgpu (wgpu-py) on the platform's adapter, Mesa lavapipe without a GPU.
 
-Devices live in the driver process of :mod:`._child`; :func:`get_device`
+Devices live in the driver process of :mod:`._supervisor`; :func:`get_device`
 returns a description and :func:`run_module` sends it work. :func:`dispatch` is
 the general backend function there (storage buffers at one bind group, any grid).
 
@@ -19,16 +19,18 @@ import re
 import time
 
 from ._errors import ContextError, LocalCompileError
-from ._source import ShaderError
+from ._source import WRAPPER, wrapped_compile_error
 
-__all__ = ["RemoteDevice", "LocalDevice", "get_device", "adapters", "run_module", "open_local", "dispatch"]
+__all__ = ["RemoteDevice", "LocalDevice", "get_device", "adapters", "run_module", "open_local", "dispatch", "load_wgpu",
+           "KERNEL_LIMITS", "FEATURES"]
 
 _DEVICES = {}
 _PIPELINES = {}
 _HINT = "install the Python package 'wgpu' and a Vulkan driver (Debian/Ubuntu: apt-get install mesa-vulkan-drivers)"
 
 
-def _wgpu():
+def load_wgpu():
+    """The ``wgpu`` module, quiet; :class:`ContextError` (with the packages to install) without it."""
     os.environ.setdefault("XDG_RUNTIME_DIR", "/tmp")  # silences Mesa's warning on headless machines
     try:
         import wgpu
@@ -42,13 +44,13 @@ def _wgpu():
 
 def adapters():
     """``[(backend, device name, description)]`` of every adapter wgpu finds (in this process)."""
-    wgpu = _wgpu()
+    wgpu = load_wgpu()
     return [(a.info.get("backend_type"), a.info.get("device"), a.info.get("description"))
             for a in wgpu.gpu.enumerate_adapters_sync()]
 
 
 class RemoteDevice:
-    """A wgpu device of the driver process (:mod:`._child`): backend, adapter name asked for, renderer."""
+    """A wgpu device of the driver process (:mod:`._supervisor`): backend, adapter name asked for, renderer."""
 
     def __init__(self, backend, name, renderer):
         self.backend, self.name, self.renderer = backend, name, renderer
@@ -65,7 +67,7 @@ def get_device(backend="Vulkan", name=None):
     """
     key = (backend, name)
     if key not in _DEVICES:
-        from ._child import open_target
+        from ._dispatch import open_target
 
         renderer = open_target(("wgpu", backend, name))[0]
         _DEVICES[key] = RemoteDevice(backend, name, renderer)
@@ -73,16 +75,29 @@ def get_device(backend="Vulkan", name=None):
 
 
 def _wgsl_errors(text, locate):
-    """naga's message as one line per error: ``file:line:col: message``."""
-    msgs = re.findall(r"(?:error|Error)[^:\n]*:\s*([^\n]+)\n\s*┌─ wgsl:(\d+):(\d+)", text)
+    """naga's message as one line per error: ``file:line:col: message``, then its labels and notes.
+
+    Parse errors point at ``wgsl:LINE:COL``, validation errors (a call that does not
+    match the function) at ``:LINE:COL``; the block under the location holds the
+    label under the carets and ``= note`` lines.
+    """
+    msgs = re.findall(r"(?:error|Error)[^:\n]*:\s*([^\n]+)\n\s*┌─ (?:wgsl)?:(\d+):(\d+)((?:\n[^\n]*\S[^\n]*)*)", text)
     if not msgs:
         return [" ".join(line.strip() for line in text.splitlines() if line.strip())]
-    return [f"{locate(int(line))}:{col}: {msg.strip()}" for msg, line, col in msgs]
+    out = []
+    for msg, line, col, block in msgs:
+        msg = msg.strip()
+        more = [x.strip() for x in re.findall(r"\^+([^\n]+)", block) + re.findall(r"^\s*= ([^\n]+)", block, re.M)]
+        more = [x for x in dict.fromkeys(more) if x and x not in msg]
+        where = locate(int(line))
+        where = where if where == WRAPPER else f"{where}:{col}"  # the wrapper's own lines have no file to open
+        out.append(f"{where}: {msg}" + (f": {'; '.join(more)}" if more else ""))
+    return out
 
 
 def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_size, entry="mr_main", tex=None):
     """Compile (cached) and dispatch a WGSL (str) or SPIR-V (bytes) module at ``entry`` in the driver process."""
-    from ._child import dispatch
+    from ._dispatch import dispatch
     from ._gl import case_bindings, case_results
 
     bindings, grid = case_bindings(ins, outs, arrays, n, local_size, tex)
@@ -90,9 +105,7 @@ def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_
     def failed(text):
         lines = _wgsl_errors(text, locate) if isinstance(code, str) else [
             " ".join(x.strip() for x in text.splitlines() if x.strip())]
-        kind = "WGSL" if isinstance(code, str) else "SPIR-V (naga)"
-        return ShaderError(f"the wrapped function does not compile ({kind}; expected signature: {signature}):\n"
-                           + "\n".join(lines))
+        return wrapped_compile_error("WGSL" if isinstance(code, str) else "SPIR-V (naga)", lines, signature)
 
     raw, timings = dispatch(dev.target, code, bindings, grid, entry, group, on_compile_error=failed)
     return case_results(outs, ins, raw, n), timings
@@ -102,14 +115,23 @@ def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_
 # In the driver process
 # ----------------------------------------------------------------------------------------
 
+#: Limits a device asks of its adapter (the adapter's own maximum): the shipped filter kernels keep
+#: 32 KiB in workgroup storage with 256 invocations per work group; a bench map's buffers are large.
+KERNEL_LIMITS = ("max-compute-workgroup-storage-size", "max-compute-invocations-per-workgroup",
+                 "max-storage-buffer-binding-size")
+#: Features a device takes where its adapter has them: 16-bit normalized textures (64-bit moment
+#: maps as textures), timestamp queries (a kernel's own dispatch time).
+FEATURES = ("texture-format16bit-norm", "timestamp-query")
+
+
 class LocalDevice:
-    """A wgpu device inside the driver process: compile (explicit layouts) and dispatch."""
+    """A wgpu device inside the driver process, for functions and kernels: compile (explicit layouts) and dispatch."""
 
     def __init__(self, adapter):
         self.adapter = adapter
-        # 16-bit normalized textures (64-bit moment maps) where the adapter has them
         self.device = adapter.request_device_sync(
-            required_features=[f for f in ("texture-format16bit-norm",) if f in adapter.features])
+            required_features=[f for f in FEATURES if f in adapter.features],
+            required_limits={k: adapter.limits[k] for k in KERNEL_LIMITS if k in adapter.limits})
         info = adapter.info
         self.backend = info.get("backend_type", "?")
         self.renderer = f"{info.get('device', '?')}, {info.get('description', '?')} ({self.backend} through wgpu)"
@@ -133,7 +155,7 @@ class LocalDevice:
 
 def open_local(backend="Vulkan", name=None):
     """A :class:`LocalDevice` on the first matching adapter (in the driver process)."""
-    wgpu = _wgpu()
+    wgpu = load_wgpu()
     try:
         found = wgpu.gpu.enumerate_adapters_sync()
     except Exception as exc:
@@ -155,7 +177,7 @@ def _layout(dev, group, modes):
     (not ``"auto"``) keeps bindings the compiled function does not read (an
     argument it ignores) in the layout, so that the bind group always matches it.
     """
-    wgpu = _wgpu()
+    wgpu = load_wgpu()
     types = {"read": wgpu.BufferBindingType.read_only_storage, "write": wgpu.BufferBindingType.storage}
     d = dev.device
     empty = d.create_bind_group_layout(entries=[])
@@ -185,11 +207,11 @@ def _texture(d, wgpu, b):
 
 
 def dispatch(dev, compiled, bindings, grid, group):
-    """Bind storage buffers (:class:`~._child.Binding`) at ``group``, dispatch ``grid``, read back.
+    """Bind storage buffers (:class:`~._dispatch.Binding`) at ``group``, dispatch ``grid``, read back.
 
     Returns ``({binding: bytes} of the "write" buffers, timings)``.
     """
-    wgpu = _wgpu()
+    wgpu = load_wgpu()
     d = dev.device
     pipe, layouts = compiled
     timings = {"compile": 0.0}

@@ -4,7 +4,7 @@
 compiles the kernel, reads what it declares (:mod:`.reflect`), matches its bindings
 to the case's contract (:mod:`.contract`, :mod:`.bind`), fills the inputs (a
 multisampled depth texture or buffers, the uniform block), dispatches the grid the
-case implies in a driver process with a watchdog (:mod:`._worker`), reads the output
+case implies in the driver process under the watchdog (:mod:`.._supervisor`), reads the output
 back and judges it texel by texel with the one comparator (:mod:`.verdict`). The
 shipped kernels: :mod:`.shipped`.
 """

@@ -1,5 +1,8 @@
 """Run a kernel job on OpenGL through moderngl (EGL; Mesa llvmpipe without a GPU). Driver process only.
 
+The context is the driver process's one OpenGL context (:class:`~.._gl.LocalGL`),
+shared with the function harness.
+
 The multisampled input is an R32F texture of S samples, filled per sample by a
 draw whose fragment shader reads ``gl_SampleID`` (sample-rate shading) and writes
 the sample's window depth: a ``sampler2DMS`` fetches it exactly as from a depth
@@ -12,11 +15,11 @@ import time
 
 import numpy as np
 
-from ._job import FORMATS, Result
+from .._errors import LocalCompileError
+from ._result import FORMATS, Result
 
 __all__ = ["run"]
 
-_CONTEXT = {}
 _FILL_VS = """#version 430
 void main() {
     vec2 xy = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
@@ -30,19 +33,6 @@ void main() {
     uint x = uint(gl_FragCoord.x), y = uint(gl_FragCoord.y);
     mr_out = mr_samples[(y * mr_size.x + x) * mr_size.z + uint(gl_SampleID)];
 }"""
-
-
-def _context():
-    if "ctx" not in _CONTEXT:
-        import moderngl
-
-        _CONTEXT["ctx"] = moderngl.create_standalone_context(backend="egl", require=430)
-    return _CONTEXT["ctx"]
-
-
-def _renderer(ctx):
-    info = ctx.info
-    return f"{info.get('GL_RENDERER', '?')}, OpenGL {info.get('GL_VERSION', '?')}"
 
 
 def _ms_texture(ctx, depth):
@@ -87,21 +77,20 @@ def _output(ctx, out):
     return ctx.buffer(np.full(out.shape, out.fill, np.uint32).tobytes())
 
 
-def run(job, report):
-    """Run ``job``; ``report(stage)`` after the compile and after every dispatch (the watchdog's heartbeat)."""
-    ctx = _context()
-    with ctx:
-        return _run(ctx, job, report)
+def run(gl, job, report):
+    """Run ``job`` on ``gl`` (a LocalGL); ``report(stage)`` after the compile and after every dispatch (the
+    watchdog's heartbeat). Raises LocalCompileError with the driver's log."""
+    with gl.ctx:
+        return _run(gl.ctx, gl.renderer, job, report)
 
 
-def _run(ctx, job, report):
-    res = Result(renderer=_renderer(ctx))
+def _run(ctx, renderer, job, report):
+    res = Result(renderer=renderer)
     t0 = time.perf_counter()
     try:
         cs = ctx.compute_shader(job.code)
     except Exception as exc:  # moderngl raises plain Exception subclasses with the driver's log
-        res.error = f"compile: {exc}"
-        return res
+        raise LocalCompileError(str(exc)) from None
     res.timings["compile"] = time.perf_counter() - t0
     report("compiled")
     t0 = time.perf_counter()

@@ -1,5 +1,8 @@
 """Run a kernel job through wgpu: Vulkan (Mesa lavapipe without a GPU) or wgpu's OpenGL adapter. Driver process only.
 
+The device is the driver process's one device of the adapter (:class:`~.._wgpu.LocalDevice`, shared
+with the function harness; it asks for the limits the kernels need).
+
 The pipeline layout is built from the kernel's declarations (not derived by
 wgpu), so a declared binding the kernel never uses is still bound. The
 multisampled input is a Depth32Float texture of S samples, filled per sample by a
@@ -10,17 +13,16 @@ draw that writes ``frag_depth`` at each ``sample_index``; it binds both as
 
 from __future__ import annotations
 
-import logging
-import os
 import time
 
 import numpy as np
 
-from ._job import FORMATS, Result
+from .._errors import LocalCompileError
+from .._wgpu import load_wgpu
+from ._result import FORMATS, Result
 
 __all__ = ["run"]
 
-_DEVICES = {}
 _FILL = """
 @group(0) @binding(0) var<storage, read> mr_samples: array<f32>;
 @group(0) @binding(1) var<uniform> mr_size: vec4<u32>;
@@ -37,36 +39,6 @@ struct MrOut { @builtin(frag_depth) depth: f32 };
     return o;
 }
 """
-
-
-def _wgpu():
-    os.environ.setdefault("XDG_RUNTIME_DIR", "/tmp")
-    import wgpu
-
-    logging.getLogger("wgpu").setLevel(logging.ERROR)
-    return wgpu
-
-
-def _device(driver, name):
-    key = (driver, name)
-    if key not in _DEVICES:
-        wgpu = _wgpu()
-        backend = "OpenGL" if driver == "gl" else "Vulkan"
-        for a in wgpu.gpu.enumerate_adapters_sync():
-            info = a.info
-            if info.get("backend_type") == backend and (name is None or name.lower() in
-                                                        f"{info.get('device')} {info.get('vendor')}".lower()):
-                limits = {k: a.limits[k] for k in ("max-compute-workgroup-storage-size",
-                                                   "max-compute-invocations-per-workgroup",
-                                                   "max-storage-buffer-binding-size") if k in a.limits}
-                features = [f for f in ("timestamp-query",) if f in a.features]
-                dev = a.request_device_sync(required_limits=limits, required_features=features)
-                renderer = f"{info.get('device', '?')}, {info.get('description', '?')} ({backend} through wgpu)"
-                _DEVICES[key] = (dev, renderer)
-                break
-        else:
-            raise RuntimeError(f"no {backend} adapter" + (f" matching {name!r}" if name else "") + " in wgpu")
-    return _DEVICES[key]
 
 
 def _ms_texture(wgpu, dev, depth):
@@ -145,17 +117,17 @@ def _read(dev, obj, out):
     return np.frombuffer(dev.queue.read_buffer(obj), np.uint32).copy()
 
 
-def run(job, report):
-    """Run ``job`` on its wgpu adapter; ``report(stage)`` after the compile and every dispatch."""
-    wgpu = _wgpu()
-    dev, renderer = _device(job.driver, job.adapter)
-    res = Result(renderer=renderer)
+def run(device, job, report):
+    """Run ``job`` on ``device`` (a LocalDevice); ``report(stage)`` after the compile and every dispatch.
+    Raises LocalCompileError with naga's or the driver's message."""
+    wgpu = load_wgpu()
+    dev = device.device
+    res = Result(renderer=device.renderer)
     t0 = time.perf_counter()
     try:
         pipe, layouts = _pipeline(wgpu, dev, job)
     except Exception as exc:  # wgpu's validation errors carry naga's message
-        res.error = f"compile: {exc}"
-        return res
+        raise LocalCompileError(str(exc)) from None
     res.timings["compile"] = time.perf_counter() - t0
     report("compiled")
     t0 = time.perf_counter()

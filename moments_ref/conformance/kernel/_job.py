@@ -1,18 +1,20 @@
-"""What crosses to the driver process and back: a kernel job and its result (plain, picklable data)."""
+"""A kernel run as a job of the driver process (:mod:`.._supervisor`): what crosses to it, picklable data.
+
+The job's steps, each under its own time limit: the compile, the warm-up dispatch
+(which carries the driver's own compile: llvmpipe and lavapipe build the kernel at
+its first dispatch), each timed dispatch, the readback. What comes back: :mod:`._result`.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import numpy as np
+from .._supervisor import COMPILE_SECONDS, WATCHDOG_SECONDS
 
-__all__ = ["Bind", "Output", "Job", "Result", "POISON", "FORMATS"]
+__all__ = ["Bind", "Output", "Job", "POISON"]
 
 #: Poison words of the output: still there afterwards = never written.
 POISON = (0xDEADBEEF, 0x0BADF00D)
-#: Storage image formats: (channels, numpy dtype, wgpu format).
-FORMATS = {"rgba32ui": (4, np.uint32, "rgba32uint"), "r32ui": (1, np.uint32, "r32uint"),
-           "rgba32f": (4, np.float32, "rgba32float")}
 
 
 @dataclass(frozen=True)
@@ -53,17 +55,30 @@ class Job:
     data: np.ndarray  # input: window depths (H, W, S) float32, or points (N, 4) float32
     output: Output
     dispatches: list  # [(groups (x, y, z), params bytes)]
-    dispatch_seconds: float = 60.0
-    compile_seconds: float = 180.0
+    dispatch_seconds: float = WATCHDOG_SECONDS
     trace_words: int = 0  # > 0: bind a trace buffer of this many words (shared-memory trace)
 
+    @property
+    def target(self):
+        """The driver the job runs on (:class:`~.._driverproc.Drivers`)."""
+        if self.backend == "moderngl":
+            return ("gl",)
+        return ("wgpu", "OpenGL" if self.driver == "gl" else "Vulkan", self.adapter)
 
-@dataclass
-class Result:
-    """What the driver process returns."""
+    def step(self, done):
+        """``(what, seconds, watchdog)`` of the step after heartbeat ``done`` (None: the first)."""
+        if done is None:
+            return "the compile", COMPILE_SECONDS, False
+        if done == "compiled":
+            return ("the first dispatch (warm-up, with the driver's compile)", COMPILE_SECONDS + self.dispatch_seconds,
+                    True)
+        n = len(self.dispatches)
+        k = 0 if done == "warm-up" else int(done.split()[1]) + 1
+        return (f"dispatch {k + 1} of {n}" if k < n else "the readback"), self.dispatch_seconds, True
 
-    output: np.ndarray | None = None  # raw words (image: (h, w, channels); buffer: (words,))
-    timings: dict = field(default_factory=dict)  # compile, upload, dispatch (list), readback seconds
-    renderer: str = ""
-    trace: np.ndarray | None = None
-    error: str | None = None  # "compile: ..." or "driver: ..."
+    def run(self, drivers, beat):
+        """In the driver process: run on the job's driver, ``beat`` after the compile and each dispatch."""
+        from . import _exec_gl, _exec_wgpu
+
+        execute = _exec_gl.run if self.backend == "moderngl" else _exec_wgpu.run
+        return execute(drivers.open(self.target), self, beat)

@@ -23,11 +23,12 @@ from ..._arrays import InputError
 from ...gpu import filtering, onchip
 from ...moments import BIAS_FLOAT32
 from .._run import parse_adapter
+from .._supervisor import watchdog
 from ._job import POISON, Job
 from .bind import match
 from .cli import shipped_kernel
 from .contract import contract, dispatches
-from .run import DISPATCH_SECONDS, bind_list, execute, output_spec, prepare
+from .run import bind_list, execute, output_spec, prepare
 
 __all__ = ["bench_kernel"]
 
@@ -61,7 +62,7 @@ def bench_kernel(language="glsl", adapter="vulkan", size=2048, samples=4, fmt="n
     plan = dispatches(case, kw)
     job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound),
               ((z.astype(np.float64) + 1) / 2).astype(np.float32), output_spec(case, kw, bound, POISON[0]),
-              [(d.groups, d.params) for d in plan], dispatch_seconds=DISPATCH_SECONDS)
+              [(d.groups, d.params) for d in plan], dispatch_seconds=watchdog())
     result = execute(prep, job)
     driver, wall = result.timings.get("driver", []), result.timings["dispatch"]
     kernel_s, timer = (sum(driver), "timer queries") if driver and sum(driver) > 0 else (sum(wall), "wall clock")

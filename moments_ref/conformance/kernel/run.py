@@ -10,7 +10,8 @@ WGSL       wgpu's OpenGL adapter                           wgpu
 
 Bindings and work-group size come from reflection (:mod:`.reflect`), are matched
 to the case's contract (:mod:`.bind`, :mod:`.contract`) before anything runs, and
-the job runs in the driver process under a watchdog (:mod:`._worker`).
+the job runs in the driver process under the watchdog (:mod:`.._supervisor`), as
+the function harness's dispatches do.
 
 References
 ----------
@@ -27,10 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError
-from .._gl import ContextError
+from .. import _supervisor
+from .._errors import ContextError
 from .._run import language_of, parse_adapter
 from .._source import ShaderError, load_source, one_line_errors
-from . import _spirv, _worker, trace
+from .._supervisor import CompileFailed, DriverDied, DriverError, DriverTimeout, watchdog
+from . import _spirv, trace
 from ._job import POISON, Bind, Job, Output
 from .bind import match
 from .contract import BLOCK, contract, dispatches
@@ -38,11 +41,9 @@ from .reflect import from_spirv, from_wgsl
 from .verdict import DriverRun, KernelReport, judge
 
 __all__ = ["KERNEL_DRIVERS", "KernelReport", "run_kernel", "prepare", "Prepared", "numpy_times", "shared_memory",
-           "output_spec", "bind_list", "execute", "DISPATCH_SECONDS"]
+           "output_spec", "bind_list", "execute"]
 
 KERNEL_DRIVERS = ("gl", "vulkan")
-#: Seconds one dispatch may take before the watchdog stops the kernel (``--time-limit``).
-DISPATCH_SECONDS = 60.0
 _CACHE = {}
 #: Why WGSL kernels with a multisampled texture input do not run on wgpu's OpenGL adapter.
 GL_MULTISAMPLE = ("wgpu's OpenGL back end cannot read a multisampled texture in a compute shader (measured with wgpu "
@@ -144,7 +145,7 @@ def _traced(path, entry, language, target):
                     from_spirv(_spirv.reflect_spirv(code, entry), "hlsl", entry), "traced HLSL")
 
 
-def shared_memory(path, entry, language, target, case, gc, c, time_limit=DISPATCH_SECONDS):
+def shared_memory(path, entry, language, target, case, gc, c, time_limit=None):
     """Trace the shared memory of work group (0, 0) of a tagged kernel: accesses, bank conflicts, races.
 
     Returns None for a kernel without tagged accesses, else a dict: ``driver``,
@@ -162,10 +163,13 @@ def shared_memory(path, entry, language, target, case, gc, c, time_limit=DISPATC
     plan = dispatches(case, kw, views, prep.interface.workgroup[0])
     job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
               output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
-              dispatch_seconds=float(time_limit), trace_words=threads * trace.RECORDS)
+              dispatch_seconds=watchdog() if time_limit is None else float(time_limit),
+              trace_words=threads * trace.RECORDS)
     try:
         result = execute(prep, job)
-    except _worker.KernelTimeout as exc:
+    except DriverTimeout as exc:
+        if not exc.watchdog:
+            raise
         return {"driver": prep.driver, "error": str(exc)}
     addr, store, epoch = trace.decode(result.trace, threads)
     info = {"driver": prep.driver, "accesses": int((addr >= 0).sum(axis=1).max()), "barriers": int(epoch.max()),
@@ -206,9 +210,8 @@ def _data(case, gc):
     return ((z + 1) / 2).astype(np.float32)  # window depth; exact for the case's depths
 
 
-def _errors(prep, message):
+def _errors(prep, text):
     """The compile message of the driver process, one line per error, with the user's file and line."""
-    text = message.split(":", 1)[1]
     if prep.backend == "moderngl" and prep.source is not None:
         lines = one_line_errors(text, r"\b(\d+):(\d+)\((\d+)\)",
                                 lambda m: f"{prep.source.name(int(m.group(1)))}:{m.group(2)}:{m.group(3)}")
@@ -218,17 +221,24 @@ def _errors(prep, message):
 
 
 def execute(prep, job):
-    """Run a job in the driver process: compile errors -> ShaderError, driver failures -> ContextError (exit 2)."""
+    """Run a job in the driver process (:func:`.._supervisor.run`), its errors named for the kernel's driver.
+
+    A compile error is a ShaderError with the user's files and lines, a driver that
+    dies or fails a DriverError naming the driver (both exit 2); a step past its limit
+    stays a DriverTimeout (the caller decides: a dispatch stopped by the watchdog fails
+    the kernel).
+    """
     try:
-        result = _worker.run_job(job)
-    except _worker.DriverCrash as exc:
-        raise ContextError(f"{prep.driver}: {exc} (a kernel that reads or writes out of bounds can crash the "
-                           "driver; the harness cannot tell)") from None
-    if result.error and result.error.startswith("compile:"):
-        raise _errors(prep, result.error)
-    if result.error:
-        raise ContextError(f"{prep.driver}: {result.error}")
-    return result
+        return _supervisor.run(job)
+    except CompileFailed as exc:
+        raise _errors(prep, exc.args[0]) from None
+    except DriverDied as exc:
+        raise DriverDied(f"{prep.driver}: {exc} (a kernel that reads or writes out of bounds can crash the "
+                         "driver; the harness cannot tell)") from None
+    except DriverTimeout:
+        raise
+    except DriverError as exc:
+        raise DriverError(f"{prep.driver}: {exc}") from None
 
 
 def _run_one(prep, case, gc, c, time_limit, worst_rows):
@@ -246,9 +256,11 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
               dispatch_seconds=float(time_limit))
     try:
         result = execute(prep, job)
-    except _worker.KernelTimeout as exc:
-        run.reason = (f"{exc.stage} did not finish within {exc.seconds:g} s: the watchdog stopped the kernel (an "
-                      "infinite loop, or a kernel far slower than the case needs; --time-limit sets the limit)")
+    except DriverTimeout as exc:
+        if not exc.watchdog:  # the compile: the harness cannot judge the kernel
+            raise
+        run.reason = (f"{exc.step} did not finish within {exc.seconds:g} s: the watchdog stopped the kernel (an "
+                      "infinite loop, or a kernel far slower than the case needs; --watchdog sets the limit)")
         return run
     run.renderer, run.timings = result.renderer, result.timings
     verdict, unwritten, outside, codes, out = judge(case, gc.meta, gc.arrays, result.output, job.output.kind,
@@ -320,7 +332,8 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     golden_dir : path, optional
         A folder written by ``moments-ref golden``; default: generate the case.
     time_limit : float, optional
-        Seconds one dispatch may run (default :data:`DISPATCH_SECONDS`).
+        Seconds one dispatch may run; default the watchdog of the driver process
+        (:func:`~moments_ref.conformance.set_watchdog`, ``--watchdog``: 10 s).
     timing : bool
         Time the NumPy paths on the same map for the report.
     shared : bool
@@ -337,7 +350,7 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     language = language_of(path, language)
     if case not in KERNEL_CASES:
         raise InputError(f"case: {case!r} is not a kernel case; kernel cases: {', '.join(KERNEL_CASES)}")
-    limit = DISPATCH_SECONDS if time_limit is None else float(time_limit)
+    limit = watchdog() if time_limit is None else float(time_limit)
     if not limit > 0:
         raise InputError(f"time_limit: expected a positive number of seconds, got {time_limit!r}")
     targets = [parse_adapter(d, language) for d in KERNEL_DRIVERS] if adapter is None else \
