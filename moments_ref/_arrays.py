@@ -42,6 +42,10 @@ __all__ = [
     "check_finite",
     "check_trailing",
     "broadcast_pair",
+    "check_broadcast",
+    "check_axis",
+    "brief",
+    "one_line",
     "first_index",
     "real_input",
     "lookup_inputs",
@@ -166,11 +170,32 @@ def check_trailing(arr: np.ndarray, name: str, sizes) -> None:
 def broadcast_pair(a: np.ndarray, name_a: str, b: np.ndarray, name_b: str) -> tuple[int, ...]:
     """The broadcast shape of ``a`` and ``b`` or an :class:`InputError`."""
     try:
-        return np.broadcast_shapes(a.shape, b.shape)
+        shape = np.broadcast_shapes(a.shape, b.shape)
     except ValueError:
         raise InputError(
             f"{name_b}: expected a shape broadcastable with {name_a} {a.shape}, got {b.shape}"
         ) from None
+    check_broadcast(shape, (a.shape, b.shape), f"{name_a} {a.shape} with {name_b} {b.shape}")
+    return shape
+
+
+#: Bytes per element of a broadcast result estimated before a lookup allocates it:
+#: eight float64 values (the result, up to six for the canonical representation,
+#: and the per-element share of the chunks' temporaries).
+BROADCAST_BYTES_PER_ELEMENT = 64
+
+
+def check_broadcast(shape, given, what: str) -> None:
+    """Refuse a broadcast ``shape`` larger than every ``given`` shape whose result would exceed :func:`max_memory`.
+
+    A call whose inputs already hold as many elements as the result is not
+    estimated (its arrays exist); a broadcast that multiplies them (``(10⁵, 1, 4)``
+    with ``(1, 10⁵)``: 10¹⁰ elements) is refused with an :class:`InputError`
+    instead of NumPy's ``MemoryError``.
+    """
+    n = int(np.prod(shape, dtype=np.float64)) if len(shape) else 1
+    if n > max(int(np.prod(s, dtype=np.float64)) for s in given):
+        check_memory(BROADCAST_BYTES_PER_ELEMENT * n, f"broadcasting {what} to {tuple(shape)}")
 
 
 def real_input(x, name: str, trailing=None, dtype=None, finite: bool = True) -> np.ndarray:
@@ -213,7 +238,33 @@ def lookup_inputs(x, name: str, zf, trailing: int = 4):
     except ValueError:
         refuse_lookup(x, name, zf)
         raise
+    check_broadcast(shape, (x.shape[:-1], zf.shape), f"{name}[..., 0] {x.shape[:-1]} with zf {zf.shape}")
     return x, zf, shape
+
+
+def brief(value, width: int = 80) -> str:
+    """``repr(value)`` for a one-line message: a huge integer as its first digits and its length, anything
+    else cut to ``width`` characters."""
+    text = repr(value)
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and len(text) > 24:
+        return f"{text[:12]}… ({len(text.lstrip('-'))} digits)"
+    return text if len(text) <= width else text[:width - 1] + "…"
+
+
+def one_line(text) -> str:
+    """``text`` as one line: line breaks and other unprintable characters as escapes (a path may hold them)."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
+def check_axis(axis, ndim: int, of: str) -> int:
+    """``axis`` as an int in ``[-ndim, ndim)`` (an axis of the array ``of``), or :class:`InputError`.
+
+    Checked before NumPy sees it: ``np.moveaxis`` raises ``OverflowError`` for an
+    axis beyond a C long (``10**400``).
+    """
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)) or not -ndim <= axis < ndim:
+        raise InputError(f"axis: expected an axis of {of} (an integer in [{-ndim}, {ndim})), got {brief(axis)}")
+    return int(axis)
 
 
 def positive_int(value, name: str, context: str = None) -> int:

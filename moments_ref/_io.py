@@ -2,18 +2,78 @@
 
 An interrupted run never leaves a half-written file behind: either the old file
 (or none) or the complete new one is on disk.
+
+Temporaries. :func:`atomic_path` creates its temporary file and registers it in
+one step during which the Python handlers of SIGINT, SIGTERM and SIGHUP are
+deferred, so that no ``KeyboardInterrupt`` lands between the two: a signal
+raised inside the guarded block removes the temporary, and one handed over as
+the creation step ends (before that block is entered) finds it registered, and
+:func:`remove_temporaries` (the command line's exit path, and ``atexit``) removes
+it. A writer killed outright (SIGKILL) leaves its temporary, which the next
+writer of the same file removes (:func:`clean_stale`).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import glob
 import io
 import os
+import signal
 import tempfile
+import threading
 from pathlib import Path
 
-__all__ = ["atomic_path", "clean_stale", "write_bytes", "write_text", "save_npz", "save_figure"]
+__all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
+           "save_figure"]
+
+#: Temporaries of this process's unfinished writes.
+_LIVE = set()
+_HELD = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)}
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Defer the Python handlers of SIGINT, SIGTERM and SIGHUP to the end of the block.
+
+    Python runs signal handlers in the main thread, between two bytecodes: a
+    handler that raises (``KeyboardInterrupt``) can land between any two lines.
+    A thread-level signal mask would not keep it out (the kernel hands a
+    process-wide signal to another thread, OpenBLAS's, and the handler still
+    runs here), so the handlers are swapped for one that notes the signal, and
+    the noted signals are handed to the real handlers when the block is left.
+    Other threads are never interrupted by a Python handler and need nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted, old = [], {}
+    for s in _HELD:
+        handler = signal.getsignal(s)
+        if callable(handler):  # SIG_DFL and SIG_IGN raise nothing here
+            old[s] = signal.signal(s, lambda signum, frame: noted.append((signum, frame)))
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for signum, frame in noted:
+            old[signum](signum, frame)
+
+
+def remove_temporaries() -> list[str]:
+    """Remove the temporaries of this process's unfinished :func:`atomic_path` writes; return their paths."""
+    removed = []
+    for tmp in list(_LIVE):
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+            removed.append(tmp)
+        _LIVE.discard(tmp)
+    return removed
+
+
+atexit.register(remove_temporaries)
 
 
 def _mode() -> int:
@@ -67,12 +127,14 @@ def atomic_path(path, suffix=None):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     clean_stale(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=suffix or path.suffix,
-                               dir=path.parent)
-    try:
-        os.fchmod(fd, _mode())
-    finally:
-        os.close(fd)
+    with _signals_held():  # created and registered in one step (module docstring)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=suffix or path.suffix,
+                                   dir=path.parent)
+        _LIVE.add(tmp)
+        try:
+            os.fchmod(fd, _mode())
+        finally:
+            os.close(fd)
     try:
         yield Path(tmp)
         fd = os.open(tmp, os.O_RDONLY)
@@ -85,6 +147,8 @@ def atomic_path(path, suffix=None):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    finally:
+        _LIVE.discard(tmp)
 
 
 def write_bytes(path, data: bytes) -> Path:

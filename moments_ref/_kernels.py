@@ -1,10 +1,14 @@
-"""Helpers shared by the four- and six-moment kernels (core-private).
+"""Helpers shared by the four- and six-moment kernels, and the chunk sizes of every vectorized loop.
 
 One home for what :mod:`moments_ref.msm`, :mod:`moments_ref.msm6` and
 :mod:`moments_ref.nonlinear` all use: the chunk size of the vectorized kernels,
 the singularity threshold of the Hankel matrix, the two-point distribution of
 HPG17 Algorithm 2 and a bit-level ``copysign``. Keeping them here lets msm6
 build on them without importing msm (which dispatches six-moment input to msm6).
+
+The chunk (block, band) sizes of the other vectorized loops of the package live
+here too, one table with the measurement behind each: a machine with another cache
+is retuned in one place, and no result depends on any of them.
 
 References
 ----------
@@ -15,11 +19,33 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CHUNK", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
+from ._arrays import float_dtype
+
+__all__ = ["CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "WARP_BLOCK",
+           "SHADING_BLOCK", "FILTER_BAND_BYTES", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
 
 #: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
 CHUNK = 1 << 14
+#: Queries per chunk of :func:`moments_ref.gpu.sat.interpolated_mean` (each gathers 16 texels × C).
+SAT_QUERY_CHUNK = 1 << 15
+#: Fragments per chunk of :func:`moments_ref.techniques.pcf.pcf_filtered` (each gathers 10 × 10 texels × S × K).
+PCF_CHUNK = 1 << 13
+#: Texels per chunk of the per-thread resolve of :mod:`moments_ref.gpu.onchip` (its rows stay in L2).
+RESOLVE_CHUNK = 1 << 14
+#: Triangles set up per call of the rasterizer (:mod:`moments_ref.scene.raster`): bounds the per-triangle arrays
+#: and keeps them in cache (1 M small triangles into 1024²: 2^15 gives 2.4 M/s, 2^17 2.0 M/s, 2^13 2.0 M/s).
+RASTER_SETUP_CHUNK = 1 << 15
+#: Point-view pairs per block of :mod:`moments_ref.techniques.vwss.warp`: the temporaries stay in cache and the
+#: thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18), whose threads
+#: cost more than they save on it.
+WARP_BLOCK = 1 << 13
+#: Points per block of the shading loops of :mod:`moments_ref.techniques.vwss.shading` (likewise for the thin
+#: (n, 3) @ (3, 3) product).
+SHADING_BLOCK = 1 << 14
+#: Bytes of one band of rows of :mod:`moments_ref.gpu.filtering` (about the L2 of one core; a sweep from 256 KiB
+#: to 4 MiB at 2048² varied within the noise of a shared machine, 1 MiB at its fastest).
+FILTER_BAND_BYTES = 1 << 20
 
 #: Multiple of the dtype's machine epsilon below which B(b) counts as singular
 #: (relative to b2 for σ², to max(b4, σ²) for ξ4); see :mod:`moments_ref.msm`.
@@ -28,7 +54,7 @@ SINGULAR_RTOL = {"float32": 0.0, "float64": 8.0}
 
 def singular_thresholds(dtype):
     """The relative singularity threshold ``SINGULAR_RTOL[dtype]·eps`` of float32 or float64."""
-    dt = np.dtype(dtype)
+    dt = float_dtype(dtype)
     return SINGULAR_RTOL[dt.name] * np.finfo(dt).eps
 
 

@@ -34,7 +34,7 @@ import numpy as np
 from ._arrays import InputError
 from ._io import write_text
 
-__all__ = ["VERDICTS", "Claim", "to_json", "write_json", "markdown_table", "verdict_of"]
+__all__ = ["VERDICTS", "Claim", "to_json", "write_json", "markdown_table", "verdict_of", "find_row"]
 
 #: The three verdicts a claim can have.
 VERDICTS = ("holds", "does not hold", "not measurable here")
@@ -121,3 +121,8 @@ def markdown_table(claims) -> str:
         lines.append(f"| `{c.id}` | {_cell(c.source)} | {_cell(c.statement)} | {_cell(c.paper)} | "
                      f"{_cell(_plain(c.measured))} | {v} | {_cell(c.why)} |")
     return "\n".join(lines) + "\n"
+
+
+def find_row(rows, scene, technique):
+    """The results row (a dict with ``scene`` and ``technique``) of ``technique`` on ``scene``, or None."""
+    return next((r for r in rows if r["scene"] == scene and r["technique"] == technique), None)

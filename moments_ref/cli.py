@@ -19,12 +19,17 @@ HPG17, VWSS : see docs/bib.md.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
 import tempfile
+import threading
+import warnings
 from pathlib import Path
 
-from ._arrays import InputError, format_bytes, parse_bytes, set_max_memory
+from ._arrays import InputError, format_bytes, one_line, parse_bytes, set_max_memory
+from ._options import add_report_arguments, folder_arg
 
 
 def _progress(total, desc):
@@ -78,19 +83,56 @@ def check_outputs(out) -> None:
 def _cmd_golden(args):
     from . import golden
 
+    profile = _profile(args)
     names = list(golden.CASES) if not args.case else args.case
     with _progress(len(names), "golden") as bar:
-        manifest = golden.write(args.out, names, progress=lambda name: bar.update(1))
+        manifest = golden.write(args.out, names if args.case else None, progress=lambda name: bar.update(1),
+                                profile=profile)
     n_rows = sum(c["count"] for c in manifest["cases"].values())
     print(f"wrote {len(manifest['cases'])} cases ({n_rows} rows) and manifest.json to {args.out}")
+    if manifest.get("not_written"):
+        print(f"not written: {len(manifest['not_written'])} cases whose conventions the profile contradicts")
     return 0
+
+
+def _profile(args):
+    """The profile of ``--profile FILE`` and the per-key flags (golden.profile), for ``--function``."""
+    from .golden.profile import FLAGS, profile_from_args
+
+    flags = {f[2:].replace("-", "_"): getattr(args, f[2:].replace("-", "_"), None) for f, _, _ in FLAGS}
+    return profile_from_args(getattr(args, "profile", None), getattr(args, "function", None), **flags)
+
+
+def _add_profile(sp):
+    """``--profile FILE``, one flag per profile key, ``--strict``, ``--rows``, ``--json`` (docs/ports.md)."""
+    from .golden.profile import FLAGS
+
+    sp.add_argument("--profile", type=Path, metavar="FILE.toml", help="the engine's conventions (docs/ports.md)")
+    for flag, _, text in FLAGS:
+        sp.add_argument(flag, metavar="VALUE", help=text)
+    sp.add_argument("--strict", action="store_true",
+                    help="gate the rows beyond the algorithm's contract too (robustness rows)")
+    sp.add_argument("--rows", type=_rows_arg, default=None, metavar="N|all",
+                    help="failing rows to list per case (default 5; all: every one)")
+    sp.add_argument("--json", type=Path, metavar="FILE", help="write every row's verdict as JSON")
+
+
+def _rows_arg(text):
+    if text == "all":
+        return "all"
+    return _int_in(0)(text)
 
 
 def _cmd_verify(args):
     from . import golden
+    from .golden.diagnosis import write_json
 
-    report = golden.verify(args.golden, args.results, port_dtype=args.dtype)
-    print(report.format(worst_rows=args.worst))
+    report = golden.verify(args.golden, args.results, port_dtype=args.dtype, strict=args.strict,
+                           profile=_profile(args))
+    rows = args.rows if args.rows is not None else args.worst
+    print(report.format(worst_rows=None if rows == "all" else rows))
+    if args.json:
+        write_json(args.json, [c.record for c in report.checked], {"command": "verify"})
     return 1 if report.failed else 0
 
 
@@ -106,8 +148,7 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.BENCHMARKS + bench._extra_benchmarks()] + ["end_to_end", "targets", "conformance",
-                                                                                 "kernels"]
+        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -176,28 +217,13 @@ def _cmd_banks(args):
 def _cmd_report(args):
     from . import report
 
-    argv = ["--out", str(args.out)]
-    for s in args.scene or []:
-        argv += ["--scene", s]
-    if args.full:
-        argv.append("--full")
-    for t in args.technique or []:
-        argv += ["--technique", t]
-    if args.all_techniques:
-        argv.append("--all-techniques")
-    if args.repeats is not None:
-        argv += ["--repeats", str(args.repeats)]
-    if args.jobs is not None:
-        argv += ["--jobs", str(args.jobs)]
-    if args.no_progress:
-        argv.append("--no-progress")
-    return report.main(argv)
+    return report.main(args)
 
 
 def _cmd_vwss(args):
-    from .techniques.vwss import compare
+    from .report import vwss
 
-    return compare.main(args)
+    return vwss.main(args)
 
 
 def _cmd_conformance(args):
@@ -230,17 +256,7 @@ def build_parser():
 def _add_jobs(sub):
     """The main jobs: the report and the VWSS comparison."""
     rp = sub.add_parser("report", help="error against run time of every technique on the shipped scenes (main job)")
-    rp.add_argument("--scene", action="append", help="scene name or file (repeatable; default: all shipped scenes)")
-    rp.add_argument("--full", action="store_true", help="the scenes' own map size, MSAA and camera resolution")
-    rp.add_argument("--technique", action="append", metavar="NAME", help="this technique instead of the scene's "
-                    "outputs (repeatable)")
-    rp.add_argument("--all-techniques", action="store_true", help="every technique that can run on each scene")
-    rp.add_argument("--repeats", type=_int_in(1), default=None, metavar="N",
-                    help="timed repeats of each cost stage after a warm-up (default 3)")
-    rp.add_argument("--jobs", type=_int_in(1), default=None, metavar="N",
-                    help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
-    rp.add_argument("--out", required=True, type=Path, help="output folder")
-    rp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_report_arguments(rp)
     rp.set_defaults(func=_cmd_report)
 
     vw = sub.add_parser("vwss", help="view-warped soft shadows against MVR and PCSS (VWSS Tables 1 and 2)")
@@ -250,15 +266,21 @@ def _add_jobs(sub):
     vw.add_argument("--near", type=float, default=None,
                     help="the light's near plane z_n in world units (VWSS Listing 1 light.nearZ; default: the "
                          "scene's params.light_near)")
-    vw.add_argument("--out", required=True, type=Path, help="output folder")
+    vw.add_argument("--out", required=True, type=folder_arg, help="output folder")
     vw.set_defaults(func=_cmd_vwss)
 
 
 def _add_oracle(sub):
     """Golden vectors, verification, the mutation score and the driver harness."""
     g = sub.add_parser("golden", help="write golden vectors and manifest.json")
-    g.add_argument("--out", required=True, type=Path, help="output folder")
+    g.add_argument("--out", required=True, type=folder_arg, help="output folder")
     g.add_argument("--case", action="append", help="only this case (repeatable)")
+    g.add_argument("--function", help="the tested function: selects the profile's [functions.NAME] table")
+    g.add_argument("--profile", type=Path, metavar="FILE.toml", help="write the cases for an engine's conventions")
+    from .golden.profile import FLAGS
+
+    for flag, _, text in FLAGS:
+        g.add_argument(flag, metavar="VALUE", help=text)
     g.set_defaults(func=_cmd_golden)
 
     v = sub.add_parser("verify", help="compare a port's results (.npz) with the goldens")
@@ -266,12 +288,14 @@ def _add_oracle(sub):
     v.add_argument("--results", required=True, type=Path, help=".npz with arrays '<case>.<output>'")
     v.add_argument("--dtype", choices=("float32", "float64"), help="the port's precision (default: each case's)")
     v.add_argument("--worst", type=_int_in(0), default=5, help="worst rows to print per failing case")
-    v.add_argument("--out", type=Path, help="unused; accepted for uniformity")
+    v.add_argument("--function", help="the tested function: selects the profile's [functions.NAME] table")
+    _add_profile(v)
+    v.add_argument("--out", type=folder_arg, help="unused; accepted for uniformity")
     v.set_defaults(func=_cmd_verify)
 
     mu = sub.add_parser("mutants", help="mutation score of the oracle: which golden rows kill which port mutant")
     mu.add_argument("--corpus", type=Path, help="folder with corpus.py (default: tests/mutants of the source tree)")
-    mu.add_argument("--out", type=Path, help="unused; accepted for uniformity")
+    mu.add_argument("--out", type=folder_arg, help="unused; accepted for uniformity")
     mu.set_defaults(func=_cmd_mutants)
 
     cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port (a function, or with --kernel a compute "
@@ -291,7 +315,8 @@ def _add_oracle(sub):
     cf.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                     help="deprecated alias of --watchdog (kept for old scripts)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
-    cf.add_argument("--out", type=Path, help="with --all: also write conformance.md here")
+    _add_profile(cf)
+    cf.add_argument("--out", type=folder_arg, help="with --all: also write conformance.md here")
     _add_source_options(cf)
     cf.set_defaults(func=_cmd_conformance)
 
@@ -315,7 +340,7 @@ def _add_source_options(cf):
 def _add_measurements(sub):
     """Benchmarks, numerical-honesty tables and the paper figures."""
     b = sub.add_parser("bench", help="throughput against a same-run memory copy")
-    b.add_argument("--out", type=Path, help="also write bench.md here")
+    b.add_argument("--out", type=folder_arg, help="also write bench.md here")
     b.add_argument("--size", type=_int_in(1, 16384), default=2048, help="square input side, 1..16384 (default 2048)")
     b.add_argument("--quick", action="store_true", help="one repetition, small sizes")
     b.add_argument("--only", action="append", help="only benchmarks whose name contains this")
@@ -324,22 +349,22 @@ def _add_measurements(sub):
     b.set_defaults(func=_cmd_bench)
 
     s = sub.add_parser("stability", help="float32/float64 against mpmath: write stability.md")
-    s.add_argument("--out", required=True, type=Path, help="output folder (docs/ in the repo)")
+    s.add_argument("--out", required=True, type=folder_arg, help="output folder (docs/ in the repo)")
     s.set_defaults(func=_cmd_stability)
 
     f3 = sub.add_parser("figure3", help="HPG17 Figure 3 as CSV and PNG")
-    f3.add_argument("--out", required=True, type=Path, help="output folder")
+    f3.add_argument("--out", required=True, type=folder_arg, help="output folder")
     f3.set_defaults(func=_cmd_figure3)
 
     f4 = sub.add_parser("figure4", help="HPG17 Figure 4: histograms of xi4 and Psi4(xi4), CSV and PNG")
-    f4.add_argument("--out", required=True, type=Path, help="output folder")
+    f4.add_argument("--out", required=True, type=folder_arg, help="output folder")
     f4.add_argument("--scene", default="railing", help="shipped scene name or scene file (default railing)")
     f4.add_argument("--size", type=_int_in(1, 16384), default=2048, help="shadow-map side (default 2048, as HPG17)")
     f4.add_argument("--samples", type=int, choices=(1, 4, 8), default=4, help="MSAA samples (default 4)")
     f4.set_defaults(func=_cmd_figure4)
 
     bk = sub.add_parser("banks", help="bank conflicts of the 40×32 shared-memory layout (HPG17 Fig. 6)")
-    bk.add_argument("--out", type=Path, help="also write banks.md here")
+    bk.add_argument("--out", type=folder_arg, help="also write banks.md here")
     bk.set_defaults(func=_cmd_banks)
 
 
@@ -351,7 +376,7 @@ def _add_common(sub):
 
 
 def _fail(args, reason) -> int:
-    print(f"moments-ref {getattr(args, 'command', '')}: {reason}", file=sys.stderr)
+    print(one_line(f"moments-ref {getattr(args, 'command', '')}: {reason}"), file=sys.stderr)
     return 2
 
 
@@ -375,14 +400,56 @@ def _run(args) -> int:
     return code
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP, raised where the command is (like ``KeyboardInterrupt`` for SIGINT), so that its
+    temporaries are removed and its workers stopped before it exits."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _signals_raise():
+    """SIGTERM and SIGHUP raise :class:`Terminated` during the block (in the main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, _raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
+
 def main(argv=None):
+    """Run ``moments-ref`` with ``argv``; return the exit code.
+
+    Warnings raised during the command are held and printed after it, and only
+    when it did not end in the one-line refusal (exit 2): no NumPy warning
+    precedes that line. SIGTERM and SIGHUP end the command like Ctrl-C, with its
+    temporaries removed (exit 128 + the signal).
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
+    with warnings.catch_warnings(record=True) as caught:
+        code = _exit_code(args)
+    if code != 2:
+        for w in caught:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return code
+
+
+def _exit_code(args) -> int:
+    """:func:`_run` with every expected failure turned into its exit code and one line."""
     from ._arrays import max_memory
+    from ._io import remove_temporaries
 
     limit = max_memory()
     try:
-        return _run(args)
+        with _signals_raise():
+            return _run(args)
     except InputError as exc:
         return _fail(args, exc)
     except BrokenPipeError:
@@ -397,8 +464,13 @@ def main(argv=None):
     except KeyboardInterrupt:
         print(f"moments-ref {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        signum = exc.args[0]
+        print(f"moments-ref {args.command}: terminated ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
     finally:
         set_max_memory(limit)
+        remove_temporaries()
 
 
 if __name__ == "__main__":  # pragma: no cover

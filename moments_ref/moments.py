@@ -16,12 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._arrays import InputError, as_real, check_finite, first_index, real_input
+from ._arrays import InputError, as_real, check_axis, check_finite, first_index, real_input
 
 __all__ = [
     "power_moments",
     "hankel",
     "BiasPreset",
+    "bias_preset",
     "BIAS_FLOAT32",
     "BIAS_UNORM16",
     "bias_moments",
@@ -74,6 +75,7 @@ def power_moments(z, weights=None, axis=-1, n=4):
     z = real_input(z, "z")
     if z.ndim == 0:
         raise InputError("z: expected at least one axis of samples, got a scalar")
+    axis = check_axis(axis, z.ndim, "z")
     w = None
     if weights is not None:
         w = real_input(weights, "weights", dtype=z.dtype)
@@ -171,7 +173,8 @@ BIAS_FLOAT32 = BiasPreset(3e-7, (0.0, 0.375, 0.0, 0.375), "float32")
 BIAS_UNORM16 = BiasPreset(6e-5, (0.0, 0.628, 0.0, 0.628), "unorm16")
 
 
-def _as_preset(preset) -> BiasPreset:
+def bias_preset(preset) -> BiasPreset:
+    """``preset`` as a :class:`BiasPreset`: a preset itself, or an ``(alpha, target)`` pair (InputError otherwise)."""
     if isinstance(preset, BiasPreset):
         return preset
     try:
@@ -208,7 +211,7 @@ def bias_moments(b, preset=BIAS_FLOAT32):
     target's b0* = 1. Moment vectors slightly outside the moment space after
     rounding are valid input: pulling them inside is the purpose of this step.
     """
-    p = _as_preset(preset)
+    p = bias_preset(preset)
     b = real_input(b, "b", trailing=(4, 6))
     if not (0.0 <= p.alpha <= 1.0):
         raise InputError(f"preset: expected alpha in [0, 1], got {p.alpha!r}")

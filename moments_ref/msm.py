@@ -386,7 +386,8 @@ def reduce_light_leaking(intensity, factor=0.98):
     """
     x = real_input(intensity, "intensity")
     f = factor
-    if isinstance(f, (bool, str)) or not np.isscalar(f) or not np.isreal(f) or not np.isfinite(f):
+    if (isinstance(f, (bool, str)) or not np.isscalar(f) or not np.isreal(f)
+            or (isinstance(f, int) and abs(f) > 2**53) or not np.isfinite(f)):  # a huge int is no float
         raise InputError(f"factor: expected a number in (0, 1], got {factor!r}")
     # Checked in the working dtype: 1e-46 is positive in float64 but 0 in float32.
     f = x.dtype.type(f)

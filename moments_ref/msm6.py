@@ -140,7 +140,7 @@ import time
 
 import numpy as np
 
-from ._arrays import InputError, first_index, lookup_inputs, real_input, refuse_lookup
+from ._arrays import InputError, brief, check_broadcast, first_index, lookup_inputs, real_input, refuse_lookup
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
 from ._kernels import two_point as _two_point
@@ -322,6 +322,7 @@ def solve_cubic(c0, c1, c2, c3, newton=2):
         shape = np.broadcast_shapes(*(c.shape for c in cs))
     except ValueError:
         raise InputError(f"c0..c3: expected broadcastable shapes, got {[c.shape for c in cs]}") from None
+    check_broadcast(shape, [c.shape for c in cs], f"c0..c3 {[c.shape for c in cs]}")
     zero = c0 == 0
     if zero.any():
         idx = first_index(zero)
@@ -689,6 +690,24 @@ def pivots(b):
 # measurements behind the documented choices
 
 
+#: Most draws the measurements below accept (about 1 GiB of float64 temporaries).
+MAX_DRAWS = 10_000_000
+
+
+def _count(value, name, lo=1, hi=MAX_DRAWS):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise InputError(f"{name}: expected an integer in [{lo}, {hi}], got {brief(value)}")
+    return int(value)
+
+
+def _draws(n, seed):
+    """``n`` checked and a generator seeded with ``seed`` (a non-negative integer)."""
+    n = _count(n, "n")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed: expected a non-negative integer, got {brief(seed)}")
+    return n, np.random.default_rng(int(seed))
+
+
 def measure_unorm10_bias(alphas=(1e-3, 2e-3, 3e-3, 5e-3), n=4000, seed=0):
     """Share of 2×R10G10B10A2-quantized moments inside the moment space after biasing.
 
@@ -704,7 +723,8 @@ def measure_unorm10_bias(alphas=(1e-3, 2e-3, 3e-3, 5e-3), n=4000, seed=0):
     from .affine import decode_r10g10b10a2, encode_r10g10b10a2
     from .moments import bias_moments
 
-    rng = np.random.default_rng(seed)
+    n, rng = _draws(n, seed)
+    alphas = [float(real_input(a, "alphas", dtype=np.float64)) for a in np.atleast_1d(np.asarray(alphas, object))]
     k = rng.integers(1, 7, n)
     z = rng.uniform(-1, 1, (n, 6))
     wt = rng.uniform(0.05, 1, (n, 6)) * (np.arange(6) < k[:, None])
@@ -746,7 +766,8 @@ def cubic_solver_benchmark(n=20000, seed=0, reference=200):
 
     from .moments import bias_moments
 
-    rng = np.random.default_rng(seed)
+    n, rng = _draws(n, seed)
+    reference = _count(reference, "reference", lo=0)
     z = rng.uniform(-1, 1, (n, 5))
     wt = rng.uniform(0.05, 1, (n, 5))
     b = bias_moments(power_moments(z, wt, n=6), BIAS6_FLOAT64)

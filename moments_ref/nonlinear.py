@@ -42,14 +42,19 @@ HPG17, Peters and Klein 2015 : see docs/bib.md.
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
 
-from ._arrays import InputError, first_index, lookup_inputs, real_input, refuse_lookup
+from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
 from ._kernels import copysign_exact, copysign_inplace
 
 __all__ = [
+    "PSI4_C0",
+    "PSI4_C1",
+    "phi_rows",
+    "psi4_clamped",
     "phi",
     "phi_inverse",
     "psi4",
@@ -58,6 +63,7 @@ __all__ = [
     "PSI4_XI_MIN",
     "PSI4_XI_MAX",
     "SHADE_TOLERANCE",
+    "CLAMP_BAND",
     "ROUNDING_ULPS",
     "rounding_tolerance",
     "validate_representation",
@@ -73,18 +79,23 @@ PSI4_XI_MIN = 1.2e-7
 PSI4_XI_MAX = 0.25
 #: HPG17 §3.4: Algorithm 3 clamps 1e-6 away from y1 = y2, v2 = 0 and v2 = 1.
 SHADE_TOLERANCE = 1e-6
+#: Offsets of the §3.4 clamps that are implementation choices, not bugs: from 1e-7
+#: (below it ``1 − clamp`` is within one float32 spacing of 1, so the clamp of v2 is
+#: lost to rounding) to 1/65535 (one UNORM16 step: up to there the clamp changes the
+#: bound by less than one 64-bit rounding step of v2 does, HPG17 §3.4's criterion).
+CLAMP_BAND = (1e-7, 1 / 65535)
 #: Multiple of eps(dtype) by which a representation may miss its domain by rounding.
 ROUNDING_ULPS = 64
 
 
 def rounding_tolerance(dtype) -> float:
     """``ROUNDING_ULPS · eps(dtype)``: how far outside the domain rounding may put r."""
-    return ROUNDING_ULPS * float(np.finfo(dtype).eps)
+    return ROUNDING_ULPS * float(np.finfo(float_dtype(dtype)).eps)
 
 
-# Ψ4 constants: Ψ4(ξ) = (ln ln(ξ·1e7) − c0) / c1.
-_PSI_C0 = float(np.log(np.log(1.2)))
-_PSI_C1 = float(np.log(np.log(0.25e7))) - _PSI_C0
+#: Ψ4's constants (HPG17 §3.3): Ψ4(ξ) = (ln ln(ξ·1e7) − c0) / c1, so that Ψ4(1.2e-7) = 0 and Ψ4(0.25) = 1.
+PSI4_C0 = float(np.log(np.log(1.2)))
+PSI4_C1 = float(np.log(np.log(0.25e7))) - PSI4_C0
 
 
 # ---------------------------------------------------------------------------
@@ -161,7 +172,7 @@ def phi(b):
     for lo in range(0, flat.shape[0], _PHI_CHUNK):
         rows = np.ascontiguousarray(flat[lo : lo + _PHI_CHUNK].T)
         m = rows.shape[1]
-        _phi_rows(rows, res[:, :m])
+        phi_rows(rows, res[:, :m])
         # One strided store per output channel (cheaper than a transposing copy).
         for k in range(4):
             out[lo : lo + m, k] = res[k, :m]
@@ -172,7 +183,7 @@ def phi(b):
 _PHI_CHUNK = 8192
 
 
-def _phi_rows(rows, out):
+def phi_rows(rows, out):
     """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ 8192) into the rows (y1, y2, v2, ξ4) of ``out``."""
     m = rows.shape[1]
     full = _phi_constants(rows.dtype)
@@ -329,13 +340,13 @@ def psi4(xi4):
     dt = x.dtype.type
     # max() is HPG17's clamp; min() only catches rounding above the proved bound.
     x = np.clip(x, dt(PSI4_XI_MIN), dt(PSI4_XI_MAX))
-    u = (np.log(np.log(x * dt(1e7))) - dt(_PSI_C0)) * dt(1 / _PSI_C1)
+    u = (np.log(np.log(x * dt(1e7))) - dt(PSI4_C0)) * dt(1 / PSI4_C1)
     # Exact endpoints in both dtypes (float32 misses Ψ4(0.25) = 1 by an ulp).
     u = np.where(x >= dt(PSI4_XI_MAX), dt(1), np.clip(u, 0, 1))
     return np.where(x <= dt(PSI4_XI_MIN), dt(0), u)[()]
 
 
-def _psi4_clamped(x, zero=0, one=1):
+def psi4_clamped(x, zero=0, one=1):
     """Ψ4 of ξ4 already clamped to [1.2e-7, 0.25]: the operations of :func:`psi4`, in place.
 
     For the encoders' contiguous chunks (no validation, no copies beyond the result):
@@ -348,8 +359,8 @@ def _psi4_clamped(x, zero=0, one=1):
     u = np.multiply(x, dt(1e7))
     np.log(u, out=u)
     np.log(u, out=u)
-    u -= dt(_PSI_C0)
-    u *= dt(1 / _PSI_C1)
+    u -= dt(PSI4_C0)
+    u *= dt(1 / PSI4_C1)
     # clip(u, 0, 1); given as constant arrays, maximum/minimum are the vectorized loops
     # (u is never NaN here, and a zero's sign does not survive the encoders' rounding).
     np.maximum(u, zero, out=u)
@@ -393,7 +404,7 @@ def psi4_inverse(u):
         raise InputError(f"u: expected values in [0, 1], got {x[idx]!r} at index {idx}")
     dt = x.dtype.type
     x = np.clip(x, 0, 1)
-    xi = np.exp(np.exp(dt(_PSI_C0) + x * dt(_PSI_C1))) * dt(1e-7)
+    xi = np.exp(np.exp(dt(PSI4_C0) + x * dt(PSI4_C1))) * dt(1e-7)
     xi = np.clip(xi, dt(PSI4_XI_MIN), dt(PSI4_XI_MAX))
     # Exact endpoints (exp(exp(·)) misses 0.25 by an ulp or two).
     xi = np.where(x >= 1, dt(PSI4_XI_MAX), xi)
@@ -468,8 +479,19 @@ def _clamp_domain(r):
 # Algorithm 3
 
 
-def _kernel_constants(dtype, n):
-    """Constant arrays of length n for the kernel.
+def _clamp_offset(clamp):
+    """``clamp`` as a float inside :data:`CLAMP_BAND`, else :class:`InputError`."""
+    try:
+        c = float(clamp)
+    except (TypeError, ValueError):
+        c = math.nan
+    if isinstance(clamp, (bool, str)) or not CLAMP_BAND[0] <= c <= CLAMP_BAND[1]:
+        raise InputError(f"clamp: expected an offset in [{CLAMP_BAND[0]:g}, 1/65535], got {clamp!r}")
+    return c
+
+
+def _kernel_constants(dtype, n, clamp=SHADE_TOLERANCE):
+    """Constant arrays of length n for the kernel (``clamp``: the §3.4 offset).
 
     NumPy's array–scalar loops of maximum/minimum/clip and of the integer
     bitwise operations are not vectorized and cost about four array–array
@@ -480,8 +502,8 @@ def _kernel_constants(dtype, n):
     fi = np.finfo(dtype)
     full = lambda v: np.full(n, v, dtype=dtype)  # noqa: E731
     return {
-        "lo": full(dt(SHADE_TOLERANCE)),
-        "hi": full(1 - dt(SHADE_TOLERANCE)),
+        "lo": full(dt(clamp)),
+        "hi": full(1 - dt(clamp)),
         "tiny": full(fi.tiny),
         "huge": full(fi.max),
         "one": full(1),
@@ -581,7 +603,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     np.add(k, t, out=out)
 
 
-def shade(r, zf):
+def shade(r, zf, clamp=SHADE_TOLERANCE):
     """HPG17 Algorithm 3: the sharp lower bound of Z(z < zf) from ``(y1, y2, v2, ξ4)``.
 
     Parameters
@@ -593,6 +615,11 @@ def shade(r, zf):
         (then clamped onto it); otherwise :class:`~moments_ref.InputError`.
     zf : (...) float array
         Fragment depth, broadcast against ``r[..., 0]``, cast to r's dtype.
+    clamp : float
+        The offset of the §3.4 clamps (default ``SHADE_TOLERANCE = 1e-6``, the
+        paper's). Any offset in :data:`CLAMP_BAND` keeps the clamp's effect below
+        one 64-bit rounding step of v2 (tests/test_nonlinear.py); ports declare
+        theirs in a profile (docs/ports.md).
 
     Returns
     -------
@@ -662,7 +689,8 @@ def shade(r, zf):
     out = np.empty(n, dtype=r.dtype)
     tol = r.dtype.type(rounding_tolerance(r.dtype))
     chunk = CHUNK
-    consts = _kernel_constants(r.dtype, min(chunk, n))
+    clamp = _clamp_offset(clamp)
+    consts = _kernel_constants(r.dtype, min(chunk, n), clamp)
     rows = np.empty((4, min(chunk, n)), dtype=r.dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         for start in range(0, n, chunk):

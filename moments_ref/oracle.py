@@ -7,6 +7,15 @@ verify`` (:mod:`moments_ref.golden.compare`): hypothesis rows get per-row
 tolerances by the same rule as golden rows (:mod:`moments_ref.golden.spread`) and
 are classified like them (``stiff`` where legitimate implementations differ by
 1e-3 or more, ``edge`` where an input sits at a domain end, else ``random``).
+``golden_dir`` takes the golden rows from a folder ``moments-ref golden`` wrote
+instead, read by the one strict loader of ``verify`` and ``conformance``
+(:mod:`moments_ref.golden.loader`).
+
+hypothesis comes with the ``test`` extra, not with the base install: it is
+imported only when rows are drawn (``n_hypothesis > 0``), so ``import
+moments_ref.oracle`` and ``check(..., n_hypothesis=0)`` work without it, and a
+check that draws rows without it raises an :class:`~moments_ref.InputError`
+naming the extra.
 
 Example
 -------
@@ -24,14 +33,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._arrays import InputError
+from ._arrays import InputError, brief
 from .golden.cases import CASES
+from .golden.loader import load_case
 from .golden.compare import compare
 from .golden.spread import derive, row_tolerance
 from .golden.writer import golden_arrays, manifest_entry
-from .tools.strategies import input_strategy
 
-__all__ = ["check", "OracleReport", "input_strategy"]
+__all__ = ["check", "OracleReport", "input_strategy", "MAX_HYPOTHESIS"]
+
+#: Most rows :func:`check` draws with hypothesis.
+MAX_HYPOTHESIS = 100_000
 
 
 @dataclass
@@ -63,14 +75,32 @@ class OracleReport:
         return "\n".join(lines)
 
 
+def input_strategy(case):
+    """The hypothesis strategy of one input row of ``case`` (:func:`moments_ref.tools.strategies.input_strategy`)."""
+    return _strategies().input_strategy(case)
+
+
+def _strategies():
+    try:
+        from .tools import strategies
+    except ModuleNotFoundError as exc:
+        if exc.name != "hypothesis":
+            raise
+        raise InputError("n_hypothesis: rows drawn by hypothesis need the test extra (pip install "
+                         "'moments_ref[test]', in a checkout pip install -e '.[test]'); pass n_hypothesis=0 to "
+                         "check the golden rows alone") from None
+    return strategies
+
+
 def _hypothesis_rows(case, n):
+    strategies = _strategies()
     from hypothesis import HealthCheck, Phase, given, settings
 
     drawn = []
 
     @settings(max_examples=n, derandomize=True, database=None, deadline=None,
               suppress_health_check=list(HealthCheck), phases=[Phase.explicit, Phase.reuse, Phase.generate])
-    @given(input_strategy(case))
+    @given(strategies.input_strategy(case))
     def collect(row):
         drawn.append(row)
 
@@ -134,7 +164,8 @@ def _call(candidate, c, arrays, vectorized):
     return dict(zip(c.outputs, (np.asarray(g) for g in got)))
 
 
-def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized=True):
+def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized=True, profile=None, strict=False,
+          golden_dir=None):
     """Run ``candidate`` on golden and hypothesis rows and judge it like ``verify``.
 
     Parameters
@@ -150,11 +181,21 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         The candidate's precision: the case of that dtype is used, inputs come in
         it and its tolerance column applies.
     n_hypothesis : int
-        Extra rows drawn by hypothesis (derandomized: reproducible). Kernel cases
-        (``kernel-*``: whole maps, one row per texel) get none: a texel depends on
-        its neighbours.
+        Extra rows drawn by hypothesis (derandomized: reproducible), 0 to
+        :data:`MAX_HYPOTHESIS`. Kernel cases (``kernel-*``: whole maps, one row per
+        texel) get none: a texel depends on its neighbours.
     seed : int
         Unused (kept for compatibility; the draws are derandomized).
+    profile : moments_ref.golden.profile.Profile or path, optional
+        The engine's declared conventions (depth convention, output, bias, clamp,
+        texel format; docs/ports.md): the candidate gets the rows converted for them,
+        expected values and tolerances are derived for them.
+    strict : bool
+        Robustness rows (beyond the algorithm's contract) fail the verdict too.
+    golden_dir : path, optional
+        Take the golden rows from this folder (``moments-ref golden --out``),
+        checked by :func:`moments_ref.golden.loader.load_case`, instead of
+        building them in memory.
 
     Returns
     -------
@@ -162,17 +203,38 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
     """
     if dtype not in ("float32", "float64"):
         raise InputError(f"dtype: expected 'float32' or 'float64', got {dtype!r}")
+    if profile is not None and not hasattr(profile, "is_default"):
+        from .golden.profile import load_profile
+
+        profile = load_profile(profile)
     name = case if case in CASES else f"{case}-{dtype}"
     if name not in CASES:
         stems = sorted({n.rsplit("-", 1)[0] for n in CASES})
         raise InputError(f"case: unknown case {case!r}; known: {', '.join(stems)}")
+    if isinstance(n_hypothesis, bool) or not isinstance(n_hypothesis, (int, np.integer)) or not (
+            0 <= n_hypothesis <= MAX_HYPOTHESIS):
+        raise InputError(f"n_hypothesis: expected an integer in [0, {MAX_HYPOTHESIS}], got {brief(n_hypothesis)}")
     c = CASES[name]
-    arrays = golden_arrays(c)
-    if n_hypothesis and not c.function.startswith("kernels."):  # a kernel case's texels depend on their neighbours
-        arrays = _concat(arrays, _hypothesis_arrays(c, n_hypothesis))
+    arrays = golden_arrays(c) if golden_dir is None else _folder_rows(c, golden_dir)
+    # Engine cases are distributions, kernel cases whole maps (a texel depends on its neighbours): no draws.
+    if n_hypothesis and c.deriver is None and not c.function.startswith("kernels."):
+        arrays = _concat(arrays, _hypothesis_arrays(c, int(n_hypothesis)))
+    if profile is not None and not profile.is_default:
+        from .golden.conventions import profile_arrays
+
+        c, arrays = profile_arrays(c, arrays, profile)
     got = _call(candidate, c, arrays, vectorized)
-    verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name)
+    verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name, strict=strict)
     return _report(c, name, dtype, arrays, got, verdict)
+
+
+def _folder_rows(c, golden_dir):
+    """The rows of case ``c`` from a golden folder, through the strict loader; the case must match this version's."""
+    meta, arrays = load_case(golden_dir, c.name)
+    if list(meta["inputs"]) != list(c.inputs) or list(meta["compare"]) != list(c.outputs):
+        raise InputError(f"golden_dir: case {c.name!r} has inputs {list(meta['inputs'])} and outputs "
+                         f"{meta['compare']}, this version's has {list(c.inputs)} and {list(c.outputs)}")
+    return dict(arrays)
 
 
 def _report(c, name, dtype, arrays, got, verdict):

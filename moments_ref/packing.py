@@ -70,7 +70,7 @@ import numpy as np
 
 from ._arrays import InputError, as_array, first_index, float_dtype, real_input
 from .moments import BIAS_FLOAT32, bias_moments
-from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, _phi_rows, _psi4_clamped, phi, psi4_inverse,
+from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, phi_rows, psi4_clamped, phi, psi4_inverse,
                         rounding_tolerance, validate_representation)
 
 __all__ = [
@@ -270,7 +270,7 @@ def _xi_codes(xi4, scale, rounding, table, c):
     """
     x = np.maximum(xi4, c["xi_min"])
     np.minimum(x, c["xi_max"], out=x)
-    u = _psi4_clamped(x, c["0"], c["1"])
+    u = psi4_clamped(x, c["0"], c["1"])
     u *= scale
     code = rounding(u, out=u).astype(np.intp)
     if table is None:
@@ -604,7 +604,7 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
         rows *= scale
         for k in range(4):
             rows[k] += shift[k]
-        _phi_rows(rows, res[:, :m])
+        phi_rows(rows, res[:, :m])
         if not _saturated(res[:, :m], c, tol):
             return _nlq_separately(b, fmt, xi_rounding)
         encode(res[:, :m], c, oflat[lo : lo + m])

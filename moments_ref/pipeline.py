@@ -19,7 +19,12 @@ The stages every technique may build on:
 ``camera_gbuffer``          receiver points seen by the camera (nearest fragment
                             per pixel of the scene rasterized from the camera,
                             :func:`moments_ref.scene.gbuffer.camera_gbuffer`)
-``light_projection``        their texel coordinates and depth in the shadow map
+``light_projection``        their texel coordinates and depth in the shadow map:
+                            the receivers every technique shades
+``camera_depth_gbuffer``    with ``Settings(gbuffer="depth")`` instead: every
+                            receiver pixel, unprojected from a depth buffer
+                            (:func:`moments_ref.scene.gbuffer.depth_gbuffer`, VWSS
+                            §4; only for techniques that shade world positions)
 ``bluenoise_textures``      HPG17 §4.2 texture array (only for dithered techniques)
 ``frame_noise``             the per-pixel blue noise of frame 0
 ==========================  ======================================================
@@ -45,7 +50,12 @@ techniques are refused, with the reason, on scenes they cannot run on
 
 Lights. A directional light gets its fitted orthographic map (HPG17 §5). An area
 light (scene ``knot``) is used as a spot light from its centre by the hard-shadow
-techniques (:meth:`moments_ref.scene.Scene.shadow_view_proj`).
+techniques (:meth:`moments_ref.scene.Scene.light_clip_from_world`).
+
+Settings and records. :func:`plan` and :func:`run` take a :class:`Settings` (map size,
+MSAA, camera, reference overrides, repeats, clock, ...); :func:`plan` returns a
+:class:`RunPlan` with one :class:`TechniquePlan` per technique (its texture stages,
+its shade stage, its reference stage); :func:`run` returns a :class:`RunResult`.
 
 References
 ----------
@@ -54,21 +64,23 @@ HPG17, VWSS, Slides : see docs/bib.md.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ._arrays import InputError
+from ._shim import warn_renamed
 from .gpu.bluenoise import blue_noise_textures, frame_noise
-from .scene.gbuffer import GBuffer, camera_gbuffer, light_projection
+from .scene.gbuffer import GBuffer, camera_gbuffer, depth_gbuffer, light_projection
 from . import techniques as _techniques
-from .techniques import PlanContext, Stage, get_reference, reduced_settings
+from .techniques import PlanContext, Stage, Technique, get_reference, reduced_settings
 from .techniques._interface import GBUFFER, NOISE, PROJECTION, SHADOW_MAP, TRANSLUCENCY
 from .techniques.area import area_settings
 from .techniques.translucent import translucency_pass
 
-__all__ = ["GBuffer", "RunResult", "run", "plan", "reduced_settings", "check_scene", "AREA_OUTPUTS",
+__all__ = ["GBuffer", "Settings", "TechniquePlan", "RunPlan", "RunResult", "run", "plan", "reduced_settings", "check_scene", "AREA_OUTPUTS",
            "AREA_BITS_PER_TEXEL", "area_settings", "SCATTERING_OUTPUTS", "ScatteringResult", "scattering_stages",
            "run_scattering", "outputs_of"]
 
@@ -87,6 +99,156 @@ AREA_BITS_PER_TEXEL = {n: _techniques.get(n).bits_per_texel for n in AREA_OUTPUT
 SCATTERING_OUTPUTS = outputs_of("raymarch")
 
 
+#: The G-buffers of :attr:`Settings.gbuffer`: the stage holding the receivers every technique shades.
+GBUFFERS = {"fragments": PROJECTION, "depth": "camera_depth_gbuffer"}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The settings of one pipeline run (:func:`plan`, :func:`run`); None means the scene's own.
+
+    Attributes
+    ----------
+    shadow_map_size : int or (H, W), optional
+    msaa : int, optional
+        Samples per shadow-map texel.
+    resolution : (width, height), optional
+        Camera resolution.
+    reference : bool
+        Also compute each technique's reference (its ``truth``).
+    noise_tiles, frame : int
+        Blue-noise tiles generated (HPG17 §4.2: 64) and the frame selecting tile and offsets.
+    params : dict, optional
+        Overrides of the scene's ``params`` passed to the technique steps.
+    overrides : dict, optional
+        Per reference option (``Reference.option``: ``area``, ``scattering``) its
+        settings, e.g. ``{"area": {"light_samples": 8}}``
+        (:func:`moments_ref.techniques.area.configure`,
+        :func:`moments_ref.techniques.scattering.configure`).
+    full : bool
+        Paper-scale settings for the references that have them (``--full``).
+    gbuffer : {"fragments", "depth"}
+        The receivers: the camera's nearest fragments inside the light's shadow map
+        (every technique), or every receiver pixel unprojected from a depth buffer
+        (VWSS §4's deferred pass; techniques that shade world positions only).
+    repeats : int
+        Timed repeats of each stage of a technique's cost (its texture stages and
+        its shade stage), after a warm-up run whose value is used; the seconds are
+        their median (``spread``: median, min, max). The other stages run once.
+    warmup : bool
+        The warm-up run of the cost stages (default). Without it their first run is
+        the first timed repeat: ``repeats=1`` runs each stage once (the
+        ``moments-ref vwss`` comparison, whose stages hold N depth maps).
+    clock : {"wall", "cpu"}
+        What the seconds measure: wall-clock time (``time.perf_counter``) or the
+        CPU time of this process, all its threads (``time.process_time``: not
+        inflated when other processes compete for the cores; the report's choice).
+    progress : bool
+        A tqdm bar of the stages on stderr.
+    """
+
+    shadow_map_size: object = None
+    msaa: int = None
+    resolution: tuple = None
+    reference: bool = True
+    noise_tiles: int = 64
+    frame: int = 0
+    params: dict = None
+    overrides: dict = None
+    full: bool = False
+    gbuffer: str = "fragments"
+    repeats: int = 1
+    warmup: bool = True
+    clock: str = "wall"
+    progress: bool = False
+
+    def replace(self, **changes) -> "Settings":
+        """A copy with ``changes``."""
+        return dataclasses.replace(self, **changes)
+
+
+#: The keyword arguments :func:`plan` and :func:`run` took before :class:`Settings` (deprecated).
+_OLD_KEYWORDS = ("shadow_map_size", "msaa", "resolution", "reference", "noise_tiles", "frame", "params", "full",
+                 "repeats", "clock", "progress", "area", "given")
+
+
+def _settings_of(settings, old, fn):
+    """The :class:`Settings` of a call; the old keywords (and ``settings`` as a dict of overrides) warn."""
+    if isinstance(settings, Settings) and not old:
+        return settings
+    unknown = set(old) - set(_OLD_KEYWORDS)
+    if unknown:
+        raise TypeError(f"{fn}() got an unexpected keyword argument {sorted(unknown)[0]!r}")
+    base = settings if isinstance(settings, Settings) else Settings()
+    if settings is None and not old:
+        return base
+    warn_renamed(f"pipeline.{fn}(scene, outputs, <keywords>)", f"pipeline.{fn}(scene, outputs, Settings(...))")
+    overrides = dict(base.overrides or {})
+    if isinstance(settings, dict):  # the old per-reference overrides
+        overrides.update(settings)
+    if old.get("area") is not None:
+        overrides["area"] = old["area"]
+    kw = {k: v for k, v in old.items() if k not in ("area", "given")}
+    return base.replace(overrides=overrides, **kw)
+
+
+@dataclass(frozen=True)
+class TechniquePlan:
+    """What the graph computes for one technique.
+
+    Attributes
+    ----------
+    name : str
+    texel : tuple of str, the stage keys of its texture (its texel cost)
+    shade : str, the key of its shade stage (its result; its fragment cost)
+    reference : str or None, the key of its reference stage
+    truth : str, the name of its reference
+    bits : int, storage per texel
+    result : {"intensity", "visibility"}, what its shade stage holds (:attr:`~moments_ref.techniques.Plan.result`)
+    reference_result : {"intensity", "visibility"}, what its reference stage holds
+    """
+
+    name: str
+    texel: tuple
+    shade: str
+    reference: str
+    truth: str
+    bits: int
+    result: str = "intensity"
+    reference_result: str = "intensity"
+
+
+@dataclass
+class RunPlan:
+    """The stage graph of a run (:func:`plan`), nothing computed yet.
+
+    Attributes
+    ----------
+    graph : the stages under their keys
+    targets : list of str, the stages :func:`run` computes (and what they need)
+    context : PlanContext, the resolved settings the techniques planned with
+    techniques : dict name -> TechniquePlan, in request order
+    settings : dict reference name -> its settings in this run
+    """
+
+    graph: object
+    targets: list
+    context: PlanContext
+    techniques: dict
+    settings: dict
+
+    def __iter__(self):
+        """The old ``(graph, targets, meta)`` triple (deprecated)."""
+        warn_renamed("graph, targets, meta = pipeline.plan(...)", "pipeline.plan(...).graph, .targets, .techniques")
+        ctx = self.context
+        info = {n: {"steps": list(t.texel), "shade": t.shade, "reference": t.reference, "truth": t.truth}
+                for n, t in self.techniques.items()}
+        meta = {"size": ctx.size, "samples": ctx.samples, "resolution": ctx.resolution, "info": info,
+                "techniques": list(self.techniques), "settings": self.settings, "area": self.settings.get("mvr", {}),
+                "bits_per_texel": {n: t.bits for n, t in self.techniques.items()}}
+        return iter((self.graph, self.targets, meta))
+
+
 @dataclass
 class RunResult:
     """What :func:`run` computed.
@@ -97,7 +259,7 @@ class RunResult:
     techniques : list of str
     stages : list of str, the stages that ran, in order
     seconds : dict stage -> seconds (the median of its timed repeats; wall-clock or CPU, ``run(clock=...)``)
-    times : dict stage -> list of seconds: its timed repeats (after a warm-up run) for
+    times : dict stage -> list of seconds: its timed repeats (after a warm-up run, ``Settings.warmup``) for
         the stages of the techniques' costs, the single run for the others
     repeats : int, timed repeats of the cost stages
     used_by : dict stage -> techniques whose result or reference needs it
@@ -117,6 +279,7 @@ class RunResult:
         plus ``near``, ``far``, ``bias``), empty without them
     settings : dict reference name -> its settings in this run
     truth : dict technique -> the name of its reference
+    plans : dict technique -> its :class:`TechniquePlan` (stage keys into ``values``)
     """
 
     scene: object
@@ -139,6 +302,7 @@ class RunResult:
     repeats: int = 1
     used_by: dict = field(default_factory=dict)
     spread: dict = field(default_factory=dict)
+    plans: dict = field(default_factory=dict)
 
     def rows(self) -> list:
         """One results.csv row per technique: its reference's metric, bits and seconds (median, min, max)."""
@@ -212,12 +376,14 @@ class _Graph:
             visit(t)
         return out
 
-    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1, clock=time.perf_counter):
+    def run(self, targets, progress=False, desc="stages", timed=(), repeats=1, clock=time.perf_counter,
+            warmup=True):
         """Compute the stages ``targets`` need; return ``(order, values, times)``.
 
         A stage in ``timed`` runs once as a warm-up (its value is kept) and then
         ``repeats`` times more, each timed; ``times[stage]`` lists those seconds
         (one entry, the single run, for the other stages), read from ``clock``.
+        Without ``warmup`` the first run is the first of the ``repeats``.
         """
         order = self.order(targets)
         values, times = {}, {}
@@ -232,7 +398,8 @@ class _Graph:
                 values[name] = stage(*args)
                 times[name] = [clock() - t0]
                 if name in timed:
-                    times[name] = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1))]
+                    more = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1) - (not warmup))]
+                    times[name] = more if warmup else times[name] + more
                 if bar is not None:
                     bar.update(1)
         finally:
@@ -278,11 +445,11 @@ def _cost(times, keys, repeats):
     return [float(sum(times[k][min(i, len(times[k]) - 1)] for k in keys)) for i in range(repeats)]
 
 
-def _used_by(graph, info, order):
+def _used_by(graph, plans, order):
     """Stage -> the techniques whose result or reference depends on it (run order)."""
     out = {k: [] for k in order}
-    for n, i in info.items():
-        for k in graph.order([x for x in (i["shade"], i["reference"]) if x]):
+    for n, t in plans.items():
+        for k in graph.order([x for x in (t.shade, t.reference) if x]):
             out[k].append(n)
     return out
 
@@ -295,10 +462,10 @@ def _shadow_map(scene, size, samples):
     return scene.shadow_map(size=size, samples=samples)[0]
 
 
-def _layers(opaque, scene, view_proj):
+def _layers(opaque, scene, clip_from_world):
     m = scene.occluder_mesh(translucent=True)
     alpha = scene.occluder_opacity[scene.occluder_translucent]
-    return translucency_pass(opaque, m.vertices, m.triangles, alpha, view_proj)
+    return translucency_pass(opaque, m.vertices, m.triangles, alpha, clip_from_world)
 
 
 def _noise(textures, gb, frame):
@@ -306,15 +473,23 @@ def _noise(textures, gb, frame):
     return frame_noise(frame, (h, w), textures).reshape(h * w, -1)[gb.pixel]
 
 
+def _depth_gbuffer(scene, resolution):
+    width, height = resolution
+    return depth_gbuffer(scene.receiver.vertices, scene.receiver.triangles, scene.camera.resized(resolution).clip_from_world(),
+                         (height, width), scene.occluder.vertices, scene.occluder.triangles)
+
+
 def _base_stages(ctx):
     scene = ctx.scene
+    light = ctx.light_clip_from_world
     out = [Stage(SHADOW_MAP, _shadow_map, bound=(("scene", scene), ("size", ctx.size), ("samples", ctx.samples))),
            Stage(GBUFFER, camera_gbuffer, bound=(("scene", scene), ("resolution", ctx.resolution))),
-           Stage(PROJECTION, light_projection, (GBUFFER,), bound=(("view_proj", ctx.view_proj), ("size", ctx.size))),
+           Stage(PROJECTION, light_projection, (GBUFFER,), bound=(("clip_from_world", light), ("size", ctx.size))),
+           Stage(GBUFFERS["depth"], _depth_gbuffer, bound=(("scene", scene), ("resolution", ctx.resolution))),
            Stage("bluenoise_textures", blue_noise_textures, bound=(("count", ctx.noise_tiles),)),
            Stage(NOISE, _noise, ("bluenoise_textures", PROJECTION), bound=(("frame", ctx.frame),))]
     if ctx.translucent:
-        out.append(Stage(TRANSLUCENCY, _layers, (SHADOW_MAP,), bound=(("scene", scene), ("view_proj", ctx.view_proj))))
+        out.append(Stage(TRANSLUCENCY, _layers, (SHADOW_MAP,), bound=(("scene", scene), ("clip_from_world", light))))
     return out
 
 
@@ -327,11 +502,11 @@ def _known_outputs():
 
 
 def _requested(scene, outputs):
-    names = list(dict.fromkeys(scene.outputs if outputs is None else outputs))
+    names = list({getattr(n, "name", n): n for n in (scene.outputs if outputs is None else outputs)}.values())
     if not names:
         raise InputError(f"outputs: scene {scene.name!r} requests no outputs; {_known_outputs()}")
     for n in names:
-        if n not in _techniques.TECHNIQUES:
+        if not isinstance(n, Technique) and n not in _techniques.TECHNIQUES:
             raise InputError(f"technique: unknown technique {n!r}; {_known_outputs()}")
     techs = [_techniques.get(n) for n in names]
     for t in techs:
@@ -341,110 +516,92 @@ def _requested(scene, outputs):
     return techs
 
 
-def _context(scene, shadow_map_size, msaa, resolution, params, noise_tiles, frame, full, given):
-    size = tuple(scene.shadow_map_size) if shadow_map_size is None else (
-        (shadow_map_size, shadow_map_size) if np.isscalar(shadow_map_size) else tuple(shadow_map_size))
-    if given is None:
-        given = {"shadow_map_size": shadow_map_size, "msaa": msaa, "resolution": resolution}
-    return PlanContext(scene=scene, size=size, samples=scene.msaa if msaa is None else int(msaa),
-                       resolution=tuple(scene.camera.resolution) if resolution is None else tuple(resolution),
-                       params={**scene.params, **(params or {})},
-                       translucent=bool(np.any(scene.occluder_translucent)), view_proj=scene.shadow_view_proj(),
-                       noise_tiles=noise_tiles, frame=frame, full=bool(full), given=dict(given))
+def _context(scene, st: Settings):
+    size = tuple(scene.shadow_map_size) if st.shadow_map_size is None else (
+        (st.shadow_map_size, st.shadow_map_size) if np.isscalar(st.shadow_map_size) else tuple(st.shadow_map_size))
+    if st.gbuffer not in GBUFFERS:
+        raise InputError(f"gbuffer: expected one of {', '.join(GBUFFERS)}, got {st.gbuffer!r}")
+    return PlanContext(scene=scene, size=size, samples=scene.msaa if st.msaa is None else int(st.msaa),
+                       resolution=tuple(scene.camera.resolution) if st.resolution is None else tuple(st.resolution),
+                       params={**scene.params, **(st.params or {})},
+                       translucent=bool(np.any(scene.occluder_translucent)),
+                       light_clip_from_world=scene.light_clip_from_world(), noise_tiles=st.noise_tiles,
+                       frame=st.frame, full=bool(st.full), receivers=GBUFFERS[st.gbuffer])
 
 
-def plan(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None, reference=True,
-         noise_tiles=64, frame=0, params=None, area=None, settings=None, full=False, given=None):
-    """Build the stage graph; return ``(graph, targets, meta)`` without running anything.
+def _check_receivers(g, ctx, name, shade):
+    """Refuse a technique that shades other receivers than the run's G-buffer holds."""
+    if ctx.receivers != PROJECTION and PROJECTION in g.order([shade]):
+        raise InputError(f"technique: {name!r} looks its texture up at the receivers inside the light's shadow map; "
+                         "Settings(gbuffer='depth') serves only techniques that shade world positions")
 
-    Parameters as :func:`run`. ``meta["info"]`` maps each technique to its texture
-    stage keys (``steps``), its shade stage, its reference stage and its reference's
-    name (``truth``); ``meta["settings"]`` maps each reference used to its settings.
+
+def plan(scene, outputs=None, settings=None, **old) -> RunPlan:
+    """Build the stage graph of a run without running anything.
+
+    Parameters
+    ----------
+    scene : Scene
+    outputs : list of str or Technique, optional
+        Registered technique names, or techniques built by the caller (variants
+        that are not registered); default the scene's ``outputs``.
+    settings : Settings, optional
+        (The old keyword arguments and a dict of reference overrides still work, deprecated.)
+
+    Returns
+    -------
+    RunPlan
     """
+    st = _settings_of(settings, old, "plan")
     check_scene(scene)
     techs = _requested(scene, outputs)
-    ctx = _context(scene, shadow_map_size, msaa, resolution, params, noise_tiles, frame, full, given)
-    overrides = dict(settings or {})
-    if area is not None:
-        overrides["area"] = area
+    ctx = _context(scene, st)
+    overrides = dict(st.overrides or {})
     g = _Graph()
-    for st in _base_stages(ctx):
-        g.add(st)
-    cfgs, targets, info, bits = {}, [], {}, {}
+    for stage in _base_stages(ctx):
+        g.add(stage)
+    cfgs, targets, plans = {}, [], {}
     for t in techs:
         ref = get_reference(t.truth)
         if ref.name not in cfgs:
             cfgs[ref.name] = ref.settings(ctx, overrides.get(ref.option or ref.name))
         p = t.stages(t, ctx, cfgs[ref.name])
-        for st in p.stages:
-            g.add(st)
+        for stage in p.stages:
+            g.add(stage)
+        _check_receivers(g, ctx, t.name, p.shade)
         targets.append(p.shade)
-        ref_key = None
-        if reference:
-            st = ref.stage(ctx, cfgs[ref.name], t)
-            ref_key = None if st is None else g.add(st)
+        ref_stage = ref.stage(ctx, cfgs[ref.name], t) if st.reference else None
+        ref_key = None if ref_stage is None else g.add(ref_stage)
         if ref_key is not None:
             targets.append(ref_key)
-        info[t.name] = {"steps": list(p.texel), "shade": p.shade, "reference": ref_key, "truth": ref.name}
-        bits[t.name] = t.bits_per_texel if p.bits is None else p.bits
-    meta = {"size": ctx.size, "samples": ctx.samples, "resolution": ctx.resolution, "info": info,
-            "techniques": [t.name for t in techs], "bits_per_texel": bits, "settings": cfgs,
-            "area": cfgs.get("mvr", {})}
-    return g, list(dict.fromkeys(targets)), meta
+        plans[t.name] = TechniquePlan(name=t.name, texel=tuple(p.texel), shade=p.shade, reference=ref_key,
+                                      truth=ref.name, bits=t.bits_per_texel if p.bits is None else p.bits,
+                                      result=p.result, reference_result=ref.result)
+    return RunPlan(graph=g, targets=list(dict.fromkeys(targets)), context=ctx, techniques=plans, settings=cfgs)
 
 
-def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None, reference=True,
-        noise_tiles=64, frame=0, params=None, area=None, settings=None, full=False, given=None, progress=False,
-        repeats=1, clock="wall"):
+def _intensity(value, kind):
+    """Shadow intensity of a stage value that holds ``kind`` ("intensity" or "visibility", ``1 − intensity``)."""
+    return 1.0 - value if kind == "visibility" else value
+
+
+def run(scene, outputs=None, settings=None, **old) -> RunResult:
     """Compute the requested techniques' results on a scene's camera view, lazily.
 
     Parameters
     ----------
     scene : Scene or str
         A loaded scene, a shipped scene name or a scene file path.
-    outputs : list of str, optional
-        Registered technique names (default: the scene's ``outputs``). Unknown
-        names raise :class:`~moments_ref.InputError` listing the known ones;
-        techniques that cannot run on the scene raise it with the reason.
-    shadow_map_size : int or (H, W), optional
-        Default: the scene's.
-    msaa : int, optional
-        Samples per shadow-map texel; default the scene's.
-    resolution : (width, height), optional
-        Camera resolution; default the scene's.
-    reference : bool
-        Also compute each technique's reference (its ``truth``).
-    noise_tiles : int
-        Blue-noise tiles generated (HPG17 §4.2: 64).
-    frame : int
-        Frame number selecting the blue-noise tile and offsets.
-    params : dict, optional
-        Overrides of the scene's ``params`` passed to the technique steps.
-    area : dict, optional
-        Settings of the area-light outputs (reference ``mvr``): ``map_size``
-        (default the larger side of ``shadow_map_size``), ``light_samples`` (N,
-        default ``params.light_samples`` or 24), ``reference_views`` (R, default
-        64), ``views_per_pass`` (8), ``seed`` (0) and ``bias`` (world units,
-        default ``0.002 · far``); see :func:`area_settings`. Same as
-        ``settings={"area": ...}``.
-    settings : dict, optional
-        Per reference option (``Reference.option``: ``area``, ``scattering``) its
-        overrides, e.g. ``{"scattering": {"epipolar_size": (64, 128)}}``.
-    full : bool
-        Paper-scale settings for the references that have them (``--full``).
-    given : dict, optional
-        The sizes the caller set explicitly (default: the arguments above).
-    progress : bool
-        Show a tqdm progress bar of the stages on stderr.
-    repeats : int
-        Timed repeats of each stage of a technique's cost (its texture stages and
-        its shade stage), after a warm-up run whose value is used; the seconds are
-        their median (``spread``: median, min, max). The other stages (base
-        stages, references) run once.
-    clock : "wall" or "cpu"
-        What the seconds measure: wall-clock time (``time.perf_counter``) or the
-        CPU time of this process, all its threads (``time.process_time``: not
-        inflated when other processes compete for the cores; the report's choice).
+    outputs : list of str or Technique, optional
+        Registered technique names (default: the scene's ``outputs``), or
+        techniques built by the caller. Unknown names raise
+        :class:`~moments_ref.InputError` listing the known ones; techniques that
+        cannot run on the scene raise it with the reason.
+    settings : Settings, optional
+        Sizes, references, repeats and clock (:class:`Settings`; default the
+        scene's own). The old keyword arguments (``shadow_map_size=``, ``msaa=``,
+        ..., ``area=``, ``settings={option: overrides}``, ``given=``) still work
+        for one release, with a DeprecationWarning.
 
     Returns
     -------
@@ -454,27 +611,28 @@ def run(scene, outputs=None, *, shadow_map_size=None, msaa=None, resolution=None
         from .scene import load_scene
 
         scene = load_scene(scene)
-    g, targets, meta = plan(scene, outputs, shadow_map_size=shadow_map_size, msaa=msaa, resolution=resolution,
-                            reference=reference, noise_tiles=noise_tiles, frame=frame, params=params, area=area,
-                            settings=settings, full=full, given=given)
-    info = meta["info"]
-    timed = {k for i in info.values() for k in (*i["steps"], i["shade"])}
-    repeats = max(int(repeats), 1)
-    order, values, times = g.run(targets, progress=progress, desc=scene.name, timed=timed, repeats=repeats,
-                                 clock=_clock(clock))
+    st = _settings_of(settings, old, "run")
+    rp = plan(scene, outputs, st)
+    plans = rp.techniques
+    timed = {k for t in plans.values() for k in (*t.texel, t.shade)}
+    repeats = max(int(st.repeats), 1)
+    order, values, times = rp.graph.run(rp.targets, progress=st.progress, desc=scene.name, timed=timed,
+                                        repeats=repeats, clock=_clock(st.clock), warmup=st.warmup)
     seconds = {k: _spread(v)[0] for k, v in times.items()}
-    spread = {n: {"texel": _spread(_cost(times, i["steps"], repeats)),
-                  "fragment": _spread(_cost(times, [i["shade"]], repeats))} for n, i in info.items()}
-    return RunResult(scene=scene, techniques=meta["techniques"], stages=order, seconds=seconds,
-                     gbuffer=values.get(PROJECTION),
-                     shadow={n: values[i["shade"]] for n, i in info.items()},
-                     reference={n: values[i["reference"]] for n, i in info.items() if i["reference"]},
+    spread = {n: {"texel": _spread(_cost(times, t.texel, repeats)),
+                  "fragment": _spread(_cost(times, [t.shade], repeats))} for n, t in plans.items()}
+    ctx = rp.context
+    return RunResult(scene=scene, techniques=list(plans), stages=order, seconds=seconds,
+                     gbuffer=values.get(ctx.receivers),
+                     shadow={n: _intensity(values[t.shade], t.result) for n, t in plans.items()},
+                     reference={n: _intensity(values[t.reference], t.reference_result)
+                                for n, t in plans.items() if t.reference},
                      texel_seconds={n: v["texel"][0] for n, v in spread.items()},
                      fragment_seconds={n: v["fragment"][0] for n, v in spread.items()},
-                     shadow_map_size=meta["size"], msaa=meta["samples"], values=values,
-                     bits_per_texel=meta["bits_per_texel"], area=meta["area"], settings=meta["settings"],
-                     truth={n: i["truth"] for n, i in info.items()}, times=times, repeats=repeats,
-                     used_by=_used_by(g, info, order), spread=spread)
+                     shadow_map_size=ctx.size, msaa=ctx.samples, values=values,
+                     bits_per_texel={n: t.bits for n, t in plans.items()}, area=rp.settings.get("mvr", {}),
+                     settings=rp.settings, truth={n: t.truth for n, t in plans.items()}, times=times,
+                     repeats=repeats, used_by=_used_by(rp.graph, plans, order), spread=spread, plans=plans)
 
 
 # ---------------------------------------------------------------------------
@@ -543,8 +701,9 @@ def run_scattering(scene, *, shadow_map_size=None, msaa=None, resolution=None, e
     t0 = time.perf_counter()
     over = {"epipolar_size": epipolar_size, "reference_samples": reference_samples,
             "raymarch_samples": raymarch_samples}
-    r = run(scene, list(SCATTERING_OUTPUTS), shadow_map_size=shadow_map_size, msaa=msaa, resolution=resolution,
-            settings={"scattering": {k: v for k, v in over.items() if v is not None}})
+    r = run(scene, list(SCATTERING_OUTPUTS), Settings(shadow_map_size=shadow_map_size, msaa=msaa, resolution=resolution,
+                                                      overrides={"scattering": {k: v for k, v in over.items()
+                                                                                if v is not None}}))
     seconds = time.perf_counter() - t0
     first = r.techniques[0]
     images = {"reference": r.reference[first], **{n: r.shadow[n] for n in r.techniques}}

@@ -46,8 +46,8 @@ from __future__ import annotations
 import mpmath
 import numpy as np
 
-from ._arrays import InputError, broadcast_pair, real_input
-from .moments import BiasPreset, _as_preset
+from ._arrays import InputError, brief, broadcast_pair, check_axis, real_input
+from .moments import BiasPreset, bias_preset
 from .nonlinear import validate_representation
 
 __all__ = [
@@ -86,9 +86,14 @@ def _tol(dps):
     return mpmath.mpf(10) ** (-(int(dps) - 10))
 
 
+#: Most significant digits a caller may ask for (beyond it mpmath's work grows
+#: without bound: ``dps=10**20`` would never return).
+MAX_DPS = 10_000
+
+
 def _check_dps(dps):
-    if not isinstance(dps, (int, np.integer)) or dps < 20:
-        raise InputError(f"dps: expected an integer of at least 20 digits, got {dps!r}")
+    if isinstance(dps, bool) or not isinstance(dps, (int, np.integer)) or not 20 <= dps <= MAX_DPS:
+        raise InputError(f"dps: expected an integer from 20 to {MAX_DPS} digits, got {brief(dps)}")
     return int(dps)
 
 
@@ -126,11 +131,12 @@ def power_moments(z, weights=None, axis=-1, n=4, dps=DPS):
     HPG17 §2, ``b = E_Z(b(z))``, by the definition (a loop over samples).
     """
     dps = _check_dps(dps)
-    if n not in (4, 6):
+    if isinstance(n, bool) or n not in (4, 6):
         raise InputError(f"n: expected 4 or 6, got {n!r}")
     z = real_input(z, "z")
     if z.ndim == 0:
         raise InputError("z: expected at least one axis of samples, got a scalar")
+    axis = check_axis(axis, z.ndim, "z")
     z = np.moveaxis(z, axis, -1)
     if weights is None:
         w = np.ones(z.shape, dtype=np.float64)
@@ -164,7 +170,7 @@ def bias_moments(b, preset, dps=DPS):
     b_biased : (..., 4) or (..., 6) float64 array
     """
     dps = _check_dps(dps)
-    p = preset if isinstance(preset, BiasPreset) else _as_preset(preset)
+    p = preset if isinstance(preset, BiasPreset) else bias_preset(preset)
     b = real_input(b, "b", trailing=(4, 6))
     if len(p.target) != b.shape[-1]:
         raise InputError(f"preset: expected a target of length {b.shape[-1]}, got {len(p.target)}")

@@ -7,14 +7,14 @@ really exercised.
 
 from __future__ import annotations
 
-import functools
 import os
 import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from _oracles import golden_folder
 
 __all__ = ["need", "need_tool", "shipped_golden_folder", "one_change", "assert_ties_are_the_float32_reference"]
 
@@ -43,14 +43,11 @@ def need_tool(name):
     return need(find, name)
 
 
-@functools.lru_cache(maxsize=None)
 def shipped_golden_folder():
     """Goldens of every shipped case, written once per test process (shared by the conformance tests)."""
-    from moments_ref import conformance, golden
+    from moments_ref import conformance
 
-    d = tempfile.mkdtemp(prefix="moments-ref-test-golden-")
-    golden.write(d, conformance.shipped_cases())
-    return Path(d)
+    return golden_folder(tuple(conformance.shipped_cases()))
 
 
 def one_change(tmp_path, folder, fname, old, new):

@@ -1,9 +1,12 @@
-"""Hypothesis profiles, and the fixtures of the conformance tests.
+"""Hypothesis profiles, and the fixtures the test modules share.
 
 Hypothesis: ``ci`` (derandomized, bounded, no deadline) and ``thorough``. CI selects
 ``ci`` (also the default); run ``pytest --hypothesis-profile thorough`` for long
 local runs. Conformance: the drivers, the compilers and the shipped goldens, built
-on tests/_harness.py.
+on tests/_harness.py. Goldens: ``gdir``, the requesting module's ``GOLDEN_CASES``
+(every case when it names none); every golden folder is written once per test
+process (tests/_oracles.py). Derived goldens of engine profiles (golden.conventions)
+are cached in a temporary folder of the run (``MOMENTS_REF_CACHE``).
 """
 
 import os
@@ -12,6 +15,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from _harness import need, need_tool, shipped_golden_folder
+from _oracles import golden_folder
 
 settings.register_profile(
     "ci",
@@ -29,6 +33,14 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def pytest_configure(config):
+    """Derived goldens of engine profiles go to a folder of the test run, not to the user's cache."""
+    import tempfile
+
+    if not os.environ.get("MOMENTS_REF_CACHE"):
+        os.environ["MOMENTS_REF_CACHE"] = tempfile.mkdtemp(prefix="moments-ref-test-cache-")
 
 
 # --------------------------------------------------------------------------
@@ -57,3 +69,10 @@ def drivers(ctx):
 def golden_dir():
     """Goldens of every shipped case (written once per test process)."""
     return shipped_golden_folder()
+
+
+@pytest.fixture(scope="module")
+def gdir(request):
+    """Goldens of the requesting module's ``GOLDEN_CASES`` (every case when it names none), written once."""
+    cases = getattr(request.module, "GOLDEN_CASES", None)
+    return golden_folder(None if cases is None else tuple(cases))

@@ -35,3 +35,23 @@ def test_unknown_scene_lists_known(capsys):
     assert main(["figure4", "--out", "/tmp/unused-figure4", "--scene", "no-such-scene"]) == 2
     err = capsys.readouterr().err
     assert "railing" in err and err.count("\n") == 1
+
+
+def test_report_gets_the_parsed_arguments(monkeypatch, tmp_path):
+    """The command line hands the report its parsed values (no argv rebuilt), defined once for both parsers."""
+    from moments_ref import report
+
+    seen = {}
+
+    def fake_run(**kw):
+        seen.update(kw)
+        return {"paths": {}, "claims": []}
+
+    monkeypatch.setattr(report, "run", fake_run)
+    assert main(["report", "--scene", "facade", "--scene", "knot", "--repeats", "2", "--jobs", "1",
+                 "--technique", "pcf", "--out", str(tmp_path)]) == 0
+    assert seen["scenes"] == ["facade", "knot"] and seen["repeats"] == 2 and seen["jobs"] == 1
+    assert seen["techniques"] == ["pcf"] and seen["out_dir"] == tmp_path and seen["full"] is False
+    cli_report = next(a for a in build_parser()._actions if a.dest == "command").choices["report"]
+    ours = {s for a in report.build_parser()._actions for s in a.option_strings}
+    assert ours <= {s for a in cli_report._actions for s in a.option_strings}

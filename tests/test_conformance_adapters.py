@@ -17,33 +17,47 @@ from test_conformance_languages import COMBOS
 
 ROOT = Path(__file__).resolve().parents[1]
 PORTS_MD = (ROOT / "docs" / "ports.md").read_text()
-EXAMPLES = re.findall(r"<!-- example: (\S+) function=(\S+) case=(\S+) -->\s*```\w+\n(.*?)```", PORTS_MD, re.S)
+EXAMPLES = re.findall(r"<!-- example: (\S+) function=(\S+) case=(\S+)(?: profile=(\S+))? -->\s*```\w+\n(.*?)```",
+                      PORTS_MD, re.S)
+PROFILES = dict(re.findall(r"<!-- profile: (\S+) -->\s*```toml\n(.*?)```", PORTS_MD, re.S))
 
 
-def test_the_four_conventions_each_have_an_example():
+def test_the_examples_are_a_profile_and_glue():
     names = [e[0] for e in EXAMPLES]
-    assert names == ["bias_inside.hlsl", "depth01.wgsl", "visibility.glsl", "out_params.wgsl"]
-    hlsl = dict((e[0], e[3]) for e in EXAMPLES)["bias_inside.hlsl"]
-    # In the style of the slides' "Compute the shadow intensity": its names and steps.
-    for word in ("ComputeMSMShadowIntensity", "L32D22", "D33D22", "InvD22", "float4 Switch", "Quotient", "saturate"):
-        assert word in hlsl
+    assert names == ["engine01.hlsl", "out_params.wgsl", "depth01.wgsl"]
+    engine = EXAMPLES[0]
+    assert engine[3] == "engine01.toml" and engine[3] in PROFILES
+    # In the style of the slides' "Compute the shadow intensity": its names and steps, no adapter.
+    for word in ("L32D22", "D33D22", "InvD22", "float4 Switch", "Quotient", "saturate"):
+        assert word in engine[4]
+
+
+def _profile(tmp_path, name):
+    from moments_ref.golden.profile import load_profile
+
+    if not name:
+        return None
+    path = tmp_path / name
+    path.write_text(PROFILES[name])
+    return load_profile(path)
 
 
 @pytest.mark.parametrize("driver", ["gl", "vulkan"])
-@pytest.mark.parametrize("name,function,case,code", EXAMPLES, ids=[e[0] for e in EXAMPLES])
-def test_adapter_example_passes(drivers, tmp_path, name, function, case, code, driver):
+@pytest.mark.parametrize("name,function,case,profile,code", EXAMPLES, ids=[e[0] for e in EXAMPLES])
+def test_example_passes(drivers, tmp_path, name, function, case, profile, code, driver):
     path = tmp_path / name
     path.write_text(code)
-    report = conformance.run_case(path, function, case, None, None, driver)
-    assert report.passed, report.format()
+    cases = [case, "engine-lower-float32"] if profile else [case]
+    for c in cases:
+        report = conformance.run_case(path, function, c, None, None, driver, profile=_profile(tmp_path, profile))
+        assert report.passed, report.format()
 
 
-@pytest.mark.parametrize("name,engine,case", [("bias_inside.hlsl", "ComputeMSMShadowIntensity",
-                                                "shadow_intensity-lower-float32"),
+@pytest.mark.parametrize("name,engine,case", [("engine01.hlsl", "EngineVisibility", "shadow_intensity-lower-float32"),
                                                ("depth01.wgsl", "engine_unpack64", "unpack64-float32")])
-def test_engine_function_without_its_adapter_fails(drivers, tmp_path, name, engine, case):
-    # The adapters matter: the unchanged engine function alone is told apart.
-    code = dict((e[0], e[3]) for e in EXAMPLES)[name]
+def test_engine_function_without_its_profile_or_glue_fails(drivers, tmp_path, name, engine, case):
+    # The conventions matter: the unchanged engine function alone is told apart.
+    code = dict((e[0], e[4]) for e in EXAMPLES)[name]
     path = tmp_path / name
     path.write_text(code)
     report = conformance.run_case(path, engine, case)

@@ -27,8 +27,7 @@ from test_conformance_languages import COMBOS  # noqa: E402
 CASE = {"shade": "shade-float32", "unpack64": "unpack64-float32"}
 CAUGHT = list(make_mutants.MUTANTS)
 #: Hand-written GLSL fixtures (not generated): file stem -> (function, case).
-GLSL_ONLY = {"msm_slides_verbatim": ("ComputeMSMShadowIntensity", "shadow_intensity-lower-float32"),
-             "pack64_xi_rounded": ("pack64_xi_rounded", "pack64-float32"),
+GLSL_ONLY = {"pack64_xi_rounded": ("pack64_xi_rounded", "pack64-float32"),
              "shade_paper_literal": ("shade_paper_literal", "shade-float32")}
 
 
@@ -98,3 +97,19 @@ def test_missing_clamp_fails_on_the_clamp_rows(drivers, golden_dir, language, dr
     flip = [r for r in report.worst if not r["passed"] and "clamp" in r["flags"] and r["error"] > 0.99]
     assert flip and any("v2 = 1" in r["comment"] for r in flip), report.format()
     assert all(r["tolerance"] < 0.1 for r in flip)
+
+
+@pytest.mark.parametrize("driver", ["gl", "vulkan"])
+def test_the_slides_code_passes_and_fails_only_beyond_the_contract_with_strict(drivers, golden_dir, driver):
+    # The slides' ComputeMSMShadowIntensity has no branch for a singular Hankel matrix: it divides by zero
+    # on unbiased one- and two-point moments, which Algorithm 1 never receives (the paper biases first).
+    if ("glsl", driver) not in COMBOS:
+        pytest.skip(f"no {driver} driver")
+    path = FIXTURES / "glsl" / "msm_slides_verbatim.glsl"
+    case = "shadow_intensity-lower-float32"
+    report = conformance.run_case(path, "ComputeMSMShadowIntensity", case, golden_dir, "glsl", driver)
+    assert report.passed, report.format()
+    assert "beyond the algorithm's contract: 35 rows" in report.format()
+    strict = conformance.run_case(path, "ComputeMSMShadowIntensity", case, golden_dir, "glsl", driver, strict=True)
+    assert not strict.passed and (strict.verdict.robust[~strict.row_pass]).all()
+    assert all("singular_hankel" in r["flags"] for r in strict.worst if not r["passed"])

@@ -26,8 +26,7 @@ from test_evsm_leak import _exact, _scene
 
 @pytest.fixture(scope="module")
 def railing():
-    return pipeline.run(load_scene("railing"), ["evsm64", "evsm128"], shadow_map_size=192, msaa=1,
-                        resolution=(96, 54), reference=False)
+    return pipeline.run(load_scene("railing"), ["evsm64", "evsm128"], pipeline.Settings(shadow_map_size=192, msaa=1, resolution=(96, 54), reference=False))
 
 
 def test_railing_receivers_cast_into_the_shadow_map(railing):
@@ -86,7 +85,7 @@ def test_evsm_on_railing_is_its_bound_in_float64(railing, name, c_pos, c_neg, de
     ci, cw = tap_weights(proj.uv[:, 0], z.shape[1])
     ri, rw = tap_weights(proj.uv[:, 1], z.shape[0])
     d = z[ri[:, :, None], ci[:, None, :]]
-    zf = proj.depth - 1e-3
+    zf = proj.z_ndc_light - 1e-3
     bound = np.zeros(len(zf))
     for x, t, c in ((np.exp(c_pos * d), np.exp(c_pos * zf), c_pos), (-np.exp(-c_neg * d), -np.exp(-c_neg * zf), c_neg)):
         mu = np.einsum("nij,ni,nj->n", x, rw, cw)

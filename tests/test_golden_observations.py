@@ -14,11 +14,7 @@ CASES = ["bias_moments-float32-float32", "shade-float32", "pack64-float32", "enc
          "unpack32-float32", "unpack64-float32", "pack32-float32", "shadow_intensity-lower-float32"]
 
 
-@pytest.fixture(scope="module")
-def gdir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("golden_obs")
-    golden.write(out, CASES)
-    return out
+GOLDEN_CASES = CASES  # conftest's gdir writes these
 
 
 def _inputs(gdir, case):
@@ -143,7 +139,11 @@ def test_oracle_gates_hypothesis_rows_per_row():
         return out
 
     rep = oracle.check(off_on_drawn_rows, "shadow_intensity-lower", dtype="float32", n_hypothesis=60)
-    assert not rep.passed and rep.failures >= 20, str(rep)
+    # By default only the drawn rows inside Algorithm 1's contract are gated (which of the 60 are depends
+    # on the draws); with strict every drawn row is, and nearly all of them are off by more than their tolerance.
+    strict = oracle.check(off_on_drawn_rows, "shadow_intensity-lower", dtype="float32", n_hypothesis=60, strict=True)
+    assert not rep.passed and rep.failures >= 10, str(rep)
+    assert strict.failures >= 50 and strict.failures > rep.failures, str(strict)
     assert oracle.check(lambda b, zf: shadow_intensity(b, zf), "shadow_intensity-lower", dtype="float32",
                         n_hypothesis=60).passed
 

@@ -44,13 +44,16 @@ FIXTURE_MUTANTS = [
     ("root-sign", "shade-float32", "shade_root_sign_flipped.glsl", "shade_root_sign_flipped"),
     ("xi-multiplied", "shade-float32", "shade_xi_multiplied.glsl", "shade_xi_multiplied"),
     ("xi-rounded", "pack64-float32", "pack64_xi_rounded.glsl", "pack64_xi_rounded"),
+]
+#: Killed only with --strict: differs from the reference on robustness rows alone.
+STRICT_ONLY = [
     ("slides-verbatim", "shadow_intensity-lower-float32", "msm_slides_verbatim.glsl", "ComputeMSMShadowIntensity"),
 ]
 
 
-def _three_verdicts(ctx, golden_dir, tmp_path, glsl, function, case):
+def _three_verdicts(ctx, golden_dir, tmp_path, glsl, function, case, strict=False):
     """``(conformance, verify, oracle.check)`` pass/fail; asserts they fail the same rows."""
-    report = conformance.run_case(glsl, function, case, golden_dir=golden_dir)
+    report = conformance.run_case(glsl, function, case, golden_dir=golden_dir, strict=strict)
     meta = golden.load_manifest(golden_dir)["cases"][case]
     arrays = golden.load_case_arrays(golden_dir, case, meta)
     specs = {o: (arrays[o].dtype if meta["exact"] else np.float32, arrays[o].shape) for o in meta["compare"]}
@@ -62,11 +65,13 @@ def _three_verdicts(ctx, golden_dir, tmp_path, glsl, function, case):
             got[o] = got[o].astype(want)
     path = tmp_path / "gpu.npz"
     np.savez(path, **{f"{case}.{o}": v for o, v in got.items()})
-    result = next(c for c in golden.verify(golden_dir, path, port_dtype="float32").cases if c.name == case)
+    result = next(c for c in golden.verify(golden_dir, path, port_dtype="float32", strict=strict).cases
+                  if c.name == case)
     # The same GPU outputs, the same rows: a float64 case gives verify the float32 column too.
     assert np.array_equal(report.row_pass, result.verdict.row_pass), (case, report.format())
     outs = tuple(got[o] for o in meta["compare"])
-    checked = oracle.check(lambda *a: outs if len(outs) > 1 else outs[0], case, dtype="float32", n_hypothesis=0)
+    checked = oracle.check(lambda *a: outs if len(outs) > 1 else outs[0], case, dtype="float32", n_hypothesis=0,
+                           strict=strict)
     assert checked.failures == report.failures == int((~result.verdict.row_pass).sum())
     return report.passed, result.status == "pass", checked.passed
 
@@ -92,6 +97,13 @@ def test_glsl_fixture_mutants_killed_by_all_three(ctx, golden_dir, tmp_path, nam
     _killed_by_all(_three_verdicts(ctx, golden_dir, tmp_path, FIXTURES / fname, function, case), name)
 
 
+@pytest.mark.parametrize("name,case,fname,function", STRICT_ONLY, ids=[m[0] for m in STRICT_ONLY])
+def test_glsl_fixture_differing_beyond_the_contract_passes_and_strict_kills_it(ctx, golden_dir, tmp_path, name, case,
+                                                                                fname, function):
+    assert _three_verdicts(ctx, golden_dir, tmp_path, FIXTURES / fname, function, case) == (True, True, True)
+    _killed_by_all(_three_verdicts(ctx, golden_dir, tmp_path, FIXTURES / fname, function, case, strict=True), name)
+
+
 def test_conformance_judges_through_golden_compare(ctx, golden_dir, monkeypatch):
     # No second set of rules: conformance's verdict is golden.compare's, whatever that says.
     from moments_ref.conformance import verdict
@@ -99,9 +111,9 @@ def test_conformance_judges_through_golden_compare(ctx, golden_dir, monkeypatch)
 
     calls = []
 
-    def spy(entry, expected, candidate, port_dtype=None, case=""):
+    def spy(entry, expected, candidate, port_dtype=None, case="", strict=False):
         calls.append((case, port_dtype))
-        v = real_compare(entry, expected, candidate, port_dtype, case)
+        v = real_compare(entry, expected, candidate, port_dtype, case, strict)
         v.row_pass[:] = False
         v.score[:] = np.inf
         return v

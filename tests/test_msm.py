@@ -24,7 +24,6 @@ import numpy as np
 import pytest
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
-from scipy.optimize import linprog
 
 from moments_ref import InputError, precise
 from moments_ref.tools import stability
@@ -37,35 +36,21 @@ from moments_ref.msm import (
 )
 from moments_ref.tools.strategies import depth_distributions, depths, exact_shadow, two_point_distributions
 
+from _oracles import check_bounds, lp_grid, lp_lower, zf_candidates
+
 ALPHA_SLACK = BIAS_FLOAT32.alpha
 F64_VS_PRECISE = 1e-9
 F32_SLACK = ALPHA_SLACK + 1e-3
 UNBIASED_TOL = 1e-6
 
 
-def _zf_candidates(z, draw_zf):
-    """The drawn zf plus every support point and its float neighbours (the hard spots)."""
-    zs = [draw_zf] + list(z) + list(np.nextafter(z, 2.0)) + list(np.nextafter(z, -2.0))
-    return np.clip(np.asarray(zs, dtype=np.float64), -1, 1)
-
-
-def check_bounds(fn, z, w, zf, dtype, slack):
-    """Assert lower ≤ Z(z < zf) ≤ Z(z ≤ zf) ≤ upper (up to ``slack``) for biased moments."""
-    b = bias_moments(power_moments(z, w).astype(dtype), BIAS_FLOAT32)
-    zf_d = zf.astype(dtype)
-    zf_x = zf_d.astype(np.float64)  # the depth the kernel actually sees
-    lower = fn(b, zf_d, "lower").astype(np.float64)
-    upper = fn(b, zf_d, "upper").astype(np.float64)
-    z_lt = exact_shadow(z, w, zf_x)
-    z_le = exact_shadow(z, w, zf_x, strict=False)
-    assert np.isfinite(lower).all() and np.isfinite(upper).all()
-    assert (lower <= z_lt + slack).all(), (b, zf_d[lower > z_lt + slack], lower, z_lt)
-    assert (z_le <= upper + slack).all(), (b, zf_d[z_le > upper + slack], upper, z_le)
-    assert (lower <= upper).all()
-
-
 def _msm(b, zf, bound):
     return shadow_intensity(b, zf, bound=bound)
+
+
+def _check(fn, z, w, zf, dtype, slack):
+    """:func:`_oracles.check_bounds` of a four-moment kernel ``fn(b, zf, bound)``, moments biased with BIAS_FLOAT32."""
+    check_bounds(lambda b, f: (fn(b, f, "lower"), fn(b, f, "upper")), z, w, zf, dtype, slack, BIAS_FLOAT32)
 
 
 # ---------------------------------------------------------------------------
@@ -93,15 +78,15 @@ def test_bounds_unbiased_float64(dist, zf):
 @given(depth_distributions(), depths())
 def test_bounds_biased_float64(dist, zf):
     z, w = dist
-    check_bounds(_msm, z, w, _zf_candidates(z, zf), np.float64, ALPHA_SLACK + 1e-12)
+    _check(_msm, z, w, zf_candidates(z, zf), np.float64, ALPHA_SLACK + 1e-12)
 
 
 @given(depth_distributions(), depths())
 def test_bounds_biased_precise(dist, zf):
     # The oracle itself obeys the mixture argument with no float slack at all.
     z, w = dist
-    check_bounds(lambda b, zf, bound: precise.shadow_intensity(b, zf, bound),
-                 z, w, _zf_candidates(z, zf), np.float64, ALPHA_SLACK + 1e-15)
+    _check(lambda b, zf, bound: precise.shadow_intensity(b, zf, bound),
+                 z, w, zf_candidates(z, zf), np.float64, ALPHA_SLACK + 1e-15)
 
 
 #: Support points closer than this are one point to biased float32 moments: the bias
@@ -125,17 +110,17 @@ def _resolvable(z, zf, dtype, eps=F32_RESOLUTION):
 @example(dist=(np.array([0.875, 0.875075, 0.8751]), np.array([0.4, 0.3, 0.3])), zf=0.0)
 def test_bounds_biased_float32(dist, zf):
     z, w = dist
-    check_bounds(_msm, z, w, _resolvable(z, _zf_candidates(z, zf), np.float32), np.float32, F32_SLACK)
+    _check(_msm, z, w, _resolvable(z, zf_candidates(z, zf), np.float32), np.float32, F32_SLACK)
 
 
 def test_float32_unresolvable_pair_is_excluded_and_would_fail():
     """The exclusion is needed (the pair fails the bracket) and narrow (one point is kept)."""
     z, w = np.array([0.875, 0.8750005]), np.array([0.5, 0.5])
-    zf = _zf_candidates(z, 0.0)
+    zf = zf_candidates(z, 0.0)
     with pytest.raises(AssertionError):
-        check_bounds(_msm, z, w, zf, np.float32, F32_SLACK)
+        _check(_msm, z, w, zf, np.float32, F32_SLACK)
     assert list(_resolvable(z, zf, np.float32)) == [0.0]
-    assert len(_resolvable(np.array([0.5, 0.875]), _zf_candidates(np.array([0.5, 0.875]), 0.0), np.float32)) == 7
+    assert len(_resolvable(np.array([0.5, 0.875]), zf_candidates(np.array([0.5, 0.875]), 0.0), np.float32)) == 7
 
 
 def test_float32_threshold_regression():
@@ -154,7 +139,7 @@ def test_bounds_check_has_power():
     z, w = np.array([-0.5, 0.2, 0.7]), np.array([0.3, 0.3, 0.4])
     mutant = lambda b, zf, bound: shadow_intensity(b, zf, "upper")
     with pytest.raises(AssertionError):
-        check_bounds(mutant, z, w, _zf_candidates(z, 0.0), np.float64, ALPHA_SLACK)
+        _check(mutant, z, w, zf_candidates(z, 0.0), np.float64, ALPHA_SLACK)
 
 
 # ---------------------------------------------------------------------------
@@ -289,16 +274,6 @@ def test_sigma2_threshold_both_sides(factor):
 # sharpness: Algorithm 1 equals the minimum of a linear program over distributions
 
 
-def _lp_lower(b, zf, grid):
-    """min Σ_{g < zf} x_g  s.t.  Σ x_g g^k = b_k (k = 0..4), x ≥ 0 (HiGHS)."""
-    A = np.vander(grid, 5, increasing=True).T
-    rhs = np.concatenate([[1.0], b])
-    res = linprog((grid < zf).astype(float), A_eq=A, b_eq=rhs, bounds=(0, None), method="highs",
-                  options={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
-    assert res.status == 0, res.message
-    return res.fun
-
-
 SHARP_CASES = [  # (depths, weights, zf): biased, canonical support inside [-3, 3]
     ([-0.8, 0.4], [0.4, 0.6], 0.1),
     ([-0.5, 0.0, 0.6], [0.2, 0.5, 0.3], 0.3),
@@ -316,11 +291,6 @@ GRIDS = (101, 401, 1601, 6401)
 LP_FINAL_TOL = 1e-3
 
 
-def _grid(n):
-    # An irrational shift keeps zf and the canonical points off the grid.
-    return np.linspace(-3, 3, n) + (6 / (n - 1)) * (np.sqrt(2) - 1)
-
-
 @pytest.mark.parametrize("z, w, zf", SHARP_CASES)
 def test_lower_bound_is_sharp(z, w, zf):
     b = bias_moments(power_moments(np.array(z), np.array(w)), (SHARP_ALPHA, BIAS_FLOAT32.target))
@@ -329,7 +299,7 @@ def test_lower_bound_is_sharp(z, w, zf):
     assert np.abs(depths).max() < 3
     gaps = []
     for n in GRIDS:
-        lp = _lp_lower(b, zf, _grid(n))
+        lp = lp_lower(b, zf, lp_grid(n))
         assert lp >= exact - 1e-8  # grid distributions are a subset: never below the sharp bound
         gaps.append(lp - exact)
     assert gaps[-1] <= LP_FINAL_TOL
@@ -341,7 +311,7 @@ def test_sharpness_check_has_power():
     # Mutant: a bound raised by 0.01 is above the LP minimum of the finest grid.
     z, w, zf = SHARP_CASES[1]
     b = bias_moments(power_moments(np.array(z), np.array(w)), (SHARP_ALPHA, BIAS_FLOAT32.target))
-    assert float(shadow_intensity(b, zf)) + 0.01 > _lp_lower(b, zf, _grid(GRIDS[-1]))
+    assert float(shadow_intensity(b, zf)) + 0.01 > lp_lower(b, zf, lp_grid(GRIDS[-1]))
 
 
 # ---------------------------------------------------------------------------
@@ -352,7 +322,7 @@ def test_sharpness_check_has_power():
 def test_float64_matches_precise(dist, zf):
     z, w = dist
     b = bias_moments(power_moments(z, w), BIAS_FLOAT32)
-    zf = _zf_candidates(z, zf)
+    zf = zf_candidates(z, zf)
     for bound in ("lower", "upper"):
         np.testing.assert_allclose(shadow_intensity(b, zf, bound), precise.shadow_intensity(b, zf, bound),
                                    atol=F64_VS_PRECISE)

@@ -24,11 +24,12 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from scipy.optimize import linprog
 
 from moments_ref import InputError, msm, msm6, precise
 from moments_ref.moments import bias_moments, power_moments
 from moments_ref.tools.strategies import depth_distributions, depths, exact_shadow
+
+from _oracles import check_bounds, lp_grid, lp_lower, zf_candidates
 
 ALPHA = msm6.BIAS6_FLOAT64.alpha
 ALPHA32 = msm6.BIAS6_FLOAT32.alpha
@@ -37,46 +38,29 @@ F32_VS_PRECISE_FAR = 2e-2
 F32_SLACK = ALPHA32 + 1e-3
 
 
-def _zf_candidates(z, zf):
-    zs = [zf] + list(z) + list(np.nextafter(z, 2.0)) + list(np.nextafter(z, -2.0))
-    return np.clip(np.asarray(zs, dtype=np.float64), -1, 1)
-
-
-def check_bounds(fn, z, w, zf, dtype, slack):
-    """lower ≤ Z(z < zf) ≤ Z(z ≤ zf) ≤ upper up to ``slack`` for biased six moments."""
+def _check(bounds, z, w, zf, dtype, slack):
+    """:func:`_oracles.check_bounds` of six moments, biased with the preset of their dtype."""
     preset = msm6.BIAS6_FLOAT32 if dtype == np.float32 else msm6.BIAS6_FLOAT64
-    b = bias_moments(power_moments(z, w, n=6).astype(dtype), preset)
-    zf_d = zf.astype(dtype)
-    zf_x = zf_d.astype(np.float64)
-    lower, upper = (np.asarray(x, dtype=np.float64) for x in fn(b, zf_d))
-    z_lt, z_le = exact_shadow(z, w, zf_x), exact_shadow(z, w, zf_x, strict=False)
-    assert np.isfinite(lower).all() and np.isfinite(upper).all()
-    assert (lower <= z_lt + slack).all(), (zf_d, lower, z_lt)
-    assert (z_le <= upper + slack).all(), (zf_d, upper, z_le)
-    assert (lower <= upper).all()
-
-
-# ---------------------------------------------------------------------------
-# bounds bracket the truth
+    check_bounds(bounds, z, w, zf, dtype, slack, preset, n=6)
 
 
 @given(depth_distributions(), depths())
 def test_bounds_biased_float64(dist, zf):
     z, w = dist
-    check_bounds(msm6.shadow_bounds, z, w, _zf_candidates(z, zf), np.float64, ALPHA + 1e-9)
+    _check(msm6.shadow_bounds, z, w, zf_candidates(z, zf), np.float64, ALPHA + 1e-9)
 
 
 @given(depth_distributions(), depths())
 def test_bounds_biased_float32(dist, zf):
     z, w = dist
-    check_bounds(msm6.shadow_bounds, z, w, _zf_candidates(z, zf), np.float32, F32_SLACK)
+    _check(msm6.shadow_bounds, z, w, zf_candidates(z, zf), np.float32, F32_SLACK)
 
 
 @settings(max_examples=25)
 @given(depth_distributions(max_points=6), depths())
 def test_bounds_biased_precise(dist, zf):
     z, w = dist
-    check_bounds(precise.shadow_bounds6, z, w, _zf_candidates(z, zf)[:4], np.float64, ALPHA + 1e-15)
+    _check(precise.shadow_bounds6, z, w, zf_candidates(z, zf)[:4], np.float64, ALPHA + 1e-15)
 
 
 def test_float32_needs_stronger_bias():
@@ -99,7 +83,7 @@ def test_bounds_check_has_power():
     z, w = np.array([-0.5, 0.2, 0.7, 0.9]), np.array([0.3, 0.3, 0.2, 0.2])
     mutant = lambda b, zf: (msm6.shadow_bounds(b, zf)[1],) * 2
     with pytest.raises(AssertionError):
-        check_bounds(mutant, z, w, _zf_candidates(z, 0.0), np.float64, ALPHA)
+        _check(mutant, z, w, zf_candidates(z, 0.0), np.float64, ALPHA)
 
 
 @given(st.lists(st.floats(-1, 1), min_size=1, max_size=3, unique=True), st.floats(-1, 1))
@@ -226,17 +210,17 @@ def test_sturm_count_is_the_number_of_roots_below_zf(dist, zf):
 def test_sturm_count_has_power():
     # Mutant: the root of the wrong side (sigma flipped) breaks the bracket of the bounds.
     z, w = np.array([-0.8, -0.3, 0.1, 0.5, 0.9]), np.array([0.2, 0.2, 0.2, 0.2, 0.2])
-    zf = _zf_candidates(z, 0.3)
+    zf = zf_candidates(z, 0.3)
     real = msm6._extreme_root
 
     def flipped(c0, c1, c2, c3, sigma, newton=2, refine=2):
         return real(c0, c1, c2, c3, -sigma, newton, refine)
 
-    check_bounds(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
+    _check(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
     msm6._extreme_root = flipped
     try:
         with pytest.raises(AssertionError):
-            check_bounds(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
+            _check(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
     finally:
         msm6._extreme_root = real
 
@@ -261,15 +245,6 @@ def test_stiff_golden_rows_match_precise(dt, tol):
 # sharpness: the lower bound is the minimum of a linear program over distributions
 
 
-def _lp_lower(b, zf, grid):
-    A = np.vander(grid, 7, increasing=True).T
-    res = linprog((grid < zf).astype(float), A_eq=A, b_eq=np.concatenate([[1.0], b]), bounds=(0, None),
-                  method="highs", options={"primal_feasibility_tolerance": 1e-10,
-                                           "dual_feasibility_tolerance": 1e-10})
-    assert res.status == 0, res.message
-    return res.fun
-
-
 SHARP_CASES = [
     ([-0.8, -0.1, 0.4, 0.9], [0.3, 0.2, 0.3, 0.2], 0.1),
     ([-0.5, 0.0, 0.3, 0.6, 0.8], [0.2, 0.2, 0.2, 0.2, 0.2], 0.45),
@@ -277,10 +252,6 @@ SHARP_CASES = [
 SHARP_ALPHA = 0.05
 GRIDS = (201, 801, 3201)
 LP_FINAL_TOL = 5e-3
-
-
-def _grid(n):
-    return np.linspace(-3, 3, n) + (6 / (n - 1)) * (np.sqrt(2) - 1)
 
 
 @pytest.mark.parametrize("z, w, zf", SHARP_CASES)
@@ -291,7 +262,7 @@ def test_lower_bound_is_sharp(z, w, zf):
     assert np.abs(d).max() < 3
     gaps = []
     for n in GRIDS:
-        lp = _lp_lower(b, zf, _grid(n))
+        lp = lp_lower(b, zf, lp_grid(n))
         assert lp >= exact - 1e-7  # grid distributions are a subset
         gaps.append(lp - exact)
     assert gaps[-1] <= LP_FINAL_TOL, gaps
@@ -302,7 +273,7 @@ def test_lower_bound_is_sharp(z, w, zf):
 def test_sharpness_check_has_power():
     z, w, zf = SHARP_CASES[0]
     b = bias_moments(power_moments(np.array(z), np.array(w), n=6), (SHARP_ALPHA, msm6.BIAS6_TARGET))
-    assert float(msm6.shadow_intensity(b, zf)) + 0.02 > _lp_lower(b, zf, _grid(GRIDS[-1]))
+    assert float(msm6.shadow_intensity(b, zf)) + 0.02 > lp_lower(b, zf, lp_grid(GRIDS[-1]))
 
 
 # ---------------------------------------------------------------------------

@@ -3,7 +3,7 @@
 Independent references: the closed-form visibility of a rectangle parallel to
 a rectangular light (overlap of two rectangles), moments computed by
 definition, the multi-view rasterization (MVR) reference of moments_ref.techniques.vwss,
-and vwss.shading.linear_depth for the depth conversion.
+and the light matrix's own w_clip for the depth conversion.
 """
 
 import itertools
@@ -111,21 +111,24 @@ def test_a_third_of_the_soft_bias_is_not_enough():
 
 
 def test_frustum_is_read_back_from_the_matrix():
-    from moments_ref.techniques.vwss.shading import linear_depth
-
-    fr = msm_soft.LightFrustum.from_view_proj(LIGHT, VP, (128, 256))
+    fr = msm_soft.LightFrustum.from_matrix(LIGHT, VP, (128, 256))
     assert fr.near == pytest.approx(NEAR) and fr.far == pytest.approx(FAR)
     assert fr.tan_half_fov == pytest.approx((np.tan(np.radians(30)),) * 2)
     assert fr.extent == pytest.approx((1.0, 0.6))  # width along the columns
-    z = np.linspace(-1, 1, 11)
-    np.testing.assert_allclose(fr.view_depth(z), linear_depth(z, NEAR, FAR))
-    np.testing.assert_allclose(fr.ndc_depth(fr.view_depth(z)), z, atol=1e-12)
-    np.testing.assert_allclose(fr.linear_to_view(fr.linear_depth(z)), fr.view_depth(z))
-    assert fr.linear_depth(1.0) == pytest.approx(1.0) and fr.linear_depth(-1.0) == pytest.approx(-1.0)
+    # points along the light's axis at known distances: the matrix's NDC depth, read back
+    d = np.linspace(NEAR, FAR, 11)
+    hom = np.c_[LIGHT.center + d[:, None] * LIGHT.normal, np.ones(11)] @ np.asarray(VP).T
+    z = hom[:, 2] / hom[:, 3]
+    np.testing.assert_allclose(fr.d_view_from_ndc(z), d, rtol=1e-12)
+    np.testing.assert_allclose(fr.z_ndc_from_view(d), z, atol=1e-12)
+    np.testing.assert_allclose(fr.z_linear_from_ndc(z), np.linspace(-1, 1, 11), atol=1e-12)
+    np.testing.assert_allclose(fr.d_view_from_linear(fr.z_linear_from_ndc(z)), d, rtol=1e-12)
+    with pytest.warns(DeprecationWarning, match="LightFrustum.view_depth"):
+        assert np.array_equal(fr.view_depth(z), fr.d_view_from_ndc(z))
     with pytest.raises(InputError, match="perspective view from the light"):
-        msm_soft.LightFrustum.from_view_proj(LIGHT, np.eye(4), (8, 8))
+        msm_soft.LightFrustum.from_matrix(LIGHT, np.eye(4), (8, 8))
     with pytest.raises(InputError, match="area light"):
-        msm_soft.LightFrustum.from_view_proj(object(), VP, (8, 8))
+        msm_soft.LightFrustum.from_matrix(object(), VP, (8, 8))
 
 
 @given(st.floats(-0.95, 0.95), st.floats(-0.99, 0.99), st.floats(-0.99, 0.99),
@@ -165,7 +168,7 @@ XS = np.linspace(-1.2, 1.2, 241)
 def test_square_occluder_against_closed_form(d):
     dm = square_scene(d)
     pts = frame(XS, 0.1 * np.sin(7 * XS), RECEIVER)
-    vis = msm_soft.shade_points(LIGHT, dm, pts, view_proj=VP, bias=0.01)
+    vis = msm_soft.shade_points(LIGHT, dm, pts, clip_from_world=VP, bias=0.01)
     ex = exact_visibility(pts, (-0.5, 0.5, -0.5, 0.5, d))
     rmse = np.sqrt(np.mean((vis - ex) ** 2))
     # Measured: 0.0057 (d = 2); the rest is texel-sized rasterization of the edges.
@@ -178,7 +181,7 @@ def test_penumbra_grows_with_the_occluder_height():
     x = np.linspace(0.2, 1.4, 481)
     pts = frame(x, 0 * x, RECEIVER)
     for d in (3.5, 3.0, 2.5, 2.0):  # height above the receiver 0.5, 1, 1.5, 2
-        vis = msm_soft.shade_points(LIGHT, square_scene(d), pts, view_proj=VP, bias=0.01)
+        vis = msm_soft.shade_points(LIGHT, square_scene(d), pts, clip_from_world=VP, bias=0.01)
         widths.append(transition_width(x, vis))
         exact.append(transition_width(x, exact_visibility(pts, (-0.5, 0.5, -0.5, 0.5, d))))
     assert all(a < b for a, b in zip(widths, widths[1:])), widths
@@ -189,18 +192,18 @@ def test_float32_and_float64_agree_and_ndc_storage_is_worse():
     dm = square_scene(2.0)
     pts = frame(XS, 0 * XS, RECEIVER)
     ex = exact_visibility(pts, (-0.5, 0.5, -0.5, 0.5, 2.0))
-    v32 = msm_soft.shade_points(LIGHT, dm, pts, view_proj=VP, bias=0.01, dtype=np.float32)
-    v64 = msm_soft.shade_points(LIGHT, dm, pts, view_proj=VP, bias=0.01, dtype=np.float64)
+    v32 = msm_soft.shade_points(LIGHT, dm, pts, clip_from_world=VP, bias=0.01, dtype=np.float32)
+    v64 = msm_soft.shade_points(LIGHT, dm, pts, clip_from_world=VP, bias=0.01, dtype=np.float64)
     assert np.abs(v32 - v64).max() < 1e-3
-    ndc = msm_soft.shade_points(LIGHT, dm, pts, view_proj=VP, bias=0.01, depth="ndc", max_kernel=256)
-    lin = msm_soft.shade_points(LIGHT, dm, pts, view_proj=VP, bias=0.01, max_kernel=256)
+    ndc = msm_soft.shade_points(LIGHT, dm, pts, clip_from_world=VP, bias=0.01, depth="ndc", max_kernel=256)
+    lin = msm_soft.shade_points(LIGHT, dm, pts, clip_from_world=VP, bias=0.01, max_kernel=256)
     assert np.sqrt(np.mean((ndc - ex) ** 2)) > 3 * np.sqrt(np.mean((lin - ex) ** 2))
 
 
 def test_clamped_regions_are_flagged():
     # A kernel far too small for the penumbra: documented clamp, flagged, hardens the shadow.
     pts = frame(XS, 0 * XS, RECEIVER)
-    vis, info = msm_soft.shade_points(LIGHT, square_scene(1.5), pts, view_proj=VP, bias=0.01, max_kernel=8,
+    vis, info = msm_soft.shade_points(LIGHT, square_scene(1.5), pts, clip_from_world=VP, bias=0.01, max_kernel=8,
                                       details=True)
     assert info["search_clamped"].all() and info["filter_clamped"].any()
     assert np.all(np.isfinite(vis)) and vis.min() >= 0 and vis.max() <= 1
@@ -209,7 +212,7 @@ def test_clamped_regions_are_flagged():
 
 def test_points_outside_the_map_are_lit():
     pts = frame([0.0, 50.0], [0.0, 0.0], [RECEIVER, RECEIVER])
-    vis = msm_soft.shade_points(LIGHT, square_scene(2.0), pts, view_proj=VP, bias=0.01)
+    vis = msm_soft.shade_points(LIGHT, square_scene(2.0), pts, clip_from_world=VP, bias=0.01)
     assert vis[0] < 0.01 and vis[1] == 1.0
 
 
@@ -228,7 +231,7 @@ def test_against_mvr_on_a_square_occluder():
     gx, gy = np.meshgrid(np.linspace(-1.1, 1.1, 45), np.linspace(-0.9, 0.9, 37))
     pts = frame(gx, gy, RECEIVER).reshape(-1, 3)
     ref = multiview_visibility(pts, maps, ls, bias=0.01)
-    dm, _ = rasterize_depth(v, t, ls.center_view_proj(), 128)
+    dm, _ = rasterize_depth(v, t, ls.center_clip_from_world(), 128)
     vis = msm_soft.shade_points(ls, dm, pts, bias=0.01)
     ex = exact_visibility(pts, (-0.5, 0.5, -0.5, 0.5, 2.5))
     rmse_mvr = np.sqrt(np.mean((vis - ref) ** 2))
@@ -289,7 +292,7 @@ def test_registered_technique_matches_shade_points():
     t = get("msm_soft")
     assert t.bits_per_texel == 128 and t.light_kinds == ("area",)
     dm = square_scene(2.0, size=128)
-    tex = t.prepare(dm, {"light": LIGHT, "view_proj": VP})
+    tex = t.prepare(dm, {"light": LIGHT, "clip_from_world": VP})
     assert isinstance(tex, msm_soft.SoftShadowMap) and tex.sat.table.dtype == np.uint32
     from moments_ref.scene.raster import project_points
 
@@ -309,11 +312,11 @@ def test_bad_input():
         msm_soft.prepare(dm, LIGHT, VP, max_kernel=0)
     with pytest.raises(InputError, match="depth"):
         msm_soft.prepare(dm, LIGHT, VP, depth="log")
-    with pytest.raises(InputError, match="view_proj"):
+    with pytest.raises(InputError, match="clip_from_world"):
         msm_soft.shade_points(LIGHT, dm, frame([0.0], [0.0], [4.0]))
     with pytest.raises(InputError, match="SoftShadowMap"):
         msm_soft.soft_shadow(dm, [[1.0, 1.0]], [0.5])
     with pytest.raises(InputError):
         msm_soft.prepare(np.full((4, 4), 2.0), LIGHT, VP)  # depth outside [-1, 1]
     with pytest.raises(InputError, match="points"):
-        msm_soft.shade_points(LIGHT, dm, [[0.0, np.nan, 4.0]], view_proj=VP)
+        msm_soft.shade_points(LIGHT, dm, [[0.0, np.nan, 4.0]], clip_from_world=VP)

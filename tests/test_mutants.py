@@ -43,8 +43,10 @@ def test_cli_prints_the_table(tmp_path, capsys):
                                         "MUTANTS = [m for m in _ALL if m.port == 'alg3']\n")
     assert main(["mutants", "--corpus", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "| alg3-literal-root | bug | killed | shade-float32:" in out
-    assert "bugs killed 12/12, legitimate variants passing 7/7" in out and "(WRONG)" not in out
+    assert "| alg3-literal-root | bug | killed | killed | shade-float32:" in out
+    assert "contract level: bugs killed 12/12, legitimate variants passing 8/8, robustness variants passing 1/1" in out
+    assert "(WRONG)" not in out
+    assert "strict level:" in out
 
 
 def test_table_of_the_default_corpus_is_right(results):
@@ -52,6 +54,30 @@ def test_table_of_the_default_corpus_is_right(results):
     assert "(WRONG)" not in text
     s = mutation.score(results)
     assert s["bugs_killed"] == s["bugs"] and s["legit_passing"] == s["legit"]
+    assert s["robustness"] >= 2 and s["robustness_right"] == s["robustness"]
+
+
+def test_the_behaviours_found_in_the_wild(results):
+    # Legitimate (each with its engine's profile): paper-faithful Algorithm 1 behind its caller's bias, a [0, 1]
+    # port returning visibility, the author's Algorithm 3 (5e-6 clamp, no xi4 = 0 guard, printed root).
+    by = {r.name: r for r in results}
+    for name in ("alg1-paper-bias-before", "alg1-engine01", "alg3-author"):
+        assert not by[name].killed, (name, by[name].killed_by)
+    # Bugs, each killed on contract rows or engine rows; the singular target on the engine rows.
+    for name in ("alg1-singular-target", "alg1-factor-1.03", "alg1-early-exit", "alg1-pivot-floor",
+                 "alg1-nan-guard", "alg1-unclamped"):
+        assert by[name].killed, name
+        assert all("robustness" not in fl for _, _, _, fl in by[name].killed_by), by[name].killed_by
+    engine = [k for k in by["alg1-singular-target"].killed_by if k[0].startswith("engine-")]
+    assert engine and all("near_far" in fl for _, _, _, fl in engine), engine
+
+
+def test_robustness_variants_differ_only_beyond_the_contract(results):
+    # Each passes the verdict and is killed with --strict, only on rows flagged robustness.
+    for r in results:
+        if r.kind == "robustness":
+            assert not r.killed and r.killed_strict, r.name
+            assert all("robustness" in fl for _, _, _, fl in r.killed_by_strict), (r.name, r.killed_by_strict)
 
 
 def test_cli_refuses_a_missing_corpus(tmp_path, capsys):

@@ -17,15 +17,14 @@ from moments_ref.scene import load_scene
 @pytest.fixture(scope="module")
 def railing():
     sc = load_scene("railing")
-    return pipeline.run(sc, ["evsm64", "evsm128", "msm64", "msm128", "nlq64", "nlq32"], shadow_map_size=128,
-                        msaa=1, resolution=(96, 54))
+    return pipeline.run(sc, ["evsm64", "evsm128", "msm64", "msm128", "nlq64", "nlq32"], pipeline.Settings(shadow_map_size=128, msaa=1, resolution=(96, 54)))
 
 
 def test_pixel_statistic_is_nearest_neighbour_msm128_against_nlq64(railing):
     st = paper_claims.pixel_statistic(railing)
     gb = railing.gbuffer
     r, c = np.floor(gb.uv[:, 1]).astype(int), np.floor(gb.uv[:, 0]).astype(int)
-    zf = (gb.depth - 1e-3).astype(np.float32)
+    zf = (gb.z_ndc_light - 1e-3).astype(np.float32)
     # Independently of the technique lookups: the texel's moments and its 64-bit code.
     tex_m = railing.values["store_float128"]
     tex_n = railing.values["quantize_nlq64"]
@@ -58,7 +57,7 @@ def test_three_occluder_claim_counts_footprint_depths():
     # a fake result: one fully shadowed pixel whose 9x9 footprint holds three occluder depths
     class G:
         uv = np.array([[10.5, 10.5], [30.5, 30.5]])
-        depth = np.array([0.9, 0.9])
+        z_ndc_light = np.array([0.9, 0.9])
         slope = np.zeros(2)  # a receiver facing the light: no slope bias
 
     maps = np.ones((40, 40, 1), np.float32)

@@ -12,8 +12,9 @@ from moments_ref.scene import load_scene
 SMALL = dict(shadow_map_size=48, resolution=(40, 24))
 
 
-def _run(scene, outputs, **kw):
-    return pipeline.run(load_scene(scene), outputs, **{**SMALL, **kw})
+def _run(scene, outputs, area=None, **kw):
+    over = {"area": area} if area is not None else None
+    return pipeline.run(load_scene(scene), outputs, pipeline.Settings(**{**SMALL, **kw}, overrides=over))
 
 
 def test_railing_stages_share_resolve_and_blur():
@@ -39,6 +40,24 @@ def test_clock_chooses_the_timer(monkeypatch):
     assert r.fragment_seconds["msm128"] == 1.0
     with pytest.raises(InputError, match="clock: expected one of wall, cpu, got 'gpu'"):
         _run("facade", ["msm128"], clock="gpu")
+
+
+def test_without_warmup_each_cost_stage_runs_repeats_times():
+    from moments_ref.techniques import get
+
+    calls = []
+    lookup = get("msm128").lookup
+
+    def counting(*a):
+        calls.append(1)
+        return lookup(*a)
+
+    t = dataclasses.replace(get("msm128"), name="msm128_counted", lookup=counting)
+    sc = load_scene("facade")
+    for warmup, repeats, runs in ((True, 1, 2), (False, 1, 1), (False, 3, 3), (True, 2, 3)):
+        calls.clear()
+        r = pipeline.run(sc, [t], pipeline.Settings(**SMALL, warmup=warmup, repeats=repeats, reference=False))
+        assert len(calls) == runs and len(r.times["shade_msm128_counted"]) == repeats, (warmup, repeats)
 
 
 def test_knot_one_sample_map_has_no_resolve_and_no_multiview():
@@ -117,9 +136,39 @@ def test_pcf_row_loses_the_references_contact_shadows_and_errors_are_small_for_m
 
 
 def test_stage_plan_without_running():
-    g, targets, meta = pipeline.plan(load_scene("railing"), ["nlq32_dither"], **SMALL)
-    order = g.order(targets)
-    assert order[-1] in targets and "bluenoise_textures" in order
+    rp = pipeline.plan(load_scene("railing"), ["nlq32_dither"], pipeline.Settings(**SMALL))
+    order = rp.graph.order(rp.targets)
+    assert order[-1] in rp.targets and "bluenoise_textures" in order
+    t = rp.techniques["nlq32_dither"]
+    assert t.shade == "shade_nlq32_dither" and t.truth == "pcf" and t.bits == 32 and t.result == "intensity"
+    assert set(t.texel) < set(order) and rp.context.size == (48, 48) and rp.context.resolution == (40, 24)
+
+
+def test_the_old_keywords_and_the_meta_triple_still_work_with_a_warning():
+    sc = load_scene("railing")
+    with pytest.warns(DeprecationWarning, match="Settings"):
+        rp = pipeline.plan(sc, ["pcf"], shadow_map_size=48, resolution=(40, 24), given={"msaa": None})
+    assert rp.context.size == (48, 48)
+    with pytest.warns(DeprecationWarning, match="graph, targets, meta"):
+        g, targets, meta = rp
+    assert meta["info"]["pcf"]["shade"] == "shade_pcf" and meta["size"] == (48, 48)
+    with pytest.warns(DeprecationWarning), pytest.raises(InputError, match="scattering: unknown settings"):
+        pipeline.plan(load_scene("scattering"), ["scattering_6m"], settings={"scattering": {"typo": 1}})
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        pipeline.plan(sc, ["pcf"], shadow_map=48)
+
+
+def test_the_depth_gbuffer_serves_only_techniques_that_shade_world_positions():
+    sc = load_scene("knot")
+    st = pipeline.Settings(shadow_map_size=32, resolution=(32, 18), gbuffer="depth",
+                           overrides={"area": {"light_samples": 2, "reference_views": 2}})
+    with pytest.raises(InputError, match="looks its texture up"):
+        pipeline.plan(sc, ["msm64"], st)
+    rp = pipeline.plan(sc, ["vwss", "pcss"], st)
+    assert rp.context.receivers == "camera_depth_gbuffer"
+    assert "light_projection" not in rp.graph.order(rp.targets)
+    with pytest.raises(InputError, match="gbuffer"):
+        pipeline.plan(sc, ["vwss"], st.replace(gbuffer="pixels"))
 
 
 def test_unknown_output_lists_known():
@@ -221,7 +270,7 @@ def test_lit_plane_is_unshadowed_by_reference_and_slope_biased_pcf(tmp_path):
     gb, maps = r.values["light_projection"], r.values["raster_shadow_map"]
     assert r.reference["pcf"].max() == 0.0  # receiver-plane depth: exact on the plane
     assert r.shadow["pcf"].max() < 0.02  # PCF's receiver-slope bias
-    acne = pcf_filtered(maps, gb.uv, gb.depth - 1e-3)
+    acne = pcf_filtered(maps, gb.uv, gb.z_ndc_light - 1e-3)
     assert np.median(acne) > 0.3  # surface acne: about half of the footprint lies in front
 
 
@@ -236,13 +285,13 @@ def test_depth_bias_is_the_papers_slope_for_pcf_constant_for_filterable(tmp_path
     r = pipeline.run(str(path), ["pcf", "msm128", "vsm"])
     gb, maps = r.values["light_projection"], r.values["raster_shadow_map"]
     assert gb.slope.min() > 0  # the plane is tilted against the light: the two setups differ
-    slope_biased = gb.depth - SLOPE_BIAS_TEXELS * gb.slope - 1e-3
-    np.testing.assert_array_equal(r.reference["pcf"], pcf_filtered(maps, gb.uv, gb.depth - 1e-3, gradient=gb.gradient))
+    slope_biased = gb.z_ndc_light - SLOPE_BIAS_TEXELS * gb.slope - 1e-3
+    np.testing.assert_array_equal(r.reference["pcf"], pcf_filtered(maps, gb.uv, gb.z_ndc_light - 1e-3, gradient=gb.gradient))
     np.testing.assert_array_equal(r.shadow["pcf"], pcf_filtered(maps, gb.uv, slope_biased))
     for name in ("msm128", "vsm"):
         t = T.get(name)
         tex = r.values[t.steps(r.msaa)[-1].name]
-        np.testing.assert_array_equal(r.shadow[name], t.shadow(tex, gb.uv, gb.depth))  # constant bias only
+        np.testing.assert_array_equal(r.shadow[name], t.shadow(tex, gb.uv, gb.z_ndc_light))  # constant bias only
     # power: on this plane lit at 60° MSM128 self-shadows a little at the constant bias (measured median 0.14)
     # and not with the slope bias, so the two setups are told apart
     assert np.median(r.shadow["msm128"]) > 0.05 > r.shadow["pcf"].max()
@@ -274,7 +323,8 @@ def test_graph_shares_equal_stages_and_refuses_a_different_step_under_one_key():
 
 
 def test_reference_stage_keys_carry_the_bias():
-    g, _, meta = pipeline.plan(load_scene("railing"), ["pcf", "msm64", "nlq64"], **SMALL)
-    refs = {i["reference"] for i in meta["info"].values()}
+    rp = pipeline.plan(load_scene("railing"), ["pcf", "msm64", "nlq64"], pipeline.Settings(**SMALL))
+    g = rp.graph
+    refs = {t.reference for t in rp.techniques.values()}
     assert refs == {"reference_pcf_bias0.001"}  # one bias, one shared reference stage
     assert g.nodes["reference_pcf_bias0.001"].params == (("bias", 1e-3),)

@@ -522,7 +522,7 @@ def test_bad_input_refused():
         rasterize_depth(v, [[0, 1, 3]], np.eye(4), 4)
     with pytest.raises(InputError, match="triangles"):
         rasterize_depth(v, [[0.0, 1.0, 2.0]], np.eye(4), 4)
-    with pytest.raises(InputError, match="view_proj"):
+    with pytest.raises(InputError, match="clip_from_world"):
         rasterize_depth(v, [[0, 1, 2]], np.eye(3), 4)
     with pytest.raises(InputError, match="cull"):
         rasterize_depth(v, [[0, 1, 2]], np.eye(4), 4, cull="ccw")
@@ -692,7 +692,7 @@ def test_shared_and_unshared_vertices_give_the_same_map(cull, samples):
     v[t[::997, 0]] = np.nan
     t = t.copy()
     t[5::1009, 2] = t[5::1009, 1]  # degenerate
-    vp = sc.shadow_view_proj()
+    vp = sc.light_clip_from_world()
     d1, s1 = rasterize_depth(v, t, vp, 96, samples=samples, cull=cull)
     d2, s2 = rasterize_depth(v[t].reshape(-1, 3), np.arange(3 * t.shape[0]).reshape(-1, 3), vp, 96,
                              samples=samples, cull=cull)

@@ -164,6 +164,7 @@ def test_interrupted_run_leaves_no_partial_files(tmp_path, monkeypatch):
         report.run(scenes=["translucent"], out_dir=tmp_path / "s", **TINY)
     names = {p.name for p in (tmp_path / "s").iterdir()}
     assert "report.md" not in names and not any(n.startswith(".") for n in names)
+    assert "INCOMPLETE" in names  # the folder says that its report was not completely written
     assert report.read_results(tmp_path / "s" / "results.csv")
 
 

@@ -69,7 +69,7 @@ def square(tmp_path_factory):
 def area_run(square):
     """Pipeline run of all area-light outputs on the square scene, and the exact intensity."""
     sc = load_scene(square)
-    r = pipeline.run(sc, list(pipeline.AREA_OUTPUTS), shadow_map_size=96, area=AREA)
+    r = pipeline.run(sc, list(pipeline.AREA_OUTPUTS), pipeline.Settings(shadow_map_size=96, overrides={"area": AREA}))
     light = sc.light
     v = sc.occluder.vertices - light.center
     x, y, d = v @ light.tangent, v @ light.bitangent, v @ light.normal
@@ -136,9 +136,9 @@ def test_area_stage_names(area_run):
 
 def test_area_outputs_refused_without_an_area_light():
     with pytest.raises(InputError, match="area light"):
-        pipeline.run(load_scene("railing"), ["vwss"], shadow_map_size=32, resolution=(32, 18))
+        pipeline.run(load_scene("railing"), ["vwss"], pipeline.Settings(shadow_map_size=32, resolution=(32, 18)))
     with pytest.raises(InputError, match="area-light outputs: msm_soft, pcss"):
-        pipeline.run(load_scene("railing"), ["vwss_typo"], shadow_map_size=32, resolution=(32, 18))
+        pipeline.run(load_scene("railing"), ["vwss_typo"], pipeline.Settings(shadow_map_size=32, resolution=(32, 18)))
 
 
 def test_report_has_the_area_rows(area_report, area_run, square):

@@ -23,6 +23,8 @@ from moments_ref.affine import decode_r10g10b10a2, encode_r10g10b10a2
 from moments_ref.moments import power_moments
 from moments_ref.scene import load_scene
 from moments_ref.techniques import scattering as sc
+from moments_ref.techniques.scattering.epipolar import _bilinear_wrap_rows
+from moments_ref.techniques.scattering.rays import pixel_epipolar
 
 SCENE_RMSE_6M_MEASURED = 0.018  # scattering_6m; 0.013 unfiltered; 0.045 ignoring all shadows
 SCENE_RMSE_6M = 0.03
@@ -91,7 +93,7 @@ def test_view_ray_is_a_row_and_shadow_test_is_a_depth_comparison():
 
 
 def test_unfiltered_resampling_of_a_plane():
-    # view_proj = identity: NDC = world, the light travels along +z; occluder plane z = 0.2.
+    # clip_from_world = identity: NDC = world, the light travels along +z; occluder plane z = 0.2.
     f = _frame(eye=(0.05, -0.1, -0.5), rho_max=0.6, size=(16, 32))
     depth = np.full((64, 64, 1), 0.2, dtype=np.float32)
     b = sc.resample_unfiltered(depth, np.eye(4), f)
@@ -171,7 +173,7 @@ def test_quantization_round_trip():
 @pytest.fixture(scope="module")
 def small_scene():
     scene = load_scene("scattering")
-    vp = scene.shadow_view_proj()
+    vp = scene.light_clip_from_world()
     depth, _ = scene.shadow_map(size=(128, 128), samples=4)
     rays = sc.camera_rays(scene, (80, 45))
     ref = sc.ray_march(depth, vp, scene.camera.eye, rays[0], 1024)
@@ -284,7 +286,7 @@ def test_moment_bounds_bracket_exact_epipolar_integral(small_scene):
     cam_rays, t_max = rays
     f = sc.epipolar_frame(scene.camera.eye, scene.light.direction, t_max, (64, 128), t_max)
     b = sc.resample_unfiltered(depth, vp, f)
-    uv, z = sc._pixel_epipolar(cam_rays, f)
+    uv, z = pixel_epipolar(cam_rays, f)
     row = np.floor(uv[..., 1]).astype(int) % 64
     x = uv[..., 0]
     k = np.arange(128)
@@ -293,7 +295,7 @@ def test_moment_bounds_bracket_exact_epipolar_integral(small_scene):
     exact = np.where(x < 1, (b[..., 0][row][..., 0] < z), exact)
     P = sc.prefix_means(b)
     u = sc.prefix_lookup_coordinate(x, 128)
-    bb = sc._bilinear_wrap_rows(P, u, row + 0.5)  # the pixel's own row (no filtering across rows)
+    bb = _bilinear_wrap_rows(P, u, row + 0.5)  # the pixel's own row (no filtering across rows)
     lo, up = shadow_bounds(bb, z)
     assert (lo <= exact + 1e-6).all() and (exact <= up + 1e-6).all()
 

@@ -36,7 +36,7 @@ def _shadowed(scene, receiver, occluders, size=128, n=3000, bias=1e-3):
     of `occluders` (object names): the independent check projects the points itself."""
     others = [o.name for o in scene.objects if o.name not in occluders]
     d, _ = scene.shadow_map(size=size, samples=1, exclude=others, translucent=None)
-    vp = scene.shadow_view_proj()
+    vp = scene.light_clip_from_world()
     pts, _ = _object_mesh(scene, receiver).sample_points(n, 1)
     xy, z = project_points(pts, vp, size)
     inside = (xy >= 0).all(1) & (xy < size).all(1) & np.isfinite(z)
@@ -56,7 +56,7 @@ def test_shipped_scene_loads_and_casts_shadow(name):
     assert s.msaa in (1, 4, 8) and len(s.shadow_map_size) == 2 and s.outputs
     assert isinstance(s.light, DirectionalLight)
     # every occluder triangle lies inside the fitted orthographic map (fitted to the scene)
-    xy, z = project_points(s.occluder.vertices, s.shadow_view_proj(), 64)
+    xy, z = project_points(s.occluder.vertices, s.light_clip_from_world(), 64)
     assert (xy >= 0).all() and (xy <= 64).all() and (np.abs(z) <= 1).all()
     d, st_ = s.shadow_map(size=96, samples=4)
     assert d.shape == (96, 96, 4) and st_.rasterized > 0 and (d < 1).any()
@@ -124,7 +124,7 @@ def test_knot_scene_low_resolution():
     pts, sh = _shadowed(s, "ground", ["knot"], size=48)
     assert 0 < sh.mean() < 0.9
     # a view from a corner of the light works too
-    vp = s.shadow_view_proj(eye=s.light.corners()[0])
+    vp = s.light_clip_from_world(eye=s.light.corners()[0])
     assert np.isfinite(vp).all()
 
 
@@ -338,7 +338,7 @@ def test_knot_fragments_with_back_face_culling_match_depth_map():
     from moments_ref.scene.raster import rasterize_depth, rasterize_fragments
 
     s = load_scene("knot")
-    vp = s.shadow_view_proj()
+    vp = s.light_clip_from_world()
     occ = s.occluder
     frags, st_ = rasterize_fragments(occ.vertices, occ.triangles, vp, 128, cull="back")
     d, _ = rasterize_depth(occ.vertices, occ.triangles, vp, 128, cull="back")

@@ -12,14 +12,14 @@ import pytest
 from moments_ref import InputError
 from moments_ref.conformance.verdict import compare_case, select_worst, ulp_distance
 from moments_ref.golden.compare import compare
-from moments_ref.golden.spread import _ceil2, ulp
+from moments_ref.golden.units import ceil2 as _ceil2, ulp
 
 F32 = np.float32
 
 
 def _entry(metric="abs", dtype="float32", out_dtype="float32", value_range=None, exact=False):
     e = {"compare": ["y"], "outputs": {"y": {"dtype": out_dtype}}, "dtype": dtype, "metric": metric,
-         "inputs": ["x"], "exact": exact}
+         "inputs": ["x"], "input_order": ["x"], "exact": exact}
     if value_range is not None:
         e["value_range"] = value_range
     return e
@@ -117,8 +117,16 @@ def test_integer_codes_accept_the_stored_alternatives_only_on_acceptable_rows():
     assert v.score.tolist() == [0.0, np.inf, np.inf]
     assert v.error.tolist() == [1.0, 1.0, 2.0]  # the distance to the golden code, also where accepted
     assert v.gated.tolist() == [False, True, False]
-    with pytest.raises(InputError, match="integer dtype of 16 bits"):
-        compare(e, g, {"q": got.astype(np.uint32)})
+    # codes compare by value whatever the integer width; a value beyond the format is a wrong code
+    assert compare(e, g, {"q": got.astype(np.uint32)}).row_pass.tolist() == [True, False, False]
+    wide = got.astype(np.uint32)
+    wide[0, 0] += 1 << 16  # 0x1000B: not a 16-bit code, although its low bits are
+    assert compare(e, g, {"q": wide}).row_pass.tolist() == [False, False, False]
+    assert compare(e, g, {"q": got.astype(np.int16)}).row_pass.tolist() == [True, False, False]  # the same bits
+    with pytest.raises(InputError, match="negative code"):
+        compare(e, g, {"q": -got.astype(np.int64)})
+    with pytest.raises(InputError, match="integer dtype"):
+        compare(e, g, {"q": got.astype(np.float32)})
     with pytest.raises(InputError, match="has shape"):
         compare(e, g, {"q": got[:2]})
 
@@ -203,7 +211,7 @@ def test_ulp_distance_nan_in_either_is_inf_and_overflow_rounds_to_inf():
 def _exact_case(codes, words, result=None):
     n = len(codes)
     meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
-            "exact": True, "inputs": ["x"]}
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
     arrays = {"q": np.asarray(codes, np.uint16), "q_acceptable": np.asarray(codes, np.uint16)[:, None],
               "result": np.asarray(result or ["valid"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
               "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n),

@@ -9,7 +9,7 @@ from moments_ref import InputError
 from moments_ref.claims import Claim, markdown_table, to_json, verdict_of
 from moments_ref.scene import load_scene
 from moments_ref.techniques.vwss import center_view, depth_range, light_near, light_views, naive_points, source_view
-from moments_ref.techniques.vwss.compare import coverage_difference
+from moments_ref.report.vwss import coverage_difference
 from moments_ref.techniques.vwss.paper import TABLES
 
 

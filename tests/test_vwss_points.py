@@ -66,7 +66,7 @@ def test_light_samples_deterministic_and_on_the_light():
     b = light_views(light, 24, 1.0, 5.0, seed=3)
     c = light_views(light, 24, 1.0, 5.0, seed=4)
     assert np.array_equal(a.positions, b.positions) and not np.array_equal(a.positions, c.positions)
-    assert len(a) == 24 and a.view_proj.shape == (24, 4, 4)
+    assert len(a) == 24 and a.clip_from_world.shape == (24, 4, 4)
     # on the rectangle: in its plane, within its half sides
     rel = a.positions - light.center
     assert np.allclose(rel @ light.normal, 0, atol=1e-12)
@@ -74,7 +74,7 @@ def test_light_samples_deterministic_and_on_the_light():
     assert np.all(np.abs(rel @ light.bitangent) <= light.height / 2 + 1e-12)
     # each eye projects to w = 0 (it is the eye) and a point 2 units along the normal to the centre of its map
     for i in range(len(a)):
-        xy, z = project_points(a.positions[i] + 2 * light.normal, a.view_proj[i], 64)
+        xy, z = project_points(a.positions[i] + 2 * light.normal, a.clip_from_world[i], 64)
         assert np.allclose(xy, 32, atol=1e-9)
 
 
@@ -111,17 +111,17 @@ def test_source_view_contains_light_and_all_sample_frustums(w, h, fov_deg, near)
     ls = light_views(light, 6, near, near + 5.0, seed=0)
     src = source_view(ls, 64)
     # the light rectangle lies on the source's near plane (NDC z = -1), inside the frustum, touching it
-    hom = np.c_[light.corners(), np.ones(4)] @ src.view_proj.T
+    hom = np.c_[light.corners(), np.ones(4)] @ src.clip_from_world.T
     ndc = hom[:, :3] / hom[:, 3:]
     assert np.allclose(ndc[:, 2], -1, atol=1e-9)
     assert np.all(np.abs(ndc[:, :2]) <= 1 + 1e-9)
     assert np.abs(ndc[:, :2]).max() == pytest.approx(1, abs=1e-9)
     # every light-sample frustum is inside the source frustum: corners of the samples' frustums
-    inv = np.linalg.inv(ls.view_proj)
+    inv = np.linalg.inv(ls.clip_from_world)
     cube = np.array([[x, y, z, 1] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     world = np.einsum("vij,cj->vci", inv, cube)
     world = world[..., :3] / world[..., 3:]
-    hs = np.c_[world.reshape(-1, 3), np.ones(world.shape[0] * 8)] @ src.view_proj.T
+    hs = np.c_[world.reshape(-1, 3), np.ones(world.shape[0] * 8)] @ src.clip_from_world.T
     ns = hs[:, :3] / hs[:, 3:]
     assert np.all(hs[:, 3] > 0)
     assert np.all(np.abs(ns) <= 1 + 1e-7)
@@ -153,7 +153,7 @@ def test_points_are_all_front_fragments_and_naive_is_nearest():
     ls = light_views(light, 4, near, far)
     src = source_view(ls, 64)
     pc = generate_points(v, t, src)
-    frags, _ = rasterize_fragments(v, t, src.view_proj, src.resolution, cull="back")
+    frags, _ = rasterize_fragments(v, t, src.clip_from_world, src.resolution, cull="back")
     assert len(pc) == len(frags) and pc.positions.dtype == np.float32
     assert np.array_equal(pc.positions, frags.position)
     # no culling adds the back faces: about twice as many for a closed mesh
@@ -161,9 +161,9 @@ def test_points_are_all_front_fragments_and_naive_is_nearest():
     assert 1.5 < len(pn) / len(pc) < 2.5
     # naive: one point per covered texel, lying on the depth-tested surface
     nv = naive_points(v, t, src)
-    dmap, _ = rasterize_depth(v, t, src.view_proj, src.resolution, cull="back", dtype=np.float64)
+    dmap, _ = rasterize_depth(v, t, src.clip_from_world, src.resolution, cull="back", dtype=np.float64)
     assert len(nv) == np.count_nonzero(dmap < 1)
-    xy, z = project_points(nv.positions.astype(np.float64), src.view_proj, src.resolution)
+    xy, z = project_points(nv.positions.astype(np.float64), src.clip_from_world, src.resolution)
     row, col = np.floor(xy[:, 1]).astype(int), np.floor(xy[:, 0]).astype(int)
     assert np.allclose(z, dmap[row, col, 0], atol=1e-5)
     assert len(np.unique(row * src.resolution + col)) == len(nv)
@@ -173,7 +173,7 @@ def test_center_view_is_the_plain_warping_source():
     light = _light()
     ls = light_views(light, 4, 1.0, 5.0)
     c = center_view(ls, 128)
-    assert c.resolution == 128 and c.distance == 0 and np.array_equal(c.view_proj, ls.center_view_proj())
+    assert c.resolution == 128 and c.distance == 0 and np.array_equal(c.clip_from_world, ls.center_clip_from_world())
 
 
 def test_poisson_disk_covers_the_whole_light():

@@ -11,11 +11,13 @@ from hypothesis import given, settings, strategies as st
 
 from moments_ref import InputError
 from moments_ref.scene import AreaLight, Camera
-from moments_ref.techniques.vwss import compare
+from moments_ref.report import vwss as compare
 from moments_ref.techniques.vwss.lights import light_views
 from moments_ref.techniques.vwss.mvr import mvr
 from moments_ref.techniques.vwss import shading as pcf
-from moments_ref.techniques.vwss.shading import gbuffer, linear_depth, multiview_visibility, pcss
+from moments_ref.techniques.vwss.shading import multiview_visibility, pcss
+from moments_ref.scene.depth import d_view_from_ndc
+from moments_ref.scene.gbuffer import depth_gbuffer
 
 
 def _light(size=1.0):
@@ -36,11 +38,11 @@ def _exact_edge_visibility(x, light_size, h_light, h_occ):
     return np.clip(0.5 - xl / light_size, 0, 1)
 
 
-def test_linear_depth_inverts_projection():
+def test_view_distance_inverts_the_light_samples_projection():
     ls = light_views(_light(), 1, 0.7, 9.0)
     d = np.linspace(0.7, 9.0, 50)
-    p = np.c_[np.zeros(50), 4.0 - d, np.zeros(50), np.ones(50)] @ ls.center_view_proj().T
-    assert np.allclose(linear_depth(p[:, 2] / p[:, 3], 0.7, 9.0), d, rtol=1e-12)
+    p = np.c_[np.zeros(50), 4.0 - d, np.zeros(50), np.ones(50)] @ ls.center_clip_from_world().T
+    assert np.allclose(d_view_from_ndc(p[:, 2] / p[:, 3], 0.7, 9.0), d, rtol=1e-12)
 
 
 _LS = {}
@@ -77,7 +79,7 @@ def test_pcss_penumbra_width_follows_parallel_planes():
     P = np.c_[x, np.zeros_like(x), np.zeros_like(x)]
     for h_occ in (1.0, 2.0, 3.0):
         v, t = _quad(-20, 0, -20, 20, h_occ)
-        dm, _ = mvr(v, t, ls.center_view_proj(), 512)
+        dm, _ = mvr(v, t, ls.center_clip_from_world(), 512)
         vis = pcss(P, dm[0], ls, 1e-3)
         width = x[np.argmax(vis >= 0.9)] - x[np.argmax(vis > 0.1)]
         z_r, z_b = 4.0, 4.0 - h_occ  # distances from the light
@@ -108,7 +110,7 @@ def test_pcss_umbra_and_lit_exact_for_every_near_plane(near):
     light = _light(1.0)
     ls = light_views(light, 1, near, 5.0)
     v, t = _quad(-0.6, 0.6, -0.6, 0.6, 2.0)
-    dm, _ = mvr(v, t, ls.center_view_proj(), 256)
+    dm, _ = mvr(v, t, ls.center_clip_from_world(), 256)
     g = np.linspace(-2, 2, 81)
     P = np.c_[np.repeat(g, 81), np.zeros(81 * 81), np.tile(g, 81)]
     exact = _square_occluder_visibility(P, 1.0, 4.0, 2.0, 0.6)
@@ -143,9 +145,10 @@ def test_gbuffer_positions_on_receiver():
     cam = Camera(eye=(0, 3, 4), target=(0, 0, 0), resolution=(40, 30))
     v, t = _quad(-3, 3, -3, 3, 0.0)
     ov, ot = _quad(-0.5, 0.5, -0.5, 0.5, 1.0)
-    gb = gbuffer(v, t, cam.view_proj(), (30, 40), ov, ot)
-    assert gb.receiver.any() and gb.occluder.any() and not (gb.receiver & gb.occluder).any()
-    assert np.allclose(gb.points[:, 1], 0, atol=1e-4)  # depth plane of 1/256-pixel snapped vertices
+    gb = depth_gbuffer(v, t, cam.clip_from_world(), (30, 40), ov, ot)
+    assert gb.receiver_mask.any() and gb.occluder_mask.any() and not (gb.receiver_mask & gb.occluder_mask).any()
+    assert gb.resolution == (40, 30) and np.array_equal(gb.pixel, np.flatnonzero(gb.receiver_mask))
+    assert np.allclose(gb.position[:, 1], 0, atol=1e-4)  # depth plane of 1/256-pixel snapped vertices
 
 
 def test_shading_bad_input():
@@ -194,8 +197,9 @@ role = "occluder"
 def test_compare_quick_on_tiny_scene(tmp_path):
     f = tmp_path / "tiny.toml"
     f.write_text(SCENE)
-    res = compare.run_detailed(scene=f, views=(4, 8), quick=True, out_dir=tmp_path / "out", progress=False,
-                               map_size=64, reference_views=24, camera_size=(64, 36))
+    cs = compare.comparison_settings(quick=True, views=(4, 8), progress=False, map_size=64, reference_views=24,
+                                     camera=(64, 36))
+    res = compare.measure(f, cs, out_dir=tmp_path / "out")
     with open(tmp_path / "out" / "vwss.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert tuple(rows[0].keys()) == compare.COLUMNS
@@ -223,6 +227,9 @@ def test_compare_quick_on_tiny_scene(tmp_path):
     assert set(res.holes) == {(t, n) for t in ("vwss", "vwss_nocull", "vwss_naive") for n in (4, 8)}
     # a scene with a directional light is refused
     with pytest.raises(InputError, match="area light"):
+        compare.measure("railing", compare.comparison_settings(quick=True, progress=False))
+    # the old keywords still work, with a DeprecationWarning
+    with pytest.warns(DeprecationWarning, match="comparison_settings"), pytest.raises(InputError, match="area light"):
         compare.run(scene="railing", quick=True, progress=False)
 
 
@@ -341,7 +348,7 @@ def _pcss_light(views):
     """What pcss reads of LightSamples, with an exact centre view."""
     light = types.SimpleNamespace(width=1.0, height=0.5)
     return types.SimpleNamespace(light=light, near=_NEAR, far=_FAR, fov=math.pi / 2,
-                                 center_view_proj=lambda: views)
+                                 center_clip_from_world=lambda: views)
 
 
 def _brute_pcss(dmap, q, view, samples, bias, blockers, filt, zs):

@@ -11,7 +11,7 @@ from moments_ref.scene import AreaLight, torus_knot
 from moments_ref.techniques.vwss.lights import depth_range, light_views
 from moments_ref.techniques.vwss.mvr import mvr
 from moments_ref.techniques.vwss.points import generate_points, source_view
-from moments_ref.techniques.vwss.shading import linear_depth
+from moments_ref.scene.depth import d_view_from_ndc
 from moments_ref.tools.bench import bench_entries
 from moments_ref.techniques.vwss import warp as warp_mod
 from moments_ref.techniques.vwss.warp import project_to_texels, warp, zbuffer_max
@@ -118,7 +118,7 @@ def test_traversal_orders_identical(k, dtype):
     pts = np.random.default_rng(k).uniform([-1, 1, -1], [1, 3, 1], (3000, 3)).astype(dtype)
     full = warp(pts, ls, (40, 48), views_per_pass=None)
     part = warp(pts, ls, (40, 48), views_per_pass=k)
-    serial = np.stack([warp(pts, ls.view_proj[i], (40, 48))[0] for i in range(len(ls))])
+    serial = np.stack([warp(pts, ls.clip_from_world[i], (40, 48))[0] for i in range(len(ls))])
     assert full.dtype == dtype
     assert np.array_equal(full, part) and np.array_equal(full, serial)
     # points in random order give the same maps (atomics are order-free)
@@ -136,7 +136,7 @@ def test_warp_equals_brute_force_projection():
     want = np.ones((3, h, w))
     for i in range(3):  # brute force: per view, per point
         for p in pts:
-            c = ls.view_proj[i] @ np.r_[p, 1.0]
+            c = ls.clip_from_world[i] @ np.r_[p, 1.0]
             if c[3] <= 0:
                 continue
             x, y, z = (c[0] / c[3] + 1) * w / 2, (1 - c[1] / c[3]) * h / 2, c[2] / c[3]
@@ -159,7 +159,7 @@ def test_warp_of_dense_plane_matches_analytic_depth():
     pts = np.array([0, 2.0, 0]) + S.reshape(-1, 1) * a + T.reshape(-1, 1) * b
     maps = warp(pts, ls, res)
     for i in range(len(ls)):
-        inv = np.linalg.inv(ls.view_proj[i])
+        inv = np.linalg.inv(ls.clip_from_world[i])
         eye = ls.positions[i]
         # analytic depth of the plane at the texel corners: ray through the corner, plane hit, projected
         g = np.arange(res + 1)
@@ -169,7 +169,7 @@ def test_warp_of_dense_plane_matches_analytic_depth():
         d = far_pts - eye
         tt = ((np.array([0, 2.0, 0]) - eye) @ n) / (d @ n)
         hit = eye + tt[..., None] * d
-        hh = np.c_[hit.reshape(-1, 3), np.ones(hit[..., 0].size)] @ ls.view_proj[i].T
+        hh = np.c_[hit.reshape(-1, 3), np.ones(hit[..., 0].size)] @ ls.clip_from_world[i].T
         zc = (hh[:, 2] / hh[:, 3]).reshape(res + 1, res + 1)
         corners = np.stack([zc[:-1, :-1], zc[1:, :-1], zc[:-1, 1:], zc[1:, 1:]])
         lo, hi = corners.min(0), corners.max(0)
@@ -196,7 +196,7 @@ def test_warp_bad_input_and_empty_results():
     behind = np.array([[0, 5.0, 0], [0, 40.0, 0], [100, -1.0, 0]])
     assert np.all(warp(behind, ls, 16) == 1)
     assert np.all(warp(np.zeros((0, 3)), ls, 16) == 1)
-    f, r = project_to_texels(behind, ls.view_proj, 16)
+    f, r = project_to_texels(behind, ls.clip_from_world, 16)
     assert f.size == 0 and r.size == 0
 
 
@@ -208,7 +208,7 @@ def test_mvr_equals_raster_per_view():
     maps, stats = mvr(v, t, ls, 32)
     assert stats.triangles == 4 * len(t)
     for i in range(4):
-        d, _ = rasterize_depth(v, t, ls.view_proj[i], 32)
+        d, _ = rasterize_depth(v, t, ls.clip_from_world[i], 32)
         assert np.array_equal(maps[i], d[..., 0])
 
 
@@ -225,7 +225,7 @@ def test_layered_points_cover_what_mvr_covers():
     # depth within about a texel: the difference in distance, in units of the texel footprint at that
     # distance (2 d tan(45°) / m), is small for most texels (large only at silhouettes and grazing faces)
     both = cw & cr
-    lw, lr = linear_depth(w_maps[both], near, far), linear_depth(r_maps[both], near, far)
+    lw, lr = d_view_from_ndc(w_maps[both], near, far), d_view_from_ndc(r_maps[both], near, far)
     r = np.abs(lw - lr) / (2 * lr / m)
     assert np.median(r) < 0.25 and np.mean(r <= 1) > 0.8
 

@@ -74,8 +74,10 @@ def _val(x):
         else str(int(a))
 
 
-def compare_drivers(path, function, case, golden_dir=None, language=None, gc=None, options=None):
+def compare_drivers(path, function, case, golden_dir=None, language=None, gc=None, options=None, **verdict):
     """Run ``function`` on both drivers (and as written, for GLSL and HLSL); see the module doc.
+
+    ``verdict``: ``profile``, ``strict`` and ``worst_rows`` of :func:`run_case`, for every run.
 
     Returns
     -------
@@ -85,7 +87,8 @@ def compare_drivers(path, function, case, golden_dir=None, language=None, gc=Non
 
     language = language_of(path, language)
     gc = gc or load_case(case, golden_dir)
-    reports = {d: run_case(path, function, case, golden_dir, language, d, gc=gc, options=options) for d in DRIVERS}
+    reports = {d: run_case(path, function, case, golden_dir, language, d, gc=gc, options=options, **verdict)
+               for d in DRIVERS}
     n = reports["gl"].rows
     a, b = _words(reports["gl"].outputs, n), _words(reports["vulkan"].outputs, n)
     differ = np.flatnonzero((a != b).any(axis=1))
@@ -93,7 +96,7 @@ def compare_drivers(path, function, case, golden_dir=None, language=None, gc=Non
     cmp = DriverComparison(reports, differ, flips)
     if len(differ) and language != "wgsl":
         try:
-            ref = run_case(path, function, case, golden_dir, language, AS_WRITTEN, gc=gc, options=options)
+            ref = run_case(path, function, case, golden_dir, language, AS_WRITTEN, gc=gc, options=options, **verdict)
         except InputError:
             return cmp  # no SPIR-V on this OpenGL driver: the rows are named, not explained
         w = _words(ref.outputs, n)

@@ -1,16 +1,20 @@
-"""Golden cases read from disk (sha256 checked) or generated on the fly."""
+"""Golden cases read from disk or generated on the fly, both through the one strict loader.
+
+A golden folder is read by :mod:`moments_ref.golden.loader`, the reader of
+``verify`` and ``oracle``: schema version, types and ranges of the manifest,
+sizes before decompressing, sha256, finite tolerances. A generated case is
+written to a temporary folder and read back the same way.
+"""
 
 from __future__ import annotations
 
-import hashlib
-import json
 import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from .._arrays import InputError
+from ..golden.loader import load_case as _load_checked
 
 __all__ = ["GoldenCase", "load_case"]
 
@@ -40,7 +44,7 @@ class GoldenCase:
 
 
 def load_case(case, golden_dir=None):
-    """Read ``case`` from ``golden_dir`` (checking its sha256), or generate it.
+    """Read ``case`` from ``golden_dir`` (:func:`moments_ref.golden.loader.load_case`), or generate it.
 
     Without ``golden_dir`` the case alone is written to a temporary folder with
     :func:`moments_ref.golden.write` and read back.
@@ -55,20 +59,5 @@ def load_case(case, golden_dir=None):
             loaded = load_case(case, tmp)
         loaded.source = "generated"
         return loaded
-    golden_dir = Path(golden_dir)
-    mpath = golden_dir / "manifest.json"
-    if not mpath.is_file():
-        raise InputError(f"golden: expected a folder with manifest.json, got {str(golden_dir)!r}")
-    manifest = json.loads(mpath.read_text())
-    if case not in manifest["cases"]:
-        raise InputError(f"case: {case!r} is not in {mpath}; it has: {', '.join(manifest['cases'])}")
-    meta = manifest["cases"][case]
-    path = golden_dir / meta["file"]
-    if not path.is_file() or path.resolve().parent != golden_dir.resolve():
-        raise InputError(f"golden: {meta['file']!r} is not a regular file inside {str(golden_dir)!r}")
-    blob = path.read_bytes()
-    if hashlib.sha256(blob).hexdigest() != meta["sha256"]:
-        raise InputError(f"golden: {meta['file']} does not match the sha256 in {mpath}")
-    with np.load(path, allow_pickle=False) as g:
-        arrays = {k: g[k] for k in g.files}
+    meta, arrays = _load_checked(golden_dir, case)
     return GoldenCase(case, meta, arrays, str(golden_dir))

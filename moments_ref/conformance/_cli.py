@@ -33,8 +33,14 @@ def resolve_port(path, language):
     return p
 
 
-def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None, options=None):
+def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=None, adapter=None, options=None,
+            profile=None, strict=False, rows=5, json_path=None):
     """Run one case, print the report, return the exit code.
+
+    ``adapter="both"`` runs OpenGL and Vulkan and names the rows on which they
+    disagree; ``profile`` (golden.profile.Profile) declares the engine's conventions,
+    ``strict`` gates the robustness rows, ``rows`` is the number of failing rows to
+    list per category (``"all"``: every one), ``json_path`` receives every row's verdict.
 
     Returns
     -------
@@ -44,19 +50,27 @@ def run_cli(path, function, case, golden_dir=None, out=None, err=None, language=
         compiler (reason on stderr), bad usage (unknown case, missing function, a
         file that does not compile: the compiler's messages, one line per error), or
         any failure of the harness, a compiler or a driver (one line: never a
-        traceback, never the exit code of a failing port).
+        traceback, never the exit code of a failing port); a profile it refuses.
     """
     out, err = out or sys.stdout, err or sys.stderr
     try:
         language = language_of(path, language)
+        port = resolve_port(path, language)
+        keep = None if rows == "all" else rows
         if adapter == "both":
             from ._agree import compare_drivers
 
-            report = compare_drivers(resolve_port(path, language), function, case, golden_dir, language,
-                                     options=options)
+            report = compare_drivers(port, function, case, golden_dir, language, options=options, profile=profile,
+                                     strict=strict, worst_rows=keep)
+            records = [dict(r.record, driver=d) for d, r in report.reports.items()]
         else:
-            report = run_case(resolve_port(path, language), function, case, golden_dir, language, adapter,
-                              options=options)
+            report = run_case(port, function, case, golden_dir, language, adapter, keep, options=options,
+                              profile=profile, strict=strict)
+            records = [dict(report.record, driver=report.driver)]
+        if json_path is not None:
+            from ..golden.diagnosis import write_json
+
+            write_json(json_path, records, {"command": "conformance", "function": function, "path": str(path)})
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2
@@ -245,8 +259,13 @@ def _main(args):
     if missing:
         raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
     language, path = files[0]
+    from ..golden.profile import FLAGS, profile_from_args
+
+    flags = {f[2:].replace("-", "_"): get(f[2:].replace("-", "_")) for f, _, _ in FLAGS}
+    profile = profile_from_args(get("profile"), get("function"), **flags)
     return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
-                   options=source_options(args))
+                   options=source_options(args), profile=profile, strict=bool(get("strict")),
+                   rows=get("rows") if get("rows") is not None else 5, json_path=get("json"))
 
 
 def source_options(args):

@@ -50,6 +50,9 @@ class ConformanceReport:
     outputs: dict = field(default_factory=dict, repr=False)  # the port's outputs, by name
     metric: str = "abs"
     row_pass: np.ndarray | None = field(default=None, repr=False)  # per row, from golden.compare
+    groups: list = field(default_factory=list)  # golden.diagnosis.Group: failing rows by level, flag and cause
+    verdict: object = field(default=None, repr=False)  # the golden.compare.Verdict
+    record: dict | None = field(default=None, repr=False)  # every row's verdict, for --json
 
     @property
     def passed(self):
@@ -98,6 +101,16 @@ class ConformanceReport:
                  f"      driver: {self.driver}; renderer: {self.renderer}"]
         lines += [f"      note: {n}" for n in self.notes]
         lines += self._table()
+        if self.verdict is not None:
+            from ..golden.diagnosis import group_lines
+
+            lines += [f"      {x}" for x in group_lines(self.groups, self.failures, self.verdict.strict)]
+            t = self.verdict.robustness_tally()
+            if t["rows"]:
+                mode = "gated (--strict)" if self.verdict.strict else "not gated; --strict gates them"
+                lines.append(f"      beyond the algorithm's contract: {t['rows']} rows, {t['would_fail']} outside "
+                             f"their tolerance ({t['nonfinite']} NaN or infinite, {t['outside_range']} out of range); "
+                             f"{mode}")
         if self.worst:
             lines.append("      worst rows (failing rows first by error/tolerance; per-row tolerances of the "
                          "golden file, verdict by golden.compare):")

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._arrays import InputError
 from . import _gl, _glspirv, _toolchain, _wgpu
-from ._cases import load_case
+from ._cases import GoldenCase, load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
 from ._decls import keep_used, used_resources
@@ -258,8 +258,24 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None, o
     return {k: v.reshape(outputs[k][1]) for k, v in results.items()}, timings
 
 
+def _profiled(gc, profile):
+    """The golden case as an engine with ``profile`` sees it, the target diagnosis and report notes."""
+    from ..golden.conventions import profiled_arrays, unused_keys
+    from ..golden.diagnosis import target_groups
+    from ..golden.writer import manifest_entry
+
+    pcase, arrays = profiled_arrays(gc.name, profile, arrays=gc.arrays)
+    meta = dict(gc.meta, **{k: v for k, v in manifest_entry(pcase, arrays).items() if k not in ("sha256", "size")})
+    notes = [f"profile: {profile.describe()}"]
+    unused = unused_keys(pcase, profile)
+    if unused:
+        notes.append(f"profile keys not used by this case: {', '.join(unused)}")
+    extra = lambda v: target_groups(v, arrays, profile.bias, pcase.engine)  # noqa: E731
+    return GoldenCase(gc.name, meta, arrays, gc.source), extra, notes
+
+
 def run_case(path, function, case, golden_dir=None, language=None, adapter=None, worst_rows=5, gc=None,
-             options=None):
+             options=None, profile=None, strict=False):
     """Run a shader function on a golden case and judge it with the one comparator (``golden.compare``).
 
     Parameters
@@ -277,6 +293,12 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
         Failing rows to list per category.
     gc : GoldenCase, optional
         The case already loaded (skips reading it again).
+    profile : moments_ref.golden.profile.Profile, optional
+        The engine's declared conventions (docs/ports.md): the port gets the case's
+        inputs converted for them, and expected values and tolerances are derived
+        for them (cached).
+    strict : bool
+        Robustness rows (beyond the algorithm's contract) fail the verdict too.
 
     Returns
     -------
@@ -285,12 +307,25 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     language = language_of(path, language)
     target = parse_adapter(adapter, language)
     gc = gc or load_case(case, golden_dir)
+    from ..golden.diagnosis import convention_groups
+    from ..golden.profile import DEFAULT
+
+    base, by_target, notes = gc.arrays, None, []
+    if profile is not None and not profile.is_default:
+        gc, by_target, notes = _profiled(gc, profile)
     ins = [Slot.of(k, np.asarray(v).dtype, np.shape(v)) for k, v in gc.inputs.items()]
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
-    execute, renderer, notes = _prepare(language, target, path, function, ins, outs, options, gc.inputs)
+    execute, renderer, prepared = _prepare(language, target, path, function, ins, outs, options, gc.inputs)
+    notes = notes + prepared
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
-    v = compare_case(case, gc.meta, gc.arrays, got, worst_rows)
+
+    def extra(v):  # causes told by outputs: a singular bias target, another clamp or texel format
+        found = by_target(v) if by_target is not None else []
+        return found or convention_groups(case, v, base, got, profile or DEFAULT)
+
+    v = compare_case(case, gc.meta, gc.arrays, got, worst_rows, strict, extra)
     return ConformanceReport(case, function, str(path), renderer, len(gc.category), v.exact, v.categories, v.worst,
-                             timings, notes + v.notes, v.components, language, target.driver, got, v.metric, v.row_pass)
+                             timings, notes + v.notes, v.components, language, target.driver, got, v.metric,
+                             v.row_pass, v.groups, v.compared, v.record)

@@ -56,6 +56,9 @@ class CaseVerdict:
     row_pass: np.ndarray
     components: dict | None = None
     notes: list = field(default_factory=list)
+    groups: list = field(default_factory=list)  # golden.diagnosis.Group: failing rows by level, flag, cause
+    compared: object = None  # the golden.compare.Verdict
+    record: dict | None = None  # every row's verdict (golden.diagnosis.json_rows), for --json
 
     @property
     def passed(self):
@@ -94,7 +97,7 @@ def select_worst(category, score, row_pass, keep, extra=()):
             continue
         fails = idx[~row_pass[idx]]
         pool = fails if fails.size else idx[score[idx] > 0]
-        k = keep if fails.size else (3 if c == "stiff" else 1)
+        k = (keep if keep is not None else len(pool)) if fails.size else (3 if c == "stiff" else 1)
         picked += [int(i) for i in pool[np.argsort(-score[pool], kind="stable")][:k]]
     return picked + [int(i) for i in extra if i not in picked]
 
@@ -158,7 +161,7 @@ def _components(meta, arrays, got, row_pass):
     return {"ulps": "[" + ", ".join(str(int(x)) if x < 1e6 else f"{x:.3g}" for x in u) + "]"}
 
 
-def compare_case(name, meta, arrays, got, worst_rows=5):
+def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None):
     """Judge a port's outputs on one golden case with :func:`moments_ref.golden.compare.compare`.
 
     Parameters
@@ -173,18 +176,25 @@ def compare_case(name, meta, arrays, got, worst_rows=5):
     got : dict name -> array
         The port's outputs named as in ``meta["compare"]``: float32 values, or
         integer codes (32-bit readback words are narrowed to the manifest's width).
-    worst_rows : int
-        Failing rows to list per category.
+    worst_rows : int or None
+        Failing rows to list per category (None: every failing row).
+    strict : bool
+        Robustness rows (beyond the algorithm's contract) fail the verdict too.
+    extra : callable, optional
+        ``verdict -> [diagnosis.Group]``: causes told by outputs (a singular bias target).
 
     Returns
     -------
     CaseVerdict
     """
+    from ..golden.diagnosis import groups, json_rows
+
     category = np.asarray(arrays["category"]).astype(str)
     n = len(category)
     got, misfit = _narrow(meta, got, n)
-    v = compare(meta, arrays, got, GATE_DTYPE, case=name)
-    row_pass = v.row_pass & ~misfit
+    v = compare(meta, arrays, got, GATE_DTYPE, case=name, strict=strict)
+    v.row_pass &= ~misfit
+    row_pass = v.row_pass
     score = np.where(misfit, np.inf, v.score)
     differs = np.zeros(n, bool)
     if meta["exact"]:
@@ -196,6 +206,9 @@ def compare_case(name, meta, arrays, got, worst_rows=5):
              for i in select_worst(category, score, row_pass, worst_rows, ties)]
     verdict = CaseVerdict(meta["exact"], meta["metric"], _categories(category, v, score, row_pass, differs), worst,
                           row_pass, _components(meta, arrays, got, row_pass))
+    verdict.groups = groups(v, arrays, extra(v) if extra else ())
+    verdict.compared = v
+    verdict.record = json_rows(name, meta, arrays, got, v, verdict.groups)
     if meta["dtype"] == "float64" and any(np.asarray(arrays[k]).dtype.kind == "f" for k in meta["inputs"]):
         verdict.notes.append("float64 case: inputs rounded to float32 for upload; judged by the golden file's "
                              "float32 tolerance column")

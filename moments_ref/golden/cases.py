@@ -22,7 +22,10 @@ import numpy as np
 
 from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
-from . import endtoend, kernels, texel_truth
+from . import contract as _contract_mod
+from . import endtoend, engine, kernels, texel_truth
+from .paper import alg1_paper_spread, alg3_paper_spread
+from .variants import alg1_variant, bias_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
@@ -55,6 +58,21 @@ class Case:
     margin: Callable | None = None  # integer outputs: (**inputs) -> per row, distance to a rounding boundary
     extra: Callable | None = None  # (inputs) -> more arrays for the golden file (a kernel's expected codes)
     row_inputs: bool = True  # False: inputs are whole-case arrays (points, views), not one entry per row
+    contract: str | None = None  # kind of contract (golden.contract.TEXT): rows outside are robustness rows
+    # How an engine profile (golden.profile) applies to the case (golden.conventions):
+    depth_roles: dict = field(default_factory=dict)  # input -> "moments" | "depth" (a depth-free algorithm)
+    default_bias: tuple | None = None  # ("inside" | "before", BiasPreset): the bias of the case's own chain
+    bias_before: bool = False  # a caller's bias just before the call makes sense for the function
+    variant: Callable | None = None  # (bias=, clamp=, fmt=) -> replacements of reference, truth, spread_hook
+    profile_keys: tuple = ()  # the profile keys the case uses: "bias", "clamp", "format"
+    width: int = 0  # moments per row (4 or 6) where a bias target must match
+    aux: tuple = ()  # extra row arrays stored in the golden file, not given to the port (engine distributions)
+    deriver: Callable | None = None  # replaces spread.derive: (case, arrays, category, comment, flags, contract)
+    engine: dict = field(default_factory=dict)  # context of an engine case (golden.engine)
+
+    @property
+    def contract_text(self):
+        return _contract_mod.TEXT.get(self.contract, "every row (the algorithm defines every input of the case)")
 
     @property
     def integer_output(self):
@@ -109,33 +127,6 @@ def _preset_kwargs(preset):
 _R_SCALE = (1.0, 1.0, 1.0, 0.0)
 
 
-def _xi_decode_spread(fmt):
-    """Decoders: ξ4 with the Ψ4⁻¹ constants off by 3 ulps (c1 from float32 end points is 1 ulp off)."""
-
-    def hook(inputs, dt):
-        from ..nonlinear import _PSI_C0, _PSI_C1, psi4_inverse
-        from ..packing import DECODE32, DECODE_POSITIONS, XI_BITS, XI_CELLS, XI_SHIFT, unpack32, unpack64
-
-        code = inputs["q"] if fmt == "64" else inputs["p"]
-        r = unpack64(code, dtype=dt) if fmt == "64" else unpack32(code, dtype=dt)
-        if fmt == "64":
-            u = code[..., 3].astype(np.float64) / 65535
-        else:
-            xcode = (code.astype(np.int64) >> XI_SHIFT) & ((1 << XI_BITS) - 1)
-            u = (xcode + DECODE_POSITIONS[DECODE32["xi"]]) / XI_CELLS
-        eps = 3 * float(np.finfo(dt).eps)
-        out = []
-        for s1, s0 in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-            v = r.copy()
-            shifted = (u * (1 + s1 * eps) + s0 * eps * abs(_PSI_C0) / _PSI_C1).astype(dt)
-            with np.errstate(over="ignore"):
-                v[..., 3] = psi4_inverse(np.clip(shifted, 0, 1))
-            out.append((v,))
-        return out
-
-    return hook
-
-
 def _six_all_roots(bound):
     """Six moments the shipped ports' way: all three roots of the cubic, then the weights below zf.
 
@@ -164,6 +155,11 @@ def _six_all_roots(bound):
     return hook
 
 
+_ALG1 = dict(contract="moments_inside")
+#: Profile keys of a depth-free bound on moments b and a depth zf (any depth convention, any bias).
+_BOUND = dict(depth_roles={"b": "moments", "zf": "depth"}, bias_before=True, profile_keys=("bias",))
+
+
 def _float_cases(dt):
     cases = []
     for bound in ("lower", "upper"):
@@ -171,12 +167,14 @@ def _float_cases(dt):
             f"shadow_intensity-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
             _msm_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity", bound=bound),
             {"bound": bound}, description=f"HPG17 Algorithm 1, {bound} bound; expected values from the mpmath twin",
-            value_range=(0, 1)))
+            value_range=(0, 1), spread_hook=alg1_paper_spread(bound), **_ALG1, **_BOUND,
+            variant=alg1_variant(bound), width=4))
     for preset in (BIAS_FLOAT32, BIAS_UNORM16):
         cases.append(Case(
             f"bias_moments-{preset.name}-{dt}", "moments.bias_moments", dt, ("b",), ("b_biased",),
             _moment_rows, _wrap("moments.bias_moments", preset=preset), _precise("bias_moments", preset=preset),
-            _preset_kwargs(preset), metric="ulps", perturb=False,
+            _preset_kwargs(preset), metric="ulps", perturb=False, depth_roles={"b": "moments"},
+            profile_keys=("bias",), variant=bias_variant(), width=4, default_bias=("inside", preset),
             description=f"HPG17 §3.2 biasing b' = (1 - alpha) b + alpha b*, alpha = {preset.alpha:g}, "
                         f"b* = {list(preset.target)}; gated in ulps (the change is a few ulps)"))
     cases += [
@@ -205,7 +203,8 @@ def _float_cases(dt):
              description="six moments from 2×R10G10B10A2_UNORM; expected from the printed matrices' inverses"),
         *[Case(f"shadow_intensity6-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
                _msm6_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity6", bound=bound),
-               {"bound": bound}, value_range=(0, 1), spread_hook=_six_all_roots(bound),
+               {"bound": bound}, value_range=(0, 1), spread_hook=_six_all_roots(bound), **_ALG1, **_BOUND,
+               variant=alg1_variant(bound, six=True, base_hook=_six_all_roots(bound)), width=6,
                description=f"six-moment {bound} bound (slides, 'Prefiltered single scattering'); b (n, 6); "
                            "expected from the mpmath twin")
           for bound in ("lower", "upper")],
@@ -217,7 +216,7 @@ def _nonlinear_cases(dt):
     """Cases of HPG17 §3: Φ, Φ⁻¹, Ψ4, Ψ4⁻¹, Algorithm 3 and the texel formats."""
     return [
         Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
-             _precise("phi"), floor_scale=_R_SCALE,
+             _precise("phi"), floor_scale=_R_SCALE, **_ALG1,
              description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
         Case(f"phi_inverse-{dt}", "nonlinear.phi_inverse", dt, ("r",), ("b",), _representation_rows,
              _wrap("nonlinear.phi_inverse"), _precise("phi_inverse"), description="HPG17 Eq. (4)"),
@@ -227,19 +226,22 @@ def _nonlinear_cases(dt):
              _wrap("nonlinear.psi4_inverse"), _precise("psi4_inverse"), metric="ulps",
              description="inverse of Ψ4; gated in ulps (ξ4 spans six decades)"),
         Case(f"shade-{dt}", "nonlinear.shade", dt, ("r", "zf"), ("intensity",), _shade_rows,
-             _wrap("nonlinear.shade"), _shade_truth, value_range=(0, 1),
+             _wrap("nonlinear.shade"), _shade_truth, value_range=(0, 1), contract="representation",
+             variant=shade_variant(), profile_keys=("clamp",), spread_hook=alg3_paper_spread(),
              description="HPG17 Algorithm 3 with its §3.4 clamps (v2 in [1e-6, 1 - 1e-6], y2 - y1 >= 1e-6); "
                          "expected: Algorithm 3 with the clamps in mpmath"),
         Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
              _wrap("packing.pack64"), _texel("pack64"), metric="exact", margin=_margin("pack64"),
+             variant=pack64_variant(), profile_keys=("format",),
              description="64-bit texel, docs/formats.md; expected codes exact"),
         Case(f"reencode64-{dt}", "packing.pack64", dt, ("r",), ("q",), _reencode_rows,
              _wrap("packing.pack64"), _texel("pack64"), metric="exact", margin=_margin("pack64"),
+             variant=pack64_variant(), profile_keys=("format",),
              description="64-bit texel of representations whose ξ4 is a decoded code, or one ulp above one "
                          "(the encoder's decode check of docs/formats.md)"),
         Case(f"unpack64-{dt}", "packing.unpack64", dt, ("q",), ("r",), _pack64_input_rows,
              _wrap("packing.unpack64"), _texel("unpack64"), integer_inputs={"q": "uint16"}, floor_scale=_R_SCALE,
-             spread_hook=_xi_decode_spread("64"),
+             spread_hook=xi_decode_spread("64"),
              description="64-bit texel decode, docs/formats.md; expected from the layout in mpmath"),
         Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
              _wrap("packing.pack32"), _texel("pack32"), metric="exact", margin=_margin("pack32"),
@@ -249,7 +251,7 @@ def _nonlinear_cases(dt):
              description="32-bit texel of decoded representations and of ξ4 on 6-bit Ψ4 cell boundaries"),
         Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
              _wrap("packing.unpack32"), _texel("unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,
-             spread_hook=_xi_decode_spread("32"),
+             spread_hook=xi_decode_spread("32"), variant=unpack32_variant(), profile_keys=("format",),
              description="32-bit texel decode (depths and ξ4 at the upper end of their cell, √v2 at its centre), "
                          "docs/formats.md; expected from the layout in mpmath"),
     ]
@@ -260,6 +262,7 @@ def _cases():
     for dt in ("float32", "float64"):
         cases += _float_cases(dt)
         cases += [Case(**spec) for spec in endtoend.case_specs(dt)]
+        cases += [Case(**spec) for spec in engine.engine_specs(dt)]
     return cases + [Case(**spec) for spec in kernels.case_specs()]
 
 
@@ -278,6 +281,8 @@ def case_table(case: Case):
     for k in case.inputs:
         v = np.asarray(rows.inputs[k])
         inputs[k] = v.astype(case.integer_inputs[k] if k in case.integer_inputs else case.dtype)
+    for k in case.aux:  # stored as generated (float64 distributions, int32 row indices)
+        inputs[k] = np.asarray(rows.inputs[k])
     return inputs, np.asarray(rows.category), np.asarray(rows.comment), list(rows.flags)
 
 

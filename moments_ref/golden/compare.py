@@ -14,10 +14,16 @@ It returns a :class:`Verdict`: per row pass/fail (``row_pass``), a per-row score
 (worst error over tolerance, ``inf`` for NaN or a wrong code), and the error and
 tolerance at each row's worst value. The rule, the same for every harness:
 
-* the candidate's dtype must have the manifest's kind and width: integer outputs
-  an integer dtype of the expected width, float outputs a real float dtype of the
-  port's precision (``port_dtype``, default the case's dtype); anything else is an
+* the candidate's dtype must have the manifest's kind: integer outputs any
+  integer dtype, float outputs a real float dtype of the port's precision
+  (``port_dtype``, default the case's dtype); anything else is an
   :class:`~moments_ref.InputError` naming the array, the expected and the found dtype;
+* integer codes compare by value in the manifest's width: a signed array of
+  that width holds the codes' bits (an int32 array of uint32 codes, as a shader's
+  ``int`` buffer does); any other integer array holds the codes' values (uint32,
+  int64, ...). A negative value there is no code (a sign extension?): an
+  :class:`~moments_ref.InputError` naming the array and the row. A value beyond
+  the width is a wrong code;
 * integer outputs: every component equals the expected code or, on rows whose
   ``result`` is ``acceptable``, one of the codes stored for it in
   ``<output>_acceptable`` (rounding ties);
@@ -25,7 +31,11 @@ tolerance at each row's worst value. The rule, the same for every harness:
   value, measured as the case's ``metric`` says: ``abs`` (absolute difference) or
   ``ulps`` (units in the last place of the port's precision at the expected
   value). Rows with an infinite tolerance (``result`` acceptable: the value is
-  undefined there) need only a finite value within the case's ``value_range``.
+  undefined there) need only a finite value within the case's ``value_range``;
+* rows flagged ``robustness`` (beyond the algorithm's contract,
+  :mod:`moments_ref.golden.contract`) are judged by the same rule, but only
+  ``strict=True`` lets them fail the verdict; otherwise what they would fail for
+  (``strict_pass``, ``nonfinite``, ``outside_range``) is counted and shown.
 """
 
 from __future__ import annotations
@@ -35,7 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import InputError
-from .spread import ulp
+from .spread import robust_rows
+from .units import ulp
 
 __all__ = ["compare", "Verdict", "check_dtypes", "port_precision"]
 
@@ -51,6 +62,11 @@ class Verdict:
     error: np.ndarray | None = None  # (n,) the error (metric's unit) at each row's worst value
     tolerance: np.ndarray | None = None  # (n,) its tolerance (0: exact codes, inf: ungated)
     gated: np.ndarray | None = None  # (n,) bool: the row is held to an expected value (not only a range)
+    robust: np.ndarray | None = None  # (n,) bool: robustness rows (beyond the algorithm's contract)
+    strict: bool = False  # robustness rows gate the verdict
+    strict_pass: np.ndarray | None = None  # (n,) bool: the row passes when robustness rows are gated too
+    nonfinite: np.ndarray | None = None  # (n,) bool: a NaN or infinite output value
+    outside_range: np.ndarray | None = None  # (n,) bool: a finite value outside the case's value_range
 
     @property
     def passed(self):
@@ -59,6 +75,19 @@ class Verdict:
     @property
     def failures(self):
         return int((~self.row_pass).sum())
+
+    @property
+    def level(self):
+        """``(n,)`` str: ``contract`` or ``robustness`` per row."""
+        robust = np.zeros(len(self.row_pass), bool) if self.robust is None else self.robust
+        return np.where(robust, "robustness", "contract")
+
+    def robustness_tally(self):
+        """Robustness rows: how many, how many would fail with ``strict``, NaN and out-of-range among them."""
+        robust = np.zeros(len(self.row_pass), bool) if self.robust is None else self.robust
+        fail = robust & ~self.strict_pass
+        return {"rows": int(robust.sum()), "would_fail": int(fail.sum()),
+                "nonfinite": int((fail & self.nonfinite).sum()), "outside_range": int((fail & self.outside_range).sum())}
 
     def worst_rows(self, k):
         """Indices of the ``k`` failing rows with the largest score (all failing rows if k is None)."""
@@ -85,8 +114,8 @@ def check_dtypes(entry, candidate, port_dtype=None, prefix=""):
         got = np.asarray(candidate[o]).dtype
         want = np.dtype(entry["outputs"][o]["dtype"])
         if entry["metric"] == "exact":
-            ok = got.kind in "ui" and got.itemsize == want.itemsize
-            expect = f"an integer dtype of {want.itemsize * 8} bits ({want})"
+            ok = got.kind in "ui"
+            expect = f"an integer dtype ({want} codes)"
         else:
             ok = got.kind == "f" and got.itemsize == np.dtype(dt).itemsize
             expect = f"a real {dt} array (the port's precision)"
@@ -94,16 +123,29 @@ def check_dtypes(entry, candidate, port_dtype=None, prefix=""):
             raise InputError(f"results: {name!r} expected {expect}, found dtype {got}")
 
 
-def _exact(o, expected, cand, n, acceptable_rows):
-    e = np.asarray(expected[o]).astype(np.int64)
-    c = np.asarray(cand).astype(np.int64)
+def _codes(cand, want, name, n):
+    """The candidate's integer codes as uint64 values in the manifest's width (module docstring)."""
+    c = np.asarray(cand)
+    if c.dtype.kind == "i" and c.dtype.itemsize == want.itemsize:
+        return c.astype(f"u{want.itemsize}").astype(np.uint64)  # the same bits, read unsigned
+    if c.dtype.kind == "i" and (c < 0).any():
+        row = int(np.flatnonzero((c < 0).reshape(n, -1).any(axis=1))[0])
+        raise InputError(f"results: {name!r} row {row} holds the negative code {int(c.reshape(n, -1)[row].min())} "
+                         f"({c.dtype}); codes are {want} values: save them as {want} (or as "
+                         f"int{want.itemsize * 8} holding the same bits)")
+    return c.astype(np.uint64)
+
+
+def _exact(o, expected, cand, n, acceptable_rows, want, name):
+    e = np.asarray(expected[o]).astype(np.uint64)
+    c = _codes(cand, want, name, n)
     ok = c == e
     alts = expected.get(f"{o}_acceptable")
     if alts is not None:
-        a = np.asarray(alts).astype(np.int64)
+        a = np.asarray(alts).astype(np.uint64)
         alt_ok = (a == c[:, None]).any(axis=1)
         ok |= alt_ok & acceptable_rows.reshape((n,) + (1,) * (c.ndim - 1))
-    err = np.abs(c - e).astype(np.float64).reshape(n, -1).max(axis=1)
+    err = np.abs(c.astype(np.float64) - e.astype(np.float64)).reshape(n, -1).max(axis=1)
     row_ok = ok.reshape(n, -1).all(axis=1)
     score = np.where(row_ok, 0.0, np.inf)
     return row_ok, score, err, np.zeros(n)
@@ -128,10 +170,11 @@ def _float(o, entry, expected, cand, n, dt):
     flat = lambda x: x.reshape(n, -1)  # noqa: E731
     k = np.argmax(flat(ratio), axis=1)
     rows = np.arange(n)
-    return (flat(ok).all(axis=1), flat(ratio).max(axis=1), flat(err)[rows, k], flat(tol)[rows, k])
+    bad = (~flat(finite).all(axis=1), (flat(finite) & ~flat(inside)).any(axis=1))
+    return (flat(ok).all(axis=1), flat(ratio).max(axis=1), flat(err)[rows, k], flat(tol)[rows, k]), bad
 
 
-def compare(entry, expected, candidate, port_dtype=None, case=""):
+def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
     """Judge a port's outputs on one golden case; see the module docstring.
 
     Parameters
@@ -146,6 +189,8 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
         The port's precision (which tolerance column applies); default the case's.
     case : str
         The case name, for messages.
+    strict : bool
+        Robustness rows (flag ``robustness``) fail the verdict too.
 
     Returns
     -------
@@ -158,19 +203,26 @@ def compare(entry, expected, candidate, port_dtype=None, case=""):
     row_pass = np.ones(n, bool)
     score = np.full(n, -1.0)
     row_err, row_tol, row_gated = np.zeros(n), np.zeros(n), ~acceptable_rows
+    nonfinite, outside = np.zeros(n, bool), np.zeros(n, bool)
+    robust = robust_rows(expected, n)
+    lenient = robust & (not strict)  # robustness rows do not decide the verdict unless strict
     for o in entry["compare"]:
         cand = np.asarray(candidate[o])
         want = np.asarray(expected[o]).shape
         if cand.shape != want:
             raise InputError(f"results: {case + '.' if case else ''}{o!r} has shape {cand.shape}, expected {want}")
         if entry["metric"] == "exact":
-            ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows)
+            ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows, np.dtype(entry["outputs"][o]["dtype"]),
+                                     f"{case}.{o}" if case else o)
         else:
-            ok, s, err, tol = _float(o, entry, expected, cand, n, dt)
+            (ok, s, err, tol), (nf, out) = _float(o, entry, expected, cand, n, dt)
+            nonfinite, outside = nonfinite | nf, outside | out
             finite = np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
             row_gated = row_gated & finite
         row_pass &= ok
         worse = s > score
         row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)
         score = np.maximum(score, s)
-    return Verdict(case, dt, row_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated)
+    verdict_pass = row_pass | lenient
+    return Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated, robust,
+                   bool(strict), row_pass, nonfinite, outside)

@@ -32,38 +32,49 @@ import numpy as np
 from ..gpu.filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows, _msm_rows
+from .gpuspread import block_spread, chain_spread
 
-__all__ = ["case_specs", "BLOCK", "GUARD"]
+__all__ = ["case_specs", "nlq_chain", "BLOCK", "GUARD"]
 
 #: HPG17 §4.1: a thread group filters 32×24 texels from a 40×32 block (guard band 4).
 BLOCK = (32, 40)
 GUARD = 4
 
 
-def _nlq(fmt):
+def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None):
+    """bias (a BiasPreset or None) -> Φ -> pack -> unpack -> shade (``clamp``, ``case_test``: golden.variants;
+    ``texel``: the profile's texel-format choices, golden.variants.decode32 and rounding64)."""
+
     def chain(b, zf):
-        from ..nonlinear import phi, shade
+        from ..nonlinear import SHADE_TOLERANCE, phi
         from ..packing import pack32, pack64, unpack32, unpack64
+        from .variants import decode32, rounding64, shade_reference
 
         dt = np.asarray(b).dtype
-        r = phi(bias_moments(b, BIAS_FLOAT32))
-        r = unpack64(pack64(r), dtype=dt) if fmt == "64" else unpack32(pack32(r), dtype=dt)
-        return (shade(r, zf),)
+        r = phi(b if bias is None else bias_moments(b, bias))
+        if fmt == "64":
+            r = unpack64(pack64(r, **rounding64(texel)), dtype=dt)
+        else:
+            r = unpack32(pack32(r), dtype=dt, **decode32(texel))
+        return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(r, zf)
 
     return chain
 
 
-def _msm64(b, zf):
-    from ..affine import decode_unorm16, encode_unorm16
-    from ..msm import shadow_intensity
+def _msm64(bias=BIAS_UNORM16, *_):
+    def chain(b, zf):
+        from ..affine import decode_unorm16, encode_unorm16
+        from ..msm import shadow_intensity
 
-    dt = np.asarray(b).dtype
-    bq = bias_moments(decode_unorm16(encode_unorm16(b), dtype=dt), BIAS_UNORM16)
-    return (shadow_intensity(bq, zf),)
+        dt = np.asarray(b).dtype
+        bq = decode_unorm16(encode_unorm16(b), dtype=dt)
+        return (shadow_intensity(bq if bias is None else bias_moments(bq, bias), zf),)
+
+    return chain
 
 
-def _block(fmt):
-    inner = _nlq(fmt)
+def _block(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None):
+    inner = nlq_chain(fmt, bias, clamp, case_test, texel)
 
     def chain(depth, zf):
         dt = np.asarray(depth).dtype
@@ -75,6 +86,27 @@ def _block(fmt):
         return (out,)
 
     return chain
+
+
+def _block_spread(fmt, bias, clamp=None, case_test="stored", texel=None):
+    return block_spread(fmt, bias, clamp, case_test, GUARD, nlq_chain, texel)
+
+
+def _chain_variant(make, *args, hook=None):
+    """A profile's bias (inside the chain; None: the caller biased), clamp, case test and texel-format
+    choices for ``make(*args, ...)`` and its GPU spread ``hook(*args, ...)`` (golden.gpuspread)."""
+
+    def variant(bias=None, clamp=None, fmt=None, clamp_test=None, **_):
+        from .variants import preset_of
+
+        p = None if bias is None else preset_of(bias)
+        extra = (clamp, clamp_test or "stored", dict(fmt or {}))
+        out = {"reference": make(*args, p, *extra)}
+        if hook is not None:
+            out["spread_hook"] = hook(*args, p, *extra)
+        return out
+
+    return variant
 
 
 def _block_rows(rng, dtype):
@@ -99,21 +131,31 @@ def _block_rows(rng, dtype):
     return Rows({"depth": depth, "zf": zf}, ["random", "random", "stiff", "stiff"], comments)
 
 
+_CHAIN = dict(contract="distribution")
+
+
 def case_specs(dt):
     """Keyword dicts for :class:`moments_ref.golden.cases.Case`, one per end-to-end case."""
     chain = ("filtered moments b -> bias_moments(BIAS_FLOAT32) -> phi -> pack{0} -> unpack{0} -> shade "
              "(HPG17 Alg. 2, §3.3/§3.5, Alg. 3); compared as shadow intensities")
+    nlq = dict(profile_keys=("bias", "clamp", "format"), bias_before=True, default_bias=("inside", BIAS_FLOAT32))
     specs = [dict(name=f"e2e-nlq{f}-{dt}", function=f"endtoend.nlq{f}", dtype=dt, inputs=("b", "zf"),
-                  outputs=("intensity",), rows=_msm_rows, reference=_nlq(f), truth=None,
-                  description=chain.format(f), value_range=(0, 1)) for f in ("64", "32")]
+                  outputs=("intensity",), rows=_msm_rows, reference=nlq_chain(f), truth=None,
+                  description=chain.format(f), value_range=(0, 1), **_CHAIN, **nlq,
+                  depth_roles={}, variant=_chain_variant(nlq_chain, f, hook=chain_spread), width=4,
+                  spread_hook=chain_spread(f, BIAS_FLOAT32)) for f in ("64", "32")]
     specs.append(dict(name=f"e2e-msm64-{dt}", function="endtoend.msm64", dtype=dt, inputs=("b", "zf"),
-                      outputs=("intensity",), rows=_msm_rows, reference=_msm64, truth=None, value_range=(0, 1),
+                      outputs=("intensity",), rows=_msm_rows, reference=_msm64(), truth=None, value_range=(0, 1),
+                      **_CHAIN, profile_keys=("bias",), default_bias=("inside", BIAS_UNORM16),
+                      variant=_chain_variant(_msm64), width=4,
                       description="filtered moments b -> encode_unorm16 -> decode_unorm16 -> "
                                   "bias_moments(BIAS_UNORM16) -> Algorithm 1; compared as shadow intensities"))
     for f in ("64", "32"):
         specs.append(dict(
             name=f"e2e-block-nlq{f}-{dt}", function=f"endtoend.block_nlq{f}", dtype=dt, inputs=("depth", "zf"),
             outputs=("intensity",), rows=_block_rows, reference=_block(f), truth=None, value_range=(0, 1),
+            profile_keys=("bias", "clamp", "format"), default_bias=("inside", BIAS_FLOAT32),
+            variant=_chain_variant(_block, f, hook=_block_spread), width=4, spread_hook=_block_spread(f, BIAS_FLOAT32),
             description="40×32 block of 4× MSAA depths (HPG17 §4.1, guard band 4) -> resolve b(z) -> "
                         f"9² Gaussian blur (sigma 2.4) -> crop to 32×24 -> " + chain.format(f)))
     return specs

@@ -293,7 +293,7 @@ def view_matrices():
 
     light = AreaLight(center=[0.0, 3.0, 0.0], normal=[0.0, -1.0, 0.0], width=1.2, height=1.2, up=[0.0, 0.0, 1.0],
                       fov=70.0)
-    return light_views(light, VWSS_MAP[0], near=1.0, far=3.2, seed=7).view_proj
+    return light_views(light, VWSS_MAP[0], near=1.0, far=3.2, seed=7).clip_from_world
 
 
 def _vwss_points(rng, views):

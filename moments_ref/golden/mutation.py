@@ -1,12 +1,14 @@
 """Mutation testing of the oracle: which rows kill which mutant of an independent port.
 
 A *corpus* is a Python file ``corpus.py`` (the project's is ``tests/mutants``)
-defining ``MUTANTS``: objects with ``name``, ``kind`` (``bug``, ``legit`` or
-``equivalent``), ``why``, ``case_names()`` (golden cases to check) and
-``run(case, inputs, kwargs) -> {output: array}``. Each mutant is judged on every
-listed case by the golden comparator (:mod:`moments_ref.golden.compare`), exactly
-as ``moments-ref verify`` judges a port. The oracle is right when every ``bug`` is
-killed and every ``legit`` and ``equivalent`` mutant passes.
+defining ``MUTANTS``: objects with ``name``, ``kind`` (see :data:`KINDS`), ``why``,
+``case_names()`` (golden cases to check) and ``run(case, inputs, kwargs) ->
+{output: array}``, optionally ``profile`` (a :class:`~moments_ref.golden.profile.Profile`:
+the engine conventions the mutant is run with, docs/ports.md). Each mutant is judged
+on every listed case by the golden comparator (:mod:`moments_ref.golden.compare`),
+exactly as ``moments-ref verify`` judges a port, at two levels: the verdict
+(contract rows) and ``--strict`` (robustness rows gated too). The oracle is right
+when every mutant gets the verdict its kind demands.
 """
 
 from __future__ import annotations
@@ -21,7 +23,16 @@ from .cases import CASES
 from .compare import compare
 from .writer import golden_arrays, manifest_entry
 
-__all__ = ["load_corpus", "run_corpus", "format_table", "score", "report", "MutantResult", "default_corpus"]
+__all__ = ["load_corpus", "run_corpus", "format_table", "score", "report", "MutantResult", "default_corpus", "KINDS"]
+
+#: What each kind of mutant must get, at the verdict's level and with --strict.
+KINDS = {
+    "bug": "a mistake porters make: killed by the verdict (contract rows or engine rows)",
+    "legit": "a legitimate implementation choice: passes the verdict",
+    "robustness": "legitimate on the algorithm's contract, different beyond it (e.g. no singular branch): "
+                  "passes the verdict, killed with --strict",
+    "equivalent": "cannot alter any output (shown by a fuzzed bitwise comparison): passes at both levels",
+}
 
 
 @dataclass
@@ -29,14 +40,22 @@ class MutantResult:
     name: str
     kind: str
     why: str
-    killed: bool
+    killed: bool  # by the verdict (contract rows)
     killed_by: list  # (case, failing rows, first failing tc_ids, flags of the first failing row)
     error: str = ""
+    killed_strict: bool = False  # with --strict (robustness rows gated too)
+    killed_by_strict: list = None
 
     @property
     def correct(self):
-        """The oracle's answer is right: bugs killed, the others passing."""
-        return self.killed == (self.kind == "bug")
+        """The oracle's answer is right: every kind gets the verdicts :data:`KINDS` demands."""
+        if self.kind == "bug":
+            return self.killed
+        if self.kind == "robustness":
+            return not self.killed and self.killed_strict
+        if self.kind == "equivalent":
+            return not self.killed and not self.killed_strict
+        return not self.killed
 
 
 def default_corpus():
@@ -49,7 +68,7 @@ def load_corpus(path):
     """The ``MUTANTS`` list of ``path/corpus.py`` (or of a ``.py`` file)."""
     path = Path(path)
     file = path / "corpus.py" if path.is_dir() else path
-    if not file.is_file():
+    if not file.is_file() or file.suffix != ".py":
         raise InputError(f"corpus: expected a folder with corpus.py or a .py file, got {str(path)!r}")
     sys.path.insert(0, str(file.parent))
     try:
@@ -57,76 +76,109 @@ def load_corpus(path):
         module = importlib.util.module_from_spec(spec)
         sys.modules[spec.name] = module
         spec.loader.exec_module(module)
+    except (SyntaxError, ImportError, UnicodeDecodeError) as exc:
+        raise InputError(f"corpus: could not import {str(file)!r}: {type(exc).__name__}: {exc}") from None
     finally:
         sys.path.remove(str(file.parent))
     mutants = getattr(module, "MUTANTS", None)
-    if not mutants:
+    if not mutants or not isinstance(mutants, (list, tuple)):
         raise InputError(f"corpus: {str(file)!r} defines no MUTANTS list")
     return mutants
 
 
-def _golden(name, cache):
-    if name not in cache:
+def _golden(name, cache, profile=None):
+    key = (name, None if profile is None else profile.key)
+    if key not in cache:
         if name not in CASES:
             raise InputError(f"corpus: unknown golden case {name!r}")
-        case = CASES[name]
-        arrays = golden_arrays(case)
-        cache[name] = (case, arrays, manifest_entry(case, arrays))
-    return cache[name]
+        if profile is None:
+            case = CASES[name]
+            arrays = golden_arrays(case)
+        else:
+            from .conventions import profiled_arrays
+
+            case, arrays = profiled_arrays(name, profile)
+        cache[key] = (case, arrays, manifest_entry(case, arrays))
+    return cache[key]
+
+
+def _killers(v, arrays, name):
+    rows = v.worst_rows(None)
+    return (name, len(rows), [int(arrays["tc_id"][i]) for i in rows[:3]],
+            str(arrays["flags"][rows[0]]) or str(arrays["category"][rows[0]]))
+
+
+def _judge(mu, name, cache):
+    """``(killer at the verdict's level or None, killer with strict or None, error)`` of one case."""
+    case, arrays, entry = _golden(name, cache, getattr(mu, "profile", None))
+    inputs = {k: arrays[k] for k in case.inputs}
+    try:
+        got = mu.run(name, inputs, entry["kwargs"])
+        v = compare(entry, arrays, got, case=name)
+        vs = compare(entry, arrays, got, case=name, strict=True)
+    except Exception as exc:  # a crash or a wrong dtype kills the mutant
+        crash = (name, -1, [], "")
+        return crash, crash, f"{type(exc).__name__}: {exc}"
+    return (None if v.passed else _killers(v, arrays, name)), (None if vs.passed else _killers(vs, arrays, name)), ""
 
 
 def run_corpus(mutants, progress=None, cache=None):
-    """Judge every mutant; returns a list of :class:`MutantResult`."""
+    """Judge every mutant at both levels; returns a list of :class:`MutantResult`."""
     cache = {} if cache is None else cache
     results = []
     for mu in mutants:
-        killed_by, error = [], ""
+        killed_by, strict_by, error = [], [], ""
         for name in mu.case_names():
-            case, arrays, entry = _golden(name, cache)
-            inputs = {k: arrays[k] for k in case.inputs}
-            try:
-                got = mu.run(name, inputs, entry["kwargs"])
-                v = compare(entry, arrays, got, case=name)
-            except Exception as exc:  # a crash or a wrong dtype kills the mutant
-                killed_by.append((name, -1, [], ""))
-                error = f"{type(exc).__name__}: {exc}"
-                continue
-            if not v.passed:
-                rows = v.worst_rows(None)
-                killed_by.append((name, len(rows), [int(arrays["tc_id"][i]) for i in rows[:3]],
-                                  str(arrays["flags"][rows[0]]) or str(arrays["category"][rows[0]])))
-        results.append(MutantResult(mu.name, mu.kind, mu.why, bool(killed_by), killed_by, error))
+            k, ks, err = _judge(mu, name, cache)
+            error = error or err
+            killed_by += [k] if k else []
+            strict_by += [ks] if ks else []
+        results.append(MutantResult(mu.name, mu.kind, mu.why, bool(killed_by), killed_by, error,
+                                    bool(strict_by), strict_by))
         if progress is not None:
             progress(mu.name)
     return results
 
 
 def score(results):
-    """Counts: bugs, bugs killed, legit, legit passing (no false alarm), equivalents passing."""
+    """Counts per kind: bugs killed, legit passing, robustness mutants passing and killed with --strict, ..."""
     count = lambda kind, pred: sum(1 for r in results if r.kind == kind and pred(r))  # noqa: E731
     return {
         "bugs": count("bug", lambda r: True), "bugs_killed": count("bug", lambda r: r.killed),
         "legit": count("legit", lambda r: True), "legit_passing": count("legit", lambda r: not r.killed),
+        "robustness": count("robustness", lambda r: True),
+        "robustness_right": count("robustness", lambda r: not r.killed and r.killed_strict),
         "equivalent": count("equivalent", lambda r: True),
-        "equivalent_passing": count("equivalent", lambda r: not r.killed),
+        "equivalent_passing": count("equivalent", lambda r: not r.killed and not r.killed_strict),
     }
 
 
+def _by(killers):
+    return "; ".join(f"{c}: {n if n >= 0 else 'crash'} rows {ids} {fl}".rstrip() for c, n, ids, fl in killers)
+
+
 def format_table(results):
-    """A Markdown table: mutant, kind, verdict, which rows killed it; and the score."""
-    lines = ["| mutant | kind | verdict | killed by (case: failing rows, first tc_ids, flags) |",
-             "|---|---|---|---|"]
+    """A Markdown table per level: the verdict (contract rows) and --strict; then the score."""
+    lines = ["| mutant | kind | verdict (contract rows) | --strict (robustness rows too) | killed by "
+             "(case: failing rows, first tc_ids, flags) |", "|---|---|---|---|---|"]
     for r in results:
-        verdict = "killed" if r.killed else "passes"
+        v = "killed" if r.killed else "passes"
+        st = "killed" if r.killed_strict else "passes"
         if not r.correct:
-            verdict += " (WRONG)"
-        by = "; ".join(f"{c}: {n if n >= 0 else 'crash'} rows {ids} {fl}".rstrip() for c, n, ids, fl in r.killed_by)
-        lines.append(f"| {r.name} | {r.kind} | {verdict} | {by or '-'} |")
+            v += " (WRONG)"
+        by = _by(r.killed_by) if r.killed else ("(strict) " + _by(r.killed_by_strict) if r.killed_strict else "")
+        lines.append(f"| {r.name} | {r.kind} | {v} | {st} | {by or '-'} |")
     s = score(results)
     lines.append("")
-    lines.append(f"bugs killed {s['bugs_killed']}/{s['bugs']}, legitimate variants passing "
-                 f"{s['legit_passing']}/{s['legit']}, equivalent mutants passing "
-                 f"{s['equivalent_passing']}/{s['equivalent']}")
+    lines.append(f"contract level: bugs killed {s['bugs_killed']}/{s['bugs']}, legitimate variants passing "
+                 f"{s['legit_passing']}/{s['legit']}, robustness variants passing "
+                 f"{sum(1 for r in results if r.kind == 'robustness' and not r.killed)}/{s['robustness']}, "
+                 f"equivalent mutants passing {s['equivalent_passing']}/{s['equivalent']}")
+    lines.append(f"strict level: robustness variants killed "
+                 f"{sum(1 for r in results if r.kind == 'robustness' and r.killed_strict)}/{s['robustness']}, "
+                 f"bugs killed {sum(1 for r in results if r.kind == 'bug' and r.killed_strict)}/{s['bugs']}, "
+                 f"legitimate variants passing {sum(1 for r in results if r.kind == 'legit' and not r.killed_strict)}"
+                 f"/{s['legit']}")
     return "\n".join(lines)
 
 

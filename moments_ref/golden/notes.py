@@ -11,7 +11,10 @@ HPG17 : see docs/bib.md.
 
 from __future__ import annotations
 
-__all__ = ["NOTES", "RESULTS", "UNGATED", "UNGATED32"]
+__all__ = ["NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause"]
+
+#: The flag of rows beyond the algorithm's contract (:mod:`moments_ref.golden.contract`).
+ROBUSTNESS = "robustness"
 
 #: Values of a row's ``result``.
 RESULTS = {
@@ -21,6 +24,14 @@ RESULTS = {
 }
 
 NOTES = {
+    ROBUSTNESS: {
+        "description": "beyond the algorithm's contract: an input the published algorithm does not define or an "
+                       "engine that follows the paper never hands it (Algorithm 1: unbiased singular moments, "
+                       "moments outside the moment space; Algorithm 3: xi4 below the range of Psi4^-1, "
+                       "HPG17 §3.2, §3.3); the manifest's 'contract' of the case says which",
+        "effect": "counted and shown in its own section ('beyond the algorithm's contract'); never fails the "
+                  "verdict unless --strict (strict=True), which gates it like a contract row",
+    },
     "rounding_tie": {
         "description": "an integer output whose code changes within float32 rounding of the inputs or between "
                        "float32 and float64 evaluation: a correct port may land on either side",
@@ -40,7 +51,8 @@ NOTES = {
     "singular_hankel": {
         "description": "B(b) exactly singular (unbiased moments of one or two depths): the distribution is unique "
                        "and its exact Z(z < zf) is expected; the published shader divides by zero here",
-        "effect": "gated: a port must bias first or handle the singular case",
+        "effect": "robustness row (outside Algorithm 1's contract: the paper biases first); gated only with "
+                  "--strict, which holds a port to the exact answer of the unique distribution",
     },
     "bias_floor": {
         "description": "one depth after BIAS_FLOAT32: the variance sits at the bias floor (about 1e-7), where "
@@ -66,7 +78,23 @@ NOTES = {
         "description": "moments just outside the moment space (unbiased, or biased too little to enter it: "
                        "det B(b) < 0): no distribution has them, so the bound is "
                        "not defined and float32 and float64 implementations legitimately disagree by up to 1",
-        "effect": "result acceptable: ungated (the output must only be finite and in [0, 1])",
+        "effect": "robustness row, result acceptable: ungated (the value is undefined; with --strict the output "
+                  "must be finite and in [0, 1])",
+    },
+    "near_far": {
+        "description": "engine case: a mixture of the near and far planes (and a third depth): the moments of a "
+                       "distribution on the ends of the depth range, which a bias toward a two-point target on the "
+                       "same ends keeps singular",
+        "effect": "gated with the deviation of correct biased bounds from the exact Z(z < zf)",
+    },
+    "cluster": {
+        "description": "engine case: depths within 1e-4 or 1e-3 of each other (variance below the bias)",
+        "effect": "gated with the deviation of correct biased bounds from the exact Z(z < zf)",
+    },
+    "footprint": {
+        "description": "engine case: the 9×9 Gaussian footprint of 4× MSAA depths from a shipped scene's shadow map "
+                       "(HPG17 §4.1)",
+        "effect": "gated with the deviation of correct biased bounds from the exact Z(z < zf)",
     },
     "wide_spread": {
         "description": "legitimate implementations (float32, float64, operations a few ulps off) differ here by "
@@ -80,3 +108,37 @@ UNGATED = ("outside_moment_space",)
 
 #: Flags whose rows are not gated for float32 ports (undefined at float32 resolution).
 UNGATED32 = ("near_support_point",)
+
+
+#: One line per flag: why rows carrying it fail, for the diagnosis of a failing port.
+CAUSES = {
+    ROBUSTNESS: "input outside the algorithm's contract (the paper never hands it to this function)",
+    "singular_hankel": "unbiased singular moments (one or two depths): outside Algorithm 1's contract; the "
+                       "published shader divides by zero here",
+    "outside_moment_space": "moments outside the moment space: no distribution has them",
+    "bias_floor": "one depth after the float32 bias: variance at the bias floor, where float32 loses digits",
+    "near_support_point": "zf at a support point of biased moments: the side of the jump is decided by rounding",
+    "support_point": "zf exactly at a support point: the comparison zf <= y (or z < zf) decides the branch",
+    "clamp": "a clamp of HPG17 §3.4 applies: the port's clamp offset differs from the declared one, or it "
+             "lacks the clamp",
+    "fold": "a boundary of the 32-bit triangle fold (HPG17 Figure 5)",
+    "code_boundary": "a quantity on a code boundary of a fixed-point field",
+    "rounding_tie": "an integer code on a rounding tie",
+    "wide_spread": "ill-conditioned row: legitimate implementations differ by 0.1 or more",
+    "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
+    "cluster": "a tight cluster of depths: variance below the bias",
+    "footprint": "a footprint of a shipped scene: an engine's ordinary input",
+}
+
+
+def cause(flags, category):
+    """The one-line cause of failing rows with ``flags`` (a comma-separated string) in ``category``."""
+    names = [f for f in str(flags).split(",") if f]
+    for name in names:
+        if name in CAUSES and name != ROBUSTNESS:
+            return CAUSES[name]
+    if ROBUSTNESS in names:
+        return CAUSES[ROBUSTNESS]
+    return {"random": "ordinary inputs: an arithmetic or algorithmic error",
+            "edge": "inputs at the ends of their ranges",
+            "stiff": "an ill-conditioned input"}.get(str(category), "")

@@ -35,18 +35,18 @@ import math
 
 import numpy as np
 
-from .cases import evaluate_reference, expected_outputs
-from .notes import UNGATED, UNGATED32
+from .cases import case_table, evaluate_reference, expected_outputs
+from .notes import ROBUSTNESS, UNGATED, UNGATED32
+from .units import PORT_DTYPES, ceil2, ulp
 
-__all__ = ["derive", "gated_summary", "row_tolerance", "SAFETY", "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS",
-           "STRUCTURED", "ulp", "PORT_DTYPES", "TIE_BAND", "TruthMismatch"]
+__all__ = ["derive", "golden_arrays", "gated_summary", "robust_rows", "ceil2", "row_tolerance", "SAFETY", "FLOOR_ULPS",
+           "PERTURB_ULPS", "INDEPENDENT_ULPS", "STRUCTURED", "ulp", "PORT_DTYPES", "TIE_BAND", "TruthMismatch"]
 
 SAFETY = 16.0
 FLOOR_ULPS = 4
 PERTURB_ULPS = 3
 #: Component-wise perturbation: one ulp, the rounding of one operation on an input.
 INDEPENDENT_ULPS = 1
-PORT_DTYPES = ("float32", "float64")
 _NUDGE = 8 * float(np.finfo(np.float32).eps)
 _WIDE = 0.1
 #: Where a float implementation may store the neighbouring code: the exact scaled value
@@ -56,14 +56,6 @@ TIE_BAND = 64 * 2.0**-24
 
 class TruthMismatch(AssertionError):
     """The reference's codes disagree with the ground truth away from a rounding boundary."""
-
-
-def ulp(x, dtype):
-    """Spacing of ``dtype`` at ``|x|`` (float64 array; at least the smallest normal's spacing)."""
-    fi = np.finfo(dtype)
-    x = np.abs(np.asarray(x, np.float64))
-    with np.errstate(over="ignore"):
-        return np.spacing(np.maximum(x, fi.tiny).astype(dtype)).astype(np.float64)
 
 
 def _scaled(case, inputs, factor):
@@ -110,19 +102,12 @@ def _variants(case, inputs, dt, free):
             for sign in (1, -1):
                 found.append(evaluate_reference(case, _scaled(case, inputs, _independent(
                     case, inputs, eps, sign, free)), dt))
+    found = [(v, False) for v in found]
     if case.spread_hook is not None:
-        found += case.spread_hook(inputs, np.dtype(dt))
+        # Hooks are other formulations (the papers' own code, decoders' constants): where
+        # they have no finite value (outside their domain) they contribute nothing.
+        found += [(v, True) for v in case.spread_hook(inputs, np.dtype(dt))]
     return found
-
-
-def _ceil2(t):
-    """Round a tolerance array up to two significant digits (reads well, stays above)."""
-    t = np.asarray(t, np.float64)
-    out = t.copy()
-    ok = np.isfinite(t) & (t > 1e-290)
-    e = np.floor(np.log10(t[ok])) - 1
-    out[ok] = np.ceil(t[ok] / 10**e * (1 - 1e-12)) * 10**e
-    return out
 
 
 #: Rows whose meaning rests on exact relations between inputs: perturbed only jointly.
@@ -141,7 +126,12 @@ def _equal_inputs(case, inputs, n):
 
 
 def _float_tolerances(case, inputs, expected, n, flags, category):
-    """``{output: {port dtype: tolerance array (output's shape)}}``."""
+    """``{output: {port dtype: tolerance array (output's shape)}}``.
+
+    Other formulations (``spread_hook``: the papers' own code) count only on contract rows:
+    beyond the contract they are not legitimate implementations of anything.
+    """
+    contract = np.array([ROBUSTNESS not in fl for fl in flags], bool)
     random_rows = np.asarray(category) == "random"
     if not random_rows.any():
         random_rows = np.ones(n, bool)
@@ -153,9 +143,11 @@ def _float_tolerances(case, inputs, expected, n, flags, category):
         for i, o in enumerate(case.outputs):
             e = np.asarray(expected[i], np.float64)
             dev = np.zeros(e.shape)
-            for v in variants:
+            for v, optional in variants:
                 with np.errstate(invalid="ignore"):
                     d = np.abs(np.asarray(v[i], np.float64) - e)
+                if optional:
+                    d = np.where(contract.reshape((n,) + (1,) * (d.ndim - 1)) & ~np.isnan(d), d, 0.0)
                 dev = np.maximum(dev, np.where(np.isnan(d), np.inf, d))
             u = ulp(e, dt)
             if case.metric == "ulps":
@@ -168,7 +160,7 @@ def _float_tolerances(case, inputs, expected, n, flags, category):
                 finite = dev[random_rows]
                 finite = finite[np.isfinite(finite)]
                 noise = float(np.quantile(finite, 0.9)) if finite.size else 0.0
-                t = _ceil2(np.maximum(SAFETY * np.maximum(dev, noise),
+                t = ceil2(np.maximum(SAFETY * np.maximum(dev, noise),
                                       FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)))
             tol[o][dt] = t
     return tol
@@ -202,6 +194,26 @@ def _ties(case, inputs, expected, n, category, comment, flags):
     return acceptable, tie
 
 
+def robust_rows(arrays, n=None):
+    """``(n,)`` bool: the rows flagged ``robustness`` (beyond the algorithm's contract)."""
+    flags = arrays.get("flags") if hasattr(arrays, "get") else None
+    if flags is None:
+        return np.zeros(len(arrays["result"]) if n is None else n, bool)
+    return np.array([ROBUSTNESS in str(f).split(",") for f in np.asarray(flags).reshape(-1)], bool)
+
+
+def _contract_flags(case, inputs, flags, inside):
+    """Add ``robustness`` to the flags of rows outside the case's contract (``inside``, else case.contract)."""
+    if inside is None and case.contract is not None:
+        from .contract import rows_inside
+
+        inside = rows_inside(case.contract, inputs)
+    if inside is None:
+        return flags
+    inside = np.asarray(inside, bool)
+    return [fl if ok or ROBUSTNESS in fl else fl + (ROBUSTNESS,) for fl, ok in zip(flags, inside)]
+
+
 def _check_truth(case, inputs, tie):
     """Raise :class:`TruthMismatch` where a tie (a code other than the truth's) is not near a boundary."""
     margin = np.asarray(case.margin(**inputs), np.float64)
@@ -216,8 +228,11 @@ def _check_truth(case, inputs, tie):
             f"margin {margin[i]:.3g} > {TIE_BAND:.3g}")
 
 
-def derive(case, inputs, category, comment, flags):
+def derive(case, inputs, category, comment, flags, contract=None):
     """Expected outputs, per-row tolerances, flags and results for rows of ``case``.
+
+    ``contract``: optional ``(n,)`` bool, the rows inside the algorithm's contract
+    (default: ``case.contract(inputs)``); the others get the flag ``robustness``.
 
     Returns
     -------
@@ -231,7 +246,7 @@ def derive(case, inputs, category, comment, flags):
     n = len(category)
     category = np.asarray(category).astype("U6").copy()
     comment = list(comment)
-    flags = [tuple(f) for f in flags]
+    flags = _contract_flags(case, inputs, [tuple(f) for f in flags], contract)
     expected = expected_outputs(case, inputs)
     arrays = {}
     ungated = np.array([any(f in UNGATED for f in fl) for fl in flags], bool)
@@ -275,20 +290,53 @@ def row_tolerance(case, arrays, dt):
     return np.max([arrays[f"{o}_tolerance_{dt}"].reshape(n, -1).max(axis=1) for o in case.outputs], axis=0)
 
 
+def _ungated_reasons(arrays, rows):
+    """``{flag: count}`` of the UNGATED/UNGATED32 flags that leave ``rows`` ungated."""
+    out = {}
+    for f in np.asarray(arrays["flags"])[rows]:
+        names = [x for x in str(f).split(",") if x in UNGATED + UNGATED32] or ["unflagged"]
+        out[names[0]] = out.get(names[0], 0) + 1
+    return out
+
+
 def gated_summary(case, arrays):
-    """Per port dtype: rows gated (finite tolerance, result valid), and rows gated below 0.1 (abs metric)."""
+    """Per port dtype: rows gated (finite tolerance, result valid), and rows gated below 0.1 (abs metric).
+
+    ``levels`` counts the rows per level (``contract``, ``robustness``): rows, gated
+    rows, and the ungated rows by the flag whose note gives the reason.
+    """
     n = len(arrays["category"])
     valid = arrays["result"] == "valid"
+    robust = robust_rows(arrays, n)
     out = {"rows": int(n)}
     for dt in PORT_DTYPES:
         if case.integer_output:
             out[dt] = {"gated": int(valid.sum()), "exact": int(valid.sum())}
-            continue
-        t = row_tolerance(case, arrays, dt)
-        entry = {"gated": int((valid & np.isfinite(t)).sum())}
-        if case.metric == "abs":
-            entry["gated_below_0.1"] = int((valid & (t < _WIDE)).sum())
-        tmax = t[np.isfinite(t)]
-        entry["median_tolerance"] = float(np.median(tmax)) if tmax.size else math.inf
-        out[dt] = entry
+            gate = np.ones(n, bool)  # ties are gated too: to their acceptable set
+        else:
+            t = row_tolerance(case, arrays, dt)
+            entry = {"gated": int((valid & np.isfinite(t)).sum())}
+            if case.metric == "abs":
+                entry["gated_below_0.1"] = int((valid & (t < _WIDE)).sum())
+            tmax = t[np.isfinite(t)]
+            entry["median_tolerance"] = float(np.median(tmax)) if tmax.size else math.inf
+            out[dt] = entry
+            gate = valid & np.isfinite(t)
+        out[dt]["levels"] = {
+            level: {"rows": int(sel.sum()), "gated": int((sel & gate).sum()),
+                    "ungated": _ungated_reasons(arrays, sel & ~gate)}
+            for level, sel in (("contract", ~robust), ("robustness", robust))}
     return out
+
+
+def golden_arrays(case):
+    """All arrays of ``case``'s golden file (inputs, expected outputs, tolerances, row labels)."""
+    inputs, category, comment, flags = case_table(case)
+    arrays = dict(inputs)
+    if case.deriver is not None:
+        arrays.update(case.deriver(case, inputs, category, comment, flags))
+    else:
+        arrays.update(derive(case, {k: inputs[k] for k in case.inputs}, category, comment, flags))
+    if case.extra is not None:  # a kernel case's expected codes
+        arrays.update(case.extra(inputs))
+    return arrays

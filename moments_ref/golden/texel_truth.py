@@ -175,8 +175,10 @@ def pack32(r, margin=False):
     return (out, m) if margin else (out,)
 
 
-def unpack32(p):
-    """Fields by :data:`LAYOUT32`, the fold undone, each cell read at :data:`DECODE_OFFSETS32`."""
+def unpack32(p, offsets=None):
+    """Fields by :data:`LAYOUT32`, the fold undone, each cell read at :data:`DECODE_OFFSETS32` (or at
+    ``offsets``: ``{"depth", "v", "xi"}`` -> Fraction of a cell, a port's declared decode positions)."""
+    offsets = dict(DECODE_OFFSETS32, **(offsets or {}))
     p = np.asarray(p).reshape(-1).astype(np.int64)
     out = np.empty((len(p), 4), np.float64)
     with mpmath.workdps(_DPS):
@@ -185,9 +187,9 @@ def unpack32(p):
             t1, t2 = f["y1"], f["y2"]
             if t2 < t1:  # a folded pair (unfolded pairs keep t1 ≤ t2)
                 t1, t2 = 1023 - t1, 1022 - t2
-            y = [(t + DECODE_OFFSETS32["depth"]) / CELLS32["depth"] - 1 for t in (t1, t2)]
-            sv = (f["v"] + DECODE_OFFSETS32["v"]) / CELLS32["v"]
-            u = (f["xi"] + DECODE_OFFSETS32["xi"]) / CELLS32["xi"]
+            y = [(t + offsets["depth"]) / CELLS32["depth"] - 1 for t in (t1, t2)]
+            sv = (f["v"] + offsets["v"]) / CELLS32["v"]
+            u = (f["xi"] + offsets["xi"]) / CELLS32["xi"]
             out[i] = [float(y[0]), float(y[1]), float(sv * sv),
                       float(_psi4_inverse(mpmath.mpf(u.numerator) / u.denominator))]
     return (out,)

@@ -22,11 +22,16 @@ __all__ = ["shade_clamped", "SHADE_CLAMP"]
 SHADE_CLAMP = 1e-6
 
 
-def _shade_row(y1, y2, v2, xi4, zf):
-    """Algorithm 3 on one row, all arguments mpf (50 digits)."""
+def _shade_row(y1, y2, v2, xi4, zf, eps, clamped_test=False):
+    """Algorithm 3 on one row with clamp offset ``eps``, all arguments mpf (50 digits).
+
+    ``clamped_test``: the case test ``zf ≤ y2`` compares with the clamped y2 = max(y2, y1 + eps)
+    (the author's demo code) instead of the stored y2 (the reference's reading).
+    """
     if zf <= y1:
         return mpmath.mpf(0)  # "if zf ≤ y1 return 0"
-    eps = mpmath.mpf(SHADE_CLAMP)
+    if clamped_test:
+        y2 = max(y2, y1 + eps)
     v2 = min(max(v2, eps), 1 - eps)
     gap = max(y2 - y1, eps)
     zp = (zf - y1) / gap
@@ -45,12 +50,20 @@ def _shade_row(y1, y2, v2, xi4, zf):
     return min(max(out, mpmath.mpf(0)), mpmath.mpf(1))
 
 
-def shade_clamped(r, zf, dps=50):
-    """Exact Algorithm 3 with the §3.4 clamps: ``(n, 4)`` r and ``(n,)`` zf -> float64 ``(n,)``."""
+def shade_clamped(r, zf, dps=50, clamp=SHADE_CLAMP, case_test="stored"):
+    """Exact Algorithm 3 with the §3.4 clamps: ``(n, 4)`` r and ``(n,)`` zf -> float64 ``(n,)``.
+
+    ``clamp`` is the offset of the clamps (the paper's 1e-6, or a port's declared
+    offset, docs/ports.md); it is taken as the float given, exactly. ``case_test``:
+    the y2 the case test ``zf ≤ y2`` compares with, ``"stored"`` (default) or
+    ``"clamped"`` (max(y2, y1 + clamp)): the paper does not say which.
+    """
     r = np.asarray(r, np.float64).reshape(-1, 4)
     zf = np.broadcast_to(np.asarray(zf, np.float64), r.shape[:1])
     out = np.empty(len(zf))
     with mpmath.workdps(dps):
+        eps = mpmath.mpf(float(clamp))
         for i in range(len(zf)):
-            out[i] = float(_shade_row(*(mpmath.mpf(float(x)) for x in r[i]), mpmath.mpf(float(zf[i]))))
+            out[i] = float(_shade_row(*(mpmath.mpf(float(x)) for x in r[i]), mpmath.mpf(float(zf[i])), eps,
+                                      case_test == "clamped"))
     return out

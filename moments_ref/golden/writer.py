@@ -20,9 +20,9 @@ import numpy as np
 from .. import __version__
 from .._arrays import InputError
 from .._io import save_npz, write_text
-from .cases import CASES, case_table
+from .cases import CASES
 from .notes import NOTES, RESULTS
-from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, derive, gated_summary, ulp
+from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
 
 __all__ = ["write", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
 
@@ -41,19 +41,11 @@ SCHEMA_HISTORY = {
          "ground truth (exact arithmetic and mpmath from the formats' tables and the slides' matrices) instead "
          "of the package's own functions: float values move by up to a few ulps, and on rounding-tie rows the "
          "expected code is the exact one (the acceptable set still holds the codes legitimate float "
-         "implementations store)",
+         "implementations store). Also: the contract of each case (manifest `contract`) and the flag `robustness` on "
+         "the rows beyond it (counted per level in `gated`, gated only with --strict); the engine cases' "
+         "distributions (`aux`)",
 }
 CATEGORIES = ("random", "stiff", "edge")
-
-
-def golden_arrays(case):
-    """All arrays of ``case``'s golden file (inputs, expected outputs, tolerances, row labels)."""
-    inputs, category, comment, flags = case_table(case)
-    arrays = dict(inputs)
-    arrays.update(derive(case, inputs, category, comment, flags))
-    if case.extra is not None:
-        arrays.update(case.extra(inputs))
-    return arrays
 
 
 def _legacy_tolerances(case, arrays):
@@ -88,10 +80,12 @@ def manifest_entry(case, arrays, data=None):
         "function": f"moments_ref.{case.function}",
         "kwargs": case.kwargs,
         "description": case.description,
+        "contract": case.contract_text,
         "dtype": case.dtype,
         "input_order": list(case.inputs),
         "inputs": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.inputs},
         "outputs": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.outputs},
+        "aux": {k: {"dtype": str(arrays[k].dtype), "shape": list(arrays[k].shape)} for k in case.aux},
         "compare": list(case.outputs),
         "metric": case.metric,
         "value_range": list(case.value_range) if case.value_range else None,
@@ -108,7 +102,7 @@ def manifest_entry(case, arrays, data=None):
     return entry
 
 
-def write(out_dir, cases=None, progress=None):
+def write(out_dir, cases=None, progress=None, profile=None):
     """Write the golden vectors and ``manifest.json`` to ``out_dir``.
 
     Parameters
@@ -119,6 +113,11 @@ def write(out_dir, cases=None, progress=None):
         Case names (default: all of :data:`CASES`).
     progress : callable, optional
         Called with each case name as it is written (the CLI's progress bar).
+    profile : moments_ref.golden.profile.Profile, optional
+        Write the cases as an engine with these conventions sees them (inputs
+        converted, expected values and tolerances derived: golden.conventions); the
+        manifest records the profile. Without explicit ``cases``, the cases whose
+        conventions the profile contradicts are left out (``manifest["not_written"]``).
 
     Returns
     -------
@@ -129,6 +128,18 @@ def write(out_dir, cases=None, progress=None):
     unknown = [n for n in names if n not in CASES]
     if unknown:
         raise InputError(f"cases: unknown case {unknown[0]!r}; known: {', '.join(CASES)}")
+    derived, skipped = {}, []
+    if profile is not None and not profile.is_default:
+        from .conventions import profiled_arrays
+
+        for name in list(names):
+            try:
+                derived[name] = profiled_arrays(name, profile)
+            except InputError:
+                if cases is not None:
+                    raise
+                names.remove(name)
+                skipped.append(name)
     manifest = {
         "schema_version": SCHEMA_VERSION,
         "schema_history": SCHEMA_HISTORY,
@@ -143,9 +154,12 @@ def write(out_dir, cases=None, progress=None):
         "results": RESULTS,
         "cases": {},
     }
+    if derived or skipped:
+        manifest["profile"] = profile.canonical
+        manifest["profile_key"] = profile.key
+        manifest["not_written"] = skipped
     for name in names:
-        case = CASES[name]
-        arrays = golden_arrays(case)
+        case, arrays = derived[name] if name in derived else (CASES[name], golden_arrays(CASES[name]))
         data = save_npz(out_dir / f"{name}.npz", arrays)
         manifest["cases"][name] = manifest_entry(case, arrays, data)
         if progress is not None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, check_finite, first_index, real_input
+from .._kernels import FILTER_BAND_BYTES
 from ..moments import power_moments
 from ..packing import nlq_texels
 
@@ -206,10 +207,8 @@ def _correlate(p, w, out, tmp, axis):
         out += tmp
 
 
-#: Bytes of one band of rows (about the L2 of one core; a sweep from 256 KiB to 4 MiB
-#: at 2048² varied within the noise of a shared machine, 1 MiB at its fastest).
-#: Results do not depend on it.
-_BAND_BYTES = 1 << 20
+#: Bytes of one band of rows (moments_ref._kernels' table, with the measurement). Results do not depend on it.
+_BAND_BYTES = FILTER_BAND_BYTES
 
 
 def blur(moments, weights=None):

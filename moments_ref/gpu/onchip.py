@@ -53,6 +53,7 @@ import numpy as np
 
 from . import banks
 from .._arrays import InputError
+from .._kernels import RESOLVE_CHUNK
 from .filtering import SIGMA, TAPS, check_depth_samples, gaussian_weights, quantize_nlq
 
 __all__ = [
@@ -125,8 +126,8 @@ def _convolve(values, w, n_out, axis):
     return acc
 
 
-#: Texels per chunk of :func:`_thread_moments` (its rows stay in L2).
-_RESOLVE_CHUNK = 1 << 14
+#: Texels per chunk of :func:`_thread_moments` (its rows stay in L2; moments_ref._kernels' table).
+_RESOLVE_CHUNK = RESOLVE_CHUNK
 
 
 def _thread_moments(zt):

@@ -61,6 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import InputError, first_index, real_input
+from .._kernels import SAT_QUERY_CHUNK
 
 __all__ = [
     "MODULUS",
@@ -77,8 +78,8 @@ __all__ = [
 #: Integer arithmetic of the table is modulo 2³² (uint32 channels).
 MODULUS = 1 << 32
 
-#: Queries per chunk of :func:`interpolated_mean` (each gathers 16 texels × C).
-CHUNK = 1 << 15
+#: Queries per chunk of :func:`interpolated_mean` (the package's one table of chunk sizes: moments_ref._kernels).
+CHUNK = SAT_QUERY_CHUNK
 
 
 def _check_n(n) -> int:

@@ -1,71 +1,19 @@
 """Error against run time: every technique on every scene, measured against the reference.
 
-``moments-ref report [--scene NAME|FILE]... [--technique NAME]... [--all-techniques]
-[--repeats N] [--jobs N] [--full] --out DIR`` (:func:`main`) renders each scene's camera
-view, shades its receiver pixels with the techniques the scene's ``outputs``
-name (or ``--technique``, or with ``--all-techniques`` every one that can run
-on it; :mod:`moments_ref.pipeline`) and writes to DIR:
+``moments-ref report`` (:func:`main`, :func:`run`). What it runs, how it measures
+and what it writes is described once, in the README's section "The report"; the
+arguments are :func:`add_arguments` (shared with the command line). Each scene runs
+its techniques in one stage graph (:func:`moments_ref.pipeline.run`); each row's
+error is its reference's metric (``Technique.truth``,
+:class:`~moments_ref.techniques.Reference`), and each reference used adds its
+figures and, where it has one, its section of report.md.
 
-* ``results.csv``: one row per (scene, technique), columns :data:`COLUMNS`
-  (timings: medians of ``repeats`` timed runs after a warm-up with their min and
-  max; ``pareto``: on the scene's Pareto front, dominance judged beyond the
-  timing spread, :mod:`._pareto`);
-* ``winners.csv``: per scene and reference the technique of lowest RMSE at each
-  memory budget (bits per texel) and each total-cost budget (:mod:`._winners`);
-* ``stages.json``: per scene a list of ``{"stage", "seconds" (median), "min",
-  "max", "used_by"}`` (:meth:`moments_ref.pipeline.RunResult.stage_table`);
-* ``claims.json``: the paper claims measured on the scenes that ran
-  (:mod:`moments_ref.report.paper_claims`), also appended to report.md as a table;
-* ``report.md``: the settings used (and what was reduced), the machine and a
-  same-run memory-copy rate (:mod:`._machine`), the winners in one sentence per
-  budget, the Pareto front per scene, a cross-scene summary, the two-objective
-  fronts ``front_<reference>.png`` (RMSE against bits per texel and against total
-  cost, one figure per reference), the
-  error images and the crops where the techniques differ most (:mod:`._crops`).
-
-Metrics over the receiver pixels inside the shadow map, with
-``e = shadow − reference`` (shadow intensities, 1 = fully shadowed; the
-reference is the 9×9-Gaussian PCF at the technique's own depth bias, the exact
-filtered hard shadow, or with translucent occluders the filtered product of
-transmittances): ``rmse``, ``max_error = max |e|``, ``p99_error`` (99th
-percentile of ``|e|``), ``leak_fraction`` (share of pixels lit more than 0.05
-above the reference, ``e < −0.05``) and ``flip_mean``, the mean of NVIDIA ꟻLIP
-(package ``flip-evaluator``, LDR) between the shaded image and the image shaded
-with the reference. ``texel_seconds`` is the CPU time (``time.process_time`` of
-the process running the stage) of the technique's texture stages (shared stages
-counted fully for each technique: its cost alone), ``fragment_seconds`` that of
-its lookups for all receiver pixels, the split of HPG17 Figure 10. Both are NumPy
-times on this machine, not GPU times. CPU time, not wall-clock, because with
-``--jobs N`` (default: the usable cores) the scenes run side by side in worker
-processes (:mod:`._jobs`) and compete for the machine; the results other than
-timings do not depend on ``--jobs``.
-
-Without ``--full`` each scene runs at reduced resolution
-(:func:`moments_ref.pipeline.reduced_settings`: shadow map halved per side,
-camera a quarter per side), printed at the start on stderr and in report.md;
-``--full`` uses the scene's own map size, MSAA and camera resolution (the
-shipped hard-shadow scenes: 2048² maps with 4× MSAA at 1920×1080, HPG17 §5). ``knot`` has an area light: the
-hard-shadow techniques here use its centre as a spot light (their reference is
-the filtered hard shadow of that spot).
-
-Each technique the scene asks for gets a row; the pipeline runs them all in one
-stage graph. Each row's error is its
-reference's metric (``Technique.truth``, :class:`~moments_ref.techniques.Reference`),
-and each reference used adds its figures and, where it has one, its section of
-report.md. Shipped: the filtered hard shadow above (``pcf``); multi-view
-rasterization with many light samples for the area-light rows ``msm_soft``,
-``pcss``, ``vwss`` and ``mvr`` (64 light samples reduced, 512 with ``--full``;
-shadow intensity ``1 − visibility``; ``soft_<scene>.png``); converged ray
-marching (4096 samples per ray) for the scattering rows of scenes with a
-participating medium, whose error is that of the scattering term normalized by
-``t_max`` (``scattering_<scene>.png``). Techniques with measured artifacts add
-them once (``msm_soft``: ``msm_soft_artifacts.png`` and ``.md``, the artifacts the
-slides name).
-
-Package layout: this module runs and writes; :mod:`._text` holds results.csv,
-the claims and report.md, :mod:`._plots` the error-against-cost plots,
-:mod:`._pareto` the fronts and the summary, :mod:`._machine` the machine,
-:mod:`._jobs` the worker processes.
+Package layout: this module runs and writes; :mod:`._text` holds results.csv
+(:data:`COLUMNS`), the claims and report.md, :mod:`._plots` the error-against-cost
+plots, :mod:`._pareto` the fronts and the summary, :mod:`._winners` winners.csv, :mod:`._crops` the crops where
+the techniques differ most, :mod:`._machine` the machine, :mod:`._jobs` the worker
+processes; :mod:`.paper_claims` the papers' claims, :mod:`.vwss` the ``moments-ref
+vwss`` comparison, :mod:`.scattering_temporal` the temporal scattering claim.
 
 References
 ----------
@@ -84,12 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from .._arrays import InputError, one_line
 from .._io import figure_png, write_bytes, write_text
+from .._options import add_report_arguments
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from . import paper_claims, scattering_temporal
 from .. import pipeline
 from .. import techniques as _techniques
+from ..scene.gbuffer import check_shaded
+from ..techniques._interface import PROJECTION
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
 from ._crops import crop_figures
@@ -102,6 +53,7 @@ from ._text import CLEARLY_BELOW, CLOSE_REL, COLUMNS, csv_text, evaluate_claims,
 
 __all__ = ["COLUMNS", "LEAK_THRESHOLD", "AREA_ROWS", "run", "main", "metrics", "shaded_image", "flip_mean",
            "evaluate_claims", "soft_statements", "read_results", "plot_error_vs_runtime", "plot_fronts", "build_parser",
+           "add_arguments",
            "pareto_mask", "mark_pareto"]
 
 _ = (CLOSE_REL, CLEARLY_BELOW)  # re-exported
@@ -216,16 +168,36 @@ def _announce(acc, sc, names, used, ref_settings, full):
 
 
 def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_techniques=False):
-    """``(techniques, pipeline keywords)`` of a scene, its settings announced; ``None`` when nothing runs on it."""
+    """``(techniques, pipeline.Settings, what to announce)`` of a scene; ``None`` when nothing runs on it.
+
+    A scene whose camera would shade no receiver pixel at the run's settings is
+    refused here, before any work (:func:`moments_ref.scene.gbuffer.check_shaded`);
+    its settings are announced (:func:`_announce`) once every scene passed.
+    """
     size, samples, res = _scene_settings(sc, full, given)
     acc.stages[sc.name] = []
     names = _scene_techniques(sc, requested, all_techniques)
     if not names:
         return None
-    kw = dict(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles, settings=overrides,
-              full=full, given=given)
-    _announce(acc, sc, names, (size, samples, res), pipeline.plan(sc, names, **kw)[2]["settings"], full)
-    return names, kw
+    st = pipeline.Settings(shadow_map_size=size, msaa=samples, resolution=res, noise_tiles=noise_tiles,
+                           overrides=overrides, full=full, repeats=acc.repeats, clock="cpu")
+    p = pipeline.plan(sc, names, st)
+    if PROJECTION in p.graph.order(p.targets):
+        check_shaded(sc, res, sc.light_clip_from_world(), size)
+    return names, st, (names, (size, samples, res), p.settings, full)
+
+
+def _check_unique(scenes, loaded):
+    """Refuse two scenes of the same name: their rows, stages and images would overwrite each other."""
+    given = {}
+    for arg, sc in zip(scenes, loaded):
+        if sc.name in given:
+            first = given[sc.name]
+            what = (f"scene {str(arg)!r} is given twice" if str(first) == str(arg) else
+                    f"two scenes are named {sc.name!r} ({first} and {arg}); give one of them another name "
+                    "(name = \"...\" in its file)")
+            raise InputError(f"scene: {what}: their rows and images would overwrite each other")
+        given[sc.name] = arg
 
 
 def _png(fig):
@@ -238,13 +210,13 @@ def _png(fig):
         plt.close(fig)
 
 
-def _scene_task(sc, names, kw, repeats, progress):
+def _scene_task(sc, names, settings, progress):
     """A scene's share of the report, here or in a worker: rows, stages, claim numbers, figures as PNG bytes.
 
-    Timed stages are measured in CPU seconds of this process (``clock="cpu"``).
+    Timed stages are measured in CPU seconds of this process (``settings.clock``, "cpu").
     Everything returned is plain data (picklable); nothing is written.
     """
-    result = pipeline.run(sc, names, progress=progress, repeats=repeats, clock="cpu", **kw)
+    result = pipeline.run(sc, names, settings.replace(progress=progress))
     part = {"rows": result.rows(), "stages": result.stage_table(), "references": {}, "images": {}, "pngs": {},
             "measured": None if result.gbuffer is None else paper_claims.scene_measurements(result)}
     # (a scattering-only run shades no receiver pixels: nothing the claims need)
@@ -298,7 +270,7 @@ def _artifacts_task(names):
     return first, lines, files
 
 
-def _tasks(plans, full, jobs, repeats, progress):
+def _tasks(plans, full, jobs, progress):
     """The report's tasks ``(key, function, args)``: each scene, the artifacts, the temporal claim.
 
     With more than one job the longest go first (scenes with an area light, whose
@@ -316,9 +288,9 @@ def _tasks(plans, full, jobs, repeats, progress):
         others.append((("temporal",), paper_claims.temporal_claim, (scene, full)))
     serial = min(jobs, len(plans) + len(others)) == 1  # per-stage bars only in this process
     tasks = []
-    for sc, (names, kw) in plans:
+    for sc, (names, settings) in plans:
         truths = {_techniques.get(n).truth for n in names}
-        tasks.append((("scene", sc.name), _scene_task, (sc, names, kw, repeats, progress and serial)))
+        tasks.append((("scene", sc.name), _scene_task, (sc, names, settings, progress and serial)))
         weight[tasks[-1][0]] = (1 if "mvr" in truths else 0, len(names))
     tasks += others
     if not serial:
@@ -359,13 +331,39 @@ def _write(acc, out, flip_ok, done, fronts):
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
         temporal=False)
-    paths = {name: write_bytes(out / name, data) for name, data in files.items()}
-    paths.update({name: write_bytes(out / name, data) for name, data in {**acc.pngs, **fronts}.items()})
-    for name, text in texts.items():
-        paths[name] = write_text(out / name, text)
+    paths = _write_set(out, {**files, **acc.pngs, **fronts, **texts})
     return {"rows": acc.rows, "stages": acc.stages, "claims": json.loads(texts["claims.json"]),
             "soft": statements.get("mvr", {}),
             "artifacts": artifacts, "paths": paths, "settings": acc.references}
+
+
+#: The file that marks a report folder whose writing did not finish (see :func:`_write_set`).
+INCOMPLETE = "INCOMPLETE"
+
+
+def _write_set(out, blobs):
+    """Write ``{file name: bytes or text}`` into ``out``, marked :data:`INCOMPLETE` until the last file is written.
+
+    Each file is written atomically; the set is not: the marker is written first
+    and removed after the last file, so that a folder whose writing failed (a full
+    disk, a folder in the way) or was killed says so. A failure is an
+    :class:`InputError` naming the file, the reason and how many files were written.
+    """
+    bad = [n for n in blobs if Path(n).name != n or n in (".", "..", INCOMPLETE)]
+    if bad:  # names are made from checked scene names; this guards the folder anyway
+        raise InputError(f"out: refusing to write {bad[0]!r} (not a plain file name inside {out})")
+    marker, paths, name = out / INCOMPLETE, {}, INCOMPLETE
+    try:
+        write_text(marker, f"This report was not completely written: {len(blobs)} files were to be written, "
+                           f"{', '.join(blobs)}. Rerun moments-ref report to replace it.\n")
+        for name, data in blobs.items():
+            paths[name] = (write_text if isinstance(data, str) else write_bytes)(out / name, data)
+        marker.unlink()
+    except OSError as exc:
+        state = ("nothing was written" if name == INCOMPLETE else
+                 f"the report in {out} is incomplete ({len(paths)} of {len(blobs)} files written; {marker} says so)")
+        raise InputError(f"out: could not write {out / name} ({exc.strerror or exc}); {state}") from None
+    return paths
 
 
 def _timing_line(jobs, cores, repeats):
@@ -440,13 +438,19 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     Raises
     ------
     InputError
-        Unknown scene or technique names (listing the known ones), a scene
-        without receiver or camera (with the reason).
+        Unknown scene or technique names (listing the known ones), two scenes of
+        the same name, a scene without receiver or camera or whose camera shades
+        no receiver pixel (with the reason), a write that failed (the folder is
+        then marked incomplete, :func:`_write`).
     """
     from ..scene import list_scenes, load_scene
 
+    if isinstance(out_dir, str) and not out_dir.strip():
+        raise InputError(f"out_dir: expected a folder, got {out_dir!r}")
     out = Path(out_dir)
-    loaded = [load_scene(s) for s in (list_scenes() if not scenes else list(scenes))]  # refuse bad names first
+    scenes = list_scenes() if not scenes else list(scenes)
+    loaded = [load_scene(s) for s in scenes]  # refuse bad names first
+    _check_unique(scenes, loaded)
     for sc in loaded:
         pipeline.check_scene(sc)
     if techniques is not None:
@@ -461,7 +465,10 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                   noise_tiles, all_techniques)) is not None]
-    tasks = _tasks(plans, full, jobs, acc.repeats, progress)
+    for sc, (_, _, announce) in plans:  # every scene checked first: no line precedes a refusal
+        _announce(acc, sc, *announce)
+    plans = [(sc, (names, st)) for sc, (names, st, _) in plans]
+    tasks = _tasks(plans, full, jobs, progress)
     jobs = min(jobs, len(tasks)) or 1
     acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
     timings = {}
@@ -477,44 +484,27 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     return {**_write(acc, out, flip_ok, done, fronts), "tasks": timings}
 
 
+#: The arguments of ``moments-ref report`` on a parser (their one definition, shared with the command line).
+add_arguments = add_report_arguments
+
+
 def build_parser():
-    """The argument parser of ``moments-ref report``."""
-    p = argparse.ArgumentParser(prog="moments-ref report",
-                                description="Error against run time of the shadow techniques (HPG17 §5).")
-    p.add_argument("--scene", action="append", metavar="NAME|FILE",
-                   help="shipped scene name or scene file (repeatable; default: all shipped scenes)")
-    p.add_argument("--full", action="store_true",
-                   help="the scene's own map size, MSAA and camera resolution (default: reduced, printed at the start)")
-    p.add_argument("--technique", action="append", metavar="NAME",
-                   help="run this technique (repeatable) instead of each scene's outputs")
-    p.add_argument("--all-techniques", action="store_true",
-                   help="every technique that can run on each scene instead of its outputs")
-    p.add_argument("--repeats", type=_positive, default=3, metavar="N",
-                   help="timed repeats of each cost stage after a warm-up (default 3)")
-    p.add_argument("--jobs", type=_positive, default=None, metavar="N",
-                   help="worker processes running scenes side by side (default: the usable cores; 1: serial)")
-    p.add_argument("--out", required=True, type=Path, help="output folder")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    return p
+    """The argument parser of ``moments-ref report`` (:func:`add_arguments`)."""
+    return add_arguments(argparse.ArgumentParser(prog="moments-ref report",
+                                                 description="Error against run time of the shadow techniques (HPG17 §5)."))
 
 
-def _positive(text):
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return n
+def main(args=None) -> int:
+    """``moments-ref report``; returns the exit code (0 done, 2 bad usage or input).
 
-
-def main(argv=None) -> int:
-    """``moments-ref report``; returns the exit code (0 done, 2 bad usage or input)."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
+    ``args``: the parsed arguments of :func:`add_arguments` (what ``moments-ref report``
+    passes), or a list of command-line strings (parsed here).
+    """
+    if args is None or isinstance(args, (list, tuple)):
+        try:
+            args = build_parser().parse_args(args)
+        except SystemExit as exc:
+            return int(exc.code or 0)
     try:
         if args.technique and args.all_techniques:
             raise InputError("technique: give --technique or --all-techniques, not both")
@@ -522,7 +512,7 @@ def main(argv=None) -> int:
                   techniques=args.technique, all_techniques=args.all_techniques, repeats=args.repeats,
                   jobs=args.jobs)
     except InputError as exc:
-        print(f"moments-ref report: {exc}", file=sys.stderr)
+        print(one_line(f"moments-ref report: {exc}"), file=sys.stderr)
         return 2
     print(f"wrote {', '.join(str(p) for p in res['paths'].values())}")
     # The paper claims as claims.json judges them (the paper's own figures; report.md has the table).

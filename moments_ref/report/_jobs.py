@@ -17,14 +17,25 @@ tasks only compute, the report writes after the last one returned. A worker the
 system killed (memory) surfaces as :class:`WorkerDied`, an ``InputError`` naming
 the remedy. The processes stay for a second batch (the report's Pareto-front plots,
 which need every scene's rows).
+
+Workers die with the parent, however it ends: each asks the kernel for SIGKILL
+when its parent ends (Linux ``PR_SET_PDEATHSIG``) and watches its parent id
+from a thread (every :data:`WATCH_SECONDS`, on any system), so that a parent
+killed by SIGTERM or SIGKILL leaves no worker computing for nobody. Workers
+ignore SIGINT: Ctrl-C reaches the parent, which stops them. Warnings a task
+raises come back with its result and are raised again in the parent, so that
+none is printed by a worker before the parent's one-line refusal.
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import sys
+import threading
 import time
+import warnings
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
@@ -45,8 +56,36 @@ def usable_cores() -> int:
         return max(os.cpu_count() or 1, 1)
 
 
-def _init_worker(limit):
-    """Worker start: the parent's memory limit (``--max-memory``), matplotlib without a display."""
+#: Seconds between a worker's checks that its parent still runs.
+WATCH_SECONDS = 0.5
+
+
+def _die_with_parent(parent):
+    """End this worker when process ``parent`` ends: the kernel's parent-death signal and a watching thread."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:  # prctl(PR_SET_PDEATHSIG, SIGKILL): the kernel kills this process when its parent ends
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass  # the watching thread below still ends it
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(WATCH_SECONDS)
+        os._exit(1)
+
+    if os.getppid() != parent:  # the parent ended before the signal was asked for
+        os._exit(1)
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+
+
+def _init_worker(limit, parent=None):
+    """Worker start: die with the parent, ignore Ctrl-C (the parent stops the workers), the parent's
+    memory limit (``--max-memory``), matplotlib without a display."""
+    if parent is not None:
+        _die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     set_max_memory(limit)
     import matplotlib
 
@@ -54,10 +93,20 @@ def _init_worker(limit):
 
 
 def _call(fn, args):
-    """``fn(*args)`` and how long it took: ``(result, {"pid", "cpu", "wall"})`` (seconds)."""
+    """``fn(*args)`` and how it ran: ``(result, {"pid", "cpu", "wall", "warnings"})`` (seconds; the warnings
+    it raised as ``(message, category, filename, lineno)``, raised again by the parent)."""
     t0, c0 = time.perf_counter(), time.process_time()
-    result = fn(*args)
-    return result, {"pid": os.getpid(), "cpu": time.process_time() - c0, "wall": time.perf_counter() - t0}
+    with warnings.catch_warnings(record=True) as caught:
+        result = fn(*args)
+    return result, {"pid": os.getpid(), "cpu": time.process_time() - c0, "wall": time.perf_counter() - t0,
+                    "warnings": [(str(w.message), w.category, w.filename, w.lineno) for w in caught]}
+
+
+def _warn_again(done):
+    """Raise the warnings the tasks recorded here, in the tasks' order (after every task succeeded)."""
+    for _, info in done.values():
+        for message, category, filename, lineno in info.pop("warnings", ()):
+            warnings.warn_explicit(message, category, filename, lineno)
 
 
 def _serial(tasks, bar):
@@ -144,11 +193,12 @@ class Workers:
             if self._pool is None and min(self.jobs, len(tasks)) > 1:
                 self._pool = ProcessPoolExecutor(max_workers=min(self.jobs, len(tasks)),
                                                  mp_context=multiprocessing.get_context("spawn"),
-                                                 initializer=_init_worker, initargs=(max_memory(),))
+                                                 initializer=_init_worker, initargs=(max_memory(), os.getpid()))
             done = _serial(tasks, bar) if self._pool is None else _parallel(self._pool, tasks, bar)
         finally:
             if bar is not None:
                 bar.close()
+        _warn_again(done)
         if timings is not None:
             timings.update({k: t for k, (_, t) in done.items()})
         return {k: r for k, (r, _) in done.items()}

@@ -15,8 +15,8 @@ import math
 import numpy as np
 
 from .._arrays import InputError
+from ..claims import find_row
 from ..metrics import LEAK_THRESHOLD
-from .paper_claims import _row  # the one row lookup of the claims
 from .. import techniques as _techniques
 from ._crops import crop_lines
 from ._pareto import FRONT_RULE
@@ -90,7 +90,7 @@ def evaluate_claims(rows, four_moment=None):
 
     # 1. railing: NLQ 64 close to MSM 128, clearly below MSM 64 and VSM.
     claim = "railing: NLQ 64-bit error close to MSM 128-bit and clearly below MSM 64-bit and VSM"
-    r = {t: _row(rows, "railing", t) for t in ("nlq64", "msm128", "msm64", "vsm")}
+    r = {t: find_row(rows, "railing", t) for t in ("nlq64", "msm128", "msm64", "vsm")}
     if all(r.values()) and all(np.isfinite(v["rmse"]) for v in r.values()):
         a, b, c, d = (r[t]["rmse"] for t in ("nlq64", "msm128", "msm64", "vsm"))
         verdict = close(a, b) and a <= CLEARLY_BELOW * c and a <= CLEARLY_BELOW * d
@@ -101,7 +101,7 @@ def evaluate_claims(rows, four_moment=None):
 
     # 2. NLQ 32 close to NLQ 64 except banding on facade.
     claim = "NLQ 32-bit close to NLQ 64-bit except banding on facade"
-    pairs = [(r["scene"], r["rmse"], _row(rows, r["scene"], "nlq64")) for r in rows if r["technique"] == "nlq32"]
+    pairs = [(r["scene"], r["rmse"], find_row(rows, r["scene"], "nlq64")) for r in rows if r["technique"] == "nlq32"]
     pairs = [(s, a, b["rmse"]) for s, a, b in pairs if b is not None]
     if pairs and any(s == "facade" for s, _, _ in pairs):
         ok, notes, nan = True, [], False

@@ -50,8 +50,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..claims import Claim, markdown_table, to_json, verdict_of
-from ..scene.gbuffer import receiver_depth
+from ..claims import Claim, find_row, markdown_table, to_json, verdict_of
+from ..scene.gbuffer import z_ndc_lookup
 from . import scattering_temporal
 from .. import techniques as _techniques
 
@@ -93,7 +93,7 @@ def pixel_statistic(result, a="nlq64", b="msm128", worst=5):
     s = {}
     for n in (a, b):
         t, tex = _texture(result, n)
-        s[n] = np.asarray(t.shadow(tex, uv, receiver_depth(gb, t.slope_bias)), np.float64)
+        s[n] = np.asarray(t.shadow(tex, uv, z_ndc_lookup(gb, t.slope_bias)), np.float64)
     d = np.abs(s[a] - s[b])
     w, h = gb.resolution
     order = np.argsort(d)[::-1][:worst]
@@ -115,7 +115,7 @@ def pixel_statistic(result, a="nlq64", b="msm128", worst=5):
     for i in order:
         out["worst"].append({"pixel": [int(gb.pixel[i] % w), int(gb.pixel[i] // w)],
                              "position": [round(float(x), 4) for x in gb.position[i]],
-                             "texel": [int(x) for x in np.floor(gb.uv[i])], "depth": float(gb.depth[i]),
+                             "texel": [int(x) for x in np.floor(gb.uv[i])], "depth": float(gb.z_ndc_light[i]),
                              a: float(s[a][i]), b: float(s[b][i]),
                              "reference": None if ref is None else float(ref[i])})
     return out
@@ -133,7 +133,7 @@ def _occluder_layers(result, full, gap=0.01):
     rows = np.clip(c[:, 1, None, None] + off[None, :, None], 0, h - 1)
     cols = np.clip(c[:, 0, None, None] + off[None, None, :], 0, w - 1)
     z = maps[rows, cols].reshape(c.shape[0], 81 * maps.shape[2]).astype(np.float64)  # (P, 81 S)
-    z = np.where(z < receiver_depth(gb, True)[full, None] - 1e-3, z, np.inf)  # occluders only (the reference's test)
+    z = np.where(z < z_ndc_lookup(gb, True)[full, None] - 1e-3, z, np.inf)  # occluders only (the reference's test)
     z = np.sort(z, axis=1)
     with np.errstate(invalid="ignore"):
         step = np.diff(z, axis=1)
@@ -172,10 +172,6 @@ def scene_measurements(result):
     return m
 
 
-def _row(rows, scene, tech):
-    return next((r for r in rows if r["scene"] == scene and r["technique"] == tech), None)
-
-
 def _mode(full):
     return "--full (the scene's own shadow-map size, MSAA and camera)" if full else (
         "default reduced settings (maps halved per side, camera a quarter per side)")
@@ -201,7 +197,7 @@ def _pixels_claim(measured, full):
 
 
 def _evsm_claim(rows, full):
-    r = {t: _row(rows, "railing", t) for t in ("evsm64", "evsm128", "msm128")}
+    r = {t: find_row(rows, "railing", t) for t in ("evsm64", "evsm128", "msm128")}
     if not all(r.values()):
         return None
     e64, e128, m128 = (r[t]["leak_fraction"] for t in ("evsm64", "evsm128", "msm128"))
@@ -233,7 +229,7 @@ def _evsm_claim(rows, full):
 
 
 def _nlq64_claim(rows, measured, full):
-    r = {t: _row(rows, "railing", t) for t in ("nlq64", "msm128", "msm64")}
+    r = {t: find_row(rows, "railing", t) for t in ("nlq64", "msm128", "msm64")}
     if not all(r.values()):
         return None
     a, b, c = (r[t]["rmse"] for t in ("nlq64", "msm128", "msm64"))
@@ -254,7 +250,7 @@ def _nlq64_claim(rows, measured, full):
 def _nlq32_claim(rows, full):
     per = {}
     for s in sorted({r["scene"] for r in rows if r["technique"] == "nlq32"}):
-        r = {t: _row(rows, s, t) for t in ("nlq32", "nlq64", "msm64")}
+        r = {t: find_row(rows, s, t) for t in ("nlq32", "nlq64", "msm64")}
         if r["nlq32"] and r["nlq64"]:
             per[s] = {t: r[t]["rmse"] for t in r if r[t]}
     rail = per.get("railing")

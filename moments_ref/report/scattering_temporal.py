@@ -89,7 +89,7 @@ def measure(scene, mode="default", **overrides):
     frames = {n: [] for n in (*_NAMES, "reference")}
     for d in light_path(scene.light.direction, cfg["steps"], cfg["step_degrees"]):  # loop over frames
         sc = dataclasses.replace(scene, light=DirectionalLight(direction=d))
-        vp = sc.shadow_view_proj()
+        vp = sc.light_clip_from_world()
         depth, _ = sc.shadow_map(size=cfg["shadow_map_size"], samples=cfg["msaa"])
         t_max = rays[1]
         frames["reference"].append(ray_march(depth, vp, sc.camera.eye, rays[0], int(cfg["reference_samples"]))

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import InputError, check_memory
+from .._shim import alias
 from .raster import look_at, perspective
 
 __all__ = ["Camera", "BYTES_PER_PIXEL"]
@@ -53,7 +54,7 @@ class Camera:
             raise InputError(f"resolution: expected positive (width, height), got {self.resolution}")
         object.__setattr__(self, "resolution", (w, h))
         check_memory(BYTES_PER_PIXEL * w * h, f"camera resolution {w}×{h}")
-        self.view_proj()  # validates eye/target/up, fov, near/far
+        self.clip_from_world()  # validates eye/target/up, fov, near/far
 
     def sees(self, mesh) -> bool:
         """Whether some triangle of ``mesh`` may be in view (conservative frustum test).
@@ -63,7 +64,7 @@ class Camera:
         """
         if mesh.n_triangles == 0:
             return False
-        v = mesh.vertices @ self.view_proj()[:, :3].T + self.view_proj()[:, 3]
+        v = mesh.vertices @ self.clip_from_world()[:, :3].T + self.clip_from_world()[:, 3]
         x, y, z, w = v.T
         outside = np.stack([x < -w, x > w, y < -w, y > w, z < -w, z > w], axis=-1)
         return not outside[mesh.triangles].all(axis=1).any(axis=-1).all()
@@ -83,6 +84,13 @@ class Camera:
         w, h = self.resolution
         return perspective(self.fov, w / h, self.near, self.far)
 
-    def view_proj(self) -> np.ndarray:
-        """``projection @ view``."""
+    def resized(self, resolution) -> "Camera":
+        """The same camera rendering ``resolution`` = (width, height) pixels (its aspect follows)."""
+        return Camera(self.eye, self.target, self.up, self.fov, tuple(resolution), self.near, self.far)
+
+    def clip_from_world(self) -> np.ndarray:
+        """``projection @ view``: world to clip coordinates of the camera."""
         return self.projection() @ self.view()
+
+    #: Old name (DeprecationWarning).
+    view_proj = alias("clip_from_world")

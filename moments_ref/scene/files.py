@@ -8,7 +8,7 @@ A scene file holds::
     msaa = 4                         # 1, 4 or 8
     outputs = ["msm", "nlq64"]       # stored as given; a runner interprets them
 
-    [params]                         # optional free table, stored as Scene.params
+    [params]                         # optional; the keys of _checks.PARAMS, stored as Scene.params
 
     [light]                          # type = "directional" | "area"
     type = "directional"
@@ -39,6 +39,13 @@ banner receives the railing's shadow and shadows the ground).
 
 Errors name the file, the key (``objects[2].generator``) and the problem.
 
+Scene files come from other people (:mod:`._checks`): before anything is built,
+nesting is bounded (:data:`~._checks.MAX_NESTING`), every number is finite and at
+most :data:`~._checks.MAX_MAGNITUDE` in magnitude, the name is data and not a path
+(no ``/``, ``\\``, ``..``, control characters, at most
+:data:`~._checks.MAX_NAME_BYTES` bytes), and every ``[params]`` key is known
+(:data:`~._checks.PARAMS`) with a value of its type and range.
+
 Memory. A scene is refused at load, before anything is allocated, when its
 geometry (:data:`~moments_ref.scene.mesh.BYTES_PER_ELEMENT` per vertex and
 triangle), its camera image (:data:`~moments_ref.scene.camera.BYTES_PER_PIXEL`)
@@ -61,6 +68,8 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError, check_memory
+from .._shim import alias
+from ._checks import Ctx, check_document, check_name, check_params, check_text
 from .raster import SAMPLE_COUNTS, MAX_SIZE, rasterize_depth
 from .camera import Camera
 from .lights import AreaLight, DirectionalLight
@@ -138,16 +147,19 @@ class Scene:
         v = np.concatenate([self.receiver.vertices, self.occluder.vertices])
         return np.stack([v.min(0), v.max(0)])
 
-    def shadow_view_proj(self, eye=None) -> np.ndarray:
-        """The light's shadow-map matrix.
+    def light_clip_from_world(self, eye=None) -> np.ndarray:
+        """The light's shadow-map matrix: world to the light's clip coordinates.
 
         Directional light: orthographic, fitted to all scene vertices (HPG17 §5).
         Area light: perspective from ``eye`` on the light (default its centre).
         """
         pts = np.concatenate([self.receiver.vertices, self.occluder.vertices])
         if isinstance(self.light, DirectionalLight):
-            return self.light.view_proj(pts)
-        return self.light.view_proj(pts, eye=eye)
+            return self.light.clip_from_world(pts)
+        return self.light.clip_from_world(pts, eye=eye)
+
+    #: Old name (DeprecationWarning).
+    shadow_view_proj = alias("light_clip_from_world")
 
     def occluder_mesh(self, translucent=None, exclude=()) -> Mesh:
         """Occluder triangles: all (None), only opaque (False) or only translucent (True),
@@ -170,58 +182,8 @@ class Scene:
         if np.isscalar(samples) and (np.isscalar(size) or len(size) == 2):
             check_memory(shadow_map_memory(size, samples), f"shadow map {size} with {samples} samples")
         m = self.occluder_mesh(translucent=translucent, exclude=exclude)
-        return rasterize_depth(m.vertices, m.triangles, self.shadow_view_proj(),
+        return rasterize_depth(m.vertices, m.triangles, self.light_clip_from_world(),
                                size, samples=samples, cull=cull)
-
-
-# ---------------------------------------------------------------------------
-# Validation helpers
-
-
-class _Ctx:
-    def __init__(self, path):
-        self.path = path
-
-    def error(self, key, problem):
-        return InputError(f"scene file {self.path}: {key}: {problem}")
-
-    def number(self, table, key, where, default=None, positive=False):
-        if key not in table:
-            if default is None:
-                raise self.error(f"{where}{key}", "missing (expected a number)")
-            return default
-        v = table[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-            raise self.error(f"{where}{key}", f"wrong type: expected a finite number, got {v!r}")
-        if positive and v <= 0:
-            raise self.error(f"{where}{key}", f"expected a positive number, got {v!r}")
-        return float(v)
-
-    def vec3(self, table, key, where, default=None):
-        if key not in table:
-            if default is None:
-                raise self.error(f"{where}{key}", "missing (expected a list of 3 numbers)")
-            return np.asarray(default, dtype=np.float64)
-        v = table[key]
-        if (not isinstance(v, list) or len(v) != 3
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
-            raise self.error(f"{where}{key}", f"wrong type: expected a list of 3 numbers, got {v!r}")
-        return np.asarray(v, dtype=np.float64)
-
-    def table(self, doc, key, where="", required=True):
-        if key not in doc:
-            if required:
-                raise self.error(f"{where}{key}", "missing table")
-            return {}
-        v = doc[key]
-        if not isinstance(v, dict):
-            raise self.error(f"{where}{key}", f"wrong type: expected a table, got {type(v).__name__}")
-        return v
-
-    def unknown(self, table, allowed, where):
-        extra = sorted(set(table) - set(allowed))
-        if extra:
-            raise self.error(f"{where}{extra[0]}", f"unknown key (allowed: {', '.join(sorted(allowed))})")
 
 
 def _transform(ctx, steps, where):
@@ -269,7 +231,7 @@ def _object(ctx, obj, i, base):
     params = ctx.table(obj, "params", f"{where}.", required=False)
     if "generator" in obj:
         gen = obj["generator"]
-        if gen not in GENERATORS:
+        if not isinstance(gen, str) or gen not in GENERATORS:
             raise ctx.error(f"{where}.generator", f"unknown generator {gen!r} (known: {', '.join(GENERATORS)})")
         try:
             mesh = GENERATORS[gen](**params)
@@ -389,6 +351,27 @@ def _resolve(name_or_path) -> Path:
                      "(or give the path of a .toml file)")
 
 
+def _read_document(ctx, path):
+    """The parsed TOML of ``path``, its nesting and numbers bounded (:mod:`._checks`)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        check_text(ctx, text)
+        doc = tomllib.loads(text)
+    except InputError:
+        raise
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"scene file {path}: not valid TOML ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"scene file {path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
+                         f"offset {exc.start})") from None
+    except OSError as exc:
+        raise InputError(f"scene file {path}: cannot read ({exc.strerror})") from None
+    except (RecursionError, ValueError) as exc:  # nesting the scan missed; an integer of over 4300 digits
+        raise InputError(f"scene file {path}: not a scene file TOML can read ({str(exc)[:80]})") from None
+    check_document(ctx, doc)
+    return doc
+
+
 def load_scene(name_or_path) -> Scene:
     """Load a shipped scene by name or a scene file by path.
 
@@ -408,28 +391,19 @@ def load_scene(name_or_path) -> Scene:
         the message names the file, the key and the problem.
     """
     path = _resolve(name_or_path)
-    ctx = _Ctx(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"scene file {path}: not valid TOML ({exc})") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"scene file {path}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
-                         f"offset {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"scene file {path}: cannot read ({exc.strerror})") from None
+    ctx = Ctx(path)
+    doc = _read_document(ctx, path)
     ctx.unknown(doc, _TOP_KEYS, "")
-
-    name = doc.get("name", path.stem)
+    # The name and the parameters first: a scene refused for them costs nothing.
+    name = check_name(ctx, doc.get("name", path.stem), "name" if "name" in doc else "name (the file name)")
     desc = doc.get("description", "")
-    for key, v in (("name", name), ("description", desc)):
-        if not isinstance(v, str):
-            raise ctx.error(key, f"wrong type: expected a string, got {v!r}")
+    if not isinstance(desc, str):
+        raise ctx.error("description", f"wrong type: expected a string, got {desc!r}")
+    params = check_params(ctx, ctx.table(doc, "params", required=False))
     hw, msaa = _shadow_settings(ctx, doc)
     outputs = doc.get("outputs", [])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
         raise ctx.error("outputs", f"wrong type: expected a list of strings, got {outputs!r}")
-    params = ctx.table(doc, "params", required=False)
     light = _light(ctx, ctx.table(doc, "light"))
     camera = _camera(ctx, ctx.table(doc, "camera"))
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import InputError
+from .._shim import alias
 from .raster import look_at, orthographic, perspective
 
 __all__ = ["DirectionalLight", "AreaLight"]
@@ -50,7 +51,7 @@ class DirectionalLight:
 
     kind = "directional"
 
-    def view_proj(self, points, margin=0.01) -> np.ndarray:
+    def clip_from_world(self, points, margin=0.01) -> np.ndarray:
         """Orthographic light view fitted to the bounding box (in light space) of ``points``.
 
         Parameters
@@ -74,6 +75,9 @@ class DirectionalLight:
         lo, hi = lo - pad, hi + pad
         # view space looks along -z: distances are -z
         return orthographic(lo[0], hi[0], lo[1], hi[1], -hi[2], -lo[2]) @ view
+
+    #: Old name (DeprecationWarning).
+    view_proj = alias("clip_from_world")
 
 
 @dataclass(frozen=True)
@@ -140,7 +144,7 @@ class AreaLight:
         """(4, 3) corners, counter-clockwise seen from the lit side."""
         return self.point(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float))
 
-    def view_proj(self, points, eye=None) -> np.ndarray:
+    def clip_from_world(self, points, eye=None) -> np.ndarray:
         """Perspective view from ``eye`` (default: the centre) looking along the normal.
 
         The field of view is :attr:`fov` in both directions; near and far planes
@@ -153,3 +157,6 @@ class AreaLight:
         far = float(dist.max()) * 1.01 if dist.size and dist.max() > 0 else 1.0
         near = max(float(dist[dist > 0].min()) * 0.99 if (dist > 0).any() else 0.0, 1e-3 * far)
         return perspective(self.fov, 1.0, near, far) @ view
+
+    #: Old name (DeprecationWarning).
+    view_proj = alias("clip_from_world")

@@ -46,8 +46,11 @@ __all__ = [
 #: triangle (24 B stored each, the rest index grids and temporaries), checked
 #: against :func:`moments_ref._arrays.max_memory` before allocating.
 BYTES_PER_ELEMENT = 160
-#: Memory of reading an OBJ file, per byte of the file (Python lists of floats).
-OBJ_BYTES_PER_FILE_BYTE = 16
+#: Longest line of an OBJ file (characters): a polygon of thousands of vertices
+#: fits; a longer line is refused rather than split into millions of strings.
+MAX_OBJ_LINE = 1 << 16
+#: Vertices or triangles an OBJ file is read in at a time (see :func:`read_obj`).
+OBJ_CHUNK = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -387,6 +390,78 @@ GENERATORS = {
 # OBJ
 
 
+class _ObjParts:
+    """The vertices and triangles of an OBJ file read so far: arrays of up to :data:`OBJ_CHUNK` rows each.
+
+    Every full chunk is checked against the memory limit with the estimate of the
+    generators (:data:`BYTES_PER_ELEMENT` per vertex and triangle read so far)
+    before it becomes an array, so that reading stops at the limit, not after it.
+    """
+
+    def __init__(self, path):
+        self.path, self.v, self.t, self.vbuf, self.tbuf, self.nv, self.nt = path, [], [], [], [], 0, 0
+
+    def vertex(self, xyz):
+        self.vbuf.append(xyz)
+        self.nv += 1
+        if len(self.vbuf) >= OBJ_CHUNK:
+            self.flush()
+
+    def face(self, idx):
+        self.tbuf.extend([idx[0], idx[i], idx[i + 1]] for i in range(1, len(idx) - 1))
+        self.nt += len(idx) - 2
+        if len(self.tbuf) >= OBJ_CHUNK:
+            self.flush()
+
+    def flush(self):
+        check_memory(BYTES_PER_ELEMENT * (self.nv + self.nt),
+                     f"OBJ file {self.path} ({self.nv} vertices and {self.nt} triangles so far)")
+        if self.vbuf:
+            self.v.append(np.array(self.vbuf, dtype=np.float64).reshape(-1, 3))
+        if self.tbuf:
+            self.t.append(np.array(self.tbuf, dtype=np.int64).reshape(-1, 3))
+        self.vbuf, self.tbuf = [], []
+
+    def mesh(self):
+        self.flush()
+        v = np.concatenate(self.v) if self.v else np.zeros((0, 3))
+        t = np.concatenate(self.t) if self.t else np.zeros((0, 3), np.int64)
+        self.v = self.t = None
+        return Mesh(v, t)
+
+
+def _obj_vertex(parts, where, line):
+    try:
+        xyz = [float(x) for x in parts[1:5]]
+    except ValueError:
+        raise InputError(f"{where}: expected 'v x y z [w]' with numbers, got {line.strip()!r}") from None
+    if len(xyz) < 3:
+        raise InputError(f"{where}: expected 'v x y z [w]', got {line.strip()!r}")
+    if not all(np.isfinite(xyz)):
+        raise InputError(f"{where}: expected finite coordinates, got {line.strip()!r}")
+    if len(xyz) == 4:
+        if xyz[3] == 0:
+            raise InputError(f"{where}: expected a non-zero w (a point, not a direction), got {line.strip()!r}")
+        xyz = [c / xyz[3] for c in xyz[:3]]
+    return xyz
+
+
+def _obj_face(parts, where, line, n_vertices):
+    if len(parts) < 4:
+        raise InputError(f"{where}: expected a face with at least 3 vertices, got {line.strip()!r}")
+    idx = []
+    for tok in parts[1:]:
+        try:
+            k = int(tok.split("/")[0])
+        except ValueError:
+            raise InputError(f"{where}: expected an integer vertex index, got {tok!r}") from None
+        k = k - 1 if k > 0 else n_vertices + k
+        if k < 0 or k >= n_vertices or tok.split("/")[0] in ("0", "-0"):
+            raise InputError(f"{where}: vertex index {tok.split('/')[0]} out of range ({n_vertices} vertices so far)")
+        idx.append(k)
+    return idx
+
+
 def read_obj(path) -> Mesh:
     """Read the geometry of a Wavefront OBJ file.
 
@@ -396,52 +471,33 @@ def read_obj(path) -> Mesh:
     which is exact for convex polygons. Other statements (vn, vt, o, g, usemtl,
     s, ...) are ignored.
 
+    Memory. The file is read line by line (lines of at most :data:`MAX_OBJ_LINE`
+    characters) into arrays of :data:`OBJ_CHUNK` rows; the vertices and
+    triangles read so far are checked against the memory limit with the
+    generators' estimate (:data:`BYTES_PER_ELEMENT` each) before each chunk is
+    kept, so a file that would exceed the limit is refused while it is read.
+
     Raises
     ------
     InputError
-        Naming the file and line of a malformed vertex or face or an index out of range.
+        Naming the file and line of a malformed vertex or face, an index out of
+        range, a line too long, or a mesh above the memory limit.
     """
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: expected a regular OBJ file, got {'a folder' if path.is_dir() else 'no file' if not path.exists() else 'a special file'}")
+    acc = _ObjParts(path)
     try:
-        check_memory(OBJ_BYTES_PER_FILE_BYTE * path.stat().st_size, f"OBJ file {path}")
-        text = path.read_text(encoding="utf-8", errors="replace")
+        with open(path, encoding="utf-8", errors="replace") as f:
+            for lineno, line in enumerate(iter(lambda: f.readline(MAX_OBJ_LINE + 1), ""), 1):
+                where = f"{path}:{lineno}"
+                if len(line) > MAX_OBJ_LINE:
+                    raise InputError(f"{where}: a line longer than {MAX_OBJ_LINE} characters")
+                parts = line.split("#", 1)[0].split()
+                if parts and parts[0] == "v":
+                    acc.vertex(_obj_vertex(parts, where, line))
+                elif parts and parts[0] == "f":
+                    acc.face(_obj_face(parts, where, line, acc.nv))
     except OSError as exc:
         raise InputError(f"{path}: cannot read OBJ file ({exc.strerror})") from None
-    verts, tris = [], []
-    for lineno, line in enumerate(text.splitlines(), 1):
-        parts = line.split("#", 1)[0].split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            try:
-                xyz = [float(x) for x in parts[1:5]]
-            except ValueError:
-                raise InputError(f"{path}:{lineno}: expected 'v x y z [w]' with numbers, got {line.strip()!r}") from None
-            if len(xyz) < 3:
-                raise InputError(f"{path}:{lineno}: expected 'v x y z [w]', got {line.strip()!r}")
-            if not all(np.isfinite(xyz)):
-                raise InputError(f"{path}:{lineno}: expected finite coordinates, got {line.strip()!r}")
-            if len(xyz) == 4:
-                if xyz[3] == 0:
-                    raise InputError(f"{path}:{lineno}: expected a non-zero w (a point, not a direction), "
-                                     f"got {line.strip()!r}")
-                xyz = [c / xyz[3] for c in xyz[:3]]
-            verts.append(xyz)
-        elif parts[0] == "f":
-            if len(parts) < 4:
-                raise InputError(f"{path}:{lineno}: expected a face with at least 3 vertices, got {line.strip()!r}")
-            idx = []
-            for tok in parts[1:]:
-                try:
-                    k = int(tok.split("/")[0])
-                except ValueError:
-                    raise InputError(f"{path}:{lineno}: expected an integer vertex index, got {tok!r}") from None
-                k = k - 1 if k > 0 else len(verts) + k
-                if k < 0 or k >= len(verts) or tok.split("/")[0] in ("0", "-0"):
-                    raise InputError(
-                        f"{path}:{lineno}: vertex index {tok.split('/')[0]} out of range ({len(verts)} vertices so far)")
-                idx.append(k)
-            tris.extend([idx[0], idx[i], idx[i + 1]] for i in range(1, len(idx) - 1))
-    return Mesh(np.array(verts, dtype=np.float64).reshape(-1, 3), np.array(tris, dtype=np.int64).reshape(-1, 3))
+    return acc.mesh()

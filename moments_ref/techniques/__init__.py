@@ -1,22 +1,10 @@
 """Shadow techniques: one module per technique, one shared interface, one registry.
 
-Every technique is a :class:`Technique` with
-
-* ``name`` and ``bits_per_texel`` (the storage cost HPG17 Figure 1 compares);
-* ``depth_bias``: subtracted from the fragment depth before the lookup (HPG17 §5:
-  "With non-linear quantization we use a constant depth bias of 10⁻³ depth
-  units"; the other techniques use the same value so that differences in the
-  report come from the techniques, not from the bias);
-* ``prepare(depth_samples, params)``: the filtered texture built from the
-  multisampled shadow map, a chain of named :class:`Step` s;
-* ``shadow(texture, uv, depth, noise=None)``: the shadow intensity (the fraction of
-  light blocked, 0 = lit, 1 = fully shadowed) of fragments at texel coordinates
-  ``uv`` and depth ``depth``;
-* ``stages(technique, ctx, settings) -> Plan``: the stages it adds to the
-  pipeline's graph (:class:`Stage`; default :func:`texture_stages`, its steps on
-  the shadow map and its lookup at the receiver pixels), and ``truth``, the name
-  of the :class:`Reference` its error is measured against (its reference stage,
-  its metric and its part of the report).
+The interface is :class:`Technique`: its attributes (documented there, once) are
+its storage and depth bias, the steps that build its filtered texture
+(``prepare``), its lookup (``shadow``: the shadow intensity, 0 = lit, 1 = fully
+shadowed), the stages it adds to the pipeline's graph (``stages``, a :class:`Plan`)
+and ``truth``, the :class:`Reference` its error is measured against.
 
 :mod:`moments_ref.pipeline` adds every requested technique's stages and its
 reference's stage to one graph and runs what the targets need, each stage key

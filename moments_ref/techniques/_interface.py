@@ -6,7 +6,7 @@ package docstring for the conventions.
 
 References
 ----------
-HPG17, Slides : see docs/bib.md.
+HPG17, Slides, VWSS : see docs/bib.md.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .._arrays import InputError, real_input
-from ..scene.gbuffer import receiver_depth
+from ..scene.gbuffer import z_ndc_lookup
 
 __all__ = [
     "Step",
@@ -200,13 +200,17 @@ class Plan:
     fully for each technique: its cost alone); ``shade`` is the key of the stage
     whose value is its result for the receivers (its fragment cost); ``bits``
     overrides the technique's ``bits_per_texel`` where the storage follows from
-    the settings.
+    the settings. ``result`` says what the shade stage holds: the shadow intensity
+    (default) or the visibility ``1 − intensity`` (the soft shadows of VWSS §4, whose
+    shading pass computes the visible fraction of the light; the pipeline reports
+    ``1 − visibility`` as their intensity).
     """
 
     stages: tuple
     texel: tuple
     shade: str
     bits: int = None
+    result: str = "intensity"
 
 
 @dataclass(frozen=True)
@@ -219,11 +223,12 @@ class PlanContext:
     size : (H, W) shadow-map size; samples : MSAA samples; resolution : (width, height)
     params : dict, the scene's ``params`` with the run's overrides
     translucent : bool, the scene has translucent occluders
-    view_proj : (4, 4) the light's shadow-map matrix
+    light_clip_from_world : (4, 4) the light's shadow-map matrix
     noise_tiles, frame : blue-noise settings (HPG17 §4.2)
     full : bool, paper-scale settings (``moments-ref report --full``)
-    given : dict, the settings the caller set explicitly (``shadow_map_size``,
-        ``msaa``, ``resolution``: None where not set)
+    receivers : str, the key of the stage holding the receivers the techniques
+        shade (a :class:`~moments_ref.scene.gbuffer.GBuffer`; ``light_projection``
+        unless the run asks for the depth G-buffer)
     """
 
     scene: Any
@@ -232,11 +237,11 @@ class PlanContext:
     resolution: tuple
     params: dict
     translucent: bool
-    view_proj: Any
+    light_clip_from_world: Any
     noise_tiles: int = 64
     frame: int = 0
     full: bool = False
-    given: dict = field(default_factory=dict)
+    receivers: str = PROJECTION
 
 
 def reduced_settings(scene):
@@ -254,7 +259,7 @@ def _apply_step(x, step, params):
 
 
 def _shade(tex, gb, noise=None, technique=None):
-    return technique.shadow(tex, gb.uv, receiver_depth(gb, technique.slope_bias), noise=noise)
+    return technique.shadow(tex, gb.uv, z_ndc_lookup(gb, technique.slope_bias), noise=noise)
 
 
 def texture_stages(technique, ctx: PlanContext, settings=None) -> Plan:
@@ -292,7 +297,7 @@ class Technique:
         Subtracted from the fragment depth in :meth:`shadow`.
     slope_bias : bool
         Its shade stage also lowers the fragment depth by the receiver-slope bias
-        (:func:`moments_ref.scene.gbuffer.receiver_depth`): PCF, HPG17 §5's "higher depth
+        (:func:`moments_ref.scene.gbuffer.z_ndc_lookup`): PCF, HPG17 §5's "higher depth
         bias"; the filterable techniques use the constant alone (default False).
     make_steps : callable ``(samples: int, layered: bool) -> tuple[Step, ...]``
         The steps from the shadow map to the texture for a map with ``samples``
@@ -520,6 +525,8 @@ class Reference:
         Measured statements on the rows of its techniques.
     section : callable ``(settings, statements, images) -> list of str``, optional
         Its section of report.md (``settings``: scene -> its settings).
+    result : {"intensity", "visibility"}
+        What its stage holds (as :attr:`Plan.result`).
     """
 
     name: str
@@ -532,6 +539,7 @@ class Reference:
     figures: Callable = None
     statements: Callable = None
     section: Callable = None
+    result: str = "intensity"
 
     def settings(self, ctx, overrides=None) -> dict:
         """:attr:`configure` of the run (``{}`` without one); unknown overrides raise InputError."""

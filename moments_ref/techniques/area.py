@@ -11,7 +11,7 @@ light samples, the reference of VWSS §4 (reference ``mvr``,
 ``area_center_view``        the light's centre view (``vwss.light_views`` with one
                             sample: the projection, near and far)
 ``area_center_depth_map``   one depth map from the light's centre
-                            (``LightSamples.center_view_proj()``), shared by
+                            (``LightSamples.center_clip_from_world()``), shared by
                             msm_soft and PCSS
 ``shade_pcss``              :func:`moments_ref.techniques.vwss.pcss` (64-tap blocker search,
                             96-tap PCF) on the centre map
@@ -44,10 +44,11 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import positive_int
+from ..claims import find_row
 from ..scene.raster import rasterize_depth
 from .vwss import depth_range, light_near, light_views
-from .vwss.compare import _mvr_iter, _shade_multiview
-from ._interface import PROJECTION, Reference, Stage, reduced_settings, register_reference
+from .vwss.mvr import mvr_visibility
+from ._interface import Reference, Stage, reduced_settings, register_reference
 from ._errormaps import error_maps, visibility_maps
 from .references import intensity_metric
 
@@ -55,7 +56,7 @@ __all__ = ["AREA_SETTINGS", "area_settings", "configure", "soft_statements", "so
            "CENTER_MAP", "LIGHT_SAMPLES", "center_map_stages", "samples_stage"]
 
 #: Settings of the area-light techniques (:func:`configure`).
-AREA_SETTINGS = ("map_size", "light_samples", "reference_views", "views_per_pass", "seed", "bias")
+AREA_SETTINGS = ("map_size", "light_samples", "reference_views", "views_per_pass", "seed", "bias", "near")
 #: Keys of the shared stages.
 CENTER_VIEW, CENTER_MAP, LIGHT_SAMPLES = "area_center_view", "area_center_depth_map", "vwss_light_samples"
 
@@ -78,7 +79,7 @@ def area_settings(scene, full=False, *, map_size=None, light_samples=None, refer
     -------
     dict with ``map_size``, ``light_samples``, ``reference_views``,
     ``views_per_pass`` (8, warp passes as ``moments-ref vwss``) and ``seed`` (0;
-    the reference uses ``seed + 1000``, as :func:`moments_ref.techniques.vwss.compare.run_detailed`).
+    the reference uses ``seed + 1000``, as ``moments-ref vwss``, :mod:`moments_ref.report.vwss`).
     """
     size = tuple(scene.shadow_map_size) if full else reduced_settings(scene)[0]
     cfg = {"map_size": int(max(size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),
@@ -93,19 +94,21 @@ def area_settings(scene, full=False, *, map_size=None, light_samples=None, refer
 def configure(ctx, overrides):
     """The settings of one run: :func:`area_settings` plus ``near``, ``far`` and ``bias`` (world units).
 
-    Maps of the run's shadow-map size (with ``ctx.full`` and no explicit size: the
-    scene's), a reference of 64 light samples (512 with ``ctx.full``).
+    Maps of the run's shadow-map size, a reference of 64 light samples (512 with
+    ``ctx.full``). ``near`` is the light's near plane ``z_n`` (default the scene's
+    ``params.light_near``, else just in front of the nearest occluder:
+    :func:`moments_ref.techniques.vwss.lights.depth_range`); ``bias`` defaults to
+    ``0.002 · far``, as ``moments-ref vwss``.
     """
     scene = ctx.scene
-    own = ctx.full and ctx.given.get("shadow_map_size") is None
-    cfg = {"map_size": int(max(scene.shadow_map_size if own else ctx.size)),
-           "light_samples": int((scene.params or {}).get("light_samples", 24)),
-           "reference_views": 512 if ctx.full else 64, "views_per_pass": 8, "seed": 0, "bias": None}
+    cfg = {"map_size": int(max(ctx.size)), "light_samples": int((scene.params or {}).get("light_samples", 24)),
+           "reference_views": 512 if ctx.full else 64, "views_per_pass": 8, "seed": 0, "bias": None, "near": None}
     cfg.update({k: v for k, v in overrides.items() if v is not None})
     for key in ("map_size", "light_samples", "reference_views", "views_per_pass"):
         cfg[key] = positive_int(cfg[key], key, "area")
     occ = scene.occluder_mesh(translucent=False)
-    near, far = depth_range(scene.light, occ.vertices, scene.receiver.vertices, near=light_near(scene))
+    zn = light_near(scene) if cfg["near"] is None else float(cfg["near"])
+    near, far = depth_range(scene.light, occ.vertices, scene.receiver.vertices, near=zn)
     # World-space depth bias along the light normal: the default of `moments-ref vwss`.
     bias = 0.002 * far if cfg["bias"] is None else float(cfg["bias"])
     cfg.update({"near": near, "far": far, "bias": bias})
@@ -127,7 +130,7 @@ def _center_view(scene, cfg):
 
 def _center_map(ls1, scene, cfg):
     occ = _occluder(scene)
-    return ls1, rasterize_depth(occ.vertices, occ.triangles, ls1.center_view_proj(), cfg["map_size"])[0]
+    return ls1, rasterize_depth(occ.vertices, occ.triangles, ls1.center_clip_from_world(), cfg["map_size"])[0]
 
 
 def _light_samples(scene, cfg):
@@ -137,9 +140,7 @@ def _light_samples(scene, cfg):
 def _reference_visibility(gb, scene, cfg):
     occ = _occluder(scene)
     ls_ref = light_views(scene.light, cfg["reference_views"], cfg["near"], cfg["far"], seed=int(cfg["seed"]) + 1000)
-    vis, _, _, _ = _shade_multiview(_mvr_iter(occ.vertices, occ.triangles, ls_ref, cfg["map_size"], False),
-                                    gb.position, ls_ref, cfg["bias"], None)
-    return 1.0 - vis
+    return mvr_visibility(occ.vertices, occ.triangles, ls_ref, cfg["map_size"], gb.position, cfg["bias"])
 
 
 def center_map_stages(ctx, cfg):
@@ -155,16 +156,12 @@ def samples_stage(ctx, cfg):
 
 
 def _reference_stage(ctx, cfg, technique):
-    return Stage("mvr_reference_vwss", _reference_visibility, (PROJECTION,),
+    return Stage("mvr_reference_vwss", _reference_visibility, (ctx.receivers,),
                  bound=(("scene", ctx.scene), ("cfg", cfg)))
 
 
 # ---------------------------------------------------------------------------
 # the report's part: statements, figure, section
-
-
-def _row(rows, scene, tech):
-    return next((r for r in rows if r["scene"] == scene and r["technique"] == tech), None)
 
 
 def soft_statements(rows, scene):
@@ -174,7 +171,7 @@ def soft_statements(rows, scene):
     number comes from ``rows``; comparisons are stated as measured (ratios),
     not assumed.
     """
-    r = {t: _row(rows, scene, t) for t in ("msm_soft", "pcss", "vwss", "mvr")}
+    r = {t: find_row(rows, scene, t) for t in ("msm_soft", "pcss", "vwss", "mvr")}
     r = {t: v for t, v in r.items() if v is not None}
     if not r:
         return []
@@ -248,5 +245,5 @@ def _section(settings, statements, images):
 MVR_REFERENCE = register_reference(Reference(
     name="mvr", label="area-light outputs", stage=_reference_stage, metric=intensity_metric, option="area",
     configure=configure, settings_keys=AREA_SETTINGS, figures=_figures, statements=soft_statements,
-    section=_section,
+    section=_section, result="visibility",
 ))

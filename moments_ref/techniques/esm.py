@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..scene.depth import warped_positive
 from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import feature_steps
 
@@ -36,7 +37,7 @@ ESM_C = 80.0
 
 def esm_feature(z, c=ESM_C):
     """``exp(c z)`` as a (..., 1) float64 feature."""
-    return np.exp(c * np.asarray(z, dtype=np.float64))[..., None]
+    return warped_positive(np.asarray(z, dtype=np.float64), c)[..., None]
 
 
 def esm_shadow(mean_exp, zf, c=ESM_C):

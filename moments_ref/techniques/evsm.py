@@ -1,7 +1,7 @@
 """Exponential variance shadow mapping [Lauritzen and McCool 2008]: 64 and 128 bits.
 
 Depths are warped by ``x⁺ = exp(c⁺ z)`` and ``x⁻ = −exp(−c⁻ z)`` (both increasing
-in z) and the texture stores ``(E[x⁺], E[(x⁺)²], E[x⁻], E[(x⁻)²])``. Cantelli's
+in z; :func:`moments_ref.scene.depth.warped_positive`, :func:`~moments_ref.scene.depth.warped_negative`) and the texture stores ``(E[x⁺], E[(x⁺)²], E[x⁻], E[(x⁻)²])``. Cantelli's
 bound (:func:`moments_ref.techniques.vsm.cantelli_shadow`) on each warp is a lower
 bound of ``Z(z < zf) = P(x± < x±(zf))``; EVSM takes the larger of the two.
 
@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..scene.depth import warped_negative, warped_positive
 from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import feature_steps
 from .vsm import cantelli_shadow
@@ -65,8 +66,7 @@ __all__ = ["evsm_feature", "evsm_shadow", "EVSM64", "EVSM128"]
 def evsm_feature(z, c_pos, c_neg):
     """``(x⁺, (x⁺)², x⁻, (x⁻)²)`` with ``x⁺ = exp(c⁺ z)``, ``x⁻ = −exp(−c⁻ z)``; (..., 4) float64."""
     z = np.asarray(z, dtype=np.float64)
-    p = np.exp(c_pos * z)
-    n = -np.exp(-c_neg * z)
+    p, n = warped_positive(z, c_pos), warped_negative(z, c_neg)
     return np.stack([p, p * p, n, n * n], axis=-1)
 
 
@@ -92,8 +92,7 @@ def evsm_shadow(m, zf, c_pos, c_neg, min_depth_std=0.0):
     dt = np.result_type(m, np.float32)
     m = m.astype(dt)
     zf = np.asarray(zf, dtype=dt)
-    tp = np.exp(dt.type(c_pos) * zf)
-    tn = -np.exp(-dt.type(c_neg) * zf)
+    tp, tn = warped_positive(zf, c_pos), warped_negative(zf, c_neg)
     vp = (dt.type(min_depth_std * c_pos) * tp) ** 2
     vn = (dt.type(min_depth_std * c_neg) * tn) ** 2
     return np.maximum(cantelli_shadow(m[..., 0], m[..., 1], tp, vp),

@@ -41,14 +41,15 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._kernels import PCF_CHUNK
 from ..gpu.filtering import gaussian_weights
 from ..scene.raster import SAMPLE_COUNTS, sample_positions
 from ._interface import Technique, is_layered, register, texture_stages
 
 __all__ = ["pcf_filtered", "tap_weights", "tap_centres", "PCF"]
 
-#: Fragments per chunk (each gathers 10 × 10 texels × S samples × K layers).
-CHUNK = 1 << 13
+#: Fragments per chunk (each gathers 10 × 10 texels × S samples × K layers; moments_ref._kernels' table).
+CHUNK = PCF_CHUNK
 
 
 def tap_weights(coord, size, taps=None):
@@ -228,7 +229,7 @@ PCF = register(Technique(
     bits_per_texel=32,
     stages=_stages,
     depth_bias=1e-3,
-    slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.scene.gbuffer.receiver_depth)
+    slope_bias=True,  # HPG17 §5: PCF "with a higher depth bias" (moments_ref.scene.gbuffer.z_ndc_lookup)
     make_steps=_steps,
     lookup=_lookup,
     description="percentage-closer filtering, 9x9 Gaussian (sigma 2.4) x bilinear over the MSAA samples "

@@ -44,7 +44,7 @@ def intensity_metric(result, name):
 
 def _pcf(maps, gb, bias):
     # Receiver-plane depth at every tap (Isidoro 2006) minus the technique's constant bias; no slope term.
-    return pcf_filtered(maps, gb.uv, gb.depth - bias, gradient=gb.gradient)
+    return pcf_filtered(maps, gb.uv, gb.z_ndc_light - bias, gradient=gb.gradient)
 
 
 def _reference_stage(ctx, settings, technique):

@@ -3,7 +3,14 @@
 Registered with reference ``mvr`` (:mod:`moments_ref.techniques.area`, which
 lists their stages). They shade world points of the receivers under an area
 light, not shadow-map texels: their ``shadow`` refuses texel lookups, and the
-pipeline runs their stages.
+pipeline runs their stages. Their shade stages hold the visibility (VWSS §4's
+shading pass: the visible fraction of the light; ``Plan.result``), which the
+pipeline reports as the shadow intensity ``1 − visibility``.
+
+Two variants of VWSS that ``moments-ref vwss`` measures are built here but not
+registered (the report does not run them): :data:`VWSS_NOCULL`, with back-face
+culling off (VWSS §3.1, "to increase accuracy"), and :data:`VWSS_NAIVE`, plain
+image warping of the light's centre view (VWSS Figure 4 left, Figure 5 left).
 
 References
 ----------
@@ -13,22 +20,26 @@ VWSS : see docs/bib.md. PCSS: Fernando 2005, cited in place.
 from __future__ import annotations
 
 from .._arrays import InputError
-from .vwss import generate_points, multiview_visibility, pcss, source_view
+from .vwss import center_view, generate_points, multiview_visibility, naive_points, pcss, source_view
 from .vwss.mvr import mvr
 from .vwss.warp import warp
-from ._interface import PROJECTION, Plan, Stage, Technique, register
-from .area import CENTER_MAP, LIGHT_SAMPLES, _occluder, center_map_stages, samples_stage
+from ._interface import Plan, Stage, Technique, register
+from .area import CENTER_MAP, LIGHT_SAMPLES, center_map_stages, samples_stage
 
-__all__ = ["PCSS", "VWSS", "MVR"]
+__all__ = ["PCSS", "VWSS", "MVR", "VWSS_NOCULL", "VWSS_NAIVE"]
+
+
+def _occluder(scene):
+    return scene.occluder_mesh(translucent=False)
 
 
 def _shade_pcss(c, gb, bias):
-    return 1.0 - pcss(gb.position, c[1][..., 0], c[0], bias)
+    return pcss(gb.position, c[1][..., 0], c[0], bias)
 
 
 def _pcss_stages(technique, ctx, cfg):
-    shade = Stage("shade_pcss", _shade_pcss, (CENTER_MAP, PROJECTION), bound=(("bias", cfg["bias"]),))
-    return Plan(center_map_stages(ctx, cfg) + (shade,), (CENTER_MAP,), shade.key)
+    shade = Stage("shade_pcss", _shade_pcss, (CENTER_MAP, ctx.receivers), bound=(("bias", cfg["bias"]),))
+    return Plan(center_map_stages(ctx, cfg) + (shade,), (CENTER_MAP,), shade.key, result="visibility")
 
 
 def _points(ls, scene, cfg):
@@ -37,22 +48,40 @@ def _points(ls, scene, cfg):
     return generate_points(occ.vertices, occ.triangles, source_view(ls, cfg["map_size"]))
 
 
+def _points_nocull(ls, scene, cfg):
+    occ = _occluder(scene)
+    return generate_points(occ.vertices, occ.triangles, source_view(ls, cfg["map_size"]), cull_back_faces=False)
+
+
+def _points_naive(ls, scene, cfg):
+    # The nearest surface of the light's centre view at the samples' resolution.
+    occ = _occluder(scene)
+    return naive_points(occ.vertices, occ.triangles, center_view(ls, cfg["map_size"]), cull_back_faces=True)
+
+
 def _warp(pc, ls, cfg):
     return warp(pc.positions, ls, cfg["map_size"], cfg["views_per_pass"])
 
 
 def _shade_maps(maps, ls, gb, bias):
-    return 1.0 - multiview_visibility(gb.position, maps, ls, bias)
+    return multiview_visibility(gb.position, maps, ls, bias)
 
 
-def _vwss_stages(technique, ctx, cfg):
-    bound = (("scene", ctx.scene), ("cfg", cfg))
-    pts = Stage("vwss_points", _points, (LIGHT_SAMPLES,), bound=bound)
-    wrp = Stage("vwss_warp", _warp, ("vwss_points", LIGHT_SAMPLES), bound=(("cfg", cfg),))
-    shade = Stage("shade_vwss", _shade_maps, ("vwss_warp", LIGHT_SAMPLES, PROJECTION), bound=(("bias", cfg["bias"]),))
-    # storage: one 32-bit depth map per light sample
-    return Plan((samples_stage(ctx, cfg), pts, wrp, shade), (pts.key, wrp.key), shade.key,
-                bits=32 * int(cfg["light_samples"]))
+def _warped_stages(points, variant=""):
+    """The stages of VWSS with the point generation ``points``: points, warp into the N maps, 5-tap PCF."""
+    suffix = f"_{variant}" if variant else ""
+
+    def stages(technique, ctx, cfg):
+        bound = (("scene", ctx.scene), ("cfg", cfg))
+        pts = Stage(f"vwss_points{suffix}", points, (LIGHT_SAMPLES,), bound=bound)
+        wrp = Stage(f"vwss_warp{suffix}", _warp, (pts.key, LIGHT_SAMPLES), bound=(("cfg", cfg),))
+        shade = Stage(f"shade_{technique.name}", _shade_maps, (wrp.key, LIGHT_SAMPLES, ctx.receivers),
+                      bound=(("bias", cfg["bias"]),))
+        # storage: one 32-bit depth map per light sample
+        return Plan((samples_stage(ctx, cfg), pts, wrp, shade), (pts.key, wrp.key), shade.key,
+                    bits=32 * int(cfg["light_samples"]), result="visibility")
+
+    return stages
 
 
 def _mvr_maps(ls, scene, cfg):
@@ -62,9 +91,10 @@ def _mvr_maps(ls, scene, cfg):
 
 def _mvr_stages(technique, ctx, cfg):
     maps = Stage("mvr_vwss", _mvr_maps, (LIGHT_SAMPLES,), bound=(("scene", ctx.scene), ("cfg", cfg)))
-    shade = Stage("shade_mvr_vwss", _shade_maps, ("mvr_vwss", LIGHT_SAMPLES, PROJECTION),
+    shade = Stage("shade_mvr_vwss", _shade_maps, ("mvr_vwss", LIGHT_SAMPLES, ctx.receivers),
                   bound=(("bias", cfg["bias"]),))
-    return Plan((samples_stage(ctx, cfg), maps, shade), (maps.key,), shade.key, bits=32 * int(cfg["light_samples"]))
+    return Plan((samples_stage(ctx, cfg), maps, shade), (maps.key,), shade.key, bits=32 * int(cfg["light_samples"]),
+                result="visibility")
 
 
 def _not_texel_lookup(name):
@@ -78,19 +108,26 @@ def _no_steps(samples, layered):
     return ()
 
 
-def _area_technique(name, stages, description, reference, multiview):
-    return register(Technique(
-        name=name, bits_per_texel=32, depth_bias=0.0, make_steps=_no_steps, lookup=_not_texel_lookup(name),
-        description=description, reference=reference, light_kinds=("area",), multiview=multiview,
-        stages=stages, truth="mvr"))
+def _area_technique(name, stages, description, reference, multiview, registered=True):
+    t = Technique(name=name, bits_per_texel=32, depth_bias=0.0, make_steps=_no_steps, lookup=_not_texel_lookup(name),
+                  description=description, reference=reference, light_kinds=("area",), multiview=multiview,
+                  stages=stages, truth="mvr")
+    return register(t) if registered else t
 
 
 #: PCSS on the centre map: one float32 map.
 PCSS = _area_technique("pcss", _pcss_stages, "percentage-closer soft shadows: 64-tap blocker search, 96-tap PCF",
                        "Fernando 2005; VWSS §4", False)
 #: VWSS: a float32 depth per texel of each of the N light-sample maps.
-VWSS = _area_technique("vwss", _vwss_stages, "view-warped multi-view soft shadows: points warped into N maps",
+VWSS = _area_technique("vwss", _warped_stages(_points), "view-warped multi-view soft shadows: points warped into N maps",
                        "VWSS §3", True)
 #: MVR with the same N light samples as VWSS (the error of the light sampling alone).
 MVR = _area_technique("mvr", _mvr_stages, "multi-view rasterization with the N light samples of VWSS",
                       "VWSS §2.1", True)
+#: VWSS with back-face culling off (not registered: ``moments-ref vwss`` measures it).
+VWSS_NOCULL = _area_technique("vwss_nocull", _warped_stages(_points_nocull, "nocull"),
+                              "VWSS with back-face culling off", "VWSS §3.1", True, registered=False)
+#: Naive image warping of the centre view (not registered: ``moments-ref vwss`` measures it).
+VWSS_NAIVE = _area_technique("vwss_naive", _warped_stages(_points_naive, "naive"),
+                             "naive image warping of the light's centre view", "VWSS Figures 4 and 5", True,
+                             registered=False)

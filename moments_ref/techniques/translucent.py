@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, real_input
+from .._shim import renamed_keywords
 from ..scene.raster import rasterize_fragments
 from ._interface import LayeredSamples, Technique, register
 from .msm import msm64_lookup, msm64_steps
@@ -40,7 +41,8 @@ from .msm import msm64_lookup, msm64_steps
 __all__ = ["translucency_pass", "TRANSLUCENT_MSM"]
 
 
-def translucency_pass(opaque_depth, vertices, triangles, opacity, view_proj, cull="none"):
+@renamed_keywords(view_proj="clip_from_world")
+def translucency_pass(opaque_depth, vertices, triangles, opacity, clip_from_world, cull="none"):
     """Per-sample layers of translucent occluders in front of the opaque depth map.
 
     Parameters
@@ -52,7 +54,7 @@ def translucency_pass(opaque_depth, vertices, triangles, opacity, view_proj, cul
     triangles : (T, 3) int array
     opacity : (T,) float array in (0, 1]
         Opacity α of each triangle.
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         The light's matrix (the one that rendered ``opaque_depth``).
     cull : str
         Face culling, as :func:`moments_ref.scene.raster.rasterize_fragments`.
@@ -81,7 +83,7 @@ def translucency_pass(opaque_depth, vertices, triangles, opacity, view_proj, cul
                          f"got {alpha.shape[0]}")
     if ((alpha <= 0) | (alpha > 1)).any():
         raise InputError("opacity: expected values in (0, 1]")
-    frags, _ = rasterize_fragments(vertices, tri.reshape(-1, 3), view_proj, (H, W), samples=S, cull=cull)
+    frags, _ = rasterize_fragments(vertices, tri.reshape(-1, 3), clip_from_world, (H, W), samples=S, cull=cull)
     flat_opaque = z0.reshape(-1)
     key = frags.texel * S + frags.sample
     keep = frags.depth < flat_opaque[key]  # depth test against the opaque map

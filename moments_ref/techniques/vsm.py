@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..affine import float_to_unorm, unorm_to_float
+from ..scene.depth import z_unit_from_ndc
 from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import moment_steps
 
@@ -77,7 +78,7 @@ def _steps(samples, layered):
 def _lookup(texture, uv, zf, noise):
     # The texture unit filters the UNORM values as floats (float32).
     m = bilinear_filtered(unorm_to_float(texture, 16, np.float32), uv, np.float32)
-    t = ((zf + 1) / 2).astype(np.float32)
+    t = z_unit_from_ndc(zf).astype(np.float32)
     return cantelli_shadow(m[..., 0], m[..., 1], t, np.float32(VSM_MIN_VARIANCE))
 
 

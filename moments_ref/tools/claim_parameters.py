@@ -34,8 +34,8 @@ def _railing(full, sizes=None):
 
     sc = load_scene("railing")
     size, samples, res = (None, None, None) if full else sizes or pipeline.reduced_settings(sc)
-    return pipeline.run(sc, ["evsm64", "evsm128", "msm128"], full=full, shadow_map_size=size, msaa=samples,
-                        resolution=res)
+    return pipeline.run(sc, ["evsm64", "evsm128", "msm128"],
+                        pipeline.Settings(full=full, shadow_map_size=size, msaa=samples, resolution=res))
 
 
 def _evsm(ctx, c_pos, c_neg, delta, storage, bias=1e-3, order="warp", sigma=None, depth01=False):
@@ -89,12 +89,12 @@ def evsm_variations(full=False, sizes=None):
     settings (``full``: the scene's own). The first row recomputes the pipeline's own
     EVSM64, EVSM128 and MSM128 leak fractions (the study's check of itself).
     """
-    from ..scene.gbuffer import receiver_depth
+    from ..scene.gbuffer import z_ndc_lookup
 
     res = _railing(full, sizes)
     ref = np.asarray(res.reference["evsm128"], np.float64)
     ctx = {"map": res.values["raster_shadow_map"], "uv": res.gbuffer.uv.astype(np.float32),
-           "depth": receiver_depth(res.gbuffer, False)}
+           "depth": z_ndc_lookup(res.gbuffer, False)}
     out = []
     for label, k64, k128, km, thr in _evsm_rows():
         s = [_evsm(ctx, **{**_E64, **k64}), _evsm(ctx, **{**_E128, **k128}),
@@ -107,16 +107,19 @@ def evsm_variations(full=False, sizes=None):
 
 def vwss_variations(scene="knot", map_size=512, reference_views=64, camera_size=(320, 180)):
     """VWSS/PCSS RMSE ratio with 24 light samples per variation of z_n, the bias and the seed (list of dicts)."""
-    from ..techniques.vwss.compare import run_detailed
+    import dataclasses
 
-    size = {"map_size": map_size, "reference_views": reference_views, "camera_size": camera_size}
-    base = run_detailed(scene, views=(24,), scaling=False, progress=False, **size)
+    from ..report.vwss import comparison_settings, measure
+
+    cs = comparison_settings(views=(24,), scaling=False, progress=False, map_size=map_size,
+                             reference_views=reference_views, camera=camera_size)
+    base = measure(scene, cs)
     far = base.settings["far"]
     runs = [("ours", base)]
     for label, kw in ([(f"near {z}", {"near": z}) for z in (0.1, 0.3, 0.5)]
                       + [(f"bias {k} far", {"bias": k * far}) for k in (0.001, 0.004)]
                       + [(f"light-sample seed {s}", {"seed": s}) for s in (1, 2)]):
-        runs.append((label, run_detailed(scene, views=(24,), scaling=False, progress=False, **size, **kw)))
+        runs.append((label, measure(scene, dataclasses.replace(cs, **kw))))
     out = []
     for label, res in runs:
         rows = {(r["technique"], r["views"]): r["rmse"] for r in res.rows}

@@ -126,17 +126,17 @@ def scene_texels(name, decoder, full=False):
     from .. import pipeline
     from ..gpu.bluenoise import lookup_bilinear
     from ..scene import load_scene
-    from ..scene.gbuffer import receiver_depth
+    from ..scene.gbuffer import z_ndc_lookup
 
     sc = load_scene(name)
     size, samples, res = (None, None, None) if full else pipeline.reduced_settings(sc)
-    out = pipeline.run(sc, ["nlq32"], reference=False, full=full, shadow_map_size=size, msaa=samples,
-                       resolution=res)
+    out = pipeline.run(sc, ["nlq32"], pipeline.Settings(reference=False, full=full, shadow_map_size=size, msaa=samples,
+                                                        resolution=res))
     b = out.values["onchip_resolve_blur" if out.msaa > 1 else "onchip_blur"]
     r = packing.saturate(phi(bias_moments(b, BIAS_FLOAT32)).reshape(-1, 4)).astype(np.float32)
     d = decoder(r.astype(np.float64)).astype(np.float32)
     uv = out.gbuffer.uv.astype(np.float32)
-    zf = (receiver_depth(out.gbuffer, False) - 1e-3).astype(np.float32)
+    zf = (z_ndc_lookup(out.gbuffer, False) - 1e-3).astype(np.float32)
     look = [lookup_bilinear(t.reshape(b.shape), uv, shade, zf).astype(np.float64) for t in (r, d)]
     e = look[1] - look[0]
     return {**_stats(e), "share_over_0.05": float(np.mean(e > 0.05)), "share_leak_0.05": float(np.mean(e < -0.05))}

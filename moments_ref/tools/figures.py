@@ -192,7 +192,7 @@ def figure4_data(scene="railing", size=2048, samples=4, sigmas=FIGURE4_SIGMAS, b
 
     sc = load_scene(scene)
     mesh, _ = merge([sc.receiver, sc.occluder_mesh(translucent=False)])
-    depth, _ = rasterize_depth(mesh.vertices, mesh.triangles, sc.shadow_view_proj(), int(size),
+    depth, _ = rasterize_depth(mesh.vertices, mesh.triangles, sc.light_clip_from_world(), int(size),
                                samples=int(samples))
     moments = resolve_moments(depth)
     covered = (depth < 1).any(axis=-1)

@@ -31,7 +31,7 @@ import numpy as np
 
 from .. import msm, precise
 from .._io import write_text
-from ..moments import BIAS_FLOAT32, bias_moments, power_moments
+from ..moments import BIAS_FLOAT32, bias_moments, hankel, power_moments
 
 __all__ = ["measure", "measure_msm", "measure_two_point", "measure_nonlinear", "write_markdown", "main"]
 
@@ -173,6 +173,15 @@ def _within_singular_threshold(b):
     with np.errstate(invalid="ignore"):
         two = ~single & (xi4 <= rtol * np.maximum(bx[:, 3], sigma2))
     return int((single | two).sum())
+
+
+def _threshold_text():
+    """msm's float32 singular threshold and BIAS_FLOAT32's lift of ξ4, their figures read from the code."""
+    tau = float(msm.singular_thresholds(np.float32))
+    lift = BIAS_FLOAT32.alpha * float(np.linalg.eigvalsh(hankel(np.asarray(BIAS_FLOAT32.target))).min())
+    where = ("ξ4 ≤ 0 or σ² ≤ 0: the relative threshold SINGULAR_RTOL·eps is 0 in float32" if tau == 0 else
+             f"ξ4 ≤ τ·max(b4, σ²) with τ = SINGULAR_RTOL·eps = {tau:.2g}")
+    return (f"{where}; BIAS_FLOAT32's lift of ξ4, about α·λmin(B(b*)) = {lift:.1g}, does not clear them")
 
 
 def measure_msm(seed=0, n=300, progress=None):
@@ -443,11 +452,9 @@ def _interpretation(rows):
             if within:
                 s += (" Of these inputs, " + ", ".join(
                     f"{r['within_threshold']}/{r['n']} ({r['category']})" for r in within)
-                    + " have exact pivots inside msm's float32 singular threshold "
-                    "(ξ4 ≤ 8·eps32·max(b4, σ²) ≈ 9.5e-7·max(b4, σ²)), which BIAS_FLOAT32's lift of ξ4 "
-                    "(about α·0.2 = 6e-8 and up) does not clear: there the kernel returns Z of the "
-                    "two-point distribution instead of the bound of the biased moments, so the "
-                    "error is a branch decision rather than rounding.")
+                    + f" have exact pivots inside msm's float32 singular threshold ({_threshold_text()}): "
+                    "there the kernel returns Z of the two-point distribution instead of the bound of the "
+                    "biased moments, so the error is a branch decision rather than rounding.")
         if good32:
             s += " float32 is within 1e-3 in: " + ", ".join(r["category"] for r in good32) + "."
         s += " No NaN or inf was produced." if nonfinite == 0 else f" {nonfinite} results were NaN or inf."

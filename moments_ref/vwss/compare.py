@@ -1,4 +1,4 @@
-"""Moved to :mod:`moments_ref.techniques.vwss.compare`; this old path warns and will be removed in the next release."""
+"""Moved to :mod:`moments_ref.report.vwss`; this old path warns and will be removed in the next release."""
 
 from .._shim import forward
 

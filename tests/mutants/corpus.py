@@ -1,9 +1,11 @@
 """The mutant corpus: one-change mutants of the independent ports in ``ports.py``.
 
-``kind`` is ``bug`` (a mistake porters make: the oracle must kill it),
-``legit`` (a legitimate implementation choice: it must pass) or ``equivalent``
-(a change that cannot alter any output: shown so by :func:`fuzz_equivalent`, an
-exhaustive or fuzzed bitwise comparison with the unchanged port, not assumed).
+``kind`` is ``bug`` (a mistake porters make: the oracle must kill it on contract
+rows or engine rows), ``legit`` (a legitimate implementation choice: it must pass),
+``robustness`` (legitimate on the algorithm's contract, different beyond it: it
+passes the verdict and is killed with ``--strict``) or ``equivalent`` (a change
+that cannot alter any output: shown so by :func:`fuzz_equivalent`, an exhaustive
+or fuzzed bitwise comparison with the unchanged port, not assumed).
 
 ``moments-ref mutants --corpus tests/mutants`` prints the table; the suite
 (tests/test_mutants.py) asserts the score.
@@ -22,7 +24,8 @@ except ImportError:  # pragma: no cover
 
 #: Golden cases (float32) each port is checked on.
 PORT_CASES = {
-    "alg1": ["shadow_intensity-lower-float32", "shadow_intensity-upper-float32"],
+    "alg1": ["shadow_intensity-lower-float32", "shadow_intensity-upper-float32", "engine-lower-float32",
+             "engine-upper-float32"],
     "bias": ["bias_moments-float32-float32", "bias_moments-unorm16-float32"],
     "alg3": ["shade-float32"],
     "psi4": ["psi4-float32"],
@@ -63,21 +66,54 @@ def run_port(port, case, inputs, kwargs, m):
 @dataclass(frozen=True)
 class Mutant:
     name: str
-    kind: str  # "bug", "legit", "equivalent"
+    kind: str  # "bug", "legit", "robustness", "equivalent"
     port: str
     change: dict
     why: str
     cases: tuple = field(default=())
+    profile_table: tuple = ()  # the engine profile the mutant declares, as sorted TOML items
 
     def case_names(self):
         return list(self.cases) or PORT_CASES[self.port]
+
+    @property
+    def profile(self):
+        """The declared conventions (docs/ports.md), or None for the papers' own."""
+        if not self.profile_table:
+            return None
+        from moments_ref.golden.profile import parse_profile
+
+        return parse_profile(_thaw(self.profile_table), self.name)
 
     def run(self, case, inputs, kwargs):
         return run_port(self.port, case, inputs, kwargs, dict(self.change))
 
 
-def _m(name, kind, port, change, why, cases=()):
-    return Mutant(name, kind, port, change, why, tuple(cases))
+def _freeze(d):
+    return tuple(sorted((k, _freeze(v) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else v)
+                        for k, v in d.items()))
+
+
+def _thaw(t):
+    return {k: _thaw(v) if isinstance(v, tuple) and v and isinstance(v[0], tuple) else
+            list(v) if isinstance(v, tuple) else v for k, v in t}
+
+
+def _m(name, kind, port, change, why, cases=(), profile=None):
+    return Mutant(name, kind, port, change, why, tuple(cases), _freeze(profile or {}))
+
+
+#: Targets in the [0, 1] convention: the papers' float32 target (0, 0.375, 0, 0.375) mapped exactly, and
+#: (0.5, 0.5, 0.5, 0.5) = the moments of ½δ0 + ½δ1, the singular target of the 2015 demo code.
+TARGET01 = [0.5, 0.34375, 0.265625, 0.2265625]
+SINGULAR01 = [0.5, 0.5, 0.5, 0.5]
+#: Found in the wild (docs/ports.md): an engine profile per behaviour.
+_HDRP = {"bias": {"alpha": 6e-7, "target": [0.0, 0.628, 0.0, 0.628], "applied": "before"}}
+_ENGINE01 = {"depth": "[0,1]", "output": "visibility",
+             "bias": {"alpha": 3e-6, "target": TARGET01, "applied": "inside"}}
+_SINGULAR = {"depth": "[0,1]", "output": "visibility",
+             "bias": {"alpha": 3e-6, "target": SINGULAR01, "applied": "inside"}}
+_AUTHOR3 = {"clamp": 5e-6, "clamp_test": "clamped"}
 
 
 _LEGIT_ARITH = [("fma", {"fma": True}, "fused multiply-add"), ("f64", {"f64": True}, "float64 arithmetic"),
@@ -91,18 +127,42 @@ MUTANTS = [
     _m("alg1-recip", "legit", "alg1", {"recip": True}, "p, q by one reciprocal of c2 and two products"),
     _m("alg1-sum-weights", "legit", "alg1", {"sum_weights": True}, "lower bound as w1 + w2 instead of 1 - w0"),
     _m("alg1-swap-bound", "bug", "alg1", {"swap_bound": True}, "upper bound returned for the lower and vice versa"),
-    _m("alg1-no-singular", "bug", "alg1", {"no_singular": True},
-       "no singular branch: divides by zero on singular B(b), saturate turns NaN into 0"),
-    _m("alg1-literal-root", "bug", "alg1", {"literal_root": True},
-       "roots as -p/2 ∓ sqrt(p²/4 - q) literally (cancels at the bias floor)"),
+    _m("alg1-no-singular", "robustness", "alg1", {"no_singular": True},
+       "paper-faithful: no singular branch (biased inputs only); divides by zero on unbiased singular B(b), "
+       "outside the contract, where saturate turns NaN into 0"),
+    _m("alg1-literal-root", "legit", "alg1", {"literal_root": True},
+       "roots as -p/2 ∓ sqrt(p²/4 - q), as the slides and Peters' demo code (HDRP's HDIMS.hlsl) print them"),
     _m("alg1-swap-roots", "bug", "alg1", {"swap_roots": True}, "z1 and z2 swapped (z1 > z2)"),
     _m("alg1-d22-sign", "bug", "alg1", {"d22_sign": True}, "D22 = b2 + b1² (sign error)"),
     _m("alg1-no-l32", "bug", "alg1", {"no_l32": True}, "forward substitution forgets L32 c1"),
     _m("alg1-quarter", "bug", "alg1", {"quarter": True}, "discriminant p²/2 - q instead of p²/4 - q"),
-    _m("alg1-le", "bug", "alg1", {"le": True}, "z_l <= zf in the lower bound (strict < expected)"),
+    _m("alg1-le", "robustness", "alg1", {"le": True},
+       "z_l <= zf in the lower bound (strict < expected): on positive definite B(b) no root equals zf, so it "
+       "differs only at a singular input's support point"),
     _m("alg1-half", "bug", "alg1", {"half": True}, "moments read as float16"),
     _m("alg1-depth01", "bug", "alg1", {"depth01": True}, "fragment depth mapped to [0, 1] (the papers use [-1, 1])"),
     _m("alg1-bias-inside", "bug", "alg1", {"bias_inside": True}, "biases inside Algorithm 1 although the caller did"),
+    # Found in the wild, each with the profile its engine declares (docs/ports.md).
+    _m("alg1-paper-bias-before", "legit", "alg1", {"literal_root": True, "no_singular": True},
+       "paper-faithful Algorithm 1 (the slides' roots, no singular branch) behind its caller's bias "
+       "(HDRP's HDIMS.hlsl: alpha 6e-7 toward (0, 0.628, 0, 0.628), applied before)", profile=_HDRP),
+    _m("alg1-engine01", "legit", "alg1", {"literal_root": True, "no_singular": True, "visibility": True,
+                                          "bias": (3e-6, TARGET01)},
+       "a [0, 1]-convention port returning visibility, biasing inside toward the papers' target mapped to [0, 1], "
+       "run through its profile", profile=_ENGINE01),
+    _m("alg1-singular-target", "bug", "alg1", {"literal_root": True, "no_singular": True, "visibility": True,
+                                               "bias": (3e-6, SINGULAR01)},
+       "bias toward (0.5, 0.5, 0.5, 0.5) in [0, 1], the moments of ½δ0 + ½δ1 (MJP's MSM.hlsl, Unity's "
+       "ShadowMoments.hlsl): near/far-plane mixtures stay singular and shade lit", profile=_SINGULAR),
+    _m("alg1-factor-1.03", "bug", "alg1", {"factor": 1.03}, "the bound times 1.03 (a light-leak hack)"),
+    _m("alg1-early-exit", "bug", "alg1", {"early_exit": True}, "early exit: receiver at or before the mean b1 is lit"),
+    _m("alg1-pivot-floor", "bug", "alg1", {"pivot_floor": 1e-5}, "pivots D22 and D33 floored at 1e-5"),
+    _m("alg1-nan-guard", "bug", "alg1", {"cholesky": True, "unclamped": True, "bias": (1e-7, TARGET01)},
+       "textbook Cholesky with square roots in a [0, 1] engine biasing by 1e-7 (a point-light setting in the "
+       "wild): a pivot that rounds below 0 gives NaN, which the d <= 0 guards let through",
+       profile={"depth": "[0,1]", "bias": {"alpha": 1e-7, "target": TARGET01, "applied": "inside"}}),
+    _m("alg1-unclamped", "bug", "alg1", {"literal_root": True, "no_singular": True, "unclamped": True},
+       "paper-faithful Algorithm 1 without the final saturate: the bound leaves [0, 1]"),
 
     _m("port-bias", "legit", "bias", {}, "the port as written from HPG17 §3.2"),
     _m("bias-rearranged", "legit", "bias", {"rearranged": True}, "b + alpha (b* - b)"),
@@ -124,7 +184,8 @@ MUTANTS = [
     *[_m(f"alg3-{n}", "legit", "alg3", c, w) for n, c, w in _LEGIT_ARITH],
     _m("alg3-gap-pow", "legit", "alg3", {"gap_pow": True}, "(y2 - y1)^4 as four products instead of two squares"),
     _m("alg3-literal-root", "bug", "alg3", {"literal_root": True},
-       "z_l = -q1/2 - sqrt(q1²/4 - q0) literally (cancels for q1 << 0)"),
+       "z_l = -q1/2 - sqrt(q1²/4 - q0) with the case test zf <= y2: NaN at zf = y2 (q1 = ±inf), saturated to 0 "
+       "(its cancellation below y2 is the printed formula's, part of the spread)"),
     _m("alg3-no-v2-clamp", "bug", "alg3", {"no_v2_clamp": True}, "v2 not clamped to [1e-6, 1 - 1e-6]"),
     _m("alg3-no-upper-v2-clamp", "bug", "alg3", {"no_upper_v2_clamp": True}, "v2 clamped below only"),
     _m("alg3-no-gap-clamp", "bug", "alg3", {"no_gap_clamp": True}, "y2 - y1 not clamped to 1e-6"),
@@ -136,6 +197,12 @@ MUTANTS = [
     _m("alg3-half", "bug", "alg3", {"half": True}, "z'f in float16"),
     _m("alg3-depth01", "bug", "alg3", {"depth01": True}, "fragment depth mapped to [0, 1]"),
     _m("alg3-swap-weights", "bug", "alg3", {"swap_weights": True}, "(1 - v2) and v2 swapped in w_l"),
+    _m("alg3-author", "legit", "alg3", {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
+                                        "unclamped": True},
+       "the author's demo code: clamps at 5e-6, case test z'f < 1 on the clamped gap, the printed root, no guard "
+       "for xi4 = 0, no final clamp; run with its profile", profile=_AUTHOR3),
+    _m("alg3-no-xi-guard", "robustness", "alg3", {"no_xi_guard": True},
+       "no guard for xi4 = 0 (division by zero), which no texel decoder produces"),
 
     _m("port-psi4", "legit", "psi4", {}, "the port as written from HPG17 §3.3"),
     _m("psi4-const32", "legit", "psi4", {"const32": True}, "constants from float32 end points"),
@@ -164,6 +231,9 @@ MUTANTS = [
     _m("pack64-no-bump", "bug", "pack64", {"no_bump": True},
        "no decode check: float rounding can leave the decoded xi4 below the stored one"),
     _m("pack64-swap-y", "bug", "pack64", {"swap_y": True}, "y1 and y2 channels swapped"),
+    _m("pack64-nearest-declared", "legit", "pack64", {"round_xi": True, "no_bump": True},
+       "Psi4 code rounded to nearest as a UNORM render-target write does (the HPG17 demo), as its profile "
+       "declares (format.xi_rounding = nearest)", profile={"format": {"xi_rounding": "nearest"}}),
     _m("pack64-depth01", "bug", "pack64", {"depth01": True}, "depths stored as if in [0, 1]"),
     _m("port-unpack64", "legit", "unpack64", {}, "the port as written"),
     _m("unpack64-f64", "legit", "unpack64", {"f64": True}, "float64 arithmetic"),
@@ -197,6 +267,13 @@ MUTANTS = [
        "depth at the centre of its cell (the decode before schema 3: over-shadows, docs/formats.md)"),
     _m("unpack32-xi-no-roundup", "bug", "unpack32", {"xi_no_roundup": True}, "xi4 code read at c/64, not rounded up"),
     _m("unpack32-xi-centre", "bug", "unpack32", {"xi_centre": True}, "xi4 code read at (c + 1/2)/64"),
+    # Texel-format choices the paper leaves open, declared in the profile (docs/formats.md): legitimate.
+    _m("unpack32-centre-declared", "legit", "unpack32", {"centre": True},
+       "depths read at the centre of their cell, as its profile declares (format.depth_decode = centre)",
+       profile={"format": {"depth_decode": "centre"}}),
+    _m("unpack32-xi-centre-declared", "legit", "unpack32", {"xi_centre": True},
+       "xi4 code read at (c + 1/2)/64, as its profile declares (format.xi_decode = centre)",
+       profile={"format": {"xi_decode": "centre"}}),
     _m("unpack32-v-127", "bug", "unpack32", {"v_127": True}, "sqrt(v2) = c/127 (the grid before schema 3)"),
     _m("unpack32-v-linear", "bug", "unpack32", {"v_linear": True}, "v2 = (c + 1/2)/128 (not squared)"),
     _m("unpack32-step-511", "bug", "unpack32", {"step_511": True}, "cell width 1/511 instead of 1/511.5"),

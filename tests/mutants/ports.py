@@ -113,6 +113,9 @@ def alg1(b, zf, m, bound="lower"):
         zf = (zf + 1) / 2
     if m.get("bias_inside"):
         b = (1 - A.c(3e-7)) * b + A.c(3e-7) * A.c([0, 0.375, 0, 0.375])
+    if "bias" in m:  # the engine's own bias inside the function: (alpha, target) in its depth convention
+        alpha, target = m["bias"]
+        b = (1 - A.c(alpha)) * b + A.c(alpha) * A.c(target)
     b1, b2, b3, b4 = (b[:, k] for k in range(4))
     with np.errstate(all="ignore"):
         # Cholesky factorization B = L D Lᵀ (only the non-trivial entries).
@@ -120,6 +123,14 @@ def alg1(b, zf, m, bound="lower"):
         l32d22 = A.fma(-b1, b2, b3)
         var2 = A.fma(-b2, b2, b4)
         d33d22 = A.fma(var2, d22, -l32d22 * l32d22)
+        if "pivot_floor" in m:  # pivots floored at an absolute constant (a VSM-like fallback in the wild)
+            d22 = np.maximum(d22, A.c(m["pivot_floor"]))
+            d33d22 = np.maximum(d33d22, A.c(m["pivot_floor"]) * d22)
+        if m.get("cholesky"):  # textbook Cholesky with square roots: NaN when a float32 pivot rounds below 0
+            l22 = A.sqrt(b2 - b1 * b1)
+            l32 = A.div(b3 - b1 * b2, l22)
+            l33 = A.sqrt((b4 - b2 * b2) - l32 * l32)
+            d22, d33d22 = l22 * l22, (l33 * l33) * (l22 * l22)
         inv_d22 = A.div(1, d22)
         l32 = l32d22 * inv_d22
         # Forward substitution L c1 = (1, zf, zf²), scaling D c2 = c1, backward substitution Lᵀ c3 = c2.
@@ -160,7 +171,14 @@ def alg1(b, zf, m, bound="lower"):
             one = (b1 <= zf) if (upper or m.get("le")) else (b1 < zf)
             res = np.where(d33d22 <= 0, two, res)
             res = np.where(d22 <= 0, one, res)
-    return A.out(saturate(res))
+        if "factor" in m:  # a constant factor on the bound (a light-leak hack baked in)
+            res = res * A.c(m["factor"])
+        if m.get("early_exit"):  # "receiver at or before the mean: lit"
+            res = np.where(zf <= b1, 0, res)
+    if m.get("unclamped"):
+        return A.out(1 - res if m.get("visibility") else res)
+    res = saturate(res)
+    return A.out(1 - res if m.get("visibility") else res)
 
 
 # ---------------------------------------------------------------------------
@@ -231,7 +249,7 @@ def alg3(r, zf, m):
         g4 = gap * gap * gap * gap if m.get("gap_pow") else (gap * gap) * (gap * gap)
         if m.get("gap_cubed"):
             g4 = gap * gap * gap
-        xip = np.maximum(A.div(xi4, g4), A.c(TINY32))
+        xip = A.div(xi4, g4) if m.get("no_xi_guard") else np.maximum(A.div(xi4, g4), A.c(TINY32))
         v1 = 1 - v2
         # Case y1 < zf ≤ y2: the smaller root of z² + q1 z + q0.
         q0 = -A.div(xip, v1 * zp)
@@ -242,7 +260,12 @@ def alg3(r, zf, m):
             zl = -h - s
         else:  # no cancellation: −(h + s) for h ≥ 0, else Vieta's −P / (s − h)
             zl = np.where(h >= 0, -(h + s), -A.div(p, s - h))
-        inside = (zf < y2) if m.get("lt_y2") else (zf <= y2)
+        if m.get("zp_test"):  # the author's demo code: z'f < 1 on the clamped gap
+            inside = zp < 1
+        elif m.get("clamped_test"):  # the case test on the clamped y2
+            inside = zf <= np.maximum(y2, y1 + eps)
+        else:
+            inside = (zf < y2) if m.get("lt_y2") else (zf <= y2)
         zl = np.where(inside, zl, zp)
         a, z2 = (1 - zl) * (1 - zl), zl * zl
         if m.get("swap_weights"):
@@ -252,7 +275,7 @@ def alg3(r, zf, m):
         res = np.where(inside, wl, 1 - wl)
         if not m.get("no_early_return"):
             res = np.where(zf <= y1, 0, res)
-    return A.out(saturate(res))
+    return A.out(res if m.get("unclamped") else saturate(res))
 
 
 # ---------------------------------------------------------------------------

@@ -8,7 +8,7 @@ the rest of the package has depth samples to filter and fragments to warp.
 
 Conventions
 -----------
-Matrices. 4×4 float64, column vectors: ``clip = view_proj @ (x, y, z, 1)``.
+Matrices. 4×4 float64, column vectors: ``clip = clip_from_world @ (x, y, z, 1)``.
 :func:`look_at`, :func:`orthographic`, :func:`frustum` and :func:`perspective`
 follow OpenGL (right-handed view space, the camera looks along −z) because
 OpenGL's normalized device depth lies in [−1, 1], the depth range the papers
@@ -75,10 +75,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..._arrays import InputError, float_dtype
+from ..._kernels import RASTER_SETUP_CHUNK
+from ..._shim import renamed_keywords
 from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
-                       project_points, sample_positions)
+                       project_points, sample_positions, unproject_points)
 from ._triangles import _check_mesh, _setup, _vertices
 
 __all__ = [
@@ -91,20 +93,20 @@ __all__ = [
     "frustum",
     "perspective",
     "project_points",
+    "unproject_points",
     "RasterStats",
     "Fragments",
     "rasterize_depth",
     "rasterize_fragments",
     "bench_raster",
+    "small_triangles",
 ]
 
 _ = (_D3D11_PATTERN, MAX_SIZE, SUBPIXEL_BITS, frustum, look_at, orthographic, perspective, project_points,
-     sample_positions, _homogeneous)  # re-exported
+     unproject_points, sample_positions, _homogeneous)  # re-exported
 
-# Triangles set up per chunk: bounds the memory of the per-triangle arrays and keeps
-# them in cache (measured on 1 M small triangles into 1024²: 2^15 gives 2.4 M/s,
-# 2^17 2.0 M/s, 2^13 2.0 M/s).
-_SETUP_CHUNK = 1 << 15
+# Triangles set up per chunk (moments_ref._kernels' table of chunk sizes, with its measurement).
+_SETUP_CHUNK = RASTER_SETUP_CHUNK
 
 
 
@@ -210,9 +212,9 @@ class Fragments:
         return self.texel % self.size[1]
 
 
-def _prepare(vertices, triangles, view_proj, size, samples, cull, dtype):
+def _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype):
     v, t = _check_mesh(vertices, triangles)
-    m = _check_matrix(view_proj)
+    m = _check_matrix(clip_from_world)
     h, w = _check_size(size)
     S = _check_samples(samples)
     if cull not in ("none", "back", "front"):
@@ -247,7 +249,8 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world):
             yield s, flat, z, rcs
 
 
-def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none",
+@renamed_keywords(view_proj="clip_from_world")
+def rasterize_depth(vertices, triangles, clip_from_world, size, samples=1, cull="none",
                     dtype=np.float32):
     """Rasterize triangles into a depth map with MSAA (the shadow-map pass).
 
@@ -258,7 +261,7 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
         are skipped and counted.
     triangles : (T, 3) int array
         Vertex indices per triangle.
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         ``projection @ view`` (see :func:`look_at`, :func:`orthographic`,
         :func:`perspective`).
     size : int or (H, W)
@@ -302,7 +305,7 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     >>> st.samples_covered
     6
     """
-    v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, view_proj, size, samples, cull, dtype)
+    v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype)
     stats = RasterStats(triangles=int(t.shape[0]))
     depth = np.ones(h * w * S, dtype=dt)
     for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False):
@@ -311,13 +314,14 @@ def rasterize_depth(vertices, triangles, view_proj, size, samples=1, cull="none"
     return depth.reshape(h, w, S), stats
 
 
-def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="none",
+@renamed_keywords(view_proj="clip_from_world")
+def rasterize_fragments(vertices, triangles, clip_from_world, size, samples=1, cull="none",
                         dtype=np.float32):
     """Every covered sample, without a depth test (VWSS §3.1 point generation).
 
     Parameters
     ----------
-    vertices, triangles, view_proj, size, samples, cull
+    vertices, triangles, clip_from_world, size, samples, cull
         As for :func:`rasterize_depth`.
     dtype : float32 or float64
         dtype of the returned positions and depths (float32 as VWSS stores them:
@@ -336,7 +340,7 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
     map equals the per-sample minimum of the fragments' depths. World positions
     use perspective-correct barycentrics μᵢ ∝ λᵢ / wᵢ of the (clipped) vertices.
     """
-    v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, view_proj, size, samples, cull, dtype)
+    v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype)
     stats = RasterStats(triangles=int(t.shape[0]))
     parts = []
     for s, _, z, (i, row, col, samp) in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, True):
@@ -367,8 +371,12 @@ def rasterize_fragments(vertices, triangles, view_proj, size, samples=1, cull="n
 # Benchmark
 
 
-def _small_triangles(n, size, extent, rng):
-    """n random triangles with vertices within `extent` pixels of a random centre, in NDC."""
+def small_triangles(n, size, extent, rng):
+    """n random triangles with vertices within ``extent`` pixels of a random centre, in NDC (benchmark input).
+
+    Returns ``(vertices (3n, 3), triangles (n, 3))``; drawn with an identity matrix they
+    land in a ``size``² map.
+    """
     centre = rng.uniform(extent, size - extent, (n, 1, 2))
     xy = centre + rng.uniform(-extent / 2, extent / 2, (n, 3, 2))
     z = rng.uniform(-0.9, 0.9, (n, 1, 1)) + rng.uniform(-0.05, 0.05, (n, 3, 1))
@@ -386,7 +394,7 @@ def bench_raster(n_triangles=500_000, size=1024, extent=4.0, samples=(1, 4), rep
         Random triangles, each with vertices within ``extent`` pixels of a
         random centre (bounding boxes of about ``extent`` pixels; mean area about
         ``extent²/12`` pixels), with random depths, drawn in NDC with an identity
-        view_proj.
+        clip_from_world.
     size : int
         Square map side.
     extent : float
@@ -410,7 +418,7 @@ def bench_raster(n_triangles=500_000, size=1024, extent=4.0, samples=(1, 4), rep
         plus the parameters.
     """
     rng = np.random.default_rng(seed)
-    v, t = _small_triangles(int(n_triangles), size, float(extent), rng)
+    v, t = small_triangles(int(n_triangles), size, float(extent), rng)
     out = {"n_triangles": int(n_triangles), "size": int(size), "extent_px": float(extent),
            "numpy": np.__version__}
     for S in samples:

@@ -8,9 +8,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._shim import renamed_keywords
+from ..depth import ndc_from_window, window_from_ndc
 
 __all__ = ["SAMPLE_COUNTS", "SUBPIXEL_BITS", "MAX_SIZE", "sample_positions", "look_at", "orthographic", "frustum",
-           "perspective", "project_points"]
+           "perspective", "project_points", "unproject_points"]
 
 #: Supported MSAA sample counts.
 SAMPLE_COUNTS = (1, 4, 8)
@@ -230,21 +232,22 @@ def _check_size(size) -> tuple[int, int]:
     return h, w
 
 
-def _check_matrix(view_proj) -> np.ndarray:
-    m = real_input(view_proj, "view_proj", dtype=np.float64)
+def _check_matrix(clip_from_world) -> np.ndarray:
+    m = real_input(clip_from_world, "clip_from_world", dtype=np.float64)
     if m.shape != (4, 4):
-        raise InputError(f"view_proj: expected a (4, 4) matrix, got shape {m.shape}")
+        raise InputError(f"clip_from_world: expected a (4, 4) matrix, got shape {m.shape}")
     return m
 
 
-def project_points(points, view_proj, size):
+@renamed_keywords(view_proj="clip_from_world")
+def project_points(points, clip_from_world, size):
     """Window coordinates and NDC depth of world points.
 
     Parameters
     ----------
     points : (..., 3) float array
         World positions.
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         ``projection @ view``.
     size : int or (H, W)
         Map size.
@@ -262,15 +265,37 @@ def project_points(points, view_proj, size):
     Points behind a perspective camera (w ≤ 0) get NaN.
     """
     h, w = _check_size(size)
-    m = _check_matrix(view_proj)
+    m = _check_matrix(clip_from_world)
     p = real_input(points, "points", trailing=3, dtype=np.float64, finite=False)
     hom = _homogeneous(p, m)
     clip, cw = hom[..., :3], hom[..., 3]
     with np.errstate(divide="ignore", invalid="ignore"):
         cw = np.where(cw > 0, cw, np.nan)
         ndc = clip / cw[..., None]
-    xy = np.stack([(ndc[..., 0] + 1) * (w / 2), (1 - ndc[..., 1]) * (h / 2)], axis=-1)
-    return xy, ndc[..., 2]
+    return window_from_ndc(ndc, (h, w)), ndc[..., 2]
+
+
+def unproject_points(xy_window, z_ndc, clip_from_world, size):
+    """World positions of window positions and NDC depths: the inverse of :func:`project_points`.
+
+    Parameters
+    ----------
+    xy_window : (..., 2) float array
+        Window coordinates in pixels (x right, y down; pixel centres at ``+ 0.5``).
+    z_ndc : (...) float array
+        NDC depth.
+    clip_from_world : (4, 4) float array
+    size : (H, W)
+
+    Returns
+    -------
+    (..., 3) float64 array: ``clip_from_world⁻¹ (x_ndc, y_ndc, z_ndc, 1)`` divided by its w.
+    """
+    h, w = size
+    z = np.asarray(z_ndc, np.float64)
+    ndc = np.concatenate([ndc_from_window(xy_window, (h, w)), z[..., None], np.ones_like(z)[..., None]], axis=-1)
+    hom = ndc @ np.linalg.inv(clip_from_world).T
+    return hom[..., :3] / hom[..., 3:]
 
 
 def _clip_space(p, m):

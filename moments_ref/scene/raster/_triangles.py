@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError, first_index, real_input
+from ..depth import x_window_from_ndc, y_window_from_ndc
 from ._coverage import _boxes
 from ._matrices import _SUB, _clip_space
 
@@ -208,8 +209,9 @@ def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
     is empty (one np.compress per array).
     """
     cw = attr[3]
-    X = np.rint((attr[0] / cw + 1.0) * (w / 2 * _SUB)).astype(np.int64)  # (3, n)
-    Y = np.rint((1.0 - attr[1] / cw) * (h / 2 * _SUB)).astype(np.int64)
+    # window coordinates in 1/_SUB pixels: those of a map _SUB times the size (exact: _SUB = 2^8)
+    X = np.rint(x_window_from_ndc(attr[0] / cw, w * _SUB)).astype(np.int64)  # (3, n)
+    Y = np.rint(y_window_from_ndc(attr[1] / cw, h * _SUB)).astype(np.int64)
     zv = attr[2] / cw
 
     area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])

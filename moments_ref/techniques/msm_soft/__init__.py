@@ -23,12 +23,13 @@ Percentage-closer soft shadows [Fernando 2005] in three steps (Slides,
 Geometry and units
 ------------------
 The single shadow map is the perspective view from the area light's centre
-along its normal (:meth:`moments_ref.scene.Scene.shadow_view_proj`, or
-:meth:`moments_ref.techniques.vwss.LightSamples.center_view_proj`); its samples and the
+along its normal (:meth:`moments_ref.scene.Scene.light_clip_from_world`, or
+:meth:`moments_ref.techniques.vwss.LightSamples.center_clip_from_world`); its samples and the
 fragments' depths arrive as NDC depths z ∈ [−1, 1] (the package's depth convention,
 docs/architecture.md). Distances
 ``d`` are view depths in world units along the light normal,
-``d = 2 f n / ((f + n) − z (f − n))`` (:meth:`LightFrustum.view_depth`).
+``d = 2 f n / ((f + n) − z (f − n))`` (:meth:`LightFrustum.d_view_from_ndc`,
+:func:`moments_ref.scene.depth.d_view_from_ndc`).
 
 Stored depth. By default (``depth="linear"``) the texture holds the moments of
 the depth *linear in d*, remapped to [−1, 1]: ``z_lin = 2 (d − n)/(f − n) − 1``
@@ -82,6 +83,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import renamed_keys
 from .._interface import PROJECTION, Plan, Stage, Step, Technique, register
 from ..area import CENTER_MAP, center_map_stages
 from .artifacts import (ARTIFACT_SCENES, artifact_images, artifact_measurements, ray_cast_visibility,
@@ -120,14 +122,15 @@ _ = (EPSILON, MAX_AUTO_KERNEL, LightFrustum, SoftShadowMap, average_blocker_dept
 
 
 def _params_light(params):
+    params = renamed_keys(params, "params", view_proj="clip_from_world")
     scene = params.get("scene")
     light = params.get("light", getattr(scene, "light", None))
-    vp = params.get("view_proj")
+    vp = params.get("clip_from_world")
     if vp is None and scene is not None:
-        vp = scene.shadow_view_proj()
+        vp = scene.light_clip_from_world()
     if light is None or vp is None:
         raise InputError("params: msm_soft needs the area light and its centre's view: pass params "
-                         "{'scene': scene} or {'light': AreaLight, 'view_proj': (4, 4)}")
+                         "{'scene': scene} or {'light': AreaLight, 'clip_from_world': (4, 4)}")
     return light, vp
 
 
@@ -143,12 +146,12 @@ def _steps(samples, layered):
 
 def _lookup(texture, uv, zf, noise):
     # Technique.shadow subtracted DEPTH_BIAS; the receiver itself lies at zf + DEPTH_BIAS.
-    dr = texture.frustum.view_depth(np.asarray(zf, np.float64) + DEPTH_BIAS)
-    return soft_shadow(texture, uv, zf, receiver_depth=dr, dtype=np.float32)
+    dr = texture.frustum.d_view_from_ndc(np.asarray(zf, np.float64) + DEPTH_BIAS)
+    return soft_shadow(texture, uv, zf, d_view_receiver=dr, dtype=np.float32)
 
 
 def _sat_stage(c):
-    return prepare(c[1], c[0].light, c[0].center_view_proj())
+    return prepare(c[1], c[0].light, c[0].center_clip_from_world())
 
 
 def _shade_stage(c, tex, gb, bias):

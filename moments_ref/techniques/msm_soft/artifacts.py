@@ -153,7 +153,7 @@ def artifact_measurements(size=256, max_kernel=64, grid=96, samples=64):
     gx, gy = np.meshgrid(xs, xs)
     pts = _frame_points(light, gx, gy, _ART_RECEIVER).reshape(-1, 3)
     tex = prepare(dm, light, vp, max_kernel)
-    vis = shade_points(light, tex, pts, view_proj=vp).reshape(grid, grid)
+    vis = shade_points(light, tex, pts, clip_from_world=vp).reshape(grid, grid)
     ref = ray_cast_visibility(light, ARTIFACT_SCENES["hole"], pts, samples).reshape(grid, grid)
     step = xs[1] - xs[0]
     for name, im in (("msm", vis), ("reference", ref)):
@@ -171,7 +171,7 @@ def artifact_measurements(size=256, max_kernel=64, grid=96, samples=64):
     for key in ("column", "column_wall"):
         v, t = _rect_mesh(light, ARTIFACT_SCENES[key])
         dm, _ = rasterize_depth(v, t, vp, size)
-        vis, info = shade_points(light, dm, prof, view_proj=vp, max_kernel=max_kernel, details=True)
+        vis, info = shade_points(light, dm, prof, clip_from_world=vp, max_kernel=max_kernel, details=True)
         out[f"profile_{key}"] = vis
         out[f"profile_{key}_reference"] = ray_cast_visibility(light, ARTIFACT_SCENES[key], prof, samples)
         out[f"width_{key}"] = _transition_width(px, vis)

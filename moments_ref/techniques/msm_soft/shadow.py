@@ -22,6 +22,8 @@ from ...affine import from_optimized, to_optimized
 from ...gpu.filtering import resolve_moments
 from ...moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments
 from ...msm import canonical_representation, shadow_intensity
+from ..._shim import alias, renamed_keywords
+from ...scene.depth import d_view_from_ndc, z_ndc_from_view
 from ...scene.raster import project_points
 from ...gpu import sat as _sat
 
@@ -99,7 +101,8 @@ class LightFrustum:
     extent: tuple
 
     @classmethod
-    def from_view_proj(cls, light, view_proj, size):
+    @renamed_keywords(view_proj="clip_from_world")
+    def from_matrix(cls, light, clip_from_world, size):
         """Read near, far and field of view back from ``projection @ look_at`` (OpenGL).
 
         Raises :class:`InputError` for a matrix that is not a symmetric
@@ -109,9 +112,9 @@ class LightFrustum:
             if not hasattr(light, attr):
                 raise InputError(f"light: expected a rectangular area light (moments_ref.scene.AreaLight), "
                                  f"got {type(light).__name__}")
-        m = real_input(view_proj, "view_proj", dtype=np.float64)
+        m = real_input(clip_from_world, "clip_from_world", dtype=np.float64)
         if m.shape != (4, 4):
-            raise InputError(f"view_proj: expected a (4, 4) matrix, got shape {m.shape}")
+            raise InputError(f"clip_from_world: expected a (4, 4) matrix, got shape {m.shape}")
         fwd = m[3, :3]  # w_clip = distance along the viewing direction
         ok = abs(np.linalg.norm(fwd) - 1) < 1e-9 and np.dot(fwd, light.normal) > 1 - 1e-9
         sx, sy = m[0, :3], m[1, :3]
@@ -121,8 +124,8 @@ class LightFrustum:
         b = m[2, 3] + a * m[3, 3]
         near, far = (b / (a - 1), b / (a + 1)) if ok and a not in (1, -1) else (np.nan, np.nan)
         if not (ok and np.isfinite(near) and np.isfinite(far) and 0 < near < far):
-            raise InputError("view_proj: expected a symmetric perspective view from the light along its normal "
-                             "(Scene.shadow_view_proj() or LightSamples.center_view_proj())")
+            raise InputError("clip_from_world: expected a symmetric perspective view from the light along its normal "
+                             "(Scene.light_clip_from_world() or LightSamples.center_clip_from_world())")
         ux, uy = sx / px, sy / py
         ext = (abs(light.tangent @ ux) * light.width + abs(light.bitangent @ ux) * light.height,
                abs(light.tangent @ uy) * light.width + abs(light.bitangent @ uy) * light.height)
@@ -130,29 +133,34 @@ class LightFrustum:
         return cls(near=float(near), far=float(far), tan_half_fov=(1 / px, 1 / py), size=(h, w),
                    extent=(float(ext[0]), float(ext[1])))
 
-    def view_depth(self, z):
-        """World distance along the normal of NDC depth z: ``2 f n / ((f + n) − z (f − n))`` (float64)."""
-        z = np.asarray(z, np.float64)
-        n, f = self.near, self.far
-        return 2 * f * n / ((f + n) - z * (f - n))
+    #: Old name (DeprecationWarning).
+    from_view_proj = alias("from_matrix")
 
-    def ndc_depth(self, d):
-        """Inverse of :meth:`view_depth`: ``((f + n) − 2 f n / d) / (f − n)`` (float64)."""
-        d = np.asarray(d, np.float64)
-        n, f = self.near, self.far
-        return ((f + n) - 2 * f * n / d) / (f - n)
+    def d_view_from_ndc(self, z_ndc):
+        """View distance (world units along the normal) of the map's NDC depth (:func:`~moments_ref.scene.depth.d_view_from_ndc`)."""
+        return d_view_from_ndc(z_ndc, self.near, self.far)
 
-    def linear_depth(self, z):
-        """NDC depth -> depth linear in the view distance, on [−1, 1]: ``2 (d − n)/(f − n) − 1`` (float64).
+    def z_ndc_from_view(self, d_view):
+        """Inverse of :meth:`d_view_from_ndc` (float64)."""
+        return z_ndc_from_view(d_view, self.near, self.far)
 
-        NDC 1 (empty texel, far plane) stays 1; NDC −1 (near plane) stays −1.
+    def z_linear_from_ndc(self, z_ndc):
+        """The map's NDC depth -> depth linear in the view distance on [−1, 1]: ``2 (d − n)/(f − n) − 1`` (float64).
+
+        The NDC depth an orthographic map with the same near and far planes would
+        store; NDC 1 (empty texel, far plane) stays 1, −1 (near plane) stays −1.
         """
-        d = self.view_depth(z)
-        return 2 * (d - self.near) / (self.far - self.near) - 1
+        return z_ndc_from_view(self.d_view_from_ndc(z_ndc), self.near, self.far, "orthographic")
 
-    def linear_to_view(self, zl):
-        """Inverse of the linear remap: ``n + (zl + 1)(f − n)/2`` (float64)."""
-        return self.near + (np.asarray(zl, np.float64) + 1) * (self.far - self.near) / 2
+    def d_view_from_linear(self, z_linear):
+        """Inverse of the linear remap: ``n + (z_linear + 1)(f − n)/2`` (float64)."""
+        return d_view_from_ndc(z_linear, self.near, self.far, "orthographic")
+
+    # Old names (DeprecationWarning): the NDC ones did not say which depth they return.
+    view_depth = alias("d_view_from_ndc")
+    ndc_depth = alias("z_ndc_from_view")
+    linear_depth = alias("z_linear_from_ndc")
+    linear_to_view = alias("d_view_from_linear")
 
     @property
     def texels_per_tan(self) -> np.ndarray:
@@ -199,12 +207,15 @@ class SoftShadowMap:
     def stored_depth(self, z_ndc):
         """The stored depth of NDC depths (float64)."""
         z = np.asarray(z_ndc, np.float64)
-        return self.frustum.linear_depth(z) if self.depth == "linear" else z
+        return self.frustum.z_linear_from_ndc(z) if self.depth == "linear" else z
 
-    def view_depth(self, z_stored):
-        """World distance along the normal of a stored depth (float64)."""
+    def d_view_from_stored(self, z_stored):
+        """View distance (world units along the normal) of a stored depth (float64)."""
         z = np.asarray(z_stored, np.float64)
-        return self.frustum.linear_to_view(z) if self.depth == "linear" else self.frustum.view_depth(z)
+        return self.frustum.d_view_from_linear(z) if self.depth == "linear" else self.frustum.d_view_from_ndc(z)
+
+    #: Old name (DeprecationWarning).
+    view_depth = alias("d_view_from_stored")
 
     @property
     def precision_bits(self) -> float:
@@ -233,7 +244,8 @@ def _check_depth(depth):
     return depth
 
 
-def prepare_moments(moments, light, view_proj, max_kernel=None, depth="linear") -> SoftShadowMap:
+@renamed_keywords(view_proj="clip_from_world")
+def prepare_moments(moments, light, clip_from_world, max_kernel=None, depth="linear") -> SoftShadowMap:
     """Build the :class:`SoftShadowMap` from per-texel moments b1..b4.
 
     Parameters
@@ -242,7 +254,7 @@ def prepare_moments(moments, light, view_proj, max_kernel=None, depth="linear") 
         Moments of each texel's stored depths (resolved, unfiltered), of the
         depth named by ``depth``.
     light : AreaLight
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         The map's view from the light's centre.
     max_kernel : int, optional
         Largest region side in texels. Default: the side of the largest search
@@ -258,20 +270,21 @@ def prepare_moments(moments, light, view_proj, max_kernel=None, depth="linear") 
     b = real_input(moments, "moments", trailing=4, dtype=np.float64)
     if b.ndim != 3:
         raise InputError(f"moments: expected an (H, W, 4) array, got shape {b.shape}")
-    fr = LightFrustum.from_view_proj(light, view_proj, b.shape[:2])
+    fr = LightFrustum.from_matrix(light, clip_from_world, b.shape[:2])
     k = _check_kernel(max_kernel, fr)
     table = _sat.build(to_optimized(b), k * k)
     return SoftShadowMap(sat=table, frustum=fr, max_kernel=k, bias=soft_bias(k * k), depth=_check_depth(depth))
 
 
-def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") -> SoftShadowMap:
+@renamed_keywords(view_proj="clip_from_world")
+def prepare(depth_samples, light, clip_from_world, max_kernel=None, depth="linear") -> SoftShadowMap:
     """Resolve a shadow map to moments and build its summed-area table.
 
     Parameters
     ----------
     depth_samples : (H, W) or (H, W, S) float array
         NDC depths in [−1, 1] from the light's centre (1 = empty).
-    light, view_proj, max_kernel, depth
+    light, clip_from_world, max_kernel, depth
         As :func:`prepare_moments`; with ``depth="linear"`` the samples are
         remapped to ``2 (d − n)/(f − n) − 1`` before their moments are taken.
 
@@ -286,9 +299,9 @@ def prepare(depth_samples, light, view_proj, max_kernel=None, depth="linear") ->
 
     z = check_depth_samples(z).astype(np.float64)
     if _check_depth(depth) == "linear":
-        fr = LightFrustum.from_view_proj(light, view_proj, z.shape[:2])
-        z = np.clip(fr.linear_depth(z), -1.0, 1.0)
-    return prepare_moments(resolve_moments(z), light, view_proj, max_kernel, depth)
+        fr = LightFrustum.from_matrix(light, clip_from_world, z.shape[:2])
+        z = np.clip(fr.z_linear_from_ndc(z), -1.0, 1.0)
+    return prepare_moments(resolve_moments(z), light, clip_from_world, max_kernel, depth)
 
 
 def average_blocker_depth(b, zf, epsilon=EPSILON):
@@ -353,7 +366,8 @@ def _query_moments(tex, centre, half, dtype):
     return bias_moments(from_optimized(q), tex.bias)
 
 
-def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=EPSILON, details=False):
+@renamed_keywords(receiver_depth="d_view_receiver")
+def soft_shadow(texture, uv, zf, d_view_receiver=None, dtype=np.float32, epsilon=EPSILON, details=False):
     """Shadow intensity of fragments by moment soft shadow mapping.
 
     Parameters
@@ -364,9 +378,9 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     zf : (...) float array
         Fragment NDC depth, depth bias already subtracted (converted to the
         texture's stored depth here).
-    receiver_depth : (...) float array, optional
-        The fragment's view depth ``d_r`` (world units); default
-        ``view_depth(zf)``.
+    d_view_receiver : (...) float array, optional
+        The fragment's view distance ``d_r`` (world units along the light normal);
+        default ``frustum.d_view_from_ndc(zf)``. (Old name ``receiver_depth``, deprecated.)
     dtype : float32 or float64
         Arithmetic of the SAT conversion, the biasing and Algorithm 1
         (float32 emulates the shader). Region geometry is float64.
@@ -400,8 +414,8 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     uvf = np.broadcast_to(uv, shape + (2,)).reshape(-1, 2)
     zff = np.broadcast_to(z, shape).reshape(-1)
     fr = texture.frustum
-    dr = fr.view_depth(zff) if receiver_depth is None else np.broadcast_to(
-        real_input(receiver_depth, "receiver_depth", dtype=np.float64, finite=False), shape).reshape(-1)
+    dr = fr.d_view_from_ndc(zff) if d_view_receiver is None else np.broadcast_to(
+        real_input(d_view_receiver, "d_view_receiver", dtype=np.float64, finite=False), shape).reshape(-1)
     h, w = fr.size
     inside = (np.isfinite(uvf).all(-1) & (uvf[:, 0] >= 0) & (uvf[:, 0] <= w) & (uvf[:, 1] >= 0)
               & (uvf[:, 1] <= h) & np.isfinite(zff) & (zff > -1) & (zff <= 1) & np.isfinite(dr) & (dr > 0))
@@ -414,7 +428,7 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     b = _query_moments(texture, c, s_half, dt)
     zb, blocked = average_blocker_depth(b, zi.astype(dt), epsilon)
     # 2. Penumbra estimate (parallel planes) -> filter region at the blocker depth.
-    db = np.minimum(texture.view_depth(zb.astype(np.float64)), di)
+    db = np.minimum(texture.d_view_from_stored(zb.astype(np.float64)), di)
     f_raw = fr.region_half_extent(db, di)
     f_half = np.clip(f_raw, lo_h, hi_h)
     # 3. One interpolated query over the filter region, Algorithm 1 (lower bound).
@@ -444,33 +458,34 @@ def soft_shadow(texture, uv, zf, receiver_depth=None, dtype=np.float32, epsilon=
     return out, info
 
 
-def _resolve_source(source, view_proj):
-    """(light, view_proj) from a Scene, a LightSamples or an AreaLight (+ view_proj)."""
-    if hasattr(source, "center_view_proj") and hasattr(source, "light"):  # vwss.LightSamples
-        return source.light, source.center_view_proj() if view_proj is None else view_proj
-    if hasattr(source, "shadow_view_proj") and hasattr(source, "light"):  # scene.Scene
-        return source.light, source.shadow_view_proj() if view_proj is None else view_proj
-    if view_proj is None:
-        raise InputError(f"view_proj: required with a light of type {type(source).__name__} "
+def _resolve_source(source, clip_from_world):
+    """(light, clip_from_world) from a Scene, a LightSamples or an AreaLight (+ clip_from_world)."""
+    if hasattr(source, "center_clip_from_world") and hasattr(source, "light"):  # vwss.LightSamples
+        return source.light, source.center_clip_from_world() if clip_from_world is None else clip_from_world
+    if hasattr(source, "light_clip_from_world") and hasattr(source, "light"):  # scene.Scene
+        return source.light, source.light_clip_from_world() if clip_from_world is None else clip_from_world
+    if clip_from_world is None:
+        raise InputError(f"clip_from_world: required with a light of type {type(source).__name__} "
                          "(or pass a Scene or vwss.LightSamples)")
-    return source, view_proj
+    return source, clip_from_world
 
 
-def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_kernel=None, dtype=np.float32,
+@renamed_keywords(view_proj="clip_from_world")
+def shade_points(source, depth_map, points, *, clip_from_world=None, bias=None, max_kernel=None, dtype=np.float32,
                  details=False, depth="linear"):
     """Visibility of world points under a rectangular area light by moment soft shadow mapping.
 
     Parameters
     ----------
     source : Scene, vwss.LightSamples or AreaLight
-        The light and the view of its centre's map (``Scene.shadow_view_proj()``,
-        ``LightSamples.center_view_proj()``, or ``view_proj`` with a bare light).
+        The light and the view of its centre's map (``Scene.light_clip_from_world()``,
+        ``LightSamples.center_clip_from_world()``, or ``clip_from_world`` with a bare light).
     depth_map : (H, W) or (H, W, S) float array, or SoftShadowMap
         NDC depths of the occluders rasterized with that view (1 = empty), or
         an already prepared texture.
     points : (P, 3) float array
         World positions of the receivers (e.g. ``vwss.gbuffer(...).points``).
-    view_proj : (4, 4) float array, optional
+    clip_from_world : (4, 4) float array, optional
         Overrides the source's view (required for a bare AreaLight).
     bias : float, optional
         Depth bias in world units along the light normal, default ``0.002·far``
@@ -490,7 +505,7 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
         ``1 − intensity``; 1 for points outside the map or behind the light
         (the convention of :func:`moments_ref.techniques.vwss.pcss`).
     """
-    light, vp = _resolve_source(source, view_proj)
+    light, vp = _resolve_source(source, clip_from_world)
     if isinstance(depth_map, SoftShadowMap):
         tex = depth_map
     else:
@@ -500,12 +515,12 @@ def shade_points(source, depth_map, points, *, view_proj=None, bias=None, max_ke
         raise InputError(f"points: expected a (P, 3) array, got shape {p.shape}")
     fr = tex.frustum
     xy, _ = project_points(p, vp, fr.size)
-    m = real_input(vp, "view_proj", dtype=np.float64)
+    m = real_input(vp, "clip_from_world", dtype=np.float64)
     d_r = p @ m[3, :3] + m[3, 3]  # w_clip: distance along the light normal
     b = 0.002 * fr.far if bias is None else float(bias)
     with np.errstate(divide="ignore", invalid="ignore"):
-        zf = np.where(d_r - b > 0, fr.ndc_depth(d_r - b), np.nan)
-    res = soft_shadow(tex, xy, zf, receiver_depth=d_r, dtype=dtype, details=details)
+        zf = np.where(d_r - b > 0, fr.z_ndc_from_view(d_r - b), np.nan)
+    res = soft_shadow(tex, xy, zf, d_view_receiver=d_r, dtype=dtype, details=details)
     if details:
         return 1.0 - res[0], res[1]
     return 1.0 - res

@@ -114,14 +114,14 @@ import time
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import renamed_keys
 from ...affine import encode_r10g10b10a2
 from .._interface import Plan, Reference, Stage, Step, Technique, register, register_reference
 from .._steps import moment_steps
-from .epipolar import _bilinear_wrap_rows  # noqa: F401  (tests check it directly)
 from .epipolar import (AXIS_ANGLE, EPIPOLAR_SIZE, FAR_NDC, EpipolarFrame, deferred_shadow, epipolar_coordinates,
                        epipolar_depth, epipolar_frame, prefix_lookup_coordinate, prefix_means, quantize6,
                        resample_filtered, resample_unfiltered)
-from .rays import (CameraRays, _check_directional, _pixel_epipolar, camera_rays, ray_march, scattering_figure,
+from .rays import (CameraRays, camera_rays, check_directional, pixel_epipolar, ray_march, scattering_figure,
                    scattering_metric, write_images)
 
 __all__ = [
@@ -159,10 +159,11 @@ _ = (CameraRays, EPIPOLAR_SIZE, prefix_lookup_coordinate, epipolar_coordinates, 
 
 
 def _frame_params(params):
+    params = renamed_keys(params, "params", view_proj="clip_from_world")
     try:
-        return params["frame"], params["view_proj"]
+        return params["frame"], params["clip_from_world"]
     except (KeyError, TypeError):
-        raise InputError("params: the scattering techniques need 'frame' (EpipolarFrame) and 'view_proj' "
+        raise InputError("params: the scattering techniques need 'frame' (EpipolarFrame) and 'clip_from_world' "
                          "(the light's matrix); build them with moments_ref.techniques.scattering.render") from None
 
 
@@ -235,17 +236,16 @@ MAP, RAYS, REFERENCE = "scattering_raster_shadow_map", "scattering_camera_rays",
 def configure(ctx, overrides):
     """Settings of one run: the scattering map, camera and epipolar sizes and the ray-marching sample counts.
 
-    The run's shadow-map size, MSAA and camera resolution; with ``ctx.full`` the
-    scene's own where the caller set none. ``epipolar_size``,
-    ``reference_samples`` and ``raymarch_samples`` default to the scene's
-    ``params`` (or (256, 512), 4096 and 128).
+    The run's shadow-map size, MSAA and camera resolution (with ``--full`` the
+    scene's own). ``epipolar_size``, ``reference_samples`` and
+    ``raymarch_samples`` default to the scene's ``params`` (or (256, 512), 4096
+    and 128).
     """
-    scene, given, params = ctx.scene, ctx.given, ctx.scene.params or {}
-    own = {k: ctx.full and given.get(k) is None for k in ("shadow_map_size", "msaa", "resolution")}
+    params = ctx.scene.params or {}
     return {
-        "shadow_map_size": tuple(scene.shadow_map_size) if own["shadow_map_size"] else tuple(ctx.size),
-        "msaa": int(scene.msaa) if own["msaa"] else int(ctx.samples),
-        "resolution": tuple(scene.camera.resolution) if own["resolution"] else tuple(ctx.resolution),
+        "shadow_map_size": tuple(ctx.size),
+        "msaa": int(ctx.samples),
+        "resolution": tuple(ctx.resolution),
         "epipolar_size": tuple(overrides.get("epipolar_size") or params.get("epipolar_size", EPIPOLAR_SIZE)),
         "reference_samples": int(overrides.get("reference_samples") or params.get("reference_samples", 4096)),
         "raymarch_samples": int(overrides.get("raymarch_samples") or params.get("raymarch_samples", 128)),
@@ -269,15 +269,15 @@ def _frame(scene, cam_rays, t_max, size):
 
 
 def _march(depth, rays, scene, samples):
-    return ray_march(depth, scene.shadow_view_proj(), scene.camera.eye, rays[0], int(samples))
+    return ray_march(depth, scene.light_clip_from_world(), scene.camera.eye, rays[0], int(samples))
 
 
-def _step(x, rays, step, view_proj):
-    return step.fn(x, {"frame": rays[2], "view_proj": view_proj})
+def _step(x, rays, step, clip_from_world):
+    return step.fn(x, {"frame": rays[2], "clip_from_world": clip_from_world})
 
 
 def _shade(texture, rays):
-    uv, z = _pixel_epipolar(rays[0], rays[2])
+    uv, z = pixel_epipolar(rays[0], rays[2])
     return rays[0].t_end * (1 - deferred_shadow(texture, uv, z).astype(np.float64))
 
 
@@ -292,7 +292,7 @@ def _scattering_stages(technique, ctx, cfg):
     texel = [MAP]
     for step in technique.steps(cfg["msaa"]):
         key = step.key if step.key.startswith("scattering_") else "scattering_" + step.key
-        st = Stage(key, _step, (node, RAYS), bound=(("step", step), ("view_proj", ctx.scene.shadow_view_proj())))
+        st = Stage(key, _step, (node, RAYS), bound=(("step", step), ("clip_from_world", ctx.scene.light_clip_from_world())))
         stages.append(st)
         texel.append(key)
         node = key
@@ -375,7 +375,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     technique : "scattering_6m", "scattering_6m_unfiltered" or a Technique
     shadow_map_size, msaa, resolution, epipolar_size : overrides of the scene's
         settings (``epipolar_size`` also from ``scene.params['epipolar_size']``)
-    shadow_map : (depth (H, W, S), view_proj), optional, reuse a rasterized map
+    shadow_map : (depth (H, W, S), clip_from_world), optional, reuse a rasterized map
     rays : (CameraRays, t_max), optional, reuse camera rays
 
     Returns
@@ -384,7 +384,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     ``lower``, ``upper`` (shadowed fractions), ``texture``, ``frame``,
     ``texel_seconds``, ``fragment_seconds``.
     """
-    _check_directional(scene)
+    check_directional(scene)
     tech = SCATTERING_TECHNIQUES.get(technique, technique) if isinstance(technique, str) else technique
     if not isinstance(tech, Technique) or tech.name not in SCATTERING_TECHNIQUES:
         raise InputError(f"technique: expected one of {', '.join(SCATTERING_TECHNIQUES)}, got {technique!r}")
@@ -392,9 +392,9 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
     size = epipolar_size or scene.params.get("epipolar_size", EPIPOLAR_SIZE)
     frame = _frame(scene, cam_rays, t_max, size)
     t0 = time.perf_counter()
-    texture = tech.prepare(depth, {"frame": frame, "view_proj": vp})
+    texture = tech.prepare(depth, {"frame": frame, "clip_from_world": vp})
     t1 = time.perf_counter()
-    uv, z = _pixel_epipolar(cam_rays, frame)
+    uv, z = pixel_epipolar(cam_rays, frame)
     shadow, lower, upper = deferred_shadow(texture, uv, z, bounds=True)
     t2 = time.perf_counter()
     scat = cam_rays.t_end * (1 - shadow.astype(np.float64))
@@ -405,7 +405,7 @@ def render(scene, technique="scattering_6m", *, shadow_map_size=None, msaa=None,
 def _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution):
     """The light's depth map and matrix and the camera rays: given ones, or rendered from ``scene``."""
     if shadow_map is None:
-        vp = scene.shadow_view_proj()
+        vp = scene.light_clip_from_world()
         depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
     else:
         depth, vp = shadow_map
@@ -422,7 +422,7 @@ def convergence(scene, counts=(16, 32, 64, 128, 256, 512), reference=4096, *, sh
     dict count -> RMSE of ``S / t_max`` over all pixels, and the reference image under
     key ``"reference_image"`` (``S``, (H, W)).
     """
-    _check_directional(scene)
+    check_directional(scene)
     depth, vp, cam_rays, t_max = _scene_inputs(scene, shadow_map, shadow_map_size, msaa, rays, resolution)
     ref = ray_march(depth, vp, scene.camera.eye, cam_rays, int(reference))
     out = {"reference_image": ref}
@@ -450,11 +450,11 @@ def report_rows(scene, *, shadow_map_size=None, msaa=None, resolution=None, epip
 
     With ``out_dir`` the images are written as ``scattering_<scene>.png``.
     """
-    _check_directional(scene)
+    check_directional(scene)
     params = scene.params or {}
     ref_n = int(reference_samples or params.get("reference_samples", 4096))
     rm_n = int(raymarch_samples or params.get("raymarch_samples", 128))
-    vp = scene.shadow_view_proj()
+    vp = scene.light_clip_from_world()
     t0 = time.perf_counter()
     depth, _ = scene.shadow_map(size=shadow_map_size, samples=msaa)
     raster_seconds = time.perf_counter() - t0

@@ -19,11 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._shim import renamed_keywords
 from ...affine import decode_r10g10b10a2, encode_r10g10b10a2, from_optimized6, unorm_to_float
 from ...moments import bias_moments, power_moments
-from ...msm import _two_point
+from ..._kernels import two_point
 from ...msm6 import BIAS6_UNORM10, shadow_bounds
-from ...scene.raster import project_points
+from ...scene.raster import project_points, unproject_points
 from .._interface import bilinear_filtered
 
 __all__ = ["FAR_NDC", "AXIS_ANGLE", "EPIPOLAR_SIZE", "EpipolarFrame", "epipolar_frame", "epipolar_coordinates",
@@ -157,13 +158,9 @@ def _texel_points(frame):
     return pts, np.broadcast_to(rho, (rows, cols))
 
 
-def _light_offset(window_xy, ndc_depth, view_proj, size, frame):
+def _light_offset(window_xy, ndc_depth, clip_from_world, size, frame):
     """Offset a along ω_l (relative to the eye) of shadow-map samples; +inf for no occluder."""
-    h, w = size
-    ndc = np.stack([window_xy[..., 0] * (2.0 / w) - 1, 1 - window_xy[..., 1] * (2.0 / h),
-                    ndc_depth, np.ones_like(ndc_depth)], axis=-1)
-    world = ndc @ np.linalg.inv(view_proj).T
-    world = world[..., :3] / world[..., 3:4]
+    world = unproject_points(window_xy, ndc_depth, clip_from_world, size)
     a = (world - frame.eye) @ frame.light
     return np.where(ndc_depth >= FAR_NDC, np.inf, a)
 
@@ -173,14 +170,15 @@ def _depth_from_offset(rho, a):
     return epipolar_depth(np.arctan2(rho, a))
 
 
-def resample_unfiltered(depth_samples, view_proj, frame):
+@renamed_keywords(view_proj="clip_from_world")
+def resample_unfiltered(depth_samples, clip_from_world, frame):
     """Six moments of one depth per epipolar texel (Slides, "Resampling without filtering").
 
     Parameters
     ----------
     depth_samples : (H, W, S) float array
         The light's depth map (NDC depth in [-1, 1], cleared to 1).
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
         The light's shadow-map matrix.
     frame : EpipolarFrame
 
@@ -192,12 +190,12 @@ def resample_unfiltered(depth_samples, view_proj, frame):
     d = np.asarray(depth_samples)
     h, w = d.shape[:2]
     pts, rho = _texel_points(frame)
-    xy, _ = project_points(pts, view_proj, (h, w))
+    xy, _ = project_points(pts, clip_from_world, (h, w))
     col, row = np.floor(xy[..., 0]).astype(np.int64), np.floor(xy[..., 1]).astype(np.int64)
     inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
     depth = np.where(inside, d[np.clip(row, 0, h - 1), np.clip(col, 0, w - 1), 0], 1.0).astype(np.float64)
     centre = np.stack([col + 0.5, row + 0.5], axis=-1)
-    z = _depth_from_offset(rho, _light_offset(centre, depth, view_proj, (h, w), frame))
+    z = _depth_from_offset(rho, _light_offset(centre, depth, clip_from_world, (h, w), frame))
     return power_moments(z[..., None], n=6)
 
 
@@ -205,7 +203,7 @@ def _two_depths(b):
     """HPG17 Algorithm 2 on b1..b3 (b4 dropped): depths y1, y2 and weight v2 (float64)."""
     b1, b2, b3 = b[..., 0], b[..., 1], b[..., 2]
     sigma2 = b2 - b1 * b1
-    y1, y2, v2 = _two_point(b1, b2, b3, sigma2)
+    y1, y2, v2 = two_point(b1, b2, b3, sigma2)
     single = sigma2 <= 8 * np.finfo(np.float64).eps * np.abs(b2)  # one depth: σ² is rounding
     y1 = np.where(single, b1, y1)
     y2 = np.where(single, b1, y2)
@@ -213,14 +211,15 @@ def _two_depths(b):
     return np.clip(y1, -1, 1), np.clip(y2, -1, 1), v2
 
 
-def resample_filtered(moments4, view_proj, frame):
+@renamed_keywords(view_proj="clip_from_world")
+def resample_filtered(moments4, clip_from_world, frame):
     """Six moments from the filtered four-moment map (Slides, "Resampling with filtering").
 
     Parameters
     ----------
     moments4 : (H, W, 4) float array
         The filtered moment shadow map (b1..b4 per texel, resolved and blurred).
-    view_proj : (4, 4) float array
+    clip_from_world : (4, 4) float array
     frame : EpipolarFrame
 
     Returns
@@ -233,14 +232,14 @@ def resample_filtered(moments4, view_proj, frame):
     m = np.asarray(moments4, dtype=np.float64)
     h, w = m.shape[:2]
     pts, rho = _texel_points(frame)
-    xy, _ = project_points(pts, view_proj, (h, w))
+    xy, _ = project_points(pts, clip_from_world, (h, w))
     inside = (xy[..., 0] >= 0) & (xy[..., 0] <= w) & (xy[..., 1] >= 0) & (xy[..., 1] <= h)
     b = bilinear_filtered(m, xy, np.float64)
     y1, y2, v2 = _two_depths(b)
     y1 = np.where(inside, y1, 1.0)
     y2 = np.where(inside, y2, 1.0)
-    z1 = _depth_from_offset(rho, _light_offset(xy, y1, view_proj, (h, w), frame))
-    z2 = _depth_from_offset(rho, _light_offset(xy, y2, view_proj, (h, w), frame))
+    z1 = _depth_from_offset(rho, _light_offset(xy, y1, clip_from_world, (h, w), frame))
+    z2 = _depth_from_offset(rho, _light_offset(xy, y2, clip_from_world, (h, w), frame))
     z = np.stack([z1, z2], axis=-1)
     wt = np.stack([1 - v2, v2], axis=-1)
     return power_moments(z, wt, n=6)

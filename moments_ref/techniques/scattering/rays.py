@@ -17,12 +17,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import renamed_keywords
 from ...gpu.filtering import check_depth_samples
 from ...metrics import flip_mean
-from ...scene.raster import rasterize_depth
+from ...scene.depth import window_scale, x_window_from_ndc, y_window_from_ndc
+from ...scene.raster import rasterize_depth, unproject_points
 from .epipolar import AXIS_ANGLE, FAR_NDC, epipolar_depth
 
-__all__ = ["CameraRays", "camera_rays", "ray_march", "scattering_metric", "scattering_figure", "write_images"]
+__all__ = ["CameraRays", "camera_rays", "check_directional", "pixel_epipolar", "ray_march", "scattering_metric",
+           "scattering_figure", "write_images"]
 
 
 @dataclass
@@ -52,21 +55,17 @@ def camera_rays(scene, resolution=None, t_max=None):
     """
     cam = scene.camera
     w, h = cam.resolution if resolution is None else (int(resolution[0]), int(resolution[1]))
-    from ...scene.camera import Camera
-
-    cam = Camera(cam.eye, cam.target, cam.up, cam.fov, (w, h), cam.near, cam.far)
-    vp = cam.view_proj()
+    cam = cam.resized((w, h))
+    vp = cam.clip_from_world()
     verts = np.concatenate([scene.receiver.vertices, scene.occluder.vertices])
     tris = np.concatenate([scene.receiver.triangles, scene.occluder.triangles + scene.receiver.vertices.shape[0]])
     depth, _ = rasterize_depth(verts, tris, vp, (h, w), samples=1, dtype=np.float64)
     depth = depth[..., 0]
     col, row = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
-    xn, yn = col * (2.0 / w) - 1, 1 - row * (2.0 / h)
-    inv = np.linalg.inv(vp)
+    centres = np.stack([col, row], axis=-1)  # pixel centres, window coordinates
 
     def unproject(zn):
-        p = np.stack([xn, yn, np.broadcast_to(zn, xn.shape), np.ones_like(xn)], axis=-1) @ inv.T
-        return p[..., :3] / p[..., 3:4]
+        return unproject_points(centres, np.broadcast_to(zn, col.shape), vp, (h, w))
 
     far_pt = unproject(0.0)
     d = far_pt - cam.eye
@@ -81,7 +80,8 @@ def camera_rays(scene, resolution=None, t_max=None):
     return CameraRays(d, t_end, hit, (w, h)), t_max
 
 
-def _check_directional(scene):
+def check_directional(scene):
+    """Refuse (InputError) a scene whose light is not directional: single scattering needs one."""
     if getattr(scene.light, "kind", None) != "directional":
         raise InputError(f"scene {scene.name!r}: single scattering needs a directional light "
                          f"(Slides, 'Integrate shadow along view ray'), got {getattr(scene.light, 'kind', '?')!r}")
@@ -103,14 +103,15 @@ def _padded_samples(depth_samples):
     return pad.reshape(-1, s), (h, w, s)
 
 
-def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 17):
+@renamed_keywords(view_proj="clip_from_world")
+def ray_march(depth_samples, clip_from_world, eye, rays, n_samples, chunk=1 << 17):
     """Visibility integral by ray marching through the shadow map (midpoint rule).
 
     Parameters
     ----------
     depth_samples : (H, W, S) float array
         The light's MSAA depth map in [-1, 1] (cleared to 1 = no occluder).
-    view_proj : (4, 4) the light's matrix (orthographic: ``w = 1``)
+    clip_from_world : (4, 4) the light's matrix (orthographic: ``w = 1``)
     eye : (3,) camera position
     rays : CameraRays
     n_samples : int ≥ 1
@@ -135,11 +136,11 @@ def ray_march(depth_samples, view_proj, eye, rays, n_samples, chunk=1 << 17):
     flat, (h, w, s) = _padded_samples(depth_samples)
     dirs = np.asarray(rays.direction, np.float64).reshape(-1, 3)
     t_end = np.asarray(rays.t_end, np.float64).reshape(-1)
-    m = np.asarray(view_proj, dtype=np.float64)
+    m = np.asarray(clip_from_world, dtype=np.float64)
     o = m[:3, :3] @ np.asarray(eye, np.float64) + m[:3, 3]  # clip coordinates of the eye
     # Window coordinates + 1 (the padded map's), affine in t: a + t · b per ray.
-    a = np.array([(o[0] + 1) * (w / 2) + 1, (1 - o[1]) * (h / 2) + 1, o[2]])
-    b = (dirs @ m[:3, :3].T) * np.array([w / 2, -h / 2, 1.0])
+    a = np.array([x_window_from_ndc(o[0], w) + 1, y_window_from_ndc(o[1], h) + 1, o[2]])
+    b = (dirs @ m[:3, :3].T) * np.array([*window_scale((h, w)), 1.0])
     frac = (np.arange(n_samples) + 0.5) / n_samples
     # float64 (exact), so that the comparisons with z are exact without a conversion per sample
     lo_d, hi_d = flat.min(axis=1).astype(np.float64), flat.max(axis=1).astype(np.float64)
@@ -173,7 +174,7 @@ def _texel(a, t, b, top):
     return x.astype(np.intp)  # truncation is floor for x ≥ 0
 
 
-def _pixel_epipolar(rays, frame):
+def pixel_epipolar(rays, frame):
     """uv (columns, rows) and depth of every pixel's view ray; inclination clamped near the axis."""
     rows, cols = frame.size
     d = rays.direction

@@ -37,10 +37,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError, real_input
+from ..._shim import alias
 from ...scene.raster import look_at, perspective
 
-__all__ = ["poisson_disk", "LightSamples", "check_fov", "check_light", "depth_range", "light_views",
-           "LIGHT_NEAR_PARAM", "light_near"]
+__all__ = ["poisson_disk", "LightSamples", "check_fov", "check_light", "check_views", "check_resolution", "depth_range",
+           "light_views", "LIGHT_NEAR_PARAM", "light_near"]
 
 #: Scene parameter holding the light's near plane z_n (Listing 1's ``light.nearZ``).
 LIGHT_NEAR_PARAM = "light_near"
@@ -148,13 +149,17 @@ class LightSamples:
         return int(self.uv.shape[0])
 
     @property
-    def view_proj(self) -> np.ndarray:
+    def clip_from_world(self) -> np.ndarray:
         """(N, 4, 4) ``projection @ view`` per sample."""
         return self.projection @ self.view
 
-    def center_view_proj(self) -> np.ndarray:
-        """(4, 4) view-projection from the light's centre (the single map of PCSS)."""
+    def center_clip_from_world(self) -> np.ndarray:
+        """(4, 4) ``projection @ view`` from the light's centre (the single map of PCSS)."""
         return self.projection @ _view_from(self.light, self.light.center)
+
+    # Old names (DeprecationWarning).
+    view_proj = alias("clip_from_world")
+    center_view_proj = alias("center_clip_from_world")
 
 
 def _view_from(light, eye):
@@ -268,3 +273,29 @@ def light_views(light, n_views, near, far, seed=0, fov=None) -> LightSamples:
     view = np.stack([_view_from(light, p) for p in pos])  # loop over views
     proj = perspective(np.degrees(f), 1.0, n, fa)
     return LightSamples(light=light, uv=uv, positions=pos, fov=f, near=n, far=fa, view=view, projection=proj)
+
+
+def check_resolution(resolution):
+    """``(H, W)`` of a map resolution given as a positive int or a pair (InputError otherwise)."""
+    try:
+        hw = (resolution, resolution) if np.ndim(resolution) == 0 else tuple(resolution)
+        h, w = (int(v) for v in hw)
+        ok = len(hw) == 2 and all(int(v) == v for v in hw) and h >= 1 and w >= 1
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(f"resolution: expected a positive int or (H, W), got {resolution!r}")
+    return h, w
+
+
+def check_views(views):
+    """The ``(V, 4, 4)`` float64 clip-from-world matrices of LightSamples or of matrices (InputError otherwise)."""
+    vp = getattr(views, "clip_from_world", views)
+    m = real_input(vp, "views", dtype=np.float64)
+    if m.ndim == 2:
+        m = m[None]
+    if m.ndim != 3 or m.shape[1:] != (4, 4):
+        raise InputError(f"views: expected LightSamples or (V, 4, 4) view-projection matrices, got shape {m.shape}")
+    if m.shape[0] == 0:
+        raise InputError("views: expected at least one view, got none")
+    return m

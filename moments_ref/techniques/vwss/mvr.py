@@ -21,9 +21,10 @@ import numpy as np
 
 from ..._arrays import InputError
 from ...scene.raster import RasterStats, rasterize_depth
-from .warp import _check_resolution, _views
+from .lights import LightSamples, check_resolution, check_views
+from .shading import pcf_sum
 
-__all__ = ["mvr_passes", "mvr"]
+__all__ = ["mvr_passes", "mvr", "mvr_visibility"]
 
 
 def mvr_passes(vertices, triangles, views, resolution, cull="none", dtype=np.float32, progress=False):
@@ -31,8 +32,8 @@ def mvr_passes(vertices, triangles, views, resolution, cull="none", dtype=np.flo
 
     Parameters as :func:`mvr`.
     """
-    m = _views(views)
-    h, w = _check_resolution(resolution)
+    m = check_views(views)
+    h, w = check_resolution(resolution)
     it = range(m.shape[0])
     if progress:
         from tqdm import tqdm
@@ -66,8 +67,8 @@ def mvr(vertices, triangles, views, resolution, cull="none", dtype=np.float32, p
     stats : RasterStats
         Counts summed over the views (``triangles`` = input triangles × views).
     """
-    m = _views(views)
-    h, w = _check_resolution(resolution)
+    m = check_views(views)
+    h, w = check_resolution(resolution)
     if np.dtype(dtype) not in (np.float32, np.float64):
         raise InputError(f"dtype: expected float32 or float64, got {dtype!r}")
     out = np.empty((m.shape[0], h, w), dtype)
@@ -77,3 +78,30 @@ def mvr(vertices, triangles, views, resolution, cull="none", dtype=np.float32, p
         for k, v in st.as_dict().items():
             setattr(total, k, getattr(total, k) + v)
     return out, total
+
+
+def mvr_visibility(vertices, triangles, samples: LightSamples, resolution, positions, bias, progress=False):
+    """Visibility of world points under MVR, each light sample's map shaded as soon as it is rasterized.
+
+    The reference of VWSS §4 (and of the area-light rows of the report): the 5-tap
+    PCF of :func:`moments_ref.techniques.vwss.shading.pcf_sum` in each of the
+    ``len(samples)`` maps, averaged; one map is held at a time, so hundreds of
+    views fit in memory.
+
+    Parameters
+    ----------
+    vertices, triangles : the occluders
+    samples : LightSamples
+    resolution : int or (H, W)
+    positions : (P, 3) float array, world positions of the receivers
+    bias : float, depth bias in world units along the light normal
+    progress : bool, tqdm bar over the views on stderr
+
+    Returns
+    -------
+    (P,) float64 array in [0, 1]
+    """
+    acc = np.zeros(np.shape(positions)[0])
+    for i, d, _ in mvr_passes(vertices, triangles, samples, resolution, progress=progress):
+        acc += pcf_sum(positions, d[None], samples.clip_from_world[[i]], samples.near, samples.far, bias)
+    return acc / len(samples)

@@ -1,6 +1,6 @@
 """The VWSS paper's own figures (Tables 1 and 2, §3.2, Figures 4, 6, 12) and the claims measured against them.
 
-:func:`claims` turns a :class:`moments_ref.techniques.vwss.compare.Comparison` into
+:func:`claims` turns a :class:`moments_ref.report.vwss.Comparison` (``moments-ref vwss``) into
 :class:`moments_ref.claims.Claim` records with the ids ``vwss-below-pcss-24``,
 ``vwss-below-pcss-128``, ``vwss-hole-free``, ``vwss-naive-leaks``,
 ``vwss-depth-speedup`` and ``vwss-warp-triangle-independent``.

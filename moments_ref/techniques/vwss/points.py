@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError
+from ..._shim import alias
 from ...scene.raster import RasterStats, look_at, perspective, rasterize_fragments
 from .lights import LightSamples, check_fov, check_light
 
@@ -121,7 +122,7 @@ class SourceView:
     Attributes
     ----------
     eye : (3,) float64
-    view_proj : (4, 4) float64
+    clip_from_world : (4, 4) float64
     distance : float, how far the eye sits behind the light's plane (Eq. (1); 0 for the centre view)
     resolution : int, map side
     near, far : float, near and far distances from the eye
@@ -129,12 +130,15 @@ class SourceView:
     """
 
     eye: np.ndarray
-    view_proj: np.ndarray
+    clip_from_world: np.ndarray
     distance: float
     resolution: int
     near: float
     far: float
     fov: float
+
+    #: Old name (DeprecationWarning).
+    view_proj = alias("clip_from_world")
 
 
 def source_view(samples: LightSamples, base_resolution) -> SourceView:
@@ -159,7 +163,7 @@ def source_view(samples: LightSamples, base_resolution) -> SourceView:
     eye = light.center - d * light.normal  # Eq. (2)
     view = look_at(eye, eye + light.normal, light.bitangent)
     proj = perspective(np.degrees(samples.fov), 1.0, d, d + samples.far)
-    return SourceView(eye=eye, view_proj=proj @ view, distance=d, resolution=res,
+    return SourceView(eye=eye, clip_from_world=proj @ view, distance=d, resolution=res,
                       near=d, far=d + samples.far, fov=samples.fov)
 
 
@@ -171,7 +175,7 @@ def center_view(samples: LightSamples, base_resolution) -> SourceView:
     """
     light = check_light(samples.light)
     m = _side(base_resolution, "base_resolution")
-    return SourceView(eye=light.center.copy(), view_proj=samples.center_view_proj(), distance=0.0,
+    return SourceView(eye=light.center.copy(), clip_from_world=samples.center_clip_from_world(), distance=0.0,
                       resolution=m, near=samples.near, far=samples.far, fov=samples.fov)
 
 
@@ -231,7 +235,7 @@ def generate_points(vertices, triangles, source: SourceView, cull_back_faces=Tru
         rasterizer's all-fragments mode, :func:`moments_ref.scene.raster.rasterize_fragments`).
     """
     cull = _cull(cull_back_faces)
-    frags, stats = rasterize_fragments(vertices, triangles, source.view_proj, source.resolution,
+    frags, stats = rasterize_fragments(vertices, triangles, source.clip_from_world, source.resolution,
                                        samples=1, cull=cull, dtype=dtype)
     return PointCloud(positions=frags.position, source=source, layered=True, cull=cull,
                       triangles=stats.triangles, stats=stats)
@@ -245,7 +249,7 @@ def naive_points(vertices, triangles, source: SourceView, cull_back_faces=True, 
     (ties between equal depths go to the lowest triangle index).
     """
     cull = _cull(cull_back_faces)
-    frags, stats = rasterize_fragments(vertices, triangles, source.view_proj, source.resolution,
+    frags, stats = rasterize_fragments(vertices, triangles, source.clip_from_world, source.resolution,
                                        samples=1, cull=cull, dtype=dtype)
     if len(frags):
         # Sort by (texel, depth, triangle); the first fragment of each texel is the nearest.

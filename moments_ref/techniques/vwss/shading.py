@@ -1,10 +1,11 @@
-"""Deferred shading of soft shadows: G-buffer, multi-view PCF and PCSS (VWSS §4).
+"""Deferred shading of soft shadows: multi-view PCF and PCSS (VWSS §4).
 
 VWSS §4 renders "1) a G-Buffer (with albedo, normals, and world positions), 2)
 ... VWSS, MVR, or standard depth-map rendering for PCSS, and 3) ... a
-fullscreen pass to perform shading and shadow mapping". Here the G-buffer holds
-the world positions of the receiver as seen by the camera; shading returns the
-visibility factor per pixel (the fraction of the area light the point sees).
+fullscreen pass to perform shading and shadow mapping". The G-buffer, the world
+positions of the receiver as seen by the camera, is
+:func:`moments_ref.scene.gbuffer.depth_gbuffer`; shading returns the visibility
+factor per pixel (the fraction of the area light the point sees).
 
 * Multi-view (VWSS, MVR): visibility = mean over the light-sample maps of a
   5-sample PCF test (VWSS §4: "a 5-sample PCF filter per pixel ... 120 depth-map
@@ -13,9 +14,9 @@ visibility factor per pixel (the fraction of the area light the point sees).
 * PCSS (Fernando 2005; VWSS §4: "a 64-sample blocker search and 96-sample PCF
   filter"), from the single map of the light's centre.
 
-Depth comparisons use the distance along the light normal (view-space depth),
-recovered from NDC map depth by ``d = 2 f n / ((f + n) − z (f − n))``, so that
-the bias is in world units. A tap outside a map, an empty texel (z = 1) or a
+Depth comparisons use the distance along the light normal (the view distance
+``d_view``, :func:`moments_ref.scene.depth.d_view_from_ndc` of the maps' NDC depth), so
+that the bias is in world units. A tap outside a map, an empty texel (z = 1) or a
 point behind a view counts as lit.
 
 NumPy. Each map becomes one flat array padded by a one-texel border: the view
@@ -34,15 +35,16 @@ VWSS, Fernando 2005 : see docs/bib.md.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..._arrays import InputError, real_input
-from ...scene.raster import rasterize_depth
+from ..._kernels import SHADING_BLOCK
+from ...scene.depth import d_view_from_ndc, x_window_from_ndc, y_window_from_ndc
+from ..._shim import renamed, renamed_keywords
 from .lights import LightSamples, poisson_disk
 
-__all__ = ["PCF5", "GBuffer", "gbuffer", "linear_depth", "pcf_sum", "multiview_visibility", "pcss",
+__all__ = ["PCF5", "pcf_sum", "multiview_visibility", "pcss",
            "PCSS_BLOCKER_TAPS", "PCSS_FILTER_TAPS"]
 
 #: Texel offsets (dx, dy) of the 5-sample PCF filter: centre and the 4 edge neighbours.
@@ -50,95 +52,32 @@ PCF5 = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]], np.int64)
 #: PCSS tap counts of VWSS §4.
 PCSS_BLOCKER_TAPS = 64
 PCSS_FILTER_TAPS = 96
-# Points per block of the shading loops: the temporaries stay in cache and _project's thin
-# (n, 3) @ (3, 3) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18), whose
-# threads cost more than they save on it. Results do not depend on the block size.
-_BLOCK = 1 << 14
+# Points per block of the shading loops (moments_ref._kernels' table, with the reason). Results do not depend
+# on the block size.
+_BLOCK = SHADING_BLOCK
 
 
-@dataclass(frozen=True)
-class GBuffer:
-    """World positions of the receiver seen by the camera.
-
-    Attributes
-    ----------
-    position : (H, W, 3) float64, world position of the visible surface (NaN where empty)
-    receiver : (H, W) bool, the visible surface is a receiver (these pixels are shaded)
-    occluder : (H, W) bool, an occluder is in front (shown, not shaded)
-    """
-
-    position: np.ndarray
-    receiver: np.ndarray
-    occluder: np.ndarray
-
-    @property
-    def points(self) -> np.ndarray:
-        """(P, 3) positions of the receiver pixels, in row-major pixel order."""
-        return self.position[self.receiver]
+#: Old names (a DeprecationWarning): linear_depth, GBuffer and gbuffer moved to moments_ref.scene.
+__getattr__ = renamed("techniques.vwss.shading")
 
 
-def gbuffer(receiver_vertices, receiver_triangles, view_proj, size, occluder_vertices=None,
-            occluder_triangles=None) -> GBuffer:
-    """Rasterize the camera view and reconstruct world positions per pixel.
-
-    Parameters
-    ----------
-    receiver_vertices, receiver_triangles : mesh of the receivers
-    view_proj : (4, 4) camera matrix
-    size : (H, W) or int
-    occluder_vertices, occluder_triangles : optional mesh of the occluders, which
-        hide the receiver where they are in front.
-
-    Returns
-    -------
-    GBuffer
-        Positions from the float64 depth of each pixel centre, unprojected with
-        the inverse of ``view_proj``.
-    """
-    m = real_input(view_proj, "view_proj", dtype=np.float64)
-    drec, _ = rasterize_depth(receiver_vertices, receiver_triangles, m, size, dtype=np.float64)
-    drec = drec[..., 0]
-    h, w = drec.shape
-    if occluder_vertices is not None:
-        docc, _ = rasterize_depth(occluder_vertices, occluder_triangles, m, size, dtype=np.float64)
-        docc = docc[..., 0]
-    else:
-        docc = np.ones_like(drec)
-    rec = (drec < 1) & (drec <= docc)
-    occ = (docc < 1) & ~rec
-    z = np.where(rec, drec, docc)
-    row, col = np.mgrid[0:h, 0:w]
-    ndc = np.stack([2 * (col + 0.5) / w - 1, 1 - 2 * (row + 0.5) / h, z, np.ones_like(z)], -1)
-    hom = ndc @ np.linalg.inv(m).T
-    pos = hom[..., :3] / hom[..., 3:]
-    pos[~(rec | occ)] = np.nan
-    return GBuffer(position=pos, receiver=rec, occluder=occ)
-
-
-def linear_depth(z_ndc, near, far):
-    """Distance in front of the eye of an NDC depth: ``2 f n / ((f + n) − z (f − n))`` (float64)."""
-    z = np.asarray(z_ndc, dtype=np.float64)
-    n, f = float(near), float(far)
-    return 2 * f * n / ((f + n) - z * (f - n))
-
-
-def _project(positions, view_proj, h, w):
+def _project(positions, clip_from_world, h, w):
     """Continuous window coordinates and view depth (w_clip) of positions in one view."""
-    hom = positions @ view_proj[:3, :3].T + view_proj[:3, 3]
-    cw = positions @ view_proj[3, :3] + view_proj[3, 3]
+    hom = positions @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    cw = positions @ clip_from_world[3, :3] + clip_from_world[3, 3]
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = (hom[:, 0] / cw + 1) * (w / 2)
-        y = (1 - hom[:, 1] / cw) * (h / 2)
+        x = x_window_from_ndc(hom[:, 0] / cw, w)
+        y = y_window_from_ndc(hom[:, 1] / cw, h)
     return x, y, cw
 
 
 def _occluder_map(depth_map, near, far):
-    """Flat (H+2)·(W+2) map: the occluder's view depth (:func:`linear_depth`) where ``depth < 1``,
+    """Flat (H+2)·(W+2) map: the occluder's view distance (:func:`~moments_ref.scene.depth.d_view_from_ndc`) where ``depth < 1``,
     +inf at empty texels and on a one-texel border (a tap outside the map reads +inf: lit)."""
     h, w = depth_map.shape
     occ = np.full((h + 2, w + 2), np.inf)
     occupied = depth_map < 1
-    occ[1:-1, 1:-1][occupied] = linear_depth(depth_map[occupied], near, far)
+    occ[1:-1, 1:-1][occupied] = d_view_from_ndc(depth_map[occupied], near, far)
     return occ.reshape(-1)
 
 
@@ -192,14 +131,15 @@ def _check_maps(depth_maps, n_views):
     return d
 
 
-def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
+@renamed_keywords(view_proj="clip_from_world")
+def pcf_sum(positions, depth_maps, clip_from_world, near, far, bias, taps=PCF5):
     """Sum over maps of the fraction of PCF taps that are lit, per point.
 
     Parameters
     ----------
     positions : (P, 3) float array, world positions of the receiver
     depth_maps : (K, H, W) float array, NDC depth (1 = empty)
-    view_proj : (K, 4, 4) float array, the maps' views
+    clip_from_world : (K, 4, 4) float array, the maps' views
     near, far : float, the shared near and far distances of the views
     bias : float, depth bias in world units along the light normal
     taps : (T, 2) int array of texel offsets (dx, dy); default :data:`PCF5`
@@ -209,7 +149,7 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     (P,) float64 array in [0, K]
     """
     p = _check_positions(positions)
-    vp = real_input(view_proj, "view_proj", dtype=np.float64).reshape(-1, 4, 4)
+    vp = real_input(clip_from_world, "clip_from_world", dtype=np.float64).reshape(-1, 4, 4)
     maps = _check_maps(depth_maps, vp.shape[0])
     taps = np.asarray(taps, np.int64).reshape(-1, 2)
     h, w = maps.shape[1:]
@@ -221,9 +161,9 @@ def pcf_sum(positions, depth_maps, view_proj, near, far, bias, taps=PCF5):
     return acc
 
 
-def _pcf_block(occ, p, view_proj, h, w, bias, taps):
+def _pcf_block(occ, p, clip_from_world, h, w, bias, taps):
     """Lit fraction of the PCF taps of one view for a block of points (exact count / T)."""
-    x, y, cw = _project(p, view_proj, h, w)
+    x, y, cw = _project(p, clip_from_world, h, w)
     thr = _threshold(cw, bias)
     # floor(x + dx) once per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
     cols = {dx: _padded_floor(x + dx, w) for dx in np.unique(taps[:, 0])}
@@ -255,7 +195,7 @@ def multiview_visibility(positions, depth_maps, samples: LightSamples, bias, vie
         ``(1/K) Σ_k (1/5) Σ_taps [d_k(tap) ≥ d_point − bias]``.
     """
     sel = np.arange(len(samples)) if views is None else np.asarray(views, np.int64)
-    s = pcf_sum(positions, depth_maps, samples.view_proj[sel], samples.near, samples.far, bias, taps)
+    s = pcf_sum(positions, depth_maps, samples.clip_from_world[sel], samples.near, samples.far, bias, taps)
     return s / sel.size
 
 
@@ -282,7 +222,7 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     positions : (P, 3) float array
     depth_map : (H, W) float array
         NDC depth rasterized from the light's centre with the samples' projection
-        (``samples.center_view_proj()``).
+        (``samples.center_clip_from_world()``).
     samples : LightSamples
         For the light, the shared projection, near and far.
     bias : float
@@ -330,7 +270,7 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     h, w = dmap.shape
     light = samples.light
     n, f = samples.near, samples.far
-    vp = samples.center_view_proj()
+    vp = samples.center_clip_from_world()
     occ = _occluder_map(dmap, n, f)
     # tan units -> texels: half-extents of the light (l_w / 2, l_h / 2) in texels per tan unit
     kx = w / (2 * np.tan(samples.fov / 2))

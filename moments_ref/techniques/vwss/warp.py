@@ -36,29 +36,22 @@ from __future__ import annotations
 import numpy as np
 
 from ..._arrays import InputError, first_index, positive_int, real_input
+from ..._kernels import WARP_BLOCK
+from ..._shim import renamed_keywords
+from .lights import check_resolution, check_views
+from ...scene.depth import x_window_from_ndc, y_window_from_ndc, z_ndc_from_reversed, z_reversed_from_ndc
 
-__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes", "depth_key", "key_depth", "EMPTY_KEY"]
+__all__ = ["zbuffer_max", "project_to_texels", "warp", "warp_passes", "zbuffer_dtype", "zmax_into", "depth_key",
+           "key_depth", "EMPTY_KEY"]
 
-# Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes`: the temporaries stay in cache and
-# the thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18),
-# whose threads cost more than they save on it (results do not depend on the block size).
-_BLOCK = 1 << 13
+# Point-view pairs per block of :func:`project_to_texels` and :func:`warp_passes` (moments_ref._kernels' table,
+# with the reason; results do not depend on the block size).
+_BLOCK = WARP_BLOCK
 
 
-def _uint_of(dt):
+def zbuffer_dtype(dt):
+    """The unsigned integer type of a z-buffer of ``dt`` depths: uint32 for float32 (Listing 2), else uint64."""
     return np.uint32 if np.dtype(dt) == np.float32 else np.uint64
-
-
-def _check_resolution(resolution):
-    try:
-        hw = (resolution, resolution) if np.ndim(resolution) == 0 else tuple(resolution)
-        h, w = (int(v) for v in hw)
-        ok = len(hw) == 2 and all(int(v) == v for v in hw) and h >= 1 and w >= 1
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise InputError(f"resolution: expected a positive int or (H, W), got {resolution!r}")
-    return h, w
 
 
 #: The key of a texel no point was written to (the clear value; below every depth's key).
@@ -110,8 +103,8 @@ def key_depth(key):
     return u.view(np.float32)
 
 
-def _zmax_into(buf, index, depth):
-    """``buf[index] = max(buf[index], asuint(depth))`` without checks (depth ≥ +0.0, no NaN)."""
+def zmax_into(buf, index, depth):
+    """``buf[index] = max(buf[index], asuint(depth))`` without checks (depth ≥ +0.0, no NaN): :func:`zbuffer_max`'s kernel."""
     np.maximum.at(buf, index, depth.view(buf.dtype))
 
 
@@ -176,21 +169,9 @@ def zbuffer_max(texel_index, depth, n_texels):
         i = first_index(out)
         raise InputError(f"texel_index: expected indices in [0, {n}), got {idx[i]} at index {i}")
     z = z + z.dtype.type(0.0)  # -0.0 -> +0.0
-    buf = np.zeros(n, _uint_of(z.dtype))
-    _zmax_into(buf, idx.astype(np.intp, copy=False), z)
+    buf = np.zeros(n, zbuffer_dtype(z.dtype))
+    zmax_into(buf, idx.astype(np.intp, copy=False), z)
     return buf.view(z.dtype)
-
-
-def _views(views):
-    vp = getattr(views, "view_proj", views)
-    m = real_input(vp, "views", dtype=np.float64)
-    if m.ndim == 2:
-        m = m[None]
-    if m.ndim != 3 or m.shape[1:] != (4, 4):
-        raise InputError(f"views: expected LightSamples or (V, 4, 4) view-projection matrices, got shape {m.shape}")
-    if m.shape[0] == 0:
-        raise InputError("views: expected at least one view, got none")
-    return m
 
 
 def _points(points):
@@ -200,14 +181,15 @@ def _points(points):
     return p
 
 
-def project_to_texels(points, view_proj, resolution, clip_depth=True):
+@renamed_keywords(view_proj="clip_from_world")
+def project_to_texels(points, clip_from_world, resolution, clip_depth=True):
     """Project points into views and snap them to texels (the per-point work of Listing 2).
 
     Parameters
     ----------
     points : (N, 3) float array
         World positions; float32 input is projected in float32 (as a shader).
-    view_proj : (K, 4, 4) float array
+    clip_from_world : (K, 4, 4) float array
     resolution : int or (H, W)
     clip_depth : bool
         Drop pairs whose NDC depth is outside [−1, 1] (a depth-map pass's clip
@@ -225,14 +207,14 @@ def project_to_texels(points, view_proj, resolution, clip_depth=True):
 
     Notes
     -----
-    Window coordinates follow :mod:`moments_ref.scene.raster`: ``x = (x_ndc + 1) W/2``,
-    ``y = (1 − y_ndc) H/2``; the texel is ``(floor(y), floor(x))``, the one whose
+    Window coordinates and reversed depth are those of :mod:`moments_ref.scene.depth`
+    (``x_window_from_ndc``, ``y_window_from_ndc``, ``z_reversed_from_ndc``); the texel is ``(floor(y), floor(x))``, the one whose
     centre is nearest (VWSS §3.2, "snap the projected location to the nearest
     neighbor pixel").
     """
     p = _points(points)
-    m = _views(view_proj).astype(p.dtype)
-    return _project_to_texels(p, m, *_check_resolution(resolution), clip_depth=bool(clip_depth))
+    m = check_views(clip_from_world).astype(p.dtype)
+    return _project_to_texels(p, m, *check_resolution(resolution), clip_depth=bool(clip_depth))
 
 
 def _project_to_texels(p, m, h, w, clip_depth=True):
@@ -255,21 +237,18 @@ def _stacked(m):
 
 def _texel_block(p, mt, k, h, w, clip_depth=True):
     """Texels and reversed depths of one block of points, in (point, view) order."""
-    dt, ut = p.dtype.type, _uint_of(p.dtype)
+    dt, ut = p.dtype.type, zbuffer_dtype(p.dtype)
     hom = np.concatenate([p, np.ones((p.shape[0], 1), p.dtype)], axis=1)
     clip = (hom @ mt).reshape(p.shape[0], 4, k)
     cw = clip[:, 3]
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = dt(1) / cw
-        x = clip[:, 0] * inv  # x = (x_clip / w + 1) W/2
-        x += dt(1)
-        x *= dt(w / 2)
-        y = clip[:, 1] * inv  # y = (1 − y_clip / w) H/2
-        np.subtract(dt(1), y, out=y)
-        y *= dt(h / 2)
-        r = clip[:, 2] * inv  # r = 1/2 − (z_clip / w) / 2
-        r *= dt(0.5)
-        np.subtract(dt(0.5), r, out=r)
+        x = clip[:, 0] * inv  # NDC, then window and reversed depth in place (scene.depth)
+        x_window_from_ndc(x, w, out=x)
+        y = clip[:, 1] * inv
+        y_window_from_ndc(y, h, out=y)
+        r = clip[:, 2] * inv
+        z_reversed_from_ndc(r, out=r)
     # 0 ≤ x < W, 0 ≤ y < H, 0 ≤ r ≤ 1 as one unsigned comparison each: none of x, y, r can be
     # −0.0 (a − b rounds to +0.0 when a = b, and the factors are ≥ 1/2), so the bit pattern orders
     # them (module docstring); negative values and NaN have patterns above every bound.
@@ -295,12 +274,12 @@ def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
     ``views_per_pass`` maps (the last pass may have fewer).
     """
     p = _points(points)
-    m = _views(views)
-    h, w = _check_resolution(resolution)
+    m = check_views(views)
+    h, w = check_resolution(resolution)
     nv = m.shape[0]
     k = nv if views_per_pass is None else views_per_pass
     k = min(positive_int(k, "views_per_pass"), nv)
-    udt = _uint_of(p.dtype)
+    udt = zbuffer_dtype(p.dtype)
     starts = range(0, nv, k)
     if progress:
         import sys
@@ -314,10 +293,10 @@ def warp_passes(points, views, resolution, views_per_pass=None, progress=False):
         mt = _stacked(m[sel].astype(p.dtype))
         step = max(1, _BLOCK // sel.size)
         for lo in range(0, p.shape[0], step):  # each block straight into the z-buffer, no concatenation
-            _zmax_into(buf, *_texel_block(p[lo:lo + step], mt, sel.size, h, w))
+            zmax_into(buf, *_texel_block(p[lo:lo + step], mt, sel.size, h, w))
         r = buf.view(p.dtype).reshape(sel.size, h, w)
-        # Back to NDC depth: z = 1 - 2 r (empty texels, r = 0, become 1 = far).
-        yield sel, (p.dtype.type(1) - p.dtype.type(2) * r)
+        # Back to NDC depth (empty texels, r = 0, become 1 = far).
+        yield sel, z_ndc_from_reversed(r)
 
 
 def warp(points, views, resolution, views_per_pass=None, progress=False):
@@ -353,8 +332,8 @@ def warp(points, views, resolution, views_per_pass=None, progress=False):
     (see :func:`zbuffer_max` and the module docstring).
     """
     p = _points(points)
-    h, w = _check_resolution(resolution)
-    m = _views(views)
+    h, w = check_resolution(resolution)
+    m = check_views(views)
     out = np.empty((m.shape[0], h, w), p.dtype)
     for sel, maps in warp_passes(p, m, (h, w), views_per_pass, progress):
         out[sel] = maps

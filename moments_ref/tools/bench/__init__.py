@@ -4,7 +4,7 @@ Every kernel is timed on square inputs (2048² by default) and compared with
 ``np.copyto`` of the same number of bytes (inputs read plus outputs written),
 measured in the same run right before it. The ratio ``copy time / kernel time``
 says how far a kernel is from being memory bound (1 = as fast as a copy; the
-foundation issue's target for float32 ``shadow_intensity`` is 1/20 = 0.05).
+speed targets, :mod:`._targets`, ask float32 ``shadow_intensity`` for 1/8).
 Times are the best of a few repetitions (the minimum is the least noisy
 estimate of the cost on a shared machine).
 
@@ -91,10 +91,10 @@ def _fn_decode(u, dtype):
 
 def _setup_raster(samples):
     def setup(size, dtype):
-        from ...scene.raster import _small_triangles
+        from ...scene.raster import small_triangles
 
         n = size * size // 4
-        v, t = _small_triangles(n, 1024, 4.0, np.random.default_rng(0))
+        v, t = small_triangles(n, 1024, 4.0, np.random.default_rng(0))
         return v, t, samples
 
     return setup
@@ -288,12 +288,12 @@ def _bench_zbuffer_setup(size, dtype):
     n_texels = 16 * 1024 * 1024 if size >= 1024 else 1 << 20
     idx = rng.integers(0, n_texels, n).astype(np.intp)
     z = rng.uniform(0, 1, n).astype(dtype)
-    return np.zeros(n_texels, warp._uint_of(dtype)), idx, z
+    return np.zeros(n_texels, warp.zbuffer_dtype(dtype)), idx, z
 
 
 def _bench_zbuffer_fn(buf, idx, z):
     buf[:] = 0
-    warp._zmax_into(buf, idx, z)
+    warp.zmax_into(buf, idx, z)
 
 
 def _bench_warp_setup(size, dtype):
@@ -308,7 +308,7 @@ def _bench_warp_setup(size, dtype):
     a = rng.uniform(0, 2 * np.pi, n)
     rad = 1.5 * np.sqrt(rng.uniform(0, 1, n))
     pts = np.stack([rad * np.cos(a), 2.0 + 0.2 * rad * np.sin(a), rad * np.sin(a)], -1).astype(dtype)
-    return pts, views.view_proj, 512
+    return pts, views.clip_from_world, 512
 
 
 def _bench_warp_fn(pts, vp, res):
@@ -328,7 +328,7 @@ def _bench_mvr_setup(size, dtype):
     segments = max(2, n_tri // (2 * sides))
     knot = torus_knot(p=2, q=3, radius=1.1, tube=0.14, segments=segments, sides=sides)
     v = knot.vertices + np.array([0.0, 1.5, 0.0])
-    return v, knot.triangles, views.view_proj, 1024, np.dtype(dtype)
+    return v, knot.triangles, views.clip_from_world, 1024, np.dtype(dtype)
 
 
 def _bench_mvr_fn(v, t, vp, res, dtype):

@@ -4,7 +4,7 @@ The worker is started with ``LP_NUM_THREADS=0`` (llvmpipe rasterizes in the
 calling thread) so that its CPU time is one core's work, like the reference's.
 It builds the same scenes as :mod:`moments_ref.tools.bench._cases` (same seeds), so
 only short commands cross the pipe: ``case NAME`` sets a scene up (vertices in
-clip space from the same ``view_proj``, a depth-only multisampled framebuffer,
+clip space from the same ``clip_from_world``, a depth-only multisampled framebuffer,
 a warm-up draw for the shader JIT), ``time`` clears, draws and waits
 (``glFinish``) once and answers ``{"wall": s, "cpu": s}``. Upload and readback
 are outside the timing; the reference's timing includes its vertex transform

@@ -1,0 +1,302 @@
+"""Golden cases under an engine profile: inputs converted exactly, expected values derived and cached.
+
+:func:`profile_arrays` turns the arrays of a golden case (the papers' conventions)
+into those of the same rows as an engine with a :class:`~.profile.Profile` sees them:
+
+* **inputs** in the engine's depth convention, converted exactly (rational arithmetic,
+  :func:`moments_ref.scene.depth.moments_affine_rational`) and rounded once to the
+  case's dtype; with ``bias.applied = "before"`` the caller's bias is applied in the
+  same exact step, so the port receives the correctly rounded biased moments;
+* **expected values and per-row tolerances** from the same spread model
+  (:func:`moments_ref.golden.spread.derive`) run on those inputs with the case's
+  reference configured for the profile (the bias inside, the clamp offset, the
+  texel-format choices, visibility instead of intensity): a 5e-6 clamp gets its own
+  tolerances, a [0, 1] port the conditioning of [0, 1] arithmetic;
+* **the contract** of each row decided on the papers' inputs with the declared bias
+  (:mod:`moments_ref.golden.contract`), so that rounding in the conversion never
+  moves a singular row inside.
+
+Results are cached in memory and on disk (:func:`cache_dir`), keyed by the case, the
+profile's content, the golden rows and the package's version and sources; a profile
+never changes a golden folder.
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from .._arrays import InputError
+from ..scene import depth as _depth
+from .cases import CASES
+from .contract import rows_inside
+from .notes import ROBUSTNESS
+from .profile import DEFAULT, Bias
+
+__all__ = ["profile_arrays", "profiled_arrays", "profiled_case", "convert_inputs", "contract_mask", "cache_dir",
+           "unused_keys"]
+
+#: Flags that :func:`~moments_ref.golden.spread.derive` sets; recomputed under a profile.
+_DERIVED_FLAGS = (ROBUSTNESS, "wide_spread", "rounding_tie")
+_MEMO = {}
+#: [0, 1] depth: z_unit = z_ndc / 2 + 1/2 (scale, offset), and back.
+_TO_UNIT, _TO_NDC = (0.5, 0.5), (2.0, -1.0)
+
+
+def cache_dir():
+    """Where derived goldens are cached: ``$MOMENTS_REF_CACHE`` or ``~/.cache/moments_ref``, ``/profiles``."""
+    root = os.environ.get("MOMENTS_REF_CACHE") or Path.home() / ".cache" / "moments_ref"
+    return Path(root) / "profiles"
+
+
+def _contradiction(case, what, why):
+    raise InputError(f"profile: {what} contradicts case {case.name!r}: {why} "
+                     f"({case.description.split(';')[0]})")
+
+
+def _check(case, profile):
+    if profile.depth not in (None, "[-1,1]") and not case.depth_roles:
+        _contradiction(case, f"depth = {profile.depth!r}", "its quantities are defined for depths in [-1, 1]")
+    if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
+        _contradiction(case, "output = 'visibility'", "it returns no shadow intensity")
+    b = profile.bias
+    if b is not None and b.active and "bias" in case.profile_keys:
+        width = case.width if case.width else 4
+        if len(b.target) != width:
+            _contradiction(case, f"bias.target with {len(b.target)} values", f"it takes {width} moments")
+        if b.applied == "before" and not case.bias_before:
+            _contradiction(case, "bias.applied = 'before'", "its function applies the bias itself")
+
+
+def _engine_frame(target, profile):
+    """A target given in the papers' frame, in the profile's depth convention (float64)."""
+    if profile.depth != "[0,1]":
+        return tuple(float(t) for t in target)
+    return tuple(float(x) for x in _depth.moments_affine(np.asarray(target, np.float64), *_TO_UNIT))
+
+
+def _canonical_frame(target, profile):
+    if profile.depth != "[0,1]":
+        return np.asarray(target, np.float64)
+    return _depth.moments_affine(np.asarray(target, np.float64), *_TO_NDC)
+
+
+def _biases(case, profile):
+    """``(bias the harness applies before the call, bias inside the function)``, engine frame (or None)."""
+    b = profile.bias
+    if "bias" not in case.profile_keys:
+        return None, None
+    if b is None:
+        if case.default_bias is None:
+            return None, None
+        applied, preset = case.default_bias
+        bias = Bias(preset.alpha, _engine_frame(preset.target, profile), applied)
+        return (bias, None) if applied == "before" else (None, bias)
+    if not b.active:
+        return None, None
+    return (b, None) if b.applied == "before" else (None, b)
+
+
+def unused_keys(case, profile):
+    """Profile keys that do not apply to ``case`` (reported, not refused)."""
+    out = []
+    if profile.bias is not None and "bias" not in case.profile_keys:
+        out.append("bias")
+    if profile.clamp is not None and "clamp" not in case.profile_keys:
+        out.append("clamp")
+    if profile.clamp_test is not None and "clamp" not in case.profile_keys:
+        out.append("clamp_test")
+    if profile.format and "format" not in case.profile_keys:
+        out.append("format")
+    return out
+
+
+def _visibility(fn):
+    def wrapped(**inputs):
+        return tuple(1 - np.asarray(x) for x in fn(**inputs))
+
+    return wrapped
+
+
+def profiled_case(case, profile):
+    """The :class:`~moments_ref.golden.cases.Case` an engine with ``profile`` is judged by."""
+    _check(case, profile)
+    before, inside = _biases(case, profile)
+    changes = {}
+    if case.variant is not None:
+        changes = case.variant(bias=inside, clamp=profile.clamp if "clamp" in case.profile_keys else None,
+                               clamp_test=profile.clamp_test if "clamp" in case.profile_keys else None,
+                               fmt=dict(profile.format) if "format" in case.profile_keys else {},
+                               before=before, profile=profile)
+    out = replace(case, **changes)
+    if profile.output == "visibility" and out.deriver is None:
+        hook = out.spread_hook
+        out = replace(out, reference=_visibility(out.reference),
+                      truth=None if out.truth is None else _visibility(out.truth),
+                      spread_hook=None if hook is None else
+                      (lambda ins, dt: [tuple(1 - np.asarray(x) for x in v) for v in hook(ins, dt)]))
+    kwargs = dict(out.kwargs)
+    if not profile.is_default:
+        kwargs["profile"] = {k: v for k, v in profile.canonical.items() if v not in (None, {}, [])}
+        if before is not None:
+            kwargs["harness_bias"] = {"alpha": before.alpha, "target": list(before.target)}
+    return replace(out, kwargs=kwargs)
+
+
+def convert_inputs(case, inputs, profile):
+    """The case's inputs as the engine receives them: converted exactly, biased if the caller biases, rounded once."""
+    before, _ = _biases(case, profile)
+    unit = profile.depth == "[0,1]"
+    out = {}
+    for k, v in inputs.items():
+        role = case.depth_roles.get(k)
+        arr = np.asarray(v)
+        if role == "moments" and (unit or before is not None):
+            scale, offset = _TO_UNIT if unit else (1.0, 0.0)
+            q = _depth.moments_affine_rational(arr, scale, offset)
+            if before is not None:
+                q = _bias_rational(q, before)
+            out[k] = np.array([_depth.round_rational(x, arr.dtype) for x in q.reshape(-1)],
+                              np.float64).reshape(arr.shape).astype(arr.dtype)
+        elif role == "depth" and unit:
+            out[k] = _depth.z_unit_from_ndc(arr).astype(arr.dtype)
+        else:
+            out[k] = arr
+    return out
+
+
+def _bias_rational(q, bias):
+    """``(1 − α) q + α b*`` in rational arithmetic (α and b* as the floats given)."""
+    from fractions import Fraction
+
+    a = Fraction(bias.alpha)
+    t = [Fraction(x) for x in bias.target]
+    flat = q.reshape(-1, q.shape[-1])
+    out = np.empty(flat.shape, dtype=object)
+    for i in range(flat.shape[0]):
+        for k in range(flat.shape[1]):
+            out[i, k] = (1 - a) * flat[i, k] + a * t[k]
+    return out.reshape(q.shape)
+
+
+def contract_mask(case, inputs, profile):
+    """Rows inside the case's contract under ``profile``: judged on the papers' inputs with its bias."""
+    if case.contract is None:
+        return None
+    before, inside = _biases(case, profile)
+    bias = before or inside
+    if bias is not None:
+        bias = (bias.alpha, _canonical_frame(bias.target, profile))
+    return rows_inside(case.contract, inputs, bias)
+
+
+def _strip(flags, biased=False):
+    """The rows' own flags (without those derive sets); under a bias, singular rows are bias-floor rows.
+
+    A bias makes the moments of one or two depths those of a distribution at the bias
+    floor, whose support points are computed: ``singular_hankel`` becomes ``bias_floor``
+    and ``support_point`` there ``near_support_point`` (their notes say what follows).
+    """
+    out = []
+    for fl in np.asarray(flags):
+        names = [f for f in str(fl).split(",") if f and f not in _DERIVED_FLAGS]
+        if biased and "singular_hankel" in names:
+            names = [{"singular_hankel": "bias_floor", "support_point": "near_support_point"}.get(f, f)
+                     for f in names]
+        out.append(tuple(dict.fromkeys(names)))
+    return out
+
+
+def profile_arrays(case, arrays, profile):
+    """``(case', arrays')``: the rows of ``arrays`` (a golden case's) as an engine with ``profile`` sees them."""
+    from .spread import derive
+
+    pcase = profiled_case(case, profile)
+    inputs = {k: np.asarray(arrays[k]) for k in tuple(case.inputs) + tuple(case.aux)}
+    inside = contract_mask(case, inputs, profile)
+    conv = convert_inputs(case, inputs, profile)
+    out = dict(conv)
+    before, inside_bias = _biases(case, profile)
+    biased = (before is not None or inside_bias is not None) and case.contract == "moments_inside"
+    labels = (np.asarray(arrays["category"]), list(np.asarray(arrays["comment"])), _strip(arrays["flags"], biased))
+    if pcase.deriver is not None:
+        out.update(pcase.deriver(pcase, conv, *labels, contract=inside))
+    else:
+        out.update(derive(pcase, {k: conv[k] for k in case.inputs}, *labels, contract=inside))
+    return pcase, out
+
+
+_CODE = []
+
+
+def _code_hash():
+    """sha256 of the package's sources: derived goldens change with the code that derives them."""
+    if not _CODE:
+        h = hashlib.sha256()
+        root = Path(__file__).resolve().parents[1]
+        for f in sorted(root.rglob("*.py")):
+            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes())
+        _CODE.append(h.hexdigest())
+    return _CODE[0]
+
+
+def _key(case, arrays, profile):
+    h = hashlib.sha256()
+    for part in (case.name, profile.key, __version__, _code_hash(), str(case.dtype)):
+        h.update(part.encode() + b"\0")
+    for k in list(case.inputs) + list(case.aux) + ["category", "flags", "comment"]:
+        a = np.ascontiguousarray(arrays[k])
+        h.update(str(a.dtype).encode() + str(a.shape).encode() + a.tobytes())
+    return h.hexdigest()
+
+
+def _load_cached(path, key):
+    try:
+        with np.load(path, allow_pickle=False) as g:
+            data = {k: g[k] for k in g.files}
+    except Exception:  # a missing, partial or foreign file: derive again
+        return None
+    return data if str(data.pop("cache_key", "")) == key else None
+
+
+def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
+    """``(case', arrays')`` of golden case ``name`` under ``profile``, cached.
+
+    ``arrays``: the case's golden arrays (from a golden folder); default: generated.
+    The default profile returns the golden arrays themselves.
+    """
+    if name not in CASES:
+        raise InputError(f"case: unknown case {name!r}")
+    case = CASES[name]
+    if arrays is None:
+        from .spread import golden_arrays
+
+        arrays = golden_arrays(case)
+    if profile.is_default:
+        return case, arrays
+    key = _key(case, arrays, profile)
+    pcase = profiled_case(case, profile)  # checks the profile against the case first
+    if key in _MEMO:
+        return pcase, _MEMO[key]
+    path = cache_dir() / f"{key}.npz"
+    data = _load_cached(path, key) if disk else None
+    if data is None:
+        _, data = profile_arrays(case, arrays, profile)
+        if disk:
+            from .._io import save_npz
+
+            try:
+                save_npz(path, {**data, "cache_key": np.array(key)})
+            except OSError:  # an unwritable cache only costs the derivation next time
+                pass
+    _MEMO[key] = data
+    return pcase, data

@@ -1,0 +1,242 @@
+"""Diagnosis by cause: failing rows grouped by level and flag, each group with its one-line cause.
+
+``verify`` and ``conformance`` print the same groups (a porter sees why 17 rows fail,
+not only the worst five), ``--rows all`` lists every failing row, and ``--json FILE``
+writes every row's verdict for dashboards (:func:`json_rows`). Two causes are told
+by the port's outputs, not by rules:
+
+* **the bias target** (engine cases): when the declared target is singular (the
+  moments of a one- or two-point distribution) and the failing rows are the ones whose
+  moments it leaves (nearly) singular, the group names the target and its support;
+* **format** (texel-format choices, docs/formats.md): when the port's outputs on the
+  failing rows match the expected values of another choice the paper leaves open,
+  the group says which (``format``), apart from arithmetic failures.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .notes import ROBUSTNESS, cause
+
+__all__ = ["Group", "groups", "group_lines", "json_rows", "write_json", "target_groups", "convention_groups",
+           "CLAMP_CANDIDATES"]
+
+
+@dataclass
+class Group:
+    """Failing rows with one level and one set of flags."""
+
+    level: str  # "contract", "robustness" (fails only with --strict), "format", "target"
+    flags: str
+    rows: list = field(default_factory=list)
+    cause: str = ""
+
+    @property
+    def count(self):
+        return len(self.rows)
+
+
+def _flags(arrays, i):
+    fl = [f for f in str(np.asarray(arrays["flags"])[i]).split(",") if f and f != ROBUSTNESS]
+    return ",".join(fl) or str(np.asarray(arrays["category"])[i])
+
+
+def groups(verdict, arrays, extra=()):
+    """Failing rows (of the verdict) and robustness rows that would fail with --strict, grouped.
+
+    ``extra``: groups found by :func:`target_groups` or a format check, whose rows are
+    taken out of the plain groups. Largest groups first, per level.
+    """
+    taken = {i for g in extra for i in g.rows}
+    fail = ~verdict.row_pass
+    would = np.zeros_like(fail) if verdict.strict_pass is None else (~verdict.strict_pass & ~fail)
+    out = {}
+    for i in np.flatnonzero(fail | would):
+        if int(i) in taken:
+            continue
+        robust = verdict.robust is not None and verdict.robust[i]
+        level = "robustness" if robust else "contract"
+        key = (level, _flags(arrays, i))
+        g = out.setdefault(key, Group(level, key[1], [], cause(np.asarray(arrays["flags"])[i],
+                                                                np.asarray(arrays["category"])[i])))
+        g.rows.append(int(i))
+    order = {"target": 0, "format": 1, "convention": 1, "contract": 2, "robustness": 3}
+    return sorted(list(extra) + list(out.values()), key=lambda g: (order[g.level], -g.count))
+
+
+def group_lines(gs, failures, strict=False):
+    """One line per group: "12 of 17 failures: flags (level): cause"."""
+    lines = []
+    for g in gs:
+        if g.level == "robustness" and not strict:
+            lines.append(f"{g.count} beyond the algorithm's contract would fail with --strict: {g.flags}: {g.cause}")
+        else:
+            lines.append(f"{g.count} of {failures} failures: {g.flags} ({g.level}): {g.cause}")
+    return lines
+
+
+def _fails_with(arrays, preset, ctx, tol, expected):
+    """Rows on which the papers' own formulation with bias ``preset`` (float32) misses the expected value."""
+    from .engine import papers_chain32
+
+    n = len(np.asarray(arrays["zf"]))
+    v = papers_chain32(arrays, preset, ctx, n)
+    if ctx.get("visibility"):
+        v = 1 - v
+    with np.errstate(invalid="ignore"):
+        return ~(np.abs(v - expected) <= tol)
+
+
+def target_groups(verdict, arrays, declared, ctx):
+    """A ``target`` group when a singular declared target explains the failing rows of an engine case.
+
+    Told by outputs: the rows it explains are failing rows on which the papers' own
+    formulation (the slides' Algorithm 1, or the NLQ chain) in float32, biased with the
+    declared α and target, misses the expected value too, while the same with the papers'
+    float32 target (same α, an interior point) does not.
+    """
+    from ..moments import BIAS_FLOAT32, BiasPreset
+    from ..scene.depth import moments_affine
+    from .engine import target_support
+
+    if declared is None or not getattr(declared, "active", False) or "support" not in arrays:
+        return []
+    support = target_support(declared.target)
+    fail = ~verdict.row_pass
+    if support is None or not fail.any():
+        return []
+    ref = np.asarray(BIAS_FLOAT32.target, np.float64)
+    ref = moments_affine(ref, 0.5, 0.5) if ctx.get("unit") else ref
+    expected = np.asarray(arrays["intensity"], np.float64)
+    tol = np.asarray(arrays["intensity_tolerance_float32"], np.float64)
+    own = _fails_with(arrays, BiasPreset(declared.alpha, tuple(declared.target), "declared"), ctx, tol, expected)
+    legit = _fails_with(arrays, BiasPreset(declared.alpha, tuple(ref), "papers"), ctx, tol, expected)
+    hit = [int(i) for i in np.flatnonzero(fail & own & ~legit)]
+    if not hit:
+        return []
+    what = " + ".join(f"{w:.3g}·δ({round(z, 9):.3g})" for z, w in support)
+    kind = "a one-point" if len(support) == 1 else "a two-point"
+    return [Group("target", f"bias target {list(declared.target)}", hit,
+                  f"the bias target is singular: the moments of {what}, {kind} distribution on the boundary of the "
+                  "moment space; distributions on or near its support stay (nearly) singular after biasing, where "
+                  "the bound divides by zero (with a target strictly inside the moment space these rows pass)")]
+
+
+def _plain(x):
+    a = np.asarray(x)
+    if a.dtype.kind == "f":
+        return [None if not np.isfinite(v) else float(v) for v in a.reshape(-1)] if a.ndim else (
+            None if not np.isfinite(a) else float(a))
+    if a.dtype.kind in "iu":
+        return a.tolist()
+    return str(a) if a.ndim == 0 else [str(v) for v in a.reshape(-1)]
+
+
+def json_rows(name, meta, arrays, got, verdict, gs=()):
+    """Every row's verdict of one case as plain JSON values."""
+    o = meta["compare"][0]
+    label = {i: g.level for g in gs for i in g.rows}
+    n = len(verdict.row_pass)
+    per_row = [k for k in meta["input_order"] if np.ndim(arrays[k]) and len(arrays[k]) == n]  # not whole-case arrays
+    rows = []
+    for i in range(len(verdict.row_pass)):
+        rows.append({
+            "tc_id": int(np.asarray(arrays["tc_id"])[i]), "level": str(verdict.level[i]),
+            "category": str(np.asarray(arrays["category"])[i]), "flags": str(np.asarray(arrays["flags"])[i]),
+            "passed": bool(verdict.row_pass[i]),
+            "passed_strict": bool(verdict.strict_pass[i]) if verdict.strict_pass is not None else None,
+            "error": _plain(verdict.error[i]), "tolerance": _plain(verdict.tolerance[i]),
+            "got": _plain(np.asarray(got[o])[i]), "expected": _plain(np.asarray(arrays[o])[i]),
+            "inputs": {k: _plain(np.asarray(arrays[k])[i]) for k in per_row},
+            "cause": label.get(i, ""), "comment": str(np.asarray(arrays["comment"])[i]),
+        })
+    return {"case": name, "passed": bool(verdict.passed), "strict": bool(verdict.strict),
+            "failures": int(verdict.failures), "robustness": verdict.robustness_tally(),
+            "groups": [{"level": g.level, "flags": g.flags, "rows": g.count, "cause": g.cause} for g in gs],
+            "rows": rows}
+
+
+def write_json(path, cases, extra=None):
+    """Write ``{"cases": [...]}`` (and ``extra`` keys) atomically to ``path``."""
+    from .._io import write_text
+
+    doc = dict(extra or {})
+    doc["cases"] = list(cases)
+    return write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+
+
+#: Choices a port may have made without declaring them, tried by :func:`convention_groups`.
+CLAMP_CANDIDATES = (1e-6, 5e-6, 1e-5, 1 / 65535)
+
+
+def _candidates(case, profile):
+    """Profiles that differ from ``profile`` in the clamp (with its case test) or in one texel-format key."""
+    from dataclasses import replace
+
+    from .profile import CLAMP_TESTS, FORMAT_KEYS
+
+    out = []
+    if "clamp" in case.profile_keys:
+        for c in CLAMP_CANDIDATES:
+            for t in CLAMP_TESTS:
+                p = replace(profile, clamp=c, clamp_test=t)
+                if p.key != profile.key:
+                    out.append((p, "convention", f"clamp = {c:g}, clamp_test = {t!r}"))
+    if "format" in case.profile_keys:
+        current = dict(profile.format)
+        for k, values in FORMAT_KEYS.items():
+            for v in values:
+                if current.get(k) != v:
+                    p = replace(profile, format=tuple(sorted({**current, k: v}.items())))
+                    out.append((p, "format", f"format.{k} = {v!r}"))
+    return out
+
+
+def _narrowed(got, arrays):
+    """Integer readback words as the codes' dtype (where they fit), as the comparator wants them."""
+    out = {}
+    for o, g in got.items():
+        g = np.asarray(g)
+        want = np.asarray(arrays[o]).dtype if o in arrays else g.dtype
+        if g.dtype.kind in "ui" and want.kind in "ui" and g.dtype != want and g.size and \
+                g.min() >= np.iinfo(want).min and g.max() <= np.iinfo(want).max:
+            g = g.astype(want)
+        out[o] = g
+    return out
+
+
+def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
+    """A ``format`` (texel-format choice) or ``convention`` (Algorithm 3's clamp) group when the port's
+    outputs on its failing rows are those of another choice the paper leaves open: told by outputs, by
+    judging them against that choice's expected values (derived like any profile's, cached)."""
+    from .._arrays import InputError
+    from .cases import CASES
+    from .compare import compare
+    from .conventions import profiled_arrays
+    from .writer import manifest_entry
+
+    fail = ~verdict.row_pass
+    case = CASES.get(name)
+    if case is None or not fail.any() or not {"clamp", "format"} & set(case.profile_keys):
+        return []
+    got = _narrowed(got, base_arrays)
+    best = None
+    for p, level, what in _candidates(case, profile):
+        try:
+            pcase, arrays = profiled_arrays(name, p, arrays=base_arrays)
+            v = compare(manifest_entry(pcase, arrays), arrays, got, port_dtype, case=name)
+        except (InputError, TypeError, ValueError):  # a choice this version cannot evaluate
+            continue
+        explained = fail & v.row_pass
+        if v.failures < verdict.failures and (best is None or explained.sum() > best[0].sum()):
+            best = (explained, level, what)
+    if best is None or best[0].sum() < max(1, fail.sum() // 2):
+        return []
+    explained, level, what = best
+    return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
+                  f"the outputs on these rows are those of {what}: a choice the paper leaves open, not an "
+                  "arithmetic error; declare it in the profile (docs/ports.md)")]

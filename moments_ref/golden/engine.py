@@ -1,0 +1,417 @@
+"""Engine cases: the engine's own pipeline in the loop, from depth distributions to a shadow intensity.
+
+The moment cases feed Algorithm 1 the moments the papers define; they cannot see
+what an engine's bias does. The ``engine-*`` cases start from depth distributions:
+
+* one depth (at and between the planes); two depths, the near and far planes among
+  them; near- and far-plane mixtures (the moments of w δ_near + (1 − w) δ_far, which a
+  bias toward a two-point target keeps singular); tight clusters; three occluders
+  over a receiver (HPG17 Figure 9); and 9×9 Gaussian footprints of 4× MSAA samples
+  from the shipped scenes' shadow maps (HPG17 §4.1's filter);
+* the harness computes the unbiased moments of each distribution in the engine's
+  depth convention (exactly, rounded once); the port applies its own bias as its
+  profile declares (inside, or the harness before the call), then its bound
+  (``engine-lower``, ``engine-upper``: Algorithm 1) or its NLQ chain
+  (``engine-nlq64``, ``engine-nlq32``: the bias precedes Φ, HPG17 §3.2);
+* the expected value is the exact Z(z < zf) (upper: Z(z ≤ zf)) of the distribution;
+  the tolerance is how far a *correct* biased MSM may be from it: the largest
+  deviation, over the paper's presets and the declared α toward a range of targets
+  strictly inside the moment space (:data:`LEGIT_TARGETS`), of the bound of the
+  biased moments (float64) from Z, plus the jump of Z where zf sits on a depth of
+  the distribution, times 1.25; plus 16 times the spread of float32 evaluations (this
+  package and the papers' own code, on those biased moments and on the port's own
+  input moved by one ulp: the same safety factor as every golden tolerance); at
+  least 4 float32 ulps of 1.
+
+Verdicts come from outputs: a bias toward a singular target fails exactly where its
+outputs leave that band (:func:`singular_target_rows` says which rows the target
+explains, for the report).
+
+References
+----------
+HPG17, Peters and Klein 2015 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset
+from ._rows import Rows
+from .contract import PD_MIN, hankel_lambda_min
+
+__all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "singular_target_rows", "target_support", "moments_of_rows",
+           "legit_biases", "papers_chain32"]
+
+#: Targets strictly inside the moment space (papers' frame): the presets' and the uniform distribution's.
+LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3, 0.0, 0.2),
+                 (0.1, 0.4, 0.05, 0.3))
+_SAFETY, _SPREAD = 1.25, 16.0
+_SCENES = ("railing", "three-occluders", "chair")
+
+
+def _points(depths, weights):
+    return np.asarray(depths, np.float64), np.asarray(weights, np.float64) / np.sum(weights)
+
+
+def _synthetic():
+    """(depths, weights, category, comment, flags) of the hand-made distributions (papers' frame)."""
+    out = []
+    for d in (-1.0, -0.5, 0.0, 0.3, 1.0):
+        out.append(([d], [1.0], "edge", f"one depth {d}", ()))
+    for w in (0.25, 1 / 3, 0.5, 2 / 3, 0.75, 0.9):
+        out.append(([-1.0, 1.0], [w, 1 - w], "stiff", f"near plane (w = {w:.3g}) and far plane", ("near_far",)))
+    for zs, ws in (([-1.0, 0.2, 1.0], [0.3, 0.3, 0.4]), ([-1.0, -0.999, 1.0], [0.5, 0.2, 0.3])):
+        out.append((zs, ws, "stiff", f"near and far plane mixed with {zs[1]}", ("near_far",)))
+    for zs in ((-0.8, 0.4), (-0.5, 0.5), (0.2, 1.0), (-1.0, 0.6)):
+        out.append((list(zs), [0.6, 0.4], "random", f"two depths {zs}", ()))
+    for c, s in ((0.3, 1e-4), (-0.6, 1e-3), (0.95, 1e-4)):
+        out.append(([c - s, c, c + s / 2, c + s], [0.2, 0.3, 0.3, 0.2], "stiff", f"tight cluster of 4 depths within "
+                    f"{s:g} of {c}", ("cluster",)))
+    out.append(([-0.6, -0.2, 0.3, 1.0], [0.25, 0.25, 0.25, 0.25], "stiff",
+                "three occluders (umbrella, roof, railing) and the far plane (HPG17 Figure 9)", ()))
+    out.append(([-0.6, -0.2, 0.3], [0.3, 0.3, 0.4], "stiff", "three occluders (HPG17 Figure 9)", ()))
+    return out
+
+
+def _footprints(rng, per_scene=6, size=96):
+    """9×9 Gaussian footprints of 4× MSAA depths from the shipped scenes (HPG17 §4.1)."""
+    from ..gpu.filtering import SIGMA, TAPS, gaussian_weights
+    from ..scene.files import load_scene
+
+    g = gaussian_weights(TAPS, SIGMA)
+    w = (g[:, None] * g[None, :])[..., None] * np.full(4, 0.25)
+    h = TAPS // 2
+    out = []
+    for name in _SCENES:
+        depth, _ = load_scene(name).shadow_map(size=size, samples=4)
+        d = depth.astype(np.float64)
+        pad = np.pad(d, ((h, h), (h, h), (0, 0)), mode="edge")
+        # Footprints where occluders and receivers (or the far plane) mix: a depth range of at least 0.05.
+        span = np.array([[np.ptp(pad[i:i + TAPS, j:j + TAPS]) for j in range(0, size, 4)] for i in range(0, size, 4)])
+        cand = np.argwhere(span > 0.05) * 4
+        for i, j in cand[rng.choice(len(cand), min(per_scene, len(cand)), replace=False)]:
+            out.append((pad[i:i + TAPS, j:j + TAPS].reshape(-1), w.reshape(-1), "random",
+                        f"{name}: 9x9 footprint of 4x MSAA samples at texel ({i}, {j})", ("footprint",)))
+    return out
+
+
+def _receivers(z, rng):
+    """Fragment depths for one distribution: between its distinct depths, before and after them."""
+    u = np.unique(z)
+    zf = list(0.5 * (u[:-1] + u[1:])[:4]) + [max(-1.0, u[0] - 0.05), min(1.0, u[-1] + 0.05)]
+    if len(u) > 5:
+        zf += list(rng.uniform(max(-1.0, u[0] - 0.02), min(1.0, u[-1] + 0.02), 2))
+    return np.unique(np.asarray(zf, np.float64))
+
+
+def _engine_rows(rng, dtype):
+    rng = np.random.default_rng(20170723)  # the same distributions in every engine case (HPG17's year and month)
+    dists = _synthetic() + _footprints(rng)
+    k = max(len(z) for z, *_ in dists)
+    zf, cat, com, flags, sup, mass = [], [], [], [], [], []
+    for z, w, c, what, fl in dists:
+        z, w = _points(z, w)
+        for x in _receivers(z, rng):
+            zf.append(x), cat.append(c), com.append(f"{what}; zf = {x:.9g}; expected Z(z < zf) of the distribution")
+            flags.append(fl + (("support_point",) if np.any(z == x) else ()))
+            # One row per distribution, padded with points of mass 0 (they change no moment and no Z).
+            sup.append(np.pad(z, (0, k - len(z)))), mass.append(np.pad(w, (0, k - len(w))))
+    support, mass = np.array(sup), np.array(mass)
+    b = moments_of_rows(support, mass, np.dtype(dtype))  # rounded once
+    inputs = {"b": b.astype(np.float64), "zf": np.array(zf), "support": support, "mass": mass}
+    return Rows(inputs, cat, com, flags)
+
+
+_SPLIT = 134217729.0  # 2^27 + 1 (Dekker)
+
+
+def _two_sum(a, b):
+    s = a + b
+    v = s - a
+    return s, (a - (s - v)) + (b - v)
+
+
+def _two_prod(a, b):
+    p = a * b
+    ah = a * _SPLIT
+    ah = ah - (ah - a)
+    bh = b * _SPLIT
+    bh = bh - (bh - b)
+    al, bl = a - ah, b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def _dd_add(x, y):
+    s, e = _two_sum(x[0], y[0])
+    e = e + x[1] + y[1]
+    return _two_sum(s, e)
+
+
+def _dd_mul(x, y):
+    p, e = _two_prod(x[0], y[0])
+    e = e + (x[0] * y[1] + x[1] * y[0])
+    return _two_sum(p, e)
+
+
+def _dd_round(hi, lo, dtype):
+    """A normalized double-double rounded once to ``dtype`` (float32: no double rounding at ties)."""
+    if np.dtype(dtype) == np.float64:
+        return hi + lo
+    x = hi.astype(np.float32)
+    r = (hi - x.astype(np.float64)) + lo  # what x misses, about exactly
+    up = np.nextafter(x, np.float32(np.inf)).astype(np.float64) - x
+    down = x - np.nextafter(x, np.float32(-np.inf)).astype(np.float64)
+    x = np.where(r > up / 2, np.nextafter(x, np.float32(np.inf)), x)
+    return np.where(r < -down / 2, np.nextafter(x, np.float32(-np.inf)), x)
+
+
+def moments_of_rows(support, mass, dtype, bias=None):
+    """``(n, 4)``: each row's distribution's moments ``Σ m z^k / Σ m`` (``support``, ``mass``: ``(n, K)``, points of
+    mass 0 for padding), biased (``bias``: a BiasPreset applied as ``b − α (b − b*)``), in double-double
+    arithmetic (about 2^-100 relative) and rounded once to ``dtype``."""
+    z, w = np.asarray(support, np.float64), np.asarray(mass, np.float64)
+    n, k = z.shape
+    zero = np.zeros(n)
+    tot, acc = (zero, zero), [(zero, zero)] * 4
+    for j in range(k):  # compensated sums over each row's points, vectorized over rows
+        u = (z[:, j], zero)
+        p = u
+        wj = (w[:, j], zero)
+        tot = _dd_add(tot, wj)
+        for m in range(4):
+            acc[m] = _dd_add(acc[m], _dd_mul(wj, p))
+            p = _dd_mul(p, u)
+    out = np.empty((n, 4), dtype=dtype)
+    for m in range(4):
+        q0 = acc[m][0] / tot[0]  # b = acc / tot with one correction step
+        r = _dd_add(acc[m], _dd_mul((-q0, zero), tot))
+        b = _two_sum(q0, (r[0] + r[1]) / tot[0])
+        if bias is not None:
+            d = _dd_add(b, (np.full(n, -bias.target[m]), zero))
+            b = _dd_add(b, _dd_mul((np.full(n, -bias.alpha), zero), d))
+        out[:, m] = _dd_round(b[0], b[1], dtype)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Expected values and tolerances
+
+
+def _preset(alpha, target, unit):
+    from ..scene.depth import moments_affine
+
+    t = np.asarray(target, np.float64)
+    if unit:
+        t = moments_affine(t, 0.5, 0.5)
+    return BiasPreset(float(alpha), tuple(float(x) for x in t), "legit")
+
+
+def legit_biases(ctx):
+    """The legitimate biases a correct engine may use (engine frame): presets, and the declared α toward
+    each of :data:`LEGIT_TARGETS`."""
+    alphas = {BIAS_FLOAT32.alpha, BIAS_UNORM16.alpha}
+    if ctx.get("alpha"):
+        alphas.add(float(ctx["alpha"]))
+    return [_preset(a, t, ctx.get("unit", False)) for a in sorted(alphas) for t in LEGIT_TARGETS]
+
+
+def _chain(ctx, preset, dt):
+    """The legitimate pipeline with ``preset``: Algorithm 1 (and the slides' code) or the NLQ chain."""
+    from ..moments import bias_moments
+    from ..msm import shadow_intensity
+    from .paper import printed_bound, slides_bound
+
+    fmt, bound = ctx.get("fmt"), ctx.get("bound", "lower")
+    if fmt is not None:
+        from .endtoend import nlq_chain
+
+        from .gpuspread import nlq_chain_gpu
+
+        args = (fmt, preset, ctx.get("clamp"), ctx.get("clamp_test") or "stored")
+        texel = ctx.get("texel")
+        chains = [nlq_chain(*args, texel)] + ([nlq_chain_gpu(*args, sign=s, texel=texel) for s in (1, -1)]
+                                              if dt == np.float32 else [])
+        return [lambda b, zf, c=c: c(b.astype(dt), zf.astype(dt))[0] for c in chains]
+
+    def biased(b):
+        return b.astype(dt) if preset is None else bias_moments(b.astype(dt), preset)
+
+    out = [lambda b, zf: shadow_intensity(biased(b), zf.astype(dt), bound=bound)]
+    if dt == np.float32:
+        out.append(lambda b, zf: printed_bound(biased(b), zf, bound, dt))
+        out.append(lambda b, zf: slides_bound(biased(b), zf, bound, dt))
+    return out
+
+
+def papers_chain32(arrays, preset, ctx, n):
+    """The papers' own formulation (last of :func:`_chain`) in float32 with ``preset``, on the rows'
+    unbiased moments: for the diagnosis of a bias target."""
+    b = moments_of_rows(arrays["support"], arrays["mass"], np.dtype(np.float32)).astype(np.float64)
+    with np.errstate(all="ignore"):
+        return np.asarray(_chain(ctx, preset, np.float32)[-1](b, np.asarray(arrays["zf"], np.float64)), np.float64)
+
+
+def _input_spread(ctx, b, zf, dt):
+    """How far this package's evaluation in ``dt`` spreads on the port's own input ``b`` (its bias inside,
+    if declared) and on b moved by one ulp per component: the rounding of the input. (The papers' own code
+    is legitimate only on moments a correct bias produces: it is measured with the legitimate biases.)"""
+    inside = ctx.get("inside")
+    b64 = np.asarray(b, np.float64)
+    ref = np.asarray(_chain(ctx, inside, np.float64)[0](b64, zf), np.float64)
+    eps = float(np.finfo(dt).eps)
+    sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
+    out = np.zeros(len(zf))
+    f = _chain(ctx, inside, dt.type)[0]
+    for x in (b64, b64 * (1 + eps * sign), b64 * (1 - eps * sign)):
+        out = np.fmax(out, np.abs(np.asarray(f(x.astype(dt).astype(np.float64), zf), np.float64) - ref))
+    return out
+
+
+def _exact_z(arrays, upper):
+    s, m, zf = np.asarray(arrays["support"]), np.asarray(arrays["mass"]), np.asarray(arrays["zf"], np.float64)
+    below = (s <= zf[:, None]) if upper else (s < zf[:, None])
+    return (m * below).sum(axis=1) / m.sum(axis=1)
+
+
+def derive_engine(case, arrays, category, comment, flags, contract=None):
+    """Arrays of an engine case: the port's input b, expected Z, per-row tolerances (module docstring).
+
+    ``arrays`` holds the rows' ``zf`` and distributions (``support``, ``mass``: per row,
+    padded with points of mass 0) in the engine's depth convention; ``case.engine`` the context (the
+    bias the harness applies before the call, the declared α, the output).
+    """
+    from .units import PORT_DTYPES, ceil2, ulp
+
+    ctx = case.engine
+    n = len(category)
+    dt = np.dtype(case.dtype)
+    sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
+    b = moments_of_rows(sup, mass, dt, bias=ctx.get("before"))
+    z = _exact_z(arrays, ctx.get("bound") == "upper")
+    unbiased = {d: moments_of_rows(sup, mass, np.dtype(d)).astype(np.float64) for d in PORT_DTYPES}
+    zf = np.asarray(arrays["zf"], np.float64)
+    dev, spread = np.zeros(n), {d: np.zeros(n) for d in PORT_DTYPES}
+    with np.errstate(all="ignore"):
+        for p in legit_biases(ctx):
+            v64 = np.asarray(_chain(ctx, p, np.float64)[0](unbiased["float64"], zf), np.float64)
+            dev = np.fmax(dev, np.abs(v64 - z))
+            for d in PORT_DTYPES:
+                for f in _chain(ctx, p, np.dtype(d).type):
+                    spread[d] = np.fmax(spread[d], np.abs(np.asarray(f(unbiased[d], zf), np.float64) - v64))
+        for d in PORT_DTYPES:  # the rounding of the port's own input, as in every golden case
+            spread[d] = np.fmax(spread[d], _input_spread(ctx, b, zf, np.dtype(d)))
+    # At zf on a depth of the distribution Z jumps by that depth's mass; a correct biased bound lands
+    # anywhere across the jump (its support point is within rounding of zf).
+    jump = (mass * (sup == zf[:, None])).sum(axis=1) / mass.sum(axis=1)
+    expected = 1 - z if ctx.get("visibility") else z
+    out = {"b": b, "intensity": expected, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
+    for d in PORT_DTYPES:
+        t = ceil2(np.maximum(_SAFETY * (dev + jump) + _SPREAD * spread[d], 4 * ulp(np.ones(n), d)))
+        out[f"intensity_tolerance_{d}"] = np.minimum(t, 1.0)
+    out["category"] = np.asarray(category).astype("U6")
+    out["comment"] = np.asarray(comment).astype(f"U{max(1, max(len(c) for c in comment))}")
+    joined = [",".join(dict.fromkeys(f)) for f in flags]
+    out["flags"] = np.asarray(joined).astype(f"U{max(1, max(len(f) for f in joined))}")
+    out["result"] = np.full(n, "valid", dtype="U10")
+    if case.dtype == "float32":  # informational: the reference's own float32 pipeline on the port's input
+        inside = ctx.get("inside")
+        f = _chain(ctx, inside, np.float32)[0] if inside is not None else _chain(ctx, None, np.float32)[0]
+        v = np.asarray(f(b.astype(np.float64), zf), np.float32)
+        out["intensity_float32"] = 1 - v if ctx.get("visibility") else v
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Diagnosis: a singular bias target
+
+
+def target_support(target):
+    """Support points and weights of a singular target (its unique distribution), else None."""
+    t = np.asarray(target, np.float64)
+    lam, vec = np.linalg.eigh(np.array([[1, t[0], t[1]], [t[0], t[1], t[2]], [t[1], t[2], t[3]]]))
+    if lam[0] > PD_MIN:
+        return None
+    if lam[1] <= PD_MIN:  # rank 1: one point
+        return [(float(t[0]), 1.0)]
+    c = vec[:, 0]  # the kernel: c0 + c1 z + c2 z² vanishes on the support
+    pts = np.sort(np.roots(c[::-1]).real) if abs(c[2]) > 1e-12 else np.array([-c[0] / c[1]])
+    if len(pts) == 1:
+        return [(float(pts[0]), 1.0)]
+    w2 = (t[0] - pts[0]) / (pts[1] - pts[0])
+    return [(float(pts[0]), float(1 - w2)), (float(pts[1]), float(w2))]
+
+
+def singular_target_rows(arrays, bias, unit=False):
+    """Rows whose distribution stays singular under ``bias`` (α, target in the engine frame): a bound with
+    no singular branch divides by zero there. Empty unless the target is singular."""
+    if target_support(bias.target) is None:
+        return np.zeros(len(arrays["zf"]), bool)
+    n = len(arrays["zf"])
+    b = moments_of_rows(arrays["support"], arrays["mass"], np.dtype(np.float64))
+    biased = (1 - bias.alpha) * b + bias.alpha * np.asarray(bias.target, np.float64)
+    return hankel_lambda_min(biased) <= PD_MIN
+
+
+# ---------------------------------------------------------------------------
+# The cases
+
+
+def _variant(texel, bound):
+    """A profile's bias (inside or before), depth convention and output for an engine case."""
+
+    def variant(bias=None, clamp=None, fmt=None, before=None, profile=None, clamp_test=None, **_):
+        from .variants import preset_of
+
+        declared = profile.bias if profile is not None and profile.bias is not None else None
+        ctx = {"fmt": texel, "bound": bound, "clamp": clamp, "clamp_test": clamp_test, "texel": dict(fmt or {}), "unit": profile is not None and profile.depth == "[0,1]",
+               "visibility": profile is not None and profile.output == "visibility",
+               "before": None if before is None else preset_of(before),
+               "inside": None if bias is None else preset_of(bias),
+               "alpha": declared.alpha if declared is not None and declared.active else None}
+        return {"engine": ctx, "reference": engine_reference(ctx)}
+
+    return variant
+
+
+def engine_reference(ctx):
+    """This package as the engine's port: its bias inside (if declared), Algorithm 1 or the NLQ chain."""
+
+    def reference(b, zf):
+        dt = np.asarray(b).dtype.type
+        v = np.asarray(_chain(ctx, ctx.get("inside"), dt)[0](np.asarray(b), np.asarray(zf)), dt)
+        return (1 - v if ctx.get("visibility") else v,)
+
+    return reference
+
+
+def _default_ctx(fmt, bound):
+    return {"fmt": fmt, "bound": bound, "clamp": None, "unit": False, "visibility": False,
+            "before": BIAS_FLOAT32, "inside": None, "alpha": None}
+
+
+def engine_specs(dt):
+    """Keyword dicts for :class:`moments_ref.golden.cases.Case`, one per engine case."""
+    common = dict(dtype=dt, inputs=("b", "zf"), outputs=("intensity",), rows=_engine_rows, truth=None,
+                  value_range=(0, 1), aux=("support", "mass"), deriver=derive_engine, width=4,
+                  default_bias=("before", BIAS_FLOAT32), bias_before=True)
+    specs = []
+    for bound in ("lower", "upper"):
+        specs.append(dict(
+            **common, name=f"engine-{bound}-{dt}", function="engine.shadow_intensity", kwargs={"bound": bound},
+            depth_roles={"zf": "depth", "support": "depth"}, profile_keys=("bias",), variant=_variant(None, bound),
+            engine=_default_ctx(None, bound), reference=engine_reference(_default_ctx(None, bound)),
+            description=f"the engine's pipeline (HPG17 §3.2, Algorithm 1, {bound} bound): depth distributions -> "
+                        "unbiased moments in the engine's convention -> the engine's bias (declared in its profile; "
+                        "default BIAS_FLOAT32 applied before the call) -> the bound; expected: the exact "
+                        f"Z(z {'<=' if bound == 'upper' else '<'} zf) of the distribution, tolerance: the deviation of "
+                        "correct biased bounds"))
+    for f in ("64", "32"):
+        specs.append(dict(
+            **common, name=f"engine-nlq{f}-{dt}", function=f"engine.nlq{f}", kwargs={},
+            profile_keys=("bias", "clamp", "format"), variant=_variant(f, "lower"), engine=_default_ctx(f, "lower"),
+            reference=engine_reference(_default_ctx(f, "lower")),
+            description=f"the engine's NLQ pipeline (HPG17 §3.2, Alg. 2, §3.3/§3.5, Alg. 3): depth distributions "
+                        f"-> unbiased moments -> the engine's bias -> phi -> pack{f} -> unpack{f} -> shade; expected: "
+                        "the exact Z(z < zf) of the distribution, tolerance: the deviation of correct biased chains"))
+    return specs

@@ -1,0 +1,108 @@
+"""What a GPU does differently, as legitimate variants of the chained cases' spread model.
+
+A GPU filters in float32, in whatever order its threads add, and its ``log`` and
+``exp`` are a few ulps off (GLSL 4.30 §4.7.1: 3 ulp, ``exp`` 3 + 2|x| ulp). The
+chained cases (``e2e-*``, ``e2e-block-*``, ``engine-nlq*``, and compute-kernel cases)
+measure their tolerances on these too:
+
+* :func:`float32_filters`: the MSAA resolve and the two 9-tap Gaussian passes of
+  HPG17 §4.1 in float32 as the kernels of :mod:`moments_ref.gpu.filter32` compute
+  them (sums in sequential, reversed, pairwise or symmetric order, z⁴ two ways, the
+  weights rounded or computed in float32, and the §4.1 shared-memory emulation);
+* :func:`nlq_chain_gpu`: the NLQ chain with Ψ4's two logarithms and Ψ4⁻¹'s two
+  exponentials :data:`TRANSCENDENTAL_ULPS` ulps off, up or down (as a relative change
+  of ξ4 of the same effect, before encoding and after decoding).
+
+References
+----------
+HPG17 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["float32_filters", "nlq_chain_gpu", "TRANSCENDENTAL_ULPS", "block_spread", "chain_spread"]
+
+#: How far a GPU's log and exp may be off (GLSL 4.30 §4.7.1: 3 ulp outside [0.5, 2]).
+TRANSCENDENTAL_ULPS = 3
+_EPS32 = float(np.finfo(np.float32).eps)
+
+
+def float32_filters(depth):
+    """Filtered moments ``(H, W, 4)`` float32 of one block of MSAA depths, as GPUs compute them: every
+    legitimate float32 kernel of :data:`moments_ref.gpu.filter32.VARIANTS` (the one place they live)."""
+    from ..gpu.filter32 import variant_moments
+
+    return list(variant_moments(np.asarray(depth, np.float32)).values())
+
+
+def _nudge_xi(r, sign, decoded):
+    """ξ4 moved as a GPU's log (encoding) or exp (decoding) off by TRANSCENDENTAL_ULPS ulps would move it."""
+    r = np.array(r, copy=True)
+    xi = np.maximum(r[..., 3].astype(np.float64), 1.2e-7)
+    big_l = np.log(xi * 1e7)  # ln(ξ4 · 1e7) in [0.18, 14.7]
+    if decoded:  # ξ4 = 1e-7 exp(exp(x)): outer exp 1 unit, inner exp amplified by its value L
+        rel = 1 + np.abs(big_l)
+    else:  # Ψ4 = (ln ln(1e7 ξ4) − c0)/c1: inner log L, outer log ln L, both relative to ξ4
+        rel = np.abs(big_l) + np.abs(big_l * np.log(np.maximum(big_l, 1e-300)))
+    r[..., 3] = (xi * (1 + sign * TRANSCENDENTAL_ULPS * _EPS32 * rel)).astype(r.dtype)
+    return r
+
+
+def nlq_chain_gpu(fmt, bias, clamp=None, case_test="stored", sign=1, texel=None):
+    """The NLQ chain of :func:`moments_ref.golden.endtoend.nlq_chain` with a GPU's log and exp (``sign``: up
+    or down; ``texel``: the profile's texel-format choices)."""
+
+    def chain(b, zf):
+        from ..moments import bias_moments
+        from ..nonlinear import SHADE_TOLERANCE, phi
+        from ..packing import pack32, pack64, unpack32, unpack64
+        from .variants import decode32, rounding64, shade_reference
+
+        dt = np.asarray(b).dtype
+        r = _nudge_xi(phi(b if bias is None else bias_moments(b, bias)), sign, decoded=False)
+        if fmt == "64":
+            r = unpack64(pack64(r, **rounding64(texel)), dtype=dt)
+        else:
+            r = unpack32(pack32(r), dtype=dt, **decode32(texel))
+        return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(
+            _nudge_xi(r, sign, decoded=True), zf)
+
+    return chain
+
+
+def chain_spread(fmt, bias, clamp=None, case_test="stored", texel=None):
+    """A ``spread_hook`` for ``e2e-nlq*``: the chain with a GPU's log and exp, in float32 ports' precision."""
+
+    def hook(inputs, dt):
+        if dt != np.float32:
+            return []
+        b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
+        return [nlq_chain_gpu(fmt, bias, clamp, case_test, s, texel)(b, zf) for s in (1, -1)]
+
+    return hook
+
+
+def block_spread(fmt, bias, clamp=None, case_test="stored", guard=4, nlq_chain=None, texel=None):
+    """A ``spread_hook`` for ``e2e-block-nlq*``: float32 filters, then the chain ``nlq_chain`` (the case's,
+    golden.endtoend) and the same with a GPU's log and exp."""
+
+    def hook(inputs, dt):
+        if dt != np.float32:
+            return []
+        depth, zf = np.asarray(inputs["depth"]), np.asarray(inputs["zf"], dt)
+        chains = [nlq_chain(fmt, bias, clamp, case_test, texel)] + [
+            nlq_chain_gpu(fmt, bias, clamp, case_test, s, texel) for s in (1, -1)]
+        outs = []
+        per_block = [float32_filters(depth[i]) for i in range(len(depth))]  # one block per row
+        for k in range(len(per_block[0])):
+            for chain in chains:
+                out = np.empty(zf.shape, dt)
+                for i in range(len(depth)):
+                    b = per_block[i][k][guard:-guard, guard:-guard].astype(dt)
+                    out[i] = chain(b, zf[i])[0]
+                outs.append((out,))
+        return outs
+
+    return hook

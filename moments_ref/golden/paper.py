@@ -1,0 +1,147 @@
+"""The papers' own formulations, run in a port's precision: legitimate variants of the spread model.
+
+The reference computes Algorithm 1 with care (roots without cancellation, an exact
+branch for singular B(b)). The code the papers print does not, and it is what the
+engines ship: the slides' "Compute the shadow intensity" (Peters' demo code, as Unity
+HDRP's ``HDIMS.hlsl`` and most public ports carry it) takes the roots as
+``−p/2 ∓ √(p²/4 − q)`` and weighs the support points by the "Switch"/"Quotient"
+formula. Run in float32 it is a legitimate implementation of the same equation: its
+deviation on a row is part of the spread that sets the row's tolerance
+(:mod:`moments_ref.golden.spread`). Where it has no finite value (singular B(b),
+outside the contract) it contributes nothing. The same holds for Algorithm 3 as
+HPG17 prints it (:func:`printed_shade`): its root ``−q1/2 − √(q1²/4 − q0)`` cancels as
+zf approaches y2 from below (up to 6e-3 in float32), and at zf = y2 exactly it has no
+value (q1 = ±∞), which a port must not return.
+
+References
+----------
+Slides, HPG17, Peters and Klein 2015 : see docs/bib.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["slides_bound", "printed_bound", "alg1_paper_spread", "printed_shade", "alg3_paper_spread"]
+
+
+def slides_bound(b, zf, bound="lower", dtype=np.float32):
+    """The slides' "Compute the shadow intensity", operation by operation in ``dtype``.
+
+    ``bound="upper"`` adds the weight of the fragment depth, ``w0 = (z1 z2 − b1 (z1 + z2)
+    + b2) / ((zf − z1)(zf − z2))``, computed from the same roots. Returns ``(n,)``
+    in ``dtype``, saturated; NaN where the formula divides by zero (no ``saturate``
+    is applied to NaN here, so that the caller can leave those rows out).
+    """
+    t = np.dtype(dtype).type
+    b = np.asarray(b).astype(dtype)
+    z0 = np.asarray(zf).astype(dtype)
+    b0, b1, b2, b3 = (b[..., k] for k in range(4))
+    with np.errstate(all="ignore"):
+        l32d22 = -b0 * b1 + b2
+        d22 = -b0 * b0 + b1
+        var2 = -b1 * b1 + b3
+        d33d22 = var2 * d22 + (-l32d22) * l32d22
+        inv_d22 = t(1) / d22
+        l32 = l32d22 * inv_d22
+        c1 = z0 - b0
+        c2 = z0 * z0 - (b1 + l32 * c1)
+        c1 = c1 * inv_d22
+        c2 = c2 * (d22 / d33d22)
+        c1 = c1 - l32 * c2
+        c0 = t(1) - (c1 * b0 + c2 * b1)
+        p = c1 / c2
+        q = c0 / c2
+        r = np.sqrt(p * p * t(0.25) - q)
+        z1 = -p * t(0.5) - r
+        z2 = -p * t(0.5) + r
+        far = z2 < z0
+        mid = ~far & (z1 < z0)
+        s0 = np.where(far, z1, np.where(mid, z0, t(0)))
+        s1 = np.where(far, z0, np.where(mid, z1, t(0)))
+        s2 = np.where(far, t(1), t(0))
+        s3 = np.where(far | mid, t(1), t(0))
+        quotient = (s0 * z2 - b0 * (s0 + z2) + b1) / ((z2 - s1) * (z0 - z1))
+        out = s2 + s3 * quotient
+        if bound == "upper":
+            out = out + (z1 * z2 - b0 * (z1 + z2) + b1) / ((z0 - z1) * (z0 - z2))
+        return np.where(np.isnan(out), out, np.clip(out, 0, 1)).astype(dtype)
+
+
+def printed_bound(b, zf, bound="lower", dtype=np.float32):
+    """HPG17 Algorithm 1 as printed, operation by operation in ``dtype``: B(b) q = (1, zf, zf²) through
+    B = L D Lᵀ, the roots of q2 z² + q1 z + q0 by the textbook formula, the weights of the Vandermonde
+    system (step 4) in closed form, the sum of the weights of z_l < zf (upper: ≤). NaN where it divides
+    by zero; nothing is saturated."""
+    t = np.dtype(dtype).type
+    b = np.asarray(b).astype(dtype)
+    z0 = np.asarray(zf).astype(dtype)
+    b1, b2, b3, b4 = (b[..., k] for k in range(4))
+    with np.errstate(all="ignore"):
+        d22 = b2 - b1 * b1
+        l32 = (b3 - b1 * b2) / d22
+        d33 = (b4 - b2 * b2) - l32 * l32 * d22
+        c1 = z0 - b1  # forward substitution L y = (1, zf, zf²)
+        c2 = z0 * z0 - b2 - l32 * c1
+        q2 = c2 / d33  # scaling and backward substitution
+        q1 = c1 / d22 - l32 * q2
+        q0 = t(1) - b1 * q1 - b2 * q2
+        r = np.sqrt(q1 * q1 - t(4) * q2 * q0)
+        z1 = (-q1 - r) / (t(2) * q2)
+        z2 = (-q1 + r) / (t(2) * q2)
+        z1, z2 = np.minimum(z1, z2), np.maximum(z1, z2)
+        w0 = (z1 * z2 - b1 * (z1 + z2) + b2) / ((z0 - z1) * (z0 - z2))
+        w1 = (z0 * z2 - b1 * (z0 + z2) + b2) / ((z1 - z0) * (z1 - z2))
+        w2 = (z0 * z1 - b1 * (z0 + z1) + b2) / ((z2 - z0) * (z2 - z1))
+        hit = (lambda z: z <= z0) if bound == "upper" else (lambda z: z < z0)
+        out = np.where(hit(z1), w1, t(0)) + np.where(hit(z2), w2, t(0)) + (w0 if bound == "upper" else t(0))
+        return np.where(np.isnan(out), out, np.clip(out, 0, 1)).astype(dtype)
+
+
+def alg1_paper_spread(bound):
+    """A ``spread_hook`` for Algorithm 1 cases: the slides' code and the printed algorithm in the port's
+    precision."""
+
+    def hook(inputs, dt):
+        return [(slides_bound(inputs["b"], inputs["zf"], bound, dt),),
+                (printed_bound(inputs["b"], inputs["zf"], bound, dt),)]
+
+    return hook
+
+
+def printed_shade(r, zf, dtype=np.float32, clamp=1e-6, case_test="stored"):
+    """HPG17 Algorithm 3 as printed, with its §3.4 clamps, operation by operation in ``dtype``.
+
+    ``case_test``: ``"stored"`` tests ``zf <= y2`` on the stored y2 (the reference's
+    reading), ``"clamped"`` tests ``z'f < 1`` on the clamped gap (the author's demo
+    code). NaN where the printed formula has no value (zf = y2 with the stored test,
+    ξ4 = 0); nothing is saturated.
+    """
+    t = np.dtype(dtype).type
+    r = np.asarray(r).astype(dtype)
+    zf = np.asarray(zf).astype(dtype)
+    y1, y2, v2, xi4 = (r[..., k] for k in range(4))
+    eps = t(clamp)
+    with np.errstate(all="ignore"):
+        v2 = np.minimum(np.maximum(v2, eps), t(1) - eps)
+        gap = np.maximum(y2 - y1, eps)
+        zp = (zf - y1) / gap
+        g2 = gap * gap
+        xip = xi4 / (g2 * g2)
+        inside = (zf <= y2) if case_test == "stored" else (zp < 1)
+        q0 = -xip / ((t(1) - v2) * zp)
+        q1 = -q0 * (v2 - zp) / (v2 - v2 * zp) - t(1)
+        zl = np.where(inside, -q1 / t(2) - np.sqrt(q1 * q1 / t(4) - q0), zp)
+        a = (t(1) - zl) * (t(1) - zl)
+        wl = t(1) / (a / (t(1) - v2) + zl * zl / v2 + a * zl * zl / xip)
+        out = np.where(inside, wl, t(1) - wl)
+        return np.where(zf <= y1, t(0), out).astype(dtype)
+
+
+def alg3_paper_spread(clamp=1e-6, case_test="stored"):
+    """A ``spread_hook`` for Algorithm 3: the printed formula in the port's precision."""
+
+    def hook(inputs, dt):
+        return [(printed_shade(inputs["r"], inputs["zf"], dt, clamp, case_test),)]
+
+    return hook

@@ -1,0 +1,77 @@
+"""Oracles the tests share: independent checks of the moment kernels and the golden folders they read.
+
+* :func:`check_bounds`: the bounds of a moment kernel bracket the exact Z of the drawn
+  distribution (``tools.strategies.exact_shadow``), for four and six moments alike;
+* :func:`zf_candidates`: the drawn fragment depth plus every support point and its float
+  neighbours (the hard spots of a bound);
+* :func:`lp_lower` on :func:`lp_grid`: the lower bound as the minimum of a linear program over
+  distributions on a grid (scipy HiGHS): the sharpness of Algorithm 1 and of msm6;
+* :func:`golden_folder`: golden vectors written once per test process (conftest's fixtures).
+"""
+
+from __future__ import annotations
+
+import functools
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import linprog
+
+from moments_ref.moments import bias_moments, power_moments
+from moments_ref.tools.strategies import exact_shadow
+
+
+def zf_candidates(z, zf):
+    """The drawn ``zf`` plus every support point of ``z`` and its float neighbours, clipped to [-1, 1]."""
+    zs = [zf] + list(z) + list(np.nextafter(z, 2.0)) + list(np.nextafter(z, -2.0))
+    return np.clip(np.asarray(zs, dtype=np.float64), -1, 1)
+
+
+def check_bounds(bounds, z, w, zf, dtype, slack, preset, n=4):
+    """Assert lower ≤ Z(z < zf) ≤ Z(z ≤ zf) ≤ upper (up to ``slack``) for the biased moments of (z, w).
+
+    ``bounds(b, zf) -> (lower, upper)``; the ``n`` moments are computed in float64, cast to
+    ``dtype`` and biased there with ``preset``; the exact Z is taken at the depth the kernel
+    sees (``zf`` rounded to ``dtype``).
+    """
+    b = bias_moments(power_moments(z, w, n=n).astype(dtype), preset)
+    zf_d = zf.astype(dtype)
+    zf_x = zf_d.astype(np.float64)
+    lower, upper = (np.asarray(x, dtype=np.float64) for x in bounds(b, zf_d))
+    z_lt, z_le = exact_shadow(z, w, zf_x), exact_shadow(z, w, zf_x, strict=False)
+    assert np.isfinite(lower).all() and np.isfinite(upper).all()
+    assert (lower <= z_lt + slack).all(), (b, zf_d[lower > z_lt + slack], lower, z_lt)
+    assert (z_le <= upper + slack).all(), (b, zf_d[z_le > upper + slack], upper, z_le)
+    assert (lower <= upper).all()
+
+
+def lp_lower(b, zf, grid):
+    """min Σ_{g < zf} x_g  s.t.  Σ x_g g^k = b_k (k = 0..n), x ≥ 0 (HiGHS), for the n moments ``b``."""
+    A = np.vander(grid, len(b) + 1, increasing=True).T
+    res = linprog((grid < zf).astype(float), A_eq=A, b_eq=np.concatenate([[1.0], b]), bounds=(0, None),
+                  method="highs", options={"primal_feasibility_tolerance": 1e-10,
+                                           "dual_feasibility_tolerance": 1e-10})
+    assert res.status == 0, res.message
+    return res.fun
+
+
+def lp_grid(n):
+    """``n`` grid points on [-3, 3]; an irrational shift keeps zf and the canonical points off the grid."""
+    return np.linspace(-3, 3, n) + (6 / (n - 1)) * (np.sqrt(2) - 1)
+
+
+@functools.lru_cache(maxsize=None)
+def golden_folder(cases=None):
+    """Goldens of ``cases`` (a tuple of names; None: every case), written once per test process.
+
+    The CPU seconds of the writing are in ``.cpu_seconds`` beside the files.
+    """
+    from moments_ref import golden
+
+    d = Path(tempfile.mkdtemp(prefix="moments-ref-test-golden-"))
+    t0 = time.process_time()
+    golden.write(d, None if cases is None else list(cases))
+    d.joinpath(".cpu_seconds").write_text(str(time.process_time() - t0))
+    return d
