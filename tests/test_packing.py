@@ -463,3 +463,50 @@ def test_keyword_choices():
     want = pk.pack64(nl.phi(bias_moments(b, BIAS_FLOAT32)), xi_rounding="nearest")
     assert np.array_equal(pk.nlq_texels(b, "nlq64", xi_rounding="nearest"), want)
     assert not np.array_equal(want, pk.nlq_texels(b, "nlq64"))
+
+
+# ---------------------------------------------------------------------------
+# The chunked encoders store exactly saturate(r)
+
+
+def _needs_clamping(n, dtype, seed):
+    """Rows out of the stored ranges, with y1 one ulp above y2 (rounding noise the encoders accept)."""
+    rng = np.random.default_rng(seed)
+    y = np.sort(rng.uniform(-1.3, 1.3, (n, 2)), axis=1).astype(dtype)
+    r = np.stack([y[:, 0], y[:, 1], rng.uniform(-0.2, 1.2, n).astype(dtype),
+                  rng.uniform(-0.1, 2.0, n).astype(dtype)], axis=-1)
+    above = rng.random(n) < 0.4
+    r[above, 0] = np.nextafter(r[above, 1], dtype(np.inf))  # y1 = y2 + 1 ulp, also beyond ±1
+    r[::5, 1] = np.maximum(r[::5, 1], dtype(1.05))
+    r[::5, 0] = np.nextafter(r[::5, 1], dtype(np.inf))
+    return r
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("chunk", [7, 8192])
+def test_the_chunked_encoders_store_saturate_of_r(dtype, chunk, monkeypatch):
+    # Every chunk (whole, and the short last one) holds saturate(r) exactly: y1, y2 in
+    # [-1, 1] with y2 >= y1, v2 in [0, 1], xi4 >= 0; and the codes are those of saturate(r).
+    r = _needs_clamping(20000 + 3, dtype, 11)
+    pk._bounds.cache_clear()
+    monkeypatch.setattr(pk, "_ENCODE_CHUNK", chunk)
+    try:
+        got = np.concatenate([rows for _, _, rows, _ in pk._encoder_rows(r)], axis=1).T
+        want = pk.saturate(r)
+        np.testing.assert_array_equal(got, want)
+        assert np.all(want[:, 1] >= want[:, 0]) and np.all(np.abs(want[:, :2]) <= 1)
+        assert np.all((want[:, 2] >= 0) & (want[:, 2] <= 1)) and np.all(want[:, 3] >= 0)
+        np.testing.assert_array_equal(pk.pack64(r), pk.pack64(want))
+        np.testing.assert_array_equal(pk.pack32(r), pk.pack32(want))
+        np.testing.assert_array_equal(pk.pack64(r[:5]), pk.pack64(want[:5]))
+    finally:
+        pk._bounds.cache_clear()
+
+
+def test_saturate_is_the_unorm_write():
+    r = np.array([[-1.5, 1.5, -0.25, -1.0], [0.25, 0.25 - 1e-17, 1.25, 3.0], [1.2, 1.2, 0.5, 0.0]])
+    np.testing.assert_array_equal(pk.saturate(r), [[-1.0, 1.0, 0.0, 0.0], [0.25, 0.25, 1.0, 3.0],
+                                                   [1.0, 1.0, 0.5, 0.0]])
+    y2 = 0.5
+    r = np.array([[np.nextafter(y2, 1.0), y2, 0.5, 0.1]])  # y1 one ulp above y2: y2 raised to y1
+    np.testing.assert_array_equal(pk.saturate(r)[0, :2], [r[0, 0], r[0, 0]])

@@ -590,6 +590,7 @@ def test_span_interval_is_exact_also_beyond_float_precision():
     # Just off an exact quotient with |L| > 2^53, where float64 rounds L itself.
     q, d = rng.integers(2**46, 2**48, n // 4), rng.integers(1, 64, n // 4) * 256
     L[1::4], a[1::4] = q * d + rng.choice([-1, 0, 1], n // 4), d * rng.choice([-1, 1], n // 4)
+    L[3::4], a[3::4] = -(q * d + rng.choice([-1, 0, 1], n // 4)), d * rng.choice([-1, 1], n // 4)  # L < -2^53
     lo = np.full(n, -2**62)
     hi = np.full(n, 2**62)
     _solve_interval(L, a, np.where(a == 0, 1, -a), lo, hi)
@@ -697,3 +698,136 @@ def test_shared_and_unshared_vertices_give_the_same_map(cull, samples):
                              samples=samples, cull=cull)
     assert d1.tobytes() == d2.tobytes() and s1 == s2
     assert s1.nonfinite > 0 and s1.degenerate > 0 and (d1 < 1).any()
+
+
+
+
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4]))
+def test_span_rows_are_flagged_inside_exactly_when_their_depths_are_in_range(seed, samples):
+    # _iter_spans marks a row "inside" (no per-sample depth clip needed) from its first and
+    # last sample. Depth is monotone along a row, so the flag must equal "every depth of
+    # the row in [-1, 1]"; and every depth is the plane through the three vertices. Depth
+    # planes crossing -1 and 1 inside the map (no geometric clip here), two lying at
+    # exactly 1 and -1; one row per batch (each row's flag seen) and batches of many rows
+    # (the batch's flag: all its rows inside).
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
+    from moments_ref.scene.raster._triangles import _edge_equations
+
+    rng = np.random.default_rng(seed)
+    h, w, n = 10, 12, 5
+    X = rng.integers(-200, w * 256 + 200, (3, n))
+    Y = rng.integers(-200, h * 256 + 200, (3, n))
+    zv = rng.uniform(-2.5, 2.5, (3, n))
+    zv[:, 0], zv[:, 1] = 1.0, -1.0
+    area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
+    keep = area2 != 0
+    X, Y, zv = X[:, keep].copy(), Y[:, keep].copy(), zv[:, keep].copy()
+    s = _edge_equations(X, Y, zv, area2[keep], np.arange(X.shape[1]), None, False)  # orients X, Y, zv in place
+    # The plane z = alpha + beta x + gamma y through the (oriented) vertices, solved per triangle.
+    M = np.stack([np.ones_like(X, dtype=float), X.astype(float), Y.astype(float)], axis=-1).transpose(1, 0, 2)
+    coef = np.linalg.solve(M, zv.T[..., None])[..., 0]
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
+    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
+    kept = {k: np.take(s[k], sel, axis=-1) for k in ("A", "B", "F0", "X", "Y", "z0", "za", "zb")}
+    old = _spans._SAMPLE_BUDGET
+    try:
+        for budget in (1, 40, old):
+            _spans._SAMPLE_BUDGET = budget
+            _check_span_batches(_spans._iter_spans(kept, c0[sel], c1[sel], r0[sel], r1[sel], safe[sel], sx, sy, w,
+                                                   True), coef[sel], w, samples, sx, sy, one_row=budget == 1)
+    finally:
+        _spans._SAMPLE_BUDGET = old
+
+
+def _check_span_batches(batches, coef, w, samples, sx, sy, one_row):
+    for flat, z, inside, (tri, row, col, samp) in batches:
+        if one_row:
+            assert len(set(zip(tri.tolist(), row.tolist(), samp.tolist()))) == 1
+        x, y = col * 256 + 128 + sx[samp], row * 256 + 128 + sy[samp]
+        a, b, c = coef[tri].T
+        np.testing.assert_allclose(z, a + b * x + c * y, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(flat, (row * w + col) * samples + samp)
+        assert inside == bool(np.all((z >= -1) & (z <= 1))), (tri[0], row[0], z.min(), z.max())
+
+
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4]))
+def test_span_rows_are_exact_for_triangles_reaching_far_into_the_guard_band(seed, samples):
+    # A vertex up to 2^20 pixels away (clipping's guard band): the edge values at the map's
+    # samples exceed float64's exact integers (2^53), so such a triangle must take the int64
+    # path even when its box on the map is small. Against the definition, in Python integers.
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
+
+    rng = np.random.default_rng(seed)
+    h, w, n = 10, 12, 6
+    X = rng.integers(-300, w * 256 + 300, (3, n))
+    Y = rng.integers(-300, h * 256 + 300, (3, n))
+    X[0] = rng.integers(2**26, 2**28, n) * rng.choice([-1, 1], n)  # the far vertex, in 1/256 pixel
+    Y[0] = rng.integers(2**26, 2**28, n) * rng.choice([-1, 1], n)
+    s, X, Y = _setup_from_window(X, Y)
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
+    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
+    assert not safe[sel].any()
+    got = set()
+    kept = {k: np.take(s[k], sel, axis=1) for k in ("A", "B", "F0")}
+    for pt, row, samp, col0, cnt in _spans._row_batches(kept, c0[sel], c1[sel] - c0[sel] + 1, r0[sel],
+                                                         r1[sel] - r0[sel] + 1, safe[sel], sx, sy):
+        for p, r, q, a, c in zip(*(x.tolist() for x in (sel[pt], row, samp, col0, cnt))):
+            got.update((p, r, q, col) for col in range(a, a + c))
+    A, B, F0 = (s[k].tolist() for k in ("A", "B", "F0"))
+    want = {(i, r, q, col) for i in range(X.shape[1]) for r in range(h) for q in range(samples) for col in range(w)
+            if all(A[e][i] * (col * 256 + 128 + int(sx[q])) + B[e][i] * (r * 256 + 128 + int(sy[q])) + F0[e][i] >= 0
+                   for e in range(3))}
+    assert got == want
+
+
+@settings(max_examples=25)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4]))
+def test_dense_span_rows_are_exact_for_long_edges_through_samples(seed, samples):
+    # Triangles whose boxes have at most 32 rows (the dense float path) across a wide map, vertices on
+    # the pixel grid so that edges pass exactly through samples: edge values reach 2^26 there,
+    # beyond float32's integers, and a sample one unit inside or outside an edge must be told apart.
+    # Against the edge functions evaluated at every sample of each box in int64 (exact).
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._coverage import _boxes
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN
+
+    rng = np.random.default_rng(seed)
+    h, w, n = 30, 1500, 8
+    X = rng.integers(-20, w + 20, (3, n)) * 256
+    Y = rng.integers(-2, 30, (3, n)) * 256 + rng.choice([0, 128], (3, n))
+    # and steep or wide ones with a vertex up to 2^24 units away (still the float path): edge
+    # coefficients beyond float32's 24 bits
+    far = (2**24 - rng.integers(1, 2**16, n)) * rng.choice([-1, 1], n)
+    X[0, : n // 4], Y[0, n // 4 : n // 2] = far[: n // 4], far[n // 4 : n // 2]
+    s, X, Y = _setup_from_window(X, Y)
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
+    sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
+    kept = {k: np.take(s[k], sel, axis=1) for k in ("A", "B", "F0")}
+    got = []
+    for pt, row, samp, col0, cnt in _spans._row_batches(kept, c0[sel], c1[sel] - c0[sel] + 1, r0[sel],
+                                                         r1[sel] - r0[sel] + 1, safe[sel], sx, sy):
+        rep = np.repeat(np.arange(cnt.size), cnt)
+        col = np.repeat(col0, cnt) + np.arange(rep.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        got.append((((sel[pt][rep] * h + row[rep]) * samples + samp[rep]) * w + col))
+    got = np.sort(np.concatenate(got)) if got else np.zeros(0, np.int64)
+    want = []
+    cols = np.arange(w)
+    for i in range(X.shape[1]):
+        for r in range(h):
+            for q in range(samples):
+                x, y = cols * 256 + 128 + sx[q], r * 256 + 128 + sy[q]
+                inside = np.all([s["A"][e][i] * x + s["B"][e][i] * y + s["F0"][e][i] >= 0 for e in range(3)], axis=0)
+                want.append(((i * h + r) * samples + q) * w + cols[inside])
+    np.testing.assert_array_equal(got, np.sort(np.concatenate(want)))

@@ -175,3 +175,63 @@ def test_timing_noise_keeps_a_technique_on_the_front():
 def test_a_spread_not_around_its_median_is_refused():
     with pytest.raises(report.InputError, match=r"low <= points <= high.*index \(1, 1\)"):
         report.pareto_mask([[0, 1], [0, 1]], [[0, 1], [0, 1.5]], [[0, 1], [0, 2]])
+
+
+def test_a_cost_whose_slowest_repeat_equals_anothers_fastest_is_no_slower_but_not_faster():
+    frag = (0.10, 0.09, 0.11)  # the same stage charged to both: equal
+    a = _timed_row("msm64", 0.05, (1.00, 0.90, 1.10), frag)
+    b = _timed_row("nlq64", 0.05, (1.50, 1.10, 1.80), frag)  # its fastest repeat is a's slowest
+    # Same RMSE: a is no slower, but better in nothing beyond the spread: both stay.
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, True]
+    # A lower RMSE makes a better in one coordinate: b is beaten.
+    a["rmse"] = 0.04
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, False]
+    # b's fastest repeat just below a's slowest: no longer beaten beyond the spread.
+    b["texel_seconds_min"] = 1.09
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, True]
+    # Strictly faster beyond the spread with equal RMSE: beaten.
+    a["rmse"], b["texel_seconds_min"] = 0.05, 1.11
+    assert [r["pareto"] for r in report.mark_pareto([a, b])] == [True, False]
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+@pytest.mark.parametrize("key", ["rmse", "texel_seconds_max", "fragment_seconds"])
+def test_a_row_with_a_nan_or_infinite_coordinate_is_off_the_front_and_beats_nothing(bad, key):
+    frag = (0.10, 0.09, 0.11)
+    rows = [_timed_row("msm64", 0.06, (2.0, 1.9, 2.1), frag), _timed_row("nlq64", 0.05, (1.0, 0.9, 1.1), frag)]
+    assert _pareto.dominates(*_pareto._spread(rows)).tolist() == [[False, False], [True, False]]  # finite: beaten
+    rows[0][key] = bad
+    if key == "fragment_seconds":
+        rows[0]["fragment_seconds_max"] = bad  # a spread around a non-finite median
+    d = _pareto.dominates(*_pareto._spread(rows))
+    assert not d.any()  # neither dominated nor dominating
+    assert [r["pareto"] for r in report.mark_pareto(rows)] == [False, True]
+    if key == "rmse":  # the table prints the RMSE as it is
+        assert f"| msm64 | no | {bad} |" in "\n".join(_pareto.front_lines(rows))
+
+
+def test_an_empty_group_has_an_empty_front():
+    assert report.pareto_mask([]).shape == (0,) and report.pareto_mask([]).dtype == bool
+    assert report.mark_pareto([]) == []
+
+
+def test_a_beaten_row_names_the_front_row_of_least_rmse_then_least_total_cost():
+    rows = [_row("a", "msm64", 0.02, 0.6, 0.1), _row("a", "nlq64", 0.02, 0.3, 0.5),  # both on the front
+            _row("a", "nlq32", 0.03, 0.7, 0.6), _row("a", "vsm", 0.01, 5.0, 5.0)]
+    report.mark_pareto(rows)
+    assert [r["pareto"] for r in rows] == [True, True, False, True]
+    md = "\n".join(_pareto.front_lines(rows))
+    # msm64 and nlq64 both beat nlq32 with the same RMSE: the cheaper in texel + fragment (0.7 < 0.8) is named
+    assert "| nlq32 | no | 0.03 | 0.7 | 0.6 | msm64 (RMSE 0.03 vs 0.02, texel 0.7 vs 0.6, fragment 0.6 vs 0.1) |" in md
+
+
+def test_the_summary_has_one_table_per_reference_and_bolds_the_finite_best():
+    rows = [_row("a", "msm64", float("nan"), 0.1, 0.1), _row("a", "pcf", 0.02, 0.5, 0.5),
+            _row("a", "nlq32", 0.03, 0.2, 0.2), _row("a", "mvr", 0.0, 9.0, 9.0), _row("b", "nlq32", 0.5, 5.0, 5.0)]
+    md = "\n".join(_pareto.summary_lines(rows))
+    hard, soft = md.split(f"**{techniques.get_reference('mvr').label}**")
+    assert "| mvr |" in soft and "| mvr |" not in hard
+    assert all(f"| {t} |" in hard and f"| {t} |" not in soft for t in ("msm64", "pcf", "nlq32"))
+    assert "| msm64 | nan | **0.2** | — | — |" in hard  # a NaN RMSE is never the best
+    assert "| pcf | **0.02** | 1 | — | — |" in hard
+    assert "| nlq32 | 0.03 | 0.4 | **0.5** | **10** |" in hard

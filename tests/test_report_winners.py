@@ -87,3 +87,17 @@ def test_costs_scale_to_the_scenes_own_size():
     assert W.own_total(row, W.own_scale(cfg), "_max") == pytest.approx(4 + 8)
     same = {"size": (64, 64), "resolution": (32, 18), "own": ((64, 64), 1, (32, 18))}
     assert W.own_scale(same) == (1.0, 1.0)
+
+
+def test_the_sentence_names_each_memory_budget_once_merging_consecutive_equal_winners():
+    rows = [{"scene": "s", "technique": "a", "bits_per_texel": 32, "rmse": 0.05, "own_total_seconds": 0.1},
+            {"scene": "s", "technique": "b", "bits_per_texel": 64, "rmse": 0.01, "own_total_seconds": 2.0}]
+    text = "\n".join(W.winner_lines(W.winners(rows, lambda r: "pcf"), {"s": "own"}))
+    assert ("Lowest RMSE at 32 bits: **a** (RMSE 0.05); 64 and 128 bits: **b** (RMSE 0.01). At the scene's own "
+            "resolution (own), within 0.1 s: **a** (RMSE 0.05); within 2 s: **b** (RMSE 0.01).") in text
+    # Nothing within 128 bits: said so, not left blank.
+    lines = W.winner_lines([{"scene": "s", "reference": "pcf", "budget_kind": "total_seconds", "budget": 3.0,
+                             "technique": "a", "rmse": 0.5}], {})
+    assert ("- **s** (reference `pcf`). Lowest RMSE at no technique fits 128 bits per texel. At the scene's own "
+            "resolution (?), within 3 s: **a** (RMSE 0.5).") in lines
+    assert lines[-1] == ""

@@ -11,8 +11,8 @@ Entry point: :func:`compare(entry, expected, candidate, port_dtype=None)
 * ``candidate``: ``{output name: array}`` from the port.
 
 It returns a :class:`Verdict`: per row pass/fail (``row_pass``), a per-row score
-(worst error over tolerance, ``inf`` for NaN or a wrong code) and per-output
-summaries. The rule, the same for every harness:
+(worst error over tolerance, ``inf`` for NaN or a wrong code), and the error and
+tolerance at each row's worst value. The rule, the same for every harness:
 
 * the candidate's dtype must have the manifest's kind: integer outputs any
   integer dtype, float outputs a real float dtype of the port's precision
@@ -40,7 +40,7 @@ summaries. The rule, the same for every harness:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -48,22 +48,7 @@ from .._arrays import InputError
 from .spread import robust_rows
 from .units import ulp
 
-__all__ = ["compare", "Verdict", "OutputSummary", "check_dtypes", "port_precision"]
-
-
-@dataclass
-class OutputSummary:
-    """How one output of a case fared."""
-
-    name: str
-    metric: str
-    rows: int
-    gated: int
-    failures: int
-    worst_row: int  # index of the row with the largest score
-    worst_score: float  # error / tolerance there (0 = exact, > 1 fails)
-    worst_error: float  # in the metric's unit
-    worst_tolerance: float
+__all__ = ["compare", "Verdict", "check_dtypes", "port_precision"]
 
 
 @dataclass
@@ -74,7 +59,6 @@ class Verdict:
     port_dtype: str
     row_pass: np.ndarray  # (n,) bool
     score: np.ndarray  # (n,) float: max error / tolerance over the row's values
-    outputs: dict = field(default_factory=dict)  # name -> OutputSummary
     error: np.ndarray | None = None  # (n,) the error (metric's unit) at each row's worst value
     tolerance: np.ndarray | None = None  # (n,) its tolerance (0: exact codes, inf: ungated)
     gated: np.ndarray | None = None  # (n,) bool: the row is held to an expected value (not only a range)
@@ -222,7 +206,6 @@ def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
     nonfinite, outside = np.zeros(n, bool), np.zeros(n, bool)
     robust = robust_rows(expected, n)
     lenient = robust & (not strict)  # robustness rows do not decide the verdict unless strict
-    outputs = {}
     for o in entry["compare"]:
         cand = np.asarray(candidate[o])
         want = np.asarray(expected[o]).shape
@@ -231,21 +214,15 @@ def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
         if entry["metric"] == "exact":
             ok, s, err, tol = _exact(o, expected, cand, n, acceptable_rows, np.dtype(entry["outputs"][o]["dtype"]),
                                      f"{case}.{o}" if case else o)
-            gated = int((~acceptable_rows).sum())
         else:
             (ok, s, err, tol), (nf, out) = _float(o, entry, expected, cand, n, dt)
             nonfinite, outside = nonfinite | nf, outside | out
             finite = np.isfinite(np.asarray(expected[f"{o}_tolerance_{dt}"]).reshape(n, -1)).all(axis=1)
             row_gated = row_gated & finite
-            gated = int((~acceptable_rows & finite).sum())
-        judged = ok | lenient.reshape((n,) + (1,) * (np.ndim(ok) - 1))
         row_pass &= ok
         worse = s > score
         row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)
         score = np.maximum(score, s)
-        w = int(np.argmax(s)) if n else 0
-        outputs[o] = OutputSummary(o, entry["metric"], n, gated, int((~judged).sum()), w, float(s[w]) if n else 0.0,
-                                   float(err[w]) if n else 0.0, float(tol[w]) if n else 0.0)
     verdict_pass = row_pass | lenient
-    return Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), outputs, row_err, row_tol, row_gated, robust,
+    return Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated, robust,
                    bool(strict), row_pass, nonfinite, outside)

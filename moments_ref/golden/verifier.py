@@ -100,7 +100,6 @@ def _case_result(name, meta, gold, got, port_dtype, keep, strict=False, extra=No
     o = meta["compare"][0]
     worst = []
     for i in verdict.worst_rows(keep):
-        s = verdict.outputs[o]
         e_row = np.asarray(got[o])[i]
         worst.append({
             "index": i, "tc_id": int(gold["tc_id"][i]), "category": str(category[i]),
@@ -108,7 +107,7 @@ def _case_result(name, meta, gold, got, port_dtype, keep, strict=False, extra=No
             "error": _row_error(meta, gold, got, o, i, verdict.port_dtype),
             "tolerance": _row_tolerance(meta, gold, o, i, verdict.port_dtype),
             "comment": str(gold["comment"][i]), "inputs": {k: gold[k][i] for k in meta["inputs"]},
-            "got": e_row, "expected": gold[o][i], "metric": s.metric,
+            "got": e_row, "expected": gold[o][i], "metric": meta["metric"],
         })
     per_cat = {}
     for c in CATEGORIES:

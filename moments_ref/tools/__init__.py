@@ -8,6 +8,7 @@
 * :mod:`.claim_parameters`: the unstated parameters of the EVSM and VWSS claims, varied.
 * :mod:`.apidoc`: docs/api.md and the layout tables, generated from the package.
 * :mod:`.layout`: the layers, read from the folders.
+* :mod:`.mutation`: mutation scores of the package's own modules (docs/testing.md).
 
 References
 ----------

@@ -1,0 +1,100 @@
+"""The mutation tool (moments_ref.tools.mutation): its mutants, their ids, the code swap, the equivalents file."""
+
+import textwrap
+
+import pytest
+
+from moments_ref.tools.mutation import ROOT, TARGETS, load_equivalents, module_files, mutants_of, score_table
+from moments_ref.tools.mutation._execute import run_mutant
+from moments_ref.tools.mutation._operators import mutated_code
+
+SOURCE = textwrap.dedent('''
+    """Module docstring: never mutated."""
+    import numpy as np
+
+    LIMIT = 3  # module level: a setting, never mutated
+
+
+    def f(a, b=2, *, c: int = 5):
+        """Docstring."""
+        if a < b and not c:
+            return -a
+        return np.floor(abs(a) * b) + 1
+
+
+    def g(x):
+        msg = f"{x + 1} is not allowed"
+        return x != 0  # pragma: no mutate
+''')
+
+
+def _by_text(mutants):
+    return {(m.before, m.after) for m in mutants}
+
+
+def test_one_change_per_mutant_in_function_bodies_only():
+    ms = mutants_of(SOURCE, "m.py")
+    got = _by_text(ms)
+    assert got == {
+        ("a < b", "a <= b"), ("a < b and (not c)", "a < b or not c"), ("not c", "c"), ("-a", "a"),
+        ("np.floor", "np.ceil"), ("abs(a)", "a"), ("np.floor(abs(a) * b) + 1", "np.floor(abs(a) * b) - 1"),
+        ("abs(a) * b", "abs(a) / b"), ("1", "2"),
+    }
+    # the default values, the annotation, the f-string message, the docstrings, the module-level
+    # constant and the pragma line give none
+    assert all(m.function in ("f", "g") for m in ms) and not any(m.function == "g" for m in ms)
+
+
+def test_ids_survive_edits_elsewhere_in_the_file():
+    moved = SOURCE.replace('import numpy as np\n', 'import numpy as np\n\n\ndef h(y):\n    return y * 2\n')
+    old = {m.id for m in mutants_of(SOURCE, "m.py")}
+    new = {m.id for m in mutants_of(moved, "m.py")}
+    assert old < new and all(i.startswith("m.py::") for i in new)
+    lines_old = {m.id: m.lines for m in mutants_of(SOURCE, "m.py")}
+    lines_new = {m.id: m.lines for m in mutants_of(moved, "m.py")}
+    assert all(lines_new[i][0] == lines_old[i][0] + 4 for i in old)
+
+
+def test_the_mutated_code_computes_the_mutant():
+    namespace = {}
+    exec(compile(SOURCE, "m.py", "exec"), namespace)
+    f = namespace["f"]
+    assert f(3, 4, c=0) == -3
+    (m,) = [m for m in mutants_of(SOURCE, "m.py") if m.after == "a <= b"]
+    f.__code__ = mutated_code(SOURCE, "m.py", m)
+    assert f(4, 4, c=0) == -4  # the boundary moved
+    (m,) = [m for m in mutants_of(SOURCE, "m.py") if m.before == "abs(a)"]
+    f.__code__ = mutated_code(SOURCE, "m.py", m)
+    assert f(-3, 1, c=1) == -2  # floor(-3) + 1, the absolute value dropped
+
+
+def test_the_score_counts_equivalents_out_and_reports_stale_ones():
+    state = {"a.py": {"mutants": {"a.py::f::x -> y#0": ["killed", "t"], "a.py::f::x -> z#0": ["survived", ""],
+                                  "a.py::f::u -> v#0": ["survived", ""], "a.py::f::p -> q#0": ["timeout", ""]}}}
+    rows, survivors, stale = score_table(state, ["a.py"], {"a.py::f::u -> v#0": "why", "a.py::f::gone#0": "why"})
+    assert rows[2] == "| a.py | 4 | 1 | 1 | 1 | 1 | 67% |"
+    assert survivors == [("a.py::f::x -> z#0", "survived")] and stale == ["a.py::f::gone#0"]
+
+
+def test_every_equivalent_names_a_mutant_of_a_measured_module_with_its_reason():
+    equivalents = load_equivalents()
+    ids = {m.id for p in module_files(TARGETS) for m in mutants_of((ROOT / p).read_text(), p)}
+    stale = sorted(set(equivalents) - ids)
+    assert not stale, f"equivalents naming no mutant (the code changed: re-judge them): {stale[:5]}"
+    assert all(len(why.strip()) > 20 for why in equivalents.values())
+
+
+def test_a_swapped_function_is_seen_through_every_reference():
+    """End to end on a real module: the unmutated code passes its test, a mutant of it is killed."""
+    path = "moments_ref/report/_winners.py"
+    src = (ROOT / path).read_text()
+    test = ["tests/test_report_winners.py::test_costs_scale_to_the_scenes_own_size"]
+    (m,) = [m for m in mutants_of(src, path) if m.id.endswith("own_scale::oh * ow / (h * w) -> oh * ow * (h * w)#0")]
+    assert run_mutant("moments_ref.report._winners", "", None, test, 300)[0] == "survived"
+    status, by = run_mutant("moments_ref.report._winners", m.top, mutated_code(src, path, m), test, 300)
+    assert (status, by) == ("killed", test[0])
+
+
+@pytest.mark.parametrize("name", ["moments_ref.golden.compare", "moments_ref/golden/compare.py"])
+def test_modules_are_named_by_path_or_dotted_name(name):
+    assert module_files([name]) == ["moments_ref/golden/compare.py"]

@@ -1,0 +1,360 @@
+"""The verdict engine's own rules, stated as specifications: golden.compare (what passes, what a row's
+error and score are), golden.spread (ulps, tolerance rounding, the legitimate variants a tolerance
+must hold) and conformance.verdict (readback words, ulp distance, the rows shown).
+
+Each expectation is written from the rule in the module's docstring, with hand-built manifest
+entries and golden arrays, never from the code's output.
+"""
+
+import numpy as np
+import pytest
+
+from moments_ref import InputError
+from moments_ref.conformance.verdict import compare_case, select_worst, ulp_distance
+from moments_ref.golden.compare import compare
+from moments_ref.golden.units import ceil2 as _ceil2, ulp
+
+F32 = np.float32
+
+
+def _entry(metric="abs", dtype="float32", out_dtype="float32", value_range=None, exact=False):
+    e = {"compare": ["y"], "outputs": {"y": {"dtype": out_dtype}}, "dtype": dtype, "metric": metric,
+         "inputs": ["x"], "input_order": ["x"], "exact": exact}
+    if value_range is not None:
+        e["value_range"] = value_range
+    return e
+
+
+def _golden(y, tol32, tol64=None, result=None):
+    y = np.asarray(y, np.float64)
+    n = len(y)
+    return {"y": y, "y_tolerance_float32": np.broadcast_to(np.asarray(tol32, np.float64), y.shape).copy(),
+            "y_tolerance_float64": np.broadcast_to(np.asarray(tol64 if tol64 is not None else tol32, np.float64),
+                                                   y.shape).copy(),
+            "result": np.asarray(result if result is not None else ["valid"] * n), "tc_id": np.arange(1, n + 1),
+            "x": np.zeros(n), "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n),
+            "comment": np.asarray([""] * n)}
+
+
+# ---------------------------------------------------------------------------
+# golden.compare: the rule
+
+
+def test_a_value_exactly_at_its_tolerance_passes_and_the_next_float_fails():
+    tol = 2.0 ** -10  # exactly representable: the error 0.5 + 2^-10 - 0.5 is exactly 2^-10
+    g = _golden([0.5, 0.5, 0.5], tol)
+    got = np.array([0.5 + tol, 0.5 - tol, np.nextafter(F32(0.5 + tol), F32(1))], F32)
+    v = compare(_entry(), g, {"y": got})
+    assert v.row_pass.tolist() == [True, True, False]
+    assert v.score[:2].tolist() == [1.0, 1.0] and v.score[2] > 1
+    assert not v.passed and v.failures == 1
+
+
+def test_nan_and_inf_fail_with_an_infinite_score_even_on_ungated_rows():
+    g = _golden([0.5, 0.5, 0.5, 0.5], [0.1, 0.1, np.inf, np.inf], result=["valid", "valid", "acceptable",
+                                                                            "acceptable"])
+    got = np.array([np.nan, np.inf, np.nan, 0.25], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.row_pass.tolist() == [False, False, False, True]
+    assert np.isinf(v.score[:3]).all() and v.score[3] == 0
+    assert v.gated.tolist() == [True, True, False, False]
+
+
+def test_ungated_rows_need_only_a_finite_value_in_the_value_range():
+    g = _golden([0.5] * 4, np.inf, result=["acceptable"] * 4)
+    got = np.array([0.0, 1.0, -1e-3, 1.001], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.row_pass.tolist() == [True, True, False, False]
+    assert v.score.tolist() == [0.0, 0.0, np.inf, np.inf]
+    assert compare(_entry(), g, {"y": got}).passed  # no range stated: any finite value
+
+
+def test_the_worst_component_of_a_vector_output_decides_the_row():
+    # Per component tolerances; component 2 is the worst relative to its tolerance although
+    # component 0 has the largest absolute error.
+    e = np.zeros((2, 4))
+    tol = np.array([[1e-2, 1e-3, 1e-4, 1e-3]] * 2)
+    g = _golden(e, tol)
+    got = np.array([[5e-3, 0, 5e-4, 0], [0, 0, 0, 5e-4]], F32)
+    v = compare(_entry(), g, {"y": got})
+    assert v.row_pass.tolist() == [False, True]
+    np.testing.assert_allclose(v.score, [5e-4 / 1e-4, 0.5], rtol=1e-6)
+    np.testing.assert_allclose(v.error, [5e-4, 5e-4], rtol=1e-6)
+    np.testing.assert_allclose(v.tolerance, [1e-4, 1e-3])
+    assert v.worst_rows(None) == [0]
+
+
+def test_ulps_are_counted_in_the_ports_precision_at_the_expected_value():
+    # Just above 2: the float32 spacing is 2^-22, below 2 it is 2^-23.
+    above, below = float(np.nextafter(F32(2), F32(3))), float(np.nextafter(F32(2), F32(0)))
+    g = _golden([above, below], 2.0)
+    got = np.array([above + 2 * 2.0 ** -22, below - 3 * 2.0 ** -23], F32)
+    v = compare(_entry(metric="ulps"), g, {"y": got})
+    assert v.row_pass.tolist() == [True, False]
+    np.testing.assert_allclose(v.error, [2.0, 3.0])
+    # In float64 the same differences are many ulps.
+    v64 = compare(_entry(metric="ulps", dtype="float64"), g, {"y": got.astype(np.float64)}, port_dtype="float64")
+    assert not v64.row_pass.any()
+    assert v64.error[0] == 2 * 2.0 ** -22 / np.spacing(above)
+
+
+def test_worst_rows_are_the_failing_rows_by_score_each_once():
+    g = _golden([0.0] * 6, 1.0)
+    got = np.array([3.0, 0.5, 7.0, 2.0, 7.0, 0.0], F32)
+    v = compare(_entry(), g, {"y": got})
+    assert v.worst_rows(None) == [2, 4, 0, 3]  # largest score first, ties in row order, passing rows never
+    assert v.worst_rows(2) == [2, 4] and v.worst_rows(0) == []
+
+
+def test_integer_codes_accept_the_stored_alternatives_only_on_acceptable_rows():
+    e = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact"}
+    g = {"q": np.array([[10, 20], [10, 20], [10, 20]], np.uint16),
+         "q_acceptable": np.array([[[10, 20], [11, 20]]] * 3, np.uint16),
+         "result": np.array(["acceptable", "valid", "acceptable"]), "tc_id": np.arange(1, 4)}
+    got = np.array([[11, 20], [11, 20], [12, 20]], np.uint16)
+    v = compare(e, g, {"q": got})
+    assert v.row_pass.tolist() == [True, False, False]
+    assert v.score.tolist() == [0.0, np.inf, np.inf]
+    assert v.error.tolist() == [1.0, 1.0, 2.0]  # the distance to the golden code, also where accepted
+    assert v.gated.tolist() == [False, True, False]
+    # codes compare by value whatever the integer width; a value beyond the format is a wrong code
+    assert compare(e, g, {"q": got.astype(np.uint32)}).row_pass.tolist() == [True, False, False]
+    wide = got.astype(np.uint32)
+    wide[0, 0] += 1 << 16  # 0x1000B: not a 16-bit code, although its low bits are
+    assert compare(e, g, {"q": wide}).row_pass.tolist() == [False, False, False]
+    assert compare(e, g, {"q": got.astype(np.int16)}).row_pass.tolist() == [True, False, False]  # the same bits
+    with pytest.raises(InputError, match="negative code"):
+        compare(e, g, {"q": -got.astype(np.int64)})
+    with pytest.raises(InputError, match="integer dtype"):
+        compare(e, g, {"q": got.astype(np.float32)})
+    with pytest.raises(InputError, match="has shape"):
+        compare(e, g, {"q": got[:2]})
+
+
+@pytest.mark.parametrize("port, arr, ok", [("float32", np.float32, True), ("float32", np.float64, False),
+                                          ("float64", np.float64, True), ("float64", np.float32, False)])
+def test_float_outputs_must_be_in_the_ports_precision(port, arr, ok):
+    g = _golden([0.5], 1.0)
+    call = lambda: compare(_entry(), g, {"y": np.array([0.5], arr)}, port_dtype=port)  # noqa: E731
+    if ok:
+        assert call().passed
+    else:
+        with pytest.raises(InputError, match=port):
+            call()
+    with pytest.raises(InputError, match="missing"):
+        compare(_entry(), g, {"z": np.array([0.5], arr)}, port_dtype=port)
+    with pytest.raises(InputError, match="float16"):
+        compare(_entry(), g, {"y": np.array([0.5], arr)}, port_dtype="float16")
+
+
+def test_the_port_precision_picks_the_tolerance_column():
+    g = _golden([0.5], 1e-3, tol64=1e-9)
+    got32 = np.array([0.5 + 1e-4], F32)
+    assert compare(_entry(), g, {"y": got32}).passed
+    assert not compare(_entry(), g, {"y": got32.astype(np.float64)}, port_dtype="float64").passed
+
+
+# ---------------------------------------------------------------------------
+# golden.spread: ulps and tolerance rounding
+
+
+def test_ulp_is_the_spacing_above_the_expected_magnitude():
+    for x, want in [(1.0, 2.0 ** -23), (float(np.nextafter(F32(1), F32(0))), 2.0 ** -24),
+                    (float(np.nextafter(F32(4), F32(5))), 2.0 ** -21), (-3.0, 2.0 ** -22), (0.0, 2.0 ** -149)]:
+        assert ulp(x, np.float32) == want, x
+    # below the smallest normal: the smallest normal's spacing, also in float64
+    assert ulp(1e-40, np.float32) == 2.0 ** -149 and ulp(1e-310, np.float64) == 2.0 ** -1074
+    assert ulp(1.0, np.float64) == 2.0 ** -52
+    assert ulp(np.array([1.0, np.nan]), np.float32)[0] == 2.0 ** -23 and np.isnan(ulp(np.nan, np.float32))
+
+
+def test_tolerances_round_up_to_two_significant_digits():
+    t = np.array([1.234e-5, 1.2e-5, 9.91, 0.0, np.inf, 1e-300, 3.0 * (1 + 4e-16)])
+    out = _ceil2(t)
+    np.testing.assert_allclose(out[:3], [1.3e-5, 1.2e-5, 10.0], rtol=1e-12)
+    assert out[3] == 0.0 and out[4] == np.inf and out[5] == 1e-300  # left alone
+    assert out[6] == pytest.approx(3.0, rel=1e-12)  # a representation error above 3.0 is not a digit
+    rng = np.random.default_rng(1)
+    t = 10.0 ** rng.uniform(-30, 5, 2000)
+    out = _ceil2(t)
+    e = np.floor(np.log10(t)) - 1
+    assert np.all(out >= t * (1 - 1e-12))
+    assert np.all(out - t < 10 ** e * (1 + 1e-9))  # less than one unit in the second digit above
+    mant = out / 10 ** e
+    np.testing.assert_allclose(mant, np.round(mant), rtol=0, atol=1e-6)  # two digits
+
+
+# ---------------------------------------------------------------------------
+# conformance.verdict: readback words, ulp distance, the rows shown
+
+
+def test_ulp_distance_counts_float32_values_across_zero():
+    tiny = np.float32(2.0 ** -149)
+    values = np.array([-2 * tiny, -tiny, 0.0, tiny, 2 * tiny, 3 * tiny], F32)
+    for i, a in enumerate(values):
+        for j, b in enumerate(values):
+            assert ulp_distance(np.array([a]), np.array([b], np.float64))[0] == abs(i - j)
+    assert ulp_distance(F32([-0.0]), np.array([0.0]))[0] == 0
+    # -1 and 1: every positive float below 1 counted on each side
+    assert ulp_distance(F32([-1.0]), np.array([1.0]))[0] == 2 * 0x3F800000
+    assert ulp_distance(F32([1.0]), np.array([-1.0]))[0] == 2 * 0x3F800000
+
+
+def test_ulp_distance_nan_in_either_is_inf_and_overflow_rounds_to_inf():
+    d = ulp_distance(F32([np.nan, 1.0, np.nan, 1.0]), np.array([1.0, np.nan, np.nan, 1.0]))
+    assert d.tolist() == [np.inf, np.inf, np.inf, 0.0]
+    big = np.finfo(F32).max
+    assert ulp_distance(F32([big]), np.array([1e39]))[0] == 1  # 1e39 rounds to +inf, one past the largest
+    assert ulp_distance(F32([np.inf]), np.array([1e39]))[0] == 0
+
+
+def _exact_case(codes, words, result=None):
+    n = len(codes)
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    arrays = {"q": np.asarray(codes, np.uint16), "q_acceptable": np.asarray(codes, np.uint16)[:, None],
+              "result": np.asarray(result or ["valid"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
+              "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n),
+              "comment": np.asarray([""] * n)}
+    return compare_case("pack-test", meta, arrays, {"q": np.asarray(words, np.uint32)})
+
+
+def test_a_readback_word_wider_than_the_format_fails_even_where_clipping_gives_the_code():
+    v = _exact_case([0xFFFF, 0, 7], [0x1FFFF, 0, 7])  # 0x1FFFF clips to 0xFFFF, the expected code
+    assert v.row_pass.tolist() == [False, True, True]
+    assert any("wider than the format" in n for n in v.notes)
+    assert v.worst[0]["index"] == 0 and v.worst[0]["score"] == np.inf
+    assert _exact_case([0xFFFF, 0], [0xFFFF, 0]).passed and not _exact_case([0xFFFF], [0xFFFF]).notes
+
+
+def test_rows_shown_per_category_worst_first_each_once():
+    category = np.array(["random"] * 5 + ["stiff"] * 5 + ["edge"] * 3)
+    score = np.array([0.5, 3.0, 2.0, 9.0, 0.1, 0.2, 0.9, 0.0, 0.4, 0.3, 0.0, 0.0, 0.0])
+    row_pass = score <= 1
+    # random fails (rows 1, 2, 3): the worst `keep` of them, largest first; stiff passes: its
+    # three closest rows; edge passes with all scores 0: nothing to show; extra rows once.
+    assert select_worst(category, score, row_pass, 2) == [3, 1, 6, 8, 9]
+    assert select_worst(category, score, row_pass, 5, extra=[6, 12]) == [3, 1, 2, 6, 8, 9, 12]
+    score[[1, 2, 3]] = 0.7
+    assert select_worst(category, score, score <= 1, 2) == [1, 6, 8, 9]  # a passing random shows one row
+
+
+# ---------------------------------------------------------------------------
+# golden.spread: the tolerances hold the legitimate ports they are derived from
+
+
+def _alternating(case, inputs, eps, sign, free):
+    """Every float input component times 1 ± eps, the sign alternating over the components of
+    all inputs in order (a port whose loads and first operations each round once), on ``free`` rows."""
+    out, k = {}, 0
+    for name, v in inputs.items():
+        if name in case.integer_inputs:
+            out[name] = v
+            continue
+        v = np.asarray(v, np.float64)
+        m = int(np.prod(v.shape[1:], dtype=np.int64))
+        s = np.array([sign if (k + j) % 2 == 0 else -sign for j in range(m)], np.float64).reshape(v.shape[1:])
+        k += m
+        f = 1 + eps * s[None] * free.reshape((-1,) + (1,) * (v.ndim - 1))
+        p = v * f
+        out[name] = np.where((np.abs(p) > 1) & (np.abs(v) <= 1), v, p)  # inputs in [-1, 1] stay there
+    return out
+
+
+def _joint(case, inputs, eps, sign):
+    """Every float input times 1 + sign 3 eps (one rounding direction of a port 3 ulps off)."""
+    return {k: v if k in case.integer_inputs else
+            np.where((np.abs(v * (1 + 3 * sign * eps)) > 1) & (np.abs(v) <= 1), v, v * (1 + 3 * sign * eps))
+            for k, v in ((k, np.asarray(v, np.float64)) for k, v in inputs.items())}
+
+
+@pytest.mark.parametrize("name", ["shadow_intensity-lower-float32", "phi-float32", "shade-float32"])
+@pytest.mark.parametrize("sign", [1, -1])
+def test_a_port_with_every_input_one_ulp_off_in_alternating_directions_passes(name, sign):
+    from moments_ref.golden.cases import CASES, evaluate_reference
+    from moments_ref.golden.spread import STRUCTURED
+    from moments_ref.golden.writer import golden_arrays, manifest_entry
+
+    case = CASES[name]
+    arrays = golden_arrays(case)
+    inputs = {k: arrays[k] for k in case.inputs}
+    flags = [str(f).split(",") for f in arrays["flags"]]
+    x = np.sort(np.abs(np.concatenate([np.asarray(v, np.float64).reshape(len(flags), -1) for k, v in inputs.items()
+                                       if k not in case.integer_inputs], axis=1)), axis=1)
+    equal = np.any((np.diff(x, axis=1) == 0) & (x[:, 1:] != 0) & (x[:, 1:] != 1), axis=1)
+    free = np.array([not any(f in STRUCTURED for f in fl) for fl in flags]) & ~equal
+    assert free.mean() > 0.5
+    eps = float(np.finfo(np.float32).eps)
+    entry = manifest_entry(case, arrays)
+    got = evaluate_reference(case, _alternating(case, inputs, eps, sign, free), np.float32)
+    v = compare(entry, arrays, {o: np.asarray(g, np.float32) for o, g in zip(case.outputs, got)})
+    assert v.row_pass[free].all(), np.flatnonzero(free & ~v.row_pass)[:5]
+    # Every input scaled by 1 ± 3 eps together (the backward error of operations 3 ulps off): every row.
+    got = evaluate_reference(case, _joint(case, inputs, eps, sign), np.float32)
+    v = compare(entry, arrays, {o: np.asarray(g, np.float32) for o, g in zip(case.outputs, got)})
+    assert v.passed, np.flatnonzero(~v.row_pass)[:5]
+
+
+def test_the_worst_output_of_a_case_decides_the_rows_error_and_tolerance():
+    e = {"compare": ["y", "z"], "outputs": {"y": {"dtype": "float32"}, "z": {"dtype": "float32"}},
+         "dtype": "float32", "metric": "abs"}
+    g = _golden([0.0, 0.0, 0.0], [1e-2, 1e-2, np.inf], result=["valid", "valid", "valid"])
+    g.update({"z": np.zeros(3), "z_tolerance_float32": np.array([1e-3, 1e-3, 1e-3]),
+              "z_tolerance_float64": np.ones(3)})
+    v = compare(e, g, {"y": np.float32([5e-3, 2e-3, 7.0]), "z": np.float32([1e-4, 2e-3, 0.0])})
+    assert v.row_pass.tolist() == [True, False, True]
+    np.testing.assert_allclose(v.score, [0.5, 2.0, 0.0], rtol=1e-6)
+    # row 0: y's error, row 1: z's; row 2 (both scores 0): the first output's, ungated
+    np.testing.assert_allclose(v.error, [5e-3, 2e-3, 7.0], rtol=1e-6)
+    np.testing.assert_allclose(v.tolerance, [1e-2, 1e-3, np.inf])
+    assert v.gated.tolist() == [True, True, False]  # an infinite tolerance on a valid row: not gated
+
+
+def test_one_dimensional_codes_accept_alternatives_on_acceptable_rows():
+    e = {"compare": ["p"], "outputs": {"p": {"dtype": "uint32"}}, "dtype": "float32", "metric": "exact"}
+    g = {"p": np.array([5, 5], np.uint32), "p_acceptable": np.array([[5, 6], [5, 6]], np.uint32),
+         "result": np.array(["acceptable", "valid"]), "tc_id": np.arange(1, 3)}
+    v = compare(e, g, {"p": np.array([6, 6], np.uint32)})
+    assert v.row_pass.tolist() == [True, False]
+
+
+def _float_case(y, tol, got, category, dtype="float32"):
+    n = len(y)
+    meta = {**_entry(dtype=dtype), "exact": False}
+    arrays = _golden(y, tol)
+    arrays["category"] = np.asarray(category)
+    return compare_case("f-test", meta, arrays, {"y": np.asarray(got, np.float32)})
+
+
+def test_float_case_summaries_per_category():
+    y = [1.0, 1.0, 2.0, 0.5, 0.25]
+    got = [1.0, 1.0 + 2 ** -20, 2.0 - 2 ** -10, 0.5, np.nan]
+    v = _float_case(y, [1e-3, 1e-3, 1e-4, 1e-3, 1e-3], got, ["random", "random", "stiff", "stiff", "edge"])
+    r, s, e = v.categories["random"], v.categories["stiff"], v.categories["edge"]
+    assert (r.rows, r.gated, r.failures) == (2, 2, 0) and (s.failures, e.failures) == (1, 1)
+    assert r.worst_score == pytest.approx(2 ** -20 / 1e-3, rel=1e-6) and r.worst_error == pytest.approx(2 ** -20)
+    assert s.worst_score == pytest.approx(2 ** -10 / 1e-4, rel=1e-6) and s.worst_tolerance == 1e-4
+    assert e.worst_score == np.inf
+    worst = {w["index"]: w for w in v.worst}
+    assert set(worst) == {1, 2, 4}  # random passes: its closest row; stiff and edge: their failures
+    assert worst[2]["abs"] == pytest.approx(2 ** -10) and worst[2]["rel"] == pytest.approx(2 ** -11)
+    assert worst[2]["ulps"] == 2 ** 13  # float32 spacing below 2 is 2^-23
+    assert worst[4]["abs"] == np.inf and worst[4]["ulps"] == np.inf
+    assert not v.passed and v.notes == [] and v.components is None
+
+
+def test_float64_cases_are_judged_by_their_float32_column_with_a_note():
+    v = _float_case([0.5], [1e-3], [0.5 + 1e-4], ["random"], dtype="float64")
+    assert v.passed and any("float32 tolerance column" in n for n in v.notes)
+
+
+def test_vector_outputs_report_the_worst_ulps_per_component():
+    meta = {**_entry(), "exact": False}
+    arrays = _golden(np.ones((3, 4)), 1.0)
+    got = np.ones((3, 4), np.float32)
+    got[0, 1] = np.nextafter(np.float32(1), np.float32(2))
+    got[2, 3] = np.float32(1 + 5 * 2 ** -23)
+    v = compare_case("v-test", meta, arrays, {"y": got})
+    assert v.components == {"ulps": "[0, 1, 0, 5]"}
+    v = _exact_case([1, 2, 3], [1, 9, 3])
+    assert v.components is None  # one code per row
