@@ -68,11 +68,17 @@ R1 = (1 − T4(z))/2 are Chebyshev polynomials, a further sign the reading is ri
 
 References
 ----------
-Direct3D programming guide, "Data Conversion Rules" (FLOAT -> UNORM, UNORM -> FLOAT;
-tolerance D3D11_FLOAT32_TO_INTEGER_TOLERANCE_IN_ULP = 0.6).
-Vulkan specification, "Fixed-Point Data Conversions".
-DXGI_FORMAT_R10G10B10A2_UNORM (R in the least significant bits).
-HPG17, Slides : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [3] Direct3D programming guide, "Data Conversion Rules" (FLOAT -> UNORM, UNORM -> FLOAT;
+       tolerance D3D11_FLOAT32_TO_INTEGER_TOLERANCE_IN_ULP = 0.6).
+.. [4] Vulkan specification, "Fixed-Point Data Conversions".
+.. [5] DXGI_FORMAT_R10G10B10A2_UNORM (R in the least significant bits).
 """
 
 from __future__ import annotations

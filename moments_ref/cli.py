@@ -13,7 +13,12 @@ range-checked by argparse.
 
 References
 ----------
-HPG17, VWSS : see docs/bib.md.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations

@@ -5,7 +5,10 @@ metric from these) and re-exported by :mod:`moments_ref.report`.
 
 References
 ----------
-FLIP : see docs/bib.md.
+.. [1] FLIP: Pontus Andersson, Jim Nilsson, Tomas Akenine-Möller, Magnus Oskarsson, Kalle Åström
+       and Mark D. Fairchild. 2020. *ꟻLIP: A Difference Evaluator for Alternating Images*.
+       Proceedings of the ACM on Computer Graphics and Interactive Techniques (HPG 2020) 3, 2. Used
+       through the package ``flip-evaluator``.
 """
 
 from __future__ import annotations

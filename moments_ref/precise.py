@@ -38,7 +38,9 @@ space exactly as :mod:`moments_ref.msm` documents. In the regular case
 
 References
 ----------
-HPG17 : see docs/bib.md.
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations

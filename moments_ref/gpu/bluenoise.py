@@ -67,10 +67,11 @@ is ignored and regenerated. Nothing is written unless asked for.
 
 References
 ----------
-R. Ulichney, "The void-and-cluster method for dither array generation",
-Proc. SPIE 1913, 1993.
-C. Peters, "Non-linearly quantized moment shadow maps", HPG 2017, §4.2.
-HPG17 : see docs/bib.md.
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [2] R. Ulichney, "The void-and-cluster method for dither array generation", Proc. SPIE 1913,
+       1993.
 """
 
 from __future__ import annotations

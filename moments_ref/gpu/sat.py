@@ -50,7 +50,10 @@ the map instead (documented at :func:`interpolated_mean`).
 
 References
 ----------
-Slides : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
 """
 
 from __future__ import annotations

@@ -8,7 +8,9 @@ against the golden vectors. See docs/ports.md.
 
 References
 ----------
-HPG17 : see docs/bib.md.
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from pathlib import Path

@@ -22,7 +22,15 @@ shadows stay (:mod:`moments_ref.techniques.references`).
 
 References
 ----------
-HPG17, VWSS : see docs/bib.md.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [3] Isidoro 2006: John R. Isidoro. 2006. *Shadow Mapping: GPU-based Tips and Techniques*. Game
+       Developers Conference 2006 (receiver plane depth bias: the receiver's depth at each filter
+       tap from its depth gradient in shadow-map space)
 """
 
 from __future__ import annotations

@@ -36,7 +36,13 @@ for the reference. A stage name contains ``vwss`` only for multi-view work.
 
 References
 ----------
-VWSS, Slides : see docs/bib.md.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
+.. [2] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
 """
 
 from __future__ import annotations

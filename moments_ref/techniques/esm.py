@@ -18,7 +18,9 @@ float32 (whose limit is exp(88.7)). The product is evaluated as
 
 References
 ----------
-Annen et al. 2008 : see docs/bib.md.
+.. [1] Annen et al. 2008: Thomas Annen, Tom Mertens, Hans-Peter Seidel, Eddy Flerackers and Jan
+       Kautz. 2008. *Exponential Shadow Maps*. In Proceedings of Graphics Interface 2008 (GI '08).
+       155–161. https://doi.org/10.20380/GI2008.20
 """
 
 from __future__ import annotations

@@ -48,7 +48,12 @@ With δ = 0 EVSM then converges to the exact Z(z < zf) like ESM
 
 References
 ----------
-HPG17, Lauritzen and McCool 2008 : see docs/bib.md.
+.. [1] Lauritzen and McCool 2008: Andrew Lauritzen and Michael McCool. 2008. *Layered Variance
+       Shadow Maps*. In Proceedings of Graphics Interface 2008 (GI '08). 139–146.
+       https://doi.org/10.20380/GI2008.18 (exponential variance shadow maps, EVSM)
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations

@@ -32,7 +32,15 @@ reference for translucent occluders.
 
 References
 ----------
-HPG17, Reeves et al. 1987, Isidoro 2006 : see docs/bib.md.
+.. [1] Reeves et al. 1987: William T. Reeves, David H. Salesin and Robert L. Cook. 1987. *Rendering
+       Antialiased Shadows with Depth Maps*. In Proceedings of SIGGRAPH '87. ACM, 283–291.
+       https://doi.org/10.1145/37401.37435 (percentage-closer filtering, PCF)
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [3] Isidoro 2006: John R. Isidoro. 2006. *Shadow Mapping: GPU-based Tips and Techniques*. Game
+       Developers Conference 2006 (receiver plane depth bias: the receiver's depth at each filter
+       tap from its depth gradient in shadow-map space)
 """
 
 from __future__ import annotations

@@ -20,7 +20,16 @@ images shaded with the technique and with the reference.
 
 References
 ----------
-HPG17, Isidoro 2006, FLIP : see docs/bib.md.
+.. [1] Isidoro 2006: John R. Isidoro. 2006. *Shadow Mapping: GPU-based Tips and Techniques*. Game
+       Developers Conference 2006 (receiver plane depth bias: the receiver's depth at each filter
+       tap from its depth gradient in shadow-map space)
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [3] FLIP: Pontus Andersson, Jim Nilsson, Tomas Akenine-Möller, Magnus Oskarsson, Kalle Åström
+       and Mark D. Fairchild. 2020. *ꟻLIP: A Difference Evaluator for Alternating Images*.
+       Proceedings of the ACM on Computer Graphics and Interactive Techniques (HPG 2020) 3, 2. Used
+       through the package ``flip-evaluator``.
 """
 
 from __future__ import annotations

@@ -14,7 +14,11 @@ image warping of the light's centre view (VWSS Figure 4 left, Figure 5 left).
 
 References
 ----------
-VWSS : see docs/bib.md. PCSS: Fernando 2005, cited in place.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
+.. [2] Fernando 2005: Randima Fernando. 2005. *Percentage-Closer Soft Shadows*. In ACM SIGGRAPH
+       2005 Sketches. https://doi.org/10.1145/1187112.1187153 (PCSS)
 """
 
 from __future__ import annotations

@@ -25,7 +25,14 @@ support see only the opaque occluders (the default of
 
 References
 ----------
-Slides, Peters et al. 2016 : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] Peters et al. 2016: Christoph Peters, Cedrick Münstermann, Nico Wetzstein and Reinhard
+       Klein. 2016. *Beyond Hard Shadows: Moment Shadow Maps for Single Scattering, Soft Shadows
+       and Translucent Occluders*. In Proceedings of the 20th ACM SIGGRAPH Symposium on Interactive
+       3D Graphics and Games (i3D '16). ACM.
 """
 
 from __future__ import annotations

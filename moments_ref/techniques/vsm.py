@@ -22,7 +22,12 @@ by its own depth bias.
 
 References
 ----------
-HPG17, Donnelly and Lauritzen 2006 : see docs/bib.md.
+.. [1] Donnelly and Lauritzen 2006: William Donnelly and Andrew Lauritzen. 2006. *Variance Shadow
+       Maps*. In Proceedings of the 2006 ACM SIGGRAPH Symposium on Interactive 3D Graphics and
+       Games (i3D '06). ACM, 161–165. https://doi.org/10.1145/1111411.1111440
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations

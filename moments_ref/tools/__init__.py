@@ -8,9 +8,15 @@
 * :mod:`.claim_parameters`: the unstated parameters of the EVSM and VWSS claims, varied.
 * :mod:`.apidoc`: docs/api.md and the layout tables, generated from the package.
 * :mod:`.layout`: the layers, read from the folders.
+* :mod:`.references`: the numbered References sections, written from docs/bib.md.
 * :mod:`.mutation`: mutation scores of the package's own modules (docs/testing.md).
 
 References
 ----------
-HPG17, VWSS : see docs/bib.md.
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [2] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
 """

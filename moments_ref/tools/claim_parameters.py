@@ -13,7 +13,15 @@ light's near plane, the depth bias and the light-sample seed varied. docs/format
 
 References
 ----------
-HPG17, VWSS, Lauritzen and McCool 2008 : see docs/bib.md.
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [2] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
+.. [3] Lauritzen and McCool 2008: Andrew Lauritzen and Michael McCool. 2008. *Layered Variance
+       Shadow Maps*. In Proceedings of Graphics Interface 2008 (GI '08). 139–146.
+       https://doi.org/10.20380/GI2008.18 (exponential variance shadow maps, EVSM)
 """
 
 from __future__ import annotations

@@ -73,8 +73,19 @@ technique ``msm_soft`` and its pipeline stages.
 
 References
 ----------
-Slides, HPG17, MSM-JCGT : see docs/bib.md. PCSS: Fernando 2005, cited in place.
-Peters et al. 2017 : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] Fernando 2005: Randima Fernando. 2005. *Percentage-Closer Soft Shadows*. In ACM SIGGRAPH
+       2005 Sketches. https://doi.org/10.1145/1187112.1187153 (PCSS)
+.. [3] MSM-JCGT, Peters et al. 2017: Christoph Peters, Cedrick Münstermann, Nico Wetzstein and
+       Reinhard Klein. 2017. *Improved Moment Shadow Maps for Translucent Occluders, Soft Shadows
+       and Single Scattering*. Journal of Computer Graphics Techniques (JCGT) 6, 1, 17–67.
+       http://jcgt.org/published/0006/01/03/
+.. [4] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 

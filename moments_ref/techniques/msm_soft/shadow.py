@@ -6,8 +6,15 @@ filtering").
 
 References
 ----------
-Slides, HPG17 : see docs/bib.md.
-Fernando 2005 : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [3] Fernando 2005: Randima Fernando. 2005. *Percentage-Closer Soft Shadows*. In ACM SIGGRAPH
+       2005 Sketches. https://doi.org/10.1145/1187112.1187153 (PCSS)
 """
 
 from __future__ import annotations

@@ -103,7 +103,19 @@ prefix ``scattering_``) and ``shade_<technique>``, and ``scattering_raymarch``
 
 References
 ----------
-Slides, HPG17 : see docs/bib.md. Klehm et al. 2014 and Duff et al. 2017 are cited in place.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] Klehm et al. 2014: Oliver Klehm, Hans-Peter Seidel and Elmar Eisemann. 2014. *Prefiltered
+       Single Scattering*. In Proceedings of the 18th ACM SIGGRAPH Symposium on Interactive 3D
+       Graphics and Games (i3D '14). ACM.
+.. [3] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [4] Duff et al. 2017: Tom Duff, James Burgess, Per Christensen, Christophe Hery, Andrew Kensler,
+       Max Liani and Ryusuke Villemin. 2017. *Building an Orthonormal Basis, Revisited*. Journal of
+       Computer Graphics Techniques (JCGT) 6, 1, 1–8.
 """
 
 

@@ -7,8 +7,16 @@ with six-moment bounds and the interpolation between them.
 
 References
 ----------
-Slides, HPG17 : see docs/bib.md.
-Duff et al. 2017 : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] Duff et al. 2017: Tom Duff, James Burgess, Per Christensen, Christophe Hery, Andrew Kensler,
+       Max Liani and Ryusuke Villemin. 2017. *Building an Orthonormal Basis, Revisited*. Journal of
+       Computer Graphics Techniques (JCGT) 6, 1, 1–8.
+.. [3] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations

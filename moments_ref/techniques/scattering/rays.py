@@ -6,8 +6,14 @@ truth" uses 128 samples; the report's reference 4096).
 
 References
 ----------
-Slides : see docs/bib.md.
-FLIP : see docs/bib.md.
+.. [1] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+.. [2] FLIP: Pontus Andersson, Jim Nilsson, Tomas Akenine-Möller, Magnus Oskarsson, Kalle Åström
+       and Mark D. Fairchild. 2020. *ꟻLIP: A Difference Evaluator for Alternating Images*.
+       Proceedings of the ACM on Computer Graphics and Interactive Techniques (HPG 2020) 3, 2. Used
+       through the package ``flip-evaluator``.
 """
 
 from __future__ import annotations

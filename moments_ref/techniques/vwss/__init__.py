@@ -14,7 +14,9 @@ import them as ``from moments_ref.techniques.vwss.warp import warp``.
 
 References
 ----------
-VWSS : see docs/bib.md.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
 """
 
 from .lights import LIGHT_NEAR_PARAM, LightSamples, depth_range, light_near, light_views, poisson_disk

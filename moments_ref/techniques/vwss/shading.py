@@ -29,7 +29,11 @@ blocks of ``2**14`` (the results do not depend on the block size).
 
 References
 ----------
-VWSS, Fernando 2005 : see docs/bib.md.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
+.. [2] Fernando 2005: Randima Fernando. 2005. *Percentage-Closer Soft Shadows*. In ACM SIGGRAPH
+       2005 Sketches. https://doi.org/10.1145/1187112.1187153 (PCSS)
 """
 
 from __future__ import annotations

@@ -28,7 +28,9 @@ rasterized maps compare directly.
 
 References
 ----------
-VWSS : see docs/bib.md.
+.. [1] VWSS: Adam Marrs, Benjamin Watson and Christopher Healey. 2018. *View-warped Multi-view Soft
+       Shadowing for Local Area Lights*. Journal of Computer Graphics Techniques (JCGT) 7, 3, 1–28.
+       http://jcgt.org/published/0007/03/01/
 """
 
 from __future__ import annotations
