@@ -124,6 +124,12 @@ def phi(b):
     r : (..., 4) float array, dtype of ``b``
         ``(y1, y2, v2, ξ4)`` with ``y1 ≤ y2``.
 
+    See Also
+    --------
+    moments_ref.gpu.filtering.quantize_nlq, moments_ref.gpu.filtering.global_path_nlq :
+        the same bits for whole maps, a chunk at a time (docs/formats.md, "From depth
+        samples to texels, fast").
+
     Notes
     -----
     HPG17 Algorithm 2, step by step:

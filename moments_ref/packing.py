@@ -346,6 +346,12 @@ def pack64(r, *, xi_rounding="up"):
         ``round(65535·(y1+1)/2)``, ``round(65535·(y2+1)/2)``, ``round(65535·v2)``,
         the Ψ4 code.
 
+    See Also
+    --------
+    moments_ref.gpu.filtering.quantize_nlq, moments_ref.gpu.filtering.global_path_nlq :
+        the same bits for whole maps, a chunk at a time (docs/formats.md, "From depth
+        samples to texels, fast").
+
     Notes
     -----
     HPG17 §3.3: "Storing the depths y1, y2 ∈ [-1, 1] to the first two channels
@@ -489,6 +495,12 @@ def pack32(r):
         ``min(⌊128 √v2⌋, 127)`` (7 bits), ``min(⌊64 Ψ4(ξ4)⌋, 63)`` (6 bits, bumped
         where float rounding would decode it below ξ4); see the module docstring and
         docs/formats.md.
+
+    See Also
+    --------
+    moments_ref.gpu.filtering.quantize_nlq, moments_ref.gpu.filtering.global_path_nlq :
+        the same bits for whole maps, a chunk at a time (docs/formats.md, "From depth
+        samples to texels, fast").
 
     Notes
     -----

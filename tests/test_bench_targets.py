@@ -86,3 +86,18 @@ def test_llvmpipe_worker_draws_the_same_scene():
         lp.case("small-4096-1x")
         t = lp.time()
     assert t["cpu"] > 0 and t["wall"] > 0
+
+
+def test_end_to_end_times_the_documented_fused_paths_beside_the_passes(monkeypatch):
+    from moments_ref.gpu import filtering
+    from moments_ref.tools import bench
+
+    rows = bench.end_to_end(size=32, samples=4)
+    paths = {r["path"] for r in rows}
+    assert paths == {"global", "onchip", "fused", "fused from moments"}
+    totals = [r["path"] for r in rows if r["stage"] == "total"]
+    assert sorted(totals) == ["global", "onchip"]  # one-stage paths need no total row
+    # A fused path that changed a bit would make the speed comparison meaningless: refused.
+    monkeypatch.setattr(filtering, "quantize_nlq", lambda m, fmt: filtering.nlq_texels(m, fmt) ^ 1)
+    with pytest.raises(RuntimeError, match="quantize_nlq"):
+        bench.end_to_end(size=32, samples=4)

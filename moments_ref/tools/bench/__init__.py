@@ -419,10 +419,13 @@ def end_to_end(size=2048, samples=4, repeat=1):
     the shader's registers), bias with ``BIAS_FLOAT32`` and Φ
     (:func:`~moments_ref.nonlinear.phi`), pack (:func:`~moments_ref.packing.pack64`);
     and beside it the on-chip emulation (:func:`~moments_ref._onchip.filter_moments`)
-    followed by the same Φ and pack. Returns a list of dicts
+    followed by the same Φ and pack; and the fused paths that the docs show
+    (:func:`~moments_ref.gpu.filtering.global_path_nlq` from the samples,
+    :func:`~moments_ref.gpu.filtering.quantize_nlq` from the filtered moments: the
+    same bits, a band at a time). Returns a list of dicts
     ``{path, stage, seconds, share}``; shares are of the path's total.
     """
-    from ...gpu.filtering import bench_depth_map, blur, resolve_moments
+    from ...gpu.filtering import bench_depth_map, blur, global_path_nlq, quantize_nlq, resolve_moments
     from ...moments import BIAS_FLOAT32, bias_moments
     from ...nonlinear import phi
     from ...gpu.onchip import filter_moments
@@ -449,12 +452,21 @@ def end_to_end(size=2048, samples=4, repeat=1):
     rows.append(timed("onchip", "bias + phi ", lambda: phi(bias_moments(
         state["filter_moments (resolve + blur in blocks)"], BIAS_FLOAT32))))
     rows.append(timed("onchip", "pack64 ", lambda: pack64(state["bias + phi "])))
-    for path in ("global", "onchip"):
-        total = sum(r["seconds"] for r in rows if r["path"] == path)
-        for r in rows:
-            if r["path"] == path:
-                r["share"] = r["seconds"] / total
-        rows.append({"path": path, "stage": "total", "seconds": total, "share": 1.0})
+    rows.append(timed("fused", "global_path_nlq (resolve, blur, bias + phi, pack64 in bands)",
+                      lambda: global_path_nlq(z, "nlq64")))
+    rows.append(timed("fused from moments", "quantize_nlq (bias + phi, pack64 in chunks of the blurred map)",
+                      lambda: quantize_nlq(state["blur"], "nlq64")))
+    # The fused paths are only faster ways to the same bits.
+    for stage in (rows[-2]["stage"], rows[-1]["stage"]):
+        if not np.array_equal(state[stage], state["pack64"]):
+            raise RuntimeError(f"bench: {stage} differs from the separate passes")
+    for path in ("global", "onchip", "fused", "fused from moments"):
+        members = [r for r in rows if r["path"] == path]
+        total = sum(r["seconds"] for r in members)
+        for r in members:
+            r["share"] = r["seconds"] / total
+        if len(members) > 1:
+            rows.append({"path": path, "stage": "total", "seconds": total, "share": 1.0})
     return rows
 
 
