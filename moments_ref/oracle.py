@@ -231,8 +231,9 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
 def _folder_rows(c, golden_dir):
     """The rows of case ``c`` from a golden folder, through the strict loader; the case must match this version's."""
     meta, arrays = load_case(golden_dir, c.name)
-    if list(meta["inputs"]) != list(c.inputs) or list(meta["compare"]) != list(c.outputs):
-        raise InputError(f"golden_dir: case {c.name!r} has inputs {list(meta['inputs'])} and outputs "
+    order = list(meta.get("input_order", meta["inputs"]))
+    if order != list(c.inputs) or list(meta["compare"]) != list(c.outputs):
+        raise InputError(f"golden_dir: case {c.name!r} has inputs {order} and outputs "
                          f"{meta['compare']}, this version's has {list(c.inputs)} and {list(c.outputs)}")
     return dict(arrays)
 

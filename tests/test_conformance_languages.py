@@ -56,6 +56,10 @@ def test_ports_name_each_step_in_comments(language):
 @pytest.mark.parametrize("language,driver", COMBOS)
 @pytest.mark.parametrize("case", CASES)
 def test_shipped_port_passes_on_both_drivers(drivers, golden_dir, language, driver, case):
+    if "bilinear" in case and (language, driver) in (("glsl", "vulkan"), ("wgsl", "gl")):
+        # Refused with one line (tests/test_conformance_bilinear.py): wgpu's SPIR-V reader takes no
+        # sampler2D, wgpu's OpenGL adapter has no filterable rgba32float.
+        pytest.skip(f"bilinear sampling does not run as {language} on {driver}")
     report = _shipped_run(golden_dir, language, driver, case)
     assert report.passed, report.format()
     assert report.driver == driver and ("llvmpipe" in report.renderer or "lavapipe" in report.renderer)

@@ -11,6 +11,8 @@ __all__ = ["SHIPPED_FUNCTIONS", "SHIPPED", "shipped_port", "shipped_cases"]
 SHIPPED_FUNCTIONS = {
     "shadow_intensity6-lower": ("msm6", "shadow_intensity6_lower"),
     "shadow_intensity6-upper": ("msm6", "shadow_intensity6_upper"),
+    "shadow_intensity_bilinear-": ("bilinear", "shadow_intensity_bilinear"),
+    "sample_bilinear-": ("bilinear", "sample_moments"),
     "shadow_intensity-lower": ("msm", "shadow_intensity_lower"),
     "shadow_intensity-upper": ("msm", "shadow_intensity_upper"),
     "bias_moments-float32": ("msm", "bias_moments_float32"),
