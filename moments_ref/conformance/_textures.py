@@ -22,9 +22,11 @@ texture's sample type: float moments as ``r/rg/rgba32float`` (exact); UNORM16 co
 as ``rgba16unorm`` to a float texture (the texel is code / 65535, what a 64-bit
 moment texture holds) or ``rgba16uint`` to an unsigned one; 32-bit codes (NLQ
 ``pack32``) as ``r32uint``. GLSL ``sampler2D`` arguments run on OpenGL only (wgpu's
-SPIR-V reader takes no combined image sampler). Bilinear filtering between texels is
-not covered yet (llvmpipe and lavapipe weight with the exact float fraction, GPUs in
-steps of 1/256: docs/ports.md).
+SPIR-V reader takes no combined image sampler). A bilinear case's ``texels`` (2×2
+neighbourhoods, :mod:`moments_ref.golden.bilinear`) fill 2×2 blocks of an rgba32float
+texture, filtered linearly (clamp to edge, one level), and the sampler's coordinate lies at
+the row's ``fraction`` between the four centres (:meth:`TextureArg._between`); the
+fraction is not passed as an argument.
 
 References
 ----------
