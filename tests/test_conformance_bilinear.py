@@ -15,9 +15,11 @@ import pytest
 from moments_ref import conformance
 
 SAMPLE, INTENSITY = "sample_bilinear-float32", "shadow_intensity_bilinear-float32"
-#: (language, driver) the bilinear cases run on: GLSL's sampler2D on OpenGL only; wgpu's OpenGL
-#: adapter has no filterable rgba32float.
-COMBOS = [("glsl", "gl"), ("hlsl", "gl"), ("hlsl", "vulkan"), ("wgsl", "vulkan")]
+#: (language, driver) the bilinear cases run on: all but those declared not available
+#: (conformance.NOT_AVAILABLE: GLSL's sampler2D on OpenGL only; wgpu's OpenGL adapter has no
+#: filterable rgba32float).
+COMBOS = [(lang, drv) for lang in conformance.LANGUAGES for drv in conformance.DRIVERS
+          if not conformance.not_available(SAMPLE, lang, drv)]
 
 # Manual bilinear from four loads (`hand`) and its mutants, and sampling mutants; each as
 # `vec4 NAME(texture, [sampler,] uv)`: the texel space position p = uv * size - 0.5.
@@ -103,6 +105,12 @@ def _run(tmp_path, golden_dir, language, driver, name, case=SAMPLE, **kw):
 def _shipped(golden_dir, language, driver, case):
     path, function = conformance.shipped_port(case, language)
     return conformance.run_case(path, function, case, golden_dir, language, driver)
+
+
+def test_bilinear_cases_run_on_four_pairs():
+    assert COMBOS == [("glsl", "gl"), ("hlsl", "gl"), ("hlsl", "vulkan"), ("wgsl", "vulkan")]
+    assert all(conformance.not_available(INTENSITY, lang, drv) == conformance.not_available(SAMPLE, lang, drv)
+               for lang in conformance.LANGUAGES for drv in conformance.DRIVERS)
 
 
 @pytest.mark.parametrize("case", [SAMPLE, INTENSITY])
