@@ -22,11 +22,12 @@ Expected values: the blend of the float32 texels in exact rational arithmetic, r
 (then, for the intensity, the mpmath twins :func:`moments_ref.precise.bias_moments` and
 :func:`moments_ref.precise.shadow_intensity`). Tolerances (:func:`weight_interval`):
 
-* hardware weights: GPUs filter with the position quantized to ``q`` bits of sub-texel
-  precision (D3D11: 8; Vulkan: ``subTexelPrecisionBits``, at least 4), and neither API
-  fixes the rounding, so a weight is any multiple of 2⁻q within one step of the fraction:
-  ⌊2^q f⌋/2^q or ⌈2^q f⌉/2^q (floor, nearest and any directed rounding land on one of the
-  two), or the fraction itself (llvmpipe and lavapipe: docs/ports.md). ``q`` is declared in
+* hardware weights: GPUs filter with the position snapped to ``q`` bits of sub-texel
+  precision (D3D11: at least 8, snapped within 0.6 ulp of the q-bit grid, reference round
+  to nearest even; Vulkan: ``subTexelPrecisionBits``, at least 4, no rounding rule stated),
+  so a weight is any multiple of 2⁻q within one step of the fraction: ⌊2^q f⌋/2^q or
+  ⌈2^q f⌉/2^q (floor, nearest and any directed rounding land on one of the two), or the
+  fraction itself (llvmpipe and lavapipe: docs/ports.md). ``q`` is declared in
   the engine profile (``[format] subtexel_bits``, default :data:`SUBTEXEL_BITS`). The blend
   is bilinear in (wx, wy), so over the rectangle of allowed weights its extremes lie at the
   four corners: the moments' spread is the largest distance of a corner's blend from the
@@ -42,8 +43,11 @@ Expected values: the blend of the float32 texels in exact rational arithmetic, r
 
 References
 ----------
-HPG17 : see docs/bib.md. Direct3D 11 functional specification §7.18.16 (texel filtering);
-Vulkan specification, ``VkPhysicalDeviceLimits::subTexelPrecisionBits``.
+HPG17 : see docs/bib.md. Direct3D 11.3 functional specification §3.2.4 (Fixed Point Integers:
+texture coordinates snapped to fixed point; §3.2.4.1, float to fixed within 0.6 ulp) and
+§7.18.16.1 (Texture Addressing and LOD Precision: at least 8 bits of sub-texel precision).
+Vulkan specification, "Unnormalized Texel Coordinate Operations" (α = frac(u − 0.5), "where
+the number of fraction bits retained is specified by" ``subTexelPrecisionBits``).
 """
 
 from __future__ import annotations
@@ -62,7 +66,7 @@ from .units import PORT_DTYPES, ceil2, ulp
 __all__ = ["SUBTEXEL_BITS", "SUBTEXEL_RANGE", "FINER_BITS", "FILTER_ULPS", "FRACTION_BITS", "blend", "blend_exact",
            "quantized", "weight_interval", "case_specs", "derive_bilinear"]
 
-#: Default sub-texel precision (Direct3D 11 requires 8 bits; Vulkan's minimum is 4).
+#: Default sub-texel precision (Direct3D 11 requires at least 8 bits; Vulkan's minimum is 4).
 SUBTEXEL_BITS = 8
 #: Sub-texel precisions a profile may declare (``[format] subtexel_bits``).
 SUBTEXEL_RANGE = tuple(range(4, 17))

@@ -69,7 +69,7 @@ APPLIED = ("inside", "before")
 #: rounded up (the lower-bound guarantee) or to nearest (a UNORM render-target write).
 _POSITIONS = ("lower", "centre", "upper")
 #: ``subtexel_bits``: the sub-texel precision of the engine's texture filter (bilinear cases,
-#: golden.bilinear; D3D11 8 bits, Vulkan at least 4).
+#: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4).
 FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
                "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17))}
 _KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format")
