@@ -130,7 +130,9 @@ def _hypothesis_arrays(c, n):
         inputs[k] = np.stack([np.asarray(r[k]) for r in extra]).astype(dt)
     m = len(extra)
     arrays = dict(inputs)
-    arrays.update(derive(c, inputs, ["random"] * m, ["drawn by hypothesis"] * m, [()] * m))
+    labels = (["random"] * m, ["drawn by hypothesis"] * m, [()] * m)
+    # The case's own deriver where it has one (the bilinear cases' declared filter spread), as golden rows get.
+    arrays.update((c.deriver or derive)(c, inputs, *labels))
     arrays["category"] = _classify(c, inputs, arrays)
     return arrays
 
@@ -216,8 +218,9 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         raise InputError(f"n_hypothesis: expected an integer in [0, {MAX_HYPOTHESIS}], got {brief(n_hypothesis)}")
     c = CASES[name]
     arrays = golden_arrays(c) if golden_dir is None else _folder_rows(c, golden_dir)
-    # Engine cases are distributions, kernel cases whole maps (a texel depends on its neighbours): no draws.
-    if n_hypothesis and c.deriver is None and not c.function.startswith("kernels."):
+    # Engine cases are distributions (aux arrays), kernel cases whole maps (a texel depends on its neighbours):
+    # no draws. Every other case, the bilinear ones included, gets drawn rows.
+    if n_hypothesis and not c.aux and not c.function.startswith("kernels."):
         arrays = _concat(arrays, _hypothesis_arrays(c, int(n_hypothesis)))
     if profile is not None and not profile.is_default:
         from .golden.conventions import profile_arrays
@@ -231,8 +234,9 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
 def _folder_rows(c, golden_dir):
     """The rows of case ``c`` from a golden folder, through the strict loader; the case must match this version's."""
     meta, arrays = load_case(golden_dir, c.name)
-    if list(meta["inputs"]) != list(c.inputs) or list(meta["compare"]) != list(c.outputs):
-        raise InputError(f"golden_dir: case {c.name!r} has inputs {list(meta['inputs'])} and outputs "
+    order = list(meta.get("input_order", meta["inputs"]))
+    if order != list(c.inputs) or list(meta["compare"]) != list(c.outputs):
+        raise InputError(f"golden_dir: case {c.name!r} has inputs {order} and outputs "
                          f"{meta['compare']}, this version's has {list(c.inputs)} and {list(c.outputs)}")
     return dict(arrays)
 

@@ -67,18 +67,34 @@ def test_engine_function_without_its_profile_or_glue_fails(drivers, tmp_path, na
 def test_generated_conformance_md_passes_everywhere_within_the_time_limits():
     text = (ROOT / "docs" / "conformance.md").read_text()
     assert "| FAIL |" not in text
-    rows = re.findall(r"^\| (glsl|hlsl|wgsl) \| (gl|vulkan) \| .*? \| (\d+) \| (\d+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \|$",
-                      text, re.M)
+    rows = re.findall(r"^\| (glsl|hlsl|wgsl) \| (gl|vulkan) \| .*? \| (\d+) \| (\d+) \| (\d+) \| (\d+) \| ([\d.]+) \| "
+                      r"([\d.]+) \| ([\d.]+) \|$", text, re.M)
     assert {(r[0], r[1]) for r in rows} == set(COMBOS)
-    for lang, drv, cases, failed, first, median, worst in rows:
-        assert int(cases) == len(conformance.shipped_cases()) and int(failed) == 0
+    shipped = conformance.shipped_cases()
+    for lang, drv, cases, run, refused, failed, first, median, worst in rows:
+        # Every shipped case is listed; those declared not available on this pair are refused, the rest run.
+        declared = [c for c in shipped if conformance.not_available(c, lang, drv)]
+        assert int(cases) == len(shipped) and int(refused) == len(declared) and int(run) == len(shipped) - len(declared)
+        assert int(failed) == 0
         assert float(worst) < 2.0  # one case after the first: under 2 s
+        for c in declared:
+            why = conformance.not_available(c, lang, drv)
+            assert f"| {lang} | {drv} | {c} | {why} |" in text
+            section = text.split(f"## {lang.upper()} on {drv}\n", 1)[1].split("\n## ", 1)[0]
+            assert f"| {c} | " in section and f"not available on this driver: {why} |" in section
     total = float(re.search(r"Whole run \(golden generation included\): ([\d.]+) s", text).group(1))
     assert total < 60
 
 
 def test_summary_markdown_on_two_cases(drivers, monkeypatch):
-    monkeypatch.setattr(_cli, "shipped_cases", lambda: ["psi4-float32", "pack32-float32"])
+    monkeypatch.setattr(_cli, "shipped_cases", lambda: ["psi4-float32", "pack32-float32", "sample_bilinear-float32"])
     text = _cli.summary_markdown(probes=False)
     assert text.count("| psi4-float32 | `psi4` |") == 6 and "| FAIL |" not in text
     assert "## The two drivers agree" in text and "Whole run" in text
+    # The bilinear case is listed on all six pairs: run on four, refused as declared on two.
+    refused = [(lang, drv) for lang, drv in COMBOS if conformance.not_available("sample_bilinear-float32", lang, drv)]
+    assert len(refused) == 2 and text.count("| sample_bilinear-float32 | `sample_moments` |") == 6
+    assert text.count("not available on this driver: ") == 2 and "## Not available on a driver" in text
+    for lang, drv in refused:
+        assert f"| {lang} | {drv} | sample_bilinear-float32 | " in text
+        assert re.search(rf"^\| {lang} \| {drv} \| .*? \| 3 \| 2 \| 1 \| 0 \| ", text, re.M)

@@ -57,7 +57,7 @@ def _three_verdicts(ctx, golden_dir, tmp_path, glsl, function, case, strict=Fals
     meta = golden.load_manifest(golden_dir)["cases"][case]
     arrays = golden.load_case_arrays(golden_dir, case, meta)
     specs = {o: (arrays[o].dtype if meta["exact"] else np.float32, arrays[o].shape) for o in meta["compare"]}
-    inputs = {k: arrays[k] for k in meta["inputs"]}
+    inputs = {k: arrays[k] for k in meta["input_order"]}  # argument order (``inputs`` is sorted by name)
     got, _ = conformance.run_glsl(conformance.load_source(glsl), function, inputs, specs, ctx=ctx)
     for o in meta["compare"]:  # a porter writes codes in the manifest's dtype (GPU readback: 32-bit words)
         want = arrays[o].dtype

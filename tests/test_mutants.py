@@ -1,5 +1,8 @@
 """The oracle's power, measured: every bug of the mutant corpus killed, no legitimate variant rejected."""
 
+import re
+from pathlib import Path
+
 import pytest
 
 from moments_ref.cli import main
@@ -17,8 +20,24 @@ def test_corpus_is_large_and_independent():
     assert len(kinds) >= 60 and kinds.count("bug") >= 50 and kinds.count("legit") >= 20
     assert len({m.name for m in corpus.MUTANTS}) == len(kinds)
     # The ports do not import the package they port.
-    src = (corpus.__file__.replace("corpus.py", "ports.py"))
-    assert "moments_ref" not in open(src).read()
+    for name in ("ports.py", "ports_bilinear.py"):
+        assert "moments_ref" not in open(corpus.__file__.replace("corpus.py", name)).read(), name
+
+
+def test_docs_print_the_score(results):
+    # docs/golden.md's mutation-score table: per kind, the mutants and how many each level judges right.
+    text = (Path(__file__).parents[1] / "docs" / "golden.md").read_text()
+    got = {m.group(1): tuple(int(x) for x in m.groups()[1:]) for m in re.finditer(
+        r"^\| (bug|legitimate variant|robustness|equivalent) \(.*\) \| (\d+) \| (\d+) \w+.*? \| (\d+) \w+.*?\|$",
+        text, re.M)}
+    kinds = {"bug": "bug", "legitimate variant": "legit", "robustness": "robustness", "equivalent": "equivalent"}
+    want = {}
+    for label, kind in kinds.items():
+        rs = [r for r in results if r.kind == kind]
+        right = (lambda r: r.killed) if kind == "bug" else (lambda r: not r.killed)
+        strict = (lambda r: r.killed_strict) if kind in ("bug", "robustness") else (lambda r: not r.killed_strict)
+        want[label] = (len(rs), sum(map(right, rs)), sum(map(strict, rs)))
+    assert got == want
 
 
 def test_every_bug_is_killed(results):

@@ -74,3 +74,29 @@ def test_kernel_cases_pass_the_references_float32_kernel(case):
     rep = oracle.check(lambda *a: golden.evaluate_reference(c, dict(zip(c.inputs, a)), "float32"), case,
                        dtype="float32", n_hypothesis=5)
     assert rep.passed and rep.rows == len(golden.case_rows(c)[1]), str(rep)
+
+
+@pytest.mark.parametrize("case", ["sample_bilinear", "shadow_intensity_bilinear"])
+def test_bilinear_cases_take_hypothesis_rows(case):
+    # Drawn rows (four texels of drawn distributions, fractions multiples of 2^-16) get the case's own
+    # tolerance (the declared sub-texel weight spread): an independent filter with exact or 8-bit weights
+    # passes them, swapped fractions fail on them too (more failures with draws than without).
+    from hypothesis import given, settings
+
+    from mutants import ports_bilinear as pb
+
+    @settings(max_examples=20, derandomize=True, database=None)
+    @given(oracle.input_strategy(f"{case}-float32"))
+    def row_is_well_formed(row):
+        assert row["texels"].shape == (16,) and row["fraction"].shape == (2,)
+        assert np.all((row["fraction"] >= 0) & (row["fraction"] < 1))
+        assert np.all(row["fraction"] * 2**16 == np.round(row["fraction"] * 2**16))
+
+    row_is_well_formed()
+    run = pb.sample if case == "sample_bilinear" else pb.shadow_intensity
+    n_golden = len(golden.case_rows(golden.CASES[f"{case}-float32"])[1])
+    for m in ({}, {"weight_bits": 8}, {"weight_bits": 8, "weight_round": "nearest"}):
+        rep = oracle.check(lambda *a, m=m: run(*a, m), case, n_hypothesis=40)
+        assert rep.passed and rep.rows == n_golden + 40, (m, str(rep))
+    swapped = [oracle.check(lambda *a: run(*a, {"swap_xy": True}), case, n_hypothesis=n).failures for n in (0, 40)]
+    assert 0 < swapped[0] < swapped[1], swapped

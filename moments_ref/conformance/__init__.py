@@ -48,7 +48,7 @@ from ._report import ConformanceReport
 from ._agree import DriverComparison, compare_drivers
 from ._supervisor import WATCHDOG_SECONDS, DriverError, set_watchdog, watchdog
 from ._run import AS_WRITTEN, DEFAULT_DRIVER, DRIVERS, LANGUAGES, SourceOptions, run_case, run_function
-from ._shipped import SHIPPED, SHIPPED_FUNCTIONS, shipped_cases, shipped_port
+from ._shipped import NOT_AVAILABLE, SHIPPED, SHIPPED_FUNCTIONS, not_available, shipped_cases, shipped_port
 from ._slots import Slot, signature
 from ._source import ShaderError, defined_functions, load_source
 from ._toolchain import ToolError
@@ -60,7 +60,8 @@ __all__ = [
     "WATCHDOG_SECONDS", "set_watchdog", "watchdog",
     "compare_drivers", "SHIPPED", "SHIPPED_FUNCTIONS",
     "create_context", "get_context", "renderer", "load_source", "defined_functions",
-    "shipped_port", "shipped_cases", "Slot", "signature", "glsl_signature", "run_glsl", "run_function",
+    "shipped_port", "shipped_cases", "NOT_AVAILABLE", "not_available",
+    "Slot", "signature", "glsl_signature", "run_glsl", "run_function",
     "GoldenCase", "load_case", "run_case", "ConformanceReport", "ulp_distance",
     "run_cli", "main", "summary_markdown", "bench_conformance",
 ]

@@ -30,7 +30,8 @@ class GoldenCase:
 
     @property
     def inputs(self):
-        return {k: self.arrays[k] for k in self.meta["inputs"]}
+        # The argument order (the manifest's ``inputs`` table is sorted by name).
+        return {k: self.arrays[k] for k in self.meta.get("input_order", self.meta["inputs"])}
 
     @property
     def category(self):

@@ -17,7 +17,7 @@ from ._cases import load_case
 from ._gl import ContextError
 from ._report import fmt
 from ._run import DRIVERS, LANGUAGES, SourceOptions, language_of, parse_adapter, run_case, run_function
-from ._shipped import shipped_cases, shipped_port
+from ._shipped import not_available, shipped_cases, shipped_port
 from ._supervisor import using_watchdog
 from ._toolchain import ToolError, tool_versions
 
@@ -107,29 +107,56 @@ def _cells(rep):
     return cells
 
 
+def _refused(language, spec, name, path, function, golden_dir, gc):
+    """The declared reason (:data:`NOT_AVAILABLE`) when the harness refuses ``name`` as declared, else None."""
+    reason = not_available(name, language, parse_adapter(spec, language).driver)
+    if reason is None:
+        return None
+    try:
+        run_case(path, function, name, golden_dir, language, spec, gc=gc)
+    except (InputError, ContextError):
+        return reason
+    return None  # declared but it ran: counted as run, so that the stale declaration shows
+
+
+def _renderer(renderers):
+    """The renderer of a target's runs: the first one, and any other with the cases that ran on it."""
+    (first, _), *others = renderers.items() if renderers else ((None, []),)
+    return "; ".join([str(first)] + [f"{r} for {', '.join(names)}" for r, names in others])
+
+
 def _run_all(golden_dir, adapter, progress):
-    """Per target: renderer, rows of the table, wall times, outputs per case."""
+    """Per target: renderer, rows of the table, wall times, outputs per case, refused cases."""
     cases = shipped_cases()
     results = []
     for language, spec in _targets(adapter):
-        rows, times, renderer, outputs = [], [], None, {}
+        rows, times, renderers, outputs, refused = [], [], {}, {}, {}
         for name in cases:
             path, function = shipped_port(name, language)
+            gc = load_case(name, golden_dir)
+            reason = _refused(language, spec, name, path, function, golden_dir, gc)
+            if reason is not None:
+                refused[name] = reason
+                rows.append(f"| {name} | `{function}` | – | – | – | – | not available on this driver: {reason} |")
+                continue
             t0 = time.perf_counter()
-            rep = run_case(path, function, name, golden_dir, language, spec, gc=load_case(name, golden_dir))
+            rep = run_case(path, function, name, golden_dir, language, spec, gc=gc)
             times.append(time.perf_counter() - t0)
-            renderer, outputs[name] = rep.renderer, rep.outputs
+            renderers.setdefault(rep.renderer, []).append(name)
+            outputs[name] = rep.outputs
             rows.append(f"| {name} | `{function}` | {' | '.join(_cells(rep))} | {'pass' if rep.passed else 'FAIL'} |")
-        results.append((language, parse_adapter(spec, language).driver, renderer, rows, times, outputs))
+        results.append((language, parse_adapter(spec, language).driver, _renderer(renderers), rows, times, outputs,
+                        refused))
         if progress:
-            print(f"  {language} on {results[-1][1]}: {len(cases)} cases in {sum(times):.1f} s", file=sys.stderr)
+            print(f"  {language} on {results[-1][1]}: {len(times)} cases in {sum(times):.1f} s, {len(refused)} not "
+                  "available", file=sys.stderr)
     return results
 
 
 def _differing_rows(a, b):
-    """Rows whose outputs differ in any bit between two runs of the same cases."""
+    """Rows whose outputs differ in any bit between two runs, over the cases both ran."""
     counts = {}
-    for name in a:
+    for name in (n for n in a if n in b):
         for o in a[name]:
             x, y = np.asarray(a[name][o]), np.asarray(b[name][o])
             n = len(x)
@@ -141,13 +168,13 @@ def _differing_rows(a, b):
 
 def _agreement_table(results):
     """Per language: how many golden rows the two drivers compute bit-identically."""
-    by = {(lang, drv): out for lang, drv, _, _, _, out in results}
+    by = {(lang, drv): out for lang, drv, _, _, _, out, _ in results}
     lines = ["| language | rows | differing between gl and vulkan | in cases |", "|---|---:|---:|---|"]
     for lang in LANGUAGES:
         if (lang, "gl") not in by or (lang, "vulkan") not in by:
             continue
         gl = by[(lang, "gl")]
-        total = sum(len(next(iter(v.values()))) for v in gl.values())
+        total = sum(len(next(iter(v.values()))) for k, v in gl.items() if k in by[(lang, "vulkan")])
         d = _differing_rows(gl, by[(lang, "vulkan")])
         cells = ", ".join(f"{k} ({v})" for k, v in d.items()) or "–"
         lines.append(f"| {lang} | {total} | {sum(d.values())} | {cells} |")
@@ -155,18 +182,31 @@ def _agreement_table(results):
 
 
 def _timing_table(results, total):
-    lines = ["| language | driver | renderer | cases | failed | first run s | later runs: median s | max s |",
-             "|---|---|---|---:|---:|---:|---:|---:|"]
-    for language, driver, renderer, rows, times, _ in results:
+    lines = ["| language | driver | renderer | cases | run | not available on this driver | failed | first run s | "
+             "later runs: median s | max s |", "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for language, driver, renderer, rows, times, _, refused in results:
         failed = sum(r.endswith("| FAIL |") for r in rows)
         later = times[1:] or times
-        lines.append(f"| {language} | {driver} | {renderer} | {len(rows)} | {failed} | {times[0]:.3f} | "
-                     f"{statistics.median(later):.3f} | {max(later):.3f} |")
+        lines.append(f"| {language} | {driver} | {renderer} | {len(rows)} | {len(times)} | {len(refused)} | {failed} | "
+                     f"{times[0]:.3f} | {statistics.median(later):.3f} | {max(later):.3f} |")
     later = [t for r in results if r[1] == "vulkan" for t in r[4][1:]]
     lines += ["", f"Whole run (golden generation included): {total:.1f} s (target: under 60 s). One case after "
               f"the first on lavapipe: at most {max(later, default=math.nan):.3f} s (target: under 2 s). The first "
               "run on a driver creates its context or adapter; HLSL on Vulkan reuses the SPIR-V compiled for OpenGL."]
     return lines
+
+
+def _refusal_lines(results):
+    """The shipped cases a language cannot run on a driver, as declared and as the harness refused them."""
+    refused = [(lang, drv, name, why) for lang, drv, _, _, _, _, r in results for name, why in r.items()]
+    if not refused:
+        return []
+    lines = ["", "## Not available on a driver", "",
+             "Shipped cases a language cannot run on a driver (`conformance.NOT_AVAILABLE`): the harness refuses",
+             "them with one line before any verdict, and each was refused so in this run. They count in",
+             "`cases`, not in `run`; the same port passes them on the other driver.", "",
+             "| language | driver | case | why |", "|---|---|---|---|"]
+    return lines + [f"| {lang} | {drv} | {name} | {why} |" for lang, drv, name, why in refused]
 
 
 def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True):
@@ -192,7 +232,8 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
     tools = ", ".join(f"{k}: {v}" for k, v in tool_versions().items()) or "none found"
     lines = ["# Conformance of the shipped ports", "",
              "Generated by `moments-ref conformance --all --out docs/`; do not edit by hand. Every shipped",
-             "port (`moments_ref/ports/glsl|hlsl|wgsl/`) runs on every golden case it covers, on every driver.",
+             "port (`moments_ref/ports/glsl|hlsl|wgsl/`) runs on every golden case it covers, on every driver",
+             "that can run it (\"Not available on a driver\" lists the others and why).",
              "The verdict is `moments_ref.golden.compare`, the comparator of `verify` and `oracle.check`:",
              "per-row float32 tolerances stored in the golden files, rounding ties accepting the codes stored",
              "for them. Per row category: the worst error/tolerance ratio (above 1 fails) and how many rows",
@@ -203,13 +244,14 @@ def summary_markdown(golden_dir=None, adapter=None, progress=False, probes=True)
              "Wall time of one `run_case` (compile, upload, dispatch, readback, compare); compiled",
              "programs are cached per process, so a later run of the same function skips the compile.", ""]
     lines += _timing_table(results, total)
+    lines += _refusal_lines(results)
     lines += ["", "## The two drivers agree", "",
               "Golden rows whose outputs differ in any bit between OpenGL and Vulkan (same source file; both",
               "pass). For HLSL this compares OpenGL reading glslang's SPIR-V as written with wgpu's SPIR-V",
               "reader; the suite pins that every row agrees (docs/ports.md, \"Toolchain\").", ""]
     lines += _agreement_table(results)
     lines += probe_lines
-    for language, driver, renderer, rows, _, _ in results:
+    for language, driver, renderer, rows, _, _, _ in results:
         lines += ["", f"## {language.upper()} on {driver}", "", f"Renderer: {renderer}.", "",
                   "| case | function | random | edge | stiff | metric | result |",
                   "|---|---|---|---|---|---|---|", *rows]

@@ -21,7 +21,8 @@ class Binding:
     """One storage buffer: ``binding`` index, initial bytes (or None: ``size`` zero bytes), and
     ``mode`` ``"read"`` (read-only in the shader) or ``"write"`` (read back after the dispatch);
     or a 2-D texture (``mode`` ``"texture"``, ``texture`` = (width, height, WebGPU format name),
-    ``data`` its texels); or a sampler (``mode`` ``"sampler"``)."""
+    ``data`` its texels; a fourth entry ``"linear"``: filtered, a bilinear case); or a sampler (``mode``
+    ``"sampler"``, point, or ``"sampler:linear"``)."""
 
     binding: int
     data: bytes | None
@@ -31,8 +32,8 @@ class Binding:
 
     @property
     def kind(self):
-        """``read``, ``write`` or ``texture:FORMAT`` (what a pipeline layout needs to know)."""
-        return f"texture:{self.texture[2]}" if self.mode == "texture" else self.mode
+        """``read``, ``write``, ``texture:FORMAT[:linear]`` or ``sampler[:linear]`` (what a pipeline layout needs)."""
+        return ":".join(("texture",) + tuple(self.texture[2:])) if self.mode == "texture" else self.mode
 
 
 @dataclass(frozen=True)

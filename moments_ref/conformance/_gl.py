@@ -106,12 +106,13 @@ def case_bindings(ins, outs, arrays, n, local_size, tex=None):
     gx, gy = groups(n, local_size)
     tex = tex or {}
     b = [Binding(k, texel_bytes(arrays[s.name], tex[s.name]), 0, "texture",
-                 (tex[s.name].width, tex[s.name].height, tex[s.name].format)) if s.name in tex
-         else Binding(k, as_buffer(arrays[s.name], s).tobytes(), 0, "read") for k, s in enumerate(ins)]
+                 (tex[s.name].width, tex[s.name].height, tex[s.name].format) + (("linear",) if tex[s.name].quad else ()))
+         if s.name in tex else Binding(k, as_buffer(arrays[s.name], s).tobytes(), 0, "read") for k, s in enumerate(ins)]
     b += [Binding(len(ins) + k, None, max(16, n * s.width * 4), "write") for k, s in enumerate(outs)]
     b.append(Binding(len(ins) + len(outs), np.array([n, gx * local_size, 0, 0], np.uint32).tobytes(), 0, "read"))
     nb = len(ins) + len(outs) + 1  # samplers of sampled textures follow mr_params (:mod:`._wrap`)
-    b += [Binding(nb + k, None, 0, "sampler") for k, s in enumerate(ins) if s.name in tex and tex[s.name].sampler]
+    b += [Binding(nb + k, None, 0, "sampler:linear" if tex[s.name].quad else "sampler") for k, s in enumerate(ins)
+          if s.name in tex and tex[s.name].sampler]
     return b, (gx, gy, 1)
 
 
@@ -187,13 +188,16 @@ _TEXTURE_FORMATS = {"r32float": (1, "f4"), "rg32float": (2, "f4"), "rgba32float"
 
 
 def _texture(ctx, b):
-    """A texture at unit ``b.binding`` holding ``b.data`` (nearest filtering: texel loads)."""
+    """A texture at unit ``b.binding`` holding ``b.data``: nearest filtering (texel loads), or linear
+    (a bilinear case), clamped to the edge, one mipmap level."""
     import moderngl
 
-    w, h, fmt = b.texture
+    w, h, fmt = b.texture[:3]
     comps, dtype = _TEXTURE_FORMATS[fmt]
     tex = ctx.texture((w, h), comps, b.data, dtype=dtype)
-    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    f = moderngl.LINEAR if b.texture[3:] == ("linear",) else moderngl.NEAREST
+    tex.filter = (f, f)
+    tex.repeat_x = tex.repeat_y = False
     tex.use(location=b.binding)
     return tex
 
@@ -207,8 +211,8 @@ def dispatch(ctx, program, bindings, grid):
     try:
         t0 = time.perf_counter()
         for b in bindings:
-            if b.mode == "sampler":
-                continue  # OpenGL: the texture's own filtering (nearest)
+            if b.mode.startswith("sampler"):
+                continue  # OpenGL: the texture's own filtering (nearest, or linear for a bilinear case)
             if b.mode == "texture":
                 buffers.append((b, _texture(ctx, b)))
                 continue

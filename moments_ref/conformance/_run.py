@@ -24,7 +24,7 @@ from ._cases import GoldenCase, load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
 from ._decls import keep_used, used_resources
-from ._textures import texture_args
+from ._textures import consumed, texture_args
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
 from .verdict import compare_case
@@ -143,7 +143,8 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
                                                   len(next(iter(inputs.values()))))
     if tex:  # the signature the wrapper calls, with the texture arguments
-        sig = signature(language, function, ins, outs, {k: t.declared(language) for k, t in tex.items()})
+        sig = signature(language, function, ins, outs, {**{k: t.declared(language) for k, t in tex.items()},
+                                                         **{k: "" for k in consumed(tex)}})
     if target.driver == AS_WRITTEN:
         return _as_written(language, src, function, sig, ins, outs, tex)
     if language == "glsl":

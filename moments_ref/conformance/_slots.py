@@ -99,7 +99,9 @@ def signature(lang, function, inputs, outputs, replaced=None):
     ``replaced`` maps an input to the parameters written in its place (texture arguments).
     """
     replaced = replaced or {}
-    args = [replaced.get(s.name) or s.declare(lang) for s in inputs]
+    # A replaced input is written as its parameters; "" drops it (carried by another's coordinate).
+    args = [replaced[s.name] if s.name in replaced else s.declare(lang) for s in inputs]
+    args = [a for a in args if a]
     if lang == "wgsl":
         if len(outputs) == 1:
             return f"fn {function}({', '.join(args)}) -> {outputs[0].type(lang)}"

@@ -22,9 +22,11 @@ texture's sample type: float moments as ``r/rg/rgba32float`` (exact); UNORM16 co
 as ``rgba16unorm`` to a float texture (the texel is code / 65535, what a 64-bit
 moment texture holds) or ``rgba16uint`` to an unsigned one; 32-bit codes (NLQ
 ``pack32``) as ``r32uint``. GLSL ``sampler2D`` arguments run on OpenGL only (wgpu's
-SPIR-V reader takes no combined image sampler). Bilinear filtering between texels is
-not covered yet (llvmpipe and lavapipe weight with the exact float fraction, GPUs in
-steps of 1/256: docs/ports.md).
+SPIR-V reader takes no combined image sampler). A bilinear case's ``texels`` (2×2
+neighbourhoods, :mod:`moments_ref.golden.bilinear`) fill 2×2 blocks of an rgba32float
+texture, filtered linearly (clamp to edge, one level), and the sampler's coordinate lies at
+the row's ``fraction`` between the four centres (:meth:`TextureArg._between`); the
+fraction is not passed as an argument.
 
 References
 ----------
@@ -43,7 +45,7 @@ import numpy as np
 from .._arrays import InputError
 from ._source import strip_comments
 
-__all__ = ["WIDTH", "TextureArg", "parameters", "texture_args", "texel_bytes"]
+__all__ = ["WIDTH", "TextureArg", "parameters", "texture_args", "texel_bytes", "quad_layout", "consumed", "QUAD_INPUTS"]
 
 #: Texels per line of an input texture.
 WIDTH = 256
@@ -68,6 +70,7 @@ class TextureArg:
     sampler: str | None = None  # the sampler parameter's type (HLSL, WGSL), or None: texel loads
     sampled: bool = False  # a float coordinate at the texel's centre (Sample / texture)
     dithered: bool = False  # a float coordinate and a noise value (HPG17 §4.2)
+    quad: str | None = None  # bilinear case: the input holding each row's sub-texel fraction (linear sampler)
 
     def declared(self, lang):
         """The parameters standing for the input, as in a signature: ``Texture2D<float4> b, int2 b_texel``."""
@@ -86,6 +89,8 @@ class TextureArg:
     def texel(self, lang, i="i"):
         """The argument expressions after the texture for row ``i``: [sampler,] coordinate."""
         w, h = self.width, self.height
+        if self.quad:
+            return self._between(lang, i)
         if self.sampled:
             smp = f"mr_smp_{self.name}, " if self.sampler else ""
             x, y = f"(float({i} % {w}u) + 0.5) / {w}.0", f"(float({i} / {w}u) + 0.5) / {h}.0"
@@ -100,6 +105,29 @@ class TextureArg:
             return f"{self.coord}({i} % {w}, {i} / {w})"
         scalar = "i32" if "i32" in self.coord else "u32"
         return f"vec2<{scalar}>({scalar}({i} % {w}u), {scalar}({i} / {w}u))"
+
+
+    def _between(self, lang, i):
+        """Row ``i``'s 2×2 block (texels (2 bx, 2 by) .. (2 bx + 1, 2 by + 1)) sampled at its fraction between
+        the four centres: ``((2 bx + 0.5 + fx) / W, (2 by + 0.5 + fy) / H)``, exact in float32 (W, H powers of
+        two, fractions multiples of 2⁻¹⁶ below 256 texels)."""
+        smp = f"mr_smp_{self.name}, " if self.sampler else ""
+        blocks, f = self.width // 2, f"mr_in_{self.quad}[{i}]"
+        cast = {"glsl": "float", "hlsl": "float", "wgsl": "f32"}[lang]
+        u = "" if lang == "hlsl" else "u"
+        x = f"({cast}(2{u} * ({i} % {blocks}{u})) + 0.5 + {f}.x) / {self.width}.0"
+        y = f"({cast}(2{u} * ({i} / {blocks}{u})) + 0.5 + {f}.y) / {self.height}.0"
+        return smp + {"glsl": "vec2", "hlsl": "float2", "wgsl": "vec2<f32>"}[lang] + f"({x}, {y})"
+
+
+def _pow2(n):
+    return 1 << max(0, int(n - 1).bit_length())
+
+
+def quad_layout(n):
+    """``(width, height)`` of the texture holding ``n`` 2×2 blocks: powers of two, at most WIDTH wide."""
+    w = min(WIDTH, _pow2(2 * n))
+    return w, _pow2(2 * -(-n // (w // 2)))
 
 
 def parameters(body, function, language):
@@ -168,6 +196,8 @@ def texture_args(body, function, language, ins, dtypes, n):
     params = parameters(body, function, language)
     found, k = {}, 0
     for s in ins:
+        if s.name in consumed(found):
+            continue  # no parameter of its own: the coordinate carries it
         if k >= len(params):
             break
         typ, pname = params[k]
@@ -180,6 +210,18 @@ def texture_args(body, function, language, ins, dtypes, n):
         coord = rest[1] if sampler else rest[0]
         dithered = sampler is None and rest[0] in _UV[language] and rest[1] in _UV[language]
         sampled = coord in _UV[language] and (sampler is not None or language == "glsl") and not dithered
+        quad = _quad(s, ins)
+        if quad:
+            if not sampled or kind != "f":
+                raise InputError(f"function: {function}'s parameter {pname} ({typ}) stands for the 2x2 texel "
+                                 f"neighbourhoods {s.name!r} of a bilinear case; the harness binds them as an "
+                                 f"rgba32float texture with a linear sampler and passes the sample position as "
+                                 f"{' or '.join(_UV[language])} after the {'texture' if language == 'glsl' else 'sampler'}"
+                                 " (docs/ports.md, \"Texture arguments\")")
+            w, h = quad_layout(n)
+            found[s.name] = TextureArg(s.name, typ, "rgba32float", w, h, coord, sampler, True, False, quad)
+            k += 3 if sampler else 2
+            continue
         fmt = _format(s, kind, np.dtype(dtypes[s.name]))
         if sampled and (fmt is None or not fmt.endswith("float")):
             fmt = None  # sampling: float moments only
@@ -193,6 +235,23 @@ def texture_args(body, function, language, ins, dtypes, n):
         found[s.name] = TextureArg(s.name, typ, fmt, w, -(-n // w), coord, sampler, sampled, dithered)
         k += 3 if sampler or dithered else 2
     return found
+
+
+#: A bilinear case's inputs: 2×2 neighbourhoods (n, 16) and the sub-texel fraction (n, 2) (golden.bilinear).
+QUAD_INPUTS = ("texels", "fraction")
+
+
+def _quad(slot, ins):
+    """The fraction input of a bilinear case's neighbourhoods ``slot``, or None."""
+    names = [s.name for s in ins]
+    if slot.name == QUAD_INPUTS[0] and slot.components == 16 and QUAD_INPUTS[1] in names:
+        return QUAD_INPUTS[1]
+    return None
+
+
+def consumed(tex):
+    """Inputs the texture arguments stand in for besides their own (a bilinear case's fraction)."""
+    return {t.quad for t in tex.values() if t.quad}
 
 
 def _dithered(lang, name, w, i):
@@ -223,6 +282,15 @@ _BYTES = {"float": (np.float32, 4), "uint": (np.uint32, 4), "16uint": (np.uint16
 
 def texel_bytes(arr, tex):
     """The texture's texels (padded rows, zero beyond the last row) as bytes for the driver."""
+    if tex.quad:  # row r's texel (i, j) at (2 (r mod B) + i, 2 (r div B) + j), B blocks a line
+        a = np.asarray(arr, np.float32).reshape(len(arr), 2, 2, 4)  # (row, j, i, component)
+        blocks = tex.width // 2
+        out = np.zeros((tex.height, tex.width, 4), np.float32)
+        r = np.arange(len(a))
+        for j in range(2):
+            for i in range(2):
+                out[2 * (r // blocks) + j, 2 * (r % blocks) + i] = a[:, j, i]
+        return out.tobytes()
     key = "16unorm" if tex.format.endswith("16unorm") else "16uint" if "16uint" in tex.format else (
         "float" if tex.format.endswith("float") else "uint")
     dtype, _ = _BYTES[key]

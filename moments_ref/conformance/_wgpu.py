@@ -120,8 +120,11 @@ def run_module(dev, code, group, locate, signature, ins, outs, arrays, n, local_
 KERNEL_LIMITS = ("max-compute-workgroup-storage-size", "max-compute-invocations-per-workgroup",
                  "max-storage-buffer-binding-size")
 #: Features a device takes where its adapter has them: 16-bit normalized textures (64-bit moment
-#: maps as textures), timestamp queries (a kernel's own dispatch time).
-FEATURES = ("texture-format16bit-norm", "timestamp-query")
+#: maps as textures), timestamp queries (a kernel's own dispatch time), filterable float32 textures
+#: (bilinear cases).
+FEATURES = ("texture-format16bit-norm", "timestamp-query", "float32-filterable")
+#: The feature a linearly filtered rgba32float texture (a bilinear case) needs.
+FILTERABLE = "float32-filterable"
 
 
 class LocalDevice:
@@ -140,6 +143,10 @@ class LocalDevice:
     def compile(self, code, entry, group, modes):
         key = (id(self), entry, group, tuple(modes), hashlib.sha256(code if isinstance(code, bytes) else code.encode()).hexdigest())
         if key not in _PIPELINES:
+            if any(k.endswith(":linear") for _, k in modes) and FILTERABLE not in self.device.features:
+                raise ContextError(f"the adapter {self.renderer} lacks the WebGPU feature '{FILTERABLE}', which a "
+                                   "linear sampler on an rgba32float texture (a bilinear case) needs; choose another "
+                                   "adapter (--adapter vulkan: Mesa lavapipe has it)")
             try:
                 module = self.device.create_shader_module(code=code)
                 layout, layouts = _layout(self, group, modes)
@@ -187,18 +194,26 @@ def _layout(dev, group, modes):
 
 
 def _entry(wgpu, b, kind, types):
-    """A bind group layout entry: a storage buffer, a texture (unfiltered float or uint), a point sampler."""
-    if kind == "sampler":
-        return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "sampler": {"type": "non-filtering"}}
+    """A bind group layout entry: a storage buffer, a texture (unfiltered float or uint; filterable float for a
+    bilinear case), a point or linear sampler."""
+    if kind.startswith("sampler"):
+        return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE,
+                "sampler": {"type": "filtering" if kind.endswith(":linear") else "non-filtering"}}
     if kind.startswith("texture:"):
-        sample = "uint" if kind.endswith("uint") else "unfilterable-float"
+        sample = "uint" if kind.endswith("uint") else "float" if kind.endswith(":linear") else "unfilterable-float"
         return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE,
                 "texture": {"sample_type": sample, "view_dimension": "2d", "multisampled": False}}
     return {"binding": b, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": types[kind]}}
 
 
+def _sampler(d, mode):
+    """A point sampler, or a linear one (``sampler:linear``); clamped to the edge, one mipmap level."""
+    f = "linear" if mode.endswith(":linear") else "nearest"
+    return d.create_sampler(mag_filter=f, min_filter=f, address_mode_u="clamp-to-edge", address_mode_v="clamp-to-edge")
+
+
 def _texture(d, wgpu, b):
-    w, h, fmt = b.texture
+    w, h, fmt = b.texture[:3]
     tex = d.create_texture(size=(w, h, 1), format=fmt,
                            usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)
     d.queue.write_texture({"texture": tex, "mip_level": 0, "origin": (0, 0, 0)}, b.data,
@@ -217,12 +232,12 @@ def dispatch(dev, compiled, bindings, grid, group):
     timings = {"compile": 0.0}
     t0 = time.perf_counter()
     storage = wgpu.BufferUsage.STORAGE
-    bufs = [(b, _texture(d, wgpu, b) if b.mode == "texture" else d.create_sampler() if b.mode == "sampler" else
+    bufs = [(b, _texture(d, wgpu, b) if b.mode == "texture" else _sampler(d, b.mode) if b.mode.startswith("sampler") else
              d.create_buffer_with_data(data=b.data, usage=storage | wgpu.BufferUsage.COPY_SRC)
              if b.data is not None else d.create_buffer(size=b.size, usage=storage | wgpu.BufferUsage.COPY_SRC))
             for b in sorted(bindings, key=lambda b: b.binding)]
     entries = [{"binding": b.binding, "resource": buf.create_view() if b.mode == "texture" else
-                buf if b.mode == "sampler" else {"buffer": buf}} for b, buf in bufs]
+                buf if b.mode.startswith("sampler") else {"buffer": buf}} for b, buf in bufs]
     binds = [d.create_bind_group(layout=lay, entries=[]) for lay in layouts[:group]]
     binds.append(d.create_bind_group(layout=layouts[group], entries=entries))
     timings["upload"] = time.perf_counter() - t0
@@ -240,6 +255,6 @@ def dispatch(dev, compiled, bindings, grid, group):
     out = {b.binding: bytes(d.queue.read_buffer(buf)) for b, buf in bufs if b.mode == "write"}
     timings["readback"] = time.perf_counter() - t0
     for b, buf in bufs:
-        if b.mode != "sampler":
+        if not b.mode.startswith("sampler"):
             buf.destroy()
     return out, timings

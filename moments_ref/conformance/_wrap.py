@@ -74,7 +74,10 @@ def _store(lang, s, value):
 def _body(lang, function, ins, outs, tex=None):
     """Statements of the entry point after ``i`` is known."""
     lines, args = [], []
+    skip = {t.quad for t in (tex or {}).values() if t.quad}  # carried by a texture's coordinate
     for s in ins:
+        if s.name in skip:
+            continue
         stmt, expr = _load(lang, s, tex=tex)
         if stmt:
             lines += stmt if isinstance(stmt, list) else [stmt]

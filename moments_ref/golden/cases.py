@@ -29,7 +29,7 @@ import numpy as np
 from .. import precise
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import contract as _contract_mod
-from . import endtoend, engine, kernels, texel_truth
+from . import bilinear, endtoend, engine, kernels, texel_truth
 from .paper import alg1_paper_spread, alg3_paper_spread
 from .variants import alg1_variant, bias_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
@@ -269,6 +269,7 @@ def _cases():
         cases += _float_cases(dt)
         cases += [Case(**spec) for spec in endtoend.case_specs(dt)]
         cases += [Case(**spec) for spec in engine.engine_specs(dt)]
+    cases += [Case(**spec) for spec in bilinear.case_specs()]
     return cases + [Case(**spec) for spec in kernels.case_specs()]
 
 

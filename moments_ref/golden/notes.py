@@ -56,6 +56,17 @@ NOTES = {
         "effect": "robustness row (outside Algorithm 1's contract: the paper biases first); gated only with "
                   "--strict, which holds a port to the exact answer of the unique distribution",
     },
+    "shadow_edge": {
+        "description": "a 2x2 neighbourhood across a shadow edge (an occluder's depths over a receiver's): the "
+                       "sampled moments, and the intensity, change steeply with the filter weights",
+        "effect": "gated; the tolerance holds the declared spread of hardware filter weights (sub-texel "
+                  "precision, docs/formats.md), which is widest here",
+    },
+    "weight_grid": {
+        "description": "a sub-texel fraction on the 8-bit grid (a multiple of 1/256): a filter with 8 bits of "
+                       "sub-texel precision weights with the fraction itself",
+        "effect": "gated; with the default 8 bits the tolerance is the rounding of a float32 filter alone",
+    },
     "bias_floor": {
         "description": "one depth after BIAS_FLOAT32: the variance sits at the bias floor (about 1e-7), where "
                        "float32 loses digits of b2 - b1²",
@@ -130,6 +141,8 @@ CAUSES = {
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",
+    "shadow_edge": "a shadow edge across the 2x2 texels: a wrong sample position or weight changes the result most",
+    "weight_grid": "a fraction on the 8-bit weight grid: only the filter's rounding is allowed",
 }
 
 

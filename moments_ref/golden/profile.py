@@ -70,8 +70,10 @@ APPLIED = ("inside", "before")
 #: decoder reads a cell (its lower end, centre or upper end); ``xi_rounding``: the 64-bit Ψ4 code
 #: rounded up (the lower-bound guarantee) or to nearest (a UNORM render-target write).
 _POSITIONS = ("lower", "centre", "upper")
+#: ``subtexel_bits``: the sub-texel precision of the engine's texture filter (bilinear cases,
+#: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4).
 FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
-               "xi_rounding": ("up", "nearest")}
+               "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17))}
 _KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format")
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).
@@ -290,7 +292,7 @@ FLAGS = (
     ("--bias-applied", "bias.applied", "where the bias is applied: inside the tested function or before the call"),
     ("--clamp", "clamp", "Algorithm 3's clamp offset (default 1e-6; allowed 1e-7 .. 1/65535)"),
     ("--clamp-test", "clamp_test", "the y2 of Algorithm 3's case test: stored (default) or clamped"),
-    *[(f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(v)})")
+    *[(f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(map(str, v))})")
       for k, v in FORMAT_KEYS.items()],
 )
 
@@ -301,6 +303,11 @@ def _flag_value(path, text):
             return float(text)
         except ValueError:
             raise InputError(f"--{path.replace('.', '-')}: expected a number, got {text!r}") from None
+    if path == "format.subtexel_bits":
+        try:
+            return int(text)
+        except ValueError:
+            raise InputError(f"--format-subtexel-bits: expected an integer, got {text!r}") from None
     if path == "bias.target":
         try:
             return [float(x) for x in str(text).split(",")]

@@ -157,6 +157,8 @@ def input_strategy(case):
     zf = depths(-1.5, 1.5).map(np.float64)
     u16 = st.lists(st.integers(0, 65535), min_size=4, max_size=4).map(lambda x: np.array(x, np.uint16))
     table = {
+        "texels": st.lists(moment_vectors(), min_size=4, max_size=4).map(np.concatenate),
+        "fraction": st.lists(_fractions(), min_size=2, max_size=2).map(np.array),
         "b": b.map(lambda v: bias_moments(v, BIAS_FLOAT32)) if fn == "phi" else b,
         "zf": zf,
         "r": representations(),
@@ -167,6 +169,12 @@ def input_strategy(case):
               if fn.startswith("decode_r10") else representations().map(_pack32)),
     }
     return st.fixed_dictionaries({k: table[k] for k in c.inputs})
+
+
+def _fractions():
+    """A bilinear weight: a multiple of 2^-16 in [0, 1) (an exact texture coordinate, golden.bilinear)."""
+    return (st.sampled_from([0, 1, 2**15, 2**16 - 1, 77 * 2**8, 77 * 2**8 + 2**7]) | st.integers(0, 2**16 - 1)).map(
+        lambda k: k / 2.0**16)
 
 
 def _optimized(b):

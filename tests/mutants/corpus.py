@@ -18,9 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 try:  # imported as a package (tests) or by path (moments-ref mutants)
-    from . import ports
+    from . import ports, ports_bilinear
 except ImportError:  # pragma: no cover
     import ports  # type: ignore
+    import ports_bilinear  # type: ignore
 
 #: Golden cases (float32) each port is checked on.
 PORT_CASES = {
@@ -35,6 +36,7 @@ PORT_CASES = {
     "pack32": ["pack32-float32", "reencode32-float32"],
     "unpack32": ["unpack32-float32"],
     "msm6": ["shadow_intensity6-lower-float32", "shadow_intensity6-upper-float32"],
+    "bilinear": ["sample_bilinear-float32", "shadow_intensity_bilinear-float32"],
 }
 
 
@@ -60,6 +62,10 @@ def run_port(port, case, inputs, kwargs, m):
         return {"r": ports.unpack64(inputs["q"], m)}
     if port == "unpack32":
         return {"r": ports.unpack32(inputs["p"], m)}
+    if port == "bilinear":
+        if "zf" in inputs:
+            return {"intensity": ports_bilinear.shadow_intensity(inputs["texels"], inputs["fraction"], inputs["zf"], m)}
+        return {"b": ports_bilinear.sample(inputs["texels"], inputs["fraction"], m)}
     raise KeyError(port)
 
 
@@ -285,6 +291,28 @@ MUTANTS = [
     _m("msm6-rhs-zf2", "bug", "msm6", {"rhs_zf2": True}, "right-hand side (1, zf, zf², zf²)"),
     _m("msm6-rhs-sign", "bug", "msm6", {"rhs_sign": True}, "right-hand side (1, -zf, zf², -zf³)"),
     _m("msm6-hankel-shift", "bug", "msm6", {"hankel_shift": True}, "Hankel matrix shifted by one moment"),
+
+    # Bilinear sampling of a moment texture (golden.bilinear): each judged on the sample and on the intensity.
+    _m("port-bilinear", "legit", "bilinear", {}, "the port as written: mix along x, then along y, exact weights"),
+    _m("bilinear-f64", "legit", "bilinear", {"f64": True}, "float64 arithmetic"),
+    _m("bilinear-hand", "legit", "bilinear", {"hand": True},
+       "by hand from four loads: (1 - fx)(1 - fy) t00 + fx (1 - fy) t10 + (1 - fx) fy t01 + fx fy t11"),
+    _m("bilinear-lerp-delta", "legit", "bilinear", {"lerp_delta": True}, "each lerp as a + w (b - a)"),
+    _m("bilinear-weights8-floor", "legit", "bilinear", {"weight_bits": 8},
+       "a texture unit with 8 bits of sub-texel precision, position truncated (Vulkan states no rounding rule)"),
+    _m("bilinear-weights8-nearest", "legit", "bilinear", {"weight_bits": 8, "weight_round": "nearest"},
+       "a texture unit with 8 bits of sub-texel precision, position rounded to nearest (D3D11's reference)"),
+    _m("bilinear-weights4-declared", "legit", "bilinear", {"weight_bits": 4},
+       "4 bits of sub-texel precision (Vulkan's minimum), as its profile declares (format.subtexel_bits = 4)",
+       profile={"format": {"subtexel_bits": 4}}),
+    _m("bilinear-weights4", "bug", "bilinear", {"weight_bits": 4},
+       "4 bits of sub-texel precision, undeclared (the default profile declares 8)"),
+    _m("bilinear-half-texel", "bug", "bilinear", {"half_texel": True},
+       "half a texel off: the texel's corner taken for its centre (uv + 0.5 / size)"),
+    _m("bilinear-point", "bug", "bilinear", {"point": True}, "a point sampler: the nearest texel, unfiltered"),
+    _m("bilinear-swap-xy", "bug", "bilinear", {"swap_xy": True}, "fx and fy swapped"),
+    _m("bilinear-swap-weights", "bug", "bilinear", {"swap_weights": True},
+       "weights swapped: a w + b (1 - w) instead of a (1 - w) + b w"),
 ]
 
 
