@@ -102,3 +102,9 @@ def test_the_package_sections_are_current_and_the_command_says_so(capsys):
     assert references.main(["--check"]) == 0
     assert references.main(["--frobnicate"]) == 2
     assert "usage" in capsys.readouterr().err
+
+
+def test_a_bare_short_name_is_filled_in_not_repeated(patterns):
+    # A contributor may write only the short name; --write fills in its text, once.
+    source = SOURCE.replace(".. [1] Smith 2001: an old text of the entry.", ".. [1] Smith 2001")
+    assert references.expected_section(source, BIB) == EXPECTED

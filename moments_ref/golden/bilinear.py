@@ -43,11 +43,14 @@ Expected values: the blend of the float32 texels in exact rational arithmetic, r
 
 References
 ----------
-HPG17 : see docs/bib.md. Direct3D 11.3 functional specification §3.2.4 (Fixed Point Integers:
-texture coordinates snapped to fixed point; §3.2.4.1, float to fixed within 0.6 ulp) and
-§7.18.16.1 (Texture Addressing and LOD Precision: at least 8 bits of sub-texel precision).
-Vulkan specification, "Unnormalized Texel Coordinate Operations" (α = frac(u − 0.5), "where
-the number of fraction bits retained is specified by" ``subTexelPrecisionBits``).
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [2] Direct3D 11.3 functional specification, §3.2.4 (Fixed Point Integers: texture coordinates
+       snapped to fixed point; §3.2.4.1, float to fixed within 0.6 ulp) and §7.18.16.1 (Texture
+       Addressing and LOD Precision: at least 8 bits of sub-texel precision).
+.. [3] Vulkan specification, "Unnormalized Texel Coordinate Operations" (α = frac(u − 0.5), "where
+       the number of fraction bits retained is specified by" ``subTexelPrecisionBits``).
 """
 
 from __future__ import annotations

@@ -138,7 +138,7 @@ def section_entries(section):
 
 def _label_of(entry, bib):
     for label in sorted(bib, key=len, reverse=True):
-        if entry.startswith(label + ":"):
+        if entry.startswith(label + ":") or entry == label:  # a bare label: --write fills in the text
             return label
     return None
 
