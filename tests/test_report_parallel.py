@@ -143,3 +143,24 @@ def test_jobs_on_the_command_line(tmp_path, capsys):
     assert "--jobs" in capsys.readouterr().err
     assert report.build_parser().parse_args(["--out", "x"]).jobs is None  # default: the usable cores
     assert _jobs.usable_cores() == len(os.sched_getaffinity(0))
+
+
+@pytest.mark.parametrize("full", [False, True])
+def test_tasks_are_ordered_longest_first_by_their_measured_costs(full):
+    """The shipped scenes' tasks in the order of their measured CPU costs (report._tasks' docstring):
+    knot (MVR reference), railing (8 techniques), chair, the temporal claim, then the small ones."""
+    from moments_ref.report import _Collected, _scene_plan, _tasks
+    from moments_ref.scene import list_scenes, load_scene
+
+    acc = _Collected(full=full, repeats=3)
+    given = {"shadow_map_size": None, "msaa": None, "resolution": None}
+    plans = []
+    for name in list_scenes():
+        sc = load_scene(name)
+        names, st, _ = _scene_plan(acc, sc, full, given, None, {}, 64)
+        plans.append((sc, (names, st)))
+    keys = [key[-1] for key, _, _ in _tasks(plans, full, jobs=2, progress=False)]
+    assert keys[:4] == ["knot", "railing", "chair", "temporal"]
+    assert keys.index("artifacts") < keys.index("translucent") == len(keys) - 1
+    serial = [key[-1] for key, _, _ in _tasks(plans, full, jobs=1, progress=False)]
+    assert serial[:len(plans)] == [sc.name for sc, _ in plans]  # one job: the scenes in the order given
