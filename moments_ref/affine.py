@@ -90,6 +90,7 @@ import numpy as np
 
 from ._arrays import InputError, first_index, real_input
 from ._docs import fill_doc
+from ._kernels import CHUNK
 
 __all__ = [
     "OPTIMIZED_MATRIX",
@@ -376,6 +377,8 @@ def float_to_unorm(x, bits=16):
     if isinstance(bits, bool) or not isinstance(bits, (int, np.integer)) or not 1 <= bits <= 16:
         raise InputError(f"bits: expected an integer in 1..16, got {bits!r}")
     x = real_input(x, "x")
+    if x.dtype.kind == "f" and x.dtype.itemsize <= 4:
+        return _unorm_from_float32(x, bits)
     c = np.clip(x.astype(np.float64), 0.0, 1.0)  # float32 -> float64 is exact
     # c·(2ⁿ − 1) = c·2ⁿ − c: the first product is exact, the difference is split
     # by TwoSum into s + err exactly (|err| ≤ ulp(s)/2).
@@ -389,6 +392,33 @@ def float_to_unorm(x, bits=16):
     # always that of the exact sum. (floor(s + 0.5) would misround near-ties.)
     code = whole + (((s - whole) - 0.5) + err >= 0.0)
     return code.astype(np.uint16)
+
+
+def _unorm_from_float32(x, bits):
+    """:func:`float_to_unorm` of a float32 (or float16) array, a cache-sized chunk at a time.
+
+    Here the rule's product is exact: for ``c = m·2^e`` (``m < 2^24``) in [0, 1],
+    ``s = c·(2ⁿ − 1)`` has at most 24 + 16 significant bits, so float64 holds it, and
+    ``floor(s + 0.5)`` is the rule's code: ``s + 0.5`` is exact unless ``e < −37``; it
+    can only round across an integer ``k`` if ``s`` is within 2⁻⁵¹ of ``k − ½`` (its
+    rounding error in [0.5, 4.5)), which needs ``c`` above 2⁻¹⁷, hence ``e ≥ −41``, and
+    ``s − (k − ½)``, a multiple of ``2^e``, is then 0 (an exact tie, rounded up as the
+    rule says) or at least 2⁻⁴¹. (A float64 ``c`` has no such margin: its product is
+    rounded, hence the TwoSum path of :func:`float_to_unorm`.)
+    """
+    flat = x.reshape(-1)
+    out = np.empty(flat.shape, np.uint16)
+    buf = np.empty(min(CHUNK, flat.size), np.float64)
+    top = float(2**bits - 1)
+    for i in range(0, flat.size, CHUNK):
+        b = buf[: min(CHUNK, flat.size - i)]
+        b[...] = flat[i : i + b.size]  # exact
+        np.clip(b, 0.0, 1.0, out=b)
+        b *= top
+        b += 0.5
+        np.floor(b, out=b)
+        out[i : i + b.size] = b
+    return out.reshape(x.shape)
 
 
 def unorm_to_float(u, bits=16, dtype=np.float64):

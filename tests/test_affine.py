@@ -582,3 +582,35 @@ def test_unorm_to_float_bad_codes():
         unorm_to_float(np.array([0, 1], dtype=np.int16), 10)
     with pytest.raises(InputError, match="^x:"):
         float_to_unorm([np.nan])
+
+
+def _unorm_oracle_float32(x, bits):
+    """The rule's codes of float32 ``x`` in [0, 1], exactly, in integers: ``x = M·2^(E−24)``,
+    ``floor(x·(2ⁿ − 1) + ½) = (2·M·(2ⁿ − 1) + 2^(24−E)) >> (25 − E)`` (0 below 2⁻³⁸)."""
+    f, e = np.frexp(x.astype(np.float64))
+    m = (f * 2.0**24).astype(np.int64)  # exact: 24 significant bits
+    e = e.astype(np.int64)
+    tiny = e < -37
+    e = np.where(tiny, 0, e)
+    code = (2 * m * (2**bits - 1) + (np.int64(1) << (24 - e))) >> (25 - e)
+    return np.where(tiny, 0, code)
+
+
+@pytest.mark.parametrize("bits", [16, 10, 2])
+def test_float32_codes_exact_at_every_tie(bits):
+    # Every float32 within 4 ulps of every tie (k + ½)/(2ⁿ − 1), and the first and last floats of
+    # [0, 1]: the float32 path (an exact float64 product and floor(s + ½)) against integer arithmetic.
+    top = 2**bits - 1
+    t = ((np.arange(top) + 0.5) / top).astype(np.float32)
+    near = [t]
+    for direction in (0.0, 2.0):
+        u = t
+        for _ in range(4):
+            u = np.nextafter(u, np.float32(direction))
+            near.append(u)
+    ends = np.float32([0.0, 1.0, np.nextafter(np.float32(1), np.float32(0)), 2.0**-126, 2.0**-149, 2.0**-38])
+    x = np.concatenate(near + [ends])
+    oracle = _unorm_oracle_float32(x, bits)
+    assert np.array_equal(float_to_unorm(x, bits), oracle)
+    spot = np.random.default_rng(bits).choice(x.size, min(200, x.size), replace=False)  # vs the rational oracle
+    assert [_unorm_oracle(float(v), bits) for v in x[spot]] == oracle[spot].tolist()
