@@ -93,3 +93,16 @@ def test_evsm_on_railing_is_its_bound_in_float64(railing, name, c_pos, c_neg, de
         bound = np.maximum(bound, np.where(t > mu, (t - mu) ** 2 / (var + (t - mu) ** 2), 0.0))
     s = railing.shadow[name]
     assert np.max(np.abs(s - bound)) < tol
+
+
+@pytest.mark.parametrize("shape", [(), (3,), (37, 41, 4), (1 << 15,)])
+def test_evsm_feature_is_its_definition(shape):
+    # (exp(c+ z), exp(c+ z)², −exp(−c− z), exp(−c− z)²) per depth, however the map is chunked.
+    from moments_ref.techniques.evsm import evsm_feature
+
+    z = np.random.default_rng(len(shape)).uniform(-1, 1, shape)
+    got = evsm_feature(z, 40.0, 5.5)
+    p, n = np.exp(40.0 * z), -np.exp(-5.5 * z)
+    assert got.shape == np.shape(z) + (4,) and got.dtype == np.float64
+    assert np.array_equal(got, np.stack([p, p * p, n, n * n], axis=-1))
+    assert np.array_equal(evsm_feature(z.T, 40.0, 5.5), np.stack([p.T, p.T ** 2, n.T, n.T * n.T], axis=-1))

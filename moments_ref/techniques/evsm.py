@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernels import CHUNK
 from ..scene.depth import warped_negative, warped_positive
 from ._interface import Step, Technique, bilinear_filtered, register
 from ._steps import feature_steps
@@ -71,8 +72,18 @@ __all__ = ["evsm_feature", "evsm_shadow", "EVSM64", "EVSM128"]
 def evsm_feature(z, c_pos, c_neg):
     """``(x⁺, (x⁺)², x⁻, (x⁻)²)`` with ``x⁺ = exp(c⁺ z)``, ``x⁻ = −exp(−c⁻ z)``; (..., 4) float64."""
     z = np.asarray(z, dtype=np.float64)
-    p, n = warped_positive(z, c_pos), warped_negative(z, c_neg)
-    return np.stack([p, p * p, n, n * n], axis=-1)
+    out = np.empty(z.shape + (4,))
+    flat, rows = z.reshape(-1), out.reshape(-1, 4)
+    # A chunk at a time: the four interleaved columns are written while the chunk is in cache
+    # (np.stack of the whole map wrote them in four strided passes, 4x slower at 1024² 4x MSAA).
+    for i in range(0, flat.size, CHUNK):
+        zc, o = flat[i : i + CHUNK], rows[i : i + CHUNK]
+        p, n = warped_positive(zc, c_pos), warped_negative(zc, c_neg)
+        o[:, 0] = p
+        np.multiply(p, p, out=o[:, 1])
+        o[:, 2] = n
+        np.multiply(n, n, out=o[:, 3])
+    return out
 
 
 def evsm_shadow(m, zf, c_pos, c_neg, min_depth_std=0.0):
