@@ -5,8 +5,8 @@ Hypothesis: ``ci`` (derandomized, bounded, no deadline) and ``thorough``. CI sel
 local runs. Conformance: the drivers, the compilers and the shipped goldens, built
 on tests/_harness.py. Goldens: ``gdir``, the requesting module's ``GOLDEN_CASES``
 (every case when it names none); every golden folder is written once per test
-process (tests/_oracles.py). Derived goldens of engine profiles (golden.conventions)
-are cached in a temporary folder of the run (``MOMENTS_REF_CACHE``).
+run, shared by the xdist workers (tests/_oracles.py). Derived goldens of engine
+profiles (golden.conventions) are cached in the run's folder (``MOMENTS_REF_CACHE``).
 """
 
 import os
@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from _harness import need, need_tool, shipped_golden_folder
-from _oracles import golden_folder
+from _oracles import RUN_FOLDER, golden_folder
 
 settings.register_profile(
     "ci",
@@ -36,11 +36,28 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 def pytest_configure(config):
-    """Derived goldens of engine profiles go to a folder of the test run, not to the user's cache."""
+    """A folder of the test run that its xdist workers share (golden folders, derived goldens).
+
+    The controller (or a run without workers) makes it; the workers inherit it through the
+    environment. Derived goldens of engine profiles go there too, not to the user's cache.
+    """
     import tempfile
 
-    if not os.environ.get("MOMENTS_REF_CACHE"):
-        os.environ["MOMENTS_REF_CACHE"] = tempfile.mkdtemp(prefix="moments-ref-test-cache-")
+    if not hasattr(config, "workerinput"):
+        run = tempfile.mkdtemp(prefix="moments-ref-test-run-")
+        os.environ[RUN_FOLDER] = run
+        config._moments_ref_run = run
+        if not os.environ.get("MOMENTS_REF_CACHE"):
+            os.environ["MOMENTS_REF_CACHE"] = os.path.join(run, "cache")
+
+
+def pytest_unconfigure(config):
+    """The controller removes the run's shared folder."""
+    import shutil
+
+    run = getattr(config, "_moments_ref_run", None)
+    if run is not None:
+        shutil.rmtree(run, ignore_errors=True)
 
 
 # --------------------------------------------------------------------------
@@ -67,7 +84,7 @@ def drivers(ctx):
 
 @pytest.fixture(scope="session")
 def golden_dir():
-    """Goldens of every shipped case (written once per test process)."""
+    """Goldens of every shipped case (written once per test run)."""
     return shipped_golden_folder()
 
 
