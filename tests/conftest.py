@@ -73,6 +73,7 @@ WHOLE_MODULES = {
 }
 
 
+@pytest.hookimpl(optionalhook=True)  # an xdist hook: unknown without xdist (-p no:xdist)
 def pytest_xdist_make_scheduler(config, log):
     """Under ``-n`` without an explicit ``--dist``: the modules of :data:`WHOLE_MODULES` as one unit each.
 
