@@ -70,6 +70,7 @@ WHOLE_MODULES = {
     "tests/test_conformance_languages.py": "_RUNS: each shipped port's run",
     "tests/test_base_install.py": "base_python: an environment",
     "tests/test_bluenoise.py": "small_textures",
+    "tests/test_architecture.py": "_tree, _tokens: each module parsed and tokenized once",
 }
 
 
