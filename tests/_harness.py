@@ -44,7 +44,7 @@ def need_tool(name):
 
 
 def shipped_golden_folder():
-    """Goldens of every shipped case, written once per test process (shared by the conformance tests)."""
+    """Goldens of every shipped case, written once per test run (shared by the conformance tests)."""
     from moments_ref import conformance
 
     return golden_folder(tuple(conformance.shipped_cases()))

@@ -6,7 +6,8 @@
   neighbours (the hard spots of a bound);
 * :func:`lp_lower` on :func:`lp_grid`: the lower bound as the minimum of a linear program over
   distributions on a grid (scipy HiGHS): the sharpness of Algorithm 1 and of msm6;
-* :func:`golden_folder`: golden vectors written once per test process (conftest's fixtures).
+* :func:`golden_folder`: golden vectors written once per test run, shared by its xdist workers
+  (conftest's fixtures).
 """
 
 from __future__ import annotations
@@ -62,16 +63,35 @@ def lp_grid(n):
     return np.linspace(-3, 3, n) + (6 / (n - 1)) * (np.sqrt(2) - 1)
 
 
+#: Environment variable naming the folder of the test run that its xdist workers share (conftest).
+RUN_FOLDER = "MOMENTS_REF_TEST_RUN"
+
+
 @functools.lru_cache(maxsize=None)
 def golden_folder(cases=None):
-    """Goldens of ``cases`` (a tuple of names; None: every case), written once per test process.
+    """Goldens of ``cases`` (a tuple of names; None: every case), written once per test run.
 
-    The CPU seconds of the writing are in ``.cpu_seconds`` beside the files.
+    The first process of the run that asks writes them, under a lock, into the run's shared
+    folder (``$MOMENTS_REF_TEST_RUN``, made by conftest; a private temporary folder without
+    it); the other xdist workers wait for it and read the same files. The CPU seconds of
+    the writing are in ``.cpu_seconds`` beside the files.
     """
+    import fcntl
+    import hashlib
+    import os
+
     from moments_ref import golden
 
-    d = Path(tempfile.mkdtemp(prefix="moments-ref-test-golden-"))
-    t0 = time.process_time()
-    golden.write(d, None if cases is None else list(cases))
-    d.joinpath(".cpu_seconds").write_text(str(time.process_time() - t0))
+    run = os.environ.get(RUN_FOLDER)
+    root = Path(run) if run else Path(tempfile.mkdtemp(prefix="moments-ref-test-golden-"))
+    tag = "all" if cases is None else hashlib.sha256("\0".join(cases).encode()).hexdigest()[:16]
+    d = root / f"golden-{tag}"
+    with open(root / f"golden-{tag}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        done = d / ".cpu_seconds"
+        if not done.exists():  # written last: its presence means the folder is complete
+            d.mkdir(exist_ok=True)
+            t0 = time.process_time()
+            golden.write(d, None if cases is None else list(cases))
+            done.write_text(str(time.process_time() - t0))
     return d

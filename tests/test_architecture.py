@@ -12,6 +12,7 @@ so that the checks are known to fail when they should.
 from __future__ import annotations
 
 import ast
+import functools
 import io
 import re
 import tokenize
@@ -44,6 +45,18 @@ LONG_FUNCTIONS = set()
 # the import graph
 
 
+@functools.lru_cache(maxsize=None)
+def _tree(source: str) -> ast.Module:
+    """``ast.parse(source)``, once per source text (the checks only read the trees)."""
+    return ast.parse(source)
+
+
+@functools.lru_cache(maxsize=None)
+def _tokens(source: str) -> tuple:
+    """The tokens of ``source``, once per source text."""
+    return tuple(tokenize.generate_tokens(io.StringIO(source).readline))
+
+
 def module_name(path: Path, root: Path = ROOT) -> str:
     """``moments_ref/techniques/pcf.py`` -> ``techniques.pcf``; a package's ``__init__`` is the package."""
     parts = list(path.relative_to(root).with_suffix("").parts)
@@ -66,7 +79,7 @@ def imports_of(name: str, source: str, known, is_package: bool = False) -> set:
     here = [] if name == "__init__" else name.split(".")
     pkg = here if is_package else here[:-1]
     out = set()
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(_tree(source)):
         if isinstance(node, ast.Import):
             out |= {".".join(a.name.split(".")[1:]) or "__init__" for a in node.names
                     if a.name.split(".")[0] == "moments_ref"}
@@ -292,7 +305,7 @@ def private_imports(root: Path = ROOT) -> list:
         pkg = _package_of(name, name in packages)
         here = pkg.split(".") if pkg else []
         aliases = {}
-        tree = ast.parse(text)
+        tree = _tree(text)
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
                 mod = node.module.split(".") if node.module else []
@@ -359,10 +372,10 @@ CONVERSIONS = {
 
 def code_text(source: str) -> str:
     """The code of ``source`` as token strings joined by single spaces (no comments, docstrings or line breaks)."""
-    skip = _docstring_lines(ast.parse(source))
+    skip = _docstring_lines(_tree(source))
     ignore = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
               tokenize.ENDMARKER, tokenize.ENCODING}
-    return " ".join(tok.string for tok in tokenize.generate_tokens(io.StringIO(source).readline)
+    return " ".join(tok.string for tok in _tokens(source)
                     if tok.type not in ignore and tok.start[0] not in skip)
 
 
@@ -427,11 +440,11 @@ def _docstring_lines(tree) -> set:
 
 def code_lines(source: str) -> set:
     """Line numbers holding code: a token other than a comment, a docstring or a line break."""
-    skip = _docstring_lines(ast.parse(source))
+    skip = _docstring_lines(_tree(source))
     out = set()
     ignore = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
               tokenize.ENDMARKER, tokenize.ENCODING}
-    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+    for tok in _tokens(source):
         if tok.type in ignore:
             continue
         for ln in range(tok.start[0], tok.end[0] + 1):
@@ -454,7 +467,7 @@ def function_sizes(source: str) -> dict:
                     out[name] = len([ln for ln in lines if first <= ln <= child.end_lineno])
                 walk(child, name + ".")
 
-    walk(ast.parse(source), "")
+    walk(_tree(source), "")
     return out
 
 

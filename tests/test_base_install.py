@@ -11,6 +11,7 @@ test is skipped with pip's reason.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import re
@@ -39,7 +40,16 @@ def _pip(python, *args, timeout=900):
 
 @pytest.fixture(scope="module")
 def base_python():
-    """The interpreter of the base-dependency environment (built on first use, then reused)."""
+    """The interpreter of the base-dependency environment (built on first use, then reused).
+
+    Test runs side by side (xdist workers, several checkouts) build and reuse it under a lock.
+    """
+    with open(str(VENV) + ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        return _base_python()
+
+
+def _base_python():
     deps = _base_dependencies()
     python, marker = VENV / "bin" / "python", VENV / "moments-ref-base.json"
     if python.exists() and marker.exists() and json.loads(marker.read_text()) == deps:

@@ -14,7 +14,7 @@ SMALL = ["shadow_intensity-lower-float32", "shadow_intensity-upper-float64", "en
          "to_optimized-float64"]
 
 
-# gdir: every case, written once per test process (conftest; its CPU seconds in .cpu_seconds).
+# gdir: every case, written once per test run (conftest; its CPU seconds in .cpu_seconds).
 
 
 def reference_results(gdir, names=None, dtype=None):
@@ -152,8 +152,8 @@ def test_shade_truth_is_algorithm1_on_eq4_away_from_the_clamps():
     assert np.allclose(shade_clamped(r, zf), precise.shade(r, zf), atol=1e-12)
 
 
-def test_verify_passes_for_the_reference(gdir, capsys):
-    path = gdir.parent / "ref_results.npz"
+def test_verify_passes_for_the_reference(gdir, tmp_path, capsys):
+    path = tmp_path / "ref_results.npz"
     np.savez(path, **reference_results(gdir))
     assert main(["verify", "--golden", str(gdir), "--results", str(path)]) == 0
     assert "0 failed" in capsys.readouterr().out

@@ -22,6 +22,7 @@ from moments_ref.gpu import banks
 from moments_ref.ports import PORTS_DIR
 
 from _harness import need_tool, one_change
+from _oracles import golden_folder
 
 FIXTURES = Path(__file__).parent / "fixtures" / "kernels"
 LANGUAGES = ("glsl", "hlsl", "wgsl")
@@ -34,6 +35,12 @@ def drivers(drivers):
         need_tool(tool)
 
 
+@pytest.fixture(scope="module")
+def kernel_goldens():
+    """The kernel cases' golden folder, written once per test run (the other tests here generate theirs)."""
+    return golden_folder(tuple(KERNEL_CASES))
+
+
 def _ran(report):
     return [r for r in report.runs if not r.skipped]
 
@@ -44,9 +51,9 @@ def _ran(report):
 
 @pytest.mark.parametrize("case", KERNEL_CASES)
 @pytest.mark.parametrize("language", LANGUAGES)
-def test_shipped_kernel_passes(drivers, case, language):
+def test_shipped_kernel_passes(drivers, kernel_goldens, case, language):
     path, entry = shipped_kernel(case, language)
-    rep = run_kernel(path, entry, case, language, timing=False, shared=False)
+    rep = run_kernel(path, entry, case, language, golden_dir=kernel_goldens, timing=False, shared=False)
     assert rep.passed, rep.format()
     ran = {r.driver for r in _ran(rep)}
     # WGSL with a multisampled input runs on Vulkan only (wgpu's OpenGL back end; docs/ports.md)
@@ -118,9 +125,9 @@ def mutant_file(tmp_path, language, fname, old, new, case):
 
 
 @pytest.mark.parametrize("name,case,language,fname,old,new", MUTANTS, ids=[f"{m[0]} ({m[2]})" for m in MUTANTS])
-def test_kernel_mutant_fails(drivers, tmp_path, name, case, language, fname, old, new):
+def test_kernel_mutant_fails(drivers, kernel_goldens, tmp_path, name, case, language, fname, old, new):
     path, entry = mutant_file(tmp_path, language, fname, old, new, case)
-    rep = run_kernel(path, entry, case, language, timing=False, shared="barrier" in name)
+    rep = run_kernel(path, entry, case, language, golden_dir=kernel_goldens, timing=False, shared="barrier" in name)
     assert not rep.passed, rep.format()
     failed = [r.driver for r in _ran(rep) if not r.passed]
     assert failed, rep.format()

@@ -12,7 +12,8 @@ import pytest
 from moments_ref import report
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY = dict(progress=False, shadow_map_size=48, resolution=(48, 27), noise_tiles=1, repeats=2)
+# jobs=1: everything in this process (the workers' own results are test_report_parallel's)
+TINY = dict(progress=False, shadow_map_size=48, resolution=(48, 27), noise_tiles=1, repeats=2, jobs=1)
 
 
 @pytest.fixture(scope="module")
@@ -147,7 +148,7 @@ def test_interrupted_run_leaves_no_partial_files(tmp_path, monkeypatch):
 
     monkeypatch.setattr(report.pipeline, "run", interrupted)
     with pytest.raises(KeyboardInterrupt):  # jobs=1: the patch reaches the scenes (worker processes import afresh)
-        report.run(scenes=["translucent", "facade"], out_dir=tmp_path / "r", jobs=1, **TINY)
+        report.run(scenes=["translucent", "facade"], out_dir=tmp_path / "r", **TINY)
     assert not (tmp_path / "r").exists() or not any((tmp_path / "r").iterdir())
     monkeypatch.setattr(report.pipeline, "run", real)
 

@@ -55,7 +55,8 @@ role = "occluder"
 """
 
 AREA = {"reference_views": 48, "light_samples": 8}
-TINY = dict(progress=False, shadow_map_size=96, noise_tiles=1, repeats=1)
+# jobs=1: everything in this process (the workers' own results are test_report_parallel's)
+TINY = dict(progress=False, shadow_map_size=96, noise_tiles=1, repeats=1, jobs=1)
 
 
 @pytest.fixture(scope="module")
@@ -203,7 +204,7 @@ def test_soft_statements_state_the_measured_order():
 def scattering_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report_scattering")
     res = report.run(scenes=["scattering"], out_dir=out, techniques=list(pipeline.SCATTERING_OUTPUTS),
-                     progress=False, shadow_map_size=64, resolution=(32, 18), repeats=1,
+                     progress=False, shadow_map_size=64, resolution=(32, 18), repeats=1, jobs=1,
                      scattering={"epipolar_size": (32, 64), "reference_samples": 256, "raymarch_samples": 256})
     return out, res
 

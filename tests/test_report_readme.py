@@ -32,7 +32,7 @@ def test_the_example_scene_runs_in_the_report(tmp_path, capsys):
     sc = load_scene(tmp_path / "my-scene.toml")
     assert sc.outputs == ("pcf", "msm64", "nlq64") and sc.occluder.n_triangles == 12
     res = report.run(scenes=[str(tmp_path / "my-scene.toml")], out_dir=tmp_path / "out", progress=False,
-                     noise_tiles=1, repeats=1)
+                     noise_tiles=1, repeats=1, jobs=1)
     assert [r["technique"] for r in res["rows"]] == ["pcf", "msm64", "nlq64"]  # the scene's outputs
     assert any(r["pareto"] for r in res["rows"])
     err = capsys.readouterr().err  # the reduction is stated, with the way to the scene's own settings

@@ -16,6 +16,8 @@ import pytest
 from moments_ref import conformance
 from moments_ref.golden.profile import load_profile
 
+from _oracles import golden_folder
+
 
 WILD = Path(__file__).resolve().parent / "fixtures" / "wild"
 ALG1 = ["shadow_intensity-lower-float32", "engine-lower-float32"]
@@ -33,7 +35,9 @@ SINGULAR = {"hlsl": "SingularTargetVisibility", "glsl": "singular_target_visibil
 def _run(stem, language, function, case, driver, profile=True):
     p = WILD / f"{stem}.toml"
     prof = load_profile(p) if profile and p.exists() else None
-    return conformance.run_case(WILD / f"{stem}.{language}", function, case, None, language, driver, profile=prof)
+    # the cases' golden folder, written once per test run (not generated again for every port)
+    goldens = golden_folder(tuple(sorted(set(ALG1) | {"shade-float32"})))
+    return conformance.run_case(WILD / f"{stem}.{language}", function, case, goldens, language, driver, profile=prof)
 
 
 @pytest.mark.parametrize("driver", ["gl", "vulkan"])

@@ -279,6 +279,9 @@ def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
     if name not in CASES:
         raise InputError(f"case: unknown case {name!r}")
     case = CASES[name]
+    # The profile is checked against the case before any array is generated: a case the profile
+    # contradicts is refused at once (``golden --profile`` leaves most cases out).
+    pcase = None if profile.is_default else profiled_case(case, profile)
     if arrays is None:
         from .spread import golden_arrays
 
@@ -286,7 +289,6 @@ def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
     if profile.is_default:
         return case, arrays
     key = _key(case, arrays, profile)
-    pcase = profiled_case(case, profile)  # checks the profile against the case first
     if key in _MEMO:
         return pcase, _MEMO[key]
     path = cache_dir() / f"{key}.npz"

@@ -142,10 +142,11 @@ def json_rows(name, meta, arrays, got, verdict, gs=()):
     label = {i: g.level for g in gs for i in g.rows}
     n = len(verdict.row_pass)
     per_row = [k for k in meta["input_order"] if np.ndim(arrays[k]) and len(arrays[k]) == n]  # not whole-case arrays
+    level = verdict.level  # a property computed over every row: once, not per row (was quadratic in the rows)
     rows = []
     for i in range(len(verdict.row_pass)):
         rows.append({
-            "tc_id": int(np.asarray(arrays["tc_id"])[i]), "level": str(verdict.level[i]),
+            "tc_id": int(np.asarray(arrays["tc_id"])[i]), "level": str(level[i]),
             "category": str(np.asarray(arrays["category"])[i]), "flags": str(np.asarray(arrays["flags"])[i]),
             "passed": bool(verdict.row_pass[i]),
             "passed_strict": bool(verdict.strict_pass[i]) if verdict.strict_pass is not None else None,

@@ -97,7 +97,8 @@ def _golden(name, cache, profile=None):
         else:
             from .conventions import profiled_arrays
 
-            case, arrays = profiled_arrays(name, profile)
+            # the case's own golden arrays, generated once for all the profiles that derive from them
+            case, arrays = profiled_arrays(name, profile, arrays=_golden(name, cache)[1])
         cache[key] = (case, arrays, manifest_entry(case, arrays))
     return cache[key]
 
