@@ -320,3 +320,34 @@ def test_bad_input():
         msm_soft.prepare(np.full((4, 4), 2.0), LIGHT, VP)  # depth outside [-1, 1]
     with pytest.raises(InputError, match="points"):
         msm_soft.shade_points(LIGHT, dm, [[0.0, np.nan, 4.0]], clip_from_world=VP)
+
+
+def test_ray_cast_visibility_counts_blocked_segments_one_by_one():
+    # The definition: the share of the samples² segments from a point to the midpoint grid of the
+    # light that cross no rectangle (each segment tested in a Python loop, in world space).
+    from moments_ref.scene import AreaLight
+    from moments_ref.techniques.msm_soft import ray_cast_visibility
+
+    light = AreaLight(center=np.array([0.0, 0.0, 4.0]), normal=np.array([0.0, 0.0, -1.0]), width=1.0, height=0.5,
+                      up=np.array([0.0, 1.0, 0.0]))
+    rects = [(-0.4, 0.1, -0.3, 0.2, 1.5), (0.05, 0.6, -0.1, 0.4, 2.5)]
+    rng = np.random.default_rng(3)
+    points = np.column_stack([rng.uniform(-1, 1, 12), rng.uniform(-1, 1, 12), np.zeros(12)])
+    n = 7
+    g = (np.arange(n) + 0.5) / n - 0.5
+    want = []
+    for p in points:
+        free = 0
+        for gi in g:
+            for gj in g:
+                s = light.center + gi * light.width * light.tangent + gj * light.height * light.bitangent
+                blocked = False
+                for x0, x1, y0, y1, d in rects:
+                    t = d / ((p - light.center) @ light.normal)  # from the sample toward the point
+                    q = s + (p - s) * t - light.center
+                    blocked |= t < 1 and x0 <= q @ light.tangent <= x1 and y0 <= q @ light.bitangent <= y1
+                free += not blocked
+        want.append(free / n**2)
+    got = ray_cast_visibility(light, rects, points, samples=n)
+    assert np.allclose(got, want, rtol=0, atol=1e-12)
+    assert np.any((got > 0) & (got < 1)) and got.min() == 0 and got.max() == 1  # penumbra, umbra, lit

@@ -84,18 +84,22 @@ def ray_cast_visibility(light, rects, points, samples=64):
     p = np.asarray(points, np.float64).reshape(-1, 3) - light.center
     px, py, pd = p @ light.tangent, p @ light.bitangent, p @ light.normal
     g = (np.arange(samples) + 0.5) / samples - 0.5
-    sx = (g[:, None] * light.width + 0 * g[None, :]).reshape(-1)
-    sy = (0 * g[:, None] + g[None, :] * light.height).reshape(-1)
+    # The grid is separable: sample (i, j) sits at (g_i·width, g_j·height), so where a segment
+    # crosses a rectangle's plane its x depends on (point, i) only and its y on (point, j) only;
+    # a hit is the outer product of the two interval tests.
+    sx, sy = g * light.width, g * light.height
     vis = np.empty(p.shape[0])
     for lo in range(0, p.shape[0], 2048):  # chunks of points
         sl = slice(lo, lo + 2048)
-        hit = np.zeros((px[sl].shape[0], sx.size), bool)
+        hit = np.zeros((px[sl].shape[0], samples, samples), bool)
         for x0, x1, y0, y1, d in r:  # loop over rectangles
             t = (d / pd[sl])[:, None]  # where the segment crosses the rectangle's plane
             xx = sx + (px[sl, None] - sx) * t
             yy = sy + (py[sl, None] - sy) * t
-            hit |= (t < 1) & (xx >= x0) & (xx <= x1) & (yy >= y0) & (yy <= y1)
-        vis[sl] = 1 - hit.mean(1)
+            in_x = (t < 1) & (xx >= x0) & (xx <= x1)
+            in_y = (yy >= y0) & (yy <= y1)
+            hit |= in_x[:, :, None] & in_y[:, None, :]
+        vis[sl] = 1 - hit.reshape(hit.shape[0], -1).mean(1)
     return vis
 
 
