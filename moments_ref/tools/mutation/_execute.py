@@ -93,6 +93,11 @@ def collect_coverage(paths, pytest_args, timeout=7200):
     """``({path: {line: [test ids]}}, {test id: seconds}, [failed test ids])`` over ``pytest_args``."""
     import json
 
+    try:
+        import coverage  # noqa: F401
+    except ImportError:
+        raise SystemExit("mutation: needs coverage.py (pip install -e \".[mutation]\")") from None
+
     def child():
         import coverage
 
