@@ -131,6 +131,67 @@ def test_integer_codes_accept_the_stored_alternatives_only_on_acceptable_rows():
         compare(e, g, {"q": got[:2]})
 
 
+def test_robustness_rows_are_judged_but_decide_the_verdict_only_when_strict():
+    # rows 1-3 lie beyond the contract; row 1 NaN, row 3 off by 1 and outside [0, 1], row 4 a
+    # contract row with a NaN (it fails either way and is no robustness row)
+    g = _golden([0.5] * 5, 0.1)
+    g["flags"] = np.asarray(["", "robustness", "robustness", "wide_spread,robustness", ""])
+    got = np.array([0.5, np.nan, 0.55, 1.5, np.nan], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.level.tolist() == ["contract", "robustness", "robustness", "robustness", "contract"]
+    assert v.row_pass.tolist() == [True, True, True, True, False] and v.failures == 1
+    assert v.strict_pass.tolist() == [True, False, True, False, False]
+    assert v.robustness_tally() == {"rows": 3, "would_fail": 2, "nonfinite": 1, "outside_range": 1}
+    s = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got}, strict=True)
+    assert s.row_pass.tolist() == [True, False, True, False, False] and s.strict
+    assert s.level.tolist() == v.level.tolist()
+    del g["flags"]  # a golden file without flags: every row is a contract row
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert set(v.level) == {"contract"} and v.robustness_tally()["rows"] == 0 and v.failures == 3
+
+
+def test_integer_codes_compare_by_value_and_a_negative_value_names_its_row():
+    e = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact"}
+    codes = np.array([[0, 0xFFFF], [0x8000, 7], [3, 0]], np.uint16)
+    g = {"q": codes, "result": np.array(["valid"] * 3), "tc_id": np.arange(1, 4)}
+    # a signed array of the format's width holds the codes' bits (a shader's int buffer): -1 is 0xFFFF
+    assert compare(e, g, {"q": codes.view(np.int16)}).passed
+    # any other integer array holds the values; 0 is a code, not a negative one
+    for dt in (np.int32, np.int64, np.uint32, np.uint64):
+        assert compare(e, g, {"q": codes.astype(dt)}).passed, dt
+    got = codes.astype(np.int64)
+    got[1, 1] = -5  # one negative component, after a row holding zeros
+    with pytest.raises(InputError, match=r"'q' row 1 holds the negative code -5 \(int64\)"):
+        compare(e, g, {"q": got})
+
+
+def test_the_error_of_a_code_is_its_distance_to_the_golden_code_exactly():
+    e = {"compare": ["p"], "outputs": {"p": {"dtype": "uint32"}}, "dtype": "float32", "metric": "exact"}
+    g = {"p": np.array([2**24 + 1, 2**24, 10], np.uint32), "result": np.array(["valid"] * 3), "tc_id": np.arange(1, 4)}
+    v = compare(e, g, {"p": np.array([2**24, 2**24 + 1, 7], np.uint32)})  # 2^24 + 1 is no float32
+    assert v.error.tolist() == [1.0, 1.0, 3.0]  # below or above: a distance
+    assert v.score.tolist() == [np.inf] * 3 and v.tolerance.tolist() == [0.0] * 3
+
+
+def test_a_float64_port_is_judged_in_float64():
+    g = _golden([0.1, 1 / 3], 1e-17, tol64=1e-17)  # neither value is a float32
+    v = compare(_entry(dtype="float64"), g, {"y": np.array([0.1, 1 / 3])}, port_dtype="float64")
+    assert v.passed and v.error.tolist() == [0.0, 0.0]
+    v = compare(_entry(dtype="float64"), g, {"y": np.array([0.1, 1 / 3]).astype(F32).astype(np.float64)},
+                port_dtype="float64")
+    assert not v.row_pass.any()
+
+
+def test_a_row_is_nonfinite_outside_the_range_or_ungated_when_any_component_is():
+    g = _golden(np.full((4, 2), 0.5), np.array([[0.1, 0.1], [0.1, 0.1], [0.1, np.inf], [0.1, 0.1]]))
+    got = np.array([[0.5, 0.5], [np.nan, 0.5], [0.5, 1.5], [-0.5, 0.55]], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.nonfinite.tolist() == [False, True, False, False]
+    assert v.outside_range.tolist() == [False, False, True, True]
+    assert v.gated.tolist() == [True, True, False, True]
+    assert v.row_pass.tolist() == [True, False, False, False]
+
+
 @pytest.mark.parametrize("port, arr, ok", [("float32", np.float32, True), ("float32", np.float64, False),
                                           ("float64", np.float64, True), ("float64", np.float32, False)])
 def test_float_outputs_must_be_in_the_ports_precision(port, arr, ok):
@@ -165,6 +226,9 @@ def test_ulp_is_the_spacing_above_the_expected_magnitude():
     # below the smallest normal: the smallest normal's spacing, also in float64
     assert ulp(1e-40, np.float32) == 2.0 ** -149 and ulp(1e-310, np.float64) == 2.0 ** -1074
     assert ulp(1.0, np.float64) == 2.0 ** -52
+    # float64 ulps of values that are no float32: just below 2, and beyond float32's range
+    assert ulp(float(np.nextafter(2.0, 0.0)), np.float64) == 2.0 ** -52
+    assert ulp(1e300, np.float64) == np.spacing(1e300) and ulp(-1e-300, np.float64) == np.spacing(1e-300)
     assert ulp(np.array([1.0, np.nan]), np.float32)[0] == 2.0 ** -23 and np.isnan(ulp(np.nan, np.float32))
 
 
@@ -174,6 +238,11 @@ def test_tolerances_round_up_to_two_significant_digits():
     np.testing.assert_allclose(out[:3], [1.3e-5, 1.2e-5, 10.0], rtol=1e-12)
     assert out[3] == 0.0 and out[4] == np.inf and out[5] == 1e-300  # left alone
     assert out[6] == pytest.approx(3.0, rel=1e-12)  # a representation error above 3.0 is not a digit
+    # ... but an excess over 10^-12 of the value is: it rounds up
+    assert _ceil2(np.array([1.2e-5 * (1 + 1.5e-12)]))[0] == pytest.approx(1.3e-5, rel=1e-12)
+    # rounded down to 1e-290; below, where 10^e nears float64's smallest normals, left as they are
+    assert _ceil2(np.array([1.234e-290]))[0] == pytest.approx(1.3e-290, rel=1e-12)
+    assert _ceil2(np.array([1e-290, 5e-291]))[:].tolist() == [1e-290, 5e-291]
     rng = np.random.default_rng(1)
     t = 10.0 ** rng.uniform(-30, 5, 2000)
     out = _ceil2(t)
@@ -225,6 +294,114 @@ def test_a_readback_word_wider_than_the_format_fails_even_where_clipping_gives_t
     assert any("wider than the format" in n for n in v.notes)
     assert v.worst[0]["index"] == 0 and v.worst[0]["score"] == np.inf
     assert _exact_case([0xFFFF, 0], [0xFFFF, 0]).passed and not _exact_case([0xFFFF], [0xFFFF]).notes
+
+
+def test_ulp_distance_is_exact_beyond_float32s_integers():
+    one = np.float32(1.0)
+    far = (np.array([0x3F800000 + 2**24 + 1], np.uint32)).view(F32)  # 2^24 + 1 float32 values above 1
+    assert ulp_distance(np.array([one]), far.astype(np.float64))[0] == 2**24 + 1
+    assert ulp_distance(far, np.array([1.0]))[0] == 2**24 + 1
+
+
+def test_a_word_wider_than_the_format_in_any_component_fails_its_row():
+    n = 3
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    codes = np.array([[1, 0xFFFF], [2, 3], [4, 5]], np.uint16)
+    arrays = {"q": codes, "result": np.asarray(["valid"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
+              "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n), "comment": np.asarray([""] * n)}
+    words = codes.astype(np.uint32)
+    words[0, 1] = 0x1FFFF  # clips to the expected 0xFFFF; the other component is right
+    v = compare_case("pack-test", meta, arrays, {"q": words})
+    assert v.row_pass.tolist() == [False, True, True]
+    assert v.notes == ["1 rows hold a word wider than the format's uint16 codes (failed)"]
+
+
+def test_the_rows_shown_tell_ties_and_their_acceptable_codes_apart_from_failures():
+    n = 3
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    arrays = {"q": np.array([5, 5, 5], np.uint16), "q_acceptable": np.array([[5, 6], [5, 6], [5, 6]], np.uint16),
+              "result": np.asarray(["acceptable", "valid", "valid"]), "tc_id": np.arange(1, n + 1),
+              "x": np.zeros(n), "category": np.asarray(["random", "stiff", "stiff"]),
+              "flags": np.asarray(["rounding_tie", "", ""]), "comment": np.asarray([""] * n)}
+    v = compare_case("pack-test", meta, arrays, {"q": np.array([6, 6, 5], np.uint32)})
+    assert v.row_pass.tolist() == [True, False, True]
+    rows = {r["index"]: r for r in v.worst}
+    assert set(rows) == {0, 1}  # the tie (row 0, accepted) and the failure (row 1); row 2 is exact
+    assert rows[0]["tie"] and rows[0]["acceptable"].tolist() == [5, 6]
+    assert not rows[1]["tie"] and "acceptable" not in rows[1]  # a valid row has no acceptable set
+    r, st = v.categories["random"], v.categories["stiff"]
+    assert (r.mismatches, r.ties, st.mismatches, st.ties, st.failures) == (1, 1, 1, 0, 1)
+
+
+def test_the_rows_shown_give_the_largest_component_errors_of_a_vector_output():
+    meta = {**_entry(), "exact": False}
+    arrays = _golden(np.array([[0.0, 0.1, 2.0], [0.5, 0.5, 0.5]]), 1e-4)
+    got = np.array([[0.0, 0.1, 2.0 + 2**-10], [0.5, 0.5, 0.5]], F32)
+    (row,) = compare_case("v-test", meta, arrays, {"y": got}).worst
+    assert row["index"] == 0 and row["abs"] == 2**-10 and row["rel"] == 2**-11  # not the exact component's 0
+    assert row["ulps"] == 2**12  # float32 values are 2^-22 apart above 2
+    # the expected value as stored (float64), not rounded to the port's float32
+    (row,) = _float_case([0.1], [1e-12], [0.1], ["random"]).worst
+    assert row["abs"] == abs(float(F32(0.1)) - 0.1) > 0 and not row["passed"]
+
+
+def test_vector_codes_count_the_mismatches_of_failing_rows_per_component():
+    n = 3
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    codes = np.array([[1, 2], [3, 4], [5, 6]], np.uint16)
+    alts = np.stack([codes, codes + np.array([0, 1], np.uint16)], axis=1)  # (n, K, 2): component 1 may be +1
+    arrays = {"q": codes, "q_acceptable": alts, "result": np.asarray(["acceptable", "valid", "valid"]),
+              "tc_id": np.arange(1, n + 1), "x": np.zeros(n), "category": np.asarray(["random"] * n),
+              "flags": np.asarray([""] * n), "comment": np.asarray([""] * n)}
+    got = np.array([[1, 3], [9, 4], [6, 7]], np.uint32)  # row 0: an accepted tie in component 1
+    v = compare_case("pack-test", meta, arrays, {"q": got})
+    assert v.row_pass.tolist() == [True, False, False]
+    assert v.components == {"mismatch": [2, 1]}  # failing rows only: row 1 in component 0, row 2 in both
+    tie = [r for r in v.worst if r["index"] == 0]
+    assert len(tie) == 1 and tie[0]["tie"] and v.categories["random"].ties == 1
+
+
+def test_vector_ulps_beyond_a_million_are_shown_in_three_digits():
+    meta = {**_entry(), "exact": False}
+    arrays = _golden(np.ones((1, 3)), 1.0)
+    bits = np.array([[0x3F800000 + 999_999, 0x3F800000 + 1_000_000, 0x3F800000 + 1_500_000]], np.uint32)
+    v = compare_case("v-test", meta, arrays, {"y": bits.view(F32)})
+    assert v.components == {"ulps": "[999999, 1e+06, 1.5e+06]"}
+
+
+def test_the_relative_error_shown_is_positive_for_negative_expected_values():
+    (row,) = _float_case([-2.0], [1e-6], [-2.0 - 2**-10], ["random"]).worst
+    assert row["abs"] == 2**-10 and row["rel"] == 2**-11
+
+
+def test_a_non_finite_value_shows_an_infinite_error_even_where_it_equals_the_expected_one():
+    v = _float_case([np.inf, 1.0], [1e-3, 1e-3], [np.inf, np.nan], ["random", "stiff"])
+    assert not v.row_pass.any()
+    assert [r["abs"] for r in v.worst] == [np.inf, np.inf]
+
+
+def test_at_most_three_accepted_ties_are_shown():
+    n = 5
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    arrays = {"q": np.full(n, 5, np.uint16), "q_acceptable": np.tile(np.array([5, 6], np.uint16), (n, 1)),
+              "result": np.asarray(["acceptable"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
+              "category": np.asarray(["edge"] * n), "flags": np.asarray([""] * n), "comment": np.asarray([""] * n)}
+    v = compare_case("pack-test", meta, arrays, {"q": np.full(n, 6, np.uint32)})
+    assert v.passed and [r["index"] for r in v.worst] == [0, 1, 2] and all(r["tie"] for r in v.worst)
+
+
+def test_the_float64_note_needs_a_float_input_to_round():
+    meta = {**_entry(dtype="float64"), "exact": False, "inputs": ["k", "x"], "input_order": ["k", "x"]}
+    arrays = _golden([0.5], 1e-3)
+    arrays["k"] = np.array([3], np.int32)  # an integer input first: uploaded as it is
+    v = compare_case("f-test", meta, arrays, {"y": np.array([0.5], F32)})
+    assert any("float32 tolerance column" in n for n in v.notes)
+    meta = {**meta, "inputs": ["k"], "input_order": ["k"]}
+    assert compare_case("f-test", meta, arrays, {"y": np.array([0.5], F32)}).notes == []
 
 
 def test_rows_shown_per_category_worst_first_each_once():

@@ -159,8 +159,8 @@ def _cheapest_first(tests, durations):
 
 
 def _capped(tests, durations, max_seconds):
-    """The first of ``tests`` (cheapest first) whose measured times sum to at most ``max_seconds``
-    (at least one test; all of them when ``max_seconds`` is None)."""
+    """The first of ``tests`` (in the order given: the quickest first) whose measured times sum to
+    at most ``max_seconds`` (at least one test; all of them when ``max_seconds`` is None)."""
     if max_seconds is None:
         return tests
     out, spent = [], 0.0
@@ -176,20 +176,26 @@ def _run_module(path, lines, durations, only, results, save=lambda: None, max_se
     source = (ROOT / path).read_text()
     mutants = [m for m in mutants_of(source, path) if not only or any(o in m.id for o in only)]
     name = module_name_of(path)
-    reached = sorted(set().union(*[_tests_of(m, lines) for m in mutants]) if mutants else ())
+    # per mutant: the tests that reach it, and those it runs (under the cap: the quickest, from any file)
+    plans = {}
+    for m in mutants:
+        reaching = _tests_of(m, lines)
+        quickest = sorted(reaching, key=lambda t: (durations.get(t, 1.0), t))
+        plans[m.id] = (len(reaching), _cheapest_first(_capped(quickest, durations, max_seconds), durations))
+    # the unmutated module must pass every test a mutant will run
+    reached = sorted({t for _, ts in plans.values() for t in ts})
     ok, first, seconds = baseline(name, reached, 600 + 10 * sum(durations.get(t, 1) for t in reached))
     if not ok:
         raise SystemExit(f"mutation: {path}: the unmutated module fails its tests ({first})")
     for i, m in enumerate(mutants):
-        reaching = _cheapest_first(_tests_of(m, lines), durations)
-        tests = _capped(reaching, durations, max_seconds)
+        n_reaching, tests = plans[m.id]
         if not tests:
             results[m.id] = ["no tests", ""]
         else:
             timeout = 30 + 5 * sum(durations.get(t, 1.0) for t in tests)
             results[m.id] = list(run_mutant(name, m.top, mutated_code(source, path, m), tests, timeout, durations))
-            if results[m.id][0] == "survived" and len(tests) < len(reaching):
-                results[m.id][1] = f"(ran {len(tests)} of the {len(reaching)} tests that reach it)"
+            if results[m.id][0] == "survived" and len(tests) < n_reaching:
+                results[m.id][1] = f"(ran {len(tests)} of the {n_reaching} tests that reach it)"
         print(f"[{i + 1}/{len(mutants)}] {results[m.id][0]:8s} {m.id}", file=sys.stderr)
         save()  # an interrupted run keeps what it measured
     return mutants
@@ -233,8 +239,8 @@ def _args(argv):
                     help="reuse .mutation/coverage.json while the modules are unchanged; with --tests, collect only "
                          "those test files again and merge them in")
     ap.add_argument("--max-seconds", type=float, default=None, metavar="S",
-                    help="per mutant, run only the cheapest tests that reach it whose measured times sum to at most "
-                         "S seconds (at least one): the score is then a lower bound, marked ≥")
+                    help="per mutant, run only the quickest tests that reach it (from any file) whose measured times "
+                         "sum to at most S seconds (at least one): the score is then a lower bound, marked ≥")
     ap.add_argument("--only", nargs="+", default=[], metavar="TEXT", help="only mutants whose id contains TEXT")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--report", action="store_true", help="print the table of the last runs, run nothing")
