@@ -299,8 +299,9 @@ def test_a_readback_word_wider_than_the_format_fails_even_where_clipping_gives_t
 def test_ulp_distance_is_exact_beyond_float32s_integers():
     one = np.float32(1.0)
     far = (np.array([0x3F800000 + 2**24 + 1], np.uint32)).view(F32)  # 2^24 + 1 float32 values above 1
-    assert ulp_distance(np.array([one]), far.astype(np.float64))[0] == 2**24 + 1
-    assert ulp_distance(far, np.array([1.0]))[0] == 2**24 + 1
+    # compared as Python floats: a float32 of 2^24 would equal the integer 2^24 + 1 converted to float32
+    assert float(ulp_distance(np.array([one]), far.astype(np.float64))[0]) == 2**24 + 1
+    assert float(ulp_distance(far, np.array([1.0]))[0]) == 2**24 + 1
 
 
 def test_a_word_wider_than_the_format_in_any_component_fails_its_row():

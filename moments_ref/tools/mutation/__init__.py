@@ -192,7 +192,8 @@ def _run_module(path, lines, durations, only, results, save=lambda: None, max_se
         if not tests:
             results[m.id] = ["no tests", ""]
         else:
-            timeout = 30 + 5 * sum(durations.get(t, 1.0) for t in tests)
+            files = len({t.split("::")[0] for t in tests})
+            timeout = 30 * files + 10 * sum(durations.get(t, 1.0) for t in tests)
             results[m.id] = list(run_mutant(name, m.top, mutated_code(source, path, m), tests, timeout, durations))
             if results[m.id][0] == "survived" and len(tests) < n_reaching:
                 results[m.id][1] = f"(ran {len(tests)} of the {n_reaching} tests that reach it)"

@@ -165,8 +165,9 @@ def _child_run(module_name, top, code, test_ids, durations):
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = tmp  # failures found under a mutant stay out of .hypothesis
         for batch in _batches(test_ids):
-            # each file within a few times its measured time: a mutant that loops forever dies early (SIGALRM)
-            signal.alarm(int(10 + 3 * sum(durations.get(t, 1.0) for t in batch)))
+            # each file within a few times its measured time (and its collection, slow on a loaded machine):
+            # a mutant that loops forever dies early (SIGALRM)
+            signal.alarm(int(30 + 5 * sum(durations.get(t, 1.0) for t in batch)))
             rc = _pytest(["-x", *batch], rec)
             signal.alarm(0)
             if rc != 0:
@@ -185,7 +186,7 @@ def _batches(test_ids):
 def run_mutant(module_name, top, code, test_ids, timeout, durations=None):
     """``(status, first failing test)`` of one mutant: ``killed``, ``survived``, ``timeout`` or ``error``.
 
-    ``durations`` (test id -> seconds, measured unmutated): each test file may take ``10 s + 3×`` its time.
+    ``durations`` (test id -> seconds, measured unmutated): each test file may take ``30 s + 5×`` its time.
     """
     durations = {t: timeout for t in test_ids} if durations is None else durations
     status, data, timed_out = _forked(lambda: _child_run(module_name, top, code, test_ids, durations), timeout)
