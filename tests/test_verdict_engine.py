@@ -239,9 +239,9 @@ def test_tolerances_round_up_to_two_significant_digits():
     assert out[3] == 0.0 and out[4] == np.inf and out[5] == 1e-300  # left alone
     assert out[6] == pytest.approx(3.0, rel=1e-12)  # a representation error above 3.0 is not a digit
     # ... but an excess over 10^-12 of the value is: it rounds up
-    assert _ceil2(np.array([1.2e-5 * (1 + 1.5e-12)]))[0] == pytest.approx(1.3e-5, rel=1e-12)
+    assert _ceil2(np.array([1.2e-5 * (1 + 1.5e-12)]))[0] == pytest.approx(1.3e-5, rel=1e-12, abs=0)
     # rounded down to 1e-290; below, where 10^e nears float64's smallest normals, left as they are
-    assert _ceil2(np.array([1.234e-290]))[0] == pytest.approx(1.3e-290, rel=1e-12)
+    assert _ceil2(np.array([1.234e-290]))[0] == pytest.approx(1.3e-290, rel=1e-12, abs=0)
     assert _ceil2(np.array([1e-290, 5e-291]))[:].tolist() == [1e-290, 5e-291]
     rng = np.random.default_rng(1)
     t = 10.0 ** rng.uniform(-30, 5, 2000)
