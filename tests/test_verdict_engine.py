@@ -536,3 +536,64 @@ def test_vector_outputs_report_the_worst_ulps_per_component():
     assert v.components == {"ulps": "[0, 1, 0, 5]"}
     v = _exact_case([1, 2, 3], [1, 9, 3])
     assert v.components is None  # one code per row
+
+
+# ---------------------------------------------------------------------------
+# golden.spread on toy cases whose spread is known by hand
+
+
+def _toy(reference, x, category, flags=None, metric="abs", dtype="float32"):
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import derive
+
+    case = Case(name="toy", function="toy", dtype=dtype, inputs=("x",), outputs=("y",), rows=None,
+                reference=reference, metric=metric)
+    n = len(x)
+    return derive(case, {"x": np.asarray(x, dtype)}, category, [""] * n, flags or [()] * n)
+
+
+def _identity(x):
+    return (np.asarray(x),)
+
+
+def _circle(x):  # defined on [-1, 1] only
+    with np.errstate(invalid="ignore"):
+        return (np.sqrt(1 - np.asarray(x) * x),)
+
+
+EPS32 = float(np.finfo(np.float32).eps)
+
+
+def test_tolerances_hold_inputs_scaled_by_three_ulps_in_each_precision():
+    # y = x: the legitimate variants are x itself and x (1 ± 3 eps) rounded to the port's precision;
+    # the tolerance is SAFETY = 16 times the largest deviation, rounded up to two digits
+    a = _toy(_identity, [0.0, -2.0, 1.0, 0.5], ["random", "edge", "edge", "edge"])
+    t32, t64 = a["y_tolerance_float32"], a["y_tolerance_float64"]
+    for x, t in zip([-2.0, 1.0, 0.5], t32[1:]):
+        assert 16 * 3 * EPS32 * abs(x) <= t <= 1.1 * 16 * 3 * EPS32 * abs(x), (x, t / EPS32)
+    eps64 = float(np.finfo(np.float64).eps)
+    for x, t in zip([-2.0, 1.0, 0.5], t64[1:]):  # float64 ports: float64 ulps, not float32's
+        assert 16 * 3 * eps64 * abs(x) <= t <= 1.1 * 16 * 3 * eps64 * abs(x), (x, t / eps64)
+    assert t32[0] == pytest.approx(4.8e-7, rel=1e-12, abs=0)  # y = 0: the floor, 4 ulps of 1, two digits
+    assert (a["result"] == "valid").all() and a["tc_id"].tolist() == [1, 2, 3, 4]
+
+
+def test_perturbed_inputs_in_minus_one_to_one_stay_there():
+    # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
+    a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
+    t = a["y_tolerance_float32"]
+    assert np.isfinite(t).all()
+    dev = np.sqrt(1 - (1 - 3 * EPS32) ** 2)  # the inward perturbation's deviation at the ends
+    assert (t[1:] >= 16 * dev * 0.9).all() and (t[1:] <= 16 * dev * 1.2).all()
+
+
+def test_ungated_flags_give_an_infinite_tolerance_and_an_acceptable_result():
+    from moments_ref.golden.notes import UNGATED, UNGATED32
+
+    flags = [(), (UNGATED[0],), (UNGATED32[0],)] if UNGATED32 else [(), (UNGATED[0],), ()]
+    a = _toy(_identity, [0.5, 0.5, 0.5], ["random"] * 3, flags=flags)
+    assert a["result"].tolist() == ["valid", "acceptable", "valid"]
+    assert np.isfinite(a["y_tolerance_float32"][0]) and a["y_tolerance_float32"][1] == np.inf
+    assert a["y_tolerance_float64"][1] == np.inf
+    if UNGATED32:  # undefined in float32 only: the float64 column stays gated
+        assert a["y_tolerance_float32"][2] == np.inf and np.isfinite(a["y_tolerance_float64"][2])
