@@ -542,14 +542,18 @@ def test_vector_outputs_report_the_worst_ulps_per_component():
 # golden.spread on toy cases whose spread is known by hand
 
 
-def _toy(reference, x, category, flags=None, metric="abs", dtype="float32"):
+def _toy(reference, x, category, flags=None, metric="abs", dtype="float32", perturb=True, k=None, hook=None):
     from moments_ref.golden.cases import Case
     from moments_ref.golden.spread import derive
 
-    case = Case(name="toy", function="toy", dtype=dtype, inputs=("x",), outputs=("y",), rows=None,
-                reference=reference, metric=metric)
+    inputs = {"x": np.asarray(x, dtype)}
+    if k is not None:  # an integer input beside x (a decoder's code)
+        inputs["k"] = np.asarray(k, np.uint32)
+    case = Case(name="toy", function="toy", dtype=dtype, inputs=tuple(inputs), outputs=("y",), rows=None,
+                reference=reference, metric=metric, perturb=perturb,
+                integer_inputs={"k": "uint32"} if k is not None else {}, spread_hook=hook)
     n = len(x)
-    return derive(case, {"x": np.asarray(x, dtype)}, category, [""] * n, flags or [()] * n)
+    return derive(case, inputs, category, [""] * n, flags or [()] * n)
 
 
 def _identity(x):
@@ -576,6 +580,46 @@ def test_tolerances_hold_inputs_scaled_by_three_ulps_in_each_precision():
         assert 16 * 3 * eps64 * abs(x) <= t <= 1.1 * 16 * 3 * eps64 * abs(x), (x, t / eps64)
     assert t32[0] == pytest.approx(4.8e-7, rel=1e-12, abs=0)  # y = 0: the floor, 4 ulps of 1, two digits
     assert (a["result"] == "valid").all() and a["tc_id"].tolist() == [1, 2, 3, 4]
+
+
+def _third(x):
+    return (np.asarray(x) / np.asarray(x).dtype.type(3),)
+
+
+def _times_code(x, k, dtype):
+    return (np.asarray(x, dtype) * np.asarray(k).astype(dtype),)
+
+
+def test_the_float64_column_is_measured_in_float64():
+    # x / 3 rounds in float32 by up to half an ulp; a float64 port is held to float64's rounding
+    a = _toy(_third, [0.3, -1.7, 0.9], ["random"] * 3)
+    assert (a["y_tolerance_float64"] < 1e-13).all() and (a["y_tolerance_float32"] > 1e-7).all()
+
+
+def test_unperturbed_cases_and_cases_with_integer_inputs():
+    # perturb=False (a bias, whose inputs are exact by definition): only the evaluations in each
+    # precision count, exact here, so the tolerance is the floor (4 ulps of max(|y|, 1), two digits)
+    a = _toy(_identity, [0.5, -0.25], ["random"] * 2, perturb=False)
+    np.testing.assert_allclose(a["y_tolerance_float32"], [4.8e-7, 4.8e-7], rtol=1e-12, atol=0)
+    # an integer input beside the float one: the float input is still perturbed
+    a = _toy(_times_code, [0.5, -0.25], ["random"] * 2, k=[2, 3])
+    assert (a["y_tolerance_float32"] >= 16 * 3 * EPS32 * np.array([1.0, 0.75])).all()
+
+
+def test_other_formulations_count_on_contract_rows_where_they_have_a_value():
+    def hook(inputs, dt):  # another formulation, 1e-3 off; no value beyond 0.9
+        x = np.asarray(inputs["x"], np.float64)
+        return [(np.where(x > 0.9, np.nan, x + 1e-3),)]
+
+    flags = [(), (), ("robustness",), ("robustness",)]
+    # (the case floor, 16 × the 90th percentile of the deviations on random rows, is kept small: row 1 only)
+    a = _toy(_identity, [0.5, 0.95, 0.5, -2.0], ["edge", "random", "edge", "edge"], flags=flags, hook=hook)
+    t = a["y_tolerance_float32"]
+    assert t[0] >= 16e-3  # a contract row: the other formulation counts
+    assert t[1] < 1e-4  # no value there: it contributes nothing (not an infinite tolerance)
+    assert t[2] < 1e-4  # beyond the contract it is no legitimate implementation of anything
+    assert t[3] >= 16 * 3 * EPS32 * 2  # the reference's own variants still count on robustness rows
+    assert "robustness" in a["flags"][2]
 
 
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
