@@ -542,11 +542,13 @@ def test_vector_outputs_report_the_worst_ulps_per_component():
 # golden.spread on toy cases whose spread is known by hand
 
 
-def _toy(reference, x, category, flags=None, metric="abs", dtype="float32", perturb=True, k=None, hook=None):
+def _toy(reference, x, category, flags=None, metric="abs", dtype="float32", perturb=True, k=None, hook=None, x2=None):
     from moments_ref.golden.cases import Case
     from moments_ref.golden.spread import derive
 
     inputs = {"x": np.asarray(x, dtype)}
+    if x2 is not None:
+        inputs["x2"] = np.asarray(x2, dtype)
     if k is not None:  # an integer input beside x (a decoder's code)
         inputs["k"] = np.asarray(k, np.uint32)
     case = Case(name="toy", function="toy", dtype=dtype, inputs=tuple(inputs), outputs=("y",), rows=None,
@@ -620,6 +622,19 @@ def test_other_formulations_count_on_contract_rows_where_they_have_a_value():
     assert t[2] < 1e-4  # beyond the contract it is no legitimate implementation of anything
     assert t[3] >= 16 * 3 * EPS32 * 2  # the reference's own variants still count on robustness rows
     assert "robustness" in a["flags"][2]
+
+
+def _squares(x, x2):
+    return (np.asarray(x) * x - np.asarray(x2) * x2,)
+
+
+def test_rows_with_equal_inputs_are_only_scaled_jointly():
+    # x² - x2² is exactly 0 where |x| = |x2|, and stays 0 when both are scaled together; perturbing
+    # them apart (1 ± eps) would invent a deviation of 4 eps x² that no port of the equation has
+    a = _toy(_squares, [0.5, 0.5, 0.5], ["random", "random", "edge"], x2=[0.5, -0.5, 0.25])
+    t = a["y_tolerance_float32"]
+    np.testing.assert_allclose(t[:2], [4.8e-7, 4.8e-7], rtol=1e-12, atol=0)  # the floor only
+    assert t[2] >= 16 * 2 * EPS32 * 0.25 - 1e-12  # unequal inputs: perturbed apart
 
 
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
