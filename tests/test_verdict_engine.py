@@ -637,6 +637,49 @@ def test_rows_with_equal_inputs_are_only_scaled_jointly():
     assert t[2] >= 16 * 2 * EPS32 * 0.25 - 1e-12  # unequal inputs: perturbed apart
 
 
+def test_the_case_floor_is_the_random_rows_typical_deviation():
+    # random rows x = -0.5 deviate by 1.5 eps (x (1 ± 3 eps) is exact in float32); edge rows x = -2 by 6 eps.
+    # A row that deviates by nothing (y = 0) still gets 16 x the random rows' 90th percentile, 24 eps.
+    x = [-0.5] * 5 + [-2.0] * 5 + [0.0]
+    t = _toy(_identity, x, ["random"] * 5 + ["edge"] * 5 + ["stiff"])["y_tolerance_float32"]
+    assert 24 * EPS32 <= t[-1] <= 1.1 * 24 * EPS32, t[-1] / EPS32
+    # without random rows, every row counts
+    t = _toy(_identity, x, ["edge"] * 10 + ["stiff"])["y_tolerance_float32"]
+    assert t[-1] >= 96 * EPS32
+
+
+def test_the_floor_is_four_ulps_of_the_magnitude():
+    t = _toy(_identity, [-4.0, 4.0, 0.5], ["random"] * 3, perturb=False)["y_tolerance_float32"]
+    np.testing.assert_allclose(t, [2.0e-6, 2.0e-6, 4.8e-7], rtol=1e-12, atol=0)  # 4 ulp(4) = 16 eps, 4 ulp(1)
+
+
+def _quarters(x):
+    x = np.asarray(x)  # in the dtype of the evaluation
+    with np.errstate(invalid="ignore"):
+        return (np.nan_to_num(np.floor(4 * np.sqrt(1 - x * x)), nan=99).astype(np.uint16),)  # 99: no code, |x| > 1
+
+
+def test_codes_that_change_within_rounding_of_the_inputs_are_ties_both_ways():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import derive
+
+    case = Case(name="toy", function="toy", dtype="float64", inputs=("x",), outputs=("q",), rows=None,
+                reference=_quarters, metric="exact", integer_inputs={})
+    # sqrt(1 - x²) = 3/4 at x = sqrt(7)/4: just below it the code is 3, just above 2
+    edge = np.sqrt(7) / 4
+    x = np.array([edge * (1 - 4e-7), edge * (1 + 4e-7), 0.3, 1.0, 0.0])
+    cat, comment = ["random", "random", "random", "edge", "stiff"], ["a", "b", "c", "d", "e"]
+    a = derive(case, {"x": x}, cat, comment, [()] * 5)
+    tie = np.array(["rounding_tie" in f for f in a["flags"]])
+    # the nudge 1 ± 8 eps(float32) moves the first row up across the boundary, the second down
+    assert tie.tolist() == [True, True, False, False, False]  # x = 1: nudged up it stays 1, no tie
+    assert a["result"].tolist() == ["acceptable", "acceptable", "valid", "valid", "valid"]
+    assert a["category"].tolist() == ["stiff", "stiff", "random", "edge", "stiff"]
+    assert a["comment"][0].startswith("a [on a rounding boundary") and a["comment"][4] == "e"
+    assert {2, 3} <= set(a["q_acceptable"][0].tolist()) and {2, 3} <= set(a["q_acceptable"][1].tolist())
+    assert set(a["q_acceptable"][2].tolist()) == {a["q"][2]}
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
