@@ -680,6 +680,27 @@ def test_codes_that_change_within_rounding_of_the_inputs_are_ties_both_ways():
     assert set(a["q_acceptable"][2].tolist()) == {a["q"][2]}
 
 
+def test_rows_outside_the_given_contract_are_flagged_robustness_once():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import derive
+
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity)
+    flags = [(), (), ("robustness",)]
+    a = derive(case, {"x": np.float32([0.1, 0.2, 0.3])}, ["random"] * 3, [""] * 3, flags,
+               contract=np.array([True, False, False]))
+    assert a["flags"].tolist() == ["", "robustness", "robustness"]
+
+
+def test_robust_rows_are_read_from_the_flags_and_none_without_them():
+    from moments_ref.golden.spread import robust_rows
+
+    assert robust_rows({"result": np.array(["valid"] * 3)}).tolist() == [False] * 3
+    assert robust_rows({"result": np.array(["valid"] * 2)}, 2).tolist() == [False] * 2
+    flags = np.array(["robustness", "wide_spread,robustness", "robustness_x", ""])
+    assert robust_rows({"flags": flags, "result": np.array(["valid"] * 4)}).tolist() == [True, True, False, False]
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
