@@ -701,6 +701,23 @@ def test_robust_rows_are_read_from_the_flags_and_none_without_them():
     assert robust_rows({"flags": flags, "result": np.array(["valid"] * 4)}).tolist() == [True, True, False, False]
 
 
+def test_a_tie_away_from_a_rounding_boundary_is_a_bug_of_the_reference():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import TIE_BAND, TruthMismatch, derive
+
+    edge = np.sqrt(7) / 4
+    x = np.array([edge * (1 - 4e-7), edge * (1 + 4e-7), 0.3])
+
+    def case(margins):
+        return Case(name="toy", function="toy", dtype="float64", inputs=("x",), outputs=("q",), rows=None,
+                    reference=_quarters, truth=_quarters, metric="exact", margin=lambda x: np.asarray(margins))
+
+    a = derive(case([TIE_BAND, TIE_BAND, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)  # within the band
+    assert a["result"].tolist() == ["acceptable", "acceptable", "valid"]
+    with pytest.raises(TruthMismatch, match="on 1 rows away from a rounding boundary; first row 1"):
+        derive(case([0.0, 2 * TIE_BAND, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
@@ -713,10 +730,11 @@ def test_perturbed_inputs_in_minus_one_to_one_stay_there():
 def test_ungated_flags_give_an_infinite_tolerance_and_an_acceptable_result():
     from moments_ref.golden.notes import UNGATED, UNGATED32
 
-    flags = [(), (UNGATED[0],), (UNGATED32[0],)] if UNGATED32 else [(), (UNGATED[0],), ()]
+    assert UNGATED and UNGATED32
+    flags = [(), ("random_x", UNGATED[0]), ("random_x", UNGATED32[0])]  # one of its flags is enough
     a = _toy(_identity, [0.5, 0.5, 0.5], ["random"] * 3, flags=flags)
     assert a["result"].tolist() == ["valid", "acceptable", "valid"]
     assert np.isfinite(a["y_tolerance_float32"][0]) and a["y_tolerance_float32"][1] == np.inf
     assert a["y_tolerance_float64"][1] == np.inf
-    if UNGATED32:  # undefined in float32 only: the float64 column stays gated
-        assert a["y_tolerance_float32"][2] == np.inf and np.isfinite(a["y_tolerance_float64"][2])
+    # undefined in float32 only: the float64 column stays gated
+    assert a["y_tolerance_float32"][2] == np.inf and np.isfinite(a["y_tolerance_float64"][2])
