@@ -582,6 +582,9 @@ def test_tolerances_hold_inputs_scaled_by_three_ulps_in_each_precision():
         assert 16 * 3 * eps64 * abs(x) <= t <= 1.1 * 16 * 3 * eps64 * abs(x), (x, t / eps64)
     assert t32[0] == pytest.approx(4.8e-7, rel=1e-12, abs=0)  # y = 0: the floor, 4 ulps of 1, two digits
     assert (a["result"] == "valid").all() and a["tc_id"].tolist() == [1, 2, 3, 4]
+    # a float32 case also stores the reference's own float32 result (informational); a float64 case does not
+    assert a["y_float32"].dtype == np.float32 and a["y_float32"].tolist() == [0.0, -2.0, 1.0, 0.5]
+    assert "y_float32" not in _toy(_identity, [0.5], ["random"], dtype="float64")
 
 
 def _third(x):
