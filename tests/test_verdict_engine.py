@@ -721,6 +721,20 @@ def test_a_tie_away_from_a_rounding_boundary_is_a_bug_of_the_reference():
         derive(case([0.0, 2 * TIE_BAND, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)
 
 
+def test_rows_gated_at_a_tenth_or_more_are_flagged_wide_spread():
+    from moments_ref.golden.notes import UNGATED
+
+    def hook(inputs, dt):  # another formulation 0.01 off on the first two rows: tolerance 0.16
+        x = np.asarray(inputs["x"], np.float64)
+        return [(x + np.array([0.01, 0.01, 0.0]),)]
+
+    flags = [(), (UNGATED[0],), ()]
+    a = _toy(_identity, [0.5, 0.5, 0.5], ["edge", "edge", "random"], flags=flags, hook=hook)
+    assert a["flags"].tolist() == ["wide_spread", UNGATED[0], ""]  # an ungated row is not gated at all
+    a = _toy(_identity, [0.5, 0.5, 0.5], ["edge", "edge", "random"], flags=flags, hook=hook, metric="ulps")
+    assert a["flags"].tolist() == ["", UNGATED[0], ""]  # ulps tolerances are no absolute spread
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
