@@ -735,6 +735,30 @@ def test_rows_gated_at_a_tenth_or_more_are_flagged_wide_spread():
     assert a["flags"].tolist() == ["", UNGATED[0], ""]  # ulps tolerances are no absolute spread
 
 
+def test_the_gated_summary_counts_rows_per_precision_and_level():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.notes import UNGATED, UNGATED32
+    from moments_ref.golden.spread import gated_summary
+
+    def hook(inputs, dt):  # 0.01 off on row 2 (tolerance 0.16 in both columns)
+        return [(np.asarray(inputs["x"], np.float64) + np.array([0.0, 0.0, 0.01, 0.0]),)]
+
+    flags = [(), (UNGATED[0],), (), ("robustness", UNGATED32[0])]
+    a = _toy(_identity, [0.5] * 4, ["random", "edge", "edge", "edge"], flags=flags, hook=hook)
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity)
+    s = gated_summary(case, a)
+    assert s["rows"] == 4
+    f32, f64 = s["float32"], s["float64"]
+    assert (f32["gated"], f32["gated_below_0.1"], f64["gated"], f64["gated_below_0.1"]) == (2, 1, 3, 2)
+    assert f32["levels"] == {"contract": {"rows": 3, "gated": 2, "ungated": {UNGATED[0]: 1}},
+                             "robustness": {"rows": 1, "gated": 0, "ungated": {UNGATED32[0]: 1}}}
+    assert f64["levels"] == {"contract": {"rows": 3, "gated": 2, "ungated": {UNGATED[0]: 1}},
+                             "robustness": {"rows": 1, "gated": 1, "ungated": {}}}
+    t = a["y_tolerance_float32"]
+    assert f32["median_tolerance"] == pytest.approx((t[0] + t[2]) / 2, rel=1e-12, abs=0)
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
