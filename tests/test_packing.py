@@ -510,3 +510,18 @@ def test_saturate_is_the_unorm_write():
     y2 = 0.5
     r = np.array([[np.nextafter(y2, 1.0), y2, 0.5, 0.1]])  # y1 one ulp above y2: y2 raised to y1
     np.testing.assert_array_equal(pk.saturate(r)[0, :2], [r[0, 0], r[0, 0]])
+
+
+def test_saturate_accepts_y1_up_to_the_rounding_tolerance_above_y2_and_copies():
+    from moments_ref.nonlinear import rounding_tolerance
+
+    for dt in (np.float32, np.float64):
+        tol = dt(rounding_tolerance(dt))
+        r = np.array([[tol, 0.0, 0.5, 0.1], [-0.5, 0.5, 1.5, 0.1]], dt)  # y1 = y2 + tol: still rounding
+        before = r.copy()
+        out = pk.saturate(r)
+        np.testing.assert_array_equal(out[:, :3], [[tol, tol, 0.5], [-0.5, 0.5, 1.0]])
+        np.testing.assert_array_equal(r, before)  # a copy: the caller's array is untouched
+        r[1, 0] = np.nextafter(r[1, 1] + tol, dt(1))  # beyond the tolerance in one row of two
+        with pytest.raises(InputError, match=r"y1 <= y2 .* at index \(1,\)"):
+            pk.saturate(r)
