@@ -525,3 +525,12 @@ def test_saturate_accepts_y1_up_to_the_rounding_tolerance_above_y2_and_copies():
         r[1, 0] = np.nextafter(r[1, 1] + tol, dt(1))  # beyond the tolerance in one row of two
         with pytest.raises(InputError, match=r"y1 <= y2 .* at index \(1,\)"):
             pk.saturate(r)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_cached_tables_of_the_encoders_and_decoders_are_read_only(dtype):
+    """They are shared by every later call (lru_cache): a write would change all later texels."""
+    tables = list(pk._bounds(dtype).values()) + [pk._decoded_xi64(dtype), pk._decoded_xi32(dtype)]
+    for t in tables:
+        with pytest.raises(ValueError, match="read-only"):
+            t[0] = 0
