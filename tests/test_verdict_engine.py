@@ -759,6 +759,26 @@ def test_the_gated_summary_counts_rows_per_precision_and_level():
     assert f32["median_tolerance"] == pytest.approx((t[0] + t[2]) / 2, rel=1e-12, abs=0)
 
 
+def _no_float32_value_on_row_0(x):
+    y = np.array(x, copy=True)
+    if y.dtype == np.float32:
+        y[0] = np.nan
+    return (y,)
+
+
+def test_a_legitimate_evaluation_without_a_value_leaves_the_row_ungated_in_its_precision():
+    a = _toy(_no_float32_value_on_row_0, [0.5, 0.25], ["random"] * 2)
+    assert a["y_tolerance_float32"][0] == np.inf and np.isfinite(a["y_tolerance_float32"][1])
+    assert np.isfinite(a["y_tolerance_float64"]).all()
+
+
+def test_ulps_tolerances_count_whole_ulps_of_the_ports_precision():
+    # y = x at -2: x (1 ± 3 eps) lies exactly 3 float32 ulps (2 eps each) away: 16 x 3 = 48 ulps; y = 0: the floor, 4
+    a = _toy(_identity, [-2.0, 0.0], ["random", "edge"], metric="ulps")
+    assert a["y_tolerance_float32"].tolist() == [48.0, 4.0]
+    assert a["y_tolerance_float64"].tolist() == [48.0, 4.0]  # the same 3 ulps, of float64
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
