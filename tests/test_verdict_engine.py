@@ -779,6 +779,16 @@ def test_ulps_tolerances_count_whole_ulps_of_the_ports_precision():
     assert a["y_tolerance_float64"].tolist() == [48.0, 4.0]  # the same 3 ulps, of float64
 
 
+def test_a_rows_tolerance_is_the_largest_over_its_outputs_and_components():
+    from types import SimpleNamespace
+
+    from moments_ref.golden.spread import row_tolerance
+
+    arrays = {"category": np.array(["random", "edge"]),
+              "y_tolerance_float32": np.array([[0.1, 0.3], [0.2, 0.05]]), "z_tolerance_float32": np.array([0.4, 0.01])}
+    assert row_tolerance(SimpleNamespace(outputs=("y", "z")), arrays, "float32").tolist() == [0.4, 0.2]
+
+
 def test_perturbed_inputs_in_minus_one_to_one_stay_there():
     # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
     a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
