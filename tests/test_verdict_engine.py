@@ -719,6 +719,8 @@ def test_a_tie_away_from_a_rounding_boundary_is_a_bug_of_the_reference():
     assert a["result"].tolist() == ["acceptable", "acceptable", "valid"]
     with pytest.raises(TruthMismatch, match="on 1 rows away from a rounding boundary; first row 1"):
         derive(case([0.0, 2 * TIE_BAND, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)
+    with pytest.raises(TruthMismatch, match="first row 0"):  # the margin is compared in float64
+        derive(case([TIE_BAND * (1 + 1e-12), 0.0, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)
 
 
 def test_rows_gated_at_a_tenth_or_more_are_flagged_wide_spread():
@@ -770,6 +772,9 @@ def test_a_legitimate_evaluation_without_a_value_leaves_the_row_ungated_in_its_p
     a = _toy(_no_float32_value_on_row_0, [0.5, 0.25], ["random"] * 2)
     assert a["y_tolerance_float32"][0] == np.inf and np.isfinite(a["y_tolerance_float32"][1])
     assert np.isfinite(a["y_tolerance_float64"]).all()
+    # the only random row has no finite deviation: no case floor from it (the other row keeps its own)
+    a = _toy(_no_float32_value_on_row_0, [0.5, 0.25], ["random", "edge"])
+    assert a["y_tolerance_float32"][1] < 1e-5
 
 
 def test_ulps_tolerances_count_whole_ulps_of_the_ports_precision():
