@@ -31,7 +31,8 @@ __all__ = ["TARGETS", "Mutant", "mutants_of", "load_equivalents", "module_files"
 ROOT = Path(__file__).resolve().parents[3]
 #: The modules measured by default: the verdict engine, its front ends and its neighbours.
 TARGETS = (
-    "moments_ref/golden/compare.py", "moments_ref/golden/spread.py", "moments_ref/conformance/verdict.py",
+    "moments_ref/golden/compare.py", "moments_ref/golden/spread.py", "moments_ref/golden/units.py",
+    "moments_ref/conformance/verdict.py", "moments_ref/golden/profile.py",
     "moments_ref/report/_pareto.py", "moments_ref/report/_winners.py", "moments_ref/packing.py",
     "moments_ref/techniques/vwss/shading.py", "moments_ref/scene/raster/_spans.py",
     "moments_ref/conformance/kernel/verdict.py", "moments_ref/conformance/kernel/contract.py",
