@@ -129,3 +129,17 @@ def test_a_swapped_function_is_seen_through_every_reference():
 @pytest.mark.parametrize("name", ["moments_ref.golden.compare", "moments_ref/golden/compare.py"])
 def test_modules_are_named_by_path_or_dotted_name(name):
     assert module_files([name]) == ["moments_ref/golden/compare.py"]
+
+
+def test_a_mutant_of_a_cached_function_is_not_hidden_by_the_parents_cache():
+    """An lru_cache'd table filled by the unmutated code before the fork must not answer for the mutant."""
+    import numpy as np
+
+    from moments_ref import packing
+
+    packing._decoded_xi64(np.float64)  # the parent's cache holds the unmutated table
+    path = "moments_ref/packing.py"
+    src = (ROOT / path).read_text()
+    (m,) = [m for m in mutants_of(src, path) if m.id.endswith("_decoded_xi64::_U16 + 1 -> _U16 - 1#0")]
+    test = ["tests/test_packing.py::test_xi4_at_and_beyond_the_clamp_gets_the_top_code"]
+    assert run_mutant("moments_ref.packing", m.top, mutated_code(src, path, m), test, 300)[0] == "killed"

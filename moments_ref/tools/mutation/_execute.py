@@ -160,6 +160,7 @@ def _child_run(module_name, top, code, test_ids, durations):
             fn.__code__ = code
         except Exception as e:  # a harness failure, never a kill
             return f"-1\n{type(e).__name__}: {e}".encode()
+        _clear_caches()
     rec = _Recorder()
     rc = 0
     with tempfile.TemporaryDirectory() as tmp:
@@ -173,6 +174,17 @@ def _child_run(module_name, top, code, test_ids, durations):
             if rc != 0:
                 break
     return f"{int(rc)}\n{rec.failed[0] if rec.failed else ''}".encode()
+
+
+def _clear_caches():
+    """Empty every functools cache in the (forked) process: results the parent cached from the
+    unmutated code (an lru_cache'd table, or a function that calls the mutated one) would hide the mutant."""
+    import functools
+    import gc
+
+    for obj in gc.get_objects():
+        if isinstance(obj, functools._lru_cache_wrapper):
+            obj.cache_clear()
 
 
 def _batches(test_ids):
