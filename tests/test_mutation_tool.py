@@ -137,7 +137,8 @@ def test_a_mutant_of_a_cached_function_is_not_hidden_by_the_parents_cache():
 
     from moments_ref import packing
 
-    packing._decoded_xi64(np.float64)  # the parent's cache holds the unmutated table
+    for dt in (np.float32, np.float64):  # the parent's cache holds the unmutated tables (keyed as pack64 asks)
+        packing._decoded_xi64(np.dtype(dt))
     path = "moments_ref/packing.py"
     src = (ROOT / path).read_text()
     (m,) = [m for m in mutants_of(src, path) if m.id.endswith("_decoded_xi64::_U16 + 1 -> _U16 - 1#0")]
