@@ -670,14 +670,14 @@ def test_codes_that_change_within_rounding_of_the_inputs_are_ties_both_ways():
                 reference=_quarters, metric="exact", integer_inputs={})
     # sqrt(1 - x²) = 3/4 at x = sqrt(7)/4: just below it the code is 3, just above 2
     edge = np.sqrt(7) / 4
-    x = np.array([edge * (1 - 4e-7), edge * (1 + 4e-7), 0.3, 1.0, 0.0])
-    cat, comment = ["random", "random", "random", "edge", "stiff"], ["a", "b", "c", "d", "e"]
-    a = derive(case, {"x": x}, cat, comment, [()] * 5)
+    x = np.array([edge * (1 - 4e-7), edge * (1 + 4e-7), 0.3, 1.0, 0.0, -1.0])
+    cat, comment = ["random", "random", "random", "edge", "stiff", "edge"], ["a", "b", "c", "d", "e", "f"]
+    a = derive(case, {"x": x}, cat, comment, [()] * 6)
     tie = np.array(["rounding_tie" in f for f in a["flags"]])
     # the nudge 1 ± 8 eps(float32) moves the first row up across the boundary, the second down
-    assert tie.tolist() == [True, True, False, False, False]  # x = 1: nudged up it stays 1, no tie
-    assert a["result"].tolist() == ["acceptable", "acceptable", "valid", "valid", "valid"]
-    assert a["category"].tolist() == ["stiff", "stiff", "random", "edge", "stiff"]
+    assert tie.tolist() == [True, True, False, False, False, False]  # x = ±1: nudged outward it stays, no tie
+    assert a["result"].tolist() == ["acceptable", "acceptable", "valid", "valid", "valid", "valid"]
+    assert a["category"].tolist() == ["stiff", "stiff", "random", "edge", "stiff", "edge"]
     assert a["comment"][0].startswith("a [on a rounding boundary") and a["comment"][4] == "e"
     assert {2, 3} <= set(a["q_acceptable"][0].tolist()) and {2, 3} <= set(a["q_acceptable"][1].tolist())
     assert set(a["q_acceptable"][2].tolist()) == {a["q"][2]}
