@@ -301,7 +301,7 @@ def test_function_tables_take_the_keys_but_no_functions_of_their_own():
 def test_a_profile_file_of_the_largest_size_is_read_whole(tmp_path):
     from moments_ref.golden.profile import MAX_PROFILE
 
-    tail = '\ndepth = "[0,1]"\n'  # the key last: a file read short would lose it
+    tail = '\ndepth = "[0,1]"'  # the key last, its closing quote the last byte: a file read short breaks it
     f = tmp_path / "big.toml"
     f.write_text("#" * (MAX_PROFILE - len(tail)) + tail)
     assert f.stat().st_size == MAX_PROFILE and load_profile(f).depth == "[0,1]"
