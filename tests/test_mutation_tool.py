@@ -5,6 +5,7 @@ import textwrap
 import pytest
 
 from moments_ref.tools.mutation import ROOT, TARGETS, load_equivalents, module_files, mutants_of, score_table
+from moments_ref.tools.mutation import _capped, _run_module
 from moments_ref.tools.mutation._execute import run_mutant
 from moments_ref.tools.mutation._operators import mutated_code
 
@@ -73,7 +74,37 @@ def test_the_score_counts_equivalents_out_and_reports_stale_ones():
                                   "a.py::f::u -> v#0": ["survived", ""], "a.py::f::p -> q#0": ["timeout", ""]}}}
     rows, survivors, stale = score_table(state, ["a.py"], {"a.py::f::u -> v#0": "why", "a.py::f::gone#0": "why"})
     assert rows[2] == "| a.py | 4 | 1 | 1 | 1 | 1 | 67% |"
-    assert survivors == [("a.py::f::x -> z#0", "survived")] and stale == ["a.py::f::gone#0"]
+    assert survivors == [("a.py::f::x -> z#0", "survived", "")] and stale == ["a.py::f::gone#0"]
+    # measured against fewer tests than the suite (named tests, or a cap per mutant): a lower bound
+    state["a.py"]["subset"] = True
+    assert score_table(state, ["a.py"], {})[0][2] == "| a.py | 4 | 1 | 1 | 0 | 2 | ≥ 50% |"
+
+
+def test_the_cap_runs_the_cheapest_tests_within_the_seconds_and_at_least_one():
+    durations = {"a": 1.0, "b": 2.0, "c": 4.0}
+    tests = ["a", "b", "c"]
+    assert _capped(tests, durations, None) == tests
+    assert _capped(tests, durations, 3.0) == ["a", "b"]  # 1 + 2 <= 3 < 1 + 2 + 4
+    assert _capped(tests, durations, 2.9) == ["a"]
+    assert _capped(["c", "a"], durations, 0.5) == ["c"]  # one test even over the cap, in the order given
+    assert _capped(["x"], durations, 0.5) == ["x"]  # a test without a measured time counts 1 s
+
+
+def test_a_capped_survivor_says_how_many_of_its_tests_ran(tmp_path):
+    """End to end: a mutant reached by a killing test and a cheaper passing one survives a cap
+    that stops before the killing test, and its result names the cap."""
+    path = "moments_ref/report/_winners.py"
+    src = (ROOT / path).read_text()
+    (m,) = [m for m in mutants_of(src, path) if m.id.endswith("own_scale::oh * ow / (h * w) -> oh * ow * (h * w)#0")]
+    killer = "tests/test_report_winners.py::test_costs_scale_to_the_scenes_own_size"
+    cheap = "tests/test_mutation_tool.py::test_modules_are_named_by_path_or_dotted_name[moments_ref.golden.compare]"
+    lines = {ln: [cheap, killer] for ln in range(m.lines[0], m.lines[1] + 1)}
+    durations = {cheap: 0.01, killer: 1.0}
+    results = {}
+    _run_module(path, lines, durations, [m.id], results, max_seconds=0.5)
+    assert results[m.id] == ["survived", "(ran 1 of the 2 tests that reach it)"]
+    _run_module(path, lines, durations, [m.id], results)
+    assert results[m.id] == ["killed", killer]
 
 
 def test_every_equivalent_names_a_mutant_of_a_measured_module_with_its_reason():
@@ -98,3 +129,18 @@ def test_a_swapped_function_is_seen_through_every_reference():
 @pytest.mark.parametrize("name", ["moments_ref.golden.compare", "moments_ref/golden/compare.py"])
 def test_modules_are_named_by_path_or_dotted_name(name):
     assert module_files([name]) == ["moments_ref/golden/compare.py"]
+
+
+def test_a_mutant_of_a_cached_function_is_not_hidden_by_the_parents_cache():
+    """An lru_cache'd table filled by the unmutated code before the fork must not answer for the mutant."""
+    import numpy as np
+
+    from moments_ref import packing
+
+    for dt in (np.float32, np.float64):  # the parent's cache holds the unmutated tables (keyed as pack64 asks)
+        packing._decoded_xi64(np.dtype(dt))
+    path = "moments_ref/packing.py"
+    src = (ROOT / path).read_text()
+    (m,) = [m for m in mutants_of(src, path) if m.id.endswith("_decoded_xi64::_U16 + 1 -> _U16 - 1#0")]
+    test = ["tests/test_packing.py::test_xi4_at_and_beyond_the_clamp_gets_the_top_code"]
+    assert run_mutant("moments_ref.packing", m.top, mutated_code(src, path, m), test, 300)[0] == "killed"

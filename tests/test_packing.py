@@ -510,3 +510,84 @@ def test_saturate_is_the_unorm_write():
     y2 = 0.5
     r = np.array([[np.nextafter(y2, 1.0), y2, 0.5, 0.1]])  # y1 one ulp above y2: y2 raised to y1
     np.testing.assert_array_equal(pk.saturate(r)[0, :2], [r[0, 0], r[0, 0]])
+
+
+def test_saturate_accepts_y1_up_to_the_rounding_tolerance_above_y2_and_copies():
+    from moments_ref.nonlinear import rounding_tolerance
+
+    for dt in (np.float32, np.float64):
+        tol = dt(rounding_tolerance(dt))
+        r = np.array([[tol, 0.0, 0.5, 0.1], [-0.5, 0.5, 1.5, 0.1]], dt)  # y1 = y2 + tol: still rounding
+        before = r.copy()
+        out = pk.saturate(r)
+        np.testing.assert_array_equal(out[:, :3], [[tol, tol, 0.5], [-0.5, 0.5, 1.0]])
+        np.testing.assert_array_equal(r, before)  # a copy: the caller's array is untouched
+        r[1, 0] = np.nextafter(r[1, 1] + tol, dt(1))  # beyond the tolerance in one row of two
+        with pytest.raises(InputError, match=r"y1 <= y2 .* at index \(1,\)"):
+            pk.saturate(r)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_cached_tables_of_the_encoders_and_decoders_are_read_only(dtype):
+    """They are shared by every later call (lru_cache): a write would change all later texels."""
+    tables = list(pk._bounds(dtype).values()) + [pk._decoded_xi64(dtype), pk._decoded_xi32(dtype)]
+    for t in tables:
+        with pytest.raises(ValueError, match="read-only"):
+            t[0] = 0
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_encoders_check_chunks_as_saturate_does(dtype):
+    from moments_ref.nonlinear import rounding_tolerance
+
+    tol = dtype(rounding_tolerance(dtype))
+    r = np.tile(np.array([[-0.5, 0.5, 0.5, 0.1]], dtype), (5, 1))
+    r[2, :2] = [tol, 0.0]  # y1 = y2 + tol: rounding, accepted; y2 raised to y1
+    r[0, :3] = [-1.5, 1.25, 1.5]  # in the same chunk, a row that needs clamping
+    np.testing.assert_array_equal(pk.pack64(r), pk.pack64(pk.saturate(r)))
+    np.testing.assert_array_equal(pk.pack32(r), pk.pack32(pk.saturate(r)))
+    r[3, 0] = np.nextafter(r[3, 1] + tol, dtype(1))  # one row of five beyond it
+    for pack in (pk.pack64, pk.pack32):
+        with pytest.raises(InputError, match=r"y1 <= y2 .* at index \(3,\)"):
+            pack(r)
+
+
+def test_huge_finite_xi4_is_encoded_at_the_top_code():
+    # the chunk's finiteness check sums the rows: a finite sum proves them finite, an overflowing one
+    # must not refuse finite rows
+    r = np.array([[-1.5, 0.5, 0.5, 1e308], [-0.5, 0.5, 0.5, 1e308], [0.0, 0.0, 0.5, 0.25]])
+    with np.errstate(over="ignore"):  # the sum's overflow warns (harmless)
+        q, p, want = pk.pack64(r), pk.pack32(r), pk.pack64(pk.saturate(r))
+    assert q[:, 3].tolist() == [65535] * 3 and q[0, 0] == 0  # y1 = -1.5 clamped to -1 as well
+    assert (p >> pk.XI_SHIFT).tolist() == [63] * 3
+    np.testing.assert_array_equal(q, want)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_xi4_at_and_beyond_the_clamp_gets_the_top_code(dtype):
+    r = np.array([[0, 0, 0.5, 0.25], [0, 0, 0.5, 1.0], [0, 0, 0.5, nl.PSI4_XI_MAX]], dtype)
+    for rounding in ("up", "nearest"):
+        assert pk.pack64(r, xi_rounding=rounding)[:, 3].tolist() == [65535] * 3
+    assert (pk.pack32(r) >> pk.XI_SHIFT).tolist() == [63] * 3
+
+
+def test_decoders_take_unsigned_words_of_their_width_only():
+    for bad in (np.zeros((1, 4), np.uint32), np.zeros((1, 4), np.int16), np.zeros((1, 4), np.uint8)):
+        with pytest.raises(InputError, match="dtype uint16"):
+            pk.unpack64(bad)
+    for bad in (np.zeros(2, np.uint16), np.zeros(2, np.int32), np.zeros(2, np.uint64)):
+        with pytest.raises(InputError, match="dtype uint32"):
+            pk.unpack32(bad)
+
+
+def test_fold_refuses_codes_outside_its_range_in_any_element():
+    for t1, t2, name in (([0, -1], [5, 5], "t1"), ([0, 5], [5, 1023], "t2"), ([0, 1023], [5, 1023], "t1"),
+                         ([0, 7], [5, 6], "t2")):  # the first argument found wrong is named
+        with pytest.raises(InputError, match=f"^{name}:"):
+            pk.fold(np.array(t1), np.array(t2))
+    for f1, f2 in (([0, 512], [5, 5]), ([0, 5], [5, 1024]), ([-1, 5], [5, 5])):
+        with pytest.raises(InputError, match="f[12]"):
+            pk.unfold(np.array(f1), np.array(f2))
+    assert [x.tolist() for x in pk.unfold(np.array([511, 0]), np.array([1023, 0]))] == [[511, 0], [1023, 0]]
+    f1, f2 = pk.fold(np.array([0, 1022]), np.array([1022, 1022]))  # the top code is allowed
+    assert f1.tolist() == [0, 1] and f2.tolist() == [1022, 0]

@@ -248,3 +248,74 @@ def test_oracle_check_takes_a_profile_for_golden_and_drawn_rows():
     with_profile = oracle.check(port, "shadow_intensity-lower", dtype="float32", n_hypothesis=20, profile=path)
     assert with_profile.passed and with_profile.rows == 403
     assert not oracle.check(port, "shadow_intensity-lower", dtype="float32", n_hypothesis=20).passed
+
+
+# ---------------------------------------------------------------------------
+# The parser's edges, each stated by the rule in golden.profile's docstring
+
+
+def test_numbers_are_finite_non_boolean_numbers():
+    for bad in (True, "0.5", float("inf"), float("nan")):
+        with pytest.raises(InputError, match="bias.alpha: expected a finite number"):
+            parse_profile({"bias": {"alpha": bad, "target": [0, 0.5, 0, 0.5], "applied": "inside"}})
+
+
+def test_alpha_lies_in_zero_to_one_and_zero_is_no_bias():
+    target = [0.0, 0.375, 0.0, 0.375]
+    p = parse_profile({"bias": {"alpha": 0, "target": target, "applied": "inside"}})
+    assert p.bias is not None and not p.bias.active and p.bias.target == ()
+    assert parse_profile({"bias": {"alpha": 0.5, "target": target, "applied": "before"}}).bias.alpha == 0.5
+    for bad in (1, 1.5, -0.1):
+        with pytest.raises(InputError, match=r"bias.alpha: expected a number in \[0, 1\)"):
+            parse_profile({"bias": {"alpha": bad, "target": target, "applied": "inside"}})
+
+
+def test_a_target_holds_four_or_six_moments():
+    six = [0.5 ** k for k in range(1, 7)]  # a point mass at 0.5: a moment vector
+    assert parse_profile({"bias": {"alpha": 0.1, "target": six, "applied": "inside"}}).bias.target == tuple(six)
+    for bad in ([0.1] * 5, [0.1] * 7, "0.1"):
+        with pytest.raises(InputError, match=r"expected a list of 4 \(or 6\) numbers"):
+            parse_profile({"bias": {"alpha": 0.1, "target": bad, "applied": "inside"}})
+
+
+def test_the_clamp_band_is_closed():
+    from moments_ref.nonlinear import CLAMP_BAND
+
+    for c in CLAMP_BAND:
+        assert parse_profile({"clamp": c}).clamp == c
+    for c in (CLAMP_BAND[0] * 0.99, CLAMP_BAND[1] * 1.01):
+        with pytest.raises(InputError, match="clamp: .* outside the allowed band"):
+            parse_profile({"clamp": c})
+
+
+def test_function_tables_take_the_keys_but_no_functions_of_their_own():
+    p = parse_profile({"depth": "[-1,1]", "functions": {"f": {"depth": "[0,1]"}}})
+    assert p.for_function("f").depth == "[0,1]" and p.for_function("g").depth == "[-1,1]"
+    with pytest.raises(InputError, match="functions.f.functions: unknown key"):
+        parse_profile({"functions": {"f": {"functions": {}}}})
+    for bad in (3, {"f": 3}):
+        with pytest.raises(InputError, match="functions: expected tables"):
+            parse_profile({"functions": bad})
+
+
+def test_a_profile_file_of_the_largest_size_is_read_whole(tmp_path):
+    from moments_ref.golden.profile import MAX_PROFILE
+
+    tail = '\ndepth = "[0,1]"'  # the key last, its closing quote the last byte: a file read short breaks it
+    f = tmp_path / "big.toml"
+    f.write_text("#" * (MAX_PROFILE - len(tail)) + tail)
+    assert f.stat().st_size == MAX_PROFILE and load_profile(f).depth == "[0,1]"
+    f.write_text("#" * (MAX_PROFILE + 1 - len(tail)) + tail)
+    with pytest.raises(InputError, match="at most"):
+        load_profile(f)
+
+
+def test_flags_without_a_file_and_the_description():
+    p = profile_from_args(None, depth="[0,1]", clamp="5e-6")
+    assert (p.depth, p.clamp, p.bias) == ("[0,1]", 5e-6, None)
+    assert Profile().describe() == "the papers' conventions"
+    assert p.describe() == "depth [0,1], clamp 5e-06"
+    q = profile_from_args(None, bias_alpha="0.25", bias_target="0,0.375,0,0.375", bias_applied="inside",
+                          format_xi_rounding="nearest")
+    assert q.describe() == "bias alpha 0.25 toward [0.0, 0.375, 0.0, 0.375] (inside), xi_rounding nearest"
+    assert parse_profile({"bias": "none"}).describe() == "no bias"

@@ -131,6 +131,67 @@ def test_integer_codes_accept_the_stored_alternatives_only_on_acceptable_rows():
         compare(e, g, {"q": got[:2]})
 
 
+def test_robustness_rows_are_judged_but_decide_the_verdict_only_when_strict():
+    # rows 1-3 lie beyond the contract; row 1 NaN, row 3 off by 1 and outside [0, 1], row 4 a
+    # contract row with a NaN (it fails either way and is no robustness row)
+    g = _golden([0.5] * 5, 0.1)
+    g["flags"] = np.asarray(["", "robustness", "robustness", "wide_spread,robustness", ""])
+    got = np.array([0.5, np.nan, 0.55, 1.5, np.nan], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.level.tolist() == ["contract", "robustness", "robustness", "robustness", "contract"]
+    assert v.row_pass.tolist() == [True, True, True, True, False] and v.failures == 1
+    assert v.strict_pass.tolist() == [True, False, True, False, False]
+    assert v.robustness_tally() == {"rows": 3, "would_fail": 2, "nonfinite": 1, "outside_range": 1}
+    s = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got}, strict=True)
+    assert s.row_pass.tolist() == [True, False, True, False, False] and s.strict
+    assert s.level.tolist() == v.level.tolist()
+    del g["flags"]  # a golden file without flags: every row is a contract row
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert set(v.level) == {"contract"} and v.robustness_tally()["rows"] == 0 and v.failures == 3
+
+
+def test_integer_codes_compare_by_value_and_a_negative_value_names_its_row():
+    e = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact"}
+    codes = np.array([[0, 0xFFFF], [0x8000, 7], [3, 0]], np.uint16)
+    g = {"q": codes, "result": np.array(["valid"] * 3), "tc_id": np.arange(1, 4)}
+    # a signed array of the format's width holds the codes' bits (a shader's int buffer): -1 is 0xFFFF
+    assert compare(e, g, {"q": codes.view(np.int16)}).passed
+    # any other integer array holds the values; 0 is a code, not a negative one
+    for dt in (np.int32, np.int64, np.uint32, np.uint64):
+        assert compare(e, g, {"q": codes.astype(dt)}).passed, dt
+    got = codes.astype(np.int64)
+    got[1, 1] = -5  # one negative component, after a row holding zeros
+    with pytest.raises(InputError, match=r"'q' row 1 holds the negative code -5 \(int64\)"):
+        compare(e, g, {"q": got})
+
+
+def test_the_error_of_a_code_is_its_distance_to_the_golden_code_exactly():
+    e = {"compare": ["p"], "outputs": {"p": {"dtype": "uint32"}}, "dtype": "float32", "metric": "exact"}
+    g = {"p": np.array([2**24 + 1, 2**24, 10], np.uint32), "result": np.array(["valid"] * 3), "tc_id": np.arange(1, 4)}
+    v = compare(e, g, {"p": np.array([2**24, 2**24 + 1, 7], np.uint32)})  # 2^24 + 1 is no float32
+    assert v.error.tolist() == [1.0, 1.0, 3.0]  # below or above: a distance
+    assert v.score.tolist() == [np.inf] * 3 and v.tolerance.tolist() == [0.0] * 3
+
+
+def test_a_float64_port_is_judged_in_float64():
+    g = _golden([0.1, 1 / 3], 1e-17, tol64=1e-17)  # neither value is a float32
+    v = compare(_entry(dtype="float64"), g, {"y": np.array([0.1, 1 / 3])}, port_dtype="float64")
+    assert v.passed and v.error.tolist() == [0.0, 0.0]
+    v = compare(_entry(dtype="float64"), g, {"y": np.array([0.1, 1 / 3]).astype(F32).astype(np.float64)},
+                port_dtype="float64")
+    assert not v.row_pass.any()
+
+
+def test_a_row_is_nonfinite_outside_the_range_or_ungated_when_any_component_is():
+    g = _golden(np.full((4, 2), 0.5), np.array([[0.1, 0.1], [0.1, 0.1], [0.1, np.inf], [0.1, 0.1]]))
+    got = np.array([[0.5, 0.5], [np.nan, 0.5], [0.5, 1.5], [-0.5, 0.55]], F32)
+    v = compare(_entry(value_range=[0.0, 1.0]), g, {"y": got})
+    assert v.nonfinite.tolist() == [False, True, False, False]
+    assert v.outside_range.tolist() == [False, False, True, True]
+    assert v.gated.tolist() == [True, True, False, True]
+    assert v.row_pass.tolist() == [True, False, False, False]
+
+
 @pytest.mark.parametrize("port, arr, ok", [("float32", np.float32, True), ("float32", np.float64, False),
                                           ("float64", np.float64, True), ("float64", np.float32, False)])
 def test_float_outputs_must_be_in_the_ports_precision(port, arr, ok):
@@ -165,6 +226,9 @@ def test_ulp_is_the_spacing_above_the_expected_magnitude():
     # below the smallest normal: the smallest normal's spacing, also in float64
     assert ulp(1e-40, np.float32) == 2.0 ** -149 and ulp(1e-310, np.float64) == 2.0 ** -1074
     assert ulp(1.0, np.float64) == 2.0 ** -52
+    # float64 ulps of values that are no float32: just below 2, and beyond float32's range
+    assert ulp(float(np.nextafter(2.0, 0.0)), np.float64) == 2.0 ** -52
+    assert ulp(1e300, np.float64) == np.spacing(1e300) and ulp(-1e-300, np.float64) == np.spacing(1e-300)
     assert ulp(np.array([1.0, np.nan]), np.float32)[0] == 2.0 ** -23 and np.isnan(ulp(np.nan, np.float32))
 
 
@@ -174,6 +238,11 @@ def test_tolerances_round_up_to_two_significant_digits():
     np.testing.assert_allclose(out[:3], [1.3e-5, 1.2e-5, 10.0], rtol=1e-12)
     assert out[3] == 0.0 and out[4] == np.inf and out[5] == 1e-300  # left alone
     assert out[6] == pytest.approx(3.0, rel=1e-12)  # a representation error above 3.0 is not a digit
+    # ... but an excess over 10^-12 of the value is: it rounds up
+    assert _ceil2(np.array([1.2e-5 * (1 + 1.5e-12)]))[0] == pytest.approx(1.3e-5, rel=1e-12, abs=0)
+    # rounded down to 1e-290; below, where 10^e nears float64's smallest normals, left as they are
+    assert _ceil2(np.array([1.234e-290]))[0] == pytest.approx(1.3e-290, rel=1e-12, abs=0)
+    assert _ceil2(np.array([1e-290, 5e-291]))[:].tolist() == [1e-290, 5e-291]
     rng = np.random.default_rng(1)
     t = 10.0 ** rng.uniform(-30, 5, 2000)
     out = _ceil2(t)
@@ -225,6 +294,115 @@ def test_a_readback_word_wider_than_the_format_fails_even_where_clipping_gives_t
     assert any("wider than the format" in n for n in v.notes)
     assert v.worst[0]["index"] == 0 and v.worst[0]["score"] == np.inf
     assert _exact_case([0xFFFF, 0], [0xFFFF, 0]).passed and not _exact_case([0xFFFF], [0xFFFF]).notes
+
+
+def test_ulp_distance_is_exact_beyond_float32s_integers():
+    one = np.float32(1.0)
+    far = (np.array([0x3F800000 + 2**24 + 1], np.uint32)).view(F32)  # 2^24 + 1 float32 values above 1
+    # compared as Python floats: a float32 of 2^24 would equal the integer 2^24 + 1 converted to float32
+    assert float(ulp_distance(np.array([one]), far.astype(np.float64))[0]) == 2**24 + 1
+    assert float(ulp_distance(far, np.array([1.0]))[0]) == 2**24 + 1
+
+
+def test_a_word_wider_than_the_format_in_any_component_fails_its_row():
+    n = 3
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    codes = np.array([[1, 0xFFFF], [2, 3], [4, 5]], np.uint16)
+    arrays = {"q": codes, "result": np.asarray(["valid"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
+              "category": np.asarray(["random"] * n), "flags": np.asarray([""] * n), "comment": np.asarray([""] * n)}
+    words = codes.astype(np.uint32)
+    words[0, 1] = 0x1FFFF  # clips to the expected 0xFFFF; the other component is right
+    v = compare_case("pack-test", meta, arrays, {"q": words})
+    assert v.row_pass.tolist() == [False, True, True]
+    assert v.notes == ["1 rows hold a word wider than the format's uint16 codes (failed)"]
+
+
+def test_the_rows_shown_tell_ties_and_their_acceptable_codes_apart_from_failures():
+    n = 3
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    arrays = {"q": np.array([5, 5, 5], np.uint16), "q_acceptable": np.array([[5, 6], [5, 6], [5, 6]], np.uint16),
+              "result": np.asarray(["acceptable", "valid", "valid"]), "tc_id": np.arange(1, n + 1),
+              "x": np.zeros(n), "category": np.asarray(["random", "stiff", "stiff"]),
+              "flags": np.asarray(["rounding_tie", "", ""]), "comment": np.asarray([""] * n)}
+    v = compare_case("pack-test", meta, arrays, {"q": np.array([6, 6, 5], np.uint32)})
+    assert v.row_pass.tolist() == [True, False, True]
+    rows = {r["index"]: r for r in v.worst}
+    assert set(rows) == {0, 1}  # the tie (row 0, accepted) and the failure (row 1); row 2 is exact
+    assert rows[0]["tie"] and rows[0]["acceptable"].tolist() == [5, 6]
+    assert not rows[1]["tie"] and "acceptable" not in rows[1]  # a valid row has no acceptable set
+    r, st = v.categories["random"], v.categories["stiff"]
+    assert (r.mismatches, r.ties, st.mismatches, st.ties, st.failures) == (1, 1, 1, 0, 1)
+
+
+def test_the_rows_shown_give_the_largest_component_errors_of_a_vector_output():
+    meta = {**_entry(), "exact": False}
+    arrays = _golden(np.array([[0.0, 0.1, 2.0], [0.5, 0.5, 0.5]]), 1e-4)
+    got = np.array([[0.0, 0.1, 2.0 + 2**-10], [0.5, 0.5, 0.5]], F32)
+    (row,) = compare_case("v-test", meta, arrays, {"y": got}).worst
+    assert row["index"] == 0 and row["abs"] == 2**-10 and row["rel"] == 2**-11  # not the exact component's 0
+    assert row["ulps"] == 2**12  # float32 values are 2^-22 apart above 2
+    # the expected value as stored (float64), not rounded to the port's float32
+    (row,) = _float_case([0.1], [1e-12], [0.1], ["random"]).worst
+    assert row["abs"] == abs(float(F32(0.1)) - 0.1) > 0 and not row["passed"]
+
+
+def test_vector_codes_count_the_mismatches_of_failing_rows_per_component():
+    n = 3
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    codes = np.array([[1, 2], [3, 4], [5, 6]], np.uint16)
+    alts = np.stack([codes, codes + np.array([0, 1], np.uint16)], axis=1)  # (n, K, 2): component 1 may be +1
+    arrays = {"q": codes, "q_acceptable": alts, "result": np.asarray(["acceptable", "valid", "valid"]),
+              "tc_id": np.arange(1, n + 1), "x": np.zeros(n), "category": np.asarray(["random"] * n),
+              "flags": np.asarray([""] * n), "comment": np.asarray([""] * n)}
+    got = np.array([[1, 3], [9, 4], [6, 7]], np.uint32)  # row 0: an accepted tie in component 1
+    v = compare_case("pack-test", meta, arrays, {"q": got})
+    assert v.row_pass.tolist() == [True, False, False]
+    assert v.components == {"mismatch": [2, 1]}  # failing rows only: row 1 in component 0, row 2 in both
+    tie = [r for r in v.worst if r["index"] == 0]
+    assert len(tie) == 1 and tie[0]["tie"] and v.categories["random"].ties == 1
+
+
+def test_vector_ulps_beyond_a_million_are_shown_in_three_digits():
+    meta = {**_entry(), "exact": False}
+    arrays = _golden(np.ones((1, 3)), 1.0)
+    bits = np.array([[0x3F800000 + 999_999, 0x3F800000 + 1_000_000, 0x3F800000 + 1_500_000]], np.uint32)
+    v = compare_case("v-test", meta, arrays, {"y": bits.view(F32)})
+    assert v.components == {"ulps": "[999999, 1e+06, 1.5e+06]"}
+
+
+def test_the_relative_error_shown_is_positive_for_negative_expected_values():
+    (row,) = _float_case([-2.0], [1e-6], [-2.0 - 2**-10], ["random"]).worst
+    assert row["abs"] == 2**-10 and row["rel"] == 2**-11
+
+
+def test_a_non_finite_value_shows_an_infinite_error_even_where_it_equals_the_expected_one():
+    v = _float_case([np.inf, 1.0], [1e-3, 1e-3], [np.inf, np.nan], ["random", "stiff"])
+    assert not v.row_pass.any()
+    assert [r["abs"] for r in v.worst] == [np.inf, np.inf]
+
+
+def test_at_most_three_accepted_ties_are_shown():
+    n = 5
+    meta = {"compare": ["q"], "outputs": {"q": {"dtype": "uint16"}}, "dtype": "float32", "metric": "exact",
+            "exact": True, "inputs": ["x"], "input_order": ["x"]}
+    arrays = {"q": np.full(n, 5, np.uint16), "q_acceptable": np.tile(np.array([5, 6], np.uint16), (n, 1)),
+              "result": np.asarray(["acceptable"] * n), "tc_id": np.arange(1, n + 1), "x": np.zeros(n),
+              "category": np.asarray(["edge"] * n), "flags": np.asarray([""] * n), "comment": np.asarray([""] * n)}
+    v = compare_case("pack-test", meta, arrays, {"q": np.full(n, 6, np.uint32)})
+    assert v.passed and [r["index"] for r in v.worst] == [0, 1, 2] and all(r["tie"] for r in v.worst)
+
+
+def test_the_float64_note_needs_a_float_input_to_round():
+    meta = {**_entry(dtype="float64"), "exact": False, "inputs": ["k", "x"], "input_order": ["k", "x"]}
+    arrays = _golden([0.5], 1e-3)
+    arrays["k"] = np.array([3], np.int32)  # an integer input first: uploaded as it is
+    v = compare_case("f-test", meta, arrays, {"y": np.array([0.5], F32)})
+    assert any("float32 tolerance column" in n for n in v.notes)
+    meta = {**meta, "inputs": ["k"], "input_order": ["k"]}
+    assert compare_case("f-test", meta, arrays, {"y": np.array([0.5], F32)}).notes == []
 
 
 def test_rows_shown_per_category_worst_first_each_once():
@@ -358,3 +536,281 @@ def test_vector_outputs_report_the_worst_ulps_per_component():
     assert v.components == {"ulps": "[0, 1, 0, 5]"}
     v = _exact_case([1, 2, 3], [1, 9, 3])
     assert v.components is None  # one code per row
+
+
+# ---------------------------------------------------------------------------
+# golden.spread on toy cases whose spread is known by hand
+
+
+def _toy(reference, x, category, flags=None, metric="abs", dtype="float32", perturb=True, k=None, hook=None, x2=None):
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import derive
+
+    inputs = {"x": np.asarray(x, dtype)}
+    if x2 is not None:
+        inputs["x2"] = np.asarray(x2, dtype)
+    if k is not None:  # an integer input beside x (a decoder's code)
+        inputs["k"] = np.asarray(k, np.uint32)
+    case = Case(name="toy", function="toy", dtype=dtype, inputs=tuple(inputs), outputs=("y",), rows=None,
+                reference=reference, metric=metric, perturb=perturb,
+                integer_inputs={"k": "uint32"} if k is not None else {}, spread_hook=hook)
+    n = len(x)
+    return derive(case, inputs, category, [""] * n, flags or [()] * n)
+
+
+def _identity(x):
+    return (np.asarray(x),)
+
+
+def _circle(x):  # defined on [-1, 1] only
+    with np.errstate(invalid="ignore"):
+        return (np.sqrt(1 - np.asarray(x) * x),)
+
+
+EPS32 = float(np.finfo(np.float32).eps)
+
+
+def test_tolerances_hold_inputs_scaled_by_three_ulps_in_each_precision():
+    # y = x: the legitimate variants are x itself and x (1 ± 3 eps) rounded to the port's precision;
+    # the tolerance is SAFETY = 16 times the largest deviation, rounded up to two digits
+    a = _toy(_identity, [0.0, -2.0, 1.0, 0.5], ["random", "edge", "edge", "edge"])
+    t32, t64 = a["y_tolerance_float32"], a["y_tolerance_float64"]
+    for x, t in zip([-2.0, 1.0, 0.5], t32[1:]):
+        assert 16 * 3 * EPS32 * abs(x) <= t <= 1.1 * 16 * 3 * EPS32 * abs(x), (x, t / EPS32)
+    eps64 = float(np.finfo(np.float64).eps)
+    for x, t in zip([-2.0, 1.0, 0.5], t64[1:]):  # float64 ports: float64 ulps, not float32's
+        assert 16 * 3 * eps64 * abs(x) <= t <= 1.1 * 16 * 3 * eps64 * abs(x), (x, t / eps64)
+    assert t32[0] == pytest.approx(4.8e-7, rel=1e-12, abs=0)  # y = 0: the floor, 4 ulps of 1, two digits
+    assert (a["result"] == "valid").all() and a["tc_id"].tolist() == [1, 2, 3, 4]
+    # a float32 case also stores the reference's own float32 result (informational); a float64 case does not
+    assert a["y_float32"].dtype == np.float32 and a["y_float32"].tolist() == [0.0, -2.0, 1.0, 0.5]
+    assert "y_float32" not in _toy(_identity, [0.5], ["random"], dtype="float64")
+
+
+def _third(x):
+    return (np.asarray(x) / np.asarray(x).dtype.type(3),)
+
+
+def _times_code(x, k, dtype):
+    return (np.asarray(x, dtype) * np.asarray(k).astype(dtype),)
+
+
+def test_the_float64_column_is_measured_in_float64():
+    # x / 3 rounds in float32 by up to half an ulp; a float64 port is held to float64's rounding
+    a = _toy(_third, [0.3, -1.7, 0.9], ["random"] * 3)
+    assert (a["y_tolerance_float64"] < 1e-13).all() and (a["y_tolerance_float32"] > 1e-7).all()
+
+
+def test_unperturbed_cases_and_cases_with_integer_inputs():
+    # perturb=False (a bias, whose inputs are exact by definition): only the evaluations in each
+    # precision count, exact here, so the tolerance is the floor (4 ulps of max(|y|, 1), two digits)
+    a = _toy(_identity, [0.5, -0.25], ["random"] * 2, perturb=False)
+    np.testing.assert_allclose(a["y_tolerance_float32"], [4.8e-7, 4.8e-7], rtol=1e-12, atol=0)
+    # an integer input beside the float one: the float input is still perturbed
+    a = _toy(_times_code, [0.5, -0.25], ["random"] * 2, k=[2, 3])
+    assert (a["y_tolerance_float32"] >= 16 * 3 * EPS32 * np.array([1.0, 0.75])).all()
+
+
+def test_other_formulations_count_on_contract_rows_where_they_have_a_value():
+    def hook(inputs, dt):  # another formulation, 1e-3 off; no value beyond 0.9
+        x = np.asarray(inputs["x"], np.float64)
+        return [(np.where(x > 0.9, np.nan, x + 1e-3),)]
+
+    flags = [(), (), ("robustness",), ("robustness",)]
+    # (the case floor, 16 × the 90th percentile of the deviations on random rows, is kept small: row 1 only)
+    a = _toy(_identity, [0.5, 0.95, 0.5, -2.0], ["edge", "random", "edge", "edge"], flags=flags, hook=hook)
+    t = a["y_tolerance_float32"]
+    assert t[0] >= 16e-3  # a contract row: the other formulation counts
+    assert t[1] < 1e-4  # no value there: it contributes nothing (not an infinite tolerance)
+    assert t[2] < 1e-4  # beyond the contract it is no legitimate implementation of anything
+    assert t[3] >= 16 * 3 * EPS32 * 2  # the reference's own variants still count on robustness rows
+    assert "robustness" in a["flags"][2]
+
+
+def _squares(x, x2):
+    return (np.asarray(x) * x - np.asarray(x2) * x2,)
+
+
+def test_rows_with_equal_inputs_are_only_scaled_jointly():
+    # x² - x2² is exactly 0 where |x| = |x2|, and stays 0 when both are scaled together; perturbing
+    # them apart (1 ± eps) would invent a deviation of 4 eps x² that no port of the equation has
+    a = _toy(_squares, [0.5, 0.5, 0.5], ["random", "random", "edge"], x2=[0.5, -0.5, 0.25])
+    t = a["y_tolerance_float32"]
+    np.testing.assert_allclose(t[:2], [4.8e-7, 4.8e-7], rtol=1e-12, atol=0)  # the floor only
+    assert t[2] >= 16 * 2 * EPS32 * 0.25 - 1e-12  # unequal inputs: perturbed apart
+
+
+def test_the_case_floor_is_the_random_rows_typical_deviation():
+    # random rows x = -0.5 deviate by 1.5 eps (x (1 ± 3 eps) is exact in float32); edge rows x = -2 by 6 eps.
+    # A row that deviates by nothing (y = 0) still gets 16 x the random rows' 90th percentile, 24 eps.
+    x = [-0.5] * 5 + [-2.0] * 5 + [0.0]
+    t = _toy(_identity, x, ["random"] * 5 + ["edge"] * 5 + ["stiff"])["y_tolerance_float32"]
+    assert 24 * EPS32 <= t[-1] <= 1.1 * 24 * EPS32, t[-1] / EPS32
+    # without random rows, every row counts
+    t = _toy(_identity, x, ["edge"] * 10 + ["stiff"])["y_tolerance_float32"]
+    assert t[-1] >= 96 * EPS32
+
+
+def test_the_floor_is_four_ulps_of_the_magnitude():
+    t = _toy(_identity, [-4.0, 4.0, 0.5], ["random"] * 3, perturb=False)["y_tolerance_float32"]
+    np.testing.assert_allclose(t, [2.0e-6, 2.0e-6, 4.8e-7], rtol=1e-12, atol=0)  # 4 ulp(4) = 16 eps, 4 ulp(1)
+
+
+def _quarters(x):
+    x = np.asarray(x)  # in the dtype of the evaluation
+    with np.errstate(invalid="ignore"):
+        return (np.nan_to_num(np.floor(4 * np.sqrt(1 - x * x)), nan=99).astype(np.uint16),)  # 99: no code, |x| > 1
+
+
+def test_codes_that_change_within_rounding_of_the_inputs_are_ties_both_ways():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import derive
+
+    case = Case(name="toy", function="toy", dtype="float64", inputs=("x",), outputs=("q",), rows=None,
+                reference=_quarters, metric="exact", integer_inputs={})
+    # sqrt(1 - x²) = 3/4 at x = sqrt(7)/4: just below it the code is 3, just above 2
+    edge = np.sqrt(7) / 4
+    x = np.array([edge * (1 - 4e-7), edge * (1 + 4e-7), 0.3, 1.0, 0.0, -1.0])
+    cat, comment = ["random", "random", "random", "edge", "stiff", "edge"], ["a", "b", "c", "d", "e", "f"]
+    a = derive(case, {"x": x}, cat, comment, [()] * 6)
+    tie = np.array(["rounding_tie" in f for f in a["flags"]])
+    # the nudge 1 ± 8 eps(float32) moves the first row up across the boundary, the second down
+    assert tie.tolist() == [True, True, False, False, False, False]  # x = ±1: nudged outward it stays, no tie
+    assert a["result"].tolist() == ["acceptable", "acceptable", "valid", "valid", "valid", "valid"]
+    assert a["category"].tolist() == ["stiff", "stiff", "random", "edge", "stiff", "edge"]
+    assert a["comment"][0].startswith("a [on a rounding boundary") and a["comment"][4] == "e"
+    assert {2, 3} <= set(a["q_acceptable"][0].tolist()) and {2, 3} <= set(a["q_acceptable"][1].tolist())
+    assert set(a["q_acceptable"][2].tolist()) == {a["q"][2]}
+
+
+def test_rows_outside_the_given_contract_are_flagged_robustness_once():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import derive
+
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity)
+    flags = [(), (), ("robustness",)]
+    a = derive(case, {"x": np.float32([0.1, 0.2, 0.3])}, ["random"] * 3, [""] * 3, flags,
+               contract=np.array([True, False, False]))
+    assert a["flags"].tolist() == ["", "robustness", "robustness"]
+
+
+def test_robust_rows_are_read_from_the_flags_and_none_without_them():
+    from moments_ref.golden.spread import robust_rows
+
+    assert robust_rows({"result": np.array(["valid"] * 3)}).tolist() == [False] * 3
+    assert robust_rows({"result": np.array(["valid"] * 2)}, 2).tolist() == [False] * 2
+    flags = np.array(["robustness", "wide_spread,robustness", "robustness_x", ""])
+    assert robust_rows({"flags": flags, "result": np.array(["valid"] * 4)}).tolist() == [True, True, False, False]
+
+
+def test_a_tie_away_from_a_rounding_boundary_is_a_bug_of_the_reference():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.spread import TIE_BAND, TruthMismatch, derive
+
+    edge = np.sqrt(7) / 4
+    x = np.array([edge * (1 - 4e-7), edge * (1 + 4e-7), 0.3])
+
+    def case(margins):
+        return Case(name="toy", function="toy", dtype="float64", inputs=("x",), outputs=("q",), rows=None,
+                    reference=_quarters, truth=_quarters, metric="exact", margin=lambda x: np.asarray(margins))
+
+    a = derive(case([TIE_BAND, TIE_BAND, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)  # within the band
+    assert a["result"].tolist() == ["acceptable", "acceptable", "valid"]
+    with pytest.raises(TruthMismatch, match="on 1 rows away from a rounding boundary; first row 1"):
+        derive(case([0.0, 2 * TIE_BAND, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)
+    with pytest.raises(TruthMismatch, match="first row 0"):  # the margin is compared in float64
+        derive(case([TIE_BAND * (1 + 1e-12), 0.0, 0.5]), {"x": x}, ["random"] * 3, [""] * 3, [()] * 3)
+
+
+def test_rows_gated_at_a_tenth_or_more_are_flagged_wide_spread():
+    from moments_ref.golden.notes import UNGATED
+
+    def hook(inputs, dt):  # another formulation 0.01 off on the first two rows: tolerance 0.16
+        x = np.asarray(inputs["x"], np.float64)
+        return [(x + np.array([0.01, 0.01, 0.0]),)]
+
+    flags = [(), (UNGATED[0],), ()]
+    a = _toy(_identity, [0.5, 0.5, 0.5], ["edge", "edge", "random"], flags=flags, hook=hook)
+    assert a["flags"].tolist() == ["wide_spread", UNGATED[0], ""]  # an ungated row is not gated at all
+    a = _toy(_identity, [0.5, 0.5, 0.5], ["edge", "edge", "random"], flags=flags, hook=hook, metric="ulps")
+    assert a["flags"].tolist() == ["", UNGATED[0], ""]  # ulps tolerances are no absolute spread
+
+
+def test_the_gated_summary_counts_rows_per_precision_and_level():
+    from moments_ref.golden.cases import Case
+    from moments_ref.golden.notes import UNGATED, UNGATED32
+    from moments_ref.golden.spread import gated_summary
+
+    def hook(inputs, dt):  # 0.01 off on row 2 (tolerance 0.16 in both columns)
+        return [(np.asarray(inputs["x"], np.float64) + np.array([0.0, 0.0, 0.01, 0.0]),)]
+
+    flags = [(), (UNGATED[0],), (), ("robustness", UNGATED32[0])]
+    a = _toy(_identity, [0.5] * 4, ["random", "edge", "edge", "edge"], flags=flags, hook=hook)
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity)
+    s = gated_summary(case, a)
+    assert s["rows"] == 4
+    f32, f64 = s["float32"], s["float64"]
+    assert (f32["gated"], f32["gated_below_0.1"], f64["gated"], f64["gated_below_0.1"]) == (2, 1, 3, 2)
+    assert f32["levels"] == {"contract": {"rows": 3, "gated": 2, "ungated": {UNGATED[0]: 1}},
+                             "robustness": {"rows": 1, "gated": 0, "ungated": {UNGATED32[0]: 1}}}
+    assert f64["levels"] == {"contract": {"rows": 3, "gated": 2, "ungated": {UNGATED[0]: 1}},
+                             "robustness": {"rows": 1, "gated": 1, "ungated": {}}}
+    t = a["y_tolerance_float32"]
+    assert f32["median_tolerance"] == pytest.approx((t[0] + t[2]) / 2, rel=1e-12, abs=0)
+
+
+def _no_float32_value_on_row_0(x):
+    y = np.array(x, copy=True)
+    if y.dtype == np.float32:
+        y[0] = np.nan
+    return (y,)
+
+
+def test_a_legitimate_evaluation_without_a_value_leaves_the_row_ungated_in_its_precision():
+    a = _toy(_no_float32_value_on_row_0, [0.5, 0.25], ["random"] * 2)
+    assert a["y_tolerance_float32"][0] == np.inf and np.isfinite(a["y_tolerance_float32"][1])
+    assert np.isfinite(a["y_tolerance_float64"]).all()
+    # the only random row has no finite deviation: no case floor from it (the other row keeps its own)
+    a = _toy(_no_float32_value_on_row_0, [0.5, 0.25], ["random", "edge"])
+    assert a["y_tolerance_float32"][1] < 1e-5
+
+
+def test_ulps_tolerances_count_whole_ulps_of_the_ports_precision():
+    # y = x at -2: x (1 ± 3 eps) lies exactly 3 float32 ulps (2 eps each) away: 16 x 3 = 48 ulps; y = 0: the floor, 4
+    a = _toy(_identity, [-2.0, 0.0], ["random", "edge"], metric="ulps")
+    assert a["y_tolerance_float32"].tolist() == [48.0, 4.0]
+    assert a["y_tolerance_float64"].tolist() == [48.0, 4.0]  # the same 3 ulps, of float64
+
+
+def test_a_rows_tolerance_is_the_largest_over_its_outputs_and_components():
+    from types import SimpleNamespace
+
+    from moments_ref.golden.spread import row_tolerance
+
+    arrays = {"category": np.array(["random", "edge"]),
+              "y_tolerance_float32": np.array([[0.1, 0.3], [0.2, 0.05]]), "z_tolerance_float32": np.array([0.4, 0.01])}
+    assert row_tolerance(SimpleNamespace(outputs=("y", "z")), arrays, "float32").tolist() == [0.4, 0.2]
+
+
+def test_perturbed_inputs_in_minus_one_to_one_stay_there():
+    # sqrt(1 - x²) has no value beyond ±1: x = ±1 scaled up would leave its domain; only x (1 - 3 eps) counts
+    a = _toy(_circle, [0.0, 1.0, -1.0], ["random", "edge", "edge"])
+    t = a["y_tolerance_float32"]
+    assert np.isfinite(t).all()
+    dev = np.sqrt(1 - (1 - 3 * EPS32) ** 2)  # the inward perturbation's deviation at the ends
+    assert (t[1:] >= 16 * dev * 0.9).all() and (t[1:] <= 16 * dev * 1.2).all()
+
+
+def test_ungated_flags_give_an_infinite_tolerance_and_an_acceptable_result():
+    from moments_ref.golden.notes import UNGATED, UNGATED32
+
+    assert UNGATED and UNGATED32
+    flags = [(), ("random_x", UNGATED[0]), ("random_x", UNGATED32[0])]  # one of its flags is enough
+    a = _toy(_identity, [0.5, 0.5, 0.5], ["random"] * 3, flags=flags)
+    assert a["result"].tolist() == ["valid", "acceptable", "valid"]
+    assert np.isfinite(a["y_tolerance_float32"][0]) and a["y_tolerance_float32"][1] == np.inf
+    assert a["y_tolerance_float64"][1] == np.inf
+    # undefined in float32 only: the float64 column stays gated
+    assert a["y_tolerance_float32"][2] == np.inf and np.isfinite(a["y_tolerance_float64"][2])

@@ -23,7 +23,12 @@ def ulp(x, dtype):
 
 
 def ceil2(t):
-    """Round a tolerance array up to two significant digits (reads well, stays above)."""
+    """Round a tolerance array up to two significant digits (reads well, stays above).
+
+    An excess of at most 10⁻¹² of the value above two digits is a representation error,
+    not a digit (3.0000000000000004 -> 3.0). Zero, infinite values and values at or below
+    1e-290, where the power of ten nears float64's smallest normals, are left as they are.
+    """
     t = np.asarray(t, np.float64)
     out = t.copy()
     ok = np.isfinite(t) & (t > 1e-290)

@@ -93,6 +93,11 @@ def collect_coverage(paths, pytest_args, timeout=7200):
     """``({path: {line: [test ids]}}, {test id: seconds}, [failed test ids])`` over ``pytest_args``."""
     import json
 
+    try:
+        import coverage  # noqa: F401
+    except ImportError:
+        raise SystemExit("mutation: needs coverage.py (pip install -e \".[mutation]\")") from None
+
     def child():
         import coverage
 
@@ -155,18 +160,31 @@ def _child_run(module_name, top, code, test_ids, durations):
             fn.__code__ = code
         except Exception as e:  # a harness failure, never a kill
             return f"-1\n{type(e).__name__}: {e}".encode()
+        _clear_caches()
     rec = _Recorder()
     rc = 0
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = tmp  # failures found under a mutant stay out of .hypothesis
         for batch in _batches(test_ids):
-            # each file within a few times its measured time: a mutant that loops forever dies early (SIGALRM)
-            signal.alarm(int(10 + 3 * sum(durations.get(t, 1.0) for t in batch)))
+            # each file within a few times its measured time (and its collection, slow on a loaded machine):
+            # a mutant that loops forever dies early (SIGALRM)
+            signal.alarm(int(30 + 5 * sum(durations.get(t, 1.0) for t in batch)))
             rc = _pytest(["-x", *batch], rec)
             signal.alarm(0)
             if rc != 0:
                 break
     return f"{int(rc)}\n{rec.failed[0] if rec.failed else ''}".encode()
+
+
+def _clear_caches():
+    """Empty every functools cache in the (forked) process: results the parent cached from the
+    unmutated code (an lru_cache'd table, or a function that calls the mutated one) would hide the mutant."""
+    import functools
+    import gc
+
+    for obj in gc.get_objects():
+        if isinstance(obj, functools._lru_cache_wrapper):
+            obj.cache_clear()
 
 
 def _batches(test_ids):
@@ -180,7 +198,7 @@ def _batches(test_ids):
 def run_mutant(module_name, top, code, test_ids, timeout, durations=None):
     """``(status, first failing test)`` of one mutant: ``killed``, ``survived``, ``timeout`` or ``error``.
 
-    ``durations`` (test id -> seconds, measured unmutated): each test file may take ``10 s + 3×`` its time.
+    ``durations`` (test id -> seconds, measured unmutated): each test file may take ``30 s + 5×`` its time.
     """
     durations = {t: timeout for t in test_ids} if durations is None else durations
     status, data, timed_out = _forked(lambda: _child_run(module_name, top, code, test_ids, durations), timeout)
