@@ -203,3 +203,22 @@ def test_poisson_disk_cache_cannot_be_corrupted_by_callers():
     assert not taps.flags.writeable and np.array_equal(taps, fresh * 2 - 1)
     with pytest.raises(ValueError):
         taps[0, 0] = 0.0
+
+
+def test_stored_fills_are_scipys_and_need_no_scipy_stats():
+    from moments_ref.techniques.vwss import lights
+
+    # The fills stored with the package equal scipy's Bridson fills bit for bit, and a stored pair is
+    # served without importing scipy.stats (a fresh interpreter).
+    import subprocess
+    import sys
+
+    stored = lights._stored_fills()
+    assert sorted(stored) == sorted(lights.STORED_FILLS)
+    for (k, seed), uv in stored.items():
+        assert uv.shape == (k, 2) and not uv.flags.writeable
+        assert np.array_equal(uv, lights._scipy_fill(k, seed)), (k, seed)
+    code = ("import sys; from moments_ref.techniques.vwss.lights import poisson_disk; "
+            "poisson_disk(24, 0); poisson_disk(512, 1000); print('scipy.stats' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

@@ -482,16 +482,16 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         raise InputError(f"jobs: expected a positive integer, got {jobs}")
     acc = _Collected(full=full, repeats=max(int(repeats), 1))
     acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
-    plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
-                                                                  noise_tiles, all_techniques)) is not None]
-    for sc, (_, _, announce) in plans:  # every scene checked first: no line precedes a refusal
-        _announce(acc, sc, *announce)
-    plans = [(sc, (names, st)) for sc, (names, st, _) in plans]
-    tasks = _tasks(plans, full, jobs, progress)
-    jobs = min(jobs, len(tasks)) or 1
-    acc.machine[-1:] = [_timing_line(jobs, usable_cores(), acc.repeats), ""]
     timings = {}
     with Workers(jobs) as workers:
+        workers.start(len(loaded) + 2)  # they import the package while the scenes are planned
+        plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
+                                                                      noise_tiles, all_techniques)) is not None]
+        for sc, (_, _, announce) in plans:  # every scene checked first: no line precedes a refusal
+            _announce(acc, sc, *announce)
+        plans = [(sc, (names, st)) for sc, (names, st, _) in plans]
+        tasks = _tasks(plans, full, jobs, progress)
+        acc.machine[-1:] = [_timing_line(min(jobs, len(tasks)) or 1, usable_cores(), acc.repeats), ""]
         done = workers.run(tasks, progress=progress, timings=timings)
         for sc, _ in plans:
             _collect(acc, sc, done[("scene", sc.name)])

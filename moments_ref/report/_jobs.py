@@ -92,6 +92,11 @@ def _init_worker(limit, parent=None):
     matplotlib.use("Agg")
 
 
+def _warm():
+    """A worker's first task when started early (:meth:`Workers.start`): import the report's modules."""
+    import moments_ref.report  # noqa: F401  (the tasks' functions live there and below)
+
+
 def _call(fn, args):
     """``fn(*args)`` and how it ran: ``(result, {"pid", "cpu", "wall", "warnings"})`` (seconds; the warnings
     it raised as ``(message, category, filename, lineno)``, raised again by the parent)."""
@@ -176,6 +181,22 @@ class Workers:
             self._pool = None
         return False
 
+    def start(self, tasks):
+        """Start the worker processes for up to ``tasks`` tasks now, without waiting for them.
+
+        They import the package (:func:`_warm`) while the caller prepares their tasks,
+        instead of after it; nothing happens with one job or one task.
+        """
+        n = min(self.jobs, int(tasks))
+        if self._pool is None and n > 1:
+            self._pool = self._new_pool(n)
+            for _ in range(n):
+                self._pool.submit(_warm)
+
+    def _new_pool(self, n):
+        return ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_worker, initargs=(max_memory(), os.getpid()))
+
     def run(self, tasks, progress=False, desc="report", timings=None):
         """Run ``tasks`` (a list of ``(key, function, args)``); return ``{key: result}`` in the tasks' order.
 
@@ -191,9 +212,7 @@ class Workers:
             bar = tqdm(total=len(tasks), desc=desc, unit="task", file=sys.stderr, leave=False)
         try:
             if self._pool is None and min(self.jobs, len(tasks)) > 1:
-                self._pool = ProcessPoolExecutor(max_workers=min(self.jobs, len(tasks)),
-                                                 mp_context=multiprocessing.get_context("spawn"),
-                                                 initializer=_init_worker, initargs=(max_memory(), os.getpid()))
+                self._pool = self._new_pool(min(self.jobs, len(tasks)))
             done = _serial(tasks, bar) if self._pool is None else _parallel(self._pool, tasks, bar)
         finally:
             if bar is not None:
