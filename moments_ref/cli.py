@@ -177,7 +177,8 @@ def _cmd_bench(args):
     if args.out:
         from ._io import write_text
 
-        path = write_text(Path(args.out) / "bench.md", text)
+        target = Path(args.out) / "bench.md"
+        path = write_text(target, bench.keep_history(text, target))
         print(f"wrote {path}")
     return 0
 

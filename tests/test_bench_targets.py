@@ -101,3 +101,14 @@ def test_end_to_end_times_the_documented_fused_paths_beside_the_passes(monkeypat
     monkeypatch.setattr(filtering, "quantize_nlq", lambda m, fmt: filtering.nlq_texels(m, fmt) ^ 1)
     with pytest.raises(RuntimeError, match="quantize_nlq"):
         bench.end_to_end(size=32, samples=4)
+
+
+def test_a_new_bench_md_keeps_the_hand_kept_history(tmp_path):
+    from moments_ref.tools import bench
+
+    path = tmp_path / "bench.md"
+    assert bench.keep_history("# new\n\n| t |\n", path) == "# new\n\n| t |\n"  # no old file
+    path.write_text("# old\n\n| old table |\n\n## Kernel history\n\nkept by hand\n", encoding="utf-8")
+    assert bench.keep_history("# new\n\n| t |\n", path) == "# new\n\n| t |\n\n## Kernel history\n\nkept by hand\n"
+    path.write_text("# old without a history\n", encoding="utf-8")
+    assert bench.keep_history("# new\n", path) == "# new\n"

@@ -92,9 +92,11 @@ def _init_worker(limit, parent=None):
     matplotlib.use("Agg")
 
 
-def _warm():
-    """A worker's first task when started early (:meth:`Workers.start`): import the report's modules."""
-    import moments_ref.report  # noqa: F401  (the tasks' functions live there and below)
+def _warm(module):
+    """A worker's first task when started early (:meth:`Workers.start`): import ``module``."""
+    import importlib
+
+    importlib.import_module(module)
 
 
 def _call(fn, args):
@@ -181,17 +183,18 @@ class Workers:
             self._pool = None
         return False
 
-    def start(self, tasks):
+    def start(self, tasks, module):
         """Start the worker processes for up to ``tasks`` tasks now, without waiting for them.
 
-        They import the package (:func:`_warm`) while the caller prepares their tasks,
-        instead of after it; nothing happens with one job or one task.
+        They import ``module`` (the tasks' functions' module, :func:`_warm`) while the
+        caller prepares their tasks, instead of after it; nothing happens with one job
+        or one task.
         """
         n = min(self.jobs, int(tasks))
         if self._pool is None and n > 1:
             self._pool = self._new_pool(n)
             for _ in range(n):
-                self._pool.submit(_warm)
+                self._pool.submit(_warm, module)
 
     def _new_pool(self, n):
         return ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn"),

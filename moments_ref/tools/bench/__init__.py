@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -34,7 +35,7 @@ from ._timing import PAIRS, paired
 
 __all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "bench_filtering",
            "bench_onchip", "bench_entries", "run_targets", "targets_markdown", "agreement_markdown",
-           "kernels_markdown"]
+           "kernels_markdown", "keep_history", "HISTORY_HEADING"]
 
 
 @dataclass(frozen=True)
@@ -408,6 +409,23 @@ def run(size=2048, quick=False, only=None, progress=None, repeat=None):
         if bar is not None:
             bar.close()
     return rows
+
+
+#: The hand-kept section of bench.md (dated measurements of kernel changes, floors) that a new run keeps.
+HISTORY_HEADING = "## Kernel history"
+
+
+def keep_history(text, path):
+    """``text`` followed by the :data:`HISTORY_HEADING` section of the bench.md at ``path``, if it has one.
+
+    The tables of a run replace the old ones; the history is written by hand and kept.
+    """
+    try:
+        old = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return text
+    at = old.find("\n" + HISTORY_HEADING + "\n")
+    return text if at < 0 else text.rstrip("\n") + "\n\n" + old[at + 1:]
 
 
 def end_to_end(size=2048, samples=4, repeat=1):
