@@ -92,13 +92,14 @@ def ray_cast_visibility(light, rects, points, samples=64):
     for lo in range(0, p.shape[0], 2048):  # chunks of points
         sl = slice(lo, lo + 2048)
         hit = np.zeros((px[sl].shape[0], samples, samples), bool)
+        both = np.empty_like(hit)  # one rectangle's hits, reused
         for x0, x1, y0, y1, d in r:  # loop over rectangles
             t = (d / pd[sl])[:, None]  # where the segment crosses the rectangle's plane
             xx = sx + (px[sl, None] - sx) * t
             yy = sy + (py[sl, None] - sy) * t
             in_x = (t < 1) & (xx >= x0) & (xx <= x1)
             in_y = (yy >= y0) & (yy <= y1)
-            hit |= in_x[:, :, None] & in_y[:, None, :]
+            hit |= np.logical_and(in_x[:, :, None], in_y[:, None, :], out=both)
         vis[sl] = 1 - hit.reshape(hit.shape[0], -1).mean(1)
     return vis
 

@@ -470,12 +470,13 @@ def end_to_end(size=2048, samples=4, repeat=1):
     rows.append(timed("onchip", "bias + phi ", lambda: phi(bias_moments(
         state["filter_moments (resolve + blur in blocks)"], BIAS_FLOAT32))))
     rows.append(timed("onchip", "pack64 ", lambda: pack64(state["bias + phi "])))
-    rows.append(timed("fused", "global_path_nlq (resolve, blur, bias + phi, pack64 in bands)",
-                      lambda: global_path_nlq(z, "nlq64")))
-    rows.append(timed("fused from moments", "quantize_nlq (bias + phi, pack64 in chunks of the blurred map)",
-                      lambda: quantize_nlq(state["blur"], "nlq64")))
+    fused = {"fused": ("global_path_nlq (resolve, blur, bias + phi, pack64 in bands)",
+                       lambda: global_path_nlq(z, "nlq64")),
+             "fused from moments": ("quantize_nlq (bias + phi, pack64 in chunks of the blurred map)",
+                                    lambda: quantize_nlq(state["blur"], "nlq64"))}
+    rows += [timed(path, stage, fn) for path, (stage, fn) in fused.items()]
     # The fused paths are only faster ways to the same bits.
-    for stage in (rows[-2]["stage"], rows[-1]["stage"]):
+    for stage, _ in fused.values():
         if not np.array_equal(state[stage], state["pack64"]):
             raise RuntimeError(f"bench: {stage} differs from the separate passes")
     for path in ("global", "onchip", "fused", "fused from moments"):
