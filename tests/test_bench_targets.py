@@ -43,6 +43,16 @@ def test_quick_calls_are_repeated_within_a_sample():
     assert len(calls) > 4  # one calibration call, then more than one call per sample
 
 
+def test_a_quick_call_timed_by_another_process_is_repeated_and_its_own_times_averaged():
+    # The llvmpipe worker reports its own CPU time per draw; a 30 ms draw alone is too short a sample.
+    calls = []
+    k = _reporting([0.01] + [0.01, 0.03] * 3, calls, "k")  # calibration 0.01 s: 5 calls per 0.05 s sample
+    r = _timing.paired(k, lambda: {"cpu": 0.1, "wall": 0.3}, pairs=1, least=0.05)
+    assert calls == ["k"] * 6
+    assert abs(r.kernel - 0.018) < 1e-12 and abs(r.kernel_wall - 0.036) < 1e-12  # the mean of the 5 reported
+    assert r.baseline == 0.1 and r.baseline_wall == 0.3 and abs(r.median - 0.18) < 1e-12
+
+
 def test_agreement_table_flags_runs_that_differ():
     row = lambda t, x: {"target": t, "ratio": x}  # noqa: E731
     runs = [[row("a", 1.0), row("b", 2.0), row("c", None)], [row("a", 1.1), row("b", 2.5), row("c", None)]]

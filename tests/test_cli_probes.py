@@ -789,12 +789,14 @@ def test_sigint_between_creating_and_guarding_a_temporary(tmp_path):
     until the file is registered, and the registry is emptied at exit.
     """
     code = f"""\
-import os, signal, tempfile
+import signal, tempfile, threading
 from moments_ref import _io
 make = tempfile.mkstemp
 def mkstemp(*a, **k):
     r = make(*a, **k)
-    os.kill(os.getpid(), signal.SIGINT)
+    # to this thread, so that it is delivered before the call returns: a process-wide
+    # os.kill may reach another thread (OpenBLAS's) after the script has ended
+    signal.pthread_kill(threading.get_ident(), signal.SIGINT)
     return r
 tempfile.mkstemp = mkstemp
 with _io.atomic_path({str(tmp_path / 'x.png')!r}) as tmp:

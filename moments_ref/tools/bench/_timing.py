@@ -10,7 +10,9 @@ on one side of the limit (:meth:`Ratio.mark`); otherwise it is "undecided (noisy
 
 Times are CPU seconds of this process (``time.process_time``): on a shared machine
 wall time mostly measures the neighbours. A callable that returns a dict
-``{"cpu", "wall"}`` (the llvmpipe worker, which times itself) reports its own times.
+``{"cpu", "wall"}`` (the llvmpipe worker, which times itself) reports its own times; it is
+repeated within a sample like any other call (a 2048² railing draw takes 30 ms, so one
+draw alone is too short a sample to hold still).
 """
 
 from __future__ import annotations
@@ -26,8 +28,10 @@ __all__ = ["Ratio", "paired", "sample", "calibrate", "PAIRS", "LEAST"]
 #: Pairs per ratio (an odd count: the median is a measured pair).
 PAIRS = 9
 #: Shortest sample in seconds: a quicker call is repeated within one sample (one CPU-time
-#: reading has a resolution of about a millisecond; a 64 MiB copy takes a few).
-LEAST = 0.05
+#: reading has a resolution of about a millisecond; a 64 MiB copy takes a few, and its
+#: bandwidth moves from one copy to the next: 0.05 s samples left ratios 20 % apart
+#: from one run to the next).
+LEAST = 0.1
 
 
 @dataclass(frozen=True)
@@ -60,18 +64,22 @@ class Ratio:
 def calibrate(fn, least=LEAST):
     """Calls per sample so that one sample lasts about ``least`` seconds (after one warm-up call)."""
     c0 = time.process_time()
-    if isinstance(fn(), dict):
-        return 1
-    return min(64, max(1, int(least / max(time.process_time() - c0, 1e-6))))
+    got = fn()
+    took = got["cpu"] if isinstance(got, dict) else time.process_time() - c0
+    return min(64, max(1, int(least / max(took, 1e-6))))
 
 
 def sample(fn, loops):
     """``(cpu, wall)`` seconds per call over ``loops`` calls (or the times ``fn`` reports itself)."""
     c0, t0 = time.process_time(), time.perf_counter()
+    own = []  # times a call reports of its own (another process's), not its results
     for _ in range(loops):
         got = fn()
-    if isinstance(got, dict):
-        return got["cpu"], got["wall"]
+        if isinstance(got, dict):
+            own.append(got)
+        del got  # a kernel's result is freed before the next call, as in a single call
+    if own:
+        return sum(g["cpu"] for g in own) / loops, sum(g["wall"] for g in own) / loops
     return (time.process_time() - c0) / loops, (time.perf_counter() - t0) / loops
 
 
