@@ -223,10 +223,15 @@ def test_bad_out_in_a_real_process_is_one_line(tmp_path):
 # its own process under an address-space limit and is judged by its exit code,
 # its stderr (one line for a refusal, never a traceback or a warning before it),
 # its peak resident memory, and what it left on disk. The process sets its
-# limits itself (``resource.setrlimit``) before it imports the package, and
-# reports its peak from ``/proc/self/status`` (VmHWM) when it exits: the kernel's
-# ``ru_maxrss`` of a child counts the pages of the test process it was forked
-# from, which would hide a bomb behind the test's own memory. Classes (``Probe.cls``): ``scene``
+# limits itself (``resource.setrlimit``) and reports its peak from
+# ``/proc/self/status`` (VmHWM) when it exits: the kernel's ``ru_maxrss`` of a
+# child counts the pages of the test process it was forked from, which would
+# hide a bomb behind the test's own memory. The table's probes are forked from a
+# small server process that has imported NumPy and the package once (``Forks``):
+# each is still a process of its own, with its own limits, session, exit code,
+# files for stdout and stderr and peak memory (which starts at the server's ~40 MB,
+# as a fresh interpreter's does once NumPy is imported), without paying for an
+# interpreter and NumPy a hundred times. Classes (``Probe.cls``): ``scene``
 # (scene files as data), ``camera`` (no shaded receiver pixel), ``golden``
 # (hostile golden folders through verify), ``conformance`` (the same through
 # conformance --golden), ``results`` (results files), ``obj``, ``api``,
@@ -329,15 +334,98 @@ def finish(p, cwd, timeout=300):
     return Run(p.returncode, outs["out"], outs["err"], rss, time.perf_counter() - t0)
 
 
-def run_real(probe, tmp, root=ROOT):
-    """Set the probe up in ``tmp`` and run it as its own process; its :class:`Run`."""
+def _program(cwd, argv=None, code=None, limit=AS_LIMIT, fsize=None):
+    """The Python program of a probe process: limits, its peak reported at exit, then the command."""
+    body = (f"sys.argv = ['moments-ref', *{list(argv)!r}]\nimport runpy\n"
+            "runpy.run_module('moments_ref', run_name='__main__', alter_sys=True)\n") if code is None else code
+    return _LAUNCHER.format(limit=limit, fsize=fsize, peak=str(Path(cwd) / ".peak")) + body
+
+
+#: A fork server: imports NumPy and the package once, then per request (a JSON line
+#: ``{cwd, program}``) forks a child that becomes a probe process of its own (new
+#: session, stdin from /dev/null, stdout and stderr to files in ``cwd``) and runs the
+#: program at the top level, so that its ``SystemExit`` ends it as it ends a fresh
+#: interpreter (atexit handlers, flushed streams, the exit code). The server answers
+#: the child's pid, then its exit code (negative: the signal that ended it).
+_SERVER = """\
+import json, os, sys
+import numpy, moments_ref, moments_ref.cli
+for line in sys.stdin:
+    req = json.loads(line)
+    pid = os.fork()
+    if pid == 0:
+        break
+    print(json.dumps({"pid": pid}), flush=True)
+    print(json.dumps({"code": os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])}), flush=True)
+else:
+    sys.exit(0)
+os.setsid()
+os.chdir(req["cwd"])
+for fd, name, flags in ((0, os.devnull, os.O_RDONLY), (1, ".out", os.O_WRONLY | os.O_CREAT | os.O_TRUNC),
+                        (2, ".err", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)):
+    f = os.open(name, flags, 0o600)
+    os.dup2(f, fd)
+    os.close(f)
+program = req["program"]
+del line, req, pid, fd, name, flags, f
+exec(compile(program, "<probe>", "exec"))
+"""
+
+
+class Forks:
+    """One fork server per thread of the probe pool (each runs one probe at a time)."""
+
+    def __init__(self, root=ROOT):
+        self._env = dict(os.environ, PYTHONPATH=str(root), MPLBACKEND="Agg")
+        self._local = threading.local()
+        self._all = []
+
+    def _server(self):
+        srv = getattr(self._local, "server", None)
+        if srv is None or srv.poll() is not None:
+            srv = subprocess.Popen([sys.executable, "-c", _SERVER], env=self._env, stdin=subprocess.PIPE,
+                                   stdout=subprocess.PIPE, text=True)
+            self._local.server = srv
+            self._all.append(srv)
+        return srv
+
+    def run(self, cwd, program, timeout=300):
+        """Run ``program`` in a child of the server with ``cwd`` as its folder; its :class:`Run`."""
+        srv = self._server()
+        t0 = time.perf_counter()
+        for name in (".peak", ".out", ".err"):
+            (Path(cwd) / name).unlink(missing_ok=True)
+        srv.stdin.write(json.dumps({"cwd": str(cwd), "program": program}) + "\n")
+        srv.stdin.flush()
+        pid = json.loads(srv.stdout.readline())["pid"]
+        timer = threading.Timer(timeout, lambda: os.killpg(pid, signal.SIGKILL))
+        timer.start()
+        try:
+            code = json.loads(srv.stdout.readline())["code"]
+        finally:
+            timer.cancel()
+        files = {n: Path(cwd) / n for n in (".out", ".err", ".peak")}
+        out, err = (files[n].read_text(errors="replace") for n in (".out", ".err"))
+        rss = int(files[".peak"].read_text()) * 1024 if files[".peak"].exists() else 0
+        for f in files.values():
+            f.unlink(missing_ok=True)
+        return Run(code, out, err, rss, time.perf_counter() - t0)
+
+    def close(self):
+        for srv in self._all:
+            srv.stdin.close()
+            srv.wait(60)
+
+
+def run_real(probe, tmp, forks):
+    """Set the probe up in ``tmp`` and run it as its own process (forked by ``forks``); its :class:`Run`."""
     if probe.setup:
         probe.setup(tmp)
     if probe.python is not None:
-        p = spawn(tmp, code=probe.python.replace("{tmp}", str(tmp)), limit=probe.limit, root=root)
+        program = _program(tmp, code=probe.python.replace("{tmp}", str(tmp)), limit=probe.limit)
     else:
-        p = spawn(tmp, [a.replace("{tmp}", str(tmp)) for a in probe.argv], limit=probe.limit, root=root)
-    return finish(p, tmp)
+        program = _program(tmp, [a.replace("{tmp}", str(tmp)) for a in probe.argv], limit=probe.limit)
+    return forks.run(tmp, program)
 
 
 def verdict(probe, run):
@@ -686,12 +774,17 @@ def probe_runs(golden_dir, tmp_path_factory):
     probes = all_probes(golden_dir)
     assert [p.id for p in probes] == _IDS
 
+    forks = Forks()
+
     def one(p):
         tmp = tmp_path_factory.mktemp("probe")
-        return p.id, (p, tmp, run_real(p, tmp))
+        return p.id, (p, tmp, run_real(p, tmp, forks))
 
-    with ThreadPoolExecutor(2) as pool:
-        runs = dict(pool.map(one, probes))
+    try:
+        with ThreadPoolExecutor(2) as pool:
+            runs = dict(pool.map(one, probes))
+    finally:
+        forks.close()
     slow = sorted(runs.items(), key=lambda kv: -kv[1][2].seconds)[:8]
     print("slowest probes: " + ", ".join(f"{k} {r.seconds:.1f} s" for k, (_, _, r) in slow))
     return runs

@@ -125,14 +125,33 @@ def _serial(tasks, bar):
     return out
 
 
+#: Longest wait for a pool's manager thread when the pool is left.
+JOIN_SECONDS = 10
+
+
+def _retire(pool, stop=False):
+    """Shut ``pool`` down and wait for its manager thread; ``stop``: end the running workers first.
+
+    The wait matters at exit: CPython 3.11's exit hook wakes a pool's manager thread
+    without the pool's lock, and a manager thread still closing its pipe then makes
+    the interpreter print a traceback (``OSError: Bad file descriptor``) after the
+    command's one-line refusal. Once the thread has ended, the hook has nothing to wake.
+    """
+    manager = getattr(pool, "_executor_manager_thread", None)  # cleared by shutdown
+    if stop:
+        # The executor has no public way to stop a running task: its worker processes
+        # (``_processes``, cleared by ``shutdown``) are terminated first.
+        for p in list((getattr(pool, "_processes", None) or {}).values()):
+            if p.is_alive():
+                p.terminate()
+    pool.shutdown(wait=False, cancel_futures=stop)
+    if manager is not None:
+        manager.join(JOIN_SECONDS)
+
+
 def _stop(pool):
     """End the running workers (the processes this pool started) and cancel what has not started."""
-    # The executor has no public way to stop a running task: its worker processes
-    # (``_processes``, cleared by ``shutdown``) are terminated first.
-    for p in list((getattr(pool, "_processes", None) or {}).values()):
-        if p.is_alive():
-            p.terminate()
-    pool.shutdown(wait=False, cancel_futures=True)
+    _retire(pool, stop=True)
 
 
 def _parallel(pool, tasks, bar):
@@ -162,9 +181,9 @@ class Workers:
     The processes start with the first :meth:`run` of more than one task (at most
     one per task of that batch) and stay for the next batches, whose tasks then
     skip the start-up (a fresh interpreter importing NumPy, SciPy and matplotlib).
-    ``jobs`` 1 runs every batch here. Leaving the block lets the workers exit
-    without waiting for them (they have nothing left to do; the interpreter
-    joins them at exit); after an error they are terminated.
+    ``jobs`` 1 runs every batch here. Leaving the block ends the idle workers
+    (after an error, the running ones are terminated) and waits until the pool's
+    manager thread has joined them (:func:`_retire`).
     """
 
     def __init__(self, jobs=1):
@@ -176,10 +195,7 @@ class Workers:
 
     def __exit__(self, kind, value, tb):
         if self._pool is not None:
-            if kind is None:
-                self._pool.shutdown(wait=False)
-            else:
-                _stop(self._pool)
+            _retire(self._pool, stop=kind is not None)
             self._pool = None
         return False
 
