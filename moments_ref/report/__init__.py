@@ -481,10 +481,11 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
     if jobs < 1:
         raise InputError(f"jobs: expected a positive integer, got {jobs}")
     acc = _Collected(full=full, repeats=max(int(repeats), 1))
-    acc.machine = machine_lines(machine(), copy_rate())  # measured before any worker starts
     timings = {}
     with Workers(jobs) as workers:
-        workers.start(len(loaded) + 2, __name__)  # they import the package while the scenes are planned
+        # They import the package while the copy rate is measured (in CPU seconds) and the scenes are planned.
+        workers.start(len(loaded) + 2, __name__)
+        acc.machine = machine_lines(machine(), copy_rate())
         plans = [(sc, plan) for sc in loaded if (plan := _scene_plan(acc, sc, full, given, techniques, overrides,
                                                                       noise_tiles, all_techniques)) is not None]
         for sc, (_, _, announce) in plans:  # every scene checked first: no line precedes a refusal
