@@ -884,6 +884,7 @@ def test_sigint_between_creating_and_guarding_a_temporary(tmp_path):
     code = f"""\
 import signal, tempfile, threading
 from moments_ref import _io
+signal.signal(signal.SIGINT, signal.default_int_handler)  # an xdist worker's children inherit SIGINT ignored
 make = tempfile.mkstemp
 def mkstemp(*a, **k):
     r = make(*a, **k)
