@@ -12,8 +12,8 @@ device) of at most :data:`MAX_MANIFEST` bytes, UTF-8 JSON nested at most
 a plain case name, a file name inside the folder, ``dtype`` float32 or float64,
 ``metric`` abs, ulps or exact (``exact`` saying the same), an integer ``count`` in
 [1, :data:`MAX_ROWS`], inputs and outputs with numeric dtypes and integer shapes
-(at most :data:`MAX_ELEMENTS` elements each; the outputs' first axis is ``count``,
-and the inputs' too but for kernel cases, whose inputs are whole maps), the
+(at most :data:`MAX_ELEMENTS` elements each; the outputs' first axis is ``count``;
+the inputs' is not checked: those of kernel cases are whole maps), the
 compared outputs of the metric's kind, a finite ``value_range`` with lo ≤ hi,
 and a sha256 of 64 hex digits.
 
@@ -92,7 +92,11 @@ def read_regular(path, limit, what):
     with os.fdopen(fd, "rb") as f:
         if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
             raise InputError(f"{what}: expected a regular file, got {str(path)!r}")
-        return f.read(limit + 1)[:limit + 1]
+        data = f.read(limit + 1)
+    if len(data) > limit:  # it grew since the lstat, or its size lies (procfs)
+        raise InputError(f"{what}: expected at most {limit} bytes, got {str(path)!r} with more than its stated "
+                         f"{st.st_size}")
+    return data
 
 
 def _parse_json(blob, what):
@@ -374,7 +378,7 @@ def _check_case_values(meta, arrays, what):
             t = arrays[f"{o}_tolerance_{dt}"]
             bad = np.isnan(t) | (t <= 0)
             if bad.any():
-                raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {t[first_index(bad)]!r} (a tolerance "
+                raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {float(t[first_index(bad)])!r} (a tolerance "
                                  "must be positive, +inf where only a finite value in range is required)", arrays)
 
 
