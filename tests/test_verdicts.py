@@ -221,3 +221,225 @@ def test_an_undeclared_texel_format_choice_is_labelled_format(tmp_path):
     assert case.groups[0].flags == "format.depth_decode = 'centre'" and case.groups[0].count == case.verdict.failures
     declared = parse_profile({"format": {"depth_decode": "centre"}})
     assert golden.verify(gdir, tmp_path / "r.npz", profile=declared).cases[0].status == "pass"
+
+
+# ---------------------------------------------------------------------------
+# The engine cases' rows, stated (golden.engine's module docstring): the distributions, the receivers, the
+# port's input rounded once from exact rationals, the expected Z, the tolerance's floor and ceiling.
+
+import math  # noqa: E402
+from fractions import Fraction  # noqa: E402
+
+from moments_ref.golden import engine  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def engine_rows():
+    return golden.golden_arrays(golden.CASES["engine-lower-float32"])
+
+
+def _distributions(arrays):
+    """``{(depths, masses) of the points of positive mass: [row, ...]}`` in row order, one key per distribution
+    named in the comments (two footprints may hold the same depths)."""
+    out = {}
+    for i, (s, m, c) in enumerate(zip(arrays["support"], arrays["mass"], arrays["comment"])):
+        keep = m > 0
+        out.setdefault((tuple(s[keep]), tuple(m[keep]), str(c).split(";")[0]), []).append(i)
+    return {k[:2] + (j,): v for j, (k, v) in enumerate(out.items())}
+
+
+#: The hand-made distributions of the module docstring (papers' frame): depths and relative weights.
+HAND_MADE = ([((d,), (1,)) for d in (-1.0, -0.5, 0.0, 0.3, 1.0)]  # one depth, at and between the planes
+             + [((-1.0, 1.0), (w, 1 - w)) for w in (0.25, 1 / 3, 0.5, 2 / 3, 0.75, 0.9)]  # near and far plane
+             + [((-1.0, 0.2, 1.0), (0.3, 0.3, 0.4)), ((-1.0, -0.999, 1.0), (0.5, 0.2, 0.3))]  # mixed with a third
+             + [((a, b), (0.6, 0.4)) for a, b in ((-0.8, 0.4), (-0.5, 0.5), (0.2, 1.0), (-1.0, 0.6))]  # two depths
+             + [((c - s, c, c + s / 2, c + s), (0.2, 0.3, 0.3, 0.2)) for c, s in ((0.3, 1e-4), (-0.6, 1e-3),
+                                                                                (0.95, 1e-4))]  # tight clusters
+             + [((-0.6, -0.2, 0.3, 1.0), (0.25,) * 4), ((-0.6, -0.2, 0.3), (0.3, 0.3, 0.4))])  # HPG17 Figure 9
+
+
+def test_the_engine_cases_hand_made_distributions_are_the_documented_ones(engine_rows):
+    dists = list(_distributions(engine_rows))
+    assert len(dists) == len(HAND_MADE) + 3 * 6  # and six footprints of each shipped scene
+    for (depths, masses, _), (z, w) in zip(dists, HAND_MADE):
+        assert depths == z
+        assert masses == pytest.approx(np.array(w) / sum(w), rel=1e-15, abs=0)
+    for i, s, m in zip(range(len(engine_rows["zf"])), engine_rows["support"], engine_rows["mass"]):
+        assert (m >= 0).all() and m.sum() == pytest.approx(1, abs=1e-15) and (np.abs(s) <= 1).all()
+        assert (s[m == 0] == 0).all()  # padding: points of mass 0 at 0
+    comments = [str(engine_rows["comment"][rows[0]]) for rows in _distributions(engine_rows).values()]
+    assert comments[0].startswith("one depth -1.0;") and comments[5].startswith("near plane (w = 0.25) and far")
+    assert "HPG17 Figure 9" in comments[len(HAND_MADE) - 1]
+    flags = [str(engine_rows["flags"][rows[0]]) for rows in _distributions(engine_rows).values()]
+    assert [("near_far" in f, "cluster" in f, "footprint" in f) for f in flags] == (
+        [(False,) * 3] * 5 + [(True, False, False)] * 8 + [(False,) * 3] * 4 + [(False, True, False)] * 3
+        + [(False,) * 3] * 2 + [(False, False, True)] * 18)
+    cats = [str(engine_rows["category"][rows[0]]) for rows in _distributions(engine_rows).values()]
+    assert cats == ["edge"] * 5 + ["stiff"] * 8 + ["random"] * 4 + ["stiff"] * 5 + ["random"] * 18
+
+
+def test_each_distribution_is_judged_between_its_depths_and_beyond_them(engine_rows):
+    zf = engine_rows["zf"].astype(np.float64)
+    for (depths, _, _), rows in _distributions(engine_rows).items():
+        u = np.unique(depths)
+        # Between consecutive distinct depths (the first four gaps), 0.05 before and after (within [-1, 1]).
+        want = {float(np.float32((u[k] + u[k + 1]) / 2)) for k in range(min(4, len(u) - 1))}
+        want |= {float(np.float32(max(-1.0, u[0] - 0.05))), float(np.float32(min(1.0, u[-1] + 0.05)))}
+        got = set(zf[rows].tolist())
+        assert want <= got
+        extra = got - want  # more than five distinct depths: two more drawn within 0.02 of the outermost
+        assert len(extra) == (2 if len(u) > 5 else 0) or len(u) > 5 and len(extra) < 2
+        assert all(max(-1.0, u[0] - 0.02) <= x <= min(1.0, u[-1] + 0.02) for x in extra)
+        assert len(rows) == len(got)  # each receiver once
+        for i in rows:
+            on = bool(np.any(np.asarray(depths) == zf[i]))
+            assert ("support_point" in str(engine_rows["flags"][i])) is on
+
+
+def test_the_footprints_are_9x9_gaussian_windows_of_4x_msaa_shadow_map_samples(engine_rows):
+    import re
+
+    from moments_ref.gpu.filtering import SIGMA, gaussian_weights
+    from moments_ref.scene.files import load_scene
+
+    g = gaussian_weights(9, SIGMA)
+    seen = {}
+    for (depths, masses, _), rows in _distributions(engine_rows).items():
+        c = str(engine_rows["comment"][rows[0]])
+        m = re.match(r"(\S+): 9x9 footprint of 4x MSAA samples at texel \((\d+), (\d+)\)", c)
+        if not m:
+            continue
+        name, i, j = m.group(1), int(m.group(2)), int(m.group(3))
+        seen.setdefault(name, []).append((i, j))
+        if name not in seen or len(seen[name]) > 1:
+            continue  # one footprint per scene against the shadow map (each rasterization costs)
+        depth = load_scene(name).shadow_map(size=96, samples=4)[0].astype(np.float64)
+        ii = np.clip(np.arange(i - 4, i + 5), 0, 95)  # the window around the texel, edges repeated
+        jj = np.clip(np.arange(j - 4, j + 5), 0, 95)
+        want = depth[ii][:, jj].reshape(-1)
+        wts = (np.outer(g, g)[..., None] * np.full(4, 0.25)).reshape(-1)
+        keep = wts > 0
+        np.testing.assert_array_equal(np.asarray(depths), want[keep])
+        np.testing.assert_allclose(masses, wts[keep] / wts.sum(), rtol=1e-14)
+        assert np.ptp(want) > 0.05  # occluders and receivers mix
+    assert sorted(seen) == ["chair", "railing", "three-occluders"]
+    for texels in seen.values():
+        assert len(texels) == 6 == len(set(texels)) and all(i % 4 == 0 == j % 4 and 0 <= min(i, j) and max(i, j) < 96
+                                                           for i, j in texels)
+
+
+def _round_fraction(q, dtype):
+    """The ``dtype`` value nearest the rational ``q``, ties to even (independent of NumPy's casts)."""
+    x = np.array(float(q), dtype)
+    cands = [x, np.nextafter(x, dtype.type(np.inf)), np.nextafter(x, dtype.type(-np.inf))]
+    best = min(abs(Fraction(float(c)) - q) for c in cands)
+    near = [c for c in cands if abs(Fraction(float(c)) - q) == best]
+    if len(near) > 1:
+        bits = np.uint32 if dtype == np.float32 else np.uint64
+        near = [c for c in near if int(np.array(c, dtype).view(bits)) % 2 == 0]
+    return dtype.type(near[0])
+
+
+def _exact_moments(z, w, bias=None):
+    z, w = [Fraction(float(v)) for v in z], [Fraction(float(v)) for v in w]
+    b = [sum(wi * zi ** k for zi, wi in zip(z, w)) / sum(w) for k in range(1, 5)]
+    if bias is not None:
+        a = Fraction(bias.alpha)
+        b = [bk - a * (bk - Fraction(t)) for bk, t in zip(b, bias.target)]
+    return b
+
+
+def test_moments_of_rows_are_the_exact_moments_rounded_once():
+    from moments_ref.moments import BIAS_FLOAT32, BIAS_UNORM16
+
+    tie32 = 1 + 2.0 ** -24  # halfway between float32 1 and its successor
+    support = np.array([[tie32, 0, 0], [tie32, 1.5, 0], [0.3, -0.7, 0.9], [-1.0, 1.0, 0],
+                        [0.5 + 2.0 ** -25, 0, 0], [0.25, -0.75, 1e-3]])
+    mass = np.array([[1.0, 0, 0], [1.0, 2.0 ** -60, 0], [0.2, 0.5, 0.3], [1 / 3, 2 / 3, 0],
+                     [3.0, 0, 0], [1e-3, 7.0, 2.5]])
+    # Row 1 lies 2^-61 above the tie: the double rounding of float64 then float32 would give 1.
+    for dt in (np.dtype(np.float32), np.dtype(np.float64)):
+        for bias in (None, BIAS_FLOAT32, BIAS_UNORM16):
+            got = engine.moments_of_rows(support, mass, dt, bias=bias)
+            assert got.dtype == dt and got.shape == (len(support), 4)
+            for r in range(len(support)):
+                want = [_round_fraction(q, dt) for q in _exact_moments(support[r], mass[r], bias)]
+                assert got[r].tolist() == want, (dt, bias, r, got[r], want)
+    assert engine.moments_of_rows(support, mass, np.dtype(np.float32))[1, 0] == np.nextafter(np.float32(1), 2)
+
+
+def test_the_ports_input_is_the_biased_exact_moments_rounded_once(engine_rows):
+    from moments_ref.moments import BIAS_FLOAT32
+
+    for i in range(0, len(engine_rows["zf"]), 5):
+        m = engine_rows["mass"][i] > 0
+        want = [_round_fraction(q, np.dtype(np.float32))
+                for q in _exact_moments(engine_rows["support"][i][m], engine_rows["mass"][i][m], BIAS_FLOAT32)]
+        assert engine_rows["b"][i].tolist() == want
+
+
+def test_engine_rows_expect_the_exact_z_with_a_tolerance_of_at_least_4_ulps_and_at_most_1(engine_rows):
+    upper = golden.golden_arrays(golden.CASES["engine-upper-float32"])
+    n = len(engine_rows["zf"])
+    for arrays, strict in ((engine_rows, True), (upper, False)):
+        for i in range(n):
+            s, m, zf = arrays["support"][i], arrays["mass"][i], float(arrays["zf"][i])
+            below = s < zf if strict else s <= zf  # exact comparisons; sums correctly rounded (fsum)
+            assert arrays["intensity"][i] == pytest.approx(math.fsum(m[below]) / math.fsum(m), rel=2 ** -50, abs=0)
+        for d, ulp1 in (("float32", 2.0 ** -23), ("float64", 2.0 ** -52)):
+            t = arrays[f"intensity_tolerance_{d}"]
+            assert (t >= 4 * ulp1).all() and (t <= 1).all()
+        np.testing.assert_array_equal(arrays["tc_id"], np.arange(1, n + 1))
+        assert (arrays["result"] == "valid").all()
+    # A receiver on a depth of the distribution: the tolerance holds the jump of Z there, times 1.25.
+    on = ["support_point" in str(f) for f in engine_rows["flags"]]
+    for i in np.flatnonzero(on):
+        s, m = engine_rows["support"][i], engine_rows["mass"][i]
+        jump = m[s == engine_rows["zf"][i].astype(np.float64)].sum()
+        assert engine_rows["intensity_tolerance_float64"][i] >= min(1.0, 1.25 * jump)
+
+
+def test_every_legitimate_biased_bound_lies_within_the_engine_tolerance(engine_rows):
+    from moments_ref.msm import shadow_intensity
+
+    sup, mass, zf = engine_rows["support"], engine_rows["mass"], engine_rows["zf"].astype(np.float64)
+    b = engine.moments_of_rows(sup, mass, np.dtype(np.float64))  # exact, rounded once (tested above)
+    for preset in engine.legit_biases({}):
+        biased = b - preset.alpha * (b - np.asarray(preset.target))
+        v = shadow_intensity(biased, zf, bound="lower")
+        assert (np.abs(v - engine_rows["intensity"]) <= engine_rows["intensity_tolerance_float64"]).all()
+    targets = {tuple(p.target) for p in engine.legit_biases({"alpha": 1e-4})}
+    assert targets == set(engine.LEGIT_TARGETS)
+    assert {p.alpha for p in engine.legit_biases({"alpha": 1e-4})} == {3e-7, 6e-5, 1e-4}
+
+
+@pytest.mark.parametrize("points", [[(0.3, 1.0)], [(-0.5, 0.25), (0.7, 0.75)], [(0.0, 0.5), (1.0, 0.5)],
+                                    [(-1.0, 0.9), (1.0, 0.1)]])
+def test_a_singular_targets_support_is_the_distribution_it_is_the_moments_of(points):
+    target = [sum(w * z ** k for z, w in points) for k in range(1, 5)]
+    got = engine.target_support(target)
+    assert len(got) == len(points)
+    for (z, w), (gz, gw) in zip(points, got):
+        assert gz == pytest.approx(z, abs=1e-9) and gw == pytest.approx(w, abs=1e-9)
+
+
+def test_a_target_inside_the_moment_space_has_no_support_and_explains_no_row(engine_rows):
+    from moments_ref.moments import BiasPreset
+
+    for t in engine.LEGIT_TARGETS:
+        assert engine.target_support(t) is None
+        assert not engine.singular_target_rows(engine_rows, BiasPreset(3e-6, t, "x")).any()
+    assert engine.target_support((0.0, 0.0, 0.0, 1.0)) == [(0.0, 1.0)]  # a kernel of degree one: z = 0
+
+
+def test_a_singular_target_explains_the_rows_whose_distribution_stays_on_two_points(engine_rows):
+    from moments_ref.moments import BiasPreset
+
+    for pts in ([(-1.0, 0.5), (1.0, 0.5)], [(0.3, 1.0)]):
+        t = [sum(w * z ** k for z, w in pts) for k in range(1, 5)]
+        rows = engine.singular_target_rows(engine_rows, BiasPreset(1e-2, tuple(t), "x"))
+        for (depths, _, _), idx in _distributions(engine_rows).items():
+            if "cluster" in str(engine_rows["flags"][idx[0]]):
+                continue  # four depths within 1e-4: numerically singular
+            union = set(depths) | {z for z, _ in pts}
+            assert (rows[idx] == (len(union) <= 2)).all(), (depths, pts)
