@@ -229,6 +229,19 @@ def test_read_regular_refuses_a_file_that_holds_more_than_its_stated_size():
              loader.read_regular, "/proc/self/status", 10, "what")
 
 
+@pytest.mark.parametrize("swap", ["link", "fifo"])
+def test_read_regular_refuses_what_is_swapped_in_after_its_check(tmp_path, monkeypatch, swap):
+    # A race: the path passes the lstat as a regular file, then is a link or a FIFO when opened. The open
+    # neither follows the link nor waits for a FIFO's writer.
+    (tmp_path / "real").write_bytes(b"secret")
+    p = tmp_path / "p"
+    os.symlink(tmp_path / "real", p) if swap == "link" else os.mkfifo(p)
+    regular = os.lstat(tmp_path / "real")
+    monkeypatch.setattr(os, "lstat", lambda path, *a, **k: regular)
+    why = "could not open .*: Too many levels of symbolic links" if swap == "link" else "expected a regular file"
+    _refused(rf"^what: {why}", loader.read_regular, p, 99, "what")
+
+
 def test_read_regular_opens_a_fifo_never(tmp_path):
     # Not even the open: a FIFO without a writer would block it.
     os.mkfifo(tmp_path / "p")
@@ -260,6 +273,8 @@ def test_json_brackets_in_strings_and_closed_siblings_do_not_count():
     assert loader._parse_json(deep_string.encode(), "m") == {"x": "[{" * 100 + '"]'}
     siblings = "[" + ",".join(["[[]]"] * 100) + "]"  # depth 3, a hundred times
     assert loader._parse_json(siblings.encode(), "m") == [[[]]] * 100
+    deep_after_siblings = "[" + "[]," * 40 + "[" * loader.MAX_JSON_DEPTH + "]" * loader.MAX_JSON_DEPTH + "]"
+    _refused(r"nested more than 32 deep", loader._parse_json, deep_after_siblings.encode(), "m")
 
 
 def test_json_that_is_no_utf8_or_no_json_is_named():
@@ -303,6 +318,8 @@ ENTRY_REFUSALS = [  # (change, what the one line names)
     (dict(inputs={}), "expected 'inputs' as a non-empty object"),
     (dict(outputs=[]), "expected 'outputs' as a non-empty object"),
     (dict(inputs={"a b": {"dtype": "float32", "shape": [3]}}), "expected 'inputs' as a non-empty object"),
+    (dict(inputs={"x": {"dtype": "float32", "shape": [3]}, "a b": {"dtype": "float32", "shape": [3]}}),
+     "expected 'inputs' as a non-empty object"),
     (dict(inputs={"x": [3]}), r"inputs.x: expected \{'dtype'"),
     (dict(inputs={"x": {"dtype": "float32"}}), r"inputs.x: expected \{'dtype'"),
     (dict(inputs={"x": {"shape": [3]}}), r"inputs.x: expected \{'dtype'"),
@@ -319,11 +336,14 @@ ENTRY_REFUSALS = [  # (change, what the one line names)
     (dict(inputs={"x": {"dtype": "float32", "shape": [3, 2.0]}}), "inputs.x.shape: expected a list"),
     (dict(inputs={"x": {"dtype": "float32", "shape": [3, loader.MAX_ELEMENTS + 1]}}), "expected a list"),
     (dict(inputs={"x": {"dtype": "float32", "shape": [3, 1 << 13, 1 << 13]}}), "expected a list"),
+    (dict(inputs={"x": {"dtype": "float32", "shape": [(1 << 24) + 1, 4]}}), "expected a list"),  # not in float32
     (dict(outputs={"y": {"dtype": "float32", "shape": [2]}}), r"outputs.y.shape: .* starting with the count 3"),
     (dict(compare=[]), "'compare' must list outputs of the case"),
     (dict(compare="y"), "'compare' must list outputs of the case"),
     (dict(compare=["y", "y"]), "'compare' must list outputs of the case"),
     (dict(compare=["x"]), "'compare' must list outputs of the case"),
+    (dict(compare=["y", "x"]), "'compare' must list outputs of the case"),
+    (dict(compare=["y", 3]), "'compare' must list outputs of the case"),
     (dict(metric="exact", exact=True), "output 'y' has dtype float32, but metric 'exact' compares integer codes"),
     (dict(outputs={"y": {"dtype": "int32", "shape": [3]}}), "but metric 'abs' compares floats"),
     (dict(value_range=[1, 0]), "value_range: expected null or"),
@@ -332,6 +352,7 @@ ENTRY_REFUSALS = [  # (change, what the one line names)
     (dict(value_range=[0, float("inf")]), "value_range: expected null or"),
     (dict(value_range=[float("nan"), 1]), "value_range: expected null or"),
     (dict(value_range=[0, 10 ** 301]), "value_range: expected null or"),
+    (dict(value_range=[0, int(1e300) + 1]), "value_range: expected null or"),
     (dict(value_range=[-(10 ** 301), 0]), "value_range: expected null or"),
     (dict(value_range=[False, 1]), "value_range: expected null or"),
     (dict(value_range=["0", 1]), "value_range: expected null or"),
@@ -360,7 +381,10 @@ def test_check_entry_accepts_the_edges_of_each_rule():
           dict(inputs={"x": {"dtype": "bool", "shape": [3, 1, 2, 0]}}),
           dict(inputs={"x": {"dtype": "float32", "shape": [5, 5]}}),  # inputs may hold whole maps (kernel cases)
           dict(value_range=None), dict(value_range=[1, 1]), dict(value_range=[-(10 ** 300), 10 ** 300]),
-          dict(value_range=[-1.5, 2]), dict(file="c.d.npz"), dict(name_extra=1)]
+          dict(value_range=[-1.5, 2]), dict(file="c.d.npz"), dict(name_extra=1),
+          dict(value_range=[-int(1e300), int(1e300)]),  # an integer up to 1e300 in magnitude is a number
+          dict(inputs={"x": {"dtype": "float32", "shape": [loader.MAX_ELEMENTS]}}),
+          dict(inputs={"x": {"dtype": "float32", "shape": [1 << 13, 1 << 13]}})]
     for change in ok:
         loader.check_entry("c", _meta(**change))
     loader.check_entry("a" * 128, _meta())
@@ -448,12 +472,64 @@ def test_a_truncated_or_corrupt_member_is_refused(tmp_path):
 def test_the_archives_total_is_checked_against_the_memory_limit(tmp_path):
     from moments_ref._arrays import set_max_memory
 
-    old = set_max_memory(100)
+    blob = _npz(_arrays(extra=np.zeros((3, 1, 2, 1))))  # a per-row array of four dimensions is fine
+    total = sum(i.file_size for i in zipfile.ZipFile(io.BytesIO(blob)).infolist())
+    old = set_max_memory(total)
     try:
-        _refused(r"^golden file c.npz \(8 arrays, \d+ bytes uncompressed\): needs about", _load, tmp_path, _meta(),
-                 _npz(_arrays()))
+        assert _load(tmp_path, _meta(), blob)["extra"].shape == (3, 1, 2, 1)
+        set_max_memory(total - 1)
+        _refused(rf"^golden file c.npz \(9 arrays, {total} bytes uncompressed\): needs about", _load, tmp_path,
+                 _meta(), blob)
     finally:
         set_max_memory(old)
+
+
+def _npy2(array, size):
+    """An .npy 2.0 member of ``size`` bytes in all: ``array``'s header padded with spaces (as NumPy pads)."""
+    head = np.lib.format.header_data_from_array_1_0(array)
+    text = repr({"descr": head["descr"], "fortran_order": False, "shape": array.shape})
+    n = size - 12 - array.nbytes  # magic 8, header length 4
+    return b"\x93NUMPY\x02\x00" + n.to_bytes(4, "little") + (text + " " * (n - len(text) - 1) + "\n").encode() + (
+        array.tobytes())
+
+
+def test_a_member_may_declare_exactly_its_bound(tmp_path):
+    # x: three float32 values, at most 3 * 8 bytes and a 64 KiB header: a 2.0 member of exactly that size loads.
+    bound = 3 * 8 + (1 << 16)
+    x = np.arange(3, dtype=np.float32)
+    blob = _zip(_members(x=None) + [("x.npy", _npy2(x, bound))])
+    np.testing.assert_array_equal(_load(tmp_path, _meta(), blob)["x"], x)
+    blob = _zip(_members(x=None) + [("x.npy", _npy2(x, bound + 1))])
+    _refused(rf"array 'x' declares {bound + 1} bytes uncompressed", _load, tmp_path, _meta(), blob)
+
+
+@pytest.mark.parametrize("count,key,chars,over", [(4, "comment", 5120, False), (4, "comment", 5121, True),
+                                                  (16385, "extra", 2049, True)])
+def test_a_headers_values_are_bounded_before_its_data_is_read(tmp_path, count, key, chars, over):
+    # The header alone and 12 bytes: its shape times the item size is checked against the bound first (text:
+    # 4096 bytes a row; an unknown per-row array 1024 values of 8 bytes a row; a 64 KiB header), exactly.
+    # 4 rows of 5120 characters are the bound; 16385 rows of 2049 characters 4 bytes beyond it.
+    bound = count * (4096 if key == "comment" else 8 * 1024) + (1 << 16)
+    assert (4 * chars * count > bound) is over
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": f"<U{chars}", "fortran_order": False, "shape": (count,)})
+    meta = _meta(count=count, outputs={"y": {"dtype": "float32", "shape": [count]}})
+    why = (rf"holds \({count},\) values of {4 * chars} bytes, more than expected" if over
+           else rf"holds 12 bytes of data, its header says {4 * chars * count}")
+    _refused(rf"^golden file c.npz: array '{key}' {why}$", _load, tmp_path, meta,
+             _zip([(f"{key}.npy", buf.getvalue() + b"\0" * 12)]))
+
+
+def test_a_member_shorter_than_its_directory_says_is_refused(tmp_path):
+    # A stored member with a true CRC, a header of 4 values and 3 values of data, its size in the central
+    # directory raised by 4: zipfile reads the short data without an error.
+    head = _npy(np.zeros(4, np.float32))[:-4]
+    blob = bytearray(_zip(_members(x=None) + [("x.npy", head)]))
+    cd = blob.rindex(b"PK\x01\x02")
+    size = int.from_bytes(blob[cd + 24:cd + 28], "little")
+    blob[cd + 24:cd + 28] = (size + 4).to_bytes(4, "little")
+    meta = _meta(inputs={"x": {"dtype": "float32", "shape": [4]}})
+    _refused(r"^golden file c.npz: a corrupt or truncated array", _load, tmp_path, meta, bytes(blob))
 
 
 VALUE_REFUSALS = [  # (arrays changed, what the one line names: the array and the first bad row with its tc_id)
@@ -504,8 +580,8 @@ def test_the_acceptable_codes_of_an_exact_case_fit_the_outputs_dtype(tmp_path):
 def test_the_acceptable_codes_of_a_vector_output_have_its_components(tmp_path):
     meta = _meta(metric="exact", exact=True, outputs={"y": {"dtype": "uint16", "shape": [3, 4]}})
     a = _arrays(y=np.zeros((3, 4), np.uint16), y_tolerance_float32=None, y_tolerance_float64=None)
-    a["y_acceptable"] = np.zeros((3, 2, 4), np.int64)
-    assert _load(tmp_path, meta, _npz(a))["y_acceptable"].shape == (3, 2, 4)
+    a["y_acceptable"] = np.zeros((3, loader.MAX_ACCEPTABLE, 4), np.int64)  # at most 64 codes per component
+    assert _load(tmp_path, meta, _npz(a))["y_acceptable"].shape == (3, loader.MAX_ACCEPTABLE, 4)
     a["y_acceptable"] = np.zeros((3, 2, 3), np.int64)
     _refused(r"y_acceptable must hold uint16 codes of shape \(rows, K\) \+ \(4,\), got \(3, 2, 3\)", _load,
              tmp_path, meta, _npz(a))

@@ -144,7 +144,7 @@ def _is_int(v):
 
 
 def _is_number(v):
-    """A finite JSON number (an integer too large for a float is not one)."""
+    """A finite JSON number (an integer beyond 1e300 in magnitude, near float64's end, is not one)."""
     return (_is_int(v) and abs(v) <= 1e300) or (isinstance(v, float) and np.isfinite(v))
 
 
@@ -235,10 +235,10 @@ class _Expect:
     """What one member of an archive may be: ``kind`` (dtype kinds), ``shape`` or ``rows`` and a size bound."""
 
     def __init__(self, kind, shape=None, rows=None, dtype=None, row_elements=None, itemsize=8):
+        """Either ``shape``, or ``rows`` with at most ``row_elements`` values a row."""
         self.kind, self.shape, self.rows, self.dtype = kind, shape, rows, dtype
         self.row_elements = row_elements
-        per_row = row_elements if row_elements is not None else 1
-        elements = int(np.prod(shape, dtype=np.int64)) if shape is not None else rows * per_row
+        elements = int(np.prod(shape, dtype=np.int64)) if shape is not None else rows * row_elements
         self.max_bytes = elements * itemsize + _HEADER
 
     def refusal(self, dtype, shape):
@@ -249,8 +249,8 @@ class _Expect:
             return f"expected dtype {self.dtype}, found dtype {dtype}"
         if self.shape is not None and tuple(shape) != tuple(self.shape):
             return f"has shape {tuple(shape)}, expected {tuple(self.shape)}"
-        if self.shape is None and (len(shape) == 0 or shape[0] != self.rows or len(shape) > 4 or (
-                self.row_elements is not None and np.prod(shape[1:], dtype=np.int64) > self.row_elements)):
+        if self.shape is None and (len(shape) == 0 or shape[0] != self.rows or len(shape) > 4
+                                   or np.prod(shape[1:], dtype=np.int64) > self.row_elements):
             return f"has shape {tuple(shape)}, expected {self.rows} rows"
         if np.prod(shape, dtype=np.float64) * dtype.itemsize > self.max_bytes:
             return f"holds {tuple(shape)} values of {dtype.itemsize} bytes, more than expected"
@@ -310,9 +310,7 @@ def _read_member(zf, info, key, exp, what):
         if nbytes != info.file_size - f.tell():
             raise InputError(f"{what}: array {key!r} holds {info.file_size - f.tell()} bytes of data, its header "
                              f"says {nbytes}")
-        data = bytearray(f.read(nbytes))
-        if len(data) != nbytes or f.read(1):
-            raise InputError(f"{what}: array {key!r} is truncated")
+        data = bytearray(f.read(nbytes))  # exactly nbytes, or zipfile raises (a short or corrupt member)
     return np.frombuffer(data, dtype).reshape(shape, order="F" if fortran else "C")
 
 
