@@ -505,7 +505,16 @@ def test_the_engine_cases_default_engine_and_what_a_profile_changes():
             ({"bias": {"alpha": 1e-4, "target": [0.0, 0.375, 0.0, 0.375], "applied": "before"}},
              {"unit": False, "visibility": False, "inside": None, "alpha": 1e-4}),
             ({"output": "intensity"}, {"unit": False, "visibility": False, "inside": None, "alpha": None})):
-        got = profiled_case(case, parse_profile(data)).engine
+        profile = parse_profile(data)
+        got = profiled_case(case, profile).engine
+        # The same through the hook of freshly made specs (the cases' own hooks were made at import).
+        bias = profile.bias
+        inside = bias if bias is not None and bias.applied == "inside" else None
+        fresh = specs["engine-lower-float32"]["variant"](bias=inside, before=None, profile=profile, clamp=None,
+                                                         clamp_test=None, fmt={})["engine"]
+        assert {k: fresh[k] for k in ("unit", "visibility", "inside", "alpha", "fmt", "bound", "clamp")} == {
+            k: got[k] for k in ("unit", "visibility", "inside", "alpha", "fmt", "bound", "clamp")}
+        assert fresh["before"] is None and fresh["texel"] == {}
         for k, v in ctx.items():
             assert got[k] == v, (data, k)
         bias = data.get("bias")
