@@ -529,3 +529,22 @@ def test_the_engine_cases_default_engine_and_what_a_profile_changes():
         want = shadow_intensity(b if got["inside"] is None else bias_moments(b, got["inside"]), zf)
         np.testing.assert_array_equal(ref, 1 - want if got["visibility"] else want)
         assert ref.dtype == np.float32
+
+
+def test_an_engine_with_its_bias_inside_in_unit_depth_and_visibility_gets_one_minus_z():
+    from moments_ref.moments import BiasPreset, bias_moments
+    from moments_ref.msm import shadow_intensity
+
+    target = [1 / 2, 1 / 3, 1 / 4, 1 / 5]  # the uniform distribution on [0, 1]: inside the moment space
+    p = parse_profile({"depth": "[0,1]", "output": "visibility",
+                       "bias": {"alpha": 3e-6, "target": target, "applied": "inside"}})
+    case, arrays = profiled_arrays("engine-lower-float32", p)
+    sup, mass, zf = arrays["support"], arrays["mass"], arrays["zf"]
+    assert (sup >= 0).all() and (sup <= 1).all() and case.engine["inside"] is not None
+    z = np.array([math.fsum(m[s < f]) for s, m, f in zip(sup, mass, zf.astype(np.float64))])
+    np.testing.assert_allclose(arrays["intensity"], 1 - z, rtol=0, atol=2 ** -50)
+    # Informational: this package as that engine in float32: its bias inside, the bound, then 1 - it.
+    with np.errstate(all="ignore"):
+        own = 1 - shadow_intensity(bias_moments(arrays["b"].astype(np.float32), BiasPreset(3e-6, tuple(target), "x")),
+                                   zf.astype(np.float32))
+    np.testing.assert_array_equal(arrays["intensity_float32"], own)
