@@ -12,8 +12,8 @@ device) of at most :data:`MAX_MANIFEST` bytes, UTF-8 JSON nested at most
 a plain case name, a file name inside the folder, ``dtype`` float32 or float64,
 ``metric`` abs, ulps or exact (``exact`` saying the same), an integer ``count`` in
 [1, :data:`MAX_ROWS`], inputs and outputs with numeric dtypes and integer shapes
-(at most :data:`MAX_ELEMENTS` elements each; the outputs' first axis is ``count``,
-and the inputs' too but for kernel cases, whose inputs are whole maps), the
+(at most :data:`MAX_ELEMENTS` elements each; the outputs' first axis is ``count``;
+the inputs' is not checked: those of kernel cases are whole maps), the
 compared outputs of the metric's kind, a finite ``value_range`` with lo ≤ hi,
 and a sha256 of 64 hex digits.
 
@@ -92,7 +92,11 @@ def read_regular(path, limit, what):
     with os.fdopen(fd, "rb") as f:
         if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
             raise InputError(f"{what}: expected a regular file, got {str(path)!r}")
-        return f.read(limit + 1)[:limit + 1]
+        data = f.read(limit + 1)
+    if len(data) > limit:  # it grew since the lstat, or its size lies (procfs)
+        raise InputError(f"{what}: expected at most {limit} bytes, got {str(path)!r} with more than its stated "
+                         f"{st.st_size}")
+    return data
 
 
 def _parse_json(blob, what):
@@ -140,7 +144,7 @@ def _is_int(v):
 
 
 def _is_number(v):
-    """A finite JSON number (an integer too large for a float is not one)."""
+    """A finite JSON number (an integer beyond 1e300 in magnitude, near float64's end, is not one)."""
     return (_is_int(v) and abs(v) <= 1e300) or (isinstance(v, float) and np.isfinite(v))
 
 
@@ -231,10 +235,10 @@ class _Expect:
     """What one member of an archive may be: ``kind`` (dtype kinds), ``shape`` or ``rows`` and a size bound."""
 
     def __init__(self, kind, shape=None, rows=None, dtype=None, row_elements=None, itemsize=8):
+        """Either ``shape``, or ``rows`` with at most ``row_elements`` values a row."""
         self.kind, self.shape, self.rows, self.dtype = kind, shape, rows, dtype
         self.row_elements = row_elements
-        per_row = row_elements if row_elements is not None else 1
-        elements = int(np.prod(shape, dtype=np.int64)) if shape is not None else rows * per_row
+        elements = int(np.prod(shape, dtype=np.int64)) if shape is not None else rows * row_elements
         self.max_bytes = elements * itemsize + _HEADER
 
     def refusal(self, dtype, shape):
@@ -245,8 +249,8 @@ class _Expect:
             return f"expected dtype {self.dtype}, found dtype {dtype}"
         if self.shape is not None and tuple(shape) != tuple(self.shape):
             return f"has shape {tuple(shape)}, expected {tuple(self.shape)}"
-        if self.shape is None and (len(shape) == 0 or shape[0] != self.rows or len(shape) > 4 or (
-                self.row_elements is not None and np.prod(shape[1:], dtype=np.int64) > self.row_elements)):
+        if self.shape is None and (len(shape) == 0 or shape[0] != self.rows or len(shape) > 4
+                                   or np.prod(shape[1:], dtype=np.int64) > self.row_elements):
             return f"has shape {tuple(shape)}, expected {self.rows} rows"
         if np.prod(shape, dtype=np.float64) * dtype.itemsize > self.max_bytes:
             return f"holds {tuple(shape)} values of {dtype.itemsize} bytes, more than expected"
@@ -306,9 +310,7 @@ def _read_member(zf, info, key, exp, what):
         if nbytes != info.file_size - f.tell():
             raise InputError(f"{what}: array {key!r} holds {info.file_size - f.tell()} bytes of data, its header "
                              f"says {nbytes}")
-        data = bytearray(f.read(nbytes))
-        if len(data) != nbytes or f.read(1):
-            raise InputError(f"{what}: array {key!r} is truncated")
+        data = bytearray(f.read(nbytes))  # exactly nbytes, or zipfile raises (a short or corrupt member)
     return np.frombuffer(data, dtype).reshape(shape, order="F" if fortran else "C")
 
 
@@ -374,7 +376,7 @@ def _check_case_values(meta, arrays, what):
             t = arrays[f"{o}_tolerance_{dt}"]
             bad = np.isnan(t) | (t <= 0)
             if bad.any():
-                raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {t[first_index(bad)]!r} (a tolerance "
+                raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {float(t[first_index(bad)])!r} (a tolerance "
                                  "must be positive, +inf where only a finite value in range is required)", arrays)
 
 

@@ -165,6 +165,9 @@ def _child_run(module_name, top, code, test_ids, durations):
     rc = 0
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = tmp  # failures found under a mutant stay out of .hypothesis
+        # derived goldens are cached on disk keyed by the sources, which a mutant does not change: each
+        # mutant derives its own (a cache shared with the baseline would hand it the unmutated arrays)
+        os.environ["MOMENTS_REF_CACHE"] = os.path.join(tmp, "cache")
         for batch in _batches(test_ids):
             # each file within a few times its measured time (and its collection, slow on a loaded machine):
             # a mutant that loops forever dies early (SIGALRM)
