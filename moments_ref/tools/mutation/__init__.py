@@ -37,6 +37,7 @@ TARGETS = (
     "moments_ref/techniques/vwss/shading.py", "moments_ref/scene/raster/_spans.py",
     "moments_ref/conformance/kernel/verdict.py", "moments_ref/conformance/kernel/contract.py",
     "moments_ref/conformance/kernel/trace.py",
+    "moments_ref/conformance/kernel/run.py",
 )
 EQUIVALENTS = ROOT / "tests" / "mutation_equivalents.toml"
 STATE = ROOT / ".mutation"
