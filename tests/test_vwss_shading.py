@@ -455,4 +455,5 @@ def test_padded_index_and_threshold_keep_their_documented_ranges():
     assert got.dtype == np.intp
     assert got.tolist() == [0, 0, 0, 0, 1, 3, 5, 5, 5, 5, 0, 5]
     # _threshold: cw − bias in front of the view (cw > 0), −inf on its plane (cw = 0) and behind it
-    assert pcf._threshold(np.array([2.0, 1e-300, 0.0, -0.0, -1.0]), 0.5).tolist() == [1.5, -0.5, -np.inf, -np.inf, -np.inf]
+    got = pcf._threshold(np.array([2.0, 1e-300, 0.0, -0.0, -1.0]), 0.5)
+    assert got.tolist() == [1.5, -0.5, -np.inf, -np.inf, -np.inf]
