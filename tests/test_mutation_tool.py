@@ -144,3 +144,34 @@ def test_a_mutant_of_a_cached_function_is_not_hidden_by_the_parents_cache():
     (m,) = [m for m in mutants_of(src, path) if m.id.endswith("_decoded_xi64::_U16 + 1 -> _U16 - 1#0")]
     test = ["tests/test_packing.py::test_xi4_at_and_beyond_the_clamp_gets_the_top_code"]
     assert run_mutant("moments_ref.packing", m.top, mutated_code(src, path, m), test, 300)[0] == "killed"
+
+
+def test_a_mutant_of_a_decorated_function_swaps_the_body_behind_the_wrapper():
+    """A decorator that records what it wraps (functools.wraps): the mutant replaces the wrapped
+    function's code, the one the source's def holds, and every call through the wrapper computes it."""
+    import types
+
+    from moments_ref.tools.mutation._execute import _live_function
+
+    source = textwrap.dedent('''
+        import functools
+
+
+        def logged(fn):
+            @functools.wraps(fn)
+            def call(*args):
+                return fn(*args)
+            return call
+
+
+        @logged
+        def h(a):
+            return a - 1
+    ''')
+    mod = types.ModuleType("m")
+    exec(compile(source, "m.py", "exec"), mod.__dict__)
+    (m,) = [m for m in mutants_of(source, "m.py") if m.function == "h" and m.after == "a + 1"]
+    fn = _live_function(mod, m.top)
+    assert fn is mod.h.__wrapped__
+    fn.__code__ = mutated_code(source, "m.py", m)
+    assert mod.h(5) == 6

@@ -4,6 +4,7 @@ import csv
 import json
 import math
 import types
+import warnings
 
 import numpy as np
 import pytest
@@ -157,6 +158,24 @@ def test_shading_bad_input():
         multiview_visibility(np.zeros((3, 3)), np.ones((3, 8, 8)), ls, 1e-3)  # 3 maps for 2 views
     with pytest.raises(InputError):
         multiview_visibility(np.full((3, 3), np.nan), np.ones((2, 8, 8)), ls, 1e-3)
+
+
+def test_depth_maps_must_be_float_without_nan_naming_the_argument_and_first_bad_index():
+    ls = light_views(_light(), 2, 1.0, 5.0)
+    p = np.zeros((3, 3))
+    with pytest.raises(InputError, match=r"^depth_maps: .*int"):
+        multiview_visibility(p, np.ones((2, 8, 8), np.int64), ls, 1e-3)  # no NaN, but not NDC depths
+    maps = np.ones((2, 8, 8))
+    maps[1, 2, 3] = maps[1, 5, 0] = np.nan
+    with pytest.raises(InputError, match=r"^depth_maps: .*NaN at index \(1, 2, 3\)"):
+        multiview_visibility(p, maps, ls, 1e-3)
+    dmap = np.ones((8, 8), np.float32)
+    dmap[4, 5] = np.nan
+    with pytest.raises(InputError, match=r"^depth_map: .*NaN at index \(4, 5\)"):  # pcss names its own argument
+        pcss(p, dmap, ls, 1e-3)
+    # ±inf are depths: +inf lies beyond the far plane (depth >= 1: an empty texel, lit)
+    assert np.all(multiview_visibility(p, np.full((2, 8, 8), np.inf), ls, 1e-3) == 1)
+    assert np.all(pcss(p, np.full((8, 8), np.inf), ls, 1e-3) == 1)
 
 
 SCENE = """
@@ -325,7 +344,9 @@ def test_pcf_sum_equals_brute_force_lookups(seed):
     p = _adversarial_points(rng, 600)
     taps = pcf.PCF5 if seed < 2 else rng.integers(-2, 3, (int(rng.integers(1, 8)), 2))
     bias = (0.0, 1e-3, 0.25, -2.0)[seed]  # −2: behind the view would be "nearer" without the cw test
-    got = pcf.pcf_sum(p, maps, views, _NEAR, _FAR, bias, taps)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # valid input (points behind the view and at cw = 0 included): no warning
+        got = pcf.pcf_sum(p, maps, views, _NEAR, _FAR, bias, taps)
     want = np.zeros(len(p))
     kinds = set()
     for i, q in enumerate(p):  # brute force: per point, view and tap (test only)
@@ -344,10 +365,10 @@ def test_pcf_sum_equals_brute_force_lookups(seed):
     assert np.array_equal(got, want), np.flatnonzero(got != want)[:10]
 
 
-def _pcss_light(views):
+def _pcss_light(views, fov=math.pi / 2):
     """What pcss reads of LightSamples, with an exact centre view."""
     light = types.SimpleNamespace(width=1.0, height=0.5)
-    return types.SimpleNamespace(light=light, near=_NEAR, far=_FAR, fov=math.pi / 2,
+    return types.SimpleNamespace(light=light, near=_NEAR, far=_FAR, fov=fov,
                                  center_clip_from_world=lambda: views)
 
 
@@ -380,11 +401,14 @@ def test_pcss_equals_brute_force(seed):
     dmap = _adversarial_maps(rng, 1)[0]
     dmap[rng.random(dmap.shape) < 0.4] = 1.0  # holes: partial blocker sets
     p = _adversarial_points(rng, 240)
-    samples = _pcss_light(view)
+    # the light's field of view sets the texels per tan unit, W / (2 tan(fov / 2)), apart from the view
+    samples = _pcss_light(view, (math.pi / 2, 2 * math.atan(0.5), 2 * math.atan(1.5))[seed])
     bias = (1e-3, 0.0, 0.2)[seed]
     nb, nf = ((64, 96), (16, 24), (5, 7))[seed]
     search = (None, 0.3, None)[seed]
-    got = pcss(p, dmap, samples, bias, blocker_taps=nb, filter_taps=nf, seed=seed, search_depth=search)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning, for points without blockers or at zr = 0 either
+        got = pcss(p, dmap, samples, bias, blocker_taps=nb, filter_taps=nf, seed=seed, search_depth=search)
     occupied = [float(z) for z in dmap.reshape(-1) if z < 1]
     lin = [2 * _FAR * _NEAR / ((_FAR + _NEAR) - z * (_FAR - _NEAR)) for z in occupied]
     zs = max(_NEAR, min(lin)) if search is None else search
@@ -406,3 +430,30 @@ def test_pcf_sum_blocks_do_not_change_the_sum(monkeypatch):
     monkeypatch.setattr(pcf, "_BLOCK", 1 << 20)
     assert np.array_equal(blocked, pcf.pcf_sum(p, maps, views, _NEAR, _FAR, 1e-3))
     assert np.array_equal(vis, pcss(p, maps[0], _pcss_light(views[0]), 1e-3))
+
+
+def test_pcf_sum_reads_the_views_in_float64():
+    # A view shifted by 1/4 + 2^-40 (no float32: it rounds to 1/4) puts the point px = -(1/4 + 2^-40)
+    # exactly on the left edge of texel column W / 2 = 8, so its one tap reads that column (floor); the
+    # view read in float32 would put it 2^-37 texels to the left, in column 7.
+    shift = 0.25 + 2.0 ** -40
+    assert float(np.float32(shift)) == 0.25 != shift
+    view = _exact_view(shift)
+    q = np.array([[-shift, 0.375, 0.0]])  # cw = 1, window (8, 2.5)
+    x, y, cw = _brute_window(q[0], view)
+    assert (x, y, cw) == (8.0, 2.5, 1.0)
+    dmap = np.ones((_H, _W))
+    dmap[:, 8] = -1.0  # an occluder at the near plane over column 8 only; column 7 empty
+    assert not _brute_lit(dmap, x, y, cw, 1e-3)
+    assert pcf.pcf_sum(q, dmap, view, _NEAR, _FAR, 1e-3, taps=[[0, 0]]).tolist() == [0.0]
+
+
+def test_padded_index_and_threshold_keep_their_documented_ranges():
+    # _padded_floor: floor(v) + 1 clipped to [0, n + 1], NaN and ±inf on the border
+    v = np.array([-7.5, -1.0, -0.5, -1e-300, 0.0, 2.999, 4.0, 4.5, 1e300, np.inf, -np.inf, np.nan])
+    got = pcf._padded_floor(v, 4)
+    assert got.dtype == np.intp
+    assert got.tolist() == [0, 0, 0, 0, 1, 3, 5, 5, 5, 5, 0, 5]
+    # _threshold: cw − bias in front of the view (cw > 0), −inf on its plane (cw = 0) and behind it
+    got = pcf._threshold(np.array([2.0, 1e-300, 0.0, -0.0, -1.0]), 0.5)
+    assert got.tolist() == [1.5, -0.5, -np.inf, -np.inf, -np.inf]

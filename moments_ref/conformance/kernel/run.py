@@ -154,7 +154,7 @@ def shared_memory(path, entry, language, target, case, gc, c, time_limit=None):
     """Trace the shared memory of work group (0, 0) of a tagged kernel: accesses, bank conflicts, races.
 
     Returns None for a kernel without tagged accesses, else a dict: ``driver``,
-    ``accesses`` (per invocation), ``barriers``, ``pattern`` (the trace is
+    ``accesses`` (the most of one invocation), ``barriers``, ``pattern`` (the trace is
     :func:`moments_ref.gpu.banks.access_pattern` in program order; filter cases),
     ``conflicts`` (per phase of gpu.banks, from the trace), ``races`` (:func:`.trace.races`).
     """
@@ -339,6 +339,10 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     time_limit : float, optional
         Seconds one dispatch may run; default the watchdog of the driver process
         (:func:`~moments_ref.conformance.set_watchdog`, ``--watchdog``: 10 s).
+    gc : GoldenCase, optional
+        The case already loaded (what ``golden_dir`` would give); ``golden_dir`` is then not read.
+    worst_rows : int
+        Rows shown per failing verdict.
     timing : bool
         Time the NumPy paths on the same map for the report.
     shared : bool

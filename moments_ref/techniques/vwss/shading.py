@@ -42,7 +42,7 @@ import functools
 
 import numpy as np
 
-from ..._arrays import InputError, real_input
+from ..._arrays import InputError, first_index, real_input
 from ..._kernels import SHADING_BLOCK
 from ...scene.depth import d_view_from_ndc, x_window_from_ndc, y_window_from_ndc
 from ..._shim import renamed, renamed_keywords
@@ -124,14 +124,18 @@ def _check_positions(positions):
     return p
 
 
-def _check_maps(depth_maps, n_views):
+def _check_maps(depth_maps, n_views, name="depth_maps"):
+    """``(n_views, H, W)`` float NDC depths (an ``(H, W)`` map is one view); ±inf allowed, NaN not."""
     d = np.asarray(depth_maps)
+    if d.dtype.kind != "f":
+        raise InputError(f"{name}: expected float NDC depths, got dtype {d.dtype}")
+    nan = np.isnan(d)
+    if nan.any():
+        raise InputError(f"{name}: expected NDC depths without NaN, got NaN at index {first_index(nan)}")
     if d.ndim == 2:
         d = d[None]
     if d.ndim != 3 or d.shape[0] != n_views:
-        raise InputError(f"depth_maps: expected ({n_views}, H, W) maps (one per view), got shape {d.shape}")
-    if d.dtype.kind != "f" or np.isnan(d).any():
-        raise InputError("depth_maps: expected float NDC depths without NaN")
+        raise InputError(f"{name}: expected ({n_views}, H, W) maps (one per view), got shape {d.shape}")
     return d
 
 
@@ -270,7 +274,7 @@ def pcss(positions, depth_map, samples: LightSamples, bias, blocker_taps=PCSS_BL
     3. PCF with ``filter_taps`` taps over that rectangle.
     """
     p = _check_positions(positions)
-    dmap = _check_maps(depth_map, 1)[0]
+    dmap = _check_maps(depth_map, 1, "depth_map")[0]
     h, w = dmap.shape
     light = samples.light
     n, f = samples.near, samples.far

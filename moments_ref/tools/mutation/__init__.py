@@ -38,6 +38,7 @@ TARGETS = (
     "moments_ref/conformance/kernel/verdict.py", "moments_ref/conformance/kernel/contract.py",
     "moments_ref/conformance/kernel/trace.py",
     "moments_ref/golden/loader.py", "moments_ref/golden/engine.py",
+    "moments_ref/conformance/kernel/run.py",
 )
 EQUIVALENTS = ROOT / "tests" / "mutation_equivalents.toml"
 STATE = ROOT / ".mutation"

@@ -141,12 +141,16 @@ def import_tests(test_ids):
 
 
 def _live_function(module, qualname):
+    """The function whose body the source's ``def`` holds: through a property, a method, and any
+    decorator that records what it wraps (``functools.wraps``: the wrapper's own code is not the body)."""
     obj = module
     for part in qualname.split("."):
         obj = getattr(obj, part)
-    for attr in ("fget", "__func__", "__wrapped__"):
+    for attr in ("fget", "__func__"):
         while hasattr(obj, attr) and not hasattr(obj, "__code__"):
             obj = getattr(obj, attr)
+    while hasattr(obj, "__wrapped__"):
+        obj = obj.__wrapped__
     return obj
 
 
