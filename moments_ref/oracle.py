@@ -7,6 +7,8 @@ verify`` (:mod:`moments_ref.golden.compare`): hypothesis rows get per-row
 tolerances by the same rule as golden rows (:mod:`moments_ref.golden.spread`) and
 are classified like them (``stiff`` where legitimate implementations differ by
 1e-3 or more, ``edge`` where an input sits at a domain end, else ``random``).
+The draws are derandomized (the same rows for a case and count, whichever call),
+so a process draws them once and checks every candidate on the same rows.
 ``golden_dir`` takes the golden rows from a folder ``moments-ref golden`` wrote
 instead, read by the one strict loader of ``verify`` and ``conformance``
 (:mod:`moments_ref.golden.loader`).
@@ -29,6 +31,7 @@ True
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -92,7 +95,10 @@ def _strategies():
     return strategies
 
 
+@functools.lru_cache(maxsize=32)
 def _hypothesis_rows(case, n):
+    """The ``n`` rows hypothesis draws for ``case`` (derandomized: the same rows every call, so they
+    are drawn once per process; read-only, as they are shared)."""
     strategies = _strategies()
     from hypothesis import HealthCheck, Phase, given, settings
 
@@ -105,7 +111,11 @@ def _hypothesis_rows(case, n):
         drawn.append(row)
 
     collect()
-    return drawn[:n]
+    for row in drawn:
+        for v in row.values():
+            if isinstance(v, np.ndarray):
+                v.setflags(write=False)
+    return tuple(drawn[:n])
 
 
 def _classify(c, inputs, arrays):
