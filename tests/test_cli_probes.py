@@ -517,8 +517,11 @@ SCENE_PROBES = [
     Probe("toml-translate-nan", "scene", _REPORT,
           _with(_SMALL.replace("role = \"occluder\"", "role = \"occluder\"\ntransform = [{ translate = [nan, 0, 0] }]"))),
     Probe("toml-generator-is-a-list", "scene", _REPORT, _with(_SMALL.replace("generator = \"box\"", "generator = [1]"))),
+    # Every camera with one job; two of them with two, whose refusal must also stop the workers that
+    # started while the scenes were planned (the camera check itself runs in the parent either way).
     *[Probe(f"camera-{name}-jobs{jobs}", "camera", [*_REPORT, "--jobs", str(jobs)],
-            _with(text, **{"flat.obj": _FLAT_OBJ})) for name, text in _CAMERAS.items() for jobs in (1, 2)],
+            _with(text, **{"flat.obj": _FLAT_OBJ})) for name, text in _CAMERAS.items()
+      for jobs in ((1, 2) if name in ("fov-179.999", "zero-area-receiver") else (1,))],
     Probe("out-empty", "out", ["golden", "--out", "", "--case", "shade-float32"],
           check=lambda tmp, run: not list(tmp.iterdir()) or pytest.fail(f"wrote {list(tmp.iterdir())}")),
     Probe("corpus-txt", "corpus", ["mutants", "--corpus", "{tmp}/c.txt"], lambda tmp: (tmp / "c.txt").write_text("x")),
