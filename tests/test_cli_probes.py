@@ -301,11 +301,16 @@ atexit.register(report_peak)
 """
 
 
-def spawn(cwd, argv=None, code=None, limit=AS_LIMIT, fsize=None, root=ROOT):
-    """Start ``moments-ref ARGV`` (or the Python ``code``) in ``cwd`` with the package of ``root`` and the limits."""
+def _program(cwd, argv=None, code=None, limit=AS_LIMIT, fsize=None):
+    """The Python program of a probe process: limits, its peak reported at exit, then the command."""
     body = (f"sys.argv = ['moments-ref', *{list(argv)!r}]\nimport runpy\n"
             "runpy.run_module('moments_ref', run_name='__main__', alter_sys=True)\n") if code is None else code
-    program = _LAUNCHER.format(limit=limit, fsize=fsize, peak=str(Path(cwd) / ".peak")) + body
+    return _LAUNCHER.format(limit=limit, fsize=fsize, peak=str(Path(cwd) / ".peak")) + body
+
+
+def spawn(cwd, argv=None, code=None, limit=AS_LIMIT, fsize=None, root=ROOT):
+    """Start ``moments-ref ARGV`` (or the Python ``code``) in ``cwd`` with the package of ``root`` and the limits."""
+    program = _program(cwd, argv, code, limit, fsize)
     env = dict(os.environ, PYTHONPATH=str(root), MPLBACKEND="Agg")
     (Path(cwd) / ".peak").unlink(missing_ok=True)
     return subprocess.Popen([sys.executable, "-c", program], cwd=cwd, env=env, stdout=subprocess.PIPE,
@@ -332,13 +337,6 @@ def finish(p, cwd, timeout=300):
     rss = int(peak.read_text()) * 1024 if peak.exists() else 0
     peak.unlink(missing_ok=True)
     return Run(p.returncode, outs["out"], outs["err"], rss, time.perf_counter() - t0)
-
-
-def _program(cwd, argv=None, code=None, limit=AS_LIMIT, fsize=None):
-    """The Python program of a probe process: limits, its peak reported at exit, then the command."""
-    body = (f"sys.argv = ['moments-ref', *{list(argv)!r}]\nimport runpy\n"
-            "runpy.run_module('moments_ref', run_name='__main__', alter_sys=True)\n") if code is None else code
-    return _LAUNCHER.format(limit=limit, fsize=fsize, peak=str(Path(cwd) / ".peak")) + body
 
 
 #: A fork server: imports NumPy and the package once, then per request (a JSON line

@@ -149,11 +149,6 @@ def _retire(pool, stop=False):
         manager.join(JOIN_SECONDS)
 
 
-def _stop(pool):
-    """End the running workers (the processes this pool started) and cancel what has not started."""
-    _retire(pool, stop=True)
-
-
 def _parallel(pool, tasks, bar):
     try:
         futures = {pool.submit(_call, fn, args): key for key, fn, args in tasks}
@@ -166,11 +161,11 @@ def _parallel(pool, tasks, bar):
                     bar.set_postfix_str(" ".join(futures[f]), refresh=False)
                     bar.update(1)
     except BrokenProcessPool:
-        _stop(pool)
+        _retire(pool, stop=True)
         raise WorkerDied("jobs: a worker process was killed before it finished (often for lack of memory); "
                          "rerun with --jobs 1 or fewer jobs") from None
     except BaseException:
-        _stop(pool)
+        _retire(pool, stop=True)
         raise
     return {key: f.result() for f, key in futures.items()}
 

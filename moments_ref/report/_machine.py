@@ -5,8 +5,8 @@ them across machines, report.md states the cores, the NumPy version, the BLAS it
 is built with (``numpy.show_config``; the threads in use via ``threadpoolctl``
 where installed) and the rate of a plain memory copy measured in the same run
 (``np.copyto`` between two preallocated buffers, best of three in CPU seconds,
-the measurement of ``moments-ref bench``): a technique's seconds divided by the copy's seconds of
-the same byte count is a ratio that travels between machines.
+the measurement of ``moments-ref bench``): a technique's seconds divided by the
+copy's seconds of the same byte count is a ratio that travels between machines.
 """
 
 from __future__ import annotations
@@ -72,5 +72,5 @@ def machine_lines(info, rate):
             f"{info['cores']} cores ({info['cpu']}), Python {info['python']}, NumPy {info['numpy']}, "
             f"BLAS {info['blas']}; load average at the start {info['load']} (1, 5, 15 min: other processes "
             f"on the machine slow the timings down). Memory copy in the same run (`np.copyto`, "
-            f"{COPY_BYTES // 2 ** 20} MiB, best of 3 in CPU seconds): {rate / 1e9:.2f} GB/s. Divide a time by the time of "
-            "copying the same bytes at this rate to compare machines by ratios.", ""]
+            f"{COPY_BYTES // 2 ** 20} MiB, best of 3 in CPU seconds): {rate / 1e9:.2f} GB/s. Divide a time by "
+            "the time of copying the same bytes at this rate to compare machines by ratios.", ""]
