@@ -247,3 +247,21 @@ def test_interrupted_write_leaves_no_partial_files(tmp_path):
 def test_unknown_case_is_refused(tmp_path):
     with pytest.raises(InputError, match="unknown case"):
         golden.write(tmp_path, ["no-such-case"])
+
+
+def test_a_shipped_case_is_generated_once_and_shared_read_only():
+    """golden_arrays keeps a shipped case's arrays (seeded: every call gives the same) and shares them read-only;
+    a case that is not the shipped object (a variant with the same name) is generated anew."""
+    import dataclasses
+
+    case = golden.CASES["encode_unorm16-float32"]
+    a, b = golden.golden_arrays(case), golden.golden_arrays(case)
+    assert a is not b and set(a) == set(b) and all(a[k] is b[k] for k in a)
+    assert not any(v.flags.writeable for v in a.values())
+    with pytest.raises(ValueError):
+        a["category"][0] = "edge"
+    variant = dataclasses.replace(case, kwargs=dict(case.kwargs))
+    c = golden.golden_arrays(variant)
+    assert set(c) == set(a) and all(c[k] is not a[k] and c[k].flags.writeable for k in a)
+    for k in a:
+        np.testing.assert_array_equal(c[k], a[k])
