@@ -64,6 +64,7 @@ WHOLE_MODULES = {
     "tests/test_evsm_scene.py": "railing: one pipeline run",
     "tests/test_paper_claims.py": "railing: one pipeline run",
     "tests/test_golden_kernels.py": "arrays: the kernel cases generated",
+    "tests/test_golden.py": "gdir: every case (a second worker would wait for it)",
     "tests/test_golden_bad_input.py": "clean: a golden folder",
     "tests/test_conformance_probes.py": "golden_dir: a golden folder",
     "tests/test_profiles.py": "gdir: a golden folder",

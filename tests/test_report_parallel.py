@@ -64,6 +64,10 @@ def test_two_jobs_give_the_serial_results(tmp_path):
     md = (tmp_path / "jobs2" / "report.md").read_text()
     assert "2 worker processes side by side" in md and "CPU seconds" in md
     assert "one scene at a time" in (tmp_path / "jobs1" / "report.md").read_text()
+    # the second batch (the Pareto-front plots, one task per reference) runs on the workers
+    assert ("front", "pcf") in res[2]["tasks"] and res[2]["tasks"][("front", "pcf")]["pid"] != os.getpid()
+    png = (tmp_path / "jobs2" / "front_pcf.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and "front_pcf.png" in md
 
 
 @pytest.mark.slow
@@ -145,14 +149,6 @@ def test_leaving_the_workers_leaves_no_pool_thread(error):
     except InputError:
         assert error
     assert [t.name for t in threading.enumerate() if t not in before and t.is_alive()] == []
-
-
-def test_the_front_plots_are_written_by_both(tmp_path):
-    # the second batch (the Pareto-front plots, one task per reference) runs on the workers
-    res = report.run(scenes=["translucent", "facade"], out_dir=tmp_path, jobs=2, **TINY)
-    assert ("front", "pcf") in res["tasks"] and res["tasks"][("front", "pcf")]["pid"] != os.getpid()
-    png = (tmp_path / "front_pcf.png").read_bytes()
-    assert png.startswith(b"\x89PNG") and "front_pcf.png" in (tmp_path / "report.md").read_text()
 
 
 def test_jobs_on_the_command_line(tmp_path, capsys):
