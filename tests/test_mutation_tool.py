@@ -1,12 +1,16 @@
 """The mutation tool (moments_ref.tools.mutation): its mutants, their ids, the code swap, the equivalents file."""
 
+import os
+import tempfile
 import textwrap
+import time
+from pathlib import Path
 
 import pytest
 
 from moments_ref.tools.mutation import ROOT, TARGETS, load_equivalents, module_files, mutants_of, score_table
 from moments_ref.tools.mutation import _capped, _run_module
-from moments_ref.tools.mutation._execute import run_mutant
+from moments_ref.tools.mutation._execute import _forked, run_mutant
 from moments_ref.tools.mutation._operators import mutated_code
 
 SOURCE = textwrap.dedent('''
@@ -175,3 +179,26 @@ def test_a_mutant_of_a_decorated_function_swaps_the_body_behind_the_wrapper():
     assert fn is mod.h.__wrapped__
     fn.__code__ = mutated_code(source, "m.py", m)
     assert mod.h(5) == 6
+
+
+def test_a_forked_childs_temporary_files_are_removed_however_it_ends(tmp_path):
+    """A mutant's child ends without its exit handlers (os._exit, or killed at its timeout): the
+    temporary files it leaves (a driver process's log was left in /tmp by each) are removed."""
+    where = tmp_path / "where"
+
+    def leave(then_hang):
+        def child():
+            fd, path = tempfile.mkstemp(prefix="left-")  # as the driver supervisor makes its log
+            os.close(fd)
+            where.write_text(path)
+            if then_hang:
+                time.sleep(60)
+            return b"done"
+        return child
+
+    for hang in (False, True):
+        status, data, timed_out = _forked(leave(hang), 2)
+        assert (status == 0 and data == b"done" and not timed_out) if not hang else timed_out
+        left = Path(where.read_text())
+        assert left.name.startswith("left-") and left.parent != Path(tempfile.gettempdir())  # a folder of its own
+        assert not left.exists() and not left.parent.exists(), left

@@ -11,6 +11,7 @@ runs its tests with pytest, stopping at the first failure.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import tempfile
 import time
@@ -45,12 +46,26 @@ def _pytest(args, plugin):
 
 
 def _forked(fn, timeout, quiet=True):
-    """Run ``fn() -> bytes`` in a forked child; ``(exit status, its bytes, timed out)``."""
+    """Run ``fn() -> bytes`` in a forked child; ``(exit status, its bytes, timed out)``.
+
+    The child's temporary files go to a folder of its own, removed when it has ended: a child
+    ends without its exit handlers (``os._exit``, the alarm, the timeout's SIGKILL), so the
+    files it would remove at exit (a driver process's log, ``tempfile``'s) are removed here.
+    """
+    scratch = tempfile.mkdtemp(prefix="moments-ref-mutant-")
+    try:
+        return _forked_in(fn, timeout, quiet, scratch)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _forked_in(fn, timeout, quiet, scratch):
     rfd, wfd = os.pipe()
     pid = os.fork()
     if pid == 0:  # child
         os.close(rfd)
         os.setpgid(0, 0)
+        os.environ["TMPDIR"] = tempfile.tempdir = scratch  # and the processes it starts
         if quiet:
             null = os.open(os.devnull, os.O_WRONLY)
             os.dup2(null, 1)
