@@ -98,6 +98,10 @@ def test_the_sentence_names_each_memory_budget_once_merging_consecutive_equal_wi
     # Nothing within 128 bits: said so, not left blank.
     lines = W.winner_lines([{"scene": "s", "reference": "pcf", "budget_kind": "total_seconds", "budget": 3.0,
                              "technique": "a", "rmse": 0.5}], {})
-    assert ("- **s** (reference `pcf`). Lowest RMSE at no technique fits 128 bits per texel. At the scene's own "
+    assert ("- **s** (reference `pcf`). No technique fits in 128 bits per texel. At the scene's own "
             "resolution (?), within 3 s: **a** (RMSE 0.5).") in lines
     assert lines[-1] == ""
+    # Nothing within the smallest budgets: named after the winners of the larger ones.
+    rows = [{"scene": "s", "technique": "b", "bits_per_texel": 128, "rmse": 0.01, "own_total_seconds": 2.0}]
+    text = "\n".join(W.winner_lines(W.winners(rows, lambda r: "pcf"), {"s": "own"}))
+    assert "Lowest RMSE at 128 bits: **b** (RMSE 0.01) (nothing fits in 32 and 64 bits). At the scene's own" in text

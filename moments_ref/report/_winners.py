@@ -123,10 +123,12 @@ def winner_lines(found, resolutions):
                 merged[-1][0].append(w["budget"])
             else:
                 merged.append(([w["budget"]], w))
-        m = "; ".join(f"{_and(bs)} bits: **{w['technique']}** (RMSE {_g(w['rmse'])})"
-                      for bs, w in merged) or "no technique fits 128 bits per texel"
+        m = "; ".join(f"{_and(bs)} bits: **{w['technique']}** (RMSE {_g(w['rmse'])})" for bs, w in merged)
+        none = [b for b in MEMORY_BUDGETS if b not in {w["budget"] for w in mem}]  # the smallest budgets
+        m = (f"Lowest RMSE at {m}" + (f" (nothing fits in {_and(none)} bits)" if none else "") if merged
+             else f"No technique fits in {MEMORY_BUDGETS[-1]} bits per texel")
         c = "; ".join(f"within {_g(w['budget'])} s: **{w['technique']}** (RMSE {_g(w['rmse'])})" for w in cost)
-        lines.append(f"- **{scene}** (reference `{ref}`). Lowest RMSE at {m}. At the scene's own resolution "
+        lines.append(f"- **{scene}** (reference `{ref}`). {m}. At the scene's own resolution "
                      f"({resolutions.get(scene, '?')}), {c or 'no technique has a finite cost'}.")
     return lines + [""]
 
