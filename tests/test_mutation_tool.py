@@ -197,7 +197,8 @@ def test_a_forked_childs_temporary_files_are_removed_however_it_ends(tmp_path):
         return child
 
     for hang in (False, True):
-        status, data, timed_out = _forked(leave(hang), 2)
+        where.unlink(missing_ok=True)  # each child names its own file: never the previous one's
+        status, data, timed_out = _forked(leave(hang), 5)
         assert (status == 0 and data == b"done" and not timed_out) if not hang else timed_out
         left = Path(where.read_text())
         assert left.name.startswith("left-") and left.parent != Path(tempfile.gettempdir())  # a folder of its own

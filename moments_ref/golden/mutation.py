@@ -97,8 +97,7 @@ def _golden(name, cache, profile=None):
         else:
             from .conventions import profiled_arrays
 
-            # the case's own golden arrays, generated once for all the profiles that derive from them
-            case, arrays = profiled_arrays(name, profile, arrays=_golden(name, cache)[1])
+            case, arrays = profiled_arrays(name, profile)  # from the case's arrays, generated once per process
         cache[key] = (case, arrays, manifest_entry(case, arrays))
     return cache[key]
 

@@ -344,6 +344,7 @@ def golden_arrays(case):
 
 @functools.lru_cache(maxsize=None)
 def _shipped_arrays(name):
+    """The arrays of shipped case ``name``, generated on the first call, read-only."""
     arrays = _generate(CASES[name])
     for a in arrays.values():
         a.flags.writeable = False  # shared by every caller
