@@ -11,6 +11,7 @@ References
        1–3, the texel formats and the compute shader of §4.1.
 """
 
+from . import _shim
 from ._arrays import InputError
 from .affine import decode_unorm16, encode_unorm16, from_optimized, to_optimized
 from .moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset, bias_moments, hankel, power_moments
@@ -19,6 +20,14 @@ from .nonlinear import phi, phi_inverse, psi4, psi4_inverse, shade
 from .packing import pack32, pack64, unpack32, unpack64
 
 __version__ = "0.1.0"
+
+# The old paths of moved modules (moments_ref.filtering, ...): one import hook reading _shim.MOVED.
+_shim.install()
+
+
+def __getattr__(name):
+    """``moments_ref.<old path>`` of a moved module: the module at its new path (warns once)."""
+    return _shim.old_attribute(name)
 
 __all__ = [
     "__version__",

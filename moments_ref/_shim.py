@@ -1,11 +1,12 @@
 """The old import paths of modules that moved into their layer's folder, and the old names of renamed names.
 
-Each old path (``moments_ref.filtering``, ``moments_ref.vwss.shading``, ...) is a
-two-line module that forwards attribute access to the new path and warns with a
-:class:`DeprecationWarning`, for one release; NumPy moved ``numpy.core`` to
-``numpy._core`` the same way. :data:`MOVED` is the one list of them
-(``tests/test_architecture.py`` checks that every entry has its shim and no
-shim is missing from it).
+Each old path (``moments_ref.filtering``, ``moments_ref.vwss.shading``, ...) is served by
+one import hook, :class:`MovedFinder` on :data:`sys.meta_path` (installed by
+``moments_ref/__init__.py``), that reads :data:`MOVED`: importing an old path imports the
+new module, binds it under the old name too (the same module object, so
+``from moments_ref.filtering import blur`` and ``moments_ref.filtering.blur`` both work)
+and warns once with a :class:`DeprecationWarning`, for one release. There is no file
+per old path; NumPy moved ``numpy.core`` to ``numpy._core`` the same way.
 
 Names renamed so that they say which space or frame they hold (``view_proj`` ->
 ``clip_from_world``, ``linear_depth`` -> ``d_view_from_ndc``, ...) keep their old
@@ -18,9 +19,12 @@ parameter dicts through :func:`renamed_keys`.
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.machinery
+import sys
 import warnings
 
-__all__ = ["MOVED", "forward", "RENAMED", "renamed", "alias", "renamed_keywords", "renamed_keys", "warn_renamed"]
+__all__ = ["MOVED", "new_path", "MovedFinder", "install", "old_attribute", "RENAMED", "renamed", "alias", "renamed_keywords", "renamed_keys", "warn_renamed"]
 
 #: Old path -> new path, both below ``moments_ref`` (the old paths go in the release after next).
 MOVED = {
@@ -49,22 +53,60 @@ MOVED = {
 }
 
 
-def forward(old):
-    """``(__getattr__, __dir__)`` for the shim module at ``moments_ref.<old>``."""
-    new = f"moments_ref.{MOVED[old]}"
+def new_path(fullname):
+    """The new dotted path of the old path ``fullname`` (``moments_ref.raster._matrices`` ->
+    ``moments_ref.scene.raster._matrices``), or None when ``fullname`` did not move.
 
-    def __getattr__(name):
-        if name.startswith("__"):
-            raise AttributeError(name)
-        value = getattr(importlib.import_module(new), name)
-        warnings.warn(f"moments_ref.{old} moved to {new}; the old path will be removed in the next release",
+    The longest old path of :data:`MOVED` that is ``fullname`` or a package above it decides.
+    """
+    if not fullname.startswith("moments_ref."):
+        return None
+    parts = fullname[len("moments_ref."):].split(".")
+    for n in range(len(parts), 0, -1):
+        new = MOVED.get(".".join(parts[:n]))
+        if new is not None:
+            return ".".join(["moments_ref", new] + parts[n:])
+    return None
+
+
+class _Alias(importlib.abc.Loader):
+    """Loads an old path as the module at its new path (the same object), warning once."""
+
+    def __init__(self, new):
+        self.new = new
+
+    def create_module(self, spec):
+        return None  # a placeholder module; exec_module replaces it in sys.modules
+
+    def exec_module(self, module):
+        old = module.__name__
+        target = importlib.import_module(self.new)
+        sys.modules[old] = target  # the import system returns what sys.modules holds after exec_module
+        warnings.warn(f"{old} moved to {self.new}; the old path will be removed in the next release",
                       DeprecationWarning, stacklevel=2)
-        return value
 
-    def __dir__():
-        return dir(importlib.import_module(new))
 
-    return __getattr__, __dir__
+class MovedFinder(importlib.abc.MetaPathFinder):
+    """The meta-path finder of the old paths of :data:`MOVED` (no file per old path)."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        new = new_path(fullname)
+        if new is None:
+            return None
+        return importlib.machinery.ModuleSpec(fullname, _Alias(new))
+
+
+def install():
+    """Put one :class:`MovedFinder` first on :data:`sys.meta_path` (idempotent)."""
+    if not any(isinstance(f, MovedFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, MovedFinder())
+
+
+def old_attribute(name):
+    """The module at the old top-level path ``moments_ref.<name>`` (for the package's ``__getattr__``)."""
+    if name not in MOVED or "." in name:
+        raise AttributeError(f"module 'moments_ref' has no attribute {name!r}")
+    return importlib.import_module(f"moments_ref.{name}")
 
 
 #: Module -> {old name: new home ``module.name``}, all below ``moments_ref``: renamed public names.

@@ -26,8 +26,8 @@ from moments_ref.tools.references import CITATIONS, missing_references
 ROOT = Path(__file__).resolve().parents[1] / "moments_ref"
 
 #: The layers come from the folders (moments_ref/tools/layout.py): a folder is a layer or a leaf
-#: of its own name, the flat modules at the top are named there; old paths of moved modules are
-#: shims (moments_ref/_shim.py) outside the layers.
+#: of its own name, the flat modules at the top are named there; old paths of moved modules
+#: (moments_ref/_shim.py's MOVED, served by an import hook) are no files and nothing imports them.
 RANK = {name: i for i, name in enumerate(layout.ORDER)}
 
 #: Size limits (code lines).
@@ -99,8 +99,10 @@ def imports_of(name: str, source: str, known, is_package: bool = False) -> set:
 
 def import_graph(root: Path = ROOT) -> dict:
     """Module -> set of package modules it imports."""
+    from moments_ref._shim import MOVED
+
     src = modules(root)
-    known = set(src)
+    known = set(src) | set(MOVED)  # an import of an old path is seen (and refused by layer_violations)
     packages = {module_name(p, root) for p in root.rglob("__init__.py")}
     return {n: imports_of(n, s, known, n in packages) for n, s in src.items()}
 
@@ -155,9 +157,8 @@ def layer_violations(graph: dict) -> list:
         ra, la = layer_of(a)
         for b in sorted(deps):
             rb, lb = layer_of(b)
-            if la == "shim" or lb == "shim":
-                if not (la == "shim" and b == "_shim"):
-                    bad.append(f"{a} ({la}) imports {b} ({lb}): only shims may use moments_ref._shim's old paths")
+            if lb == "shim":
+                bad.append(f"{a} ({la}) imports {b} ({lb}): an old path of moments_ref._shim.MOVED, import the new one")
             elif lb == "leaf":
                 if la not in ("leaf", "cli"):
                     bad.append(f"{a} ({la}) imports the leaf {b}")
@@ -174,26 +175,71 @@ def test_every_module_is_in_a_layer():
         layout.layer_of("newthing")
 
 
-def test_every_moved_path_is_a_warning_shim():
-    """Each old path of moments_ref._shim.MOVED is a shim file; each shim is listed; old names forward and warn."""
+def _forget(old):
+    """Drop ``moments_ref.<old>`` and the old paths below it from sys.modules (the next import is a first one)."""
+    import sys
+
+    import moments_ref
+
+    for key in [k for k in sys.modules if k == f"moments_ref.{old}" or k.startswith(f"moments_ref.{old}.")]:
+        del sys.modules[key]
+    moments_ref.__dict__.pop(old.split(".")[0], None)
+
+
+def test_every_moved_path_imports_the_new_module_and_warns_once():
+    """Each old path of moments_ref._shim.MOVED is the new module itself, through the import hook.
+
+    ``import``, ``from ... import name`` and ``moments_ref.<old>`` attribute access all work;
+    the first import warns once (DeprecationWarning naming the new path), later ones are silent;
+    and no file or folder stands at any old path.
+    """
     import importlib
     import warnings
 
     from moments_ref._shim import MOVED
 
-    shims = {n for n, src in modules().items() if "_shim import forward" in src}
-    assert shims == set(MOVED)
+    assert not [old for old in MOVED if (ROOT / (old.replace(".", "/") + ".py")).exists()
+                or (ROOT / old.replace(".", "/") / "__init__.py").exists()]
     for old, new in MOVED.items():
         target = importlib.import_module(f"moments_ref.{new}")
         name = target.__all__[0]
-        shim = importlib.import_module(f"moments_ref.{old}")
+        _forget(old)
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
-            assert getattr(shim, name) is getattr(target, name)
-        assert [w.category for w in seen] == [DeprecationWarning] and f"moments_ref.{new}" in str(seen[0].message)
-        assert name in dir(shim)
-        with pytest.raises(AttributeError):
-            shim.no_such_name_here
+            scope = {}
+            exec(f"from moments_ref.{old} import {name}", scope)
+            assert scope[name] is getattr(target, name)
+            assert importlib.import_module(f"moments_ref.{old}") is target
+            assert getattr(importlib.import_module(f"moments_ref.{old}"), name) is getattr(target, name)
+        mine = [w for w in seen if f"moments_ref.{old} moved" in str(w.message)]
+        assert [w.category for w in mine] == [DeprecationWarning], (old, [str(w.message) for w in seen])
+        assert f"moments_ref.{new}" in str(mine[0].message) and mine[0].filename == "<string>", mine[0].filename  # the importing line
+        if "." not in old:
+            import moments_ref
+
+            _forget(old)
+            with pytest.warns(DeprecationWarning, match=f"moments_ref.{old} moved"):
+                assert getattr(moments_ref, old) is target
+    with pytest.raises(AttributeError):
+        importlib.import_module("moments_ref").no_such_name_here
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("moments_ref.no_such_module_here")
+
+
+def test_modules_below_a_moved_package_follow_it():
+    """``moments_ref.raster._matrices`` is ``moments_ref.scene.raster._matrices`` (one module object, not a copy)."""
+    import importlib
+    import warnings
+
+    from moments_ref._shim import new_path
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert importlib.import_module("moments_ref.raster._matrices") is \
+            importlib.import_module("moments_ref.scene.raster._matrices")
+    assert new_path("moments_ref.vwss.compare") == "moments_ref.report.vwss"  # the longest old path decides
+    assert new_path("moments_ref.vwss.shading") == "moments_ref.techniques.vwss.shading"
+    assert new_path("moments_ref.msm") is None and new_path("numpy.core") is None
 
 
 def test_every_renamed_name_forwards_and_warns():
@@ -257,8 +303,6 @@ def test_the_import_checks_fail_on_violations(tmp_path):
     (pkg / "techniques" / "pcf.py").write_text("from .. import msm\nfrom ..tools.bench import b\n")
     (pkg / "tools" / "bench.py").write_text("x = 1\n")
     (pkg / "gpu" / "banks.py").write_text("import moments_ref.msm\nfrom ..filtering import blur\n")
-    (pkg / "filtering.py").write_text("from ._shim import forward\n")
-    (pkg / "_shim.py").write_text("")
     g = import_graph(pkg)
     assert g["msm"] == {"msm6", "techniques.pcf"}
     assert g["gpu.banks"] == {"msm", "filtering"} and g["__init__"] == {"msm"}
@@ -266,8 +310,7 @@ def test_the_import_checks_fail_on_violations(tmp_path):
     bad = layer_violations(g)
     assert "msm (core) imports techniques.pcf (techniques), a higher layer" in bad
     assert "techniques.pcf (techniques) imports the leaf tools.bench" in bad
-    assert "gpu.banks (gpu) imports filtering (shim): only shims may use moments_ref._shim's old paths" in bad
-    assert not any(x.startswith("filtering ") for x in bad)  # the shim itself may import _shim
+    assert "gpu.banks (gpu) imports filtering (shim): an old path of moments_ref._shim.MOVED, import the new one" in bad
 
 
 # ---------------------------------------------------------------------------

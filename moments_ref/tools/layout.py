@@ -5,7 +5,7 @@ flat modules at the top (the stable core and what everything shares) are named i
 :data:`FLAT`. Dependencies point down :data:`ORDER`; leaves (:data:`LEAF_FOLDERS`,
 :data:`LEAF_MODULES`) import what they measure from any layer and are imported by
 nothing but other leaves and the command line. The old paths of moved modules
-(:data:`moments_ref._shim.MOVED`) are shims outside the layers.
+(:data:`moments_ref._shim.MOVED`) have no file: an import hook serves them, outside the layers.
 
 ``python -m moments_ref.tools.apidoc --layout`` prints the table of
 docs/architecture.md and the README's "What is where" from :func:`layout_rows`.

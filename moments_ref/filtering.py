@@ -1,5 +1,0 @@
-"""Moved to :mod:`moments_ref.gpu.filtering`; this old path warns and will be removed in the next release."""
-
-from ._shim import forward
-
-__getattr__, __dir__ = forward('filtering')
