@@ -1,6 +1,7 @@
 """The lazy runner: stage sets per scene, sharing, refusals."""
 
 import dataclasses
+import time
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ def test_clock_chooses_the_timer(monkeypatch):
     import itertools
 
     ticks = itertools.count()
-    monkeypatch.setattr(pipeline.time, "process_time", lambda: float(next(ticks)))
+    monkeypatch.setattr(time, "process_time", lambda: float(next(ticks)))
     r = _run("facade", ["msm128"], clock="cpu", repeats=2)
     assert r.times and all(set(t) == {1.0} for t in r.times.values()), r.times  # 1 s per timed run
     assert r.times["shade_msm128"] == [1.0, 1.0]  # a cost stage: its 2 timed repeats
@@ -302,7 +303,7 @@ def test_depth_bias_is_the_papers_slope_for_pcf_constant_for_filterable(tmp_path
 def test_graph_shares_equal_stages_and_refuses_a_different_step_under_one_key():
     from moments_ref.techniques import Stage, stage_key
 
-    g = pipeline._Graph()
+    g = pipeline.graph.StageGraph()
     assert g.add(Stage("zeros", np.zeros, params=(("shape", 3),))) == "zeros_shape3" == stage_key("zeros", {"shape": 3})
     assert g.add(Stage("zeros", np.zeros, params=(("shape", 3),))) == "zeros_shape3"  # equal: shared
     assert g.add(Stage("zeros", np.zeros, params=(("shape", 4),))) == "zeros_shape4"  # a parameter: its own key

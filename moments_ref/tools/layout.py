@@ -25,7 +25,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Layers, bottom first.
 ORDER = ("base", "core", "gpu", "scene", "techniques", "pipeline", "report", "api")
 #: Folders that are layers (folder name = layer name) or hold package data of a layer.
-FOLDERS = {"gpu": "gpu", "scene": "scene", "techniques": "techniques", "report": "report", "ports": "api"}
+FOLDERS = {"gpu": "gpu", "scene": "scene", "techniques": "techniques", "pipeline": "pipeline", "report": "report",
+           "ports": "api"}
 #: Folders of leaves: they import what they measure.
 LEAF_FOLDERS = ("golden", "conformance", "tools")
 #: Flat leaf modules.
@@ -39,7 +40,6 @@ FLAT = {
     "_kernels": "core", "moments": "core", "msm": "core", "msm6": "core", "affine": "core",
     "nonlinear": "core", "packing": "core", "precise": "core",
     "metrics": "scene",  # image metrics over a G-buffer's pixels: techniques use them
-    "pipeline": "pipeline",
     "__init__": "api",
 }
 
