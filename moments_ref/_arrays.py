@@ -1,6 +1,6 @@
 """Input validation and the dtype policy shared by every module.
 
-The input policy (README, "Bad input"; docs/architecture.md), in one place:
+The input policy (docs/input.md; docs/architecture.md), in one place:
 
 * float32 in -> float32 arithmetic and float32 out (this emulates a GPU port);
 * float64 in -> float64 out;

@@ -29,3 +29,20 @@ def test_main_job_subcommand_exists():
     for name in ("report", "golden", "verify", "bench", "stability", "figure3", "figure4", "banks", "vwss",
                  "conformance"):
         assert name in sub.choices
+
+
+def test_readme_is_a_front_door():
+    """About 150 lines a newcomer reads in three minutes: no measurement logs, one row per subcommand.
+
+    The run-time logs live in docs/bench.md and docs/testing.md, the report's description in
+    docs/report.md, the layout table in docs/architecture.md.
+    """
+    from moments_ref.cli import build_parser
+
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 160
+    assert "<!-- layout: begin -->" not in text and " runs: " not in text and "load average" not in text
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    table = [line for line in text.splitlines() if line.startswith("| ")]
+    missing = [name for name in sub.choices if not any(f"`moments-ref {name}" in line for line in table)]
+    assert missing == [], f"subcommands without a row in the README's task table: {missing}"

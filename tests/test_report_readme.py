@@ -1,4 +1,4 @@
-"""The README's "Your own scene" example loads, names every scene key, and runs in the report."""
+"""The "Your own scene" example of docs/report.md loads, names every scene key, and runs in the report."""
 
 import re
 from pathlib import Path
@@ -10,8 +10,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _example():
-    text = (ROOT / "README.md").read_text()
-    section = text[text.index("### Your own scene"):]
+    text = (ROOT / "docs" / "report.md").read_text()
+    section = text[text.index("## Your own scene"):]
     toml = re.search(r"```toml\n(.*?)```", section, re.S).group(1)
     obj = re.search(r"`block\.obj`.*?```\n(.*?)```", section, re.S).group(1)
     return toml, obj

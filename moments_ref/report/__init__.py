@@ -1,7 +1,7 @@
 """Error against run time: every technique on every scene, measured against the reference.
 
 ``moments-ref report`` (:func:`main`, :func:`run`). What it runs, how it measures
-and what it writes is described once, in the README's section "The report"; the
+and what it writes is described once, in docs/report.md; the
 arguments are :func:`add_arguments` (shared with the command line). Each scene runs
 its techniques in one stage graph (:func:`moments_ref.pipeline.run`); each row's
 error is its reference's metric (``Technique.truth``,

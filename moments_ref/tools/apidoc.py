@@ -1,7 +1,7 @@
 """Write docs/api.md from the modules' ``__all__`` and docstring summaries, and the layout tables.
 
 ``python -m moments_ref.tools.apidoc > docs/api.md``; ``--layout`` prints the table of
-docs/architecture.md and the README's "What is where"; ``tests/test_docs.py`` checks that
+docs/architecture.md (the README links to it); ``tests/test_docs.py`` checks that
 the file lists every public name.
 """
 
@@ -72,7 +72,7 @@ def render(modules=None):
 
 
 def layout_markdown():
-    """The table of docs/architecture.md and the README's "What is where": one row per folder or flat module."""
+    """The table of docs/architecture.md: one row per folder or flat module."""
     lines = ["| layer | path | what |", "|---|---|---|"]
     for layer, path, summary in layout.layout_rows():
         lines.append(f"| {layer} | `{path}` | {summary.replace('|', '/')} |")

@@ -8,7 +8,7 @@ nothing but other leaves and the command line. The old paths of moved modules
 (:data:`moments_ref._shim.MOVED`) have no file: an import hook serves them, outside the layers.
 
 ``python -m moments_ref.tools.apidoc --layout`` prints the table of
-docs/architecture.md and the README's "What is where" from :func:`layout_rows`.
+docs/architecture.md from :func:`layout_rows` (the README links to it).
 """
 
 from __future__ import annotations
