@@ -50,27 +50,11 @@ The mpmath twin :func:`moments_ref.precise.shadow_intensity6` does steps 2–4
 literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
-Cubic solver. On 20 000 biased random six-moment cases (float64,
-:func:`cubic_solver_benchmark`), the trig-free closed form (one Newton step on
-``cos(arccos(r)/3)``, two on the cubic) is exactly as accurate as the trigonometric
-method it replaced and more than the companion-matrix eigenvalues of
-``np.linalg.eigvals`` (largest error relative to the largest root, against
-``mpmath.polyroots`` on 200 of them: 4.1e-15, 4.1e-15 and 2.4e-14), and faster
-(1.3 ms against 1.7 ms and 49 ms for all three roots). In float32 a NumPy with
-SIMD ``arctan2``/``cos`` makes the trigonometric functions cheap (``arctan2``
-0.45 ns per element on the bench's cubics, x86-64 with AVX-512; elsewhere they are
-scalar library calls); the closed form costs the same everywhere. The kernel's
-speed comes from needing one root and one weight instead of three: ``moments-ref
-bench``'s float32 input at 2048², CPU time, 59 → 22 ns per element, 60× → 23× a
-same-run copy of the traffic (docs/bench.md, "Kernel history"; the copy of the chunk
-into rows is 2.3 ns of it). Newton steps: float64 needs the step on
-``cos(arccos(r)/3)`` for a root much smaller than the others (without it 5e-3 of
-the root is left after two steps on the cubic, tests/test_msm6.py) and two on the
-cubic (one leaves 2.9× the golden tolerance on a stiff row). In float32 the
-rounding of the coefficients dominates the fit's 1.6e-7: against mpmath on the
-golden rows the worst error is 2.3e-6, 2.2e-6 and 2.1e-6 with 0, 1 and 2 steps on
-the cubic, and on 4000 stiff cases (BIAS6_FLOAT32) the bracket's worst excess is
-2.5e-4 either way, so none is taken.
+Cubic solver. The trig-free closed form is as accurate as the trigonometric method it
+replaced and more than the companion-matrix eigenvalues, and faster; the kernel's speed
+comes from needing one root and one weight instead of three. float64 takes one Newton
+step on ``cos(arccos(r)/3)`` and two on the cubic, float32 none (its coefficients'
+rounding dominates). The measurements that chose this are in docs/msm6.md.
 
 Degenerate input. When ``B(b)`` is singular the distribution with these moments
 is unique (at most three distinct depths) and ``Z(z < zf)`` is known exactly;
@@ -93,7 +77,7 @@ replace the bound by a hard step at a rounded support point). Negative pivots
 the same branches: the moments are projected onto the boundary of the moment
 space, keeping b1..b5 (or b1..b3, or b1).
 
-Bias. The slides give no six-moment bias; this module ships two presets built
+Bias. The slides give no six-moment bias; this module ships three presets built
 like HPG17 §3.2 (``b' = (1 − α) b + α b*``) with the target ``b*`` the moments
 of the symmetric five-point distribution
 ``0.4 δ0 + 0.15 (δ−1 + δ1 + δ−1/2 + δ1/2)`` (:data:`BIAS6_TARGET`; five points, so
@@ -103,31 +87,17 @@ B(b*) is positive definite: the six-moment sibling of HPG17's
 * :data:`BIAS6_FLOAT64` (α = 3e-7, as HPG17's BIAS_FLOAT32) for float64
   arithmetic: the last pivot D3 of biased moments is at least about
   ``α·D3(b*) = 1e-8`` (D3(b*) = 0.034), far above float64 rounding.
-* :data:`BIAS6_FLOAT32` (α = 3e-4) for float32 moments and arithmetic. α = 3e-7
-  is useless there: D3 of biased moments (≈ 1e-8) is below float32's rounding
-  of the pivots (≈ 1e-7), and bounds of three-point distributions at their
-  support points came out up to 1.0 above Z. Measured on 4000 stiff cases (1–6
-  depths, clustered, at ±1; zf at and next to every support point), the worst
-  ``lower − Z(z < zf)`` / ``Z(z ≤ zf) − upper`` is 1.0 / 1.0 for α = 3e-7,
-  2.1e-3 / 6.6e-3 for 1e-5, 1.2e-3 / 2.2e-3 for 1e-4, 2.5e-4 / 6.9e-4 for 3e-4,
-  8.5e-4 / 8.5e-4 for 1e-3. (That was the trigonometric kernel. The trig-free one,
-  on a sample drawn the same way: 1.0 / 1.0, 3.8e-5 / 3.4e-5, 8.5e-5 / 8.5e-5,
-  2.5e-4 / 2.5e-4, 8.5e-4 / 8.5e-4; it would allow a weaker bias, but the preset
-  is part of the golden cases and stays.)
-* :data:`BIAS6_UNORM10` (α = 1e-3, the 2×R10G10B10A2 storage of the slides).
-  Two measurements decided it. (a) :func:`measure_unorm10_bias` (4000 quantized
-  moment vectors of 1–6 random depths): the share inside the moment space after
-  biasing is 75.8 % for α = 1e-3, 93.5 % for 2e-3, 99.0 % for 3e-3, 100 % for
-  5e-3. (b) The shipped ``scattering`` scene (shadow map 256², 160×90 pixels,
-  epipolar map 128×256, ray-marching reference with 1024 samples): RMSE of the
-  normalized scattering term 0.0141, 0.0142, 0.0146, 0.0151, 0.0159, 0.0178 for
-  α = 1e-5, 1e-4, 5e-4, 1e-3, 2e-3, 5e-3 (ignoring all shadows: 0.0451).
-  The slides: "rounding errors are less malicious for single scattering": the
-  prefix means are averages of many texels and lie well inside the moment
-  space; a vector outside it is projected onto its boundary (singular branch,
-  exact Z of the projection, never NaN), which costs less than a strong bias
-  smearing every bound. α = 1e-3 keeps three quarters of even single-texel
-  vectors inside at an RMSE cost of 0.001.
+* :data:`BIAS6_FLOAT32` (α = 3e-4) for float32 moments and arithmetic: α = 3e-7
+  is useless there (D3 of biased moments, ≈ 1e-8, is below float32's rounding of
+  the pivots, ≈ 1e-7); 3e-4 gave the smallest worst bracket excess on stiff cases.
+* :data:`BIAS6_UNORM10` (α = 1e-3, the 2×R10G10B10A2 storage of the slides): it
+  keeps three quarters of even single-texel quantized vectors inside the moment
+  space at an RMSE cost of 0.001 on the ``scattering`` scene; a vector outside is
+  projected onto the boundary (singular branch, never NaN). The slides: "rounding
+  errors are less malicious for single scattering".
+
+The measurements behind each α (:func:`measure_unorm10_bias`, the stiff cases, the
+scattering scene) are in docs/msm6.md.
 
 References
 ----------
