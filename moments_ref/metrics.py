@@ -19,7 +19,7 @@ import numpy as np
 
 from .scene.gbuffer import OCCLUDER, OUTSIDE_LIGHT
 
-__all__ = ["LEAK_THRESHOLD", "metrics", "shaded_image", "flip_mean", "flip_available"]
+__all__ = ["LEAK_THRESHOLD", "metrics", "light_metrics", "shaded_image", "flip_mean", "flip_available"]
 
 #: A pixel leaks when it is lit more than this above the reference.
 LEAK_THRESHOLD = 0.05
@@ -44,6 +44,17 @@ def metrics(shadow, reference):
         "p99_error": float(np.percentile(a, 99)) if finite else math.nan,
         "leak_fraction": float(np.mean(e < -LEAK_THRESHOLD)) if finite else math.nan,
     }
+
+
+def light_metrics(light, reference, scale=1.0):
+    """Error statistics of a light quantity (in-scattered light, visibility) against the reference.
+
+    The statistics of :func:`metrics` in units of ``scale`` (the scattering term's ``t_max``),
+    for a quantity that leaks where it is *brighter* than the reference by more than
+    :data:`LEAK_THRESHOLD`: the shadow intensities ``−light/scale`` and ``−reference/scale``
+    (a constant offset, as in ``1 − light``, would cancel in every statistic).
+    """
+    return metrics(-np.asarray(light, dtype=np.float64) / scale, -np.asarray(reference, dtype=np.float64) / scale)
 
 
 def shaded_image(gbuffer, shadow):

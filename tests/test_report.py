@@ -91,6 +91,18 @@ def test_metrics_by_hand():
     assert report.metrics(s, s)["leak_fraction"] == 0.0
 
 
+def test_light_metrics_by_hand():
+    """Scattered light leaks where it is brighter than the reference (by more than 0.05 of t_max)."""
+    from moments_ref.metrics import light_metrics
+
+    light = np.array([2.0, 1.0, 0.0, 1.5])
+    ref = np.array([1.0, 1.0, 0.5, 1.45])  # errors / t_max: +0.5, 0, -0.25, +0.025
+    m = light_metrics(light, ref, 2.0)
+    assert m["rmse"] == pytest.approx(math.sqrt((0.25 + 0.0625 + 0.025 ** 2) / 4))
+    assert m["max_error"] == pytest.approx(0.5)
+    assert m["leak_fraction"] == 0.25  # only the first is brighter by more than 0.05; the last by 0.025
+
+
 def test_flip_of_identical_images_is_zero():
     pytest.importorskip("flip_evaluator")
     img = np.random.default_rng(0).random((20, 30, 3)).astype(np.float32)

@@ -25,7 +25,7 @@ import numpy as np
 from ..._arrays import InputError
 from ..._shim import renamed_keywords
 from ...gpu.filtering import check_depth_samples
-from ...metrics import flip_mean
+from ...metrics import flip_mean, light_metrics
 from ...scene.depth import window_scale, x_window_from_ndc, y_window_from_ndc
 from ...scene.raster import rasterize_depth, unproject_points
 from .epipolar import AXIS_ANGLE, FAR_NDC, epipolar_depth
@@ -192,15 +192,6 @@ def pixel_epipolar(rays, frame):
     return uv, epipolar_depth(theta)
 
 
-def _metrics(img, ref, t_max):
-    e = (np.asarray(img) - np.asarray(ref)) / t_max  # normalized scattering: 1 = a fully lit ray of t_max
-    a = np.abs(e)
-    return {"rmse": float(np.sqrt(np.mean(e * e))), "max_error": float(a.max()),
-            "p99_error": float(np.percentile(a, 99)),
-            # leaking light: scattering brighter than the reference by more than 0.05
-            "leak_fraction": float(np.mean(e > 0.05))}
-
-
 def _ldr(img, t_max):
     x = np.clip(np.asarray(img, dtype=np.float64) / t_max, 0, 1)
     return np.repeat(x[..., None], 3, axis=2).astype(np.float32)
@@ -208,7 +199,7 @@ def _ldr(img, t_max):
 
 def scattering_metric(img, ref, t_max):
     """Error columns of a scattering image against the reference (normalized by ``t_max``) and mean ꟻLIP."""
-    return {**_metrics(img, ref, t_max), "flip_mean": flip_mean(_ldr(ref, t_max), _ldr(img, t_max))}
+    return {**light_metrics(img, ref, t_max), "flip_mean": flip_mean(_ldr(ref, t_max), _ldr(img, t_max))}
 
 
 def scattering_figure(images, t_max):
