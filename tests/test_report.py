@@ -207,3 +207,32 @@ def test_the_copy_rate_is_the_best_of_its_cpu_times(monkeypatch):
     assert _machine.copy_rate(nbytes=2 ** 20, repeat=3) == 2 ** 23
     text = " ".join(_machine.machine_lines(_machine.machine(), 5.25e9))
     assert "128 MiB, best of 3 in CPU seconds): 5.25 GB/s" in text
+
+
+def test_the_column_table_of_docs_report_is_generated():
+    """docs/report.md lists results.csv's columns from moments_ref/report/columns.py, the one list."""
+    from pathlib import Path
+
+    from moments_ref.report.columns import COLUMN_TABLE, COLUMNS, FLOAT_COLUMNS, columns_markdown
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "report.md").read_text()
+    table = text.split("<!-- columns: begin -->\n", 1)[1].split("\n<!-- columns: end -->", 1)[0]
+    assert table == columns_markdown(), "regenerate with moments_ref.report.columns.columns_markdown()"
+    assert report.COLUMNS == COLUMNS and len(set(COLUMNS)) == len(COLUMNS)
+    assert {"rmse", "flip_mean", "own_total_seconds_max"} <= set(FLOAT_COLUMNS)
+    assert not {"scene", "bits_per_texel", "repeats", "pareto"} & set(FLOAT_COLUMNS)
+    assert {c.kind for c in COLUMN_TABLE} == {"text", "int", "float", "bool"}
+
+
+def test_results_csv_reads_back_by_column_kind(tmp_path):
+    """csv_text then read_results gives each column back in its kind (by name, not by position)."""
+    from moments_ref.report._text import csv_text, read_results
+    from moments_ref.report.columns import COLUMNS
+
+    row = {c: 0.25 for c in COLUMNS}
+    row.update(scene="s", technique="msm64", bits_per_texel=64, repeats=3, pareto=True, flip_mean=float("nan"))
+    (tmp_path / "results.csv").write_text(csv_text([row]))
+    back = read_results(tmp_path / "results.csv")[0]
+    assert back.pop("bits_per_texel") == 64 and back.pop("repeats") == 3 and back.pop("pareto") is True
+    assert back.pop("scene") == "s" and back.pop("technique") == "msm64" and math.isnan(back.pop("flip_mean"))
+    assert back == {c: 0.25 for c in back} and len(back) == len(COLUMNS) - 6

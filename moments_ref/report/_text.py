@@ -25,16 +25,10 @@ from ..metrics import LEAK_THRESHOLD
 from .. import techniques as _techniques
 from ._crops import crop_lines
 from ._pareto import FRONT_RULE
+from .columns import COLUMNS, parse_row
 
 __all__ = ["COLUMNS", "CLOSE_REL", "CLEARLY_BELOW", "read_results", "evaluate_claims", "markdown", "csv_text"]
 
-#: Columns of results.csv, in order.
-COLUMNS = ("scene", "technique", "bits_per_texel", "rmse", "max_error", "p99_error", "leak_fraction",
-           "flip_mean", "texel_seconds", "texel_seconds_min", "texel_seconds_max", "fragment_seconds",
-           "fragment_seconds_min", "fragment_seconds_max", "own_total_seconds", "own_total_seconds_min",
-           "own_total_seconds_max", "repeats", "pareto")
-#: The float columns (all but scene, technique, bits_per_texel, repeats and pareto).
-_FLOATS = COLUMNS[3:-2]
 #: Relative tolerances of the verdicts (stated in report.md).
 CLOSE_REL = 0.10
 CLEARLY_BELOW = 0.90
@@ -59,19 +53,12 @@ def csv_text(rows):
 
 
 def read_results(path):
-    """Read a ``results.csv`` into a list of dicts (numbers as float, bits as int)."""
+    """Read a ``results.csv`` into a list of dicts, each column parsed by its kind (:mod:`.columns`)."""
     with open(path, newline="", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     if rows and set(COLUMNS) - set(rows[0]):
         raise InputError(f"results: {path} lacks columns {sorted(set(COLUMNS) - set(rows[0]))}")
-    out = []
-    for r in rows:
-        d = {"scene": r["scene"], "technique": r["technique"], "bits_per_texel": int(r["bits_per_texel"]),
-             "repeats": int(r["repeats"]), "pareto": r["pareto"] == "true"}
-        for c in _FLOATS:
-            d[c] = float(r[c])
-        out.append(d)
-    return out
+    return [parse_row(r) for r in rows]
 
 
 def evaluate_claims(rows, four_moment=None):
