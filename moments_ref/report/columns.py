@@ -6,6 +6,13 @@ report.md's results table), the float columns, how a column is parsed back
 kept current by ``tests/test_report.py``) all come from it. A new column is one
 :class:`Column` here and the code that computes its value (docs/architecture.md,
 "How do I").
+
+References
+----------
+.. [1] FLIP: Pontus Andersson, Jim Nilsson, Tomas Akenine-Möller, Magnus Oskarsson, Kalle Åström
+       and Mark D. Fairchild. 2020. *ꟻLIP: A Difference Evaluator for Alternating Images*.
+       Proceedings of the ACM on Computer Graphics and Interactive Techniques (HPG 2020) 3, 2. Used
+       through the package ``flip-evaluator``.
 """
 
 from __future__ import annotations
