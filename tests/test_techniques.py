@@ -354,3 +354,25 @@ def test_float32_shading_dtype():
         t = T.get(name)
         assert t.shadow(t.prepare(z), [[3.0, 4.0]], [0.5]).dtype == np.float32
     assert T.get("pcf").shadow(z, [[3.0, 4.0]], [0.5]).dtype == np.float64
+
+
+def test_every_shadow_names_the_depth_space_it_takes():
+    """``Technique.shadow``'s depth argument is named by its space: ``z_ndc_light`` (the shadow-map
+    techniques) or ``z_epipolar`` (the scattering techniques); ``depth=`` still works, warning."""
+    import inspect
+
+    from moments_ref.techniques.scattering import SCATTERING_TECHNIQUES
+
+    techs = {**T.TECHNIQUES, **SCATTERING_TECHNIQUES}
+    for name, t in techs.items():
+        third = list(inspect.signature(t.shadow).parameters)[2]
+        assert third == t.depth_space, name
+    assert {t.depth_space for t in techs.values()} == {"z_ndc_light", "z_epipolar"}
+    assert all(t.depth_space == "z_epipolar" for t in SCATTERING_TECHNIQUES.values())
+    pcf = T.get("pcf")
+    z = np.zeros((4, 4, 1), np.float32)
+    with pytest.warns(DeprecationWarning, match=r"shadow\(depth=...\) is now shadow\(z_ndc_light=...\)"):
+        old = pcf.shadow(z, [[1.0, 1.0]], depth=[0.5])
+    assert old == pcf.shadow(z, [[1.0, 1.0]], z_ndc_light=[0.5])
+    with pytest.raises(InputError, match="z_ndc_light"):
+        pcf.shadow(z, [[1.0, 1.0]], ["a"])

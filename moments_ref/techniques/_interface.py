@@ -26,6 +26,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .._arrays import InputError, real_input
+from .._shim import renamed_keywords
 from ..scene.gbuffer import z_ndc_lookup
 
 __all__ = [
@@ -313,7 +314,7 @@ class Technique:
         MSAA samples, opaque or layered. An empty chain means the texture is the
         shadow map itself (PCF).
     lookup : callable ``(texture, uv, zf, noise) -> intensity``
-        Shadow intensity at the already biased depth ``zf``.
+        Shadow intensity at the already biased depth ``zf`` (in :attr:`depth_space`).
     description, reference : str
         One line each: what it is, where it comes from.
     needs_noise : bool
@@ -417,7 +418,12 @@ class Technique:
             x = step.fn(x, p)
         return x
 
-    def shadow(self, texture, uv, depth, noise=None):
+    #: The depth space :meth:`shadow` takes (the name of its third argument): light NDC,
+    #: [-1, 1], the papers' fragment depth zf (docs/architecture.md, "Depth conventions").
+    depth_space = "z_ndc_light"
+
+    @renamed_keywords(depth="z_ndc_light")
+    def shadow(self, texture, uv, z_ndc_light, noise=None):
         """Shadow intensity in [0, 1] of fragments (1 = fully shadowed).
 
         Parameters
@@ -426,9 +432,10 @@ class Technique:
             Output of :meth:`prepare`.
         uv : (..., 2) float array
             Texel coordinates (module docstring).
-        depth : (...) float array
-            Fragment depth in the light's NDC; the technique's ``depth_bias`` is
-            subtracted here.
+        z_ndc_light : (...) float array
+            Fragment depth in the light's NDC, [-1, 1] (HPG17's zf; for a G-buffer
+            :func:`moments_ref.scene.gbuffer.z_ndc_lookup`); the technique's
+            ``depth_bias`` is subtracted here. (``depth=`` is its old name.)
         noise : (..., 2) float array in [0, 1], optional
             Per-fragment blue noise (:func:`moments_ref.gpu.bluenoise.frame_noise`);
             required when ``needs_noise``.
@@ -437,21 +444,25 @@ class Technique:
         -------
         intensity : (...) float array
         """
-        uv, zf = check_uv_depth(uv, depth)
+        return self.shadow_at(texture, uv, z_ndc_light, noise)
+
+    def shadow_at(self, texture, uv, z, noise=None):
+        """:meth:`shadow` with the depth ``z`` in this technique's :attr:`depth_space` (validated under that name)."""
+        uv, zf = check_uv_depth(uv, z, self.depth_space)
         if self.needs_noise and noise is None:
             raise InputError(f"noise: technique {self.name!r} needs per-fragment blue noise (..., 2), got None")
         zf = zf - zf.dtype.type(self.depth_bias)
         return self.lookup(texture, uv, zf, noise)
 
 
-def check_uv_depth(uv, depth):
-    """Validate ``uv`` (..., 2) and ``depth`` broadcastable to ``uv[..., 0]``; float64 both."""
+def check_uv_depth(uv, depth, name="depth"):
+    """Validate ``uv`` (..., 2) and ``depth`` (called ``name`` in errors) broadcastable to ``uv[..., 0]``; float64 both."""
     uv = real_input(uv, "uv", trailing=2, dtype=np.float64)
-    zf = real_input(depth, "depth", dtype=np.float64)
+    zf = real_input(depth, name, dtype=np.float64)
     try:
         shape = np.broadcast_shapes(uv.shape[:-1], zf.shape)
     except ValueError:
-        raise InputError(f"depth: expected a shape broadcastable to uv.shape[:-1] {uv.shape[:-1]}, "
+        raise InputError(f"{name}: expected a shape broadcastable to uv.shape[:-1] {uv.shape[:-1]}, "
                          f"got {zf.shape}") from None
     return np.broadcast_to(uv, shape + (2,)), np.broadcast_to(zf, shape)
 

@@ -126,7 +126,7 @@ import time
 import numpy as np
 
 from ..._arrays import InputError
-from ..._shim import renamed_keys
+from ..._shim import renamed_keys, renamed_keywords
 from ...affine import encode_r10g10b10a2
 from .._interface import Plan, Reference, Stage, Step, Technique, register, register_reference
 from .._steps import moment_steps
@@ -137,6 +137,7 @@ from .rays import (CameraRays, camera_rays, check_directional, pixel_epipolar, r
                    scattering_metric, write_images)
 
 __all__ = [
+    "EpipolarTechnique",
     "FAR_NDC",
     "AXIS_ANGLE",
     "EpipolarFrame",
@@ -217,10 +218,34 @@ def _lookup(texture, uv, zf, noise):
     return deferred_shadow(texture, uv, zf)
 
 
-#: Filtered resampling (Slides, "Resampling with filtering"). ``shadow(texture, uv, depth)``
+class EpipolarTechnique(Technique):
+    """A six-moment scattering technique: its lookup takes epipolar coordinates and epipolar depth."""
+
+    depth_space = "z_epipolar"
+
+    @renamed_keywords(depth="z_epipolar")
+    def shadow(self, texture, uv, z_epipolar, noise=None):
+        """Shadowed fraction of view rays (:func:`deferred_shadow`).
+
+        Parameters
+        ----------
+        texture : the prefix means of :meth:`prepare`
+        uv : (..., 2) float array, epipolar texel coordinates of the view rays
+        z_epipolar : (...) float array, epipolar depth ``1 − 2θ/π`` of the view rays
+            (:func:`epipolar_depth`; ``depth=`` is its old name)
+        noise : unused
+
+        Returns
+        -------
+        fraction : (...) float array
+        """
+        return self.shadow_at(texture, uv, z_epipolar, noise)
+
+
+#: Filtered resampling (Slides, "Resampling with filtering"). ``shadow(texture, uv, z_epipolar)``
 #: takes epipolar coordinates (see :func:`deferred_shadow`) and returns the shadowed
 #: fraction of the view ray.
-SCATTERING_6M = Technique(
+SCATTERING_6M = EpipolarTechnique(
     name="scattering_6m", bits_per_texel=64, depth_bias=0.0, make_steps=_steps_filtered, lookup=_lookup,
     description="prefiltered single scattering, 6 moments in 2×R10G10B10A2, filtered epipolar resampling",
     reference="Slides, 'Prefiltered single scattering with 6 moments'; Klehm et al. 2014",
@@ -228,7 +253,7 @@ SCATTERING_6M = Technique(
     truth="raymarch", requires_medium=True,
 )
 #: Unfiltered resampling (Slides, "Resampling without filtering"): aliased.
-SCATTERING_6M_UNFILTERED = Technique(
+SCATTERING_6M_UNFILTERED = EpipolarTechnique(
     name="scattering_6m_unfiltered", bits_per_texel=64, depth_bias=0.0, make_steps=_steps_unfiltered,
     lookup=_lookup,
     description="prefiltered single scattering, 6 moments, epipolar resampling of the plain depth map",
