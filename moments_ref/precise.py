@@ -364,6 +364,14 @@ def shadow_bounds(b, zf, dps=DPS):
 
 
 @fill_doc
+def _one_bound(bounds, b, zf, bound, dps):
+    """``bound`` ("lower" or "upper") of ``bounds(b, zf, dps=dps)``, the one check of its name."""
+    if bound not in ("lower", "upper"):
+        raise InputError(f"bound: expected 'lower' or 'upper', got {bound!r}")
+    lower, upper = bounds(b, zf, dps=dps)
+    return lower if bound == "lower" else upper
+
+
 def shadow_intensity(b, zf, bound="lower", dps=DPS):
     """mpmath twin of :func:`moments_ref.msm.shadow_intensity` (HPG17 Algorithm 1).
 
@@ -391,10 +399,7 @@ def shadow_intensity(b, zf, bound="lower", dps=DPS):
     >>> shadow_intensity([[0.0, 0.25, 0.0, 0.0625]], [0.0])
     array([0.5])
     """
-    if bound not in ("lower", "upper"):
-        raise InputError(f"bound: expected 'lower' or 'upper', got {bound!r}")
-    lower, upper = shadow_bounds(b, zf, dps=dps)
-    return lower if bound == "lower" else upper
+    return _one_bound(shadow_bounds, b, zf, bound, dps)
 
 
 def canonical_representation(b, zf, dps=DPS):
@@ -729,10 +734,7 @@ def shadow_intensity6(b, zf, bound="lower", dps=DPS):
     >>> shadow_intensity6([[0.0, 0.25, 0.0, 0.0625, 0.0, 0.015625]], [0.0])
     array([0.5])
     """
-    if bound not in ("lower", "upper"):
-        raise InputError(f"bound: expected 'lower' or 'upper', got {bound!r}")
-    lower, upper = shadow_bounds6(b, zf, dps=dps)
-    return lower if bound == "lower" else upper
+    return _one_bound(shadow_bounds6, b, zf, bound, dps)
 
 
 def canonical_representation6(b, zf, dps=DPS):
