@@ -217,7 +217,7 @@ def test_the_column_table_of_docs_report_is_generated():
 
     text = (Path(__file__).resolve().parents[1] / "docs" / "report.md").read_text()
     table = text.split("<!-- columns: begin -->\n", 1)[1].split("\n<!-- columns: end -->", 1)[0]
-    assert table == columns_markdown(), "regenerate with moments_ref.report.columns.columns_markdown()"
+    assert table == columns_markdown(), "regenerate: python -m moments_ref.tools.apidoc --columns"
     assert report.COLUMNS == COLUMNS and len(set(COLUMNS)) == len(COLUMNS)
     assert {"rmse", "flip_mean", "own_total_seconds_max"} <= set(FLOAT_COLUMNS)
     assert not {"scene", "bits_per_texel", "repeats", "pareto"} & set(FLOAT_COLUMNS)

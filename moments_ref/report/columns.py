@@ -2,8 +2,8 @@
 
 :data:`COLUMN_TABLE` is the one list: :data:`COLUMNS` (the order of results.csv and of
 report.md's results table), the float columns, how a column is parsed back
-(:func:`parse_row`) and the column list of docs/report.md (:func:`columns_markdown`,
-kept current by ``tests/test_report.py``) all come from it. A new column is one
+(:func:`parse_row`) and the column list of docs/report.md (:func:`columns_markdown`;
+``python -m moments_ref.tools.apidoc --columns`` rewrites it, ``tests/test_report.py`` keeps it current) all come from it. A new column is one
 :class:`Column` here and the code that computes its value (docs/architecture.md,
 "How do I").
 
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from ..metrics import LEAK_THRESHOLD
 
-__all__ = ["Column", "COLUMN_TABLE", "COLUMNS", "FLOAT_COLUMNS", "parse_row", "columns_markdown"]
+__all__ = ["Column", "COLUMN_TABLE", "COLUMNS", "FLOAT_COLUMNS", "MARKERS", "parse_row", "columns_markdown", "write_docs"]
 
 
 @dataclass(frozen=True)
@@ -81,3 +81,21 @@ def columns_markdown():
     lines = ["| column | type | what |", "|---|---|---|"]
     lines += [f"| `{c.name}` | {c.kind} | {c.what} |" for c in COLUMN_TABLE]
     return "\n".join(lines)
+
+
+#: The markers around the generated table in docs/report.md.
+MARKERS = ("<!-- columns: begin -->\n", "\n<!-- columns: end -->")
+
+
+def write_docs(path):
+    """Rewrite the column table between :data:`MARKERS` in ``path`` (docs/report.md); return the path."""
+    from pathlib import Path
+
+    from .._io import write_text
+
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    head, rest = text.split(MARKERS[0], 1)
+    _, tail = rest.split(MARKERS[1], 1)
+    return write_text(path, head + MARKERS[0] + columns_markdown() + MARKERS[1] + tail)
+

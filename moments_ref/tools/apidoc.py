@@ -1,7 +1,8 @@
 """Write docs/api.md from the modules' ``__all__`` and docstring summaries, and the layout tables.
 
 ``python -m moments_ref.tools.apidoc > docs/api.md``; ``--layout`` prints the table of
-docs/architecture.md (the README links to it); ``tests/test_docs.py`` checks that
+docs/architecture.md (the README links to it); ``--columns`` rewrites the column table
+of docs/report.md (:mod:`moments_ref.report.columns`); ``tests/test_docs.py`` checks that
 the file lists every public name.
 """
 
@@ -10,6 +11,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import sys
+from pathlib import Path
 
 from . import layout
 
@@ -80,4 +82,9 @@ def layout_markdown():
 
 
 if __name__ == "__main__":  # pragma: no cover
-    print(layout_markdown() if "--layout" in sys.argv[1:] else render())
+    if "--columns" in sys.argv[1:]:  # the column table of docs/report.md, rewritten in the source tree
+        from ..report.columns import write_docs
+
+        print(f"wrote {write_docs(Path(__file__).resolve().parents[2] / 'docs' / 'report.md')}")
+    else:
+        print(layout_markdown() if "--layout" in sys.argv[1:] else render())
