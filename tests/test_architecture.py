@@ -618,3 +618,68 @@ def test_the_project_refers_to_no_file_outside_it():
         text = p.read_text(encoding="utf-8", errors="replace")
         bad += [f"{p.relative_to(repo)}:{i}" for i, line in enumerate(text.splitlines(), 1) if outside.search(line)]
     assert bad == [], f"references to files outside the repository: {bad[:10]}"
+
+
+# ---------------------------------------------------------------------------
+# the "How do I" recipes of docs/architecture.md stay true
+
+#: The recipes the page must hold, and those that must touch at most three files.
+RECIPES = ("Add a report column", "Add a technique", "Add a golden case", "Add a profile key",
+           "Add a port language", "Add a sweep sampler")
+AT_MOST_THREE = ("Add a report column", "Add a technique")
+_ENTRY = re.compile(r"`(?P<path>[^`]+)`(?P<rest>\s*(?:\*\([^)]*\)\*|\([^)]*\)))?")
+
+
+def recipes(text: str) -> dict:
+    """Recipe title -> list of slots (``;``-separated), each a list of ``(path, names, pending)``."""
+    body = text.split("\n## How do I\n", 1)[1].split("\n## ", 1)[0]
+    out = {}
+    for part in body.split("\n### ")[1:]:
+        title, _, rest = part.partition("\n")
+        line = next((ln for ln in rest.splitlines() if ln.startswith("**Touches:**")), "")
+        slots = []
+        for slot in line.removeprefix("**Touches:**").split(";"):
+            entries = [(m["path"], re.findall(r"`([^`]+)`", m["rest"] or ""), "being built" in (m["rest"] or ""))
+                       for m in _ENTRY.finditer(slot)]
+            if entries:
+                slots.append(entries)
+        out[title.strip()] = slots
+    return out
+
+
+def recipe_problems(text: str, root: Path) -> list:
+    """Files a recipe names that are missing, or that lack a name the recipe says they hold."""
+    bad = []
+    for title, slots in recipes(text).items():
+        if not slots:
+            bad.append(f"{title}: no **Touches:** line")
+        for path, names, pending in (e for slot in slots for e in slot):
+            p = root / path
+            if not p.exists():
+                if not pending:
+                    bad.append(f"{title}: {path} does not exist")
+                continue
+            files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
+            source = "\n".join(f.read_text(encoding="utf-8") for f in files)
+            bad += [f"{title}: {path} does not hold {n!r}" for n in names if n not in source]
+    return bad
+
+
+def test_the_recipes_name_files_that_hold_what_they_say():
+    text = (ROOT.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    found = recipes(text)
+    assert [r for r in RECIPES if r not in found] == []
+    assert recipe_problems(text, ROOT.parent) == []
+    for title in AT_MOST_THREE:
+        assert len(found[title]) <= 3, (title, found[title])
+
+
+def test_the_recipe_check_fails_on_a_stale_recipe(tmp_path):
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "reg.py").write_text("TABLE = {}\n")
+    doc = ("# x\n\n## How do I\n\n### Add a thing\n\nText.\n\n**Touches:** `pkg/reg.py` (`TABLE`, `GONE`); "
+           "`pkg/missing.py`; `pkg/later/` *(being built)*; `pkg/` (`TABLE`)\n\n### Add nothing\n\nNo list.\n\n## Next\n")
+    assert recipes(doc)["Add a thing"][0] == [("pkg/reg.py", ["TABLE", "GONE"], False)]
+    assert recipe_problems(doc, tmp_path) == ["Add a thing: pkg/reg.py does not hold 'GONE'",
+                                              "Add a thing: pkg/missing.py does not exist",
+                                              "Add nothing: no **Touches:** line"]
