@@ -363,7 +363,6 @@ def shadow_bounds(b, zf, dps=DPS):
     return lower, upper
 
 
-@fill_doc
 def _one_bound(bounds, b, zf, bound, dps):
     """``bound`` ("lower" or "upper") of ``bounds(b, zf, dps=dps)``, the one check of its name."""
     if bound not in ("lower", "upper"):
@@ -372,6 +371,7 @@ def _one_bound(bounds, b, zf, bound, dps):
     return lower if bound == "lower" else upper
 
 
+@fill_doc
 def shadow_intensity(b, zf, bound="lower", dps=DPS):
     """mpmath twin of :func:`moments_ref.msm.shadow_intensity` (HPG17 Algorithm 1).
 
