@@ -240,6 +240,25 @@ def test_modules_below_a_moved_package_follow_it():
     assert new_path("moments_ref.vwss.compare") == "moments_ref.report.vwss"  # the longest old path decides
     assert new_path("moments_ref.vwss.shading") == "moments_ref.techniques.vwss.shading"
     assert new_path("moments_ref.msm") is None and new_path("numpy.core") is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        scope = {}
+        exec("from moments_ref.vwss import compare, shading\nfrom moments_ref import banks", scope)
+    assert scope["compare"] is importlib.import_module("moments_ref.report.vwss")
+    assert scope["shading"] is importlib.import_module("moments_ref.techniques.vwss.shading")
+    assert scope["banks"] is importlib.import_module("moments_ref.gpu.banks")
+
+
+def test_the_package_never_goes_through_an_old_path():
+    """A fresh interpreter imports the package's layers with DeprecationWarning as an error; an old path raises it."""
+    import subprocess
+    import sys
+
+    layers = "moments_ref, moments_ref.pipeline, moments_ref.report, moments_ref.golden, moments_ref.tools.bench"
+    run = [sys.executable, "-W", "error::DeprecationWarning", "-c"]
+    assert subprocess.run(run + [f"import {layers}, moments_ref.cli"], capture_output=True).returncode == 0
+    old = subprocess.run(run + ["import moments_ref.filtering"], capture_output=True, text=True)
+    assert old.returncode == 1 and "moments_ref.filtering moved to moments_ref.gpu.filtering" in old.stderr
 
 
 def test_every_renamed_name_forwards_and_warns():
