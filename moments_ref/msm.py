@@ -74,7 +74,7 @@ import numpy as np
 
 from ._arrays import InputError, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
+from ._kernels import MSM_CHUNK, SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
 
 __all__ = [
     "shadow_intensity",
@@ -88,9 +88,9 @@ __all__ = [
 # Algorithm 2), shared with msm6 and nonlinear; re-exported here (public names).
 _two_point = two_point
 
-#: Texels per chunk of :func:`shadow_intensity` (measured fastest of 2^13..2^17 at
-#: 2048²: the per-call cost of ~60 ufuncs outweighs the temporaries leaving L2).
-CHUNK = 1 << 15
+#: Texels per chunk of :func:`shadow_intensity` (the value and its reason:
+#: :data:`moments_ref._kernels.MSM_CHUNK`).
+CHUNK = MSM_CHUNK
 
 
 def _constants(dtype, n):
@@ -311,31 +311,38 @@ def _kernel(b, zf, want, c, dest, refuse):
 def _bound_rows(b, zf, bound, c, dest):
     """One bound of Algorithm 1 on the regular texels of a chunk, in the slides' formulation; or None.
 
-    Steps (1)–(2) as :func:`_cholesky` and :func:`_solve`; step (3) by the textbook roots of
-    the monic ``z² + p z + q`` (``p = q1/q2``, ``q = q0/q2``), as the slides' "Compute the
-    shadow intensity" takes them; step (4) only for the weight that step (5) needs: in the
+    Steps (1)–(2) as :func:`_cholesky` and :func:`_solve`; step (3) by the cancellation-free
+    roots of :func:`_roots` (the slides' textbook roots ``−p/2 ∓ √(p²/4 − q)`` of the monic
+    quadratic save five passes but lose up to 6e-8 in float64 for zf 1e-9 below a support
+    point, where this form keeps 1e-12); step (4) only for the weight that step (5) needs: in the
     slides' quotient form, ``w1 = ((zf − b1)(z2 − b1) + σ²) / ((z2 − z1)(zf − z1))`` (the
     Lagrange weight of z1, its numerator ``zf z2 − b1 (zf + z2) + b2`` rewritten with
     ``b2 = σ² + b1²``), and ``1 − w0`` beyond z2. About 60 passes over the chunk instead
     of the ~75 of :func:`_kernel`. Where B(b) is singular (module docstring) or the result is
-    not finite (zf at a support point sends q2 → 0 and the monic coefficients to ±∞), the
-    texels are handed to :func:`_kernel`, whose roots avoid the cancellation; their
-    indices are returned (None when there are none).
+    not finite (zf at a support point sends q2 → 0 and a root to ±∞, the quotient to ∞/∞;
+    a discriminant rounded below 0), the texels are handed to :func:`_kernel`, which has the
+    limits of both; their indices are returned (None when there are none).
     """
     ws, b1 = c["ws"], b[0]
     sigma2, l32, xi4 = _cholesky(b, ws)
     q0, q1, q2, w0 = _solve(b, zf, sigma2, l32, xi4, ws)
     y2, h, r = ws[7], ws[8], q1
-    # Step (3): z1,2 = −p/2 ∓ √(p²/4 − q).
-    np.divide(q1, q2, out=h)
-    np.multiply(h, -0.5, out=h)
-    np.divide(q0, q2, out=q0)
+    # Step (3) without cancellation (as _roots, q2 → 0 makes the texel irregular):
+    # s = h + sign(h)·√(h² − q2 q0) with h = −q1/2; the roots are s/q2 and q0/s (Vieta).
+    np.multiply(q1, -0.5, out=h)
     np.multiply(h, h, out=r)
-    np.subtract(r, q0, out=r)
-    np.sqrt(r, out=r)
+    np.multiply(q2, q0, out=l32)  # L32 is used up
+    np.subtract(r, l32, out=r)
+    np.sqrt(r, out=r)  # NaN for a negative discriminant: the texel goes to _kernel
+    sign, bits = c["sign"], c["bits"]
+    np.bitwise_and(h.view(sign.dtype), sign, out=bits)
+    np.bitwise_or(r.view(sign.dtype), bits, out=r.view(sign.dtype))
+    np.add(h, r, out=h)
+    np.divide(h, q2, out=r)
+    np.divide(q0, h, out=h)
     z1, z2 = q0, q2
-    np.subtract(h, r, out=z1)
-    np.add(h, r, out=z2)
+    np.minimum(r, h, out=z1)
+    np.maximum(r, h, out=z2)
     # Step (4), the weight of z1: w1 = ((zf − b1)(z2 − b1) + σ²) / ((z2 − z1)(zf − z1)).
     w1 = h
     np.subtract(z2, b1, out=w1)
