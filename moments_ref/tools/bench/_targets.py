@@ -237,7 +237,8 @@ def run_targets(quick=False, repeat=None, raster=True):
     n_small = 16_384 if quick else 1 << 20
     cases = [(f"small-{n_small}-1x", f"{_count(n_small)} small triangles 1×", 1.25),
              (f"small-{n_small}-4x", f"{_count(n_small)} small triangles 4×", 1.25),
-             ("railing-4x", "railing 2048² 4×", 2.0)]
+             ("mid-4096-4x", "4k triangles of about 150 px, 2048² 4×", 2.5),
+             ("railing-4x", "railing 2048² 4×", 2.5)]
     if quick:
         cases = cases[:1]
     repeat = repeat or (3 if quick else PAIRS)
