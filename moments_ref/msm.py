@@ -17,7 +17,11 @@ line):
 * Step (4) is replaced by HPG17 §3.4's ``w_l = 1 / ((1, z_l, z_l²) B⁻¹ (1, z_l, z_l²)ᵀ)``
   (Peters and Klein 2015, Prop. 10), evaluated as ``Σ (L⁻¹v)_i² / D_i``: it
   needs no Vandermonde solve, is exactly 0 for a root at infinity and is
-  positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The mpmath twin
+  positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The bounds alone
+  (:func:`shadow_intensity`) take the slides' shorter route where it is as accurate:
+  only the weight that step (5) needs, w1 as the slides' quotient (Lagrange weight)
+  and ``1 − w0`` beyond z2, with the texels where that has no finite value handed to
+  the full kernel (:func:`_bound_rows`). The mpmath twin
   in :mod:`moments_ref.precise` solves the Vandermonde system literally and
   serves as the independent check.
 
