@@ -23,12 +23,28 @@ import numpy as np
 
 from ._arrays import float_dtype
 
-__all__ = ["CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "WARP_BLOCK",
-           "SHADING_BLOCK", "FILTER_BAND_BYTES", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
+__all__ = ["CHUNK", "MSM_CHUNK", "SHADE_CHUNK", "PHI_CHUNK", "ENCODE_CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "WARP_BLOCK",
+           "SHADING_BLOCK", "FILTER_BAND_BYTES", "RESOLVE_BYTES", "PATH_BAND_TEXELS", "RASTER_ROW_BUDGET", "RASTER_SAMPLE_BUDGET", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
 
-#: Texels per chunk in the vectorized kernels (keeps temporaries in L2 cache).
+#: Texels per chunk of the six-moment kernel (:mod:`moments_ref.msm6`) and the default of
+#: :func:`broadcast_chunks`: its ~140 passes hold twice the live rows of Algorithm 1, which at
+#: 2^15 leave a core's L2.
 CHUNK = 1 << 14
+#: Texels per chunk of :func:`moments_ref.msm.shadow_intensity` (Algorithm 1): a ufunc call costs
+#: about 0.4 µs whatever its length, so short chunks pay it ~60 times each; at 2^15 its nine float
+#: workspace rows (1.2 MB in float32) still sit in the 2 MiB L2. Measured at 2048² float32, same
+#: run, ratio to a copy of the traffic: 2^12 22.4×, 2^13 15.6×, 2^14 13.4×, 2^15 12.5×, 2^16 12.6×.
+MSM_CHUNK = 1 << 15
+#: Texels per chunk of :func:`moments_ref.nonlinear.shade` (Algorithm 3; same trade-off as
+#: MSM_CHUNK: measured fastest of 2^13..2^17 at 2048² for its ~50 passes).
+SHADE_CHUNK = 1 << 15
+#: Texels per chunk of :func:`moments_ref.nonlinear.phi` (Algorithm 2 and Ψ4): its rows are four
+#: wide in and out, so 8192 texels keep input, output and temporaries in L2.
+PHI_CHUNK = 8192
+#: Texels per chunk of the texel encoders of :mod:`moments_ref.packing` (four float rows and
+#: their integer codes stay in L2).
+ENCODE_CHUNK = 8192
 #: Queries per chunk of :func:`moments_ref.gpu.sat.interpolated_mean` (each gathers 16 texels × C).
 SAT_QUERY_CHUNK = 1 << 15
 #: Fragments per chunk of :func:`moments_ref.techniques.pcf.pcf_filtered` (each gathers 10 × 10 texels × S × K).
@@ -48,6 +64,19 @@ SHADING_BLOCK = 1 << 14
 #: Bytes of one band of rows of :mod:`moments_ref.gpu.filtering` (about the L2 of one core; a sweep from 256 KiB
 #: to 4 MiB at 2048² varied within the noise of a shared machine, 1 MiB at its fastest).
 FILTER_BAND_BYTES = 1 << 20
+#: Input bytes of one chunk of the resolve of :mod:`moments_ref.gpu.filtering` (its samples, powers
+#: and sums stay in L2).
+RESOLVE_BYTES = 1 << 17
+#: Texels per band of :func:`moments_ref.gpu.filtering.global_path_nlq` (a band's float64 rows, about
+#: 2–5 MiB, stay in L3 whatever the map size).
+PATH_BAND_TEXELS = 1 << 17
+#: (triangle, row, sample) rows per vectorized batch of the rasterizer's span expansion
+#: (:mod:`moments_ref.scene.raster`), and covered samples per yielded batch: 512 KiB per float64
+#: array, so that a batch's temporaries stay in L2 (the in-place span expansion is bandwidth-bound:
+#: railing 2048² 4×, 10.4 M samples, CPU time against main, min of 5: 2^19 samples 0.94, 2^16 0.67,
+#: 2^14 0.73).
+RASTER_ROW_BUDGET = 1 << 16
+RASTER_SAMPLE_BUDGET = 1 << 16
 
 #: Multiple of the dtype's machine epsilon below which B(b) counts as singular
 #: (relative to b2 for σ², to max(b4, σ²) for ξ4); see :mod:`moments_ref.msm`.

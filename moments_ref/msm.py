@@ -17,7 +17,11 @@ line):
 * Step (4) is replaced by HPG17 §3.4's ``w_l = 1 / ((1, z_l, z_l²) B⁻¹ (1, z_l, z_l²)ᵀ)``
   (Peters and Klein 2015, Prop. 10), evaluated as ``Σ (L⁻¹v)_i² / D_i``: it
   needs no Vandermonde solve, is exactly 0 for a root at infinity and is
-  positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The mpmath twin
+  positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The bounds alone
+  (:func:`shadow_intensity`) take the slides' shorter route where it is as accurate:
+  only the weight that step (5) needs, w1 as the slides' quotient (Lagrange weight)
+  and ``1 − w0`` beyond z2, with the texels where that has no finite value handed to
+  the full kernel (:func:`_bound_rows`). The mpmath twin
   in :mod:`moments_ref.precise` solves the Vandermonde system literally and
   serves as the independent check.
 
@@ -74,7 +78,7 @@ import numpy as np
 
 from ._arrays import InputError, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
+from ._kernels import MSM_CHUNK, SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
 
 __all__ = [
     "shadow_intensity",
@@ -88,73 +92,108 @@ __all__ = [
 # Algorithm 2), shared with msm6 and nonlinear; re-exported here (public names).
 _two_point = two_point
 
-#: Texels per chunk of :func:`shadow_intensity` (measured fastest of 2^13..2^17 at
-#: 2048²: the per-call cost of ~60 ufuncs outweighs the temporaries leaving L2).
-CHUNK = 1 << 15
+#: Texels per chunk of :func:`shadow_intensity` (the value and its reason:
+#: :data:`moments_ref._kernels.MSM_CHUNK`).
+CHUNK = MSM_CHUNK
 
 
 def _constants(dtype, n):
-    """Constant arrays for the kernel (array–array ufunc loops are the fast ones)."""
+    """Constant arrays for the kernel (array–array ufunc loops are the fast ones), and its workspace.
+
+    ``ws`` holds the kernel's float rows (``_ROWS`` of them) and two boolean rows: every step
+    writes into them (``out=``), so a chunk allocates nothing and its rows stay in cache.
+    """
     it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
     return {
         "zero": np.zeros(n, dtype=dtype),
         "one": np.ones(n, dtype=dtype),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
         "rtol": np.dtype(dtype).type(singular_thresholds(dtype)),
+        "ws": np.empty((_ROWS, n), dtype=dtype),
+        "bits": np.empty(n, dtype=it),
+        "mask": np.empty((2, n), dtype=bool),
     }
 
 
-def _cholesky(b):
+#: Float rows of the kernel's workspace (:func:`_constants`).
+_ROWS = 9
+
+
+def _cholesky(b, ws):
     """Step (2) begins with the Cholesky decomposition ``B(b) = L D Lᵀ``, without square roots.
 
     ``L = [[1], [b1, 1], [b2, L32, 1]]`` and ``D = diag(1, σ², ξ4)`` with ``σ² = b2 − b1²``,
-    ``L32 = (b3 − b1 b2)/σ²`` and ``ξ4 = b4 − b2² − L32² σ²`` (HPG17 Eq. (3)).
+    ``L32 = (b3 − b1 b2)/σ²`` and ``ξ4 = b4 − b2² − L32² σ²`` (HPG17 Eq. (3)). Writes
+    σ², L32, ξ4 into ``ws[0:3]`` (ten passes).
     """
     b1, b2, b3, b4 = b
-    sigma2 = b2 - b1 * b1
-    l32 = b3 - b1 * b2
-    l32 /= sigma2
-    b4_two_point = l32 * l32  # E_S(z⁴) = b2² + L32² σ², S the two-point distribution (HPG17 Eq. (1))
-    b4_two_point *= sigma2
-    b4_two_point += b2 * b2
-    xi4 = b4 - b4_two_point
+    sigma2, l32, xi4, t = ws[0], ws[1], ws[2], ws[8]
+    np.multiply(b1, b1, out=sigma2)
+    np.subtract(b2, sigma2, out=sigma2)
+    np.multiply(b1, b2, out=l32)
+    np.subtract(b3, l32, out=l32)
+    np.divide(l32, sigma2, out=l32)
+    # E_S(z⁴) = b2² + L32² σ², S the two-point distribution (HPG17 Eq. (1)); ξ4 = b4 − E_S(z⁴).
+    np.multiply(l32, l32, out=xi4)
+    np.multiply(xi4, sigma2, out=xi4)
+    np.multiply(b2, b2, out=t)
+    np.add(xi4, t, out=xi4)
+    np.subtract(b4, xi4, out=xi4)
     return sigma2, l32, xi4
 
 
-def _singular_rows(b, sigma2, xi4, c):
-    """Singular B(b) (module docstring): ``σ² ≤ τ·b2`` or ``ξ4 ≤ τ·max(b4, σ²)``."""
-    if c["rtol"] == 0:  # float32: the pivots' signs only
-        return (sigma2 <= c["zero"]) | (xi4 <= c["zero"])
-    _, b2, _, b4 = b
-    return (sigma2 <= b2 * c["rtol"]) | (xi4 <= np.maximum(b4, sigma2) * c["rtol"])
+def _singular_rows(b, sigma2, xi4, finite, c):
+    """Singular B(b) (module docstring): ``σ² ≤ τ·b2`` or ``ξ4 ≤ τ·max(b4, σ²)``, or a non-finite root.
+
+    Returns the mask (a row of the workspace, or a fresh array in float64) of the singular texels.
+    """
+    regular = c["mask"][1]
+    if c["rtol"] == 0:  # float32: the pivots' signs only (a NaN pivot fails both comparisons)
+        np.greater(sigma2, c["zero"], out=regular)
+        regular &= xi4 > c["zero"]
+    else:
+        _, b2, _, b4 = b
+        np.greater(sigma2, b2 * c["rtol"], out=regular)
+        regular &= xi4 > np.maximum(b4, sigma2) * c["rtol"]
+    regular &= finite
+    return np.logical_not(regular, out=regular)
 
 
-def _solve(b, zf, sigma2, l32, xi4):
+def _solve(b, zf, sigma2, l32, xi4, ws):
     """Step (2): ``B(b) q = (1, zf, zf²)``, and ``w0 = 1 / ((1, zf, zf²) B⁻¹ (1, zf, zf²)ᵀ)``.
 
-    Returns ``(q0, q1, q2, w0)``. w0 is the weight of zf in the canonical representation
-    (Peters and Klein 2015, Prop. 10): ``1 / (1 + y2²/σ² + y3²/ξ4)`` with y from the
-    forward substitution, a sum of squares (no cancellation).
+    Returns ``(q0, q1, q2, w0)`` (rows 3–6 of ``ws``). w0 is the weight of zf in the canonical
+    representation (Peters and Klein 2015, Prop. 10): ``1 / (1 + y2²/σ² + y3²/ξ4)`` with y
+    from the forward substitution, a sum of squares (no cancellation).
     """
     b1, b2 = b[0], b[1]
-    # Forward substitution to solve L y = (1, zf, zf²): y1 = 1.
-    y2 = zf - b1
-    y3 = zf * zf
-    y3 -= b2
-    y3 -= l32 * y2
-    # Scaling to solve D c = y: c1 = 1, c3 = q2.
-    c2 = y2 / sigma2
-    q2 = y3 / xi4
-    # Back substitution to solve Lᵀ q = c.
-    q1 = c2 - l32 * q2
-    b_dot_q = b1 * q1
-    b_dot_q += b2 * q2
-    q0 = 1 - b_dot_q  # the first row of B q = (1, zf, zf²): q0 + b1 q1 + b2 q2 = 1
+    q0, q1, q2, w0, y2, t = ws[3], ws[4], ws[5], ws[6], ws[7], ws[8]
+    # Forward substitution to solve L y = (1, zf, zf²): y1 = 1 (y3 lives in q0 until q2 is known).
+    y3 = q0
+    np.subtract(zf, b1, out=y2)
+    np.multiply(zf, zf, out=y3)
+    np.subtract(y3, b2, out=y3)
+    np.multiply(l32, y2, out=t)
+    np.subtract(y3, t, out=y3)
+    # Scaling to solve D c = y: c1 = 1, c2 = y2/σ² (in q1 until the back substitution), c3 = q2.
+    c2 = q1
+    np.divide(y2, sigma2, out=c2)
+    np.divide(y3, xi4, out=q2)
     # 1/w0 = 1 + y2 c2 + y3 c3.
-    inv_w0 = y2 * c2
-    inv_w0 += y3 * q2
-    inv_w0 += 1
-    return q0, q1, q2, 1 / inv_w0
+    np.multiply(y2, c2, out=w0)
+    np.multiply(y3, q2, out=t)
+    np.add(w0, t, out=w0)
+    np.add(w0, 1, out=w0)
+    np.divide(1, w0, out=w0)
+    # Back substitution to solve Lᵀ q = c.
+    np.multiply(l32, q2, out=t)
+    np.subtract(c2, t, out=q1)
+    # The first row of B q = (1, zf, zf²): q0 = 1 − b1 q1 − b2 q2.
+    np.multiply(b1, q1, out=q0)
+    np.multiply(b2, q2, out=t)
+    np.add(q0, t, out=q0)
+    np.subtract(1, q0, out=q0)
+    return q0, q1, q2, w0
 
 
 def _roots(q0, q1, q2, b4, c):
@@ -166,16 +205,31 @@ def _roots(q0, q1, q2, b4, c):
     discriminant (q1² or q2·q0 overflowing: ξ4 at the rounding level of b4 in float32)
     marks the texel singular; ``d + b4`` also catches ``b4 = +∞``, the one non-finite
     input that leaves the pivots and the discriminant finite (d ≤ 2e19 in float32, so
-    only a b4 within that of the largest float overflows besides).
+    only a b4 within that of the largest float overflows besides). z1, z2 go to rows 7
+    and 4 of the workspace (q1's row: q1 is used up here).
     """
-    h = q1 * -0.5
-    disc = h * h
-    disc -= q2 * q0
-    root = np.sqrt(np.maximum(disc, c["zero"]))
-    finite = np.isfinite(root + b4)
-    s = h + copysign_inplace(root, h, c["sign"])  # root takes h's sign in place
-    ra, rb = s / q2, q0 / s
-    return np.minimum(ra, rb), np.maximum(ra, rb), finite
+    ws = c["ws"]
+    h, root, t = ws[7], ws[8], q1
+    np.multiply(q1, -0.5, out=h)
+    np.multiply(h, h, out=root)
+    np.multiply(q2, q0, out=t)
+    np.subtract(root, t, out=root)
+    np.maximum(root, c["zero"], out=root)
+    np.sqrt(root, out=root)
+    finite = c["mask"][0]
+    np.add(root, b4, out=t)
+    np.isfinite(t, out=finite)
+    # root takes h's sign (bit-level copysign, root ≥ 0): s = h + sign(h)·root.
+    sign, bits = c["sign"], c["bits"]
+    np.bitwise_and(h.view(sign.dtype), sign, out=bits)
+    np.bitwise_or(root.view(sign.dtype), bits, out=root.view(sign.dtype))
+    np.add(h, root, out=h)
+    np.divide(h, q2, out=root)  # ra
+    np.divide(q0, h, out=t)  # rb
+    z1, z2 = h, t
+    np.minimum(root, t, out=z1)
+    np.maximum(root, t, out=z2)
+    return z1, z2, finite
 
 
 def _weights(z1, b, sigma2, l32, xi4, w0, c):
@@ -185,19 +239,26 @@ def _weights(z1, b, sigma2, l32, xi4, w0, c):
     algorithm box: ``u = L⁻¹(1, z1, z1²)``, ``w1 = 1 / (1 + u2²/σ² + u3²/ξ4)``, positive
     by construction and 0 for a root at infinity (its NaN, ∞ − ∞, becomes 0). ``w2``
     uses b0 = 1; ``w0 + w1`` may round above 1 (−4.5e−6 seen in float32), so w2 ≥ 0.
+    w1 and w2 go to rows 3 and 5 of the workspace (q0's and q2's, used up).
     """
     b1, b2 = b[0], b[1]
-    u2 = z1 - b1
-    u3 = z1 * z1
-    u3 -= b2
-    u3 -= l32 * u2
-    inv_w1 = u2 * u2
-    inv_w1 /= sigma2
-    inv_w1 += u3 * u3 / xi4
-    inv_w1 += 1
-    w1 = np.fmax(1 / inv_w1, c["zero"])
-    w2 = 1 - w0
-    w2 -= w1
+    ws = c["ws"]
+    u2, u3, w1, w2 = ws[8], ws[3], ws[3], ws[5]
+    np.subtract(z1, b1, out=u2)
+    np.multiply(z1, z1, out=u3)
+    np.subtract(u3, b2, out=u3)
+    np.multiply(l32, u2, out=w2)
+    np.subtract(u3, w2, out=u3)
+    np.multiply(u2, u2, out=u2)  # 1/w1 = 1 + u2²/σ² + u3²/ξ4
+    np.divide(u2, sigma2, out=u2)
+    np.multiply(u3, u3, out=u3)
+    np.divide(u3, xi4, out=u3)
+    np.add(u2, u3, out=u2)
+    np.add(u2, 1, out=u2)
+    np.divide(1, u2, out=w1)
+    np.fmax(w1, c["zero"], out=w1)
+    np.subtract(1, w0, out=w2)
+    np.subtract(w2, w1, out=w2)
     return w1, np.maximum(w2, c["zero"], out=w2)
 
 
@@ -207,23 +268,29 @@ def _kernel(b, zf, want, c, dest, refuse):
     One function per step of the algorithm box (step (1), B(b), stays implicit in the
     rows b): :func:`_cholesky` and :func:`_solve` (2), :func:`_roots` (3),
     :func:`_weights` (4), the sum below (5). ``want`` is drawn from {"lower", "upper",
-    "canonical"}; ``c`` holds the constant arrays of :func:`_constants` (same length);
-    a bound in ``want`` is written into ``dest[bound]`` when ``dest`` has it;
-    ``refuse()`` raises the error of a NaN or inf in the input. Every case is computed
-    for every element and step (5) multiplies by 0/1 masks: ``np.where``, masked
-    ufuncs and array–scalar ``np.maximum`` cost several arithmetic passes each in NumPy.
-    The per-chunk cost is in docs/bench.md ("Kernel history").
+    "canonical"}; ``c`` holds the constant arrays and the workspace of :func:`_constants`
+    (same length); a bound in ``want`` is written into ``dest[bound]`` when ``dest`` has
+    it; ``refuse()`` raises the error of a NaN or inf in the input. Every case is computed
+    for every element and step (5) multiplies by 0/1 masks: ``np.where``, masked ufuncs and
+    array–scalar ``np.maximum`` cost several arithmetic passes each in NumPy. Every step
+    writes into the workspace rows (``out=``): no chunk allocates. The per-chunk cost is
+    in docs/bench.md ("Kernel history").
     """
-    dt = b.dtype.type
+    ws = c["ws"]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        sigma2, l32, xi4 = _cholesky(b)
-        q0, q1, q2, w0 = _solve(b, zf, sigma2, l32, xi4)
+        sigma2, l32, xi4 = _cholesky(b, ws)
+        q0, q1, q2, w0 = _solve(b, zf, sigma2, l32, xi4, ws)
         z1, z2, finite = _roots(q0, q1, q2, b[3], c)
         w1, w2 = _weights(z1, b, sigma2, l32, xi4, w0, c)
+        singular = _singular_rows(b, sigma2, xi4, finite, c)
         # Step (5): lower = Σ_{z_l < zf} w_l = [zf > z1]·(w1 + [zf > z2]·w2) (z1 ≤ z2).
-        lower = (w2 * (zf > z2).astype(dt) + w1) * (zf > z1).astype(dt)
-        singular = _singular_rows(b, sigma2, xi4, c)
-        singular |= ~finite
+        lower = dest.get("lower", ws[2] if "canonical" not in want else np.empty_like(zf))
+        above = c["mask"][0]
+        np.greater(zf, z2, out=above)
+        np.multiply(w2, above, out=lower)
+        np.add(lower, w1, out=lower)
+        np.greater(zf, z1, out=above)
+        np.multiply(lower, above, out=lower)
     if singular.any():
         # A NaN or inf in b or zf makes its texel singular (a pivot or the discriminant is
         # not finite, see _roots), so the chunk needs its full check only here.
@@ -234,14 +301,88 @@ def _kernel(b, zf, want, c, dest, refuse):
     # Clamped to 1 like saturate (w0 + w1, or w1 + w2 computed from it, may round above 1);
     # every term is ≥ 0, so the bounds are.
     if "upper" in want:
-        upper = lower + w0
-        out["upper"] = np.minimum(upper, c["one"], out=dest.get("upper", upper))
+        upper = dest.get("upper", ws[0])
+        np.add(lower, w0, out=upper)
+        out["upper"] = np.minimum(upper, c["one"], out=upper)
     if "lower" in want:
-        out["lower"] = np.minimum(lower, c["one"], out=dest.get("lower", lower))
+        out["lower"] = np.minimum(lower, c["one"], out=lower)
     if "canonical" in want:
         out["depths"] = np.stack([zf, z1, z2], axis=-1)
         out["weights"] = np.stack([w0, w1, w2], axis=-1)
     return out
+
+
+def _bound_rows(b, zf, bound, c, dest):
+    """One bound of Algorithm 1 on the regular texels of a chunk, in the slides' formulation; or None.
+
+    Steps (1)–(2) as :func:`_cholesky` and :func:`_solve`; step (3) by the cancellation-free
+    roots of :func:`_roots` (the slides' textbook roots ``−p/2 ∓ √(p²/4 − q)`` of the monic
+    quadratic save five passes but lose up to 6e-8 in float64 for zf 1e-9 below a support
+    point, where this form keeps 1e-12); step (4) only for the weight that step (5) needs: in the
+    slides' quotient form, ``w1 = ((zf − b1)(z2 − b1) + σ²) / ((z2 − z1)(zf − z1))`` (the
+    Lagrange weight of z1, its numerator ``zf z2 − b1 (zf + z2) + b2`` rewritten with
+    ``b2 = σ² + b1²``), and ``1 − w0`` beyond z2. About 60 passes over the chunk instead
+    of the ~75 of :func:`_kernel`. Where B(b) is singular (module docstring) or the result is
+    not finite (zf at a support point sends q2 → 0 and a root to ±∞, the quotient to ∞/∞;
+    a discriminant rounded below 0), the texels are handed to :func:`_kernel`, which has the
+    limits of both; their indices are returned (None when there are none).
+    """
+    ws, b1 = c["ws"], b[0]
+    sigma2, l32, xi4 = _cholesky(b, ws)
+    q0, q1, q2, w0 = _solve(b, zf, sigma2, l32, xi4, ws)
+    y2, h, r = ws[7], ws[8], q1
+    # Step (3) without cancellation (as _roots, q2 → 0 makes the texel irregular):
+    # s = h + sign(h)·√(h² − q2 q0) with h = −q1/2; the roots are s/q2 and q0/s (Vieta).
+    np.multiply(q1, -0.5, out=h)
+    np.multiply(h, h, out=r)
+    np.multiply(q2, q0, out=l32)  # L32 is used up
+    np.subtract(r, l32, out=r)
+    np.sqrt(r, out=r)  # NaN for a negative discriminant: the texel goes to _kernel
+    sign, bits = c["sign"], c["bits"]
+    np.bitwise_and(h.view(sign.dtype), sign, out=bits)
+    np.bitwise_or(r.view(sign.dtype), bits, out=r.view(sign.dtype))
+    np.add(h, r, out=h)
+    np.divide(h, q2, out=r)
+    np.divide(q0, h, out=h)
+    z1, z2 = q0, q2
+    np.minimum(r, h, out=z1)
+    np.maximum(r, h, out=z2)
+    # Step (4), the weight of z1: w1 = ((zf − b1)(z2 − b1) + σ²) / ((z2 − z1)(zf − z1)).
+    w1 = h
+    np.subtract(z2, b1, out=w1)
+    np.multiply(w1, y2, out=w1)
+    np.add(w1, sigma2, out=w1)
+    np.subtract(z2, z1, out=r)
+    np.subtract(zf, z1, out=y2)
+    np.multiply(r, y2, out=r)
+    np.divide(w1, r, out=w1)
+    # Step (5): lower = [zf > z1]·(w1 + [zf > z2]·(1 − w0 − w1)) (z1 ≤ z2; beyond z2 it is 1 − w0).
+    lower = dest[bound] if bound == "lower" else l32
+    above = c["mask"][0]
+    np.subtract(1, w0, out=lower)
+    np.subtract(lower, w1, out=lower)
+    np.greater(zf, z2, out=above)
+    np.multiply(lower, above, out=lower)
+    np.add(lower, w1, out=lower)
+    np.greater(zf, z1, out=above)
+    np.multiply(lower, above, out=lower)
+    np.maximum(lower, c["zero"], out=lower)  # a rounded w1 < 0 (NaN stays NaN)
+    np.isfinite(lower, out=above)
+    irregular = _singular_rows(b, sigma2, xi4, above, c)
+    if bound == "upper":
+        np.add(lower, w0, out=dest["upper"])
+        lower = dest["upper"]
+    np.minimum(lower, c["one"], out=lower)  # saturate: every term is ≥ 0, w0 + w1 may round above 1
+    return np.flatnonzero(irregular) if irregular.any() else None
+
+
+def _bound(b, zf, bound, c, dest, refuse):
+    """``dest[bound]`` := the bound of Algorithm 1 on a chunk: :func:`_bound_rows`, and :func:`_kernel` on the rest."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        rest = _bound_rows(b, zf, bound, c, dest)
+    if rest is not None:
+        sub = _constants(b.dtype, rest.size)
+        dest[bound][rest] = _kernel(np.ascontiguousarray(b[:, rest]), zf[rest], {bound}, sub, {}, refuse)[bound]
 
 
 def _unique_distribution(b, zf, singular, rtol, lower, w0, z, w):
@@ -281,8 +422,11 @@ def _run(b, zf, shape, want, keys):
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
         m = stop - start
-        c = consts if m == CHUNK or n <= CHUNK else {k: v[:m] if np.ndim(v) else v for k, v in consts.items()}
+        c = consts if m == CHUNK or n <= CHUNK else {k: v[..., :m] if np.ndim(v) else v for k, v in consts.items()}
         dest = {k: outs[k][start:stop] for k in keys if k in ("lower", "upper")}
+        if want <= {"lower", "upper"}:
+            _bound(bc, zc, keys[0], c, dest, refuse)
+            continue
         res = _kernel(bc, zc, want, c, dest, refuse)
         for k in keys:
             if k not in dest:

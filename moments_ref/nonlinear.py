@@ -54,7 +54,7 @@ import numpy as np
 
 from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import copysign_exact, copysign_inplace
+from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_exact, copysign_inplace
 
 __all__ = [
     "PSI4_C0",
@@ -75,9 +75,9 @@ __all__ = [
     "validate_representation",
 ]
 
-#: Texels per chunk in :func:`shade` (measured fastest of 2^13..2^17 at 2048²: the
-#: per-call cost of ~50 ufuncs outweighs the temporaries leaving L2).
-CHUNK = 1 << 15
+#: Texels per chunk in :func:`shade` (the value and its reason:
+#: :data:`moments_ref._kernels.SHADE_CHUNK`).
+CHUNK = SHADE_CHUNK
 
 #: HPG17 §3.3: ξ4 is clamped to at least 1.2e-7 before the warp Ψ4.
 PSI4_XI_MIN = 1.2e-7
@@ -193,7 +193,7 @@ def phi(b):
 
 
 #: Texels per chunk of :func:`phi` (four float32 rows and a dozen temporaries in L2).
-_PHI_CHUNK = 8192
+_PHI_CHUNK = PHI_CHUNK  # the value and its reason: moments_ref._kernels
 
 
 def phi_rows(rows, out):
@@ -684,7 +684,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     HPG17 §3.4 states; for ``y2 − y1 < 1e-6`` the steps move by less than 1e-6
     in depth.
 
-    Performance: chunks of ``CHUNK = 32768`` texels, one transposing copy per
+    Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
     chunk; finiteness and the domain are checked on the loaded chunk by eight
     min/max reductions (the full checks run only to raise); about 50 in-place
     ufunc passes, the z_l selection as a four-pass bit blend (``np.where`` cost

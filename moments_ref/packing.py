@@ -78,6 +78,7 @@ import numpy as np
 
 from ._arrays import InputError, as_array, first_index, float_dtype, real_input
 from ._docs import fill_doc
+from ._kernels import ENCODE_CHUNK
 from .moments import BIAS_FLOAT32, bias_moments
 from .nonlinear import (PSI4_XI_MAX, PSI4_XI_MIN, phi_rows, psi4_clamped, phi, psi4_inverse,
                         rounding_tolerance, validate_representation)
@@ -184,8 +185,8 @@ def saturate(r):
     return _encoder_input(r)
 
 
-#: Texels per chunk of the encoders (four float rows and their codes stay in L2).
-_ENCODE_CHUNK = 8192
+#: Texels per chunk of the encoders (the value and its reason: :data:`moments_ref._kernels.ENCODE_CHUNK`).
+_ENCODE_CHUNK = ENCODE_CHUNK
 
 
 @lru_cache(maxsize=4)

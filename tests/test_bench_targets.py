@@ -122,3 +122,15 @@ def test_a_new_bench_md_keeps_the_hand_kept_history(tmp_path):
     assert bench.keep_history("# new\n\n| t |\n", path) == "# new\n\n| t |\n\n## Kernel history\n\nkept by hand\n"
     path.write_text("# old without a history\n", encoding="utf-8")
     assert bench.keep_history("# new\n", path) == "# new\n"
+
+
+def test_a_floor_probe_does_the_kernels_data_movement():
+    # The probe's output is the last pass's product (or zf without passes), chunk by chunk:
+    # the transposing copy and the chunking really ran over every row.
+    from moments_ref.tools.bench._probes import pass_probe
+
+    rng = np.random.default_rng(0)
+    b = rng.uniform(-1, 1, (1000, 4)).astype(np.float32)
+    zf = rng.uniform(-1, 1, 1000).astype(np.float32)
+    assert np.array_equal(pass_probe(b, zf, 0, 64)(), zf)
+    assert np.array_equal(pass_probe(b, zf, 6, 64)(), b[:, 1] * b[:, 2])  # pass 5 multiplies columns 1 and 2

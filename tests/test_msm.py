@@ -477,3 +477,29 @@ def test_every_nonfinite_input_is_refused(dt, bad, neighbour):
             with pytest.raises(InputError) as info:
                 shadow_intensity(bb, zz, bound)
             assert f"({CHUNK + 7}" in str(info.value) and ("zf" if k == 4 else "b") in str(info.value)
+
+
+@pytest.mark.parametrize("dt, tol", [(np.float32, 1e-3), (np.float64, 1e-9)])
+def test_bounds_agree_with_the_canonical_representation(dt, tol):
+    # The bounds come from the slides' formulation (msm._bound_rows, its singular and
+    # non-finite texels handed to msm._kernel); the canonical representation from the
+    # kernel's cancellation-free roots and HPG17 §3.4 weights. Step (5) on the latter is
+    # an independent evaluation of the same bound, on rows of every kind: biased, unbiased
+    # with one to four depths (singular B(b)), zf at and next to a support point.
+    rng = np.random.default_rng(3)
+    n = 20_000
+    z = rng.uniform(-1, 1, (n, 4))
+    k = rng.integers(1, 5, n)
+    z = np.where(np.arange(4) < k[:, None], z, z[:, :1])
+    b = power_moments(z)
+    biased = rng.uniform(0, 1, n) < 0.6
+    b = np.where(biased[:, None], bias_moments(b, BIAS_FLOAT32), b).astype(dt)
+    zf = np.where(rng.uniform(0, 1, n) < 0.2, z[:, 1], rng.uniform(-1.1, 1.1, n))
+    zf = np.where(rng.uniform(0, 1, n) < 0.05, z[:, 1] + rng.normal(0, 1e-5, n), zf).astype(dt)
+    depths, weights = canonical_representation(b, zf)
+    lower = np.minimum(np.sum(weights[:, 1:] * (depths[:, 1:] < zf[:, None]), axis=1), 1)
+    upper = np.minimum(lower + weights[:, 0], 1)
+    for bound, want in (("lower", lower), ("upper", upper)):
+        got = shadow_intensity(b, zf, bound)
+        assert got.dtype == dt and np.isfinite(got).all()
+        np.testing.assert_allclose(got, want, rtol=0, atol=tol)

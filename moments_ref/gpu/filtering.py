@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._arrays import InputError, check_finite, first_index, real_input
-from .._kernels import FILTER_BAND_BYTES
+from .._kernels import FILTER_BAND_BYTES, PATH_BAND_TEXELS, RESOLVE_BYTES
 from ..moments import power_moments
 from ..packing import nlq_texels
 
@@ -113,8 +113,8 @@ def _resolve(z):
     return out.reshape(h, w, 4)
 
 
-#: Input bytes of one chunk of the resolve (its samples, powers and sums stay in L2).
-_RESOLVE_BYTES = 1 << 17
+#: Input bytes of one chunk of the resolve (moments_ref._kernels' table, with the reason).
+_RESOLVE_BYTES = RESOLVE_BYTES
 
 
 def _resolve_chunk(z, out):
@@ -289,9 +289,8 @@ def _vertical_pass(hp, w):
     return out
 
 
-#: Texels per band of :func:`global_path_nlq` (a band's
-#: float64 rows, about 2–5 MiB, stay in L3 whatever the map size).
-_PATH_BAND_TEXELS = 1 << 17
+#: Texels per band of :func:`global_path_nlq` (moments_ref._kernels' table, with the reason).
+_PATH_BAND_TEXELS = PATH_BAND_TEXELS
 
 
 def _quantized(b, fmt):

@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..._kernels import RASTER_ROW_BUDGET, RASTER_SAMPLE_BUDGET
 from ._matrices import _HALF, _SUB
 
 # (triangle, row, sample) rows per vectorized batch, and covered samples per yielded
-# batch: 512 KiB per float64 array, so that a batch's temporaries stay in L2 (the
-# in-place span expansion is bandwidth-bound: railing 2048² 4×, 10.4 M samples, CPU
-# time against main, min of 5: 2^19 samples 0.94, 2^16 0.67, 2^14 0.73).
-_ROW_BUDGET = 1 << 16
-_SAMPLE_BUDGET = 1 << 16
+# batch (moments_ref._kernels' table, with the measurement behind them).
+_ROW_BUDGET = RASTER_ROW_BUDGET
+_SAMPLE_BUDGET = RASTER_SAMPLE_BUDGET
 
 # Below this magnitude an int64 L is exact in float64, and then ceil/floor of the
 # correctly rounded float quotient L / a equals the exact integer one: a non-integer

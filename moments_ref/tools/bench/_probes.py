@@ -1,0 +1,54 @@
+"""Floor probes of ``moments-ref bench``: what a chunked NumPy kernel pays before its arithmetic, measured.
+
+A shading kernel of this package (Algorithm 1, Algorithm 3, the six-moment bound) reads
+``(n, k)`` moment rows, copies each chunk of them into ``k`` contiguous columns (one
+transposing copy), runs its ufunc passes over chunk-long rows and writes a fresh ``(n,)``
+result. A probe does exactly that with the arithmetic replaced by ``passes`` float
+multiplications over the same chunk-long rows: with ``passes = 0`` it is the floor of any
+kernel written this way (the transposing copy and the first touch of the output), with
+the kernel's own count of passes it is that count's floor. The bench measures both in the
+same run as the kernel and prints them beside it, against the same copy, so that a floor
+is a measurement, not a figure in the text.
+
+Nothing here is asserted by the tests: probes are read, not enforced.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["pass_probe", "PASSES"]
+
+#: Ufunc passes per chunk of each kernel's common path, counted in its code (float and
+#: boolean passes alike; the rare singular or out-of-domain texels are handed elsewhere).
+PASSES = {
+    "shadow_intensity float32": 63,  # msm._bound_rows: 10 Cholesky, 18 solve and w0, 12 roots, 7 w1, 16 step (5) and checks
+    "shade float32": 49,  # nonlinear._shade_kernel (and 8 min/max reductions, docs/bench.md)
+    "shadow_intensity six moments float32": 140,  # msm6's kernel, counted by the earlier __array_ufunc__ probe
+}
+
+
+def pass_probe(b, zf, passes, chunk):
+    """A callable doing a kernel's data movement on ``(b, zf)`` with ``passes`` multiplications per chunk.
+
+    ``b`` is ``(n, k)``, ``zf`` ``(n,)``; per chunk of ``chunk`` rows: the transposing copy
+    into ``k`` reused rows, ``passes`` multiplications of chunk-long rows into a reused
+    temporary, and the chunk's result written into a fresh ``(n,)`` output.
+    """
+    n, k = b.shape
+    rows = np.empty((k, min(chunk, n)), dtype=b.dtype)
+    tmp = np.empty(min(chunk, n), dtype=b.dtype)
+
+    def run():
+        out = np.empty(n, dtype=b.dtype)
+        for lo in range(0, n, chunk):
+            hi = min(lo + chunk, n)
+            cols = rows[:, : hi - lo]
+            np.copyto(cols, b[lo:hi].T)
+            t = tmp[: hi - lo]
+            for i in range(passes):  # inputs left unchanged: no denormals, no overflow
+                np.multiply(cols[i % k], cols[(i + 1) % k], out=t)
+            np.copyto(out[lo:hi], zf[lo:hi] if passes == 0 else t)
+        return out
+
+    return run
