@@ -401,6 +401,10 @@ def _run(args) -> int:
 
         check_memory(shadow_map_memory(args.size, args.samples), f"figure4 --size {args.size} --samples {args.samples}")
     check_outputs(getattr(args, "out", None))
+    if getattr(args, "json", None) is not None:  # a folder, socket or dangling link: refused before any work
+        from ._io import check_output
+
+        check_output(args.json, "--json")
     code = args.func(args)
     sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at exit
     return code

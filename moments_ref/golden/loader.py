@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError, brief, check_memory, first_index
+from .._io import INCOMPLETE
 from .notes import RESULTS
 from .writer import CATEGORIES, SCHEMA_VERSION
 
@@ -125,6 +126,9 @@ def load_manifest(golden_dir):
     golden_dir = Path(golden_dir)
     if not golden_dir.is_dir():
         raise InputError(f"golden_dir: expected a folder with manifest.json, got {str(golden_dir)!r}")
+    if os.path.lexists(golden_dir / INCOMPLETE):
+        raise InputError(f"golden_dir: {str(golden_dir)!r} is incomplete: its writing was interrupted or is under "
+                         f"way ({INCOMPLETE} marks it); rerun moments-ref golden --out on it")
     manifest = _parse_json(read_regular(golden_dir / "manifest.json", MAX_MANIFEST, "golden_dir"), "manifest")
     if not isinstance(manifest, dict) or not isinstance(manifest.get("cases"), dict):
         raise InputError("manifest: expected an object with a 'cases' object")
@@ -275,6 +279,8 @@ def _read_npz(blob, what, expect):
         exp = expect(key) if key is not None else f"{info.filename!r} is not an .npy member"
         if isinstance(exp, str):
             raise InputError(f"{what}: {exp}")
+        if info.flag_bits & 0x1:
+            raise InputError(f"{what}: array {key!r} is encrypted (zip flag bit 0); expected a plain .npz member")
         if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
             raise InputError(f"{what}: array {key!r} is compressed with method {info.compress_type}; expected "
                              "stored or deflated (np.savez, np.savez_compressed)")
@@ -288,7 +294,7 @@ def _read_npz(blob, what, expect):
     check_memory(total, f"{what} ({len(plan)} arrays, {total} bytes uncompressed)")
     try:
         return {key: _read_member(zf, info, key, exp, what) for info, key, exp in plan}
-    except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError, NotImplementedError) as exc:
+    except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError, NotImplementedError, RuntimeError) as exc:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"{what}: a corrupt or truncated array in the archive: {str(exc)[:100]}") from None

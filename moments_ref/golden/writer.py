@@ -2,7 +2,9 @@
 
 Deterministic: the same version writes the same bytes (seeded rows, deterministic
 zip entries, sorted JSON). Every file is written atomically (temporary file, fsync,
-rename), so an interrupted run never leaves a half-written file.
+rename), so an interrupted run never leaves a half-written file; the folder is locked
+against a second writer and marked ``INCOMPLETE`` until its manifest is written, so
+an interrupted rewrite leaves a folder the loader names as incomplete.
 
 References
 ----------
@@ -27,7 +29,7 @@ import numpy as np
 
 from .. import __version__
 from .._arrays import InputError
-from .._io import save_npz, write_text
+from .._io import folder_lock, marked_incomplete, save_npz, write_text
 from .cases import CASES
 from .notes import NOTES, RESULTS
 from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
@@ -166,11 +168,16 @@ def write(out_dir, cases=None, progress=None, profile=None):
         manifest["profile"] = profile.canonical
         manifest["profile_key"] = profile.key
         manifest["not_written"] = skipped
-    for name in names:
-        case, arrays = derived[name] if name in derived else (CASES[name], golden_arrays(CASES[name]))
-        data = save_npz(out_dir / f"{name}.npz", arrays)
-        manifest["cases"][name] = manifest_entry(case, arrays, data)
-        if progress is not None:
-            progress(name)
-    write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    # One writer at a time (a second is refused), and the folder marked INCOMPLETE until its manifest
+    # matches its files: an interrupted rewrite is named as such by the loader, never half-valid.
+    with folder_lock(out_dir, "golden"), marked_incomplete(
+            out_dir, f"This golden folder was not completely written ({len(names)} cases were to be written). "
+                     "Rerun moments-ref golden --out on it.\n"):
+        for name in names:
+            case, arrays = derived[name] if name in derived else (CASES[name], golden_arrays(CASES[name]))
+            data = save_npz(out_dir / f"{name}.npz", arrays)
+            manifest["cases"][name] = manifest_entry(case, arrays, data)
+            if progress is not None:
+                progress(name)
+        write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     return manifest
