@@ -42,7 +42,7 @@ import threading
 from pathlib import Path
 
 __all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
-           "save_figure", "write_output", "check_output", "check_own", "read_own", "folder_lock",
+           "save_figure", "write_files", "write_output", "check_output", "check_own", "read_own", "folder_lock",
            "marked_incomplete", "INCOMPLETE", "LOCK"]
 
 #: The tag of a temporary's name (``.<name>.<pid>.mrtmp<8 random><suffix>``).
@@ -183,6 +183,22 @@ def write_bytes(path, data: bytes) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
     return Path(path)
+
+
+def write_files(folder, blobs: dict) -> list:
+    """Write ``{file name: bytes or text}`` into ``folder``, all or none; return the paths.
+
+    Every file goes to its temporary first (written and fsynced); only when all
+    of them are written are they renamed over their targets. A failure while
+    writing (a full disk, a FIFO in the way) removes every temporary and leaves
+    the folder as it was.
+    """
+    folder = Path(folder)
+    with contextlib.ExitStack() as stack:
+        for name, data in blobs.items():
+            tmp = stack.enter_context(atomic_path(folder / name))
+            tmp.write_bytes(data.encode("utf-8") if isinstance(data, str) else data)
+    return [folder / name for name in blobs]
 
 
 def write_text(path, text: str) -> Path:
