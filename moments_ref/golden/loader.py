@@ -54,7 +54,7 @@ from .notes import RESULTS
 from .writer import CATEGORIES, SCHEMA_VERSION
 
 __all__ = ["MAX_MANIFEST", "MAX_JSON_DEPTH", "MAX_ROWS", "MAX_ELEMENTS", "read_regular", "load_manifest",
-           "check_entry", "load_case_arrays", "load_case", "load_results", "results_limit"]
+           "check_entry", "load_case_arrays", "load_case", "load_results", "results_limit", "check_case_values"]
 
 #: Largest manifest accepted (bytes).
 MAX_MANIFEST = 16 << 20
@@ -384,6 +384,12 @@ def _check_case_values(meta, arrays, what):
             if bad.any():
                 raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {float(t[first_index(bad)])!r} (a tolerance "
                                  "must be positive, +inf where only a finite value in range is required)", arrays)
+
+
+def check_case_values(meta, arrays, what):
+    """The value checks of a golden case file (module docstring) on ``arrays`` of any source (the derived-golden
+    cache): :class:`~moments_ref.InputError` naming the array and first bad row."""
+    _check_case_values(meta, arrays, what)
 
 
 def case_file_limit(meta):
