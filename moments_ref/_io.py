@@ -304,8 +304,12 @@ def _output_kind(path, what):
         return "file", path
     try:
         st = os.stat(path)
-    except OSError:
-        raise InputError(f"{what}: {path} is a link to nothing; refusing to write through it") from None
+    except OSError:  # a link to a file not there yet: created, as the shell's ``>`` does, if its folder is
+        target = Path(os.path.realpath(path))
+        if not target.parent.is_dir() or str(target).startswith(("/proc/", "/dev/")):
+            raise InputError(f"{what}: {path} is a link to nothing (no folder {target.parent}); refusing to write "
+                             "through it") from None
+        return "file", target
     linked = stat.S_ISLNK(lst.st_mode)
     if stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode):
         return "stream", path

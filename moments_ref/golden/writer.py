@@ -133,7 +133,12 @@ def write(out_dir, cases=None, progress=None, profile=None):
     -------
     manifest : dict
     """
-    out_dir = Path(out_dir)
+    with folder_lock(out_dir, "golden"):  # from the start: a second writer into the folder is refused at once
+        return _write(Path(out_dir), cases, progress, profile)
+
+
+def _write(out_dir, cases, progress, profile):
+    """:func:`write` under the folder's lock."""
     names = list(CASES) if cases is None else list(cases)
     unknown = [n for n in names if n not in CASES]
     if unknown:
@@ -168,9 +173,9 @@ def write(out_dir, cases=None, progress=None, profile=None):
         manifest["profile"] = profile.canonical
         manifest["profile_key"] = profile.key
         manifest["not_written"] = skipped
-    # One writer at a time (a second is refused), and the folder marked INCOMPLETE until its manifest
-    # matches its files: an interrupted rewrite is named as such by the loader, never half-valid.
-    with folder_lock(out_dir, "golden"), marked_incomplete(
+    # The folder marked INCOMPLETE until its manifest matches its files: an interrupted rewrite is named
+    # as such by the loader, never half-valid.
+    with marked_incomplete(
             out_dir, f"This golden folder was not completely written ({len(names)} cases were to be written). "
                      "Rerun moments-ref golden --out on it.\n"):
         for name in names:
