@@ -280,7 +280,7 @@ def _load_cached(path, key, pcase):
     """The cached derived arrays at ``path``, or None (derive again): not there, not trusted (:func:`_trusted`), a
     foreign key, or arrays the strict loader's value checks refuse (a poisoned entry: NaN expected values,
     tolerances that are not positive, unknown categories)."""
-    from .loader import check_case_values
+    from .values import check_case_values
 
     if not _trusted(path):
         return None

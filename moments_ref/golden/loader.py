@@ -48,13 +48,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError, brief, check_memory, first_index
+from .._arrays import InputError, brief, check_memory
 from .._io import INCOMPLETE
-from .notes import RESULTS
-from .writer import CATEGORIES, SCHEMA_VERSION
+from .values import check_case_values
+from .writer import SCHEMA_VERSION
 
 __all__ = ["MAX_MANIFEST", "MAX_JSON_DEPTH", "MAX_ROWS", "MAX_ELEMENTS", "read_regular", "load_manifest",
-           "check_entry", "load_case_arrays", "load_case", "load_results", "results_limit", "check_case_values"]
+           "check_entry", "load_case_arrays", "load_case", "load_results", "results_limit"]
 
 #: Largest manifest accepted (bytes).
 MAX_MANIFEST = 16 << 20
@@ -345,53 +345,6 @@ def _case_expect(meta):
     return lambda key: known.get(key) or _Expect("biufU", rows=n, row_elements=1024, itemsize=8)
 
 
-def _row_error(what, name, mask, problem, arrays):
-    idx = first_index(mask)
-    row = idx[0]
-    tc = f" (tc_id {int(arrays['tc_id'][row])})" if "tc_id" in arrays else ""
-    return InputError(f"{what}: {name} {problem} at row {row}{tc}")
-
-
-def _check_case_values(meta, arrays, what):
-    """The checks of a case's values the comparator relies on (module docstring)."""
-    need = list(meta["inputs"]) + list(meta["compare"]) + ["category", "comment", "result", "tc_id"]
-    if meta["metric"] != "exact":
-        need += [f"{o}_tolerance_{dt}" for o in meta["compare"] for dt in ("float32", "float64")]
-    missing = [k for k in need if k not in arrays]
-    if missing:
-        raise InputError(f"{what} lacks the array {missing[0]!r}")
-    for key, allowed in (("category", CATEGORIES), ("result", tuple(RESULTS))):
-        bad = ~np.isin(arrays[key], allowed)
-        if bad.any():
-            raise _row_error(what, key, bad, f"is {str(arrays[key][first_index(bad)])!r}, not one of "
-                                             f"{', '.join(allowed)},", arrays)
-    for o in meta["compare"]:
-        if meta["metric"] == "exact":
-            acc = arrays.get(f"{o}_acceptable")
-            if acc is not None:
-                info = np.iinfo(np.dtype(meta["outputs"][o]["dtype"]))
-                out = (acc < info.min) | (acc > info.max)
-                if acc.ndim < 2 or acc.shape[2:] != arrays[o].shape[1:] or out.any():
-                    raise InputError(f"{what}: {o}_acceptable must hold {info.dtype} codes of shape "
-                                     f"(rows, K) + {arrays[o].shape[1:]}, got {acc.shape} {acc.dtype}")
-            continue
-        e = arrays[o]
-        if not np.isfinite(e).all():
-            raise _row_error(what, o, ~np.isfinite(e), "is not finite", arrays)
-        for dt in ("float32", "float64"):
-            t = arrays[f"{o}_tolerance_{dt}"]
-            bad = np.isnan(t) | (t <= 0)
-            if bad.any():
-                raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {float(t[first_index(bad)])!r} (a tolerance "
-                                 "must be positive, +inf where only a finite value in range is required)", arrays)
-
-
-def check_case_values(meta, arrays, what):
-    """The value checks of a golden case file (module docstring) on ``arrays`` of any source (the derived-golden
-    cache): :class:`~moments_ref.InputError` naming the array and first bad row."""
-    _check_case_values(meta, arrays, what)
-
-
 def case_file_limit(meta):
     """Bytes a case file may have at most, from the manifest's shapes."""
     expect = _case_expect(meta)
@@ -409,7 +362,7 @@ def load_case_arrays(golden_dir, name, meta):
     if hashlib.sha256(blob).hexdigest() != meta["sha256"]:
         raise InputError(f"golden: {meta['file']} does not match the sha256 in manifest.json")
     arrays = _read_npz(blob, what, _case_expect(meta))
-    _check_case_values(meta, arrays, what)
+    check_case_values(meta, arrays, what)
     return arrays
 
 

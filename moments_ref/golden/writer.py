@@ -31,7 +31,7 @@ from .. import __version__
 from .._arrays import InputError
 from .._io import folder_lock, marked_incomplete, save_npz, write_text
 from .cases import CASES
-from .notes import NOTES, RESULTS
+from .notes import CATEGORIES, NOTES, RESULTS
 from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
 
 __all__ = ["write", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
@@ -55,7 +55,6 @@ SCHEMA_HISTORY = {
          "the rows beyond it (counted per level in `gated`, gated only with --strict); the engine cases' "
          "distributions (`aux`)",
 }
-CATEGORIES = ("random", "stiff", "edge")
 
 
 def _legacy_tolerances(case, arrays):

@@ -19,8 +19,8 @@ NumPy and SciPy.
 
 References
 ----------
-.. [1] Wavefront Technologies. *Object Files (.obj)*, Advanced Visualizer manual, Appendix B1
-       (the statement keywords, ``\\`` continuation, relative indices).
+.. [1] Wavefront Technologies. *Object Files (.obj)*, Advanced Visualizer manual, Appendix B1 (the
+       statement keywords, ``\\`` continuation, relative indices).
 """
 
 from __future__ import annotations
