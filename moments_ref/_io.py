@@ -43,14 +43,12 @@ from pathlib import Path
 
 __all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
            "save_figure", "write_files", "write_output", "check_output", "check_own", "read_own", "folder_lock",
-           "marked_incomplete", "INCOMPLETE", "LOCK"]
+           "marked_incomplete", "INCOMPLETE"]
 
 #: The tag of a temporary's name (``.<name>.<pid>.mrtmp<8 random><suffix>``).
 _TAG = "mrtmp"
 #: The marker of a folder whose set of files is being (or was not completely) rewritten.
 INCOMPLETE = "INCOMPLETE"
-#: The lock file of a folder a command writes into (:func:`folder_lock`).
-LOCK = ".moments-ref.lock"
 
 #: Temporaries of this process's unfinished writes.
 _LIVE = set()
@@ -389,11 +387,11 @@ def write_output(path, data, what="--json") -> Path:
 
 @contextlib.contextmanager
 def folder_lock(folder, command="moments-ref"):
-    """Hold ``folder``'s write lock (:data:`LOCK`, ``flock``) for the block; a second writer is refused.
+    """Hold ``folder``'s write lock (``flock`` on the folder itself) for the block; a second writer is refused.
 
-    The lock file is removed when the block ends; a writer killed outright
-    leaves it unlocked (the kernel drops the lock with the process), and the next
-    writer takes it. :class:`~moments_ref.InputError` if another process holds it.
+    No lock file is made: nothing is left behind, also by a writer killed outright
+    (the kernel drops the lock with the process). :class:`~moments_ref.InputError`
+    if another process holds it.
     """
     import fcntl
 
@@ -401,31 +399,15 @@ def folder_lock(folder, command="moments-ref"):
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / LOCK
-    check_own(path, "out")
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            holder = os.pread(fd, 200, 0).decode("ascii", "replace").strip()
-            os.close(fd)
-            raise InputError(f"out: another process is writing into {folder} ({holder or 'its lock is held'}); "
+            raise InputError(f"out: another process is writing into {folder} (another {command} holds its lock); "
                              "wait for it or choose another folder") from None
-        try:
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:  # not a lock file its previous holder removed in between
-            break
-        os.close(fd)
-    try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{command} pid {os.getpid()}\n".encode(), 0)
-        yield path
+        yield folder
     finally:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
         os.close(fd)
 
 
@@ -438,6 +420,11 @@ def marked_incomplete(folder, text):
     the folder name it as incomplete.
     """
     marker = Path(folder) / INCOMPLETE
+    old = read_own(marker, 1 << 16, "out")
+    if old is not None and b"not completely written" not in old:  # the user's own file of that name
+        from ._arrays import InputError
+
+        raise InputError(f"out: {marker} is not this command's marker; refusing to replace it")
     write_text(marker, text)
     yield marker
     marker.unlink()

@@ -409,9 +409,22 @@ def _run(args) -> int:
         from ._io import check_output
 
         check_output(args.json, "--json")
+        _json_is_no_input(args)
     code = args.func(args)
     sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at exit
     return code
+
+
+def _json_is_no_input(args):
+    """Refuse a ``--json`` target that is one of the command's inputs (``--json r.npz`` with ``--results r.npz``
+    would replace the port's results by the verdicts)."""
+    golden = getattr(args, "golden", None)
+    inputs = [getattr(args, k, None) for k in ("results", "profile", "glsl", "hlsl", "wgsl", "prelude")]
+    inputs += [Path(golden) / "manifest.json"] if golden else []
+    for p in inputs:
+        with contextlib.suppress(OSError, TypeError):
+            if p is not None and os.path.samefile(p, args.json):
+                raise InputError(f"--json: {args.json} is an input of the command ({p}); refusing to overwrite it")
 
 
 class Terminated(BaseException):

@@ -441,3 +441,20 @@ def test_signal_while_the_driver_runs(sig, argv, tmp_path):
     while os.path.exists(f"/proc/{child}") and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not [f for f in os.listdir(tmp) if f.startswith("moments-ref-driver-")]  # was: its log left behind
+
+
+def test_json_that_is_an_input_is_refused(tmp_path, capsys, golden_one):
+    import shutil
+
+    g, r = golden_one
+    mine = tmp_path / "r.npz"
+    shutil.copy(r, mine)
+    _refused(["verify", "--golden", g, "--results", mine, "--json", mine], capsys, "input")
+    with np.load(mine) as z:  # was: the port's results replaced by the verdicts
+        assert z.files == [f"{CASE}.intensity"]
+
+
+def test_a_users_file_named_incomplete_is_not_taken_for_the_marker(tmp_path, capsys):
+    (tmp_path / "INCOMPLETE").write_text("my notes")
+    _refused(["golden", "--case", "shade-float32", "--out", tmp_path], capsys, "INCOMPLETE")
+    assert (tmp_path / "INCOMPLETE").read_text() == "my notes"
