@@ -258,9 +258,10 @@ def _what(st) -> str:
 def check_own(path, what=None) -> None:
     """Refuse a ``path`` a command would replace that is there and is not a regular file.
 
-    A device, FIFO, socket, link or folder where the command writes one of its
-    own files (``bench.md``, ``manifest.json``) is the user's, never replaced nor
-    read: :class:`~moments_ref.InputError` naming it.
+    A device, FIFO, socket or link where the command writes one of its own files
+    (``bench.md``, ``manifest.json``) is the user's, never replaced nor read:
+    :class:`~moments_ref.InputError` naming it. (A folder there is left to the
+    rename, which cannot replace it: its ``OSError`` names it.)
     """
     from ._arrays import InputError
 
@@ -268,7 +269,7 @@ def check_own(path, what=None) -> None:
         st = os.lstat(path)
     except FileNotFoundError:
         return
-    if not stat.S_ISREG(st.st_mode):
+    if not stat.S_ISREG(st.st_mode) and not stat.S_ISDIR(st.st_mode):  # a folder: the rename fails (EISDIR)
         raise InputError(f"{what or 'out'}: {path} is {_what(st)}, not a regular file; refusing to replace it "
                          "(remove it or choose another folder)")
 
@@ -343,6 +344,8 @@ def _open_stream(path, what, wait=10.0):
         except OSError as exc:
             if exc.errno != errno.ENXIO:
                 raise
+            if not stat.S_ISFIFO(os.stat(path).st_mode):  # a device that is not there (/dev/tty without a terminal)
+                raise InputError(f"{what}: cannot write to {path}: no such device") from None
             if time.monotonic() > end:
                 raise InputError(f"{what}: the FIFO {path} has no reader (waited {wait:g} s)") from None
             time.sleep(0.05)

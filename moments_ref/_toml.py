@@ -84,6 +84,7 @@ def check_values(doc, what):
     stack = [("", doc, 0)]
     while stack:
         where, v, depth = stack.pop()
+        where = where if len(where) <= 120 else f"{where[:100]}... ({len(where)} characters)"
         if depth > MAX_NESTING + 1:
             raise InputError(f"{what}: {where or 'the document'}: nested more than {MAX_NESTING} deep")
         if isinstance(v, dict):
