@@ -161,6 +161,8 @@ def _cmd_bench(args):
         from ._io import check_own
 
         check_own(Path(args.out) / "bench.md")
+        if (Path(args.out) / "bench.md").is_dir():
+            raise InputError(f"--out: {Path(args.out) / 'bench.md'} is a folder; bench writes its file there")
 
     rows = bench.run(size=args.size, quick=args.quick, only=args.only,
                      progress=lambda total: _progress(total, "bench"))

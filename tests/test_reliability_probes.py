@@ -458,3 +458,15 @@ def test_a_users_file_named_incomplete_is_not_taken_for_the_marker(tmp_path, cap
     (tmp_path / "INCOMPLETE").write_text("my notes")
     _refused(["golden", "--case", "shade-float32", "--out", tmp_path], capsys, "INCOMPLETE")
     assert (tmp_path / "INCOMPLETE").read_text() == "my notes"
+
+
+@pytest.mark.parametrize("cmd, name", [(["vwss", "--quick"], "vwss.md"),
+                                       (["bench", "--quick", "--only", "shadow_intensity"], "bench.md")])
+def test_a_special_file_among_the_outputs_is_refused_before_work(cmd, name, tmp_path, capsys):
+    os.mkfifo(tmp_path / name)
+    t0 = time.perf_counter()
+    _refused([*cmd, "--out", tmp_path], capsys, name)  # was (vwss): refused only after its 12 s measurement
+    assert time.perf_counter() - t0 < 5 and stat.S_ISFIFO(os.lstat(tmp_path / name).st_mode)
+    os.unlink(tmp_path / name)
+    (tmp_path / name).mkdir()
+    _refused([*cmd, "--out", tmp_path], capsys, "folder")

@@ -494,6 +494,10 @@ def markdown(res) -> str:
     return "\n".join(lines)
 
 
+#: The files :func:`write_outputs` writes.
+OUTPUTS = ("vwss.csv", "vwss.md", "claims.json", "vwss.png", "vwss_depth.png")
+
+
 def write_outputs(res, out_dir):
     """Write vwss.csv, vwss.md, claims.json, vwss.png and vwss_depth.png into ``out_dir``, all or none.
 
@@ -548,6 +552,12 @@ def write_outputs(res, out_dir):
 def main(args) -> int:
     """``moments-ref vwss``: ``args`` has ``scene`` (name or file), ``views`` (int or None),
     ``quick`` (bool), ``near`` (float or None) and ``out`` (folder). Returns exit code 0."""
+    from .._io import check_own
+
+    for name in OUTPUTS:  # a FIFO, device, link or folder in the way: refused before the measurement
+        check_own(Path(args.out) / name)
+        if (Path(args.out) / name).is_dir():
+            raise InputError(f"--out: {Path(args.out) / name} is a folder; vwss writes its file there")
     cs = comparison_settings(bool(getattr(args, "quick", False)), views=getattr(args, "views", None),
                              near=getattr(args, "near", None))
     res = measure(getattr(args, "scene", None) or "knot", cs, out_dir=args.out)
