@@ -251,9 +251,13 @@ def brief(value, width: int = 80) -> str:
     return text if len(text) <= width else text[:width - 1] + "…"
 
 
-def one_line(text) -> str:
-    """``text`` as one line: line breaks and other unprintable characters as escapes (a path may hold them)."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+def one_line(text, limit=2000) -> str:
+    """``text`` as one line: line breaks and other unprintable characters as escapes (a path may hold them),
+    at most ``limit`` characters (the middle of a longer one elided: a hostile file's 900 KB key)."""
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit // 2]} ... ({len(text) - limit} characters elided) ... {text[-limit // 2:]}"
 
 
 def check_axis(axis, ndim: int, of: str) -> int:

@@ -157,6 +157,12 @@ def _cmd_bench(args):
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
+    if args.out:  # a FIFO or a link to /dev/zero named bench.md: refused before any work, never read
+        from ._io import check_own
+
+        check_own(Path(args.out) / "bench.md")
+        if (Path(args.out) / "bench.md").is_dir():
+            raise InputError(f"--out: {Path(args.out) / 'bench.md'} is a folder; bench writes its file there")
 
     rows = bench.run(size=args.size, quick=args.quick, only=args.only,
                      progress=lambda total: _progress(total, "bench"))
@@ -204,7 +210,7 @@ def _cmd_figure4(args):
 
     paths = figures.write_figure4(args.out, scene=args.scene, size=args.size, samples=args.samples)
     print("wrote " + ", ".join(str(p) for p in paths))
-    print(paths[2].read_text())
+    print(paths[2].read_text(encoding="utf-8"))
     return 0
 
 
@@ -401,9 +407,26 @@ def _run(args) -> int:
 
         check_memory(shadow_map_memory(args.size, args.samples), f"figure4 --size {args.size} --samples {args.samples}")
     check_outputs(getattr(args, "out", None))
+    if getattr(args, "json", None) is not None:  # a folder, socket or dangling link: refused before any work
+        from ._io import check_output
+
+        check_output(args.json, "--json")
+        _json_is_no_input(args)
     code = args.func(args)
     sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at exit
     return code
+
+
+def _json_is_no_input(args):
+    """Refuse a ``--json`` target that is one of the command's inputs (``--json r.npz`` with ``--results r.npz``
+    would replace the port's results by the verdicts)."""
+    golden = getattr(args, "golden", None)
+    inputs = [getattr(args, k, None) for k in ("results", "profile", "glsl", "hlsl", "wgsl", "prelude")]
+    inputs += [Path(golden) / "manifest.json"] if golden else []
+    for p in inputs:
+        with contextlib.suppress(OSError, TypeError):
+            if p is not None and os.path.samefile(p, args.json):
+                raise InputError(f"--json: {args.json} is an input of the command ({p}); refusing to overwrite it")
 
 
 class Terminated(BaseException):
@@ -429,6 +452,40 @@ def _signals_raise():
             signal.signal(s, handler)
 
 
+#: ASCII for the non-ASCII characters of the command's output (labels, tables), on a stream that cannot encode them.
+_ASCII = {"²": "^2", "³": "^3", "×": "x", "ξ": "xi", "Ψ": "Psi", "ψ": "psi", "Φ": "Phi", "φ": "phi", "σ": "sigma",
+          "α": "alpha", "β": "beta", "λ": "lambda", "μ": "mu", "Δ": "Delta", "δ": "delta", "ε": "eps", "θ": "theta",
+          "π": "pi", "≤": "<=", "≥": ">=", "≈": "~", "−": "-", "–": "-", "—": "-", "…": "...", "±": "+-", "→": "->",
+          "·": "*", "√": "sqrt", "∞": "inf", "‖": "||", "’": "'", "“": '"', "”": '"', "°": " deg", "⁴": "^4"}
+
+
+def _ascii_fallback(exc):
+    """codecs error handler: the ASCII spelling of characters the stream's encoding lacks (``?`` for others)."""
+    return "".join(_ASCII.get(c, "?") for c in exc.object[exc.start:exc.end]), exc.end
+
+
+def _usable_streams():
+    """Closed standard streams (``>&-``) become /dev/null, and a stream that cannot encode the output (a C
+    locale, ``PYTHONIOENCODING=ascii``) writes its ASCII spelling: the output degrades, never crashes."""
+    import codecs
+
+    codecs.register_error("moments_ref_ascii", _ascii_fallback)
+    for fd, name in ((0, "stdin"), (1, "stdout"), (2, "stderr")):
+        try:
+            os.fstat(fd)
+        except OSError:  # closed: plug it, so that no file the command opens takes its number
+            new = os.open(os.devnull, os.O_RDWR)
+            if new != fd:
+                os.dup2(new, fd)
+                os.close(new)
+        stream = getattr(sys, name)
+        if stream is None:
+            setattr(sys, name, open(fd, "r" if fd == 0 else "w", closefd=False, encoding="utf-8"))
+        elif fd and hasattr(stream, "reconfigure") and (stream.encoding or "").lower().replace("-", "") != "utf8":
+            with contextlib.suppress(Exception):
+                stream.reconfigure(errors="moments_ref_ascii")
+
+
 def main(argv=None):
     """Run ``moments-ref`` with ``argv``; return the exit code.
 
@@ -437,9 +494,13 @@ def main(argv=None):
     precedes that line. SIGTERM and SIGHUP end the command like Ctrl-C, with its
     temporaries removed (exit 128 + the signal).
     """
+    _usable_streams()
     parser = build_parser()
     args = parser.parse_args(argv)
     with warnings.catch_warnings(record=True) as caught:
+        # PYTHONWARNINGS=error: a NumPy warning (an overflow the rasterizer handles) is held and shown like
+        # any other, never raised out of the computation as a traceback.
+        warnings.filters[:] = [("always", *f[1:]) if f[0] == "error" else f for f in warnings.filters]
         code = _exit_code(args)
     if code != 2:
         for w in caught:

@@ -296,12 +296,17 @@ def test_atomic_write_permissions_cleanup_and_stale_temporaries(tmp_path):
     from moments_ref._io import atomic_path, write_text
 
     target = tmp_path / "out.md"
-    stale = tmp_path / ".out.md.999999999.abcd.md"  # left by a killed writer (no such pid)
+    stale = tmp_path / ".out.md.999999999.mrtmpabcd1234.md"  # left by a killed writer (no such pid)
     stale.write_text("half")
+    users = [tmp_path / ".out.md.20240101.bak", tmp_path / ".out.md.999999999.abcd.md"]  # not the command's names
+    for u in users:
+        u.write_text("the user's")
     os.umask(old := os.umask(0o022))
     write_text(target, "done")
     assert stat.S_IMODE(os.stat(target).st_mode) == 0o666 & ~old
-    assert not stale.exists()
+    assert not stale.exists() and all(u.read_text() == "the user's" for u in users)
+    for u in users:
+        u.unlink()
     with pytest.raises(KeyboardInterrupt):
         with atomic_path(target) as tmp:
             tmp.write_text("partial")

@@ -237,8 +237,9 @@ def test_interrupted_write_leaves_no_partial_files(tmp_path):
 
     with pytest.raises(KeyboardInterrupt):
         golden.write(tmp_path, SMALL, progress=boom)
-    names = sorted(p.name for p in tmp_path.iterdir())
+    names = sorted(p.name for p in tmp_path.iterdir() if p.name != "INCOMPLETE")
     assert names == sorted(f"{n}.npz" for n in calls)  # complete files only, no temporaries, no manifest
+    assert "not completely written" in (tmp_path / "INCOMPLETE").read_text()  # and the folder says so
     for n in names:
         with np.load(tmp_path / n) as g:
             assert "category" in g.files

@@ -63,7 +63,7 @@ def measure(language, adapter):
     """``{probe: finding}`` of one language on one driver (strings for the table)."""
     with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
         path = Path(tmp) / f"probe.{language}"
-        path.write_text(PROBES[language])
+        path.write_text(PROBES[language], encoding="utf-8")
         got, _ = run_function(path, "p_round", {"x": _fma_row()}, {"y": (np.float32, (1, 4))}, language, adapter)
         y = got["y"][0]
         found = {fn: "fused" if float(v) != 0 else "unfused" for fn, v in zip(("p_fma", "p_contract", "p_precise"), y)}
@@ -97,7 +97,7 @@ def rules(language, adapter):
     x = rng.uniform(-2, 2, (4096, 4)).astype(np.float32)
     with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
         path = Path(tmp) / f"probe.{language}"
-        path.write_text(PROBES[language])
+        path.write_text(PROBES[language], encoding="utf-8")
         got = run_function(path, "p_rules", {"x": x}, {"y": (np.float32, (len(x), 4))}, language, adapter)[0]["y"]
     found = {}
     for k, (probe, cands) in enumerate(_RULES.items()):
@@ -131,7 +131,7 @@ def hlsl_contraction():
     ins, outs = [Slot.of("x", np.float32, (1, 4))], [Slot.of("y", np.float32, (1,))]
     with tempfile.TemporaryDirectory(prefix="moments-ref-probe-") as tmp:
         path = Path(tmp) / "probe.hlsl"
-        path.write_text(_HLSL)
+        path.write_text(_HLSL, encoding="utf-8")
         found = {}
         src = load_source(path, "hlsl")
         for fn in ("p_contract", "p_precise"):

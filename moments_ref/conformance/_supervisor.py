@@ -117,7 +117,9 @@ class _Child:
     def __init__(self):
         from multiprocessing.connection import Connection
 
-        fd, self.log = tempfile.mkstemp(prefix="moments-ref-driver-", suffix=".log")
+        # The log has no name (created unlinked): a parent killed outright (SIGKILL) leaves no file behind.
+        self.log = tempfile.TemporaryFile(prefix="moments-ref-driver-", suffix=".log")
+        fd = os.dup(self.log.fileno())
         down_r, down_w = os.pipe()
         up_r, up_w = os.pipe()
         root = str(Path(__file__).resolve().parents[2])
@@ -135,10 +137,10 @@ class _Child:
     def last_words(self):
         """The driver's last line on stderr (Mesa's and wgpu's chatter about the runtime dir dropped)."""
         try:
-            with open(self.log, "rb") as fh:
-                fh.seek(max(0, os.path.getsize(self.log) - 4096))
-                lines = [x.strip() for x in fh.read().decode("utf-8", "replace").splitlines()]
-        except OSError:
+            fd = self.log.fileno()
+            size = os.fstat(fd).st_size
+            lines = [x.strip() for x in os.pread(fd, 4096, max(0, size - 4096)).decode("utf-8", "replace").splitlines()]
+        except (OSError, ValueError):  # ValueError: the log is closed
             return ""
         lines = [x for x in lines if x and "XDG_RUNTIME_DIR" not in x]
         return lines[-1][:300] if lines else ""
@@ -151,10 +153,7 @@ class _Child:
         self.proc.wait()
         for conn in (self.send, self.recv):
             conn.close()
-        try:
-            os.unlink(self.log)
-        except OSError:
-            pass
+        self.log.close()
 
 
 def driver_pid():

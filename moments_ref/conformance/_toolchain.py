@@ -88,7 +88,7 @@ def glslang_glsl(text, describe_string, signature):
     """
     with tempfile.TemporaryDirectory(prefix="moments-ref-glsl-") as tmp:
         src, out = Path(tmp) / "mr_wrapper.comp", Path(tmp) / "out.spv"
-        src.write_text(text)
+        src.write_text(text, encoding="utf-8")
         code, log = _run([_tool("glslangValidator"), "-V", "-S", "comp", "-o", str(out), str(src)], "glslang")
         if code != 0 or not out.is_file():
             errors = one_line_errors(log, r"\b(\d+):(\d+):",
@@ -102,7 +102,7 @@ def glslang_hlsl(text, describe_string, signature):
     """Compile the HLSL wrapper (the user's resolved source and the harness's entry ``mr_main``) to SPIR-V."""
     with tempfile.TemporaryDirectory(prefix="moments-ref-hlsl-") as tmp:
         src, out = Path(tmp) / "mr_wrapper.hlsl", Path(tmp) / "out.spv"
-        src.write_text(text)
+        src.write_text(text, encoding="utf-8")
         cmd = [_tool("glslangValidator"), "-D", "-V", "-S", "comp", "-e", "mr_main", "-o", str(out), str(src)]
         code, log = _run(cmd, "glslang")
         if code != 0 or not out.is_file():
@@ -151,7 +151,7 @@ def spirv_to_glsl(spirv, version=430):
                           "--output", str(out)], "spirv-cross")
         if code != 0 or not out.is_file():
             raise ShaderError(f"spirv-cross could not translate the SPIR-V: {log.strip()}")
-        text = re.sub(r"\b(fma|mix)\(", r"mr_\1(", out.read_text())
+        text = re.sub(r"\b(fma|mix)\(", r"mr_\1(", out.read_text(encoding="utf-8"))
         head, _, rest = text.partition("\n")
         return "\n".join([head, *_as_spirv_states(), rest])
 

@@ -261,13 +261,40 @@ def _key(case, arrays, profile):
     return h.hexdigest()
 
 
-def _load_cached(path, key):
+def _trusted(path):
+    """Whether a cache entry may be read: a regular file (no link) owned by this user that no other user can
+    write, in a folder no other user can write into (unless sticky, like /tmp). Anything else is rebuilt."""
+    import stat
+
+    try:
+        st, folder = os.lstat(path), os.stat(path.parent)
+    except OSError:
+        return False
+    uid = os.getuid()
+    own = stat.S_ISREG(st.st_mode) and st.st_uid == uid and not st.st_mode & 0o022
+    shared = folder.st_mode & 0o022 and not folder.st_mode & stat.S_ISVTX
+    return own and (folder.st_uid in (uid, 0)) and not shared
+
+
+def _load_cached(path, key, pcase):
+    """The cached derived arrays at ``path``, or None (derive again): not there, not trusted (:func:`_trusted`), a
+    foreign key, or arrays the strict loader's value checks refuse (a poisoned entry: NaN expected values,
+    tolerances that are not positive, unknown categories)."""
+    from .values import check_case_values
+
+    if not _trusted(path):
+        return None
     try:
         with np.load(path, allow_pickle=False) as g:
             data = {k: g[k] for k in g.files}
-    except Exception:  # a missing, partial or foreign file: derive again
+        if str(data.pop("cache_key", "")) != key:
+            return None
+        meta = {"inputs": list(pcase.inputs), "compare": list(pcase.outputs), "metric": pcase.metric,
+                "outputs": {o: {"dtype": str(data[o].dtype)} for o in pcase.outputs}}
+        check_case_values(meta, data, f"cache entry {path.name}")
+    except Exception:  # a partial, foreign or poisoned file: derive again (and overwrite it)  # noqa: BLE001
         return None
-    return data if str(data.pop("cache_key", "")) == key else None
+    return data
 
 
 def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
@@ -292,7 +319,7 @@ def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
     if key in _MEMO:
         return pcase, _MEMO[key]
     path = cache_dir() / f"{key}.npz"
-    data = _load_cached(path, key) if disk else None
+    data = _load_cached(path, key, pcase) if disk else None
     if data is None:
         _, data = profile_arrays(case, arrays, profile)
         if disk:

@@ -162,12 +162,16 @@ def json_rows(name, meta, arrays, got, verdict, gs=()):
 
 
 def write_json(path, cases, extra=None):
-    """Write ``{"cases": [...]}`` (and ``extra`` keys) atomically to ``path``."""
-    from .._io import write_text
+    """Write ``{"cases": [...]}`` (and ``extra`` keys) to the ``--json`` target ``path``.
+
+    Atomically to a file; through as a stream to a device, FIFO or pipe (never
+    replacing it): :func:`moments_ref._io.write_output`.
+    """
+    from .._io import write_output
 
     doc = dict(extra or {})
     doc["cases"] = list(cases)
-    return write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    return write_output(path, json.dumps(doc, indent=1, allow_nan=False) + "\n", "--json")
 
 
 #: Choices a port may have made without declaring them, tried by :func:`convention_groups`.

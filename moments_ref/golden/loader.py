@@ -48,9 +48,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError, brief, check_memory, first_index
-from .notes import RESULTS
-from .writer import CATEGORIES, SCHEMA_VERSION
+from .._arrays import InputError, brief, check_memory
+from .._io import INCOMPLETE
+from .values import check_case_values
+from .writer import SCHEMA_VERSION
 
 __all__ = ["MAX_MANIFEST", "MAX_JSON_DEPTH", "MAX_ROWS", "MAX_ELEMENTS", "read_regular", "load_manifest",
            "check_entry", "load_case_arrays", "load_case", "load_results", "results_limit"]
@@ -125,6 +126,9 @@ def load_manifest(golden_dir):
     golden_dir = Path(golden_dir)
     if not golden_dir.is_dir():
         raise InputError(f"golden_dir: expected a folder with manifest.json, got {str(golden_dir)!r}")
+    if os.path.lexists(golden_dir / INCOMPLETE):
+        raise InputError(f"golden_dir: {str(golden_dir)!r} is incomplete: its writing was interrupted or is under "
+                         f"way ({INCOMPLETE} marks it); rerun moments-ref golden --out on it")
     manifest = _parse_json(read_regular(golden_dir / "manifest.json", MAX_MANIFEST, "golden_dir"), "manifest")
     if not isinstance(manifest, dict) or not isinstance(manifest.get("cases"), dict):
         raise InputError("manifest: expected an object with a 'cases' object")
@@ -275,6 +279,8 @@ def _read_npz(blob, what, expect):
         exp = expect(key) if key is not None else f"{info.filename!r} is not an .npy member"
         if isinstance(exp, str):
             raise InputError(f"{what}: {exp}")
+        if info.flag_bits & 0x1:
+            raise InputError(f"{what}: array {key!r} is encrypted (zip flag bit 0); expected a plain .npz member")
         if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
             raise InputError(f"{what}: array {key!r} is compressed with method {info.compress_type}; expected "
                              "stored or deflated (np.savez, np.savez_compressed)")
@@ -288,7 +294,7 @@ def _read_npz(blob, what, expect):
     check_memory(total, f"{what} ({len(plan)} arrays, {total} bytes uncompressed)")
     try:
         return {key: _read_member(zf, info, key, exp, what) for info, key, exp in plan}
-    except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError, NotImplementedError) as exc:
+    except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError, NotImplementedError, RuntimeError) as exc:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"{what}: a corrupt or truncated array in the archive: {str(exc)[:100]}") from None
@@ -339,47 +345,6 @@ def _case_expect(meta):
     return lambda key: known.get(key) or _Expect("biufU", rows=n, row_elements=1024, itemsize=8)
 
 
-def _row_error(what, name, mask, problem, arrays):
-    idx = first_index(mask)
-    row = idx[0]
-    tc = f" (tc_id {int(arrays['tc_id'][row])})" if "tc_id" in arrays else ""
-    return InputError(f"{what}: {name} {problem} at row {row}{tc}")
-
-
-def _check_case_values(meta, arrays, what):
-    """The checks of a case's values the comparator relies on (module docstring)."""
-    need = list(meta["inputs"]) + list(meta["compare"]) + ["category", "comment", "result", "tc_id"]
-    if meta["metric"] != "exact":
-        need += [f"{o}_tolerance_{dt}" for o in meta["compare"] for dt in ("float32", "float64")]
-    missing = [k for k in need if k not in arrays]
-    if missing:
-        raise InputError(f"{what} lacks the array {missing[0]!r}")
-    for key, allowed in (("category", CATEGORIES), ("result", tuple(RESULTS))):
-        bad = ~np.isin(arrays[key], allowed)
-        if bad.any():
-            raise _row_error(what, key, bad, f"is {str(arrays[key][first_index(bad)])!r}, not one of "
-                                             f"{', '.join(allowed)},", arrays)
-    for o in meta["compare"]:
-        if meta["metric"] == "exact":
-            acc = arrays.get(f"{o}_acceptable")
-            if acc is not None:
-                info = np.iinfo(np.dtype(meta["outputs"][o]["dtype"]))
-                out = (acc < info.min) | (acc > info.max)
-                if acc.ndim < 2 or acc.shape[2:] != arrays[o].shape[1:] or out.any():
-                    raise InputError(f"{what}: {o}_acceptable must hold {info.dtype} codes of shape "
-                                     f"(rows, K) + {arrays[o].shape[1:]}, got {acc.shape} {acc.dtype}")
-            continue
-        e = arrays[o]
-        if not np.isfinite(e).all():
-            raise _row_error(what, o, ~np.isfinite(e), "is not finite", arrays)
-        for dt in ("float32", "float64"):
-            t = arrays[f"{o}_tolerance_{dt}"]
-            bad = np.isnan(t) | (t <= 0)
-            if bad.any():
-                raise _row_error(what, f"{o}_tolerance_{dt}", bad, f"is {float(t[first_index(bad)])!r} (a tolerance "
-                                 "must be positive, +inf where only a finite value in range is required)", arrays)
-
-
 def case_file_limit(meta):
     """Bytes a case file may have at most, from the manifest's shapes."""
     expect = _case_expect(meta)
@@ -397,7 +362,7 @@ def load_case_arrays(golden_dir, name, meta):
     if hashlib.sha256(blob).hexdigest() != meta["sha256"]:
         raise InputError(f"golden: {meta['file']} does not match the sha256 in manifest.json")
     arrays = _read_npz(blob, what, _case_expect(meta))
-    _check_case_values(meta, arrays, what)
+    check_case_values(meta, arrays, what)
     return arrays
 
 

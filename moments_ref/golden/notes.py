@@ -13,12 +13,14 @@ References
 
 from __future__ import annotations
 
-__all__ = ["NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause"]
+__all__ = ["CATEGORIES", "NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause"]
 
 #: The flag of rows beyond the algorithm's contract (:mod:`moments_ref.golden.contract`).
 ROBUSTNESS = "robustness"
 
 #: Values of a row's ``result``.
+#: The kinds of golden rows (each row's ``category``).
+CATEGORIES = ("random", "stiff", "edge")
 RESULTS = {
     "valid": "the output must match the expected value within the row's tolerance",
     "acceptable": "more than one answer is right: any code of the row's acceptable set (rounding ties), or "

@@ -47,14 +47,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from .._arrays import InputError
+from .._toml import check_values, exact_int, finite_float, load_toml
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["Profile", "Bias", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED", "FORMAT_KEYS",
@@ -156,9 +155,7 @@ def _where(src, key):
 
 
 def _number(v, src, key):
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise InputError(f"{_where(src, key)}: expected a finite number, got {v!r}")
-    return float(v)
+    return finite_float(v, _where(src, key))  # bounded: an integer beyond float range is refused (_toml)
 
 
 def _choice(v, allowed, src, key):
@@ -215,6 +212,8 @@ def _format(v, src, key="format"):
     for k, x in v.items():
         if k not in FORMAT_KEYS:
             raise InputError(f"{_where(src, f'{key}.{k}')}: unknown key (known: {', '.join(FORMAT_KEYS)})")
+        if isinstance(FORMAT_KEYS[k][0], int):  # 8.0 or true is not the integer 8 or 1
+            exact_int(x, _where(src, f"{key}.{k}"))
         out[k] = _choice(x, FORMAT_KEYS[k], src, f"{key}.{k}")
     return tuple(sorted(out.items()))
 
@@ -248,6 +247,7 @@ def parse_profile(data, source="profile"):
     """A :class:`Profile` from the parsed TOML ``data`` (a dict)."""
     if not isinstance(data, dict):
         raise InputError(f"profile {source}: expected a table of keys")
+    check_values(data, f"profile {source}")  # the API's dicts too: nesting and number bounds (_toml)
     top = _table(data, source)
     funcs = data.get("functions", {})
     if not isinstance(funcs, dict) or not all(isinstance(v, dict) for v in funcs.values()):
@@ -258,11 +258,8 @@ def parse_profile(data, source="profile"):
 
 def load_profile(path):
     """Read and check a profile file (TOML); :class:`InputError` on anything it refuses."""
-    blob = _read(path)
-    try:
-        data = tomllib.loads(blob.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise InputError(f"profile {Path(path).name}: not a TOML file: {exc}") from None
+    # Size, nesting and number literals bounded before parsing, numbers after (_toml).
+    data = load_toml(_read(path), f"profile {Path(path).name}", MAX_PROFILE)
     return parse_profile(data, Path(path).name)
 
 

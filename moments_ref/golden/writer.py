@@ -2,7 +2,9 @@
 
 Deterministic: the same version writes the same bytes (seeded rows, deterministic
 zip entries, sorted JSON). Every file is written atomically (temporary file, fsync,
-rename), so an interrupted run never leaves a half-written file.
+rename), so an interrupted run never leaves a half-written file; the folder is locked
+against a second writer and marked ``INCOMPLETE`` until its manifest is written, so
+an interrupted rewrite leaves a folder the loader names as incomplete.
 
 References
 ----------
@@ -27,9 +29,9 @@ import numpy as np
 
 from .. import __version__
 from .._arrays import InputError
-from .._io import save_npz, write_text
+from .._io import folder_lock, marked_incomplete, save_npz, write_text
 from .cases import CASES
-from .notes import NOTES, RESULTS
+from .notes import CATEGORIES, NOTES, RESULTS
 from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
 
 __all__ = ["write", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
@@ -53,7 +55,6 @@ SCHEMA_HISTORY = {
          "the rows beyond it (counted per level in `gated`, gated only with --strict); the engine cases' "
          "distributions (`aux`)",
 }
-CATEGORIES = ("random", "stiff", "edge")
 
 
 def _legacy_tolerances(case, arrays):
@@ -131,7 +132,12 @@ def write(out_dir, cases=None, progress=None, profile=None):
     -------
     manifest : dict
     """
-    out_dir = Path(out_dir)
+    with folder_lock(out_dir, "golden"):  # from the start: a second writer into the folder is refused at once
+        return _write(Path(out_dir), cases, progress, profile)
+
+
+def _write(out_dir, cases, progress, profile):
+    """:func:`write` under the folder's lock."""
     names = list(CASES) if cases is None else list(cases)
     unknown = [n for n in names if n not in CASES]
     if unknown:
@@ -166,11 +172,16 @@ def write(out_dir, cases=None, progress=None, profile=None):
         manifest["profile"] = profile.canonical
         manifest["profile_key"] = profile.key
         manifest["not_written"] = skipped
-    for name in names:
-        case, arrays = derived[name] if name in derived else (CASES[name], golden_arrays(CASES[name]))
-        data = save_npz(out_dir / f"{name}.npz", arrays)
-        manifest["cases"][name] = manifest_entry(case, arrays, data)
-        if progress is not None:
-            progress(name)
-    write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    # The folder marked INCOMPLETE until its manifest matches its files: an interrupted rewrite is named
+    # as such by the loader, never half-valid.
+    with marked_incomplete(
+            out_dir, f"This golden folder was not completely written ({len(names)} cases were to be written). "
+                     "Rerun moments-ref golden --out on it.\n"):
+        for name in names:
+            case, arrays = derived[name] if name in derived else (CASES[name], golden_arrays(CASES[name]))
+            data = save_npz(out_dir / f"{name}.npz", arrays)
+            manifest["cases"][name] = manifest_entry(case, arrays, data)
+            if progress is not None:
+                progress(name)
+        write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     return manifest

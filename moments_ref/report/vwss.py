@@ -63,7 +63,7 @@ import numpy as np
 
 from .._arrays import InputError, positive_int
 from .._shim import warn_renamed
-from ..claims import markdown_table, write_json
+from ..claims import markdown_table, to_json
 from .. import pipeline
 from ..scene.depth import d_view_from_ndc
 from ..techniques.area import LIGHT_SAMPLES
@@ -494,18 +494,25 @@ def markdown(res) -> str:
     return "\n".join(lines)
 
 
+#: The files :func:`write_outputs` writes.
+OUTPUTS = ("vwss.csv", "vwss.md", "claims.json", "vwss.png", "vwss_depth.png")
+
+
 def write_outputs(res, out_dir):
-    """Write vwss.csv, vwss.md, vwss.png and vwss_depth.png into ``out_dir`` (atomically)."""
+    """Write vwss.csv, vwss.md, claims.json, vwss.png and vwss_depth.png into ``out_dir``, all or none.
+
+    Every file is made in memory first and the set is written by
+    :func:`moments_ref._io.write_files`: a full disk leaves none of them behind.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .._io import save_figure, write_text
+    from .._io import figure_png, write_files
 
     out = Path(out_dir)
-    paths = [write_text(out / "vwss.csv", _csv(res.rows)), write_text(out / "vwss.md", markdown(res)),
-             write_json(res.claims, out / "claims.json")]
+    blobs = {"vwss.csv": _csv(res.rows), "vwss.md": markdown(res), "claims.json": to_json(res.claims)}
     names = ["reference", "vwss", "vwss_naive", "mvr", "pcss"]
     fig, axes = plt.subplots(2, len(names), figsize=(3.2 * len(names), 4.6), constrained_layout=True)
     occ = res.images["_occluder"]
@@ -521,7 +528,7 @@ def write_outputs(res, out_dir):
     for a in axes.ravel():
         a.set_axis_off()
     fig.colorbar(h, ax=axes[1, :], shrink=0.8)
-    paths.append(save_figure(fig, out / "vwss.png", dpi=110))
+    blobs["vwss.png"] = figure_png(fig, dpi=110)
     plt.close(fig)
     d = res.depth_images
     fig, axes = plt.subplots(1, 5, figsize=(16, 3.6), constrained_layout=True)
@@ -537,14 +544,20 @@ def write_outputs(res, out_dir):
     axes[4].set_title("red: only warped (bloat), blue: only MVR", fontsize=9)
     for a in axes:
         a.set_axis_off()
-    paths.append(save_figure(fig, out / "vwss_depth.png", dpi=100))
+    blobs["vwss_depth.png"] = figure_png(fig, dpi=100)
     plt.close(fig)
-    return paths
+    return write_files(out, blobs)
 
 
 def main(args) -> int:
     """``moments-ref vwss``: ``args`` has ``scene`` (name or file), ``views`` (int or None),
     ``quick`` (bool), ``near`` (float or None) and ``out`` (folder). Returns exit code 0."""
+    from .._io import check_own
+
+    for name in OUTPUTS:  # a FIFO, device, link or folder in the way: refused before the measurement
+        check_own(Path(args.out) / name)
+        if (Path(args.out) / name).is_dir():
+            raise InputError(f"--out: {Path(args.out) / name} is a folder; vwss writes its file there")
     cs = comparison_settings(bool(getattr(args, "quick", False)), views=getattr(args, "views", None),
                              near=getattr(args, "near", None))
     res = measure(getattr(args, "scene", None) or "knot", cs, out_dir=args.out)

@@ -188,6 +188,10 @@ class Scene:
                                size, samples=samples, cull=cull)
 
 
+#: Largest entry of an object's composed transform (a scene 1e9 wide scaled by 1e9 still fits float64 products).
+MAX_TRANSFORM = 1e18
+
+
 def _transform(ctx, steps, where):
     if not isinstance(steps, list):
         raise ctx.error(where, f"wrong type: expected a list of tables, got {type(steps).__name__}")
@@ -217,6 +221,10 @@ def _transform(ctx, steps, where):
             m = scale(f) @ m
         else:
             raise ctx.error(f"{w}.{kind}", "unknown transform (expected translate, rotate or scale)")
+        with np.errstate(over="ignore", invalid="ignore"):
+            big = not np.all(np.abs(m) <= MAX_TRANSFORM)
+        if big:  # each number is bounded, their product is not: refused before any vertex overflows
+            raise ctx.error(w, f"the transform so far scales beyond {MAX_TRANSFORM:g} (its steps multiply)")
     return m
 
 

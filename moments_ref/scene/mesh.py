@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError, check_memory, first_index
+from .objtext import MAX_OBJ_LINE, obj_statements
 
 __all__ = [
     "Mesh",
@@ -51,9 +52,9 @@ __all__ = [
 #: triangle (24 B stored each, the rest index grids and temporaries), checked
 #: against :func:`moments_ref._arrays.max_memory` before allocating.
 BYTES_PER_ELEMENT = 160
-#: Longest line of an OBJ file (characters): a polygon of thousands of vertices
-#: fits; a longer line is refused rather than split into millions of strings.
-MAX_OBJ_LINE = 1 << 16
+#: Largest magnitude of an OBJ coordinate: the bound of every number of a scene file
+#: (:data:`moments_ref.scene._checks.MAX_MAGNITUDE`), so that no transform or projection overflows.
+MAX_COORDINATE = 1e9
 #: Vertices or triangles an OBJ file is read in at a time (see :func:`read_obj`).
 OBJ_CHUNK = 1 << 16
 
@@ -436,18 +437,24 @@ class _ObjParts:
 
 
 def _obj_vertex(parts, where, line):
+    """``v x y z``, ``v x y z w`` (w divides and must be non-zero) or ``v x y z r g b`` (vertex colours, as
+    MeshLab and ZBrush export them: ignored); coordinates finite and within :data:`MAX_COORDINATE`."""
+    if len(parts) not in (4, 5, 7):
+        raise InputError(f"{where}: expected 'v x y z', 'v x y z w' or 'v x y z r g b' (colours), got "
+                         f"{len(parts) - 1} numbers: {line.strip()[:80]!r}")
     try:
-        xyz = [float(x) for x in parts[1:5]]
+        xyz = [float(x) for x in parts[1:5 if len(parts) == 5 else 4]]
     except ValueError:
-        raise InputError(f"{where}: expected 'v x y z [w]' with numbers, got {line.strip()!r}") from None
-    if len(xyz) < 3:
-        raise InputError(f"{where}: expected 'v x y z [w]', got {line.strip()!r}")
+        raise InputError(f"{where}: expected 'v x y z [w]' with numbers, got {line.strip()[:80]!r}") from None
     if not all(np.isfinite(xyz)):
-        raise InputError(f"{where}: expected finite coordinates, got {line.strip()!r}")
+        raise InputError(f"{where}: expected finite coordinates, got {line.strip()[:80]!r}")
     if len(xyz) == 4:
         if xyz[3] == 0:
             raise InputError(f"{where}: expected a non-zero w (a point, not a direction), got {line.strip()!r}")
         xyz = [c / xyz[3] for c in xyz[:3]]
+    if not all(abs(c) <= MAX_COORDINATE for c in xyz):
+        raise InputError(f"{where}: a coordinate beyond the scene bounds (|x| <= {MAX_COORDINATE:g}, the largest "
+                         f"number a scene file takes), got {line.strip()[:80]!r}")
     return xyz
 
 
@@ -468,13 +475,19 @@ def _obj_face(parts, where, line, n_vertices):
 
 
 def read_obj(path) -> Mesh:
-    """Read the geometry of a Wavefront OBJ file.
+    """Read the geometry of a Wavefront OBJ file as exporters write it.
 
-    Reads ``v`` (x y z [w]; w divides and must be non-zero; coordinates finite) and ``f`` lines; a face's indices may be
+    Reads ``v`` (x y z; x y z w, where w divides and must be non-zero; x y z r g b,
+    vertex colours, ignored; coordinates finite and within :data:`MAX_COORDINATE`,
+    the scene files' bound) and ``f`` lines; a face's indices may be
     ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, 1-based, or negative (relative to
     the vertices read so far). Polygons are triangulated as fans (v0, vi, vi+1),
-    which is exact for convex polygons. Other statements (vn, vt, o, g, usemtl,
-    s, ...) are ignored.
+    which is exact for convex polygons. The other statements of the specification
+    (vt, vn, vp, l, p, o, g, s, usemtl, usemap, mtllib, ...) are ignored; a UTF-8
+    BOM, UTF-16 text, CRLF line ends and ``\\`` continuations are read
+    (:mod:`moments_ref.scene.objtext`). A file without faces, binary data (a binary
+    STL named ``.obj``), an ASCII STL and a line whose keyword is no OBJ statement
+    are refused.
 
     Memory. The file is read line by line (lines of at most :data:`MAX_OBJ_LINE`
     characters) into arrays of :data:`OBJ_CHUNK` rows; the vertices and
@@ -486,23 +499,22 @@ def read_obj(path) -> Mesh:
     ------
     InputError
         Naming the file and line of a malformed vertex or face, an index out of
-        range, a line too long, or a mesh above the memory limit.
+        range, a line too long, a coordinate out of bounds, a file that is not
+        OBJ text or has no face, or a mesh above the memory limit.
     """
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: expected a regular OBJ file, got {'a folder' if path.is_dir() else 'no file' if not path.exists() else 'a special file'}")
     acc = _ObjParts(path)
     try:
-        with open(path, encoding="utf-8", errors="replace") as f:
-            for lineno, line in enumerate(iter(lambda: f.readline(MAX_OBJ_LINE + 1), ""), 1):
-                where = f"{path}:{lineno}"
-                if len(line) > MAX_OBJ_LINE:
-                    raise InputError(f"{where}: a line longer than {MAX_OBJ_LINE} characters")
-                parts = line.split("#", 1)[0].split()
-                if parts and parts[0] == "v":
-                    acc.vertex(_obj_vertex(parts, where, line))
-                elif parts and parts[0] == "f":
-                    acc.face(_obj_face(parts, where, line, acc.nv))
+        for where, parts, line in obj_statements(path):
+            if parts[0] == "v":
+                acc.vertex(_obj_vertex(parts, where, line))
+            elif parts[0] == "f":
+                acc.face(_obj_face(parts, where, line, acc.nv))
     except OSError as exc:
         raise InputError(f"{path}: cannot read OBJ file ({exc.strerror})") from None
+    if acc.nt == 0:
+        raise InputError(f"{path}: expected an OBJ file with at least one face ('f' line), got {acc.nv} vertices "
+                         "and no face")
     return acc.mesh()

@@ -35,7 +35,7 @@ LEAF_MODULES = ("oracle",)
 TOP = ("cli", "__main__")
 #: The flat modules at the top of the package and their layer.
 FLAT = {
-    "_arrays": "base", "_io": "base", "_shim": "base", "_docs": "base", "_options": "base",
+    "_arrays": "base", "_io": "base", "_toml": "base", "_shim": "base", "_docs": "base", "_options": "base",
     "claims": "base",  # the Claim record: techniques and report both write claims
     "_kernels": "core", "moments": "core", "msm": "core", "msm6": "core", "affine": "core",
     "nonlinear": "core", "packing": "core", "precise": "core",

@@ -42,7 +42,8 @@ def _run(cmd):
     if path is None:
         raise ToolError(f"{cmd[0]} is not installed (Debian/Ubuntu: apt-get install {_PACKAGES[cmd[0]]})")
     try:
-        proc = subprocess.run([path, *cmd[1:]], capture_output=True, text=True, timeout=TOOL_SECONDS)
+        proc = subprocess.run([path, *cmd[1:]], capture_output=True, text=True, encoding="utf-8",
+                              errors="replace", timeout=TOOL_SECONDS)
     except subprocess.TimeoutExpired:
         raise ToolError(f"{cmd[0]} did not finish within {TOOL_SECONDS} s (the harness's limit)") from None
     return proc.returncode, proc.stdout + proc.stderr
@@ -55,7 +56,7 @@ def glsl_to_spirv(text, name_of):
     """
     with tempfile.TemporaryDirectory(prefix="moments-ref-kernel-") as tmp:
         src, out = Path(tmp) / "kernel.comp", Path(tmp) / "kernel.spv"
-        src.write_text(text)
+        src.write_text(text, encoding="utf-8")
         code, log = _run(["glslangValidator", "-V", "-S", "comp", "-o", str(out), str(src)])
         if code != 0 or not out.is_file():
             errors = one_line_errors(log, r"\b(\d+):(\d+):", lambda m: f"{name_of(int(m.group(1)))}:{m.group(2)}:")
@@ -101,7 +102,7 @@ def spirv_to_gl(spv, entry=None):
         code, log = _run(cmd + (["--entry", entry] if entry else []))
         if code != 0 or not out.is_file():
             raise ShaderError(f"spirv-cross could not translate the kernel to GLSL: {log.strip()}")
-        return out.read_text()
+        return out.read_text(encoding="utf-8")
 
 
 _INSTR = re.compile(r"^\s*(?:(%\w+)\s*=\s*)?(Op\w+)(.*)$")
@@ -169,7 +170,7 @@ def for_naga(spv):
         patched = "\n".join(lines[:at] + extra + lines[at:])
     with tempfile.TemporaryDirectory(prefix="moments-ref-kernel-") as tmp:
         src, out = Path(tmp) / "in.spvasm", Path(tmp) / "out.spv"
-        src.write_text(patched + "\n")
+        src.write_text(patched + "\n", encoding="utf-8")
         code, log = _run(["spirv-as", "--target-env", "spv1.0", "-o", str(out), str(src)])
         if code != 0 or not out.is_file():
             raise ShaderError(f"spirv-as could not reassemble the kernel for wgpu: {log.strip()}")

@@ -137,7 +137,7 @@ def write_temp(text, suffix):
     """A temporary copy of a source (the caller removes its folder)."""
     d = Path(tempfile.mkdtemp(prefix="moments-ref-trace-"))
     p = d / f"kernel_traced{suffix}"
-    p.write_text(text)
+    p.write_text(text, encoding="utf-8")
     return p
 
 

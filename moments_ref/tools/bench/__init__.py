@@ -420,8 +420,10 @@ def keep_history(text, path):
 
     The tables of a run replace the old ones; the history is written by hand and kept.
     """
-    try:
-        old = Path(path).read_text(encoding="utf-8")
+    from ..._io import read_own
+
+    try:  # only the command's own earlier file: a FIFO, device or link there is refused, never read
+        old = (read_own(path, 1 << 22, "out") or b"").decode("utf-8")
     except (OSError, UnicodeDecodeError):
         return text
     at = old.find("\n" + HISTORY_HEADING + "\n")
