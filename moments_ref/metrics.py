@@ -9,6 +9,9 @@ References
        and Mark D. Fairchild. 2020. *ꟻLIP: A Difference Evaluator for Alternating Images*.
        Proceedings of the ACM on Computer Graphics and Interactive Techniques (HPG 2020) 3, 2. Used
        through the package ``flip-evaluator``.
+.. [2] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations

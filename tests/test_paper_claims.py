@@ -198,13 +198,13 @@ def test_evsm128_verdict_does_not_rest_on_the_minimum_variance_clamp(railing_def
     assert leak["evsm128"] < 0.2 * leak["evsm64"]
 
 
-def test_three_occluders_is_figure9s_configuration():
+def test_patio_is_figure9s_configuration():
     """HPG17 Figure 9: fully shadowed ground whose filter regions hold roof, umbrella and rail.
 
     The leak metric first ranks PCF (exact, no leak) below the four-moment
     techniques on those pixels; then every four-moment technique leaks visibly there.
     """
-    sc = load_scene("three-occluders")
+    sc = load_scene("patio")
     r = pipeline.run(sc, ["pcf", "msm128", "nlq64"], pipeline.Settings(shadow_map_size=256, msaa=1, resolution=(160, 90)))
     m = paper_claims.scene_measurements(r)
     leaks = m["full_shadow_leaks"]
@@ -213,7 +213,7 @@ def test_three_occluders_is_figure9s_configuration():
     for n in ("msm128", "nlq64"):
         assert leaks[n]["three_or_more"]["leak_area_3pct"] > 0.5
         assert leaks[n]["three_or_more"]["leak_mean"] > 100 * leaks[n]["one_or_two"]["leak_mean"]
-    c = next(c for c in paper_claims.claims([], {"three-occluders": m}, temporal=False)
+    c = next(c for c in paper_claims.claims([], {"patio": m}, temporal=False)
              if c.id == "hpg17-four-moment-leak-three-occluders")
     assert c.verdict == "holds" and all(c.measured["ranking_check"].values())
     assert set(m["crops"]) == {"hpg17-four-moment-leak-three-occluders"}
