@@ -23,7 +23,7 @@ from moments_ref.scene import (
 )
 from moments_ref.scene import mesh as mesh_mod
 
-SHIPPED = ["chair", "facade", "knot", "railing", "scattering", "three-occluders", "translucent"]
+SHIPPED = ["chair", "facade", "knot", "patio", "railing", "scattering", "three-occluders", "translucent"]
 
 
 def _object_mesh(scene, name):

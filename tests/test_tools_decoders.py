@@ -1,4 +1,4 @@
-"""moments_ref.tools.decoders reproduces docs/formats.md's measurement of the 32-bit decoders."""
+"""moments_ref.tools.decoders reproduces docs/formats.md's measurement of the 32-bit D."""
 
 import numpy as np
 import pytest
@@ -50,3 +50,23 @@ def test_evsm_study_recomputes_the_pipeline():
            for t in ("evsm64", "evsm128", "msm128")}
     assert {t: rows[0][t] for t in own} == pytest.approx(own, abs=1e-12)
     assert len(rows) == 24 and all(isinstance(r["holds"], bool) for r in rows)
+
+
+def test_random_row_figures_state_their_sampler_count_and_interval():
+    """docs/formats.md's excess over the bound: the seed-0 figure, and a row of the table the command writes."""
+    from pathlib import Path
+
+    doc = (Path(__file__).parent.parent / "docs" / "formats.md").read_text(encoding="utf-8")
+    first, _, uniform = D.SAMPLERS.values()
+    assert D.excess_over_bound(first, seeds=[0])["max_median"] == pytest.approx(0.133, abs=5e-4)
+    s = D.excess_over_bound(uniform, seeds=range(8))
+    lo, hi = s["share_over_95"]
+    assert lo < s["share_over"] < hi and s["rows_per_sample"] == 400_000
+    assert s["max_min"] <= s["max_median"] <= s["max_max"]
+    row = (f"| {list(D.SAMPLERS)[2]} | 400000 | {s['max_median']:.3f} ({s['max_min']:.3f} to "
+           f"{s['max_max']:.3f}) | {s['share_over']:.1e} ({lo:.1e} to {hi:.1e}) |")
+    assert row in doc, "regenerate: python -m moments_ref.tools.decoders --samples"
+    r, zf = D.random_representations(10, seed=1)
+    np.testing.assert_array_equal(zf.reshape(10, 4)[:, :2], np.minimum(r[::4, :2] + 1e-3, 1.0))
+    # the Wilson interval of 0 in 100 and of 50 in 100 (closed form)
+    assert D._wilson(0, 100)[0] == 0 and D._wilson(50, 100) == pytest.approx((0.4038, 0.5962), abs=1e-4)

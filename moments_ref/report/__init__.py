@@ -347,10 +347,11 @@ def _write(acc, out, flip_ok, done, fronts):
                                    {"fronts": list(fronts), **acc.images}, flip_ok, refs, lines,
                                    answer=acc.machine + winner_lines(found, own) + front_lines(acc.rows)
                                    + summary_lines(acc.rows), repeats=acc.repeats)}
+    claim_crops = paper_claims.crop_pngs(acc.measured)  # side-by-side crops of the claims about images
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
-        temporal=False)
-    paths = _write_set(out, {**files, **acc.pngs, **fronts, **texts})
+        temporal=False, images=tuple(claim_crops))
+    paths = _write_set(out, {**files, **acc.pngs, **fronts, **claim_crops, **texts})
     return {"rows": acc.rows, "stages": acc.stages, "claims": json.loads(texts["claims.json"]),
             "soft": statements.get("mvr", {}),
             "artifacts": artifacts, "paths": paths, "settings": acc.references}
