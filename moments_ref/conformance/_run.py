@@ -6,7 +6,10 @@ language   Vulkan (wgpu; lavapipe without a GPU)            OpenGL (EGL; llvmpip
 GLSL       glslang → SPIR-V → wgpu                          moderngl (the default)
 HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V read by the driver, as written (default)
 WGSL       wgpu (the default)                               wgpu's OpenGL adapter
+Slang      Slang → GLSL → glslang → SPIR-V → wgpu           Slang → GLSL → moderngl (default)
 =========  ===============================================  ===============================
+
+The facts per language (suffixes, compilers, routes, ``precise``) are :mod:`.languages`.
 """
 
 from __future__ import annotations
@@ -19,26 +22,27 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError
-from . import _gl, _glspirv, _toolchain, _wgpu
+from ..ports import PORTS_DIR
+from . import _gl, _glspirv, _slang, _toolchain, _wgpu
+from . import languages as _languages
 from ._cases import GoldenCase, load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
 from ._decls import keep_used, used_resources
 from ._textures import consumed, texture_args
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
-from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
+from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_slang, wrap_wgsl
 from .verdict import compare_case
 
 __all__ = ["LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
 
-LANGUAGES = ("glsl", "hlsl", "wgsl")
-DRIVERS = ("gl", "vulkan")
+LANGUAGES = _languages.LANGUAGES
+DRIVERS = _languages.DRIVERS
 #: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
 #: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).
 AS_WRITTEN = "as-written"
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
-DEFAULT_DRIVER = {"glsl": "gl", "hlsl": "gl", "wgsl": "vulkan"}
-_SUFFIX = {".glsl": "glsl", ".comp": "glsl", ".hlsl": "hlsl", ".hlsli": "hlsl", ".fx": "hlsl", ".wgsl": "wgsl"}
+DEFAULT_DRIVER = {k: v.default for k, v in _languages.TABLE.items()}
 _SPIRV = {}
 
 
@@ -64,15 +68,8 @@ def parse_adapter(spec, language):
 
 
 def language_of(path, language=None):
-    """The language named, or the one of the file's suffix."""
-    if language is not None:
-        if language not in LANGUAGES:
-            raise InputError(f"language: expected one of {', '.join(LANGUAGES)}, got {language!r}")
-        return language
-    lang = _SUFFIX.get(Path(path).suffix.lower())
-    if lang is None:
-        raise InputError(f"source: cannot tell the language of {str(path)!r}; use --glsl, --hlsl or --wgsl")
-    return lang
+    """The language named, or the one of the file's suffix (:func:`.languages.language_of`)."""
+    return _languages.language_of(path, language)
 
 
 @dataclass(frozen=True)
@@ -138,6 +135,8 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     src = load_source(path, language, options.include_dirs, options.defines, options.prelude, options.max_source)
     sig = signature(language, function, ins, outs)
     _check_defined(src, path, function, sig)
+    if language == "slang":  # Slang keeps only what the entry point uses; modules are its own
+        return _slang_route(target, src, path, function, sig, ins, outs, options)
     src = _only_used(src, function, language, options.keep_unused)
     tex = {} if inputs is None else texture_args(src.body, function, language, ins,
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
@@ -156,6 +155,29 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
         return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE, tex=tex)), \
             dev.renderer, []
     return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
+
+
+def _slang_route(target, src, path, function, sig, ins, outs, options):
+    """Slang → GLSL; OpenGL runs it (barriers lowered), Vulkan gets glslang's SPIR-V of it (keeps ``precise``)."""
+    if target.driver == AS_WRITTEN:
+        raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL; Slang runs on gl or vulkan")
+    space = free_group(src.body, r"(?:\bspace|vk::binding\s*\(\s*\d+\s*,\s*)(\d+)")
+    wrapper = wrap_slang(src, function, ins, outs, space)
+    dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
+    known = set(re.findall(r"[A-Za-z_]\w*", strip_comments(src.body)))
+    glsl = _cached(["slang", wrapper, *map(str, dirs)],
+                   lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig, known))
+    note = _languages.precise_note("slang", target.driver, src.body)
+    notes = [note] if note else []
+    if target.driver == "gl":
+        ctx = _gl.get_context()
+        text = _slang.to_gl(glsl)
+        return (lambda a, n: _gl.run_program(text, lambda k: "<Slang's GLSL>", sig, ins, outs, a, n, LOCAL_SIZE,
+                                             ctx)), _gl.renderer(ctx) + " (Slang through its GLSL)", notes
+    dev = _device(target)
+    spv = _cached(["slang-spirv", glsl], lambda: _toolchain.glslang_glsl(glsl, lambda k: "<Slang's GLSL>", sig))
+    return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE, "main")), \
+        dev.renderer + " (Slang through its GLSL and glslang)", notes
 
 
 def _glsl(target, src, function, sig, ins, outs, tex):
