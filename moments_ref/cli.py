@@ -304,12 +304,14 @@ def _add_oracle(sub):
     mu.add_argument("--out", type=folder_arg, help="unused; accepted for uniformity")
     mu.set_defaults(func=_cmd_mutants)
 
-    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port (a function, or with --kernel a compute "
+    cf = sub.add_parser("conformance", help="run a GLSL, HLSL, WGSL or Slang port (a function, or with --kernel a compute "
                                             "shader) on a real driver against a golden case")
     lang = cf.add_mutually_exclusive_group()
     lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
     lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
     lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
+    lang.add_argument("--slang", metavar="FILE", help="Slang file, or a shipped port's name (msm.slang ...); "
+                                                     'needs the extra: pip install -e ".[slang]"')
     cf.add_argument("--function", help="the function to test")
     cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")

@@ -16,11 +16,11 @@ from ..ports import PORTS_DIR
 from ._cases import load_case
 from ._gl import ContextError
 from ._report import fmt
-from ._run import DRIVERS, LANGUAGES, SourceOptions, language_of, parse_adapter, run_case, run_function
+from ._run import ALL_LANGUAGES, DRIVERS, SourceOptions, language_of, parse_adapter, run_case, run_function
 from ._shipped import not_available, shipped_cases, shipped_port
 from ._supervisor import using_watchdog
 from ._toolchain import ToolError
-from .languages import compiler_versions
+from .languages import available, compiler_versions
 
 __all__ = ["resolve_port", "run_cli", "harness_failure", "source_options", "main", "summary_markdown", "bench_conformance"]
 
@@ -90,8 +90,11 @@ def harness_failure(exc):
 
 
 def _targets(adapter):
-    """``[(language, adapter spec)]`` for ``--all``: every language on every driver, or on ``adapter``."""
-    return [(lang, adapter or driver) for lang in LANGUAGES for driver in ((adapter,) if adapter else DRIVERS)]
+    """``[(language, adapter spec)]`` for ``--all``: every language on every driver, or on ``adapter``.
+
+    Slang only where its extra is installed (:func:`.languages.available`)."""
+    return [(lang, adapter or driver) for lang in ALL_LANGUAGES if available(lang)
+            for driver in ((adapter,) if adapter else DRIVERS)]
 
 
 def _cells(rep):
@@ -133,6 +136,8 @@ def _run_all(golden_dir, adapter, progress):
     for language, spec in _targets(adapter):
         rows, times, renderers, outputs, refused = [], [], {}, {}, {}
         for name in cases:
+            if shipped_port(name, language) is None:
+                continue  # no shipped port of this function in this language (languages.TABLE)
             path, function = shipped_port(name, language)
             gc = load_case(name, golden_dir)
             reason = _refused(language, spec, name, path, function, golden_dir, gc)
@@ -171,7 +176,7 @@ def _agreement_table(results):
     """Per language: how many golden rows the two drivers compute bit-identically."""
     by = {(lang, drv): out for lang, drv, _, _, _, out, _ in results}
     lines = ["| language | rows | differing between gl and vulkan | in cases |", "|---|---:|---:|---|"]
-    for lang in LANGUAGES:
+    for lang in ALL_LANGUAGES:
         if (lang, "gl") not in by or (lang, "vulkan") not in by:
             continue
         gl = by[(lang, "gl")]
@@ -273,9 +278,9 @@ def _main(args):
     if get("kernel"):
         from .kernel.cli import kernel_cli
 
-        files = [(lang, get(lang)) for lang in LANGUAGES if get(lang) is not None]
+        files = [(lang, get(lang)) for lang in ALL_LANGUAGES if get(lang) is not None]
         if len(files) != 1:
-            raise InputError(f"conformance: --kernel expects one of --glsl, --hlsl or --wgsl FILE, got {len(files)}")
+            raise InputError(f"conformance: --kernel expects one of {_options()} FILE, got {len(files)}")
         language, path = files[0]
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
                           get("adapter"))
@@ -294,10 +299,9 @@ def _main(args):
         if get("out"):
             print(f"wrote {write_text(Path(get('out')) / 'conformance.md', text)}")
         return 1 if "| FAIL |" in text else 0
-    files = [(lang, get(lang)) for lang in LANGUAGES if get(lang) is not None]
+    files = [(lang, get(lang)) for lang in ALL_LANGUAGES if get(lang) is not None]
     if len(files) != 1:
-        raise InputError("conformance: expected one of --glsl, --hlsl or --wgsl FILE (or --all), "
-                         f"got {len(files)}")
+        raise InputError(f"conformance: expected one of {_options()} FILE (or --all), got {len(files)}")
     missing = [a for a in ("function", "case") if get(a) is None]
     if missing:
         raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
@@ -309,6 +313,12 @@ def _main(args):
     return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
                    options=source_options(args), profile=profile, strict=bool(get("strict")),
                    rows=get("rows") if get("rows") is not None else 5, json_path=get("json"))
+
+
+def _options():
+    """``--glsl, --hlsl, --wgsl or --slang`` from the table of languages."""
+    opts = [f"--{x}" for x in ALL_LANGUAGES]
+    return ", ".join(opts[:-1]) + " or " + opts[-1]
 
 
 def source_options(args):

@@ -34,9 +34,11 @@ from ._source import ShaderError, check_identifier, defined_functions, load_sour
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_slang, wrap_wgsl
 from .verdict import compare_case
 
-__all__ = ["LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
+__all__ = ["LANGUAGES", "ALL_LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
 
-LANGUAGES = _languages.LANGUAGES
+#: Languages whose shipped ports cover every shipped function; :data:`ALL_LANGUAGES` adds Slang.
+LANGUAGES = _languages.CORE
+ALL_LANGUAGES = _languages.LANGUAGES
 DRIVERS = _languages.DRIVERS
 #: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
 #: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .._arrays import InputError
 
-__all__ = ["Language", "TABLE", "LANGUAGES", "DRIVERS", "language", "language_of", "suffixes", "precise_note",
+__all__ = ["Language", "TABLE", "LANGUAGES", "CORE", "DRIVERS", "language", "language_of", "suffixes", "precise_note",
            "unmangle", "compiler_versions", "available"]
 
 #: The drivers every language runs on: OpenGL (moderngl, llvmpipe) and Vulkan (wgpu, lavapipe).
@@ -55,6 +55,7 @@ class Language:
     default: str
     precise: dict = field(default_factory=dict)
     shipped: tuple = ("msm", "msm6", "nonlinear", "packing", "bilinear")
+    probed: bool = True  # measured by conformance's driver probes (docs/conformance.md)
 
 
 TABLE = {
@@ -82,11 +83,14 @@ TABLE = {
         {"gl": "kept: Slang's GLSL writes precise",
          "vulkan": "kept: Slang's GLSL writes precise and glslang NoContraction (Slang's own SPIR-V drops it, "
                    "its WGSL writes `precise var`, which naga refuses: neither is used)"},
-        ("msm", "nonlinear", "packing")),
+        ("msm", "nonlinear", "packing"), False),
 }
 
 #: The languages, in the order of the reports.
 LANGUAGES = tuple(TABLE)
+#: The languages whose shipped ports cover every shipped function (``conformance.LANGUAGES``); Slang ships
+#: Algorithm 1, Algorithm 3 and the texel formats (and the §4.1 kernel), and needs an optional extra.
+CORE = tuple(k for k, v in TABLE.items() if set(v.shipped) == set(TABLE["glsl"].shipped))
 
 
 def language(name):

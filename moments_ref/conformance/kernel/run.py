@@ -6,6 +6,7 @@ language   OpenGL (llvmpipe)                               Vulkan (lavapipe)
 GLSL       moderngl compiles the file (entry ``main``)     glslang → SPIR-V → wgpu
 HLSL       glslang → SPIR-V → SPIRV-Cross GLSL → moderngl   glslang → SPIR-V → wgpu
 WGSL       wgpu's OpenGL adapter                           wgpu
+Slang      Slang → GLSL → glslang → SPIRV-Cross → moderngl  Slang → GLSL → glslang → SPIR-V → wgpu
 =========  ==============================================  ==========================================
 
 Bindings and work-group size come from reflection (:mod:`.reflect`), are matched
@@ -113,13 +114,23 @@ def _wgsl(path, entry, target):
     return Prepared(target.driver, target.name, "wgpu", src.body, entry, iface, f"WGSL through {adapter}", src)
 
 
+def _slang(path, entry, target):
+    from .slang import slang_kernel
+
+    code, iface, toolchain, _ = slang_kernel(path, entry, target.driver, _cached)
+    backend = "moderngl" if target.driver == "gl" else "wgpu"
+    return Prepared(target.driver, target.name if backend == "wgpu" else None, backend, code, "main", iface, toolchain)
+
+
 def prepare(path, entry, language, target):
     """Compile (cached) and reflect a kernel for one :class:`~moments_ref.conformance._run.Target`."""
-    return {"glsl": _glsl, "hlsl": _hlsl, "wgsl": _wgsl}[language](path, entry, target)
+    return {"glsl": _glsl, "hlsl": _hlsl, "wgsl": _wgsl, "slang": _slang}[language](path, entry, target)
 
 
 def _traced(path, entry, language, target):
     """The kernel with its shared-memory accesses traced (:mod:`.trace`), prepared for ``target``; None if untagged."""
+    if language == "slang":
+        return None  # the trace instruments GLSL, HLSL and WGSL text
     text = load_source(path, language).body  # includes resolved (HLSL too: its guards keep it valid)
     if not any(trace.TAG.search(x) for x in text.splitlines()):
         return None
