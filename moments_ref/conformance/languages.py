@@ -118,7 +118,9 @@ def language_of(path, name=None):
 
 def precise_note(name, driver, body):
     """The report's note on ``precise`` for a file using it on ``driver``, or None."""
-    if not re.search(r"\bprecise\b", body or ""):
+    from ._source import strip_comments
+
+    if not re.search(r"\bprecise\b", strip_comments(body or "")):
         return None
     what = TABLE[name].precise.get(driver)
     return f"precise: {what}" if what else None
