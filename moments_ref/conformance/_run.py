@@ -166,7 +166,7 @@ def _slang_route(target, src, path, function, sig, ins, outs, options):
     space = free_group(src.body, r"(?:\bspace|vk::binding\s*\(\s*\d+\s*,\s*)(\d+)")
     wrapper = wrap_slang(src, function, ins, outs, space)
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
-    known = set(re.findall(r"[A-Za-z_]\w*", strip_comments(src.body)))
+    known = _slang.identifiers(src.body, dirs)
     glsl = _cached(["slang", wrapper, *map(str, dirs)],
                    lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig, known))
     note = _languages.precise_note("slang", target.driver, src.body)

@@ -21,7 +21,7 @@ import glob
 import os
 import sys
 
-__all__ = ["library_path", "available", "compile_slang", "slang_glsl", "errors", "version", "to_gl", "INSTALL"]
+__all__ = ["library_path", "available", "compile_slang", "slang_glsl", "identifiers", "errors", "version", "to_gl", "INSTALL"]
 
 #: What a porter without the extra is told.
 INSTALL = 'the Slang compiler is not installed: pip install -e ".[slang]" (or: pip install slangpy)'
@@ -79,6 +79,28 @@ def compile_slang(text, args, what="Slang", binary=False):
             return None, log
         data = out.read_bytes()
         return (data if binary else data.decode("utf-8", "replace")), log
+
+
+def identifiers(text, dirs, seen=None):
+    """The identifiers of ``text`` and of the modules it imports (``import name;`` found in ``dirs``).
+
+    These are the porter's names, which Slang's renaming (``name_0``) is mapped back to.
+    """
+    import re
+    from pathlib import Path
+
+    from ._source import strip_comments
+
+    seen = set() if seen is None else seen
+    plain = strip_comments(text)
+    names = set(re.findall(r"[A-Za-z_]\w*", plain))
+    for mod in re.findall(r"^\s*(?:__exported\s+)?import\s+([\w.]+)\s*;", plain, flags=re.M):
+        found = next((Path(d) / f"{mod.replace('.', '/')}.slang" for d in dirs
+                      if (Path(d) / f"{mod.replace('.', '/')}.slang").is_file()), None)
+        if found is not None and found.resolve() not in seen:
+            seen.add(found.resolve())
+            names |= identifiers(found.read_text(encoding="utf-8", errors="replace"), dirs, seen)
+    return names
 
 
 def errors(log):

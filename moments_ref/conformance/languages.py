@@ -76,7 +76,7 @@ TABLE = {
         {"gl": "WGSL has no precise", "vulkan": "WGSL has no precise"}),
     "slang": Language(
         "slang", (".slang",), "the Slang compiler library (libslang-compiler from the slangpy wheel)",
-        'pip install -e ".[slang]" (or: pip install slangpy)', "hlsl", None, r"\b([A-Za-z_]\w*?)_\d+\b", "string",
+        'pip install -e ".[slang]" (or: pip install slangpy)', "hlsl", None, r"\b(?:block_)?([A-Za-z_]\w*?)_\d+\b", "string",
         True,
         {"gl": "Slang -> GLSL (barriers lowered for OpenGL) -> moderngl",
          "vulkan": "Slang -> GLSL -> glslang -> SPIR-V -> wgpu"}, "gl",

@@ -1,4 +1,4 @@
-"""``moments-ref conformance --kernel (--glsl | --hlsl | --wgsl) FILE --entry NAME --case CASE``."""
+"""``moments-ref conformance --kernel (--glsl | --hlsl | --wgsl | --slang) FILE --entry NAME --case CASE``."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ __all__ = ["kernel_cli", "SHIPPED_KERNELS", "shipped_kernel"]
 
 #: Kernel case -> (file stem, entry point per language) of the shipped kernels in moments_ref/ports/.
 SHIPPED_KERNELS = {
-    **{f"kernel-filter-{f}": (f"hpg17_filter_{f}", {"glsl": "main", "hlsl": f"filter_{f}", "wgsl": f"filter_{f}"})
+    **{f"kernel-filter-{f}": (f"hpg17_filter_{f}", {"glsl": "main", "hlsl": f"filter_{f}", "wgsl": f"filter_{f}",
+                                                    **({"slang": f"filter_{f}"} if f.startswith("nlq") else {})})
        for f in ("nlq64", "nlq32", "msm64", "moments")},
     "kernel-vwss-points": ("vwss_points", {"glsl": "main", "hlsl": "CS", "wgsl": "CS"}),
 }
@@ -26,6 +27,9 @@ def shipped_kernel(case, language):
     if case not in SHIPPED_KERNELS:
         raise InputError(f"case: no shipped kernel for {case!r}; kernel cases: {', '.join(SHIPPED_KERNELS)}")
     stem, entries = SHIPPED_KERNELS[case]
+    if language not in entries:
+        raise InputError(f"case: no shipped {language} kernel for {case!r}; {language} ships "
+                         f"{', '.join(k for k, (_, e) in SHIPPED_KERNELS.items() if language in e) or 'none'}")
     return PORTS_DIR / language / f"{stem}.{language}", entries[language]
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ...ports import PORTS_DIR
 from .. import _slang
-from .._source import load_source, strip_comments
+from .._source import load_source
 from ..languages import unmangle
 from . import _spirv
 from .reflect import from_spirv
@@ -42,8 +42,8 @@ def slang_kernel(path, entry, driver, cached, include_dirs=(), defines=(), prelu
     src = load_source(path, "slang", include_dirs, defines, prelude)
     body = re.sub(r"^#line (\d+) (\d+)$", lambda m: f'#line {m.group(1)} "{src.name(int(m.group(2)))}"', src.body,
                   flags=re.M)
-    known = set(re.findall(r"[A-Za-z_]\w*", strip_comments(src.body)))
     dirs = [Path(path).resolve().parent, *include_dirs, PORTS_DIR / "slang"]
+    known = _slang.identifiers(src.body, dirs)
     glsl = cached(("slang", body, entry, tuple(map(str, dirs))),
                   lambda: _slang.slang_glsl(body, entry, dirs, None, known))
     spv = cached(("slang-glsl", glsl), lambda: _spirv.glsl_to_spirv(glsl, lambda k: "<Slang's GLSL>"))
