@@ -282,8 +282,10 @@ def _main(args):
         if len(files) != 1:
             raise InputError(f"conformance: --kernel expects one of {_options()} FILE, got {len(files)}")
         language, path = files[0]
+        _refuse_for_kernels(args)
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
-                          get("adapter"))
+                          get("adapter"), rows=get("rows") if get("rows") is not None else 5, json_path=get("json"),
+                          options=source_options(args), strict=bool(get("strict")))
     if get("all"):
         from .._io import write_text
 
@@ -313,6 +315,24 @@ def _main(args):
     return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
                    options=source_options(args), profile=profile, strict=bool(get("strict")),
                    rows=get("rows") if get("rows") is not None else 5, json_path=get("json"))
+
+
+def _refuse_for_kernels(args):
+    """Exit 2 (an :class:`InputError`) for the options of function conformance that a kernel cannot take."""
+    from ..golden.profile import FLAGS
+
+    get = lambda k: getattr(args, k, None)  # noqa: E731
+    if get("function") is not None:
+        raise InputError("conformance: --function is for functions; a kernel's entry point is --entry NAME")
+    if get("all"):
+        raise InputError("conformance: --all runs the shipped functions; run each kernel with --kernel")
+    if get("adapter") == "as-written":
+        raise InputError("conformance: --adapter as-written is for functions; kernels run on gl, vulkan or both")
+    flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None]
+    if get("profile") is not None or flags:
+        raise InputError(f"conformance: {'--profile' if get('profile') is not None else flags[0]} declares an "
+                         "engine's conventions for functions; the kernel cases fix theirs (docs/ports.md, "
+                         "\"Kernels\")")
 
 
 def _options():

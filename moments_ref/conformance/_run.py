@@ -133,6 +133,7 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     ``inputs`` (the arrays) let the harness fill the textures a function reads (:mod:`._textures`).
     """
     options = options or SourceOptions()
+    _languages.require(language)  # before any file is read: the install line, not a parse error
     check_identifier(function)
     src = load_source(path, language, options.include_dirs, options.defines, options.prelude, options.max_source)
     sig = signature(language, function, ins, outs)

@@ -19,7 +19,7 @@ from pathlib import Path
 from .._arrays import InputError
 
 __all__ = ["Language", "TABLE", "LANGUAGES", "CORE", "DRIVERS", "language", "language_of", "suffixes", "precise_note",
-           "unmangle", "compiler_versions", "available"]
+           "unmangle", "compiler_versions", "available", "require"]
 
 #: The drivers every language runs on: OpenGL (moderngl, llvmpipe) and Vulkan (wgpu, lavapipe).
 DRIVERS = ("gl", "vulkan")
@@ -148,6 +148,15 @@ def available(name):
 
         return slang_available()
     return True
+
+
+def require(name):
+    """Raise :class:`~._toolchain.ToolError` (exit 2) with the install line when ``name``'s compiler is missing."""
+    if not available(name):
+        from ._slang import INSTALL
+        from ._toolchain import ToolError
+
+        raise ToolError(INSTALL)
 
 
 def compiler_versions():

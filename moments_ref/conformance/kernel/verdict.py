@@ -94,7 +94,7 @@ def _codes_summary(codes, arrays, row_pass):
             "differ_passing": int((differ & row_pass).sum())}
 
 
-def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5):
+def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
     """Judge a readback: ``(CaseVerdict, unwritten (count, first), outside (count, first), codes summary)``."""
     kw = meta["kwargs"]
     if case == "kernel-vwss-points":
@@ -104,7 +104,7 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5):
         from ...techniques.vwss.warp import EMPTY_KEY, key_depth
 
         depth = np.where(keys == EMPTY_KEY, np.float32(EMPTY_DEPTH), key_depth(keys)).astype(np.float32)
-        v = compare_case(case, {**meta, "inputs": []}, arrays, {"depth": depth}, worst_rows)
+        v = compare_case(case, {**meta, "inputs": []}, arrays, {"depth": depth}, worst_rows, strict)
         return v, (0, None), (int(outside.sum()), _first(outside)), None, depth
     fmt_name = kw["format"]
     mapped, unwritten, outside = _filter_candidate(kw, fmt_name, raw, out_kind, fill)
@@ -120,10 +120,24 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5):
         intensity = decode_intensity(fmt_name, codes, arrays["zf"]).astype(np.float32)
         intensity[misfit] = np.nan
         out = {"intensity": intensity}
-    v = compare_case(case, meta, arrays, out, worst_rows)
+    v = compare_case(case, meta, arrays, out, worst_rows, strict)
     summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass)
     return (v, (int(unwritten.sum()), _first(unwritten)), (int(outside.sum()), _first(outside)), summary,
             next(iter(out.values())))
+
+
+def json_records(report):
+    """One JSON record per driver of a :class:`KernelReport`: the function records' keys (every texel's
+    verdict, from ``golden.diagnosis.json_rows``) and the kernel's own: driver, renderer, toolchain, passed,
+    reason, skipped, unwritten and outside counts, the codes summary and the per-field hints."""
+    out = []
+    for r in report.runs:
+        rec = dict(r.verdict.record or {}) if r.verdict is not None else {}
+        rec.update(driver=r.driver, renderer=r.renderer, toolchain=r.toolchain, passed=bool(r.passed),
+                   reason=r.reason, skipped=r.skipped, unwritten=int(r.unwritten), outside=int(r.outside),
+                   codes=r.codes, fields=list(getattr(r, "hints", None) or []))
+        out.append(rec)
+    return out
 
 
 def _position(case, kw, i):
