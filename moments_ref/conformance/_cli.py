@@ -20,7 +20,7 @@ from ._run import ALL_LANGUAGES, DRIVERS, SourceOptions, language_of, parse_adap
 from ._shipped import not_available, shipped_cases, shipped_port
 from ._supervisor import using_watchdog
 from ._toolchain import ToolError
-from .languages import available, compiler_versions
+from .languages import available, compiler_versions, options_phrase
 
 __all__ = ["resolve_port", "run_cli", "harness_failure", "source_options", "main", "summary_markdown", "bench_conformance"]
 
@@ -280,7 +280,7 @@ def _main(args):
 
         files = [(lang, get(lang)) for lang in ALL_LANGUAGES if get(lang) is not None]
         if len(files) != 1:
-            raise InputError(f"conformance: --kernel expects one of {_options()} FILE, got {len(files)}")
+            raise InputError(f"conformance: --kernel expects one of {options_phrase()} FILE, got {len(files)}")
         language, path = files[0]
         _refuse_for_kernels(args)
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
@@ -303,7 +303,7 @@ def _main(args):
         return 1 if "| FAIL |" in text else 0
     files = [(lang, get(lang)) for lang in ALL_LANGUAGES if get(lang) is not None]
     if len(files) != 1:
-        raise InputError(f"conformance: expected one of {_options()} FILE (or --all), got {len(files)}")
+        raise InputError(f"conformance: expected one of {options_phrase()} FILE (or --all), got {len(files)}")
     missing = [a for a in ("function", "case") if get(a) is None]
     if missing:
         raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
@@ -333,12 +333,6 @@ def _refuse_for_kernels(args):
         raise InputError(f"conformance: {'--profile' if get('profile') is not None else flags[0]} declares an "
                          "engine's conventions for functions; the kernel cases fix theirs (docs/ports.md, "
                          "\"Kernels\")")
-
-
-def _options():
-    """``--glsl, --hlsl, --wgsl or --slang`` from the table of languages."""
-    opts = [f"--{x}" for x in ALL_LANGUAGES]
-    return ", ".join(opts[:-1]) + " or " + opts[-1]
 
 
 def source_options(args):

@@ -19,7 +19,8 @@ from pathlib import Path
 from .._arrays import InputError
 
 __all__ = ["Language", "TABLE", "LANGUAGES", "CORE", "DRIVERS", "language", "language_of", "suffixes", "precise_note",
-           "unmangle", "compiler_versions", "available", "require"]
+           "unmangle", "compiler_versions", "available", "require",
+           "options_phrase"]
 
 #: The drivers every language runs on: OpenGL (moderngl, llvmpipe) and Vulkan (wgpu, lavapipe).
 DRIVERS = ("gl", "vulkan")
@@ -111,9 +112,14 @@ def language_of(path, name=None):
         return language(name).name
     lang = suffixes().get(Path(path).suffix.lower())
     if lang is None:
-        opts = ", ".join(f"--{x}" for x in LANGUAGES)
-        raise InputError(f"source: cannot tell the language of {str(path)!r}; use {opts}")
+        raise InputError(f"source: cannot tell the language of {str(path)!r}; use {options_phrase()}")
     return lang
+
+
+def options_phrase():
+    """``--glsl, --hlsl, --wgsl or --slang``: the command line's file options, from the table."""
+    opts = [f"--{x}" for x in LANGUAGES]
+    return ", ".join(opts[:-1]) + " or " + opts[-1]
 
 
 def precise_note(name, driver, body):
