@@ -1,6 +1,7 @@
-"""Run a GLSL, HLSL, WGSL or Slang port on a real driver against the golden vectors.
+"""Run a GLSL, HLSL or WGSL port on a real driver against the golden vectors.
 
-``moments-ref conformance (--glsl | --hlsl | --wgsl | --slang) FILE --function NAME --case CASE
+Slang too (``--slang``, the optional extra ``slang``): :mod:`.languages` holds each
+language's facts. ``moments-ref conformance (--glsl | --hlsl | --wgsl | --slang) FILE --function NAME --case CASE
 [--golden DIR] [--adapter NAME]`` wraps the function ``NAME`` of the file, unchanged,
 in the harness's own compute entry point (:mod:`._wrap`), uploads the case's
 inputs, runs one dispatch, reads the outputs back and compares them with the

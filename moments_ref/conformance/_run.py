@@ -169,7 +169,8 @@ def _slang_route(target, src, path, function, sig, ins, outs, options):
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
     known = _slang.identifiers(src.body, dirs)
     glsl = _cached(["slang", wrapper, *map(str, dirs)],
-                   lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig, known))
+                   lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig,
+                                             lambda e: _languages.unmangle("slang", e, known)))
     note = _languages.precise_note("slang", target.driver, src.body)
     notes = [note] if note else []
     if target.driver == "gl":

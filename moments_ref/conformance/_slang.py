@@ -126,15 +126,15 @@ def errors(log):
     return out or [x.strip() for x in log.splitlines() if "error" in x.lower()] or [log.strip() or "no message"]
 
 
-def slang_glsl(text, entry, include_dirs=(), signature=None, known=None):
+def slang_glsl(text, entry, include_dirs=(), signature=None, rename=None):
     """Slang's (Vulkan) GLSL for the compute entry point ``entry`` of ``text``.
 
     ``include_dirs`` are searched for ``import``-ed modules; compile errors raise a
     :class:`~._source.ShaderError`, one line per error, with the porter's file,
-    line and names (Slang's renaming ``name_0`` mapped back for ``known`` names).
+    line and names (``rename(line)`` maps Slang's renaming ``name_0`` back:
+    :func:`.languages.unmangle`).
     """
     from ._source import ShaderError, wrapped_compile_error
-    from .languages import unmangle
 
     args = ["-target", "glsl", "-profile", "glsl_450", "-entry", entry, "-stage", "compute",
             "-line-directive-mode", "none"]
@@ -142,7 +142,7 @@ def slang_glsl(text, entry, include_dirs=(), signature=None, known=None):
         args += ["-I", str(d)]
     code, log = compile_slang(text, args)
     if code is None:
-        lines = [unmangle("slang", e, known) for e in errors(log)]
+        lines = [rename(e) if rename else e for e in errors(log)]
         if signature is None:
             raise ShaderError("the Slang file does not compile (Slang):\n" + "\n".join(lines))
         raise wrapped_compile_error("Slang", lines, signature)

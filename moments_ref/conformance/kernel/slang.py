@@ -45,7 +45,7 @@ def slang_kernel(path, entry, driver, cached, include_dirs=(), defines=(), prelu
     dirs = [Path(path).resolve().parent, *include_dirs, PORTS_DIR / "slang"]
     known = _slang.identifiers(src.body, dirs)
     glsl = cached(("slang", body, entry, tuple(map(str, dirs))),
-                  lambda: _slang.slang_glsl(body, entry, dirs, None, known))
+                  lambda: _slang.slang_glsl(body, entry, dirs, None, lambda e: unmangle("slang", e, known)))
     spv = cached(("slang-glsl", glsl), lambda: _spirv.glsl_to_spirv(glsl, lambda k: "<Slang's GLSL>"))
     if driver == "gl":
         iface = from_spirv(cached(("reflect", spv), lambda: _spirv.reflect_spirv(spv)), "slang", "main")

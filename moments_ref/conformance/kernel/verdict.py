@@ -83,7 +83,9 @@ def _filter_candidate(kw, fmt_name, raw, out_kind, fill):
     return mapped.reshape(h * w, comps), unwritten, outside
 
 
-def _codes_summary(codes, arrays, row_pass):
+def _codes_summary(codes, arrays, row_pass, fmt_name=None, width=1):
+    from .fields import field_hints
+
     e = arrays["texels"].reshape(len(codes), -1).astype(np.int64)
     c = codes.reshape(len(codes), -1).astype(np.int64)
     exact = (c == e).all(axis=1)
@@ -91,7 +93,8 @@ def _codes_summary(codes, arrays, row_pass):
     accepted = (alts == c[:, None, :]).all(axis=2).any(axis=1) & ~exact
     differ = ~exact & ~accepted
     return {"exact": int(exact.sum()), "accepted": int(accepted.sum()), "differ": int(differ.sum()),
-            "differ_passing": int((differ & row_pass).sum())}
+            "differ_passing": int((differ & row_pass).sum()),
+            "fields": field_hints(fmt_name, codes, arrays["texels"], differ & ~row_pass, width)}
 
 
 def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
@@ -121,7 +124,7 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
         intensity[misfit] = np.nan
         out = {"intensity": intensity}
     v = compare_case(case, meta, arrays, out, worst_rows, strict)
-    summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass)
+    summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass, fmt_name, kw["width"])
     return (v, (int(unwritten.sum()), _first(unwritten)), (int(outside.sum()), _first(outside)), summary,
             next(iter(out.values())))
 
@@ -129,13 +132,14 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
 def json_records(report):
     """One JSON record per driver of a :class:`KernelReport`: the function records' keys (every texel's
     verdict, from ``golden.diagnosis.json_rows``) and the kernel's own: driver, renderer, toolchain, passed,
-    reason, skipped, unwritten and outside counts, the codes summary and the per-field hints."""
+    reason, skipped, unwritten and outside counts, and the codes summary with its per-field hints
+    (:mod:`.fields`)."""
     out = []
     for r in report.runs:
         rec = dict(r.verdict.record or {}) if r.verdict is not None else {}
         rec.update(driver=r.driver, renderer=r.renderer, toolchain=r.toolchain, passed=bool(r.passed),
                    reason=r.reason, skipped=r.skipped, unwritten=int(r.unwritten), outside=int(r.outside),
-                   codes=r.codes, fields=list(getattr(r, "hints", None) or []))
+                   codes=r.codes)
         out.append(rec)
     return out
 
@@ -188,6 +192,9 @@ def format_run(case, kw, run, numpy_times, unit):
             lines.append(f"      codes: {c['exact']} equal the global path's, {c['accepted']} another legitimate "
                          f"kernel's, {c['differ']} differ ({c['differ_passing']} of them within the intensity "
                          "tolerance: the intensity decides)")
+            from .fields import format_hint
+
+            lines += [f"      {format_hint(h)}" for h in c.get("fields", [])]
         if v.worst:
             lines.append("      worst texels (failing first, by error/tolerance; per-texel tolerances of the golden "
                          "case, verdict by golden.compare):")
