@@ -274,6 +274,14 @@ def _cell(a):
     return f"b{j + 1} cell (x {x}, y {y})"
 
 
+def _conflicts(counts):
+    """The trace's bank conflicts per phase as a finding: "no bank conflicts in phase resolve, ...; 3 in ..."."""
+    clean = [k for k, v in counts.items() if not v]
+    some = [f"{v} bank conflicts in phase {k}" for k, v in counts.items() if v]
+    parts = ([f"no bank conflicts in phase {', '.join(clean)}"] if clean else []) + some
+    return "; ".join(parts) or "no phases traced"
+
+
 def _shared_lines(s):
     if "error" in s:
         return [f"      FAIL shared memory (traced on {s['driver']}): {s['error']}"]
@@ -282,9 +290,11 @@ def _shared_lines(s):
             f"{s['barriers']} barriers")
     lines = [head]
     if "pattern" in s:
-        lines.append(f"        access pattern of gpu.banks (HPG17 Figure 6) in program order: "
-                     f"{'yes' if s['pattern'] else 'NO'}; bank conflicts from the trace: "
-                     + ", ".join(f"{k} {v}" for k, v in s["conflicts"].items()) + " (HPG17 §4.1: none)")
+        lines.append("        shared-memory accesses: " + ("the access pattern of gpu.banks (HPG17 Figure 6), in program "
+                                                            "order" if s["pattern"] else
+                                                            "another order than gpu.banks' pattern (HPG17 Figure 6); "
+                                                            "the counts below are this kernel's own"))
+        lines.append("        shared-memory accesses: " + _conflicts(s["conflicts"]) + " (HPG17 §4.1: none)")
     if s["races"]:
         a, e, w, o = s["races"][0]
         where = _cell(a) if "pattern" in s else f"word {a}"
@@ -292,6 +302,6 @@ def _shared_lines(s):
                      f"with no barrier between; first: invocation {w} stores {where} and invocation {o} accesses it "
                      f"after barrier {e} (a missing barrier; this trace does not depend on the driver's schedule)")
     else:
-        lines.append("        races: none (every word written by one invocation between two barriers is touched "
-                     "by no other)")
+        lines.append("        shared-memory races: none (every word written by one invocation between two barriers is "
+                     "touched by no other)")
     return lines
