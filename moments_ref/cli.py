@@ -336,6 +336,9 @@ def _add_source_options(cf):
     cf.add_argument("--define", action="append", metavar="NAME=VALUE",
                     help="#define NAME VALUE before the file (engine macros; repeatable; GLSL, HLSL)")
     cf.add_argument("--prelude", metavar="FILE", type=Path, help="a file placed before yours (engine macros)")
+    cf.add_argument("--uniform", action="append", metavar="NAME=VALUE",
+                    help="a value for a uniform, constant-buffer or push-constant member the function reads "
+                         "(a vector: NAME=a,b,c,d; repeatable)")
     cf.add_argument("--max-source", type=_memory, default=None, metavar="SIZE",
                     help="largest source with its prelude and includes (default 4M)")
     cf.add_argument("--keep-unused", action="store_true",

@@ -326,6 +326,9 @@ def _refuse_for_kernels(args):
         raise InputError("conformance: --function is for functions; a kernel's entry point is --entry NAME")
     if get("all"):
         raise InputError("conformance: --all runs the shipped functions; run each kernel with --kernel")
+    if get("uniform"):
+        raise InputError("conformance: --uniform gives values to a function's uniforms; a kernel's uniform block is "
+                         "the case's own (docs/ports.md, \"Kernels\")")
     if get("adapter") == "as-written":
         raise InputError("conformance: --adapter as-written is for functions; kernels run on gl, vulkan or both")
     flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None]
@@ -336,11 +339,11 @@ def _refuse_for_kernels(args):
 
 
 def source_options(args):
-    """:class:`SourceOptions` from the CLI's ``--include``, ``--define``, ``--prelude``, ``--max-source``
-    and ``--keep-unused`` (absent ones take their defaults)."""
+    """:class:`SourceOptions` from the CLI's ``--include``, ``--define``, ``--prelude``, ``--max-source``,
+    ``--keep-unused`` and ``--uniform`` (absent ones take their defaults)."""
     get = lambda k: getattr(args, k, None)  # noqa: E731
     return SourceOptions(tuple(get("include") or ()), tuple(get("define") or ()), get("prelude"),
-                         get("max_source"), bool(get("keep_unused")))
+                         get("max_source"), bool(get("keep_unused")), uniforms=tuple(get("uniform") or ()))
 
 
 def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):

@@ -30,6 +30,7 @@ from ._report import ConformanceReport
 from ._slots import Slot, signature
 from ._decls import keep_used, used_resources
 from ._textures import consumed, texture_args
+from ._uniforms import constant_declaration, parse_uniforms
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_slang, wrap_wgsl
 from .verdict import compare_case
@@ -82,7 +83,8 @@ class SourceOptions:
     for :func:`~._source.load_source`; ``keep_unused`` compiles declarations the function
     does not use too; ``exact`` (default) makes OpenGL evaluate every operation of an HLSL
     file as written (each result rounded in program order, no reassociation, as if every
-    operation were ``precise``).
+    operation were ``precise``); ``uniforms`` (``NAME=VALUE``, a vector ``NAME=a,b,c``) gives the
+    uniform, constant-buffer and push-constant members the function reads a value (:mod:`._uniforms`).
     """
 
     include_dirs: tuple = ()
@@ -91,6 +93,7 @@ class SourceOptions:
     max_source: int | None = None
     keep_unused: bool = False
     exact: bool = True
+    uniforms: tuple = ()  # NAME=VALUE: values of the uniform / constant-buffer members the function reads
 
 
 def _check_defined(src, path, function, sig):
@@ -100,17 +103,26 @@ def _check_defined(src, path, function, sig):
                           f"expected signature: {sig}")
 
 
-def _only_used(src, function, language, keep_unused):
-    """Blank the declarations ``function`` does not use; refuse resources it needs bound."""
-    if keep_unused:
+def _only_used(src, function, language, keep_unused, uniforms=()):
+    """Blank the declarations ``function`` does not use; give uniforms their ``--uniform`` values; refuse
+    resources it needs bound."""
+    if keep_unused and not uniforms:
         return src
     body, kept = keep_used(src.body, language, function)
-    for d, what in used_resources(kept, language):
+    if keep_unused:
+        body = src.body
+    values = parse_uniforms(uniforms)
+    for d, what in sorted(used_resources(kept, language), key=lambda x: -x[0].start):
         line = src.body.count("\n", 0, d.start) + 1
+        text = src.body[d.start:d.end]
+        const = constant_declaration(text, language, values, src.body, src.locate(line)) if values else None
+        if const is not None:  # the same lines, so that messages keep their numbers
+            body = body[:d.start] + const + "\n" * text.count("\n") + body[d.end:]
+            continue
         way = ("take the texture as an argument, followed by an integer texel coordinate (docs/ports.md, "
                "\"Texture arguments\")" if re.search(r"texture|Texture|sampler", what) else
-               "read it in an adapter function that takes it as an argument, or make it a constant"
-               + (" (`static const`)" if language == "hlsl" else ""))
+               "give its members values with --uniform NAME=VALUE, read it in an adapter function that takes it as "
+               "an argument, or make it a constant" + (" (`static const`)" if language == "hlsl" else ""))
         raise ShaderError(f"{src.locate(line)}: {function} uses {what} {d.name!r} declared here, which the harness "
                           f"does not bind (it passes only the function's arguments): {way}")
     return replace(src, body=body)
@@ -140,7 +152,7 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     _check_defined(src, path, function, sig)
     if language == "slang":  # Slang keeps only what the entry point uses; modules are its own
         return _slang_route(target, src, path, function, sig, ins, outs, options)
-    src = _only_used(src, function, language, options.keep_unused)
+    src = _only_used(src, function, language, options.keep_unused, options.uniforms)
     tex = {} if inputs is None else texture_args(src.body, function, language, ins,
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
                                                   len(next(iter(inputs.values()))))
@@ -164,6 +176,9 @@ def _slang_route(target, src, path, function, sig, ins, outs, options):
     """Slang → GLSL; OpenGL runs it (barriers lowered), Vulkan gets glslang's SPIR-V of it (keeps ``precise``)."""
     if target.driver == AS_WRITTEN:
         raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL; Slang runs on gl or vulkan")
+    if options.uniforms:
+        raise InputError("uniform: --uniform is for GLSL, HLSL and WGSL files; in Slang, pass the value as an "
+                         "argument of an adapter function")
     space = free_group(src.body, r"(?:\bspace|vk::binding\s*\(\s*\d+\s*,\s*)(\d+)")
     wrapper = wrap_slang(src, function, ins, outs, space)
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
