@@ -320,6 +320,8 @@ def _add_oracle(sub):
     cf.add_argument("--kernel", action="store_true",
                     help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
     cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
+    cf.add_argument("--kernel-layout", choices=("interleaved", "planar", "packed16"), default=None,
+                    help="with --kernel: how an output buffer holds the texels (default interleaved; docs/ports.md)")
     cf.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                     help="deprecated alias of --watchdog (kept for old scripts)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")

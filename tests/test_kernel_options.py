@@ -48,7 +48,7 @@ def _shipped(goldens, *extra):
 
 @pytest.mark.parametrize("extra,word", [
     (["--function", "pack32"], "--entry"),
-    (["--profile", "p.toml"], "--profile"),
+    (["--profile", "MISSING.toml"], "cannot read"),
     (["--clamp", "1e-5"], "--clamp"),
     (["--adapter", "as-written"], "as-written"),
 ])
@@ -106,3 +106,45 @@ def test_a_failing_32_bit_kernel_names_the_field_and_the_cells(drivers, goldens,
     assert top["field"].startswith("sqrt(v2)") and top["offset"] == -1 and top["share"] > top["texels"] // 2
     assert "field sqrt(v2) cell (bits 19-25): differs from the global path's code on" in out
     assert all(f["field"] != "folded y1 (bits 10-18)" for f in fields)
+
+
+FIXTURES = __import__("pathlib").Path(__file__).parent / "fixtures" / "kernels"
+
+
+def test_a_profile_with_function_keys_is_refused_for_kernels(drivers, goldens, tmp_path):
+    p = tmp_path / "engine.toml"
+    p.write_text('depth = "01"\n[kernel]\nlayout = "planar"\n')
+    code, out, err = _cli(_shipped(goldens, "--profile", str(p)))
+    assert code == 2 and "'depth' is a function convention" in err, err
+    p.write_text('[kernel]\nlayout = "sideways"\n')
+    code, out, err = _cli(_shipped(goldens, "--profile", str(p)))
+    assert code == 2 and "kernel.layout = 'sideways'" in err, err
+
+
+@pytest.fixture(scope="module")
+def nlq64():
+    return str(golden_folder(("kernel-filter-nlq64",)))
+
+
+def _layout(nlq64, fixture, *extra):
+    return _cli(["--glsl", str(FIXTURES / fixture), "--entry", "main", "--case", "kernel-filter-nlq64",
+                 "--golden", nlq64, "--include", str(PORTS_DIR / "glsl"), *extra])
+
+
+def test_declared_output_layouts(drivers, nlq64, tmp_path):
+    # A buffer of 16-bit fields packed in pairs, and one plane per component: each passes as declared.
+    code, out, err = _layout(nlq64, "nlq64_packed16.glsl", "--kernel-layout", "packed16")
+    assert code == 0, err + out
+    p = tmp_path / "planar.toml"
+    p.write_text('[kernel]\nlayout = "planar"\n')
+    code, out, err = _layout(nlq64, "nlq64_planar.glsl", "--profile", str(p))
+    assert code == 0, err + out
+    # Undeclared, the packed buffer's 8-byte elements do not fit the contract: exit 2 naming the binding.
+    code, out, err = _layout(nlq64, "nlq64_packed16.glsl")
+    assert code == 2 and "'Texels'" in err and "8 bytes" in err, err
+    # Declared wrongly, the planes are read as packed pairs: the texels fail.
+    code, out, err = _layout(nlq64, "nlq64_planar.glsl", "--kernel-layout", "packed16")
+    assert code == 1 and out.startswith("FAIL"), err + out
+    code, out, err = _cli(["--glsl", "x.glsl", "--function", "f", "--case", "psi4-float32"][:0] + _shipped(
+        str(golden_folder((CASE,))), "--kernel-layout", "packed16"))
+    assert code == 2 and "packed16" in err, err

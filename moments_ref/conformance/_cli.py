@@ -287,7 +287,7 @@ def _main(args):
         _refuse_for_kernels(args)
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
                           get("adapter"), rows=get("rows") if get("rows") is not None else 5, json_path=get("json"),
-                          options=source_options(args), strict=bool(get("strict")))
+                          options=source_options(args), strict=bool(get("strict")), layout=_kernel_layout(args))
     if get("all"):
         from .._io import write_text
 
@@ -303,6 +303,8 @@ def _main(args):
         if get("out"):
             print(f"wrote {write_text(Path(get('out')) / 'conformance.md', text)}")
         return 1 if "| FAIL |" in text else 0
+    if get("kernel_layout"):
+        raise InputError("conformance: --kernel-layout is the output layout of a kernel (with --kernel)")
     files = [(lang, get(lang)) for lang in ALL_LANGUAGES if get(lang) is not None]
     if len(files) != 1:
         raise InputError(f"conformance: expected one of {options_phrase()} FILE (or --all), got {len(files)}")
@@ -334,10 +336,19 @@ def _refuse_for_kernels(args):
     if get("adapter") == "as-written":
         raise InputError("conformance: --adapter as-written is for functions; kernels run on gl, vulkan or both")
     flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None]
-    if get("profile") is not None or flags:
-        raise InputError(f"conformance: {'--profile' if get('profile') is not None else flags[0]} declares an "
-                         "engine's conventions for functions; the kernel cases fix theirs (docs/ports.md, "
-                         "\"Kernels\")")
+    if flags:
+        raise InputError(f"conformance: {flags[0]} declares an engine's convention for functions; the kernel cases "
+                         "fix theirs (a kernel profile declares only its [kernel] table: docs/ports.md, \"Kernels\")")
+
+
+def _kernel_layout(args):
+    """The output layout declared by ``--kernel-layout`` or the ``[kernel]`` table of ``--profile`` (exit 2 for any
+    other profile key: the kernel cases fix the engine's other conventions)."""
+    from .kernel.declared import kernel_profile
+
+    get = lambda k: getattr(args, k, None)  # noqa: E731
+    declared = kernel_profile(get("profile")) if get("profile") is not None else {}
+    return get("kernel_layout") or declared.get("layout", "interleaved")
 
 
 def source_options(args):

@@ -43,6 +43,7 @@ from .._supervisor import CompileFailed, DriverDied, DriverError, DriverTimeout,
 from . import _spirv, trace
 from ._job import POISON, Bind, Job, Output
 from .bind import match
+from .layout import buffer_words, check_layout, element_bytes
 from .contract import BLOCK, contract, dispatches
 from .reflect import from_spirv, from_wgsl
 from .verdict import DriverRun, KernelReport, judge
@@ -190,7 +191,7 @@ def _traced(path, entry, language, target, options=None):
                     from_spirv(_spirv.reflect_spirv(code, entry), "hlsl", entry), "traced HLSL")
 
 
-def shared_memory(path, entry, language, target, case, gc, c, time_limit=None, options=None):
+def shared_memory(path, entry, language, target, case, gc, c, time_limit=None, options=None, layout="interleaved"):
     """Trace the shared memory of work group (0, 0) of a tagged kernel: accesses, bank conflicts, races.
 
     Returns None for a kernel without tagged accesses, else a dict: ``driver``,
@@ -202,12 +203,12 @@ def shared_memory(path, entry, language, target, case, gc, c, time_limit=None, o
     if prep is None:
         return None
     kw = gc.meta["kwargs"]
-    bound = match(prep.interface, c)
+    bound = match(prep.interface, c, _out_bytes(kw, layout))
     threads = int(np.prod(prep.interface.workgroup))
     views = gc.arrays["views"] if case == "kernel-vwss-points" else None
     plan = dispatches(case, kw, views, prep.interface.workgroup[0])
     job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
-              output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+              output_spec(case, kw, bound, POISON[0], layout), [(d.groups, d.params) for d in plan],
               dispatch_seconds=watchdog() if time_limit is None else float(time_limit),
               trace_words=threads * trace.RECORDS)
     try:
@@ -234,8 +235,9 @@ def bind_list(bound):
                  b.resource.access, b.resource.depth, b.resource.format or b.slot.format) for b in bound]
 
 
-def output_spec(case, kw, bound, fill):
-    """The output the harness binds: the map padded by a block (image) or a block row (buffer), pre-filled."""
+def output_spec(case, kw, bound, fill, layout="interleaved"):
+    """The output the harness binds: the map padded by a block (image) or a block row (buffer), pre-filled;
+    a buffer in the declared ``layout`` (:mod:`.layout`)."""
     out = next(b for b in bound if b.slot.role == "output")
     if case == "kernel-vwss-points":
         n = kw["views"] * kw["height"] * kw["width"]
@@ -244,7 +246,7 @@ def output_spec(case, kw, bound, fill):
     comps = 1 if kw["format"] == "nlq32" else 4
     if out.resource.kind == "storage_image":
         return Output("storage_image", out.slot.format, (h + BLOCK[1], w + BLOCK[0], comps), fill)
-    return Output("buffer", "uint", ((h * w + BLOCK[1] * w + BLOCK[0]) * comps,), fill)
+    return Output("buffer", "uint", (buffer_words(kw["format"], layout, h * w, BLOCK[1] * w + BLOCK[0]),), fill)
 
 
 def _data(case, gc):
@@ -286,9 +288,9 @@ def execute(prep, job):
         raise DriverError(f"{prep.driver}: {exc}") from None
 
 
-def _run_one(prep, case, gc, c, time_limit, worst_rows, strict=False):
+def _run_one(prep, case, gc, c, time_limit, worst_rows, strict=False, layout="interleaved"):
     kw = gc.meta["kwargs"]
-    bound = match(prep.interface, c)
+    bound = match(prep.interface, c, _out_bytes(kw, layout))
     c.check_workgroup(prep.interface.workgroup, f"{prep.interface.entry}")
     views = gc.arrays["views"] if case == "kernel-vwss-points" else None
     plan = dispatches(case, kw, views, prep.interface.workgroup[0])
@@ -297,7 +299,7 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows, strict=False):
         run.skipped = GL_MULTISAMPLE
         return run
     job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
-              output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+              output_spec(case, kw, bound, POISON[0], layout), [(d.groups, d.params) for d in plan],
               dispatch_seconds=float(time_limit))
     try:
         result = execute(prep, job)
@@ -309,12 +311,13 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows, strict=False):
         return run
     run.renderer, run.timings = result.renderer, result.timings
     verdict, unwritten, outside, codes, out = judge(case, gc.meta, gc.arrays, result.output, job.output.kind,
-                                                    job.output.fill, worst_rows, strict)
+                                                    job.output.fill, worst_rows, strict, layout)
     if unwritten[0] and case != "kernel-vwss-points" and kw["format"] == "nlq32":
         # Any 32-bit word is a valid nlq32 code: a texel is unwritten only if it holds either poison.
         job.output.fill = POISON[1]
         again = execute(prep, job)
-        v2 = judge(case, gc.meta, gc.arrays, again.output, job.output.kind, job.output.fill, worst_rows, strict)
+        v2 = judge(case, gc.meta, gc.arrays, again.output, job.output.kind, job.output.fill, worst_rows, strict,
+                   layout)
         if v2[1][0] < unwritten[0]:
             verdict, unwritten, outside, codes, out = v2
     run.verdict, run.codes, run.output = verdict, codes, out
@@ -326,6 +329,10 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows, strict=False):
                       f"{'index' if len(where) == 1 else 'row, column'} {', '.join(map(str, where))})")
     run.passed = verdict.passed and not outside[0] and not unwritten[0]
     return run
+
+
+def _out_bytes(kw, layout):
+    return None if "format" not in kw else element_bytes(kw["format"], layout)
 
 
 def numpy_times(case, gc):
@@ -359,7 +366,7 @@ def numpy_times(case, gc):
 
 
 def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, time_limit=None, gc=None,
-               worst_rows=5, timing=True, shared=True, options=None, strict=False):
+               worst_rows=5, timing=True, shared=True, options=None, strict=False, layout="interleaved"):
     """Run a compute shader on a kernel case and judge it with the one comparator, on each driver.
 
     Parameters
@@ -392,6 +399,8 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
         Include folders, defines, prelude and source budget, as for functions.
     strict : bool
         Texels beyond the algorithm's contract fail the verdict too.
+    layout : {"interleaved", "planar", "packed16"}
+        How a filter kernel's output buffer holds its texels (:mod:`.layout`).
 
     Returns
     -------
@@ -411,18 +420,23 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
         [parse_adapter(adapter, language)]
     c = contract(case)
     gc = gc or load_case(case, golden_dir)
+    if layout != "interleaved":
+        if case == "kernel-vwss-points":
+            raise InputError("kernel layout: kernel-vwss-points writes one key per pixel; layouts are for filter cases")
+        check_layout(layout, gc.meta["kwargs"]["format"])
     report = KernelReport(case, str(path), entry, language, gc.meta["kwargs"])
     preps = [prepare(path, entry, language, t, options) for t in targets]
     report.interface = preps[0].interface
-    report.bindings = match(preps[0].interface, c)
+    report.bindings = match(preps[0].interface, c, _out_bytes(gc.meta["kwargs"], layout))
     c.check_workgroup(preps[0].interface.workgroup, entry)
     for prep in preps:
-        report.runs.append(_run_one(prep, case, gc, c, limit, worst_rows, strict))
+        report.runs.append(_run_one(prep, case, gc, c, limit, worst_rows, strict, layout))
     if not any(not r.skipped for r in report.runs):
         raise ContextError(f"{report.runs[0].driver}: {report.runs[0].skipped}")
     ran = next(p for p, r in zip(preps, report.runs) if not r.skipped)
     if shared:
-        report.shared = shared_memory(path, entry, language, targets[preps.index(ran)], case, gc, c, limit, options)
+        report.shared = shared_memory(path, entry, language, targets[preps.index(ran)], case, gc, c, limit, options,
+                                      layout)
     if timing:
         report.numpy = numpy_times(case, gc)
     return report

@@ -67,18 +67,18 @@ def _first(mask):
     return tuple(int(v) for v in idx[0]) if idx.size else None
 
 
-def _filter_candidate(kw, fmt_name, raw, out_kind, fill):
+def _filter_candidate(kw, fmt_name, raw, out_kind, fill, layout="interleaved"):
     """(candidate array (n, ...) or codes, unwritten (H, W), outside mask) of a filter case's readback."""
+    from .layout import split
+
     h, w = kw["height"], kw["width"]
     comps = 1 if fmt_name == "nlq32" else 4
-    if out_kind == "storage_image":
-        mapped = raw[:h, :w, :comps]
-        outside = np.ones(raw.shape[:2], bool)
-        outside[:h, :w] = False
-        outside &= (raw != fill).any(axis=-1)
-    else:
-        mapped = raw[: h * w * comps].reshape(h, w, comps)
-        outside = raw[h * w * comps:] != fill
+    if out_kind != "storage_image":
+        return split(raw, fmt_name, layout, h, w, fill)
+    mapped = raw[:h, :w, :comps]
+    outside = np.ones(raw.shape[:2], bool)
+    outside[:h, :w] = False
+    outside &= (raw != fill).any(axis=-1)
     unwritten = (mapped == fill).all(axis=-1)
     return mapped.reshape(h * w, comps), unwritten, outside
 
@@ -97,7 +97,7 @@ def _codes_summary(codes, arrays, row_pass, fmt_name=None, width=1):
             "fields": field_hints(fmt_name, codes, arrays["texels"], differ & ~row_pass, width)}
 
 
-def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
+def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False, layout="interleaved"):
     """Judge a readback: ``(CaseVerdict, unwritten (count, first), outside (count, first), codes summary)``."""
     kw = meta["kwargs"]
     if case == "kernel-vwss-points":
@@ -110,7 +110,7 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
         v = compare_case(case, {**meta, "inputs": []}, arrays, {"depth": depth}, worst_rows, strict)
         return v, (0, None), (int(outside.sum()), _first(outside)), None, depth
     fmt_name = kw["format"]
-    mapped, unwritten, outside = _filter_candidate(kw, fmt_name, raw, out_kind, fill)
+    mapped, unwritten, outside = _filter_candidate(kw, fmt_name, raw, out_kind, fill, layout)
     bad = unwritten.reshape(-1)
     codes = None
     if fmt_name == "moments":
@@ -120,7 +120,11 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False):
     else:
         misfit = bad | (mapped > 0xFFFF).any(axis=1) if fmt_name != "nlq32" else bad
         codes = np.clip(mapped, 0, 0xFFFF).astype(np.uint16) if fmt_name != "nlq32" else mapped[:, 0].copy()
-        intensity = decode_intensity(fmt_name, codes, arrays["zf"]).astype(np.float32)
+        shown = codes
+        if fmt_name == "nlq64":  # y1's code above y2's is no representation (unpack64 refuses it): the texel fails
+            misfit = misfit | (codes[:, 0] > codes[:, 1])
+            shown = np.where(misfit[:, None], np.uint16(0), codes)
+        intensity = decode_intensity(fmt_name, shown, arrays["zf"]).astype(np.float32)
         intensity[misfit] = np.nan
         out = {"intensity": intensity}
     v = compare_case(case, meta, arrays, out, worst_rows, strict)
