@@ -310,12 +310,14 @@ def _add_oracle(sub):
     mu.add_argument("--out", type=folder_arg, help="unused; accepted for uniformity")
     mu.set_defaults(func=_cmd_mutants)
 
-    cf = sub.add_parser("conformance", help="run a GLSL, HLSL or WGSL port (a function, or with --kernel a compute "
+    cf = sub.add_parser("conformance", help="run a GLSL, HLSL, WGSL or Slang port (a function, or with --kernel a compute "
                                             "shader) on a real driver against a golden case")
     lang = cf.add_mutually_exclusive_group()
     lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
     lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
     lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
+    lang.add_argument("--slang", metavar="FILE", help="Slang file, or a shipped port's name (msm.slang ...); "
+                                                     'needs the extra: pip install -e ".[slang]"')
     cf.add_argument("--function", help="the function to test")
     cf.add_argument("--case", help="golden case, e.g. shade-float32")
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
@@ -324,6 +326,8 @@ def _add_oracle(sub):
     cf.add_argument("--kernel", action="store_true",
                     help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
     cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
+    cf.add_argument("--kernel-layout", choices=("interleaved", "planar", "packed16"), default=None,
+                    help="with --kernel: how an output buffer holds the texels (default interleaved; docs/ports.md)")
     cf.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                     help="deprecated alias of --watchdog (kept for old scripts)")
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
@@ -340,6 +344,9 @@ def _add_source_options(cf):
     cf.add_argument("--define", action="append", metavar="NAME=VALUE",
                     help="#define NAME VALUE before the file (engine macros; repeatable; GLSL, HLSL)")
     cf.add_argument("--prelude", metavar="FILE", type=Path, help="a file placed before yours (engine macros)")
+    cf.add_argument("--uniform", action="append", metavar="NAME=VALUE",
+                    help="a value for a uniform, constant-buffer or push-constant member the function reads "
+                         "(a vector: NAME=a,b,c,d; repeatable)")
     cf.add_argument("--max-source", type=_memory, default=None, metavar="SIZE",
                     help="largest source with its prelude and includes (default 4M)")
     cf.add_argument("--keep-unused", action="store_true",

@@ -630,7 +630,7 @@ def test_the_project_refers_to_no_file_outside_it():
         rel = p.relative_to(repo).parts
         if (not p.is_file() or any(part.startswith(".") and part not in (".ci",) for part in rel)
                 or "__pycache__" in rel or ".egg-info" in str(p)
-                or p.suffix not in {".py", ".md", ".toml", ".glsl", ".hlsl", ".wgsl", ".ipynb", ".cfg", ""}):
+                or p.suffix not in {".py", ".md", ".toml", ".glsl", ".hlsl", ".wgsl", ".slang", ".ipynb", ".cfg", ""}):
             continue
         if p == Path(__file__).resolve():
             continue

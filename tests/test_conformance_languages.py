@@ -261,7 +261,7 @@ def test_cli_adapter_picks_the_driver_and_names_it(drivers, golden_dir, capsys):
 
 def test_cli_usage_errors_exit_2(capsys):
     assert cli.main(["conformance", "--function", "shade", "--case", "shade-float32"]) == 2
-    assert "--glsl, --hlsl or --wgsl" in capsys.readouterr().err
+    assert "--glsl, --hlsl, --wgsl or --slang" in capsys.readouterr().err
     assert cli.main(["conformance", "--wgsl", "nonlinear.wgsl", "--case", "shade-float32"]) == 2
     assert "--function" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
@@ -291,7 +291,7 @@ def test_parse_adapter_and_language_of():
     assert _run.parse_adapter("vulkan:NVIDIA", "glsl") == _run.Target("vulkan", "NVIDIA")
     assert _run.parse_adapter("Radeon", "glsl") == _run.Target("vulkan", "Radeon")
     assert _run.language_of("x.hlsl") == "hlsl" and _run.language_of("x.txt", "wgsl") == "wgsl"
-    with pytest.raises(InputError, match="--glsl, --hlsl or --wgsl"):
+    with pytest.raises(InputError, match="--glsl, --hlsl, --wgsl or --slang"):
         _run.language_of("x.txt")
 
 

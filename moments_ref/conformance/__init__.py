@@ -1,6 +1,7 @@
 """Run a GLSL, HLSL or WGSL port on a real driver against the golden vectors.
 
-``moments-ref conformance (--glsl | --hlsl | --wgsl) FILE --function NAME --case CASE
+Slang too (``--slang``, the optional extra ``slang``): :mod:`.languages` holds each
+language's facts. ``moments-ref conformance (--glsl | --hlsl | --wgsl | --slang) FILE --function NAME --case CASE
 [--golden DIR] [--adapter NAME]`` wraps the function ``NAME`` of the file, unchanged,
 in the harness's own compute entry point (:mod:`._wrap`), uploads the case's
 inputs, runs one dispatch, reads the outputs back and compares them with the
@@ -40,14 +41,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..ports import GLSL_DIR, HLSL_DIR, PORTS_DIR, WGSL_DIR
+from ..ports import GLSL_DIR, HLSL_DIR, PORTS_DIR, SLANG_DIR, WGSL_DIR
 from ._cases import GoldenCase, load_case
 from ._cli import bench_conformance, main, run_cli, summary_markdown
 from ._gl import ContextError, create_context, get_context, renderer
 from ._report import ConformanceReport
 from ._agree import DriverComparison, compare_drivers
 from ._supervisor import WATCHDOG_SECONDS, DriverError, set_watchdog, watchdog
-from ._run import AS_WRITTEN, DEFAULT_DRIVER, DRIVERS, LANGUAGES, SourceOptions, run_case, run_function
+from ._run import ALL_LANGUAGES, AS_WRITTEN, DEFAULT_DRIVER, DRIVERS, LANGUAGES, SourceOptions, run_case, run_function
 from ._shipped import NOT_AVAILABLE, SHIPPED, SHIPPED_FUNCTIONS, not_available, shipped_cases, shipped_port
 from ._slots import Slot, signature
 from ._source import ShaderError, defined_functions, load_source
@@ -55,8 +56,8 @@ from ._toolchain import ToolError
 from .verdict import ulp_distance
 
 __all__ = [
-    "ContextError", "ToolError", "ShaderError", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR", "PORTS_DIR",
-    "LANGUAGES", "DRIVERS", "DEFAULT_DRIVER", "AS_WRITTEN", "SourceOptions", "DriverError", "DriverComparison",
+    "ContextError", "ToolError", "ShaderError", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR", "SLANG_DIR", "PORTS_DIR",
+    "LANGUAGES", "ALL_LANGUAGES", "DRIVERS", "DEFAULT_DRIVER", "AS_WRITTEN", "SourceOptions", "DriverError", "DriverComparison",
     "WATCHDOG_SECONDS", "set_watchdog", "watchdog",
     "compare_drivers", "SHIPPED", "SHIPPED_FUNCTIONS",
     "create_context", "get_context", "renderer", "load_source", "defined_functions",

@@ -16,6 +16,7 @@ import numpy as np
 from .._arrays import InputError
 from ._gl import ContextError
 from ._run import DRIVERS, LANGUAGES, run_function
+from .languages import TABLE
 from ._toolchain import ToolError
 from .verdict import ulp_distance
 
@@ -148,7 +149,7 @@ def probe_markdown():
              "results differing from correctly rounded float32 on 20 000 random inputs.", "",
              "| language | driver | fma | a*b + c | precise a*b + c | clamp(NaN, 0, 1) | x / y not correctly rounded |"
              " sqrt not correctly rounded |", "|---|---|---|---|---|---|---|---|"]
-    for language in LANGUAGES:
+    for language in (x for x in LANGUAGES if TABLE[x].probed):
         for driver in DRIVERS:
             try:
                 f = measure(language, driver)
@@ -162,7 +163,7 @@ def probe_markdown():
               "fits every row). `as-written` is glslang's SPIR-V on OpenGL with every operation `NoContraction`",
               "(the default for HLSL on OpenGL; `--adapter as-written` for GLSL).", "",
               "| language | driver | mix / lerp | x / 3.0 | (1.5x − 2y) + 0.5 | w·w·w·w |", "|---|---|---|---|---|---|"]
-    for language in LANGUAGES:
+    for language in (x for x in LANGUAGES if TABLE[x].probed):
         for driver in DRIVERS + (("as-written",) if language != "wgsl" else ()):
             try:
                 f = rules(language, driver)

@@ -6,7 +6,10 @@ language   Vulkan (wgpu; lavapipe without a GPU)            OpenGL (EGL; llvmpip
 GLSL       glslang → SPIR-V → wgpu                          moderngl (the default)
 HLSL       glslang HLSL → SPIR-V → wgpu                     SPIR-V read by the driver, as written (default)
 WGSL       wgpu (the default)                               wgpu's OpenGL adapter
+Slang      Slang → GLSL → glslang → SPIR-V → wgpu           Slang → GLSL → moderngl (default)
 =========  ===============================================  ===============================
+
+The facts per language (suffixes, compilers, routes, ``precise``) are :mod:`.languages`.
 """
 
 from __future__ import annotations
@@ -19,26 +22,30 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError
-from . import _gl, _glspirv, _toolchain, _wgpu
+from ..ports import PORTS_DIR
+from . import _gl, _glspirv, _slang, _toolchain, _wgpu
+from . import languages as _languages
 from ._cases import GoldenCase, load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
 from ._decls import keep_used, used_resources
 from ._textures import consumed, texture_args
+from ._uniforms import constant_declaration, parse_uniforms
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
-from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_wgsl
+from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_slang, wrap_wgsl
 from .verdict import compare_case
 
-__all__ = ["LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
+__all__ = ["LANGUAGES", "ALL_LANGUAGES", "DRIVERS", "AS_WRITTEN", "Target", "SourceOptions", "parse_adapter", "language_of", "run_function", "run_case"]
 
-LANGUAGES = ("glsl", "hlsl", "wgsl")
-DRIVERS = ("gl", "vulkan")
+#: Languages whose shipped ports cover every shipped function; :data:`ALL_LANGUAGES` adds Slang.
+LANGUAGES = _languages.CORE
+ALL_LANGUAGES = _languages.LANGUAGES
+DRIVERS = _languages.DRIVERS
 #: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
 #: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).
 AS_WRITTEN = "as-written"
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
-DEFAULT_DRIVER = {"glsl": "gl", "hlsl": "gl", "wgsl": "vulkan"}
-_SUFFIX = {".glsl": "glsl", ".comp": "glsl", ".hlsl": "hlsl", ".hlsli": "hlsl", ".fx": "hlsl", ".wgsl": "wgsl"}
+DEFAULT_DRIVER = {k: v.default for k, v in _languages.TABLE.items()}
 _SPIRV = {}
 
 
@@ -64,15 +71,8 @@ def parse_adapter(spec, language):
 
 
 def language_of(path, language=None):
-    """The language named, or the one of the file's suffix."""
-    if language is not None:
-        if language not in LANGUAGES:
-            raise InputError(f"language: expected one of {', '.join(LANGUAGES)}, got {language!r}")
-        return language
-    lang = _SUFFIX.get(Path(path).suffix.lower())
-    if lang is None:
-        raise InputError(f"source: cannot tell the language of {str(path)!r}; use --glsl, --hlsl or --wgsl")
-    return lang
+    """The language named, or the one of the file's suffix (:func:`.languages.language_of`)."""
+    return _languages.language_of(path, language)
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,8 @@ class SourceOptions:
     for :func:`~._source.load_source`; ``keep_unused`` compiles declarations the function
     does not use too; ``exact`` (default) makes OpenGL evaluate every operation of an HLSL
     file as written (each result rounded in program order, no reassociation, as if every
-    operation were ``precise``).
+    operation were ``precise``); ``uniforms`` (``NAME=VALUE``, a vector ``NAME=a,b,c``) gives the
+    uniform, constant-buffer and push-constant members the function reads a value (:mod:`._uniforms`).
     """
 
     include_dirs: tuple = ()
@@ -92,6 +93,7 @@ class SourceOptions:
     max_source: int | None = None
     keep_unused: bool = False
     exact: bool = True
+    uniforms: tuple = ()  # NAME=VALUE: values of the uniform / constant-buffer members the function reads
 
 
 def _check_defined(src, path, function, sig):
@@ -101,17 +103,26 @@ def _check_defined(src, path, function, sig):
                           f"expected signature: {sig}")
 
 
-def _only_used(src, function, language, keep_unused):
-    """Blank the declarations ``function`` does not use; refuse resources it needs bound."""
-    if keep_unused:
+def _only_used(src, function, language, keep_unused, uniforms=()):
+    """Blank the declarations ``function`` does not use; give uniforms their ``--uniform`` values; refuse
+    resources it needs bound."""
+    if keep_unused and not uniforms:
         return src
     body, kept = keep_used(src.body, language, function)
-    for d, what in used_resources(kept, language):
+    if keep_unused:
+        body = src.body
+    values = parse_uniforms(uniforms)
+    for d, what in sorted(used_resources(kept, language), key=lambda x: -x[0].start):
         line = src.body.count("\n", 0, d.start) + 1
+        text = src.body[d.start:d.end]
+        const = constant_declaration(text, language, values, src.body, src.locate(line)) if values else None
+        if const is not None:  # the same lines, so that messages keep their numbers
+            body = body[:d.start] + const + "\n" * text.count("\n") + body[d.end:]
+            continue
         way = ("take the texture as an argument, followed by an integer texel coordinate (docs/ports.md, "
                "\"Texture arguments\")" if re.search(r"texture|Texture|sampler", what) else
-               "read it in an adapter function that takes it as an argument, or make it a constant"
-               + (" (`static const`)" if language == "hlsl" else ""))
+               "give its members values with --uniform NAME=VALUE, read it in an adapter function that takes it as "
+               "an argument, or make it a constant" + (" (`static const`)" if language == "hlsl" else ""))
         raise ShaderError(f"{src.locate(line)}: {function} uses {what} {d.name!r} declared here, which the harness "
                           f"does not bind (it passes only the function's arguments): {way}")
     return replace(src, body=body)
@@ -134,11 +145,14 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     ``inputs`` (the arrays) let the harness fill the textures a function reads (:mod:`._textures`).
     """
     options = options or SourceOptions()
+    _languages.require(language)  # before any file is read: the install line, not a parse error
     check_identifier(function)
     src = load_source(path, language, options.include_dirs, options.defines, options.prelude, options.max_source)
     sig = signature(language, function, ins, outs)
     _check_defined(src, path, function, sig)
-    src = _only_used(src, function, language, options.keep_unused)
+    if language == "slang":  # Slang keeps only what the entry point uses; modules are its own
+        return _slang_route(target, src, path, function, sig, ins, outs, options)
+    src = _only_used(src, function, language, options.keep_unused, options.uniforms)
     tex = {} if inputs is None else texture_args(src.body, function, language, ins,
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
                                                   len(next(iter(inputs.values()))))
@@ -156,6 +170,33 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
         return (lambda a, n: _wgpu.run_module(dev, code, group, src.locate, sig, ins, outs, a, n, LOCAL_SIZE, tex=tex)), \
             dev.renderer, []
     return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
+
+
+def _slang_route(target, src, path, function, sig, ins, outs, options):
+    """Slang → GLSL; OpenGL runs it (barriers lowered), Vulkan gets glslang's SPIR-V of it (keeps ``precise``)."""
+    if target.driver == AS_WRITTEN:
+        raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL; Slang runs on gl or vulkan")
+    if options.uniforms:
+        raise InputError("uniform: --uniform is for GLSL, HLSL and WGSL files; in Slang, pass the value as an "
+                         "argument of an adapter function")
+    space = free_group(src.body, r"(?:\bspace|vk::binding\s*\(\s*\d+\s*,\s*)(\d+)")
+    wrapper = wrap_slang(src, function, ins, outs, space)
+    dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
+    known = _slang.identifiers(src.body, dirs)
+    glsl = _cached(["slang", wrapper, *map(str, dirs)],
+                   lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig,
+                                             lambda e: _languages.unmangle("slang", e, known)))
+    note = _languages.precise_note("slang", target.driver, src.body)
+    notes = [note] if note else []
+    if target.driver == "gl":
+        ctx = _gl.get_context()
+        text = _slang.to_gl(glsl)
+        return (lambda a, n: _gl.run_program(text, lambda k: "<Slang's GLSL>", sig, ins, outs, a, n, LOCAL_SIZE,
+                                             ctx)), _gl.renderer(ctx) + " (Slang through its GLSL)", notes
+    dev = _device(target)
+    spv = _cached(["slang-spirv", glsl], lambda: _toolchain.glslang_glsl(glsl, lambda k: "<Slang's GLSL>", sig))
+    return (lambda a, n: _wgpu.run_module(dev, spv, space, src.locate, sig, ins, outs, a, n, LOCAL_SIZE, "main")), \
+        dev.renderer + " (Slang through its GLSL and glslang)", notes
 
 
 def _glsl(target, src, function, sig, ins, outs, tex):

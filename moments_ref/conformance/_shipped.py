@@ -49,8 +49,12 @@ SHIPPED = {prefix: (f"{stem}.glsl", fn) for prefix, (stem, fn) in SHIPPED_FUNCTI
 
 def shipped_port(case, language="glsl"):
     """``(path, function)`` of the shipped port of ``language`` for a case name, or None."""
+    from .languages import TABLE
+
     for prefix, (stem, function) in SHIPPED_FUNCTIONS.items():
         if case.startswith(prefix):
+            if language in TABLE and stem not in TABLE[language].shipped:
+                return None
             return PORTS_DIR / language / f"{stem}.{language}", function
     return None
 

@@ -98,6 +98,9 @@ def signature(lang, function, inputs, outputs, replaced=None):
 
     ``replaced`` maps an input to the parameters written in its place (texture arguments).
     """
+    from .languages import TABLE
+
+    lang = TABLE[lang].types if lang in TABLE else lang  # the contract's spelling (Slang: HLSL's)
     replaced = replaced or {}
     # A replaced input is written as its parameters; "" drops it (carried by another's coordinate).
     args = [replaced[s.name] if s.name in replaced else s.declare(lang) for s in inputs]

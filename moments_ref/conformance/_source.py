@@ -8,9 +8,12 @@ as relative to the folder, like the virtual paths of engines), then as an
 absolute path, then among the shipped ports of the language (``#include
 "msm.glsl"``). Each file is read once (like ``#pragma once``), so an include
 cycle ends where a file would come again; chains deeper than
-:data:`MAX_INCLUDE_DEPTH` are refused. An include that is not found becomes an
-``#error`` line (GLSL, HLSL), so that the compiler's own preprocessor decides
-whether it matters (an include inside ``#if 0`` does not).
+:data:`MAX_INCLUDE_DEPTH` are refused. An include in a comment or in a branch
+known to be inactive (``#if 0``; :mod:`._directives`) is not followed, in every
+language and on every driver. An include that is not found becomes an ``#error``
+line naming the file and line (GLSL, HLSL, Slang), so that the compiler's own
+preprocessor decides whether it matters (a branch whose condition only it can
+evaluate); in WGSL, which has no preprocessor, it is an error at once.
 
 Reads are bounded: every file (source, prelude, includes) counts towards one
 budget of :data:`MAX_SOURCE_BYTES` (``--max-source`` raises it), checked before a
@@ -29,6 +32,7 @@ from pathlib import Path
 
 from .._arrays import InputError
 from ..ports import PORTS_DIR
+from ._directives import Scanner
 
 __all__ = ["ShaderError", "ShaderSource", "MAX_SOURCE_BYTES", "MAX_INCLUDE_DEPTH", "load_source", "read_text",
            "defined_functions", "strip_comments", "one_line_errors", "wrapped_compile_error", "check_identifier", "WRAPPER"]
@@ -194,6 +198,7 @@ def load_source(path, language="glsl", include_dirs=(), defines=(), prelude=None
         for no, d in enumerate(defines, 1):
             name, _, value = str(d).partition("=")
             check_identifier(name.strip(), "define")
+            st.defined.add(name.strip())
             st.emit(f"#define {name.strip()} {value}", (len(st.files) - 1, no))
     if prelude is not None:
         st.visit(Path(prelude), "", 0, "prelude")
@@ -209,6 +214,7 @@ class _State:
         self.language, self.include_dirs, self.budget, self.marks = language, list(include_dirs), budget, marks
         self.files, self.lines, self.where, self.seen = [], [], [], set()
         self.version, self.version_at, self.extensions = 0, "", []
+        self.defined = set()  # macros defined so far (--define, prelude, files): see _directives
 
     def emit(self, text, loc):
         self.lines.append(text)
@@ -226,15 +232,29 @@ class _State:
         k = len(self.files)
         if self.marks:
             self.emit(f"#line 1 {k}", None)
+        scan = Scanner()
+        scan.defined = self.defined  # one set of macros across the files, in reading order
         for no, line in enumerate(text.splitlines(), 1):
-            if self._directive(line, p, real, k, no, depth):
+            code = scan.code(line)
+            scan.directive(code)
+            if self._directive(line, code, scan.active, p, real, k, no, depth):
                 continue
             self.emit(line, (k - 1, no))
 
-    def _directive(self, line, p, real, k, no, depth):
-        """Handle an include, version or extension line; True when it was consumed."""
+    def _directive(self, line, code, active, p, real, k, no, depth):
+        """Handle an include, version or extension line; True when it was consumed.
+
+        ``code`` is the line without comments, ``active`` whether its branch is active
+        (False: known inactive). An include in a comment or an inactive branch is kept
+        as text, written ``#_include`` (OpenGL's front end would expand it).
+        """
         glsl = self.language == "glsl"
-        m = _INCLUDE.match(line)
+        m = _INCLUDE.match(code)
+        if m is None or active is False:
+            if "#include" in line or re.search(r"#\s+include", line):
+                self.emit(re.sub(r"#(\s*)include", r"#\1_include", line), (k - 1, no))
+                return True
+            m = None
         if m:
             found = next((c for c in _resolve(m.group(1), real.parent, self.language, self.include_dirs)
                           if c.is_file()), None)
@@ -246,18 +266,18 @@ class _State:
                     msg = f'include "{m.group(1)}" is a broken symbolic link or a symbolic link loop'
                 if self.language == "wgsl":
                     raise ShaderError(f"{p}:{no}: {msg}")
-                self.emit(f"#error {msg}", (k - 1, no))
+                self.emit(f"#error {p}:{no}: {msg}", (k - 1, no))
                 return True
             self.visit(found, f", included from {p}:{no}", depth + 1)
             self.emit(f"#line {no + 1} {k}" if self.marks else "", None)
             return True
-        m = _VERSION.match(line) if glsl else None
+        m = _VERSION.match(code) if glsl else None
         if m:
             if int(m.group(1)) > self.version:
                 self.version, self.version_at = int(m.group(1)), f"{p}:{no}"
             self.emit("", (k - 1, no))  # keep the line numbers
             return True
-        if glsl and _EXTENSION.match(line):
+        if glsl and _EXTENSION.match(code):
             self.extensions.append(line.strip())
             self.emit("", (k - 1, no))
             return True

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ._source import ShaderError, one_line_errors, wrapped_compile_error
 
-__all__ = ["ToolError", "COMPILE_SECONDS", "limit_memory", "glslang_glsl", "glslang_hlsl", "spirv_to_glsl", "tool_versions"]
+__all__ = ["ToolError", "COMPILE_SECONDS", "limit_memory", "run_child", "glslang_glsl", "glslang_hlsl", "spirv_to_glsl", "tool_versions"]
 
 
 class ToolError(RuntimeError):
@@ -68,6 +68,11 @@ def _run(cmd, what="the compiler"):
         raise ShaderError(f"{what} stopped ({_signal(proc.returncode)}) within its memory limit of "
                           f"{format_bytes(mem)} (--max-memory): a macro that expands without bound?")
     return proc.returncode, log
+
+
+def run_child(cmd, what="the compiler"):
+    """Run a compiler as a child process under the memory and time limits; ``(exit code, log)``."""
+    return _run(cmd, what)
 
 
 def _signal(code):

@@ -16,9 +16,9 @@ from __future__ import annotations
 import re
 
 from .._arrays import InputError
-from ._source import strip_comments
+from ._source import WRAPPER, strip_comments
 
-__all__ = ["LOCAL_SIZE", "glsl_version", "wrap_glsl", "wrap_hlsl", "wrap_wgsl", "free_group", "user_local_size"]
+__all__ = ["LOCAL_SIZE", "glsl_version", "wrap_glsl", "wrap_hlsl", "wrap_slang", "wrap_wgsl", "free_group", "user_local_size"]
 
 #: Work-group size of the wrapper (one invocation per golden row).
 LOCAL_SIZE = 64
@@ -165,6 +165,32 @@ def wrap_hlsl(src, function, ins, outs, space=3, tex=None):
     lines += [f"[numthreads({LOCAL_SIZE}, 1, 1)]", "void mr_main(uint3 mr_id : SV_DispatchThreadID)", "{",
               "    uint i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) return;"]
     lines += ["    " + x for x in _body("hlsl", function, ins, outs, tex)] + ["}"]
+    return "\n".join(lines) + "\n"
+
+
+def wrap_slang(src, function, ins, outs, space=3):
+    """Slang module: the user's resolved source, then the harness; entry ``mr_main``.
+
+    The harness's buffers carry ``[[vk::binding(b, space)]]`` (Slang maps them to
+    GLSL's ``binding``/``set`` as declared); the call is HLSL, which Slang reads.
+    ``#line`` markers name files by their path (Slang's diagnostics then name the
+    porter's file and line).
+    """
+    body = re.sub(r"^#line (\d+) (\d+)$", lambda m: f'#line {m.group(1)} "{src.name(int(m.group(2)))}"', src.body,
+                  flags=re.M)
+    lines = [body, f'#line 1 "{WRAPPER}"']
+    b = 0
+    for s in ins:
+        lines.append(f"[[vk::binding({b}, {space})]] StructuredBuffer<{s.element('hlsl')}> mr_in_{s.name};")
+        b += 1
+    for s in outs:
+        lines.append(f"[[vk::binding({b}, {space})]] RWStructuredBuffer<{s.element('hlsl')}> mr_out_{s.name};")
+        b += 1
+    lines.append(f"[[vk::binding({b}, {space})]] StructuredBuffer<uint> mr_params;")
+    lines += ['[shader("compute")]', f"[numthreads({LOCAL_SIZE}, 1, 1)]",
+              "void mr_main(uint3 mr_id : SV_DispatchThreadID)", "{",
+              "    uint i = mr_id.x + mr_id.y * mr_params[1];", "    if (i >= mr_params[0]) return;"]
+    lines += ["    " + x for x in _body("hlsl", function, ins, outs)] + ["}"]
     return "\n".join(lines) + "\n"
 
 

@@ -1,6 +1,6 @@
 """Ports of the core functions to shading languages, shipped as package data.
 
-``glsl/``, ``hlsl/`` and ``wgsl/`` hold compute-shader ports written from the
+``glsl/``, ``hlsl/``, ``wgsl/`` and ``slang/`` hold compute-shader ports written from the
 papers (HPG17, the slides), one file per concept (``msm``, ``msm6``,
 ``nonlinear``, ``packing``) with the same function names in every language;
 :mod:`moments_ref.conformance` runs any of their functions on a real driver
@@ -23,5 +23,7 @@ GLSL_DIR = PORTS_DIR / "glsl"
 HLSL_DIR = PORTS_DIR / "hlsl"
 #: Folder of the shipped WGSL ports.
 WGSL_DIR = PORTS_DIR / "wgsl"
+#: Folder of the shipped Slang ports (``msm``, ``nonlinear``, ``packing``, the §4.1 kernel).
+SLANG_DIR = PORTS_DIR / "slang"
 
-__all__ = ["PORTS_DIR", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR"]
+__all__ = ["PORTS_DIR", "GLSL_DIR", "HLSL_DIR", "WGSL_DIR", "SLANG_DIR"]

@@ -49,7 +49,7 @@ def _element_bytes(slot):
     return _ELEMENT_BYTES.get(slot.name)
 
 
-def _check_kind(slot, r, case):
+def _check_kind(slot, r, case, out_bytes=None):
     if r.kind not in slot.kinds:
         raise BindingError(f"{_where(r)} is bound to {slot.describe()} in {case}; got a {r.kind.replace('_', ' ')}")
     if r.kind == "storage_image" and r.format not in (None, slot.format):
@@ -57,7 +57,11 @@ def _check_kind(slot, r, case):
     if r.kind == "storage_image" and r.format is None:
         raise BindingError(f"{_where(r)} has no image format; declare it {slot.format} "
                            "(GLSL layout(rgba32ui), WGSL texture_storage_2d<rgba32uint, write>)")
-    if r.kind == "buffer":
+    if r.kind == "buffer" and slot.role == "output" and out_bytes is not None:
+        if r.stride is not None and r.stride not in out_bytes:
+            raise BindingError(f"{_where(r)}: elements of {r.stride} bytes; the declared output layout has "
+                               f"{' or '.join(map(str, out_bytes))}-byte elements")
+    elif r.kind == "buffer":
         want = _element_bytes(slot)
         if r.stride is not None and want is not None and r.stride != want:
             raise BindingError(f"{_where(r)}: elements of {r.stride} bytes, {slot.describe()} has {want}-byte "
@@ -106,8 +110,11 @@ def _slot_of(r, contract):
                        + " (matched by name, else by set and binding)")
 
 
-def match(interface, contract):
+def match(interface, contract, out_bytes=None):
     """``[Bound]`` for every resource the kernel declares, or :class:`BindingError`.
+
+    ``out_bytes``: the element sizes an output buffer may have in a declared layout
+    (:func:`.layout.element_bytes`; None: the contract's).
 
     HLSL's ``row_major`` flag of SPIR-V is inverted (HLSL's default column_major
     packing is SPIR-V RowMajor), so HLSL's default is the documented layout.
@@ -122,7 +129,7 @@ def match(interface, contract):
         slot = _slot_of(r, contract)
         if slot.name in taken:
             raise BindingError(f"{_where(r)} and {_where(taken[slot.name])} both match {slot.describe()}")
-        _check_kind(slot, r, contract.case)
+        _check_kind(slot, r, contract.case, out_bytes)
         if r.kind == "uniform":
             _check_members(r, contract.case)
         taken[slot.name] = r

@@ -6,6 +6,7 @@ language   OpenGL (llvmpipe)                               Vulkan (lavapipe)
 GLSL       moderngl compiles the file (entry ``main``)     glslang → SPIR-V → wgpu
 HLSL       glslang → SPIR-V → SPIRV-Cross GLSL → moderngl   glslang → SPIR-V → wgpu
 WGSL       wgpu's OpenGL adapter                           wgpu
+Slang      Slang → GLSL → glslang → SPIRV-Cross → moderngl  Slang → GLSL → glslang → SPIR-V → wgpu
 =========  ==============================================  ==========================================
 
 Bindings and work-group size come from reflection (:mod:`.reflect`), are matched
@@ -36,11 +37,13 @@ from ..._arrays import InputError
 from .. import _supervisor
 from .._errors import ContextError
 from .._run import language_of, parse_adapter
+from ..languages import require
 from .._source import ShaderError, load_source, one_line_errors
 from .._supervisor import CompileFailed, DriverDied, DriverError, DriverTimeout, watchdog
 from . import _spirv, trace
 from ._job import POISON, Bind, Job, Output
 from .bind import match
+from .layout import buffer_words, check_layout, element_bytes
 from .contract import BLOCK, contract, dispatches
 from .reflect import from_spirv, from_wgsl
 from .verdict import DriverRun, KernelReport, judge
@@ -78,8 +81,16 @@ def _cached(key, make):
     return _CACHE[k]
 
 
-def _glsl(path, entry, target):
-    src = load_source(path, "glsl")
+def _load(path, language, options):
+    """The kernel's source with its includes resolved and the CLI's ``--include``/``--define``/``--prelude``."""
+    o = options
+    if o is None:
+        return load_source(path, language)
+    return load_source(path, language, o.include_dirs, o.defines, o.prelude, o.max_source)
+
+
+def _glsl(path, entry, target, options=None):
+    src = _load(path, "glsl", options)
     if entry != "main":
         raise ShaderError(f"entry: a GLSL compute shader's entry point is main(), got --entry {entry!r}")
     ext = "\n".join(src.extensions)
@@ -94,9 +105,14 @@ def _glsl(path, entry, target):
     return Prepared("vulkan", target.name, "wgpu", code, "main", iface, "GLSL through glslang and wgpu", src)
 
 
-def _hlsl(path, entry, target):
-    body = open(path, encoding="utf-8", errors="replace").read()
-    spv = _cached(("hlsl", str(path), body, entry), lambda: _spirv.hlsl_to_spirv(path, entry))
+def _hlsl(path, entry, target, options=None):
+    if options is not None and (options.include_dirs or options.defines or options.prelude):
+        # The harness's one preprocessor resolves includes, defines and the prelude; glslang gets one text.
+        body = _load(path, "hlsl", options).body
+        spv = _cached(("hlsl-text", body, entry), lambda: _hlsl_text(body, entry))
+    else:
+        body = open(path, encoding="utf-8", errors="replace").read()
+        spv = _cached(("hlsl", str(path), body, entry), lambda: _spirv.hlsl_to_spirv(path, entry))
     iface = from_spirv(_cached(("reflect", spv), lambda: _spirv.reflect_spirv(spv, entry)), "hlsl", entry)
     if target.driver == "gl":
         text = _cached(("spirv-cross", spv, entry), lambda: _spirv.spirv_to_gl(spv, entry))
@@ -106,28 +122,53 @@ def _hlsl(path, entry, target):
     return Prepared("vulkan", target.name, "wgpu", code, entry, iface, "HLSL through glslang and wgpu")
 
 
-def _wgsl(path, entry, target):
-    src = load_source(path, "wgsl")
+def _hlsl_text(body, entry):
+    tmp = trace.write_temp(body, ".hlsl")
+    try:
+        return _spirv.hlsl_to_spirv(tmp, entry)
+    finally:
+        shutil.rmtree(tmp.parent, ignore_errors=True)
+
+
+def _wgsl(path, entry, target, options=None):
+    src = _load(path, "wgsl", options)
     iface = from_wgsl(src.body, entry)
     adapter = "wgpu's OpenGL adapter" if target.driver == "gl" else "wgpu"
     return Prepared(target.driver, target.name, "wgpu", src.body, entry, iface, f"WGSL through {adapter}", src)
 
 
-def prepare(path, entry, language, target):
-    """Compile (cached) and reflect a kernel for one :class:`~moments_ref.conformance._run.Target`."""
-    return {"glsl": _glsl, "hlsl": _hlsl, "wgsl": _wgsl}[language](path, entry, target)
+def _slang(path, entry, target, options=None):
+    from .slang import slang_kernel
+
+    o = options
+    code, iface, toolchain, _ = slang_kernel(path, entry, target.driver, _cached, *(
+        (o.include_dirs, o.defines, o.prelude) if o is not None else ()))
+    backend = "moderngl" if target.driver == "gl" else "wgpu"
+    return Prepared(target.driver, target.name if backend == "wgpu" else None, backend, code, "main", iface, toolchain)
 
 
-def _traced(path, entry, language, target):
+def prepare(path, entry, language, target, options=None):
+    """Compile (cached) and reflect a kernel for one :class:`~moments_ref.conformance._run.Target`.
+
+    ``options``: a :class:`~moments_ref.conformance.SourceOptions` (``--include``, ``--define``,
+    ``--prelude``, ``--max-source``), resolved by the harness's one preprocessor.
+    """
+    front = {"glsl": _glsl, "hlsl": _hlsl, "wgsl": _wgsl, "slang": _slang}[language]
+    return front(path, entry, target, options)
+
+
+def _traced(path, entry, language, target, options=None):
     """The kernel with its shared-memory accesses traced (:mod:`.trace`), prepared for ``target``; None if untagged."""
-    text = load_source(path, language).body  # includes resolved (HLSL too: its guards keep it valid)
+    if language == "slang":
+        return None  # the trace instruments GLSL, HLSL and WGSL text
+    text = _load(path, language, options).body  # includes resolved (HLSL too: its guards keep it valid)
     if not any(trace.TAG.search(x) for x in text.splitlines()):
         return None
     if language == "wgsl":
         code = trace.instrument(text, "wgsl", entry)
         return Prepared(target.driver, target.name, "wgpu", code, entry, from_wgsl(code, entry), "traced WGSL")
     if language == "glsl":
-        src = load_source(path, "glsl")
+        src = _load(path, "glsl", options)
         head = lambda v: f"#version {max(src.version, v)}\n" + "\n".join(src.extensions) + "\n"  # noqa: E731
         spv = _spirv.glsl_to_spirv(head(450) + trace.instrument(text, "glsl", entry, vulkan=True), src.name)
         if target.driver == "gl":
@@ -150,7 +191,7 @@ def _traced(path, entry, language, target):
                     from_spirv(_spirv.reflect_spirv(code, entry), "hlsl", entry), "traced HLSL")
 
 
-def shared_memory(path, entry, language, target, case, gc, c, time_limit=None):
+def shared_memory(path, entry, language, target, case, gc, c, time_limit=None, options=None, layout="interleaved"):
     """Trace the shared memory of work group (0, 0) of a tagged kernel: accesses, bank conflicts, races.
 
     Returns None for a kernel without tagged accesses, else a dict: ``driver``,
@@ -158,16 +199,16 @@ def shared_memory(path, entry, language, target, case, gc, c, time_limit=None):
     :func:`moments_ref.gpu.banks.access_pattern` in program order; filter cases),
     ``conflicts`` (per phase of gpu.banks, from the trace), ``races`` (:func:`.trace.races`).
     """
-    prep = _traced(path, entry, language, target)
+    prep = _traced(path, entry, language, target, options)
     if prep is None:
         return None
     kw = gc.meta["kwargs"]
-    bound = match(prep.interface, c)
+    bound = match(prep.interface, c, _out_bytes(kw, layout))
     threads = int(np.prod(prep.interface.workgroup))
     views = gc.arrays["views"] if case == "kernel-vwss-points" else None
     plan = dispatches(case, kw, views, prep.interface.workgroup[0])
     job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
-              output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+              output_spec(case, kw, bound, POISON[0], layout), [(d.groups, d.params) for d in plan],
               dispatch_seconds=watchdog() if time_limit is None else float(time_limit),
               trace_words=threads * trace.RECORDS)
     try:
@@ -194,8 +235,9 @@ def bind_list(bound):
                  b.resource.access, b.resource.depth, b.resource.format or b.slot.format) for b in bound]
 
 
-def output_spec(case, kw, bound, fill):
-    """The output the harness binds: the map padded by a block (image) or a block row (buffer), pre-filled."""
+def output_spec(case, kw, bound, fill, layout="interleaved"):
+    """The output the harness binds: the map padded by a block (image) or a block row (buffer), pre-filled;
+    a buffer in the declared ``layout`` (:mod:`.layout`)."""
     out = next(b for b in bound if b.slot.role == "output")
     if case == "kernel-vwss-points":
         n = kw["views"] * kw["height"] * kw["width"]
@@ -204,7 +246,7 @@ def output_spec(case, kw, bound, fill):
     comps = 1 if kw["format"] == "nlq32" else 4
     if out.resource.kind == "storage_image":
         return Output("storage_image", out.slot.format, (h + BLOCK[1], w + BLOCK[0], comps), fill)
-    return Output("buffer", "uint", ((h * w + BLOCK[1] * w + BLOCK[0]) * comps,), fill)
+    return Output("buffer", "uint", (buffer_words(kw["format"], layout, h * w, BLOCK[1] * w + BLOCK[0]),), fill)
 
 
 def _data(case, gc):
@@ -246,9 +288,9 @@ def execute(prep, job):
         raise DriverError(f"{prep.driver}: {exc}") from None
 
 
-def _run_one(prep, case, gc, c, time_limit, worst_rows):
+def _run_one(prep, case, gc, c, time_limit, worst_rows, strict=False, layout="interleaved"):
     kw = gc.meta["kwargs"]
-    bound = match(prep.interface, c)
+    bound = match(prep.interface, c, _out_bytes(kw, layout))
     c.check_workgroup(prep.interface.workgroup, f"{prep.interface.entry}")
     views = gc.arrays["views"] if case == "kernel-vwss-points" else None
     plan = dispatches(case, kw, views, prep.interface.workgroup[0])
@@ -257,7 +299,7 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
         run.skipped = GL_MULTISAMPLE
         return run
     job = Job(prep.backend, prep.driver, prep.adapter, prep.code, prep.entry, bind_list(bound), _data(case, gc),
-              output_spec(case, kw, bound, POISON[0]), [(d.groups, d.params) for d in plan],
+              output_spec(case, kw, bound, POISON[0], layout), [(d.groups, d.params) for d in plan],
               dispatch_seconds=float(time_limit))
     try:
         result = execute(prep, job)
@@ -269,12 +311,13 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
         return run
     run.renderer, run.timings = result.renderer, result.timings
     verdict, unwritten, outside, codes, out = judge(case, gc.meta, gc.arrays, result.output, job.output.kind,
-                                                    job.output.fill, worst_rows)
+                                                    job.output.fill, worst_rows, strict, layout)
     if unwritten[0] and case != "kernel-vwss-points" and kw["format"] == "nlq32":
         # Any 32-bit word is a valid nlq32 code: a texel is unwritten only if it holds either poison.
         job.output.fill = POISON[1]
         again = execute(prep, job)
-        v2 = judge(case, gc.meta, gc.arrays, again.output, job.output.kind, job.output.fill, worst_rows)
+        v2 = judge(case, gc.meta, gc.arrays, again.output, job.output.kind, job.output.fill, worst_rows, strict,
+                   layout)
         if v2[1][0] < unwritten[0]:
             verdict, unwritten, outside, codes, out = v2
     run.verdict, run.codes, run.output = verdict, codes, out
@@ -286,6 +329,10 @@ def _run_one(prep, case, gc, c, time_limit, worst_rows):
                       f"{'index' if len(where) == 1 else 'row, column'} {', '.join(map(str, where))})")
     run.passed = verdict.passed and not outside[0] and not unwritten[0]
     return run
+
+
+def _out_bytes(kw, layout):
+    return None if "format" not in kw else element_bytes(kw["format"], layout)
 
 
 def numpy_times(case, gc):
@@ -319,7 +366,7 @@ def numpy_times(case, gc):
 
 
 def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, time_limit=None, gc=None,
-               worst_rows=5, timing=True, shared=True):
+               worst_rows=5, timing=True, shared=True, options=None, strict=False, layout="interleaved"):
     """Run a compute shader on a kernel case and judge it with the one comparator, on each driver.
 
     Parameters
@@ -330,10 +377,10 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
         Its compute entry point (GLSL: ``main``).
     case : str
         A kernel case: ``kernel-filter-nlq64``, ``-nlq32``, ``-msm64``, ``-moments``, ``kernel-vwss-points``.
-    language : {"glsl", "hlsl", "wgsl"}, optional
+    language : {"glsl", "hlsl", "wgsl", "slang"}, optional
         Default: from the file's suffix.
     adapter : str, optional
-        ``gl``, ``vulkan``, ``vulkan:NAME`` or an adapter name; default both drivers.
+        ``gl``, ``vulkan``, ``vulkan:NAME`` or an adapter name; default (or ``both``) both drivers.
     golden_dir : path, optional
         A folder written by ``moments-ref golden``; default: generate the case.
     time_limit : float, optional
@@ -348,6 +395,12 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     shared : bool
         Trace the shared memory of a kernel with tagged accesses (:mod:`.trace`): bank
         conflicts, and races between barriers (a race fails the report).
+    options : SourceOptions, optional
+        Include folders, defines, prelude and source budget, as for functions.
+    strict : bool
+        Texels beyond the algorithm's contract fail the verdict too.
+    layout : {"interleaved", "planar", "packed16"}
+        How a filter kernel's output buffer holds its texels (:mod:`.layout`).
 
     Returns
     -------
@@ -357,27 +410,33 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     from ...golden.kernels import KERNEL_CASES
 
     language = language_of(path, language)
+    require(language)
     if case not in KERNEL_CASES:
         raise InputError(f"case: {case!r} is not a kernel case; kernel cases: {', '.join(KERNEL_CASES)}")
     limit = watchdog() if time_limit is None else float(time_limit)
     if not limit > 0:
         raise InputError(f"time_limit: expected a positive number of seconds, got {time_limit!r}")
-    targets = [parse_adapter(d, language) for d in KERNEL_DRIVERS] if adapter is None else \
+    targets = [parse_adapter(d, language) for d in KERNEL_DRIVERS] if adapter in (None, "both") else \
         [parse_adapter(adapter, language)]
     c = contract(case)
     gc = gc or load_case(case, golden_dir)
+    if layout != "interleaved":
+        if case == "kernel-vwss-points":
+            raise InputError("kernel layout: kernel-vwss-points writes one key per pixel; layouts are for filter cases")
+        check_layout(layout, gc.meta["kwargs"]["format"])
     report = KernelReport(case, str(path), entry, language, gc.meta["kwargs"])
-    preps = [prepare(path, entry, language, t) for t in targets]
+    preps = [prepare(path, entry, language, t, options) for t in targets]
     report.interface = preps[0].interface
-    report.bindings = match(preps[0].interface, c)
+    report.bindings = match(preps[0].interface, c, _out_bytes(gc.meta["kwargs"], layout))
     c.check_workgroup(preps[0].interface.workgroup, entry)
     for prep in preps:
-        report.runs.append(_run_one(prep, case, gc, c, limit, worst_rows))
+        report.runs.append(_run_one(prep, case, gc, c, limit, worst_rows, strict, layout))
     if not any(not r.skipped for r in report.runs):
         raise ContextError(f"{report.runs[0].driver}: {report.runs[0].skipped}")
     ran = next(p for p, r in zip(preps, report.runs) if not r.skipped)
     if shared:
-        report.shared = shared_memory(path, entry, language, targets[preps.index(ran)], case, gc, c, limit)
+        report.shared = shared_memory(path, entry, language, targets[preps.index(ran)], case, gc, c, limit, options,
+                                      layout)
     if timing:
         report.numpy = numpy_times(case, gc)
     return report

@@ -67,23 +67,25 @@ def _first(mask):
     return tuple(int(v) for v in idx[0]) if idx.size else None
 
 
-def _filter_candidate(kw, fmt_name, raw, out_kind, fill):
+def _filter_candidate(kw, fmt_name, raw, out_kind, fill, layout="interleaved"):
     """(candidate array (n, ...) or codes, unwritten (H, W), outside mask) of a filter case's readback."""
+    from .layout import split
+
     h, w = kw["height"], kw["width"]
     comps = 1 if fmt_name == "nlq32" else 4
-    if out_kind == "storage_image":
-        mapped = raw[:h, :w, :comps]
-        outside = np.ones(raw.shape[:2], bool)
-        outside[:h, :w] = False
-        outside &= (raw != fill).any(axis=-1)
-    else:
-        mapped = raw[: h * w * comps].reshape(h, w, comps)
-        outside = raw[h * w * comps:] != fill
+    if out_kind != "storage_image":
+        return split(raw, fmt_name, layout, h, w, fill)
+    mapped = raw[:h, :w, :comps]
+    outside = np.ones(raw.shape[:2], bool)
+    outside[:h, :w] = False
+    outside &= (raw != fill).any(axis=-1)
     unwritten = (mapped == fill).all(axis=-1)
     return mapped.reshape(h * w, comps), unwritten, outside
 
 
-def _codes_summary(codes, arrays, row_pass):
+def _codes_summary(codes, arrays, row_pass, fmt_name=None, width=1):
+    from .fields import field_hints
+
     e = arrays["texels"].reshape(len(codes), -1).astype(np.int64)
     c = codes.reshape(len(codes), -1).astype(np.int64)
     exact = (c == e).all(axis=1)
@@ -91,10 +93,11 @@ def _codes_summary(codes, arrays, row_pass):
     accepted = (alts == c[:, None, :]).all(axis=2).any(axis=1) & ~exact
     differ = ~exact & ~accepted
     return {"exact": int(exact.sum()), "accepted": int(accepted.sum()), "differ": int(differ.sum()),
-            "differ_passing": int((differ & row_pass).sum())}
+            "differ_passing": int((differ & row_pass).sum()),
+            "fields": field_hints(fmt_name, codes, arrays["texels"], differ & ~row_pass, width)}
 
 
-def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5):
+def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False, layout="interleaved"):
     """Judge a readback: ``(CaseVerdict, unwritten (count, first), outside (count, first), codes summary)``."""
     kw = meta["kwargs"]
     if case == "kernel-vwss-points":
@@ -104,10 +107,10 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5):
         from ...techniques.vwss.warp import EMPTY_KEY, key_depth
 
         depth = np.where(keys == EMPTY_KEY, np.float32(EMPTY_DEPTH), key_depth(keys)).astype(np.float32)
-        v = compare_case(case, {**meta, "inputs": []}, arrays, {"depth": depth}, worst_rows)
+        v = compare_case(case, {**meta, "inputs": []}, arrays, {"depth": depth}, worst_rows, strict)
         return v, (0, None), (int(outside.sum()), _first(outside)), None, depth
     fmt_name = kw["format"]
-    mapped, unwritten, outside = _filter_candidate(kw, fmt_name, raw, out_kind, fill)
+    mapped, unwritten, outside = _filter_candidate(kw, fmt_name, raw, out_kind, fill, layout)
     bad = unwritten.reshape(-1)
     codes = None
     if fmt_name == "moments":
@@ -117,13 +120,32 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5):
     else:
         misfit = bad | (mapped > 0xFFFF).any(axis=1) if fmt_name != "nlq32" else bad
         codes = np.clip(mapped, 0, 0xFFFF).astype(np.uint16) if fmt_name != "nlq32" else mapped[:, 0].copy()
-        intensity = decode_intensity(fmt_name, codes, arrays["zf"]).astype(np.float32)
+        shown = codes
+        if fmt_name == "nlq64":  # y1's code above y2's is no representation (unpack64 refuses it): the texel fails
+            misfit = misfit | (codes[:, 0] > codes[:, 1])
+            shown = np.where(misfit[:, None], np.uint16(0), codes)
+        intensity = decode_intensity(fmt_name, shown, arrays["zf"]).astype(np.float32)
         intensity[misfit] = np.nan
         out = {"intensity": intensity}
-    v = compare_case(case, meta, arrays, out, worst_rows)
-    summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass)
+    v = compare_case(case, meta, arrays, out, worst_rows, strict)
+    summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass, fmt_name, kw["width"])
     return (v, (int(unwritten.sum()), _first(unwritten)), (int(outside.sum()), _first(outside)), summary,
             next(iter(out.values())))
+
+
+def json_records(report):
+    """One JSON record per driver of a :class:`KernelReport`: the function records' keys (every texel's
+    verdict, from ``golden.diagnosis.json_rows``) and the kernel's own: driver, renderer, toolchain, passed,
+    reason, skipped, unwritten and outside counts, and the codes summary with its per-field hints
+    (:mod:`.fields`)."""
+    out = []
+    for r in report.runs:
+        rec = dict(r.verdict.record or {}) if r.verdict is not None else {}
+        rec.update(driver=r.driver, renderer=r.renderer, toolchain=r.toolchain, passed=bool(r.passed),
+                   reason=r.reason, skipped=r.skipped, unwritten=int(r.unwritten), outside=int(r.outside),
+                   codes=r.codes)
+        out.append(rec)
+    return out
 
 
 def _position(case, kw, i):
@@ -174,6 +196,9 @@ def format_run(case, kw, run, numpy_times, unit):
             lines.append(f"      codes: {c['exact']} equal the global path's, {c['accepted']} another legitimate "
                          f"kernel's, {c['differ']} differ ({c['differ_passing']} of them within the intensity "
                          "tolerance: the intensity decides)")
+            from .fields import format_hint
+
+            lines += [f"      {format_hint(h)}" for h in c.get("fields", [])]
         if v.worst:
             lines.append("      worst texels (failing first, by error/tolerance; per-texel tolerances of the golden "
                          "case, verdict by golden.compare):")
@@ -253,6 +278,14 @@ def _cell(a):
     return f"b{j + 1} cell (x {x}, y {y})"
 
 
+def _conflicts(counts):
+    """The trace's bank conflicts per phase as a finding: "no bank conflicts in phase resolve, ...; 3 in ..."."""
+    clean = [k for k, v in counts.items() if not v]
+    some = [f"{v} bank conflicts in phase {k}" for k, v in counts.items() if v]
+    parts = ([f"no bank conflicts in phase {', '.join(clean)}"] if clean else []) + some
+    return "; ".join(parts) or "no phases traced"
+
+
 def _shared_lines(s):
     if "error" in s:
         return [f"      FAIL shared memory (traced on {s['driver']}): {s['error']}"]
@@ -261,9 +294,11 @@ def _shared_lines(s):
             f"{s['barriers']} barriers")
     lines = [head]
     if "pattern" in s:
-        lines.append(f"        access pattern of gpu.banks (HPG17 Figure 6) in program order: "
-                     f"{'yes' if s['pattern'] else 'NO'}; bank conflicts from the trace: "
-                     + ", ".join(f"{k} {v}" for k, v in s["conflicts"].items()) + " (HPG17 §4.1: none)")
+        lines.append("        shared-memory accesses: " + ("the access pattern of gpu.banks (HPG17 Figure 6), in program "
+                                                            "order" if s["pattern"] else
+                                                            "another order than gpu.banks' pattern (HPG17 Figure 6); "
+                                                            "the counts below are this kernel's own"))
+        lines.append("        shared-memory accesses: " + _conflicts(s["conflicts"]) + " (HPG17 §4.1: none)")
     if s["races"]:
         a, e, w, o = s["races"][0]
         where = _cell(a) if "pattern" in s else f"word {a}"
@@ -271,6 +306,6 @@ def _shared_lines(s):
                      f"with no barrier between; first: invocation {w} stores {where} and invocation {o} accesses it "
                      f"after barrier {e} (a missing barrier; this trace does not depend on the driver's schedule)")
     else:
-        lines.append("        races: none (every word written by one invocation between two barriers is touched "
-                     "by no other)")
+        lines.append("        shared-memory races: none (every word written by one invocation between two barriers is "
+                     "touched by no other)")
     return lines
