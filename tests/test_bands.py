@@ -9,6 +9,7 @@ import numpy as np
 
 from moments_ref.golden import bands
 from moments_ref.golden.cases import CASES
+from moments_ref.golden.contract import rows_inside
 from moments_ref.golden.paper import cholesky_bound, printed_shade
 from moments_ref.golden.spread import golden_arrays
 from moments_ref.moments import BIAS_FLOAT32, bias_moments
@@ -32,11 +33,13 @@ def test_the_shipped_cholesky_upper_bound_lies_in_its_band_near_singular_texels(
     b, zf = _near_singular_rows()
     (lo, hi), = [bands.legitimate_interval(case, {"b": b, "zf": zf})[0]["intensity"]]
     got = np.asarray(cholesky_bound(b, zf, "upper"), np.float64)
-    ok = np.isnan(got) | ((got >= lo) & (got <= hi))
+    inside = rows_inside(case.contract, {"b": b, "zf": zf})  # robustness rows are judged apart
+    assert inside.mean() > 0.5
+    ok = np.isnan(got) | ((got >= lo) & (got <= hi)) | ~inside
     assert ok.all(), np.flatnonzero(~ok)[:5]
     # The class exists: the plain evaluation leaves the float64 reference by more than 1e-5 on some rows.
     ref = np.asarray(case.reference(b=b.astype(np.float64), zf=zf.astype(np.float64))[0])
-    assert np.nanmax(np.abs(got - ref)) > 1e-5
+    assert np.nanmax(np.where(inside, np.abs(got - ref), 0)) > 1e-5
 
 
 def test_bounded_bands_are_capped_unless_ill_conditioned():

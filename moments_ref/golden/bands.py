@@ -331,11 +331,13 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     """``(n,)`` bool: rows whose ``got`` lies outside every neighbour's exact value and every legitimate evaluation.
 
     The exact values (the case's mpmath ``truth``, :mod:`moments_ref.precise`) are computed on
-    the row, on its inputs scaled by ``1 ± k`` float32 ulps (k = 1 … PERTURB_ULPS) and on
+    the row, on its float inputs scaled by ``1 ± k`` float32 ulps (k = 1 … PERTURB_ULPS) and on
     :data:`NEIGHBOURS` points whose float inputs differ by at most PERTURB_ULPS float32 ulps per
-    component. A value within the margin's floor (``FLOOR_ULPS`` ulps of max(|value|, scale)
-    in ``port_dtype``) of one of them, or of a legitimate evaluation within the cap, explains
-    the row. Meant for the few flagged rows of a sweep, not for millions. NaN is never explained.
+    component, each rounded to the inputs' dtype (a neighbour is an input the port could have
+    received). ``got`` is explained where it lies within the span of those exact values and of
+    the legitimate evaluations (formulations only within the cap), widened by ``FLOOR_ULPS``
+    ulps of max(|value|, scale) in ``port_dtype``. Integer outputs must equal one of the codes.
+    Meant for the few flagged rows of a sweep, not for millions. NaN is never explained.
     """
     n = len(next(iter(inputs.values())))
     if n == 0:
@@ -344,24 +346,39 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     dt = np.dtype(port_dtype)
     rng = np.random.default_rng(seed)
     eps = float(np.finfo(np.float32).eps)
-    pts = [inputs] + [_scaled(case, inputs, 1 + s * k * eps) for k in range(1, PERTURB_ULPS + 1) for s in (1, -1)]
+
+    def rounded(p):
+        return {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.asarray(inputs[k]).dtype))
+                for k, v in p.items()}
+
+    pts = [inputs] + [rounded(_scaled(case, inputs, 1 + s * k * eps)) for k in range(1, PERTURB_ULPS + 1)
+                      for s in (1, -1)]
     for _ in range(NEIGHBOURS):
-        pts.append(_scaled(case, inputs, {k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k]))
-                                          for k in _float_keys(case, inputs)}))
-    values = [_exact(case, p) for p in pts]
+        pts.append(rounded(_scaled(case, inputs, {
+            k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k]))
+            for k in _float_keys(case, inputs)})))
+    values = []
+    for p in pts:
+        try:
+            values.append(_exact(case, p))
+        except InputError:  # a neighbour outside the function's domain
+            pass
     if not case.integer_output:
         core, hooks = evaluations(case, inputs, dt)
         values += core + [_within_cap(case, h, values[0]) for h in hooks]
-    explained = np.zeros((len(case.outputs), n), bool)
+    wrong = np.zeros(n, bool)
     for i, o in enumerate(case.outputs):
         g = np.asarray(got[o], np.float64)
-        for v in values:
-            e = np.asarray(v[i], np.float64)
-            if case.integer_output:
-                ok = g == e
-            else:
-                scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
-                with np.errstate(invalid="ignore"):
-                    ok = np.abs(g - e) <= FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)
-            explained[i] |= np.asarray(ok).reshape(n, -1).all(axis=1)
-    return ~explained.all(axis=0)
+        if case.integer_output:
+            ok = np.zeros(g.shape, bool)
+            for v in values:
+                ok |= g == np.asarray(v[i], np.float64)
+        else:
+            e = np.asarray(values[0][i], np.float64)
+            lo, hi, _ = _span(e, [v[i] for v in values])
+            scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
+            f = FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)
+            with np.errstate(invalid="ignore"):
+                ok = (g >= lo - f) & (g <= hi + f)
+        wrong |= ~np.asarray(ok).reshape(n, -1).all(axis=1)
+    return wrong
