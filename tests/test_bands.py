@@ -90,3 +90,29 @@ def test_bands_of_a_million_rows_take_seconds():
     t = time.perf_counter()
     bands.legitimate_interval(case, {"b": b, "zf": zf})
     assert time.perf_counter() - t < 20  # 2e5 rows; ~5x that for 1e6 on a loaded 2-core machine
+
+
+def _biased_port(alpha, target):
+    from moments_ref.msm import shadow_intensity
+
+    def port(b, zf):
+        b = np.asarray(b, np.float32)
+        biased = (np.float32(1 - alpha) * b + np.float32(alpha) * np.asarray(target, np.float32)).astype(np.float32)
+        return shadow_intensity(biased, np.asarray(zf, np.float32), bound="lower")
+
+    return port
+
+
+def test_a_port_biasing_toward_its_own_interior_target_passes_its_engine_case():
+    # Issue 37: the engine case's band is built from the declared alpha and target (2/3: inside the moment space).
+    from moments_ref import oracle
+    from moments_ref.golden.profile import parse_profile
+
+    target = [0.0, 2 / 3, 0.0, 2 / 3]
+    prof = parse_profile({"bias": {"alpha": 3e-3, "target": target, "applied": "inside"}})
+    rep = oracle.check(_biased_port(3e-3, target), "engine-lower", profile=prof, n_hypothesis=0)
+    assert rep.passed, rep
+    # The same port declaring another target than it uses is told apart (the band is not widened wholesale).
+    other = parse_profile({"bias": {"alpha": 3e-3, "target": [0.0, 0.375, 0.0, 0.375], "applied": "inside"}})
+    wrong = _biased_port(0.3, target)
+    assert not oracle.check(wrong, "engine-lower", profile=other, n_hypothesis=0).passed
