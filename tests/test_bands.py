@@ -116,3 +116,20 @@ def test_a_port_biasing_toward_its_own_interior_target_passes_its_engine_case():
     other = parse_profile({"bias": {"alpha": 3e-3, "target": [0.0, 0.375, 0.0, 0.375], "applied": "inside"}})
     wrong = _biased_port(0.3, target)
     assert not oracle.check(wrong, "engine-lower", profile=other, n_hypothesis=0).passed
+
+
+def test_a_phi_that_biases_inside_is_judged_with_its_declared_bias():
+    # Issue 37: the phi case honours a declared bias (the author's demo biases before Phi, inside its function).
+    from moments_ref import oracle
+    from moments_ref.golden.profile import parse_profile
+    from moments_ref.moments import BiasPreset
+    from moments_ref.nonlinear import phi
+
+    preset = BiasPreset(6e-5, (0.0, 0.628, 0.0, 0.628), "demo")
+
+    def port(b):
+        return phi(bias_moments(np.asarray(b, np.float32), preset))
+
+    prof = parse_profile({"bias": {"alpha": 6e-5, "target": [0.0, 0.628, 0.0, 0.628], "applied": "inside"}})
+    assert oracle.check(port, "phi", profile=prof, n_hypothesis=0).passed
+    assert not oracle.check(port, "phi", n_hypothesis=0).passed  # undeclared: its outputs differ
