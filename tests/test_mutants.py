@@ -63,7 +63,7 @@ def test_cli_prints_the_table(tmp_path, capsys):
     assert main(["mutants", "--corpus", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "| alg3-literal-root | bug | killed | killed | shade-float32:" in out
-    assert "contract level: bugs killed 12/12, legitimate variants passing 8/8, robustness variants passing 1/1" in out
+    assert "contract level: bugs killed 13/13, legitimate variants passing 8/8, robustness variants passing 1/1" in out
     assert "(WRONG)" not in out
     assert "strict level:" in out
 
@@ -78,10 +78,14 @@ def test_table_of_the_default_corpus_is_right(results):
 
 def test_the_behaviours_found_in_the_wild(results):
     # Legitimate (each with its engine's profile): paper-faithful Algorithm 1 behind its caller's bias, a [0, 1]
-    # port returning visibility, the author's Algorithm 3 (5e-6 clamp, no xi4 = 0 guard, printed root).
+    # port returning visibility, the author's Algorithm 3 (5e-6 clamp, no xi4 = 0 guard) with a stable root.
     by = {r.name: r for r in results}
-    for name in ("alg1-paper-bias-before", "alg1-engine01", "alg3-author"):
+    for name in ("alg1-paper-bias-before", "alg1-engine01", "alg3-author-stable-root"):
         assert not by[name].killed, (name, by[name].killed_by)
+    # The author's demo with its printed root cancels (0.99998 for 0.0154): killed on the rows flagged
+    # printed_hazard, which name the hazard (issue 37).
+    assert by["alg3-author"].killed
+    assert all("printed_hazard" in fl for _, _, _, fl in by["alg3-author"].killed_by), by["alg3-author"].killed_by
     # Bugs, each killed on contract rows or engine rows; the singular target on the engine rows.
     for name in ("alg1-singular-target", "alg1-factor-1.03", "alg1-early-exit", "alg1-pivot-floor",
                  "alg1-nan-guard", "alg1-unclamped"):

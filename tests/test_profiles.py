@@ -319,3 +319,16 @@ def test_flags_without_a_file_and_the_description():
                           format_xi_rounding="nearest")
     assert q.describe() == "bias alpha 0.25 toward [0.0, 0.375, 0.0, 0.375] (inside), xi_rounding nearest"
     assert parse_profile({"bias": "none"}).describe() == "no bias"
+
+
+@pytest.mark.parametrize("text,key,near", [
+    ('depht = "[0,1]"\n', "depht", "depth"),
+    ('clamp_tset = "clamped"\n', "clamp_tset", "clamp_test"),
+    ('[bias]\nalpha = 1e-4\ntarget = [0, 0.375, 0, 0.375]\napplid = "inside"\n', "bias.applid", "applied"),
+    ('[format]\nxi_round = "up"\n', "format.xi_round", "xi_rounding"),
+])
+def test_a_misspelled_key_is_refused_naming_the_nearest_valid_key(text, key, near):
+    import tomllib
+
+    with pytest.raises(InputError, match=f"{key}: unknown key \\(did you mean '{near}'\\?"):
+        parse_profile(tomllib.loads(text))

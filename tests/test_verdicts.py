@@ -175,12 +175,19 @@ def test_an_undeclared_clamp_convention_is_labelled_not_counted_as_arithmetic(tm
     golden.write(gdir, ["shade-float32"])
     with np.load(gdir / "shade-float32.npz") as g:
         r, zf = g["r"], g["zf"]
-    got = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
-                             "unclamped": True})
+    got = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "no_xi_guard": True, "unclamped": True})
     np.savez(tmp_path / "r.npz", **{"shade-float32.intensity": got})
     case = golden.verify(gdir, tmp_path / "r.npz").cases[0]
     assert case.status == "fail" and case.groups[0].level == "convention"
     assert case.groups[0].count == case.verdict.failures and "clamp = 5e-06" in case.groups[0].flags
+    # The demo's printed root cancels (0.99998 for 0.0154): the declaration explains the clamp rows, never the
+    # rows where the root is wrong (issue 37: advice that would turn a true FAIL into a PASS is not given).
+    demo = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
+                              "unclamped": True})
+    np.savez(tmp_path / "d.npz", **{"shade-float32.intensity": demo})
+    case = golden.verify(gdir, tmp_path / "d.npz").cases[0]
+    conv = sum(g.count for g in case.groups if g.level == "convention")
+    assert case.status == "fail" and conv < case.verdict.failures
     # An arithmetic bug is not explained by any convention.
     bad = ports.alg3(r, zf, {"swap_weights": True})
     np.savez(tmp_path / "b.npz", **{"shade-float32.intensity": bad})

@@ -31,7 +31,7 @@ from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import contract as _contract_mod
 from . import bilinear, endtoend, engine, kernels, texel_truth
 from .paper import alg1_paper_spread, alg3_paper_spread
-from .variants import alg1_variant, bias_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
+from .variants import alg1_variant, bias_variant, phi_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
 from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
@@ -222,7 +222,7 @@ def _nonlinear_cases(dt):
     """Cases of HPG17 §3: Φ, Φ⁻¹, Ψ4, Ψ4⁻¹, Algorithm 3 and the texel formats."""
     return [
         Case(f"phi-{dt}", "nonlinear.phi", dt, ("b",), ("r",), _phi_rows, _wrap("nonlinear.phi"),
-             _precise("phi"), floor_scale=_R_SCALE, **_ALG1,
+             _precise("phi"), floor_scale=_R_SCALE, **_ALG1, profile_keys=("bias",), variant=phi_variant(),
              description="HPG17 Algorithm 2 on BIAS_FLOAT32-biased moments; expected from mpmath"),
         Case(f"phi_inverse-{dt}", "nonlinear.phi_inverse", dt, ("r",), ("b",), _representation_rows,
              _wrap("nonlinear.phi_inverse"), _precise("phi_inverse"), description="HPG17 Eq. (4)"),

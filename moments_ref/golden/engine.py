@@ -16,7 +16,8 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
 * the expected value is the exact Z(z < zf) (upper: Z(z ≤ zf)) of the distribution;
   the tolerance is how far a *correct* biased MSM may be from it: the largest
   deviation, over the paper's presets and the declared α toward a range of targets
-  strictly inside the moment space (:data:`LEGIT_TARGETS`), of the bound of the
+  strictly inside the moment space (:data:`LEGIT_TARGETS`, and the declared target where it
+  lies strictly inside), of the bound of the
   biased moments (float64) from Z, plus the jump of Z where zf sits on a depth of
   the distribution, times 1.25; plus 16 times the spread of float32 evaluations (this
   package and the papers' own code, on those biased moments and on the port's own
@@ -218,7 +219,14 @@ def legit_biases(ctx):
     alphas = {BIAS_FLOAT32.alpha, BIAS_UNORM16.alpha}
     if ctx.get("alpha"):
         alphas.add(float(ctx["alpha"]))
-    return [_preset(a, t, ctx.get("unit", False)) for a in sorted(alphas) for t in LEGIT_TARGETS]
+    out = [_preset(a, t, ctx.get("unit", False)) for a in sorted(alphas) for t in LEGIT_TARGETS]
+    # The declared bias itself, when its target lies strictly inside the moment space (engine frame already):
+    # a port that biases toward its own interior target returns the exact bound of its biased moments. A
+    # singular target is no legitimate choice here: it is judged by its outputs (singular_target_rows).
+    target = ctx.get("target")
+    if ctx.get("alpha") and target is not None and len(target) == 4 and target_support(target) is None:
+        out.append(BiasPreset(float(ctx["alpha"]), tuple(float(x) for x in target), "declared"))
+    return out
 
 
 def _chain(ctx, preset, dt):
@@ -373,7 +381,8 @@ def _variant(texel, bound):
                "visibility": profile is not None and profile.output == "visibility",
                "before": None if before is None else preset_of(before),
                "inside": None if bias is None else preset_of(bias),
-               "alpha": declared.alpha if declared is not None and declared.active else None}
+               "alpha": declared.alpha if declared is not None and declared.active else None,
+               "target": tuple(declared.target) if declared is not None and declared.active else None}
         return {"engine": ctx, "reference": engine_reference(ctx)}
 
     return variant

@@ -112,9 +112,16 @@ NOTES = {
         "effect": "gated with the deviation of correct biased bounds from the exact Z(z < zf)",
     },
     "wide_spread": {
-        "description": "legitimate implementations (float32, float64, operations a few ulps off) differ here by "
-                       "0.1 or more: the value is ill-conditioned at this row",
-        "effect": "gated at the measured spread (informational flag)",
+        "description": "ill-conditioned row: legitimate evaluations (float32, float64, operations a few ulps off, "
+                       "the exact value over the float32 neighbourhood of the input) differ here by more than "
+                       "golden.bands.CAP of the output's range",
+        "effect": "gated at the whole interval of legitimate values (a correct port never fails it); reported "
+                  "apart and never counted as a pass of the port",
+    },
+    "printed_hazard": {
+        "description": "a printed formulation of the papers (the slides' root -p/2 - sqrt(p^2/4 - q), HPG17's "
+                       "printed Algorithm 1 or 3) cancels here in float32 beyond golden.bands.CAP of the range",
+        "effect": "the formula does not widen the band: a port that copied it fails this row",
     },
 }
 
@@ -139,7 +146,11 @@ CAUSES = {
     "fold": "a boundary of the 32-bit triangle fold (HPG17 Figure 5)",
     "code_boundary": "a quantity on a code boundary of a fixed-point field",
     "rounding_tie": "an integer code on a rounding tie",
-    "wide_spread": "ill-conditioned row: legitimate implementations differ by 0.1 or more",
+    "wide_spread": "ill-conditioned row: legitimate evaluations differ beyond the band's cap; the port's value "
+                   "lies outside all of them",
+    "printed_hazard": "a printed formula (the papers' root -p/2 - sqrt(p^2/4 - q)) cancels here in float32: a port "
+                      "that copied it fails this row; take the root without cancellation (t = -(q1 + sign(q1) "
+                      "sqrt(disc))/2, z = t/q2 and q0/t)",
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",

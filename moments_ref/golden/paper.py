@@ -18,20 +18,20 @@ References
 .. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
        of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
        1–3, the texel formats and the compute shader of §4.1.
-.. [2] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+.. [2] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
+       In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
+       '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
+.. [3] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
        lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
        moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
        Cited by slide title, e.g. Slides, "Bias the moments".
-.. [3] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
-       In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
-       '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["slides_bound", "printed_bound", "alg1_paper_spread", "printed_shade", "alg3_paper_spread"]
+__all__ = ["slides_bound", "printed_bound", "cholesky_bound", "alg1_paper_spread", "printed_shade", "alg3_paper_spread"]
 
 
 def slides_bound(b, zf, bound="lower", dtype=np.float32):
@@ -107,13 +107,65 @@ def printed_bound(b, zf, bound="lower", dtype=np.float32):
         return np.where(np.isnan(out), out, np.clip(out, 0, 1)).astype(dtype)
 
 
+def _fma(a, b, c, dt):
+    """``a·b + c`` rounded once to ``dt`` (a fused multiply-add: the product of two float32 is exact in
+    float64, the sum is rounded once more there, then to float32; the double rounding moves the result
+    by at most one float32 ulp on a tie, within every band's floor)."""
+    if dt == np.float64:
+        return a * b + c
+    return (a.astype(np.float64) * b.astype(np.float64) + c.astype(np.float64)).astype(dt)
+
+
+def cholesky_bound(b, zf, bound="lower", dtype=np.float32, fma=False):
+    """Algorithm 1 by the plain float32 Cholesky evaluation of Peters and Klein 2015, Prop. 10, as the
+    shipped ports (``ports/glsl/msm.glsl``, ``.hlsl``, ``.wgsl``) and most engines run it.
+
+    B = L D Lᵀ with D = diag(1, σ², ξ4); L y = (1, zf, zf²); q from D and Lᵀ; the roots of
+    q2 z² + q1 z + q0 without cancellation; 1/w_l = 1 + u2²/σ² + u3²/ξ4 with (1, u2, u3) = L⁻¹(1, z_l, z_l²);
+    lower = 0 (zf ≤ z1), w1 (z1 < zf ≤ z2), 1 − w0 (z2 < zf); upper = lower + w0; both clamped to [0, 1].
+    Near singular texels (one or two depths after the float32 bias) its z2 lands within rounding of zf,
+    on either side: both branches are legitimate there. ``fma=True`` contracts every ``a·b + c`` as a
+    SPIR-V or HLSL compiler may. NaN where σ² ≤ 0 or ξ4 ≤ 0 (the ports' singular branches; outside the
+    contract of biased moments).
+    """
+    t = np.dtype(dtype).type
+    dt = np.dtype(dtype).type
+    b = np.asarray(b).astype(dtype)
+    zf = np.asarray(zf).astype(dtype)
+    b1, b2, b3, b4 = (b[..., k] for k in range(4))
+    mad = (lambda x, y, z: _fma(x, y, z, dt)) if fma else (lambda x, y, z: x * y + z)
+    with np.errstate(all="ignore"):
+        sigma2 = mad(-b1, b1, b2)
+        l32 = mad(-b1, b2, b3) / sigma2
+        xi4 = mad(-l32 * l32, sigma2, mad(-b2, b2, b4))
+        y2 = zf - b1
+        y3 = mad(zf, zf, -b2) - l32 * y2
+        q2 = y3 / xi4
+        q1 = mad(-l32, q2, y2 / sigma2)
+        q0 = mad(-b2, q2, mad(-b1, q1, t(1)))
+        disc = np.sqrt(np.maximum(mad(q1, q1, -t(4) * q2 * q0), t(0)))
+        tt = t(-0.5) * (q1 + np.where(q1 < 0, -disc, disc))
+        ra, rb = tt / q2, q0 / tt
+        z1, z2 = np.minimum(ra, rb), np.maximum(ra, rb)
+        w0 = t(1) / (t(1) + y2 * y2 / sigma2 + y3 * y3 / xi4)
+        u2 = z1 - b1
+        u3 = mad(z1, z1, -b2) - l32 * u2
+        w1 = np.where(np.abs(z1) <= np.finfo(dtype).max, t(1) / (t(1) + u2 * u2 / sigma2 + u3 * u3 / xi4), t(0))
+        low = np.where(zf <= z1, t(0), np.where(zf <= z2, w1, t(1) - w0))
+        out = low + w0 if bound == "upper" else low
+        out = np.clip(out, 0, 1)
+        return np.where((sigma2 > 0) & (xi4 > 0), out, np.nan).astype(dtype)
+
+
 def alg1_paper_spread(bound):
     """A ``spread_hook`` for Algorithm 1 cases: the slides' code and the printed algorithm in the port's
     precision."""
 
     def hook(inputs, dt):
         return [(slides_bound(inputs["b"], inputs["zf"], bound, dt),),
-                (printed_bound(inputs["b"], inputs["zf"], bound, dt),)]
+                (printed_bound(inputs["b"], inputs["zf"], bound, dt),),
+                (cholesky_bound(inputs["b"], inputs["zf"], bound, dt),),
+                (cholesky_bound(inputs["b"], inputs["zf"], bound, dt, fma=True),)]
 
     return hook
 

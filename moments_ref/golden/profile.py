@@ -154,6 +154,15 @@ def _where(src, key):
     return f"profile {src}: {key}"
 
 
+def _unknown(src, key, name, known):
+    """The refusal of an unknown key: names it and the nearest valid key (a misspelling is never ignored)."""
+    import difflib
+
+    near = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
+    hint = f"did you mean {near[0]!r}? " if near else ""
+    return InputError(f"{_where(src, key)}: unknown key ({hint}known: {', '.join(known)})")
+
+
 def _number(v, src, key):
     return finite_float(v, _where(src, key))  # bounded: an integer beyond float range is refused (_toml)
 
@@ -182,7 +191,7 @@ def _bias(v, src, key="bias"):
         raise InputError(f"{_where(src, key)}: expected a table (alpha, target, applied) or \"none\", got {v!r}")
     unknown = [k for k in v if k not in _BIAS_KEYS]
     if unknown:
-        raise InputError(f"{_where(src, f'{key}.{unknown[0]}')}: unknown key (known: {', '.join(_BIAS_KEYS)})")
+        raise _unknown(src, f"{key}.{unknown[0]}", unknown[0], _BIAS_KEYS)
     missing = [k for k in _BIAS_KEYS if k not in v]
     if missing:
         raise InputError(f"{_where(src, f'{key}.{missing[0]}')}: missing (a bias needs {', '.join(_BIAS_KEYS)})")
@@ -211,7 +220,7 @@ def _format(v, src, key="format"):
     out = {}
     for k, x in v.items():
         if k not in FORMAT_KEYS:
-            raise InputError(f"{_where(src, f'{key}.{k}')}: unknown key (known: {', '.join(FORMAT_KEYS)})")
+            raise _unknown(src, f"{key}.{k}", k, tuple(FORMAT_KEYS))
         if isinstance(FORMAT_KEYS[k][0], int):  # 8.0 or true is not the integer 8 or 1
             exact_int(x, _where(src, f"{key}.{k}"))
         out[k] = _choice(x, FORMAT_KEYS[k], src, f"{key}.{k}")
@@ -238,8 +247,7 @@ def _table(data, src, prefix=""):
         elif k == "functions" and not prefix:
             continue
         else:
-            known = ", ".join(_KEYS + (() if prefix else ("functions",)))
-            raise InputError(f"{_where(src, key)}: unknown key (known: {known})")
+            raise _unknown(src, key, k, _KEYS + (() if prefix else ("functions",)))
     return Profile(**fields, source=src)
 
 

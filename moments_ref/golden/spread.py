@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 
+from .bands import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, equal_inputs, evaluations, interval_parts, noise_of
 from .cases import CASES, case_table, evaluate_reference, expected_outputs
 from .notes import ROBUSTNESS, UNGATED, UNGATED32
 from .units import PORT_DTYPES, ceil2, ulp
@@ -43,11 +44,8 @@ from .units import PORT_DTYPES, ceil2, ulp
 __all__ = ["derive", "golden_arrays", "gated_summary", "robust_rows", "ceil2", "row_tolerance", "SAFETY", "FLOOR_ULPS",
            "PERTURB_ULPS", "INDEPENDENT_ULPS", "STRUCTURED", "ulp", "PORT_DTYPES", "TIE_BAND", "TruthMismatch"]
 
+#: Kept for the engine cases' tolerance rule and older imports; the golden bands use no safety factor.
 SAFETY = 16.0
-FLOOR_ULPS = 4
-PERTURB_ULPS = 3
-#: Component-wise perturbation: one ulp, the rounding of one operation on an input.
-INDEPENDENT_ULPS = 1
 _NUDGE = 8 * float(np.finfo(np.float32).eps)
 _WIDE = 0.1
 #: Where a float implementation may store the neighbouring code: the exact scaled value
@@ -59,112 +57,42 @@ class TruthMismatch(AssertionError):
     """The reference's codes disagree with the ground truth away from a rounding boundary."""
 
 
-def _scaled(case, inputs, factor):
-    """Float inputs times ``factor`` (a number, or per input an array broadcasting to it)."""
-    out = {}
-    for k, v in inputs.items():
-        if k in case.integer_inputs:
-            out[k] = v
-            continue
-        v = np.asarray(v, np.float64)
-        f = factor[k] if isinstance(factor, dict) else factor
-        # Values stay in [-1, 1] if they were (depths, weights, Ψ4 codes).
-        out[k] = np.where((np.abs(v * f) > 1) & (np.abs(v) <= 1), v, v * f)
-    return out
-
-
-def _independent(case, inputs, eps, sign, free):
-    """Per-component factors ``1 ± INDEPENDENT_ULPS eps`` (alternating signs) on the ``free`` rows."""
-    factors, offset = {}, 0
-    for k, v in inputs.items():
-        if k in case.integer_inputs:
-            continue
-        v = np.asarray(v)
-        m = int(np.prod(v.shape[1:], dtype=np.int64))
-        s = np.where((np.arange(m) + offset) % 2 == 0, sign, -sign).reshape(v.shape[1:])
-        offset += m
-        f = 1 + INDEPENDENT_ULPS * eps * s[None] * free.reshape((-1,) + (1,) * (v.ndim - 1))
-        factors[k] = f
-    return factors
-
-
-def _variants(case, inputs, dt, free):
-    """Outputs of legitimate evaluations for a port of precision ``dt``.
-
-    ``free``: rows whose inputs may be perturbed component by component (rows with
-    exact equalities between inputs, such as zf = y1, are only scaled jointly).
-    """
-    eps = float(np.finfo(dt).eps)
-    found = [evaluate_reference(case, inputs, dt), evaluate_reference(case, inputs, np.float64)]
-    if case.perturb and any(k not in case.integer_inputs for k in inputs):
-        for f in (1 + PERTURB_ULPS * eps, 1 - PERTURB_ULPS * eps):
-            found.append(evaluate_reference(case, _scaled(case, inputs, f), dt))
-        if free.any():
-            for sign in (1, -1):
-                found.append(evaluate_reference(case, _scaled(case, inputs, _independent(
-                    case, inputs, eps, sign, free)), dt))
-    found = [(v, False) for v in found]
-    if case.spread_hook is not None:
-        # Hooks are other formulations (the papers' own code, decoders' constants): where
-        # they have no finite value (outside their domain) they contribute nothing.
-        found += [(v, True) for v in case.spread_hook(inputs, np.dtype(dt))]
-    return found
-
-
 #: Rows whose meaning rests on exact relations between inputs: perturbed only jointly.
 STRUCTURED = ("support_point", "fold", "code_boundary", "singular_hankel")
 
 
-def _equal_inputs(case, inputs, n):
-    """Rows where two nonzero float inputs are exactly equal (zf = y1, y1 = y2, ...)."""
-    cols = [np.asarray(v, np.float64).reshape(n, -1) for k, v in inputs.items() if k not in case.integer_inputs]
-    if not cols:
-        return np.zeros(n, bool)
-    x = np.sort(np.abs(np.concatenate(cols, axis=1)), axis=1)
-    if x.shape[1] < 2:
-        return np.zeros(n, bool)
-    return np.any((np.diff(x, axis=1) == 0) & (x[:, 1:] != 0) & (x[:, 1:] != 1), axis=1)
-
-
 def _float_tolerances(case, inputs, expected, n, flags, category):
-    """``{output: {port dtype: tolerance array (output's shape)}}``.
+    """``({output: {port dtype: tolerance}}, {port dtype: (n,) ill-conditioned}, (n,) hazard)``.
 
-    Other formulations (``spread_hook``: the papers' own code) count only on contract rows:
-    beyond the contract they are not legitimate implementations of anything.
+    The band of :mod:`moments_ref.golden.bands` (one model for goldens and the sweep), stored as
+    the smallest symmetric tolerance about the expected value that holds it. Other formulations
+    (``spread_hook``: the papers' own code) count only on contract rows: beyond the contract they
+    are not legitimate implementations of anything.
     """
     contract = np.array([ROBUSTNESS not in fl for fl in flags], bool)
     random_rows = np.asarray(category) == "random"
-    if not random_rows.any():
-        random_rows = np.ones(n, bool)
-    tol = {o: {} for o in case.outputs}
     free = np.array([not any(f in STRUCTURED for f in fl) for fl in flags], bool)
-    free = free & ~_equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
+    free = free & ~equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
+    tol, ill, hazard = {o: {} for o in case.outputs}, {}, np.zeros(n, bool)
+    expected = [np.asarray(e, np.float64) for e in expected]
     for dt in PORT_DTYPES:
-        variants = _variants(case, inputs, np.dtype(dt), free)
-        for i, o in enumerate(case.outputs):
-            e = np.asarray(expected[i], np.float64)
-            dev = np.zeros(e.shape)
-            for v, optional in variants:
-                with np.errstate(invalid="ignore"):
-                    d = np.abs(np.asarray(v[i], np.float64) - e)
-                if optional:
-                    d = np.where(contract.reshape((n,) + (1,) * (d.ndim - 1)) & ~np.isnan(d), d, 0.0)
-                dev = np.maximum(dev, np.where(np.isnan(d), np.inf, d))
-            u = ulp(e, dt)
+        core, hooks = evaluations(case, inputs, np.dtype(dt), free)
+        noise = noise_of(case, np.dtype(dt), expected, core, random_rows)
+        ill[dt] = np.zeros(n, bool)
+        for o, e, (lo, hi, wide, haz, _) in zip(case.outputs, expected, interval_parts(
+                case, np.dtype(dt), expected, contract, noise, core, hooks)):
+            with np.errstate(invalid="ignore"):
+                half = np.fmax(e - lo, hi - e)
+            half = np.where(np.isnan(half), np.inf, half)
             if case.metric == "ulps":
-                t = np.ceil(np.maximum(SAFETY * dev / u, FLOOR_ULPS))
+                t = np.ceil(half / ulp(e, dt) * (1 - 1e-12))
             else:
-                # Floor: FLOOR_ULPS ulps of max(|value|, scale): of 1 for O(1) quantities.
-                scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
-                # Case floor: the typical rounding noise of the equation (90th percentile of the
-                # deviations over the case's rows), which a legitimate port's own rounding reaches.
-                finite = dev[random_rows]
-                finite = finite[np.isfinite(finite)]
-                noise = float(np.quantile(finite, 0.9)) if finite.size else 0.0
-                t = ceil2(np.maximum(SAFETY * np.maximum(dev, noise),
-                                      FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)))
+                t = ceil2(half)
             tol[o][dt] = t
-    return tol
+            ill[dt] |= wide.reshape(n, -1).any(axis=1)
+            if dt == "float32":
+                hazard |= haz.reshape(n, -1).any(axis=1)
+    return tol, ill, hazard
 
 
 def _ties(case, inputs, expected, n, category, comment, flags):
@@ -260,7 +188,7 @@ def derive(case, inputs, category, comment, flags, contract=None):
             arrays[f"{o}_acceptable"] = acceptable[o]
         result = np.where(tie, "acceptable", result).astype("U10")
     else:
-        tol = _float_tolerances(case, inputs, expected, n, flags, category)
+        tol, ill, hazard = _float_tolerances(case, inputs, expected, n, flags, category)
         ref = evaluate_reference(case, inputs, case.dtype) if case.dtype == "float32" else None
         for i, o in enumerate(case.outputs):
             arrays[o] = np.asarray(expected[i], np.float64)
@@ -272,10 +200,10 @@ def derive(case, inputs, category, comment, flags, contract=None):
                 arrays[f"{o}_tolerance_{dt}"] = t
             if ref is not None:
                 arrays[f"{o}_float32"] = np.asarray(ref[i])
-            if case.metric == "abs":
-                wide = np.asarray(tol[o]["float32"]).reshape(n, -1).max(axis=1) >= _WIDE
-                for r in np.flatnonzero(wide & ~ungated):
-                    flags[r] = flags[r] + ("wide_spread",)
+        for r in np.flatnonzero(ill["float32"] & ~ungated):
+            flags[r] = flags[r] + ("wide_spread",)
+        for r in np.flatnonzero(hazard & ~ungated):
+            flags[r] = flags[r] + ("printed_hazard",)
     arrays["tc_id"] = np.arange(1, n + 1, dtype=np.int32)
     arrays["category"] = category
     arrays["comment"] = np.asarray(comment).astype(f"U{max(1, max(len(c) for c in comment))}")

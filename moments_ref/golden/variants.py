@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import precise
 
-__all__ = ["alg1_variant", "bias_variant", "shade_variant", "shade_reference", "shade_truth", "preset_of",
+__all__ = ["alg1_variant", "bias_variant", "phi_variant", "shade_variant", "shade_reference", "shade_truth", "preset_of",
            "unpack32_variant", "pack64_variant", "decode32", "rounding64", "xi_decode_spread"]
 
 
@@ -49,7 +49,7 @@ def alg1_variant(bound, six=False, base_hook=None):
             return {}
         from ..moments import bias_moments
         from ..msm import shadow_intensity
-        from .paper import printed_bound, slides_bound
+        from .paper import cholesky_bound, printed_bound, slides_bound
 
         p = preset_of(bias)
         exact = precise.shadow_intensity6 if six else precise.shadow_intensity
@@ -65,9 +65,28 @@ def alg1_variant(bound, six=False, base_hook=None):
                 biased = bias_moments(np.asarray(inputs["b"]).astype(dt), p)
                 return base_hook({"b": biased, "zf": inputs["zf"]}, dt) if base_hook else []
             biased = bias_moments(np.asarray(inputs["b"]).astype(dt), p)
-            return [(slides_bound(biased, inputs["zf"], bound, dt),), (printed_bound(biased, inputs["zf"], bound, dt),)]
+            return [(slides_bound(biased, inputs["zf"], bound, dt),), (printed_bound(biased, inputs["zf"], bound, dt),),
+                    (cholesky_bound(biased, inputs["zf"], bound, dt),),
+                    (cholesky_bound(biased, inputs["zf"], bound, dt, fma=True),)]
 
         return {"reference": reference, "truth": truth, "spread_hook": hook}
+
+    return variant
+
+
+def phi_variant():
+    """Φ (HPG17 Algorithm 2) behind the engine's own bias, applied inside the function (as the author's demo
+    does): the golden moments are biased once already (BIAS_FLOAT32), the port biases them again."""
+
+    def variant(bias=None, clamp=None, fmt=None, **_):
+        if bias is None:
+            return {}
+        from ..moments import bias_moments
+        from ..nonlinear import phi
+
+        p = preset_of(bias)
+        return {"reference": lambda b: (phi(bias_moments(b, p)),),
+                "truth": lambda b: (precise.phi(precise.bias_moments(b, p)),)}
 
     return variant
 

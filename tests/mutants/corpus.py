@@ -203,10 +203,15 @@ MUTANTS = [
     _m("alg3-half", "bug", "alg3", {"half": True}, "z'f in float16"),
     _m("alg3-depth01", "bug", "alg3", {"depth01": True}, "fragment depth mapped to [0, 1]"),
     _m("alg3-swap-weights", "bug", "alg3", {"swap_weights": True}, "(1 - v2) and v2 swapped in w_l"),
-    _m("alg3-author", "legit", "alg3", {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
-                                        "unclamped": True},
-       "the author's demo code: clamps at 5e-6, case test z'f < 1 on the clamped gap, the printed root, no guard "
-       "for xi4 = 0, no final clamp; run with its profile", profile=_AUTHOR3),
+    _m("alg3-author", "bug", "alg3", {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,
+                                      "unclamped": True},
+       "the author's demo code: clamps at 5e-6, case test z'f < 1 on the clamped gap, the printed root "
+       "-q1/2 - sqrt(q1²/4 - q0), no guard for xi4 = 0, no final clamp; run with its profile. The printed root "
+       "cancels: 0.99998 where the exact value is 0.0154 (issue 37)", profile=_AUTHOR3),
+    _m("alg3-author-stable-root", "legit", "alg3", {"clamp": 5e-6, "zp_test": True, "no_xi_guard": True,
+                                                    "unclamped": True},
+       "the author's demo code with the root taken without cancellation: clamps at 5e-6, case test z'f < 1 on the "
+       "clamped gap, no guard for xi4 = 0, no final clamp; run with its profile", profile=_AUTHOR3),
     _m("alg3-no-xi-guard", "robustness", "alg3", {"no_xi_guard": True},
        "no guard for xi4 = 0 (division by zero), which no texel decoder produces"),
 
