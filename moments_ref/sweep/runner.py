@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +30,9 @@ CONFIRM_CAP = 64
 #: Failing rows kept per chunk and driver for the report and shrinking.
 KEEP = 4
 STAGES = ("draw", "reference", "driver", "compare", "confirm")
+
+
+_CASES = {}
 
 
 @dataclass(frozen=True)
@@ -48,7 +51,7 @@ class Port:
 class SweepSpec:
     """Everything a chunk depends on (picklable: it travels to worker processes and Dask workers)."""
 
-    case: object  # golden Case (profiled)
+    case_name: str
     port: Port
     drivers: tuple = (None,)  # adapter specs; (None,) for a Python callable or the language's default
     seed: int = 0
@@ -56,7 +59,25 @@ class SweepSpec:
     profile_key: str = "default"
     port_dtype: str = "float32"
     strict: bool = False
-    extra: dict = field(default_factory=dict)
+    profile: object = None  # golden.profile.Profile (picklable, unlike a Case)
+    fn_case: object = None  # a Case given directly (in-process runs of oracle.sweep only)
+
+    @property
+    def case(self):
+        """The golden case as the profile shapes it (built once per process)."""
+        if self.fn_case is not None:
+            return self.fn_case
+        key = (self.case_name, self.profile_key)
+        if key not in _CASES:
+            from ..golden import CASES
+
+            case = CASES[self.case_name]
+            if self.profile is not None and not self.profile.is_default:
+                from ..golden.conventions import profiled_case
+
+                case = profiled_case(case, self.profile)
+            _CASES[key] = case
+        return _CASES[key]
 
     @property
     def chunks(self):
