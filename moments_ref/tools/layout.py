@@ -27,7 +27,7 @@ ORDER = ("base", "core", "gpu", "scene", "techniques", "pipeline", "report", "ap
 #: Folders that are layers (folder name = layer name) or hold package data of a layer.
 FOLDERS = {"gpu": "gpu", "scene": "scene", "techniques": "techniques", "report": "report", "ports": "api"}
 #: Folders of leaves: they import what they measure.
-LEAF_FOLDERS = ("golden", "conformance", "tools")
+LEAF_FOLDERS = ("golden", "conformance", "sweep", "tools")
 #: Flat leaf modules.
 LEAF_MODULES = ("oracle",)
 #: The command line, on top of everything.
