@@ -153,7 +153,7 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels"]
+        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels", "sweep"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -173,6 +173,10 @@ def _cmd_bench(args):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
     if not args.only or any("kernels" in o for o in args.only):
         text += "\n" + bench.kernels_markdown(size=min(args.size, 512) if args.quick else args.size)
+    if not args.only or any("sweep" in o for o in args.only):
+        from .sweep.timing import sweep_markdown
+
+        text += "\n" + sweep_markdown(chunks=1 if args.quick else 4)
     print(text)
     if args.out:
         from ._io import write_text
