@@ -86,7 +86,7 @@ def test_cli_bad_usage_exits_2_with_one_line(argv, text):
 
 
 @pytest.mark.slow
-def test_shipped_glsl_passes_and_a_glsl_mutant_the_goldens_miss_is_found(tmp_path):
+def test_shipped_glsl_passes_and_a_glsl_mutant_the_goldens_miss_is_found(ctx, tmp_path):
     from moments_ref.conformance import run_case, shipped_port
 
     path, fn = shipped_port("shadow_intensity-upper-float32", "glsl")

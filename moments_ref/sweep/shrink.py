@@ -38,8 +38,12 @@ def _key(row):
     return (tuple(np.round(z[w > 0], 17)), tuple(np.round(w[w > 0], 17)), zf, fmt)
 
 
-def candidates(texel):
-    """Simpler neighbours of ``texel`` (``depths``, ``weights``, ``zf``, ``format``), simplest first."""
+def candidates(texel, seen=None):
+    """Simpler neighbours of ``texel`` (``depths``, ``weights``, ``zf``, ``format``), simplest first.
+
+    ``seen``: a set of rows already tried (updated): they are not offered again, so that
+    shrinking never cycles between two equally simple rows.
+    """
     z, w = np.asarray(texel["depths"], np.float64), np.asarray(texel["weights"], np.float64)
     zf, fmt = float(texel["zf"]), int(texel["format"])
     out = []
@@ -66,7 +70,9 @@ def candidates(texel):
     for d in range(0, 8):
         if np.round(zf, d) != zf:
             out.append(_row(z, w, np.round(zf, d), fmt))
-    seen, unique = {_key(_row(z, w, zf, fmt))}, []
+    seen = set() if seen is None else seen
+    seen.add(_key(_row(z, w, zf, fmt)))
+    unique = []
     for c in out:
         if _key(c) not in seen:
             seen.add(_key(c))
@@ -86,9 +92,9 @@ def shrink(spec, driver, texel):
     Returns ``(texel, row, dispatches)``: the shrunk texel, its judged row (``inputs``,
     ``got``, ``lo``, ``hi``) and the number of dispatches it took.
     """
-    case, current, dispatches, row = spec.case, texel, 0, None
+    case, current, dispatches, row, seen = spec.case, texel, 0, None, set()
     for _ in range(MAX_STEPS):
-        cands = candidates(current)
+        cands = candidates(current, seen)
         if not cands:
             break
         params = {"z": np.stack([c[0] for c in cands]), "w": np.stack([c[1] for c in cands]),
