@@ -48,6 +48,10 @@ def make_spec(case_name, port, adapter=None, profile=None, seed=0, rows=10**6):
             raise InputError("--profile: the sweep draws in the papers' depth range with the harness's bias inside "
                              "the case; a [0,1] depth range or a bias applied before the call is not supported yet")
         key = profile.key
+    if adapter is None and port.language is not None:
+        from ..conformance import DEFAULT_DRIVER
+
+        adapter = DEFAULT_DRIVER.get(port.language)
     drivers = ("gl", "vulkan") if adapter == "both" else (adapter,)
     spec = SweepSpec(case_name, port, drivers, seed, rows, key, profile=profile)
     spec.case  # noqa: B018 - a profile the case contradicts is refused now (InputError), before any work
