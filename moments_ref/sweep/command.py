@@ -98,10 +98,13 @@ def main(args):
     port = Port(str(port_path), get("function"), language, source_options(args))
     spec = make_spec(get("case"), port, get("adapter"), profile, get("seed"), rows)
     workers = get("workers") or (2 if rows > CHUNK else 1)
+    from ..conformance import ContextError, ToolError
+
     try:
         result = sweep_port(spec, workers, get("scheduler"), get("out"), _progress(rows))
-    except InputError:
-        raise
+    except (InputError, ContextError, ToolError) as exc:
+        print(f"moments-ref sweep: {exc}", file=sys.stderr)
+        return 2
     except Exception as exc:  # noqa: BLE001 - a harness failure is exit 2, never a verdict on the port
         print(f"moments-ref sweep: {path}: the harness failed ({harness_failure(exc)}); this is not a verdict on the "
               "port", file=sys.stderr)
