@@ -14,7 +14,9 @@ Everything the sweep knows about right and wrong is here, in two functions:
   the golden case's random rows), never below ``FLOOR_ULPS`` ulps. Rows outside the
   case's contract (robustness rows) get an infinite interval, as ungated golden rows.
   Integer outputs (texel encoders) accept the codes of the reference in float32 and
-  float64 and on inputs nudged by 8 float32 ulps (the goldens' rounding-tie rule); the
+  float64 and on inputs nudged by 8 float32 ulps and by the goldens' rounding-tie band
+  (``TIE_BAND``: either code of a tie); for a packed word (pack32) the interval spans the
+  codes seen, lenient only on tie rows; the
   exact codes (:mod:`moments_ref.golden.texel_truth`) decide in :func:`confirm`.
 * :func:`confirm` — a flagged row counts as wrong only when every exact value
   (:mod:`moments_ref.precise`, the case's ``truth``) over the float32 neighbourhood of its
@@ -40,7 +42,7 @@ import numpy as np
 
 from ..golden.cases import case_table, evaluate_reference
 from ..golden.contract import rows_inside
-from ..golden.spread import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, SAFETY, ceil2, ulp
+from ..golden.spread import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, SAFETY, TIE_BAND, ceil2, ulp
 
 __all__ = ["legitimate_interval", "confirm", "WIDE", "NEIGHBOURS"]
 
@@ -49,6 +51,9 @@ WIDE = 0.1
 #: Points of the float32 neighbourhood :func:`confirm` evaluates with mpmath, per row.
 NEIGHBOURS = 12
 _NUDGE = 8 * float(np.finfo(np.float32).eps)
+#: Codes: the goldens' rounding-tie band (golden.spread.TIE_BAND, 64 float32 ulps of the code range) as a
+#: relative nudge of the inputs.
+_TIE = TIE_BAND
 
 
 def _float_inputs(case, inputs):
@@ -147,7 +152,7 @@ def _measure_noise(case, dt):
 
 def _integer_bands(case, inputs, n):
     variants = [evaluate_reference(case, inputs, np.float64), evaluate_reference(case, inputs, np.float32)]
-    for f in (1 + _NUDGE, 1 - _NUDGE):
+    for f in (1 + _NUDGE, 1 - _NUDGE, 1 + _TIE, 1 - _TIE):
         variants.append(evaluate_reference(case, _scaled(case, inputs, dict.fromkeys(inputs, f)), np.float64))
     bands = {}
     for i, o in enumerate(case.outputs):
@@ -199,12 +204,17 @@ def legitimate_interval(case, inputs, port_dtype="float32"):
 
 
 def _neighbourhood(case, inputs, rng, k):
-    """The row's inputs and ``k`` points within PERTURB_ULPS float32 ulps of them, component-wise."""
+    """The row's inputs and ``k`` + 2 points within PERTURB_ULPS float32 ulps of them, component-wise.
+
+    Codes (integer outputs): within the goldens' rounding-tie band instead, 2 TIE_BAND / eps
+    float32 ulps, where either code is acceptable (golden.spread).
+    """
     eps = float(np.finfo(np.float32).eps)
-    pts = [inputs, _scaled(case, inputs, dict.fromkeys(inputs, 1 + PERTURB_ULPS * eps)),
-           _scaled(case, inputs, dict.fromkeys(inputs, 1 - PERTURB_ULPS * eps))]
+    ulps = int(round(TIE_BAND / eps)) if case.integer_output else PERTURB_ULPS
+    pts = [inputs, _scaled(case, inputs, dict.fromkeys(inputs, 1 + ulps * eps)),
+           _scaled(case, inputs, dict.fromkeys(inputs, 1 - ulps * eps))]
     for _ in range(k):
-        f = {key: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[key]))
+        f = {key: 1 + eps * rng.integers(-ulps, ulps + 1, np.shape(inputs[key]))
              for key in _float_inputs(case, inputs)}
         pts.append(_scaled(case, inputs, f))
     return pts
@@ -292,4 +302,19 @@ def confirm(case, inputs, got, port_dtype="float32"):
                     scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
                     ok = np.abs(g - e) <= FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)
                 explained[i] |= np.asarray(ok).reshape(n, -1).all(axis=1)
+    if case.integer_output and case.margin is not None:
+        explained |= _ties(case, inputs, got)[None]
     return ~explained.all(axis=0)
+
+
+def _ties(case, inputs, got):
+    """Rows on a rounding tie (golden.spread: the exact scaled value within TIE_BAND of a boundary) whose
+    codes are within one of the exact codes: either code is acceptable there."""
+    args = {k: (v if k in case.integer_inputs else np.asarray(v, np.float64)) for k, v in inputs.items()}
+    n = len(next(iter(inputs.values())))
+    tie = np.asarray(case.margin(**args), np.float64).reshape(n) <= TIE_BAND
+    near = np.ones(n, bool)
+    for i, o in enumerate(case.outputs):
+        e = np.asarray(case.truth(**args)[i], np.int64)
+        near &= (np.abs(np.asarray(got[o], np.int64).reshape(e.shape) - e) <= 1).reshape(n, -1).all(axis=1)
+    return tie & near

@@ -26,8 +26,8 @@ float32 as a shader does); Algorithm 3 (``shade``) gets the representation r = �
 the biased moments (HPG17 Eq. (5)), and with probability 1/2 the one the 64-bit or the
 32-bit non-linear texel decodes to (pack64/unpack64, pack32/unpack32); the chains
 (``e2e-*``) get the unbiased moments; the texel decoders (``unpack64``, ``unpack32``)
-get the codes of those texels, the encoders (``pack64``, ``pack32``) their
-representations. Rows stay inside the case's contract where it has one
+get the codes of those texels, the encoders (``pack64``, ``pack32``) the
+representations Φ(b') (not decoded ones: re-encoding is the ``reencode`` cases'). Rows stay inside the case's contract where it has one
 (:mod:`moments_ref.golden.contract`); rows that rounding pushes outside are drawn
 anyway and judged as robustness rows, as in the goldens.
 
@@ -172,7 +172,8 @@ def _unpack32(case, b, zf, fmt):
 
 
 def _pack(case, b, zf, fmt):
-    return {"r": _representation(b, fmt)}
+    # Fresh Φ output: a decoded texel re-encoded is the reencode cases' business (codes on boundaries).
+    return {"r": _representation(b, np.zeros_like(fmt))}
 
 
 #: Case name prefix -> how a texel and a receiver become the case's inputs.
