@@ -153,7 +153,7 @@ def _cmd_bench(args):
     from .tools import bench
 
     if args.only:
-        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels"]
+        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels", "sweep"]
         unknown = [o for o in args.only if not any(o in n for n in names)]
         if unknown:
             raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
@@ -179,6 +179,10 @@ def _cmd_bench(args):
         text += "\n" + bench.conformance_markdown(repeat=1 if args.quick else 3)
     if not args.only or any("kernels" in o for o in args.only):
         text += "\n" + bench.kernels_markdown(size=min(args.size, 512) if args.quick else args.size)
+    if not args.only or any("sweep" in o for o in args.only):
+        from .sweep.timing import sweep_markdown
+
+        text += "\n" + sweep_markdown(chunks=1 if args.quick else 4)
     print(text)
     if args.out:
         from ._io import write_text
@@ -236,6 +240,12 @@ def _cmd_vwss(args):
     from .report import vwss
 
     return vwss.main(args)
+
+
+def _cmd_sweep(args):
+    from .sweep.command import main as sweep_main
+
+    return sweep_main(args)
 
 
 def _cmd_conformance(args):
@@ -312,17 +322,8 @@ def _add_oracle(sub):
 
     cf = sub.add_parser("conformance", help="run a GLSL, HLSL, WGSL or Slang port (a function, or with --kernel a compute "
                                             "shader) on a real driver against a golden case")
-    lang = cf.add_mutually_exclusive_group()
-    lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
-    lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
-    lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
-    lang.add_argument("--slang", metavar="FILE", help="Slang file, or a shipped port's name (msm.slang ...); "
-                                                     'needs the extra: pip install -e ".[slang]"')
-    cf.add_argument("--function", help="the function to test")
-    cf.add_argument("--case", help="golden case, e.g. shade-float32")
+    _add_port(cf)
     cf.add_argument("--golden", type=Path, default=None, help="golden folder (default: generate the case)")
-    cf.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME, an adapter name, both (gl and vulkan, "
-                                      "and the rows where they differ) or as-written (default per language)")
     cf.add_argument("--kernel", action="store_true",
                     help="FILE is a compute shader to run on a kernel case (kernel-filter-*, kernel-vwss-points)")
     cf.add_argument("--entry", help="with --kernel: the compute entry point (GLSL: main)")
@@ -335,6 +336,38 @@ def _add_oracle(sub):
     cf.add_argument("--out", type=folder_arg, help="with --all: also write conformance.md here")
     _add_source_options(cf)
     cf.set_defaults(func=_cmd_conformance)
+
+    sw = sub.add_parser("sweep", help="judge a port on millions of engine-like rows; confirm and shrink each failure "
+                                      "(docs/sweep.md)")
+    _add_port(sw)
+    from .golden.profile import FLAGS
+
+    sw.add_argument("--profile", type=Path, metavar="FILE.toml", help="the engine's conventions (docs/ports.md)")
+    for flag, _, text in FLAGS:
+        sw.add_argument(flag, metavar="VALUE", help=text)
+    sw.add_argument("--rows", default="1e6", metavar="N", help="rows to draw (default 1e6; accepts 1e8)")
+    sw.add_argument("--seed", type=_int_in(0), default=0, help="seed of the draw (default 0)")
+    sw.add_argument("--workers", type=_int_in(1), default=None, metavar="N",
+                    help="spawned worker processes, one driver context each (default: 2, 1 below two chunks)")
+    sw.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--out", type=folder_arg, help="checkpoint (resumed) and one golden folder per shrunk failure")
+    sw.add_argument("--json", type=Path, metavar="FILE", help="write the result as JSON")
+    _add_source_options(sw)
+    sw.set_defaults(func=_cmd_sweep)
+
+
+def _add_port(sp):
+    """The port arguments of ``conformance`` and ``sweep``: the file, the function, the case, the driver."""
+    lang = sp.add_mutually_exclusive_group()
+    lang.add_argument("--glsl", metavar="FILE", help="GLSL file, or a shipped port's name (msm.glsl, nonlinear.glsl ...)")
+    lang.add_argument("--hlsl", metavar="FILE", help="HLSL file, or a shipped port's name (msm.hlsl ...)")
+    lang.add_argument("--wgsl", metavar="FILE", help="WGSL file, or a shipped port's name (msm.wgsl ...)")
+    lang.add_argument("--slang", metavar="FILE", help="Slang file, or a shipped port's name (msm.slang ...); "
+                                                     'needs the extra: pip install -e ".[slang]"')
+    sp.add_argument("--function", help="the function to test")
+    sp.add_argument("--case", help="golden case, e.g. shade-float32")
+    sp.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME, an adapter name, both (gl and vulkan, "
+                                      "and the rows where they differ) or as-written (default per language)")
 
 
 def _add_source_options(cf):

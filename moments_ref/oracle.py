@@ -43,7 +43,7 @@ from .golden.compare import compare
 from .golden.spread import derive, row_tolerance
 from .golden.writer import golden_arrays, manifest_entry
 
-__all__ = ["check", "OracleReport", "input_strategy", "MAX_HYPOTHESIS"]
+__all__ = ["check", "sweep", "OracleReport", "input_strategy", "MAX_HYPOTHESIS"]
 
 #: Most rows :func:`check` draws with hypothesis.
 MAX_HYPOTHESIS = 100_000
@@ -271,3 +271,37 @@ def _report(c, name, dtype, arrays, got, verdict):
         worst_abs=float(a[i]), worst_rel=float(r[i]), worst_input={k: arrays[k][i] for k in c.inputs if c.row_inputs},
         worst_category=str(arrays["category"][i]), worst_got=np.asarray(got[o])[i],
         worst_expected=np.asarray(arrays[o])[i], per_category=per, passed=verdict.passed)
+
+
+def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True):
+    """Judge a Python implementation on ``rows`` engine-like rows, as ``moments-ref sweep`` judges a port.
+
+    Parameters
+    ----------
+    fn : callable
+        Called as ``fn(*inputs)`` with the case's float32 input arrays in order (as
+        :func:`check`); returns the output array (or a tuple).
+    case : str
+        A float32 case the sweep samples (``"shadow_intensity-lower"`` or with ``-float32``);
+        :data:`moments_ref.sweep.samplers.SAMPLERS` lists them.
+    rows, seed : int
+        Rows drawn (in chunks of :data:`moments_ref.sweep.CHUNK`) and the draw's seed.
+    out : path, optional
+        Folder for the checkpoint and one golden folder per shrunk failure.
+
+    Returns
+    -------
+    moments_ref.sweep.SweepResult
+        ``passed`` is False when mpmath confirmed a wrong row; ``failures`` holds each
+        distinct failure shrunk to a small row. Runs in this process.
+    """
+    from .golden import CASES
+    from .sweep import Port, SweepSpec, sweep_port
+
+    name = case if case in CASES else f"{case}-float32"
+    if name not in CASES:
+        raise InputError(f"case: unknown case {case!r}")
+    from .sweep.command import make_spec
+
+    spec = make_spec(name, Port(fn=fn, vectorized=vectorized), None, None, seed, int(rows))
+    return sweep_port(spec, 1, None, out, None, shrink)

@@ -34,7 +34,7 @@ from .cases import CASES
 from .notes import CATEGORIES, NOTES, RESULTS
 from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
 
-__all__ = ["write", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
+__all__ = ["write", "write_rows", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
 
 SCHEMA_VERSION = 3
 #: What each schema version changed (the manifest's ``schema_history``; docs/golden.md). Golden
@@ -184,4 +184,28 @@ def _write(out_dir, cases, progress, profile):
             if progress is not None:
                 progress(name)
         write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
+    return manifest
+
+
+def write_rows(out_dir, case, inputs, comments):
+    """Write rows of ``case`` (a :class:`~moments_ref.golden.cases.Case`) as a golden folder.
+
+    The rows are labelled ``edge`` with their ``comments``; expected values and
+    tolerances are derived as for every golden case (:func:`~moments_ref.golden.spread.derive`),
+    so ``moments-ref verify --golden DIR`` and ``moments-ref conformance --golden DIR``
+    rerun exactly these rows (the sweep's shrunk failures). Returns the manifest.
+    """
+    from .spread import derive
+
+    out_dir = Path(out_dir)
+    n = len(comments)
+    inputs = {k: np.asarray(inputs[k]).astype(case.integer_inputs.get(k, case.dtype)) for k in case.inputs}
+    arrays = dict(inputs)
+    arrays.update(derive(case, inputs, ["edge"] * n, list(comments), [()] * n))
+    manifest = {"schema_version": SCHEMA_VERSION, "schema_history": SCHEMA_HISTORY, "package": "moments_ref",
+                "package_version": __version__, "numpy_version": np.__version__, "notes": NOTES, "results": RESULTS,
+                "cases": {}}
+    data = save_npz(out_dir / f"{case.name}.npz", arrays)
+    manifest["cases"][case.name] = manifest_entry(case, arrays, data)
+    write_text(out_dir / "manifest.json", json.dumps(manifest, indent=2, sort_keys=True) + "\n")
     return manifest

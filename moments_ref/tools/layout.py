@@ -28,7 +28,7 @@ ORDER = ("base", "core", "gpu", "scene", "techniques", "pipeline", "report", "ap
 FOLDERS = {"gpu": "gpu", "scene": "scene", "techniques": "techniques", "pipeline": "pipeline", "report": "report",
            "ports": "api"}
 #: Folders of leaves: they import what they measure.
-LEAF_FOLDERS = ("golden", "conformance", "tools")
+LEAF_FOLDERS = ("golden", "conformance", "sweep", "tools")
 #: Flat leaf modules.
 LEAF_MODULES = ("oracle",)
 #: The command line, on top of everything.

@@ -1,0 +1,146 @@
+"""A sweep's result: counts per stratum and driver, seconds per stage, the shrunk failures."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .runner import STAGES, run_chunks
+from .samplers import STRATA
+from .shrink import shrink
+
+__all__ = ["SweepResult", "sweep_port", "MAX_SHRUNK"]
+
+#: Distinct failures (driver and stratum) shrunk per sweep.
+MAX_SHRUNK = 4
+_FORMATS = ("float32 moments", "64-bit non-linear texel", "32-bit non-linear texel")
+
+
+@dataclass
+class SweepResult:
+    """Rows per stratum; flagged, confirmed and unconfirmed rows per driver; the shrunk failures."""
+
+    case: str
+    rows: int
+    seed: int
+    strata: dict
+    drivers: dict
+    seconds: dict
+    failures: list = field(default_factory=list)
+    unconfirmed_examples: list = field(default_factory=list)
+    wall_s: float = 0.0
+
+    @property
+    def confirmed(self):
+        return sum(d["confirmed"] for d in self.drivers.values())
+
+    @property
+    def passed(self):
+        return self.confirmed == 0
+
+    def record(self):
+        """JSON-ready dict (``--json``)."""
+        rate = {k: (self.rows / v if v > 0 else None) for k, v in self.seconds.items()}
+        return {"case": self.case, "rows": self.rows, "seed": self.seed, "passed": self.passed,
+                "strata": self.strata, "drivers": self.drivers, "seconds": self.seconds, "rows_per_s": rate,
+                "wall_s": self.wall_s, "failures": self.failures, "unconfirmed_examples": self.unconfirmed_examples}
+
+    def format(self):
+        lines = [f"sweep {self.case}: {self.rows} rows, seed {self.seed}, {self.wall_s:.1f} s"]
+        for d, c in self.drivers.items():
+            lines.append(f"  driver {d}: {c['flagged']} flagged, {c['confirmed']} confirmed wrong (mpmath), "
+                         f"{c['unconfirmed']} unconfirmed flags (a defect of the tolerance model, not of the port), "
+                         f"{c['flagged'] - c['examined']} flagged beyond the confirmation cap; first confirmed row "
+                         f"{c['first_confirmed']}")
+        lines.append("  stratum              rows   ill  ungated " + " ".join(f"{d[:10]:>10}" for d in self.drivers))
+        for s, v in self.strata.items():
+            cells = " ".join(f"{self.drivers[d]['per_stratum'][s]['confirmed']:>10}" for d in self.drivers)
+            lines.append(f"  {s:<16} {v['rows']:>8} {v['ill_conditioned']:>5} {v['ungated']:>8} {cells}")
+        lines.append("  seconds: " + ", ".join(f"{k} {v:.2f} ({self.rows / v:.3g} rows/s)" if v > 0 else f"{k} 0"
+                                               for k, v in self.seconds.items()))
+        for f in self.failures:
+            lines += ["", describe(f)]
+        for f in self.unconfirmed_examples[:2]:
+            lines += ["", "unconfirmed flag (tolerance model): " + describe(f)]
+        return "\n".join(lines)
+
+
+def describe(f):
+    """A failure as a golden-style row a porter can read."""
+    t = f["texel"]
+    depths = " and ".join(f"{z:.9g}" for z in t["depths"])
+    weights = ", ".join(f"{w:.6g}" for w in t["weights"])
+    out = [f"[{f.get('driver')}] {f.get('stratum', '')}: {len(t['depths'])} depth(s) {depths}, weights {weights}, "
+           f"{_FORMATS[t['format']]}, zf = {t['zf']:.9g}"]
+    for o, g in f["got"].items():
+        lo, hi = np.asarray(f["lo"][o], float), np.asarray(f["hi"][o], float)
+        out.append(f"  {o}: got {g}, expected {((lo + hi) / 2).tolist()}, tolerance {((hi - lo) / 2).tolist()}")
+    out.append(f"  inputs: {f['inputs']}")
+    if "dispatches" in f:
+        out.append(f"  shrunk in {f['dispatches']} dispatches; rerun: {f.get('row_file', '')}")
+    return "\n".join(out)
+
+
+def _merge(spec, chunks):
+    strata = {s: {"rows": 0, "ill_conditioned": 0, "ungated": 0} for s in STRATA}
+    seconds = dict.fromkeys(STAGES, 0.0)
+    drivers = {}
+    for c in chunks:
+        for k, counts in c["strata"].items():
+            for s, v in zip(STRATA, counts):
+                strata[s][k] += v
+        for k, v in c["seconds"].items():
+            seconds[k] += v
+        for d, r in c["drivers"].items():
+            m = drivers.setdefault(d, {"flagged": 0, "confirmed": 0, "unconfirmed": 0, "examined": 0,
+                                       "first_confirmed": None, "per_stratum": {s: dict.fromkeys(
+                                           ("flagged", "confirmed", "unconfirmed"), 0) for s in STRATA},
+                                       "rows": [], "unconfirmed_rows": []})
+            for k in ("flagged", "confirmed", "unconfirmed"):
+                m[k] += sum(r[k])
+                for s, v in zip(STRATA, r[k]):
+                    m["per_stratum"][s][k] += v
+            m["examined"] += r["examined"]
+            if m["first_confirmed"] is None:
+                m["first_confirmed"] = r["first_confirmed"]
+            m["rows"] += [dict(x, driver=d) for x in r["confirmed_rows"]]
+            m["unconfirmed_rows"] += [dict(x, driver=d) for x in r["unconfirmed_rows"]]
+    return strata, drivers, seconds
+
+
+def sweep_port(spec, workers=1, scheduler=None, out=None, progress=None, shrink_failures=True):
+    """Run ``spec``'s chunks, merge them, shrink each distinct failure and write its row folder under ``out``."""
+    t0 = time.perf_counter()
+    checkpoint = None if out is None else Path(out) / "checkpoint.json"
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    chunks = run_chunks(spec, workers, scheduler, checkpoint, progress)
+    strata, drivers, seconds = _merge(spec, chunks)
+    failures, unconfirmed = [], []
+    for d, m in drivers.items():
+        unconfirmed += m.pop("unconfirmed_rows")[:2]
+        seen = set()
+        for row in m.pop("rows"):
+            if row["stratum"] in seen or len(failures) >= MAX_SHRUNK:
+                continue
+            seen.add(row["stratum"])
+            failures.append(_shrunk(spec, d, row, out, len(failures)) if shrink_failures else row)
+    return SweepResult(spec.case.name, spec.rows, spec.seed, strata, drivers, seconds, failures, unconfirmed,
+                       time.perf_counter() - t0)
+
+
+def _shrunk(spec, driver, row, out, k):
+    drv = None if driver == "None" else driver
+    texel, judged, dispatches = shrink(spec, drv, row["texel"])
+    f = dict(row, **(judged or {}), texel=texel, dispatches=dispatches, original=row["texel"])
+    if out is not None:
+        from ..golden.writer import write_rows
+
+        folder = Path(out) / f"failure-{k}"
+        comment = f"sweep: shrunk failure ({row['stratum']}, driver {driver}): {describe(f).splitlines()[0]}"
+        write_rows(folder, spec.case, {key: np.asarray([v]) for key, v in f["inputs"].items()}, [comment[:400]])
+        f["row_file"] = str(folder)
+    return f

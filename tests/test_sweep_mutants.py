@@ -1,0 +1,55 @@
+"""The sweep's power: one-change mutants of the shipped GLSL ports that every golden case of their function
+passes are found by a sweep of at most 10^6 rows and shrunk to a row of at most two depths; the legitimate
+variants (fma) pass. The corpus: tests/sweep_mutants/corpus.py."""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from sweep_mutants.corpus import LEGITIMATE, MUTANTS  # noqa: E402
+
+from moments_ref.conformance import PORTS_DIR, run_case  # noqa: E402
+from moments_ref.sweep import CHUNK, Port, SweepSpec, sweep_port  # noqa: E402
+
+pytestmark = pytest.mark.skipif(not (PORTS_DIR / "glsl" / "msm.glsl").is_file(), reason="no shipped ports")
+
+#: Every mutant of the corpus is hit within the first chunk (measured: docs/sweep.md); the tests sweep one.
+ROWS = CHUNK
+
+
+def _port(tmp_path, entry):
+    name, file, function, case, old, new, _ = entry
+    src = (PORTS_DIR / "glsl" / file).read_text()
+    assert old in src, f"{name}: the shipped port changed; update the corpus"
+    path = tmp_path / f"{name}.glsl"
+    path.write_text(src.replace(old, new, 1))
+    return path, function, case
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("entry", MUTANTS, ids=[m[0] for m in MUTANTS])
+def test_mutant_passes_the_goldens_and_the_sweep_finds_and_shrinks_it(ctx, tmp_path, entry):
+    path, function, case = _port(tmp_path, entry)
+    assert run_case(path, function, case, language="glsl", adapter="gl").passed, "the goldens catch it already"
+    res = sweep_port(SweepSpec(case, Port(str(path), function, "glsl"), ("gl",), rows=ROWS))
+    assert not res.passed
+    assert len(res.failures[0]["texel"]["depths"]) <= 2
+
+
+@pytest.mark.parametrize("entry", LEGITIMATE[:1], ids=[m[0] for m in LEGITIMATE[:1]])
+def test_legitimate_variant_passes(ctx, tmp_path, entry):
+    path, function, case = _port(tmp_path, entry)
+    res = sweep_port(SweepSpec(case, Port(str(path), function, "glsl"), ("gl",), rows=ROWS), shrink_failures=False)
+    assert res.passed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("entry", LEGITIMATE[1:], ids=[m[0] for m in LEGITIMATE[1:]])
+def test_other_legitimate_variants_pass(ctx, tmp_path, entry):
+    test_legitimate_variant_passes(ctx, tmp_path, entry)
+
+
+def test_the_corpus_has_ten_mutants_of_both_algorithms():
+    assert len(MUTANTS) >= 10 and {m[3] for m in MUTANTS} >= {"shadow_intensity-lower-float32", "shade-float32"}
