@@ -26,20 +26,35 @@ from pathlib import Path
 from ._operators import Mutant, mutants_of, mutated_code
 from ._execute import baseline, collect_coverage, import_tests, module_name_of, run_mutant
 
-__all__ = ["TARGETS", "Mutant", "mutants_of", "load_equivalents", "module_files", "score_table", "main"]
+__all__ = ["TARGETS", "VERDICT_MODULES", "Mutant", "mutants_of", "load_equivalents", "module_files", "score_table", "main"]
 
 ROOT = Path(__file__).resolve().parents[3]
-#: The modules measured by default: the verdict engine, its front ends and its neighbours.
-TARGETS = (
+#: The modules every verdict depends on (the golden modules that shape one, the conformance
+#: verdicts, the kernel judge and its contract, the sweep's package once it exists), then neighbours.
+VERDICT_MODULES = (
     "moments_ref/golden/compare.py", "moments_ref/golden/spread.py", "moments_ref/golden/units.py",
-    "moments_ref/conformance/verdict.py", "moments_ref/golden/profile.py",
+    "moments_ref/golden/loader.py", "moments_ref/golden/engine.py", "moments_ref/golden/profile.py",
+    "moments_ref/golden/contract.py", "moments_ref/golden/conventions.py", "moments_ref/golden/bilinear.py",
+    "moments_ref/golden/diagnosis.py", "moments_ref/golden/verifier.py",
+    "moments_ref/conformance/verdict.py", "moments_ref/conformance/kernel/verdict.py",
+    "moments_ref/conformance/kernel/contract.py",
+)
+NEIGHBOURS = (
     "moments_ref/report/_pareto.py", "moments_ref/report/_winners.py", "moments_ref/packing.py",
     "moments_ref/techniques/vwss/shading.py", "moments_ref/scene/raster/_spans.py",
-    "moments_ref/conformance/kernel/verdict.py", "moments_ref/conformance/kernel/contract.py",
-    "moments_ref/conformance/kernel/trace.py",
-    "moments_ref/golden/loader.py", "moments_ref/golden/engine.py",
-    "moments_ref/conformance/kernel/run.py",
+    "moments_ref/conformance/kernel/trace.py", "moments_ref/conformance/kernel/run.py",
 )
+
+
+def _sweep_modules():
+    """The sweep's modules (``moments_ref/sweep/``, its subfolders too) where the package exists."""
+    folder = ROOT / "moments_ref" / "sweep"
+    return tuple(sorted(str(f.relative_to(ROOT)) for f in folder.rglob("*.py")
+                        if f.name != "__main__.py")) if folder.is_dir() else ()
+
+
+#: The modules measured by default: :data:`VERDICT_MODULES`, the sweep's, then :data:`NEIGHBOURS`.
+TARGETS = VERDICT_MODULES + _sweep_modules() + NEIGHBOURS
 EQUIVALENTS = ROOT / "tests" / "mutation_equivalents.toml"
 STATE = ROOT / ".mutation"
 
