@@ -295,3 +295,32 @@ def test_a_format_flag_overrides_the_files_key(tmp_path):
     assert dict(p.format) == {"xi_rounding": "up", "depth_decode": "upper"}
     p = profile_from_args(path, format_subtexel_bits="6")
     assert dict(p.format) == {"xi_rounding": "up", "depth_decode": "lower", "subtexel_bits": 6}
+
+
+def test_the_smallest_eigenvalue_broadcasts_over_leading_axes_and_is_float64():
+    """λ_min of B(b) for a (2, 3, 4) and a (5, 6) stack equals the written-out Cholesky's verdict
+    row by row, and is computed in float64 from float32 input (no narrowing)."""
+    from moments_ref.golden.contract import hankel_lambda_min
+
+    for width in (4, 6):
+        b = _rows(width)[::13][:6]
+        lam = hankel_lambda_min(b.reshape(2, 3, width))
+        assert lam.shape == (2, 3) and lam.dtype == np.float64
+        assert np.array_equal(lam.reshape(-1), hankel_lambda_min(b))
+        assert np.array_equal(lam.reshape(-1) > PD_MIN, _inside(b))
+        for x in b:
+            assert np.isclose(hankel_lambda_min(x[None])[0], np.linalg.eigvalsh(_hankel(x))[0], rtol=0, atol=1e-15)
+    # float32 input: the eigenvalue of its exact values (a float32 evaluation is off by about 1e-8)
+    b32 = np.array([[0.0, 1.0, 0.0, 1.0]], np.float32)  # ±1: singular
+    assert abs(hankel_lambda_min(b32)[0]) < 1e-15
+
+
+def test_the_closed_moment_space_takes_rows_within_its_threshold_only():
+    """The chains' contract: B(b) positive semidefinite up to PD_MIN; a row pushed out by more is outside,
+    and nothing biases it back."""
+    b = np.array([[0.0, 1.0, 0.0, 1.0]] * 3)  # ±1 with equal weights: λ_min = 0
+    b[1, 3] -= 1e-14  # λ_min about −5e-15: inside the closed space within the threshold
+    b[2, 3] -= 1e-9  # λ_min about −5e-10: outside
+    assert list(rows_inside("distribution", {"b": b})) == [True, True, False]
+    assert list(rows_inside("moments_inside", {"b": b})) == [False, False, False]
+    assert list(rows_inside("moments_inside", {"b": b}, (0.01, _target(4)))) == [True, True, True]
