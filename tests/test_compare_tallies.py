@@ -21,7 +21,7 @@ def _float_case(metric="abs"):
         "v": np.full((N, 2), 0.5),
         "v_tolerance_float32": np.full((N, 2), 1e-3),
         "v_tolerance_float64": np.full((N, 2), 1e-9),
-        "result": np.array(["valid"] * N),
+        "result": np.array(["valid"] * N, dtype="U10"),
         "flags": np.array([""] * N, dtype=object),
     }
     return entry, expected

@@ -272,3 +272,29 @@ def test_the_default_list_holds_every_module_a_verdict_depends_on():
     assert set(_sweep_modules()) == ({str(f.relative_to(ROOT)) for f in sweep.rglob("*.py") if f.name != "__main__.py"}
                                      if sweep.is_dir() else set())
     assert set(_sweep_modules()) <= set(TARGETS)
+
+
+def test_the_docs_table_is_written_by_the_command(tmp_path):
+    from moments_ref.tools.mutation import DOC_MARKS, write_doc_table
+
+    doc = tmp_path / "t.md"
+    doc.write_text(f"intro\n{DOC_MARKS[0]}\n| module | a |\n|---|---|\n| x.py | 1 |\n| y.py | 2 |\n{DOC_MARKS[1]}\nend\n")
+    write_doc_table(["| module | a |", "|---|---|", "| y.py | 3 |", "| z.py | 4 |"], doc)
+    assert doc.read_text() == (f"intro\n{DOC_MARKS[0]}\n| module | a |\n|---|---|\n| x.py | 1 |\n| y.py | 3 |\n"
+                               f"| z.py | 4 |\n{DOC_MARKS[1]}\nend\n")
+
+
+def test_the_docs_table_is_the_tools_arithmetic():
+    """Each row of docs/testing.md's table: killed + timed out + equivalent + survived = mutants, and the
+    score is (killed + timed out) / (mutants − equivalent), as score_table writes it."""
+    import re
+
+    from moments_ref.tools.mutation import DOC, DOC_MARKS
+
+    block = DOC.read_text().split(DOC_MARKS[0])[1].split(DOC_MARKS[1])[0].strip().splitlines()
+    assert block[0] == "| module | mutants | killed | timed out | equivalent | survived | score |"
+    for row in block[2:]:
+        name, n, k, t, e, s, score = [c.strip() for c in row.strip("|").split("|")]
+        n, k, t, e, s = map(int, (n, k, t, e, s))
+        assert k + t + e + s == n, row
+        assert re.fullmatch(r"(≥ )?\d+%", score) and int(score.strip("≥ %")) == round(100 * (k + t) / (n - e)), row
