@@ -324,3 +324,43 @@ def test_the_closed_moment_space_takes_rows_within_its_threshold_only():
     assert list(rows_inside("distribution", {"b": b})) == [True, True, False]
     assert list(rows_inside("moments_inside", {"b": b})) == [False, False, False]
     assert list(rows_inside("moments_inside", {"b": b}, (0.01, _target(4)))) == [True, True, True]
+
+
+@pytest.fixture(scope="module")
+def lower64():
+    from moments_ref.golden.spread import golden_arrays
+
+    case = CASES["shadow_intensity-lower-float64"]
+    arrays = golden_arrays(case)
+    flags = np.asarray(arrays["flags"]).astype(str)
+    singular = np.flatnonzero(np.char.find(flags, "singular_hankel") >= 0)[:6]
+    regular = np.flatnonzero(np.char.find(flags, "singular_hankel") < 0)[:4]
+    idx = np.concatenate([singular, regular])
+    n = len(flags)
+    return case, {k: np.asarray(v)[idx] for k, v in arrays.items() if np.ndim(v) and len(v) == n}
+
+
+@pytest.mark.parametrize("bias", [None, Bias(0.0, (), "inside"), Bias(3e-7, (0.0, 0.375, 0.0, 0.375), "inside"),
+                                  Bias(3e-7, (0.0, 0.375, 0.0, 0.375), "before")])
+def test_singular_rows_are_robustness_rows_for_unbiased_input_only(lower64, bias):
+    """One- and two-point moments (B(b) singular, outside Algorithm 1's contract) are flagged
+    ``singular_hankel`` and ``robustness`` while nothing biases them; under a bias they are the
+    moments at the bias floor, inside the contract (``bias_floor``), gated like any row."""
+    from moments_ref.golden.conventions import profile_arrays
+
+    case, arrays = lower64
+    b = np.asarray(arrays["b"], np.float64)
+    singular = ~_inside(b)
+    assert list(singular) == [True] * 6 + [False] * 4  # the flags of the golden rows, by the definition
+    profile = Profile(bias=bias, depth="[0,1]") if bias is None else Profile(bias=bias)
+    _, out = profile_arrays(case, arrays, profile)
+    flags = [set(str(f).split(",")) for f in out["flags"]]
+    biased = bias is not None and bias.alpha > 0
+    for i, f in enumerate(flags):
+        if singular[i] and not biased:
+            assert {"singular_hankel", "robustness"} <= f and "bias_floor" not in f, (i, f)
+        elif singular[i]:
+            assert "bias_floor" in f and not f & {"singular_hankel", "robustness", "support_point"}, (i, f)
+            assert _inside(b[i:i + 1], bias.alpha, bias.target)[0]
+        else:
+            assert not f & {"singular_hankel", "bias_floor", "robustness"}, (i, f)
