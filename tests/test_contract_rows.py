@@ -364,3 +364,26 @@ def test_singular_rows_are_robustness_rows_for_unbiased_input_only(lower64, bias
             assert _inside(b[i:i + 1], bias.alpha, bias.target)[0]
         else:
             assert not f & {"singular_hankel", "bias_floor", "robustness"}, (i, f)
+
+
+def test_visibility_is_one_minus_the_intensity_of_the_same_rows():
+    case = CASES["shadow_intensity-lower-float64"]
+    b = _rows(4)[120:130]
+    zf = np.linspace(-0.9, 0.9, len(b))
+    vis = profiled_case(case, Profile(output="visibility"))
+    assert np.array_equal(np.asarray(vis.reference(b=b, zf=zf)[0]), 1 - np.asarray(case.reference(b=b, zf=zf)[0]))
+
+
+@pytest.mark.parametrize("name, profile, message", [
+    ("phi-float32", Profile(depth="[0,1]"), r"depth = '\[0,1\]' contradicts case 'phi-float32'"),
+    ("phi-float64", Profile(output="visibility"), "output = 'visibility' contradicts case 'phi-float64'"),
+    ("shadow_intensity6-lower-float64", Profile(bias=Bias(0.1, (0.0, 0.375, 0.0, 0.375), "inside")),
+     "bias.target with 4 values contradicts case 'shadow_intensity6-lower-float64': it takes 6 moments"),
+    ("e2e-msm64-float32", Profile(bias=Bias(0.1, (0.0, 0.375, 0.0, 0.375), "before")),
+     "bias.applied = 'before' contradicts case 'e2e-msm64-float32'"),
+])
+def test_a_profile_contradicting_a_case_is_refused_naming_the_key(name, profile, message):
+    from moments_ref import InputError
+
+    with pytest.raises(InputError, match=message):
+        profiled_case(CASES[name], profile)
