@@ -387,3 +387,16 @@ def test_a_profile_contradicting_a_case_is_refused_naming_the_key(name, profile,
 
     with pytest.raises(InputError, match=message):
         profiled_case(CASES[name], profile)
+
+
+def test_the_bias_target_is_taken_in_float64():
+    """Rows whose biased moments straddle the threshold by less than a float32 rounding of the target:
+    a target of 1/3 and 1/5 (uniform on [-1, 1]) narrowed to float32 moves them by about 1e-9."""
+    alpha, t = 0.5, (0.0, 1 / 3, 0.0, 1 / 5)
+    m = np.tile(_power_moments(np.array([[-0.5, 0.25]]), np.array([[0.5, 0.5]]), 4), (400, 1))
+    m[:, 3] += np.linspace(-2e-8, 2e-8, 400)  # λ_min of the biased rows across ±1e-8 around 0
+    b = (m - alpha * np.asarray(t)) / (1 - alpha)
+    got = rows_inside("moments_inside", {"b": b}, (alpha, t))
+    assert np.array_equal(got, _inside(b, alpha, t)) and got.any() and not got.all()
+    t32 = np.asarray(t, np.float32).astype(np.float64)
+    assert not np.array_equal(got, _inside(b, alpha, t32))  # the narrowed target judges other rows
