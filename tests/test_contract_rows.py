@@ -400,3 +400,41 @@ def test_the_bias_target_is_taken_in_float64():
     assert np.array_equal(got, _inside(b, alpha, t)) and got.any() and not got.all()
     t32 = np.asarray(t, np.float32).astype(np.float64)
     assert not np.array_equal(got, _inside(b, alpha, t32))  # the narrowed target judges other rows
+
+
+# ---------------------------------------------------------------- derived goldens' cache
+
+
+def test_derived_goldens_are_cached_on_disk_by_content_and_derived_again_when_the_file_is_foreign(
+        lower64, tmp_path, monkeypatch):
+    from moments_ref import InputError
+    from moments_ref.golden.conventions import cache_dir, profiled_arrays
+
+    monkeypatch.setenv("MOMENTS_REF_CACHE", str(tmp_path))
+    assert cache_dir() == tmp_path / "profiles"
+    monkeypatch.delenv("MOMENTS_REF_CACHE")
+    assert str(cache_dir()).endswith("/.cache/moments_ref/profiles")
+    monkeypatch.setenv("MOMENTS_REF_CACHE", str(tmp_path))
+    case, arrays = lower64
+    name = case.name
+    prof = Profile(bias=Bias(0.25, (0.0, 0.375, 0.0, 0.375), "inside"))
+    assert profiled_arrays(name, DEFAULT, arrays)[1] is arrays  # the papers' conventions: the golden arrays
+    _, first = profiled_arrays(name, prof, arrays)
+    files = sorted((tmp_path / "profiles").glob("*.npz"))
+    assert len(files) == 1
+    with np.load(files[0]) as g:
+        assert sorted(set(g.files) - {"cache_key"}) == sorted(first) and all(
+            np.array_equal(g[k], first[k]) for k in first)
+    # other rows: another key, another file, other values
+    other = {k: v[::-1].copy() for k, v in arrays.items()}
+    _, second = profiled_arrays(name, prof, other, disk=False)
+    assert len(list((tmp_path / "profiles").glob("*.npz"))) == 1  # disk=False writes nothing
+    assert not np.array_equal(second["intensity"], first["intensity"])
+    assert np.array_equal(second["intensity"], first["intensity"][::-1])
+    # another profile's content: another key
+    _, third = profiled_arrays(name, Profile(bias=Bias(0.5, (0.0, 0.375, 0.0, 0.375), "inside")), arrays)
+    assert len(list((tmp_path / "profiles").glob("*.npz"))) == 2
+    assert not np.array_equal(third["intensity_tolerance_float32"], first["intensity_tolerance_float32"]) or \
+        not np.array_equal(third["intensity"], first["intensity"])
+    with pytest.raises(InputError, match="unknown case 'nope'"):
+        profiled_arrays("nope", prof)
