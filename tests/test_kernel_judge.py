@@ -199,3 +199,83 @@ def test_codes_of_y1_above_y2_fail_their_row_instead_of_stopping_the_judge(golde
     assert unpack64(raw[4 * i: 4 * i + 4].astype(np.uint16))[0] > unpack64(raw[4 * i: 4 * i + 4].astype(np.uint16))[1]
     v, _, _, codes, out = _judged(goldens, case, raw, "buffer")
     assert np.isnan(out[i]).all() and list(np.flatnonzero(~v.row_pass)) == [i] and codes["differ"] == 1
+
+
+# ---------------------------------------------------------------- the report a porter reads
+
+
+def test_the_report_names_the_failing_texels_where_they_are(goldens):
+    from moments_ref.conformance.kernel.verdict import format_run
+
+    case = "kernel-filter-nlq64"
+    meta, arrays = goldens[case]
+    kw = meta["kwargs"]
+    raw = _image(case, meta, arrays)
+    raw[25, 33] = FILL  # never written: texel (x 33, y 25), block (1, 1)
+    v, unwritten, outside, codes, _ = _judged(goldens, case, raw, "storage_image")
+    run = DriverRun("gl", "llvmpipe", "moderngl", passed=False, verdict=v, unwritten=unwritten[0],
+                    first_unwritten=unwritten[1], codes=codes, units=6,
+                    timings={"compile": 0.0123, "dispatch": [0.01, 0.03], "driver": [0.002, 0.004]})
+    lines = format_run(case, kw, run, {"numpy": 0.018}, "block")
+    text = "\n".join(lines)
+    assert lines[0] == "  [gl] FAIL  renderer: llvmpipe (moderngl)"
+    assert "      1 texels were never written (first at x 33, y 25): their rows fail" in lines
+    i = 25 * kw["width"] + 33
+    assert any(x.startswith(f"        FAIL row {i} [") and x.endswith("texel (x 33, y 25), block (1, 1): "
+               + x.split("block (1, 1): ")[1]) for x in lines), text
+    assert f"codes: {len(arrays['category']) - 1} equal the global path's, 0 another legitimate kernel's, 1 differ" in text
+    assert lines[-1] == ("      time: compile 12 ms; driver 1.000 ms per block (timer queries); "
+                         "wall 6.667 ms per block (2 dispatches, 40.0 ms); numpy 18.000 ms per block")
+    # the category table: each category's texels, gated, failures
+    cats = {c.category: c for c in v.categories.values()}
+    for name, c in cats.items():
+        row = next(x for x in lines if x.startswith(f"      {name:8} {c.rows:6d} {c.gated:6d} | {c.failures:5d} |"))
+        assert row
+    assert sum(c.failures for c in cats.values()) == 1
+    skipped = DriverRun("vulkan", "", "wgpu", skipped="no multisampled input")
+    assert format_run(case, kw, skipped, {}, "block") == ["  [vulkan] NOT RUN  (wgpu): no multisampled input"]
+    bare = DriverRun("gl", "llvmpipe", "moderngl", passed=True)
+    assert format_run(case, kw, bare, {}, "block") == ["  [gl] PASS  renderer: llvmpipe (moderngl)", "      time: -"]
+
+
+def test_a_vwss_row_is_named_by_its_view_and_texel():
+    from moments_ref.conformance.kernel.verdict import _position
+
+    kw = {"views": 8, "height": 40, "width": 56}
+    assert _position("kernel-vwss-points", kw, 2 * 40 * 56 + 3 * 56 + 5) == "view 2, texel (x 5, y 3)"
+    assert _position("kernel-filter-nlq64", {"width": 75}, 24 * 75 + 32) == "texel (x 32, y 24), block (1, 1)"
+    assert _position("kernel-filter-nlq64", {"width": 75}, 23 * 75 + 31) == "texel (x 31, y 23), block (0, 0)"
+
+
+def test_the_shared_memory_lines_name_the_racing_cell_by_the_papers_layout():
+    from moments_ref.gpu.banks import shared_index
+
+    ok = DriverRun("gl", "llvmpipe", "moderngl", passed=True)
+    for j, x, y in [(1, 0, 0), (2, 19, 3), (3, 20, 7), (4, 39, 31), (1, 25, 12)]:
+        a = int(shared_index(j, x, y))
+        shared = {"driver": "vulkan", "accesses": 64, "barriers": 3, "pattern": True,
+                  "conflicts": {"load": 0, "filter": 0}, "races": [(a, 1, 7, 9)]}
+        text = _report([ok], shared).format()
+        assert (f"FAIL race: 1 shared words are written and touched by other invocations with no barrier between; "
+                f"first: invocation 7 stores b{j} cell (x {x}, y {y}) and invocation 9 accesses it after barrier 1"
+                ) in text, text
+        assert "shared memory (traced on vulkan, work group (0, 0)): 64 accesses per invocation, 3 barriers" in text
+        assert "access pattern of gpu.banks (HPG17 Figure 6) in program order: yes; bank conflicts from the trace: " \
+               "load 0, filter 0 (HPG17 §4.1: none)" in text
+    clean = _report([ok], {"driver": "gl", "accesses": 2, "barriers": 1, "races": []}).format()
+    assert "races: none" in clean and "FAIL race" not in clean
+    word = _report([ok], {"driver": "gl", "accesses": 2, "barriers": 1, "races": [(17, 0, 1, 2)]}).format()
+    assert "invocation 1 stores word 17 and invocation 2 accesses it after barrier 0" in word
+
+
+def test_the_reports_head_line_says_what_ran():
+    ok = DriverRun("gl", "llvmpipe", "moderngl", passed=True)
+    rep = _report([ok, DriverRun("vulkan", "", "", skipped="x")])
+    head = rep.format().splitlines()[0]
+    assert head == ("PASS  kernel main (k.glsl, glsl) on kernel-filter-nlq64: 53×75 map, 9 blocks of 32×24; on gl")
+    vw = KernelReport(case="kernel-vwss-points", path="k.glsl", entry="main", language="glsl",
+                      kwargs={"height": 40, "width": 56, "points": 3200, "views": 8}, runs=[ok],
+                      interface=SimpleNamespace(workgroup=(64, 1, 1)), bindings=[])
+    assert vw.format().splitlines()[0] == ("PASS  kernel main (k.glsl, glsl) on kernel-vwss-points: 3200 points, "
+                                          "8 views of 40×56; on gl")
+    assert vw.format().splitlines()[1] == "      work group 64×1×1; bindings: "
