@@ -438,3 +438,57 @@ def test_derived_goldens_are_cached_on_disk_by_content_and_derived_again_when_th
         not np.array_equal(third["intensity"], first["intensity"])
     with pytest.raises(InputError, match="unknown case 'nope'"):
         profiled_arrays("nope", prof)
+
+
+def _straddling(alpha, t_ndc, width=4):
+    """Rows whose moments biased toward ``t_ndc`` by ``alpha`` straddle the moment space's boundary
+    by about 1e-8: a target rounded to float32 (about 1e-8 off for 1/3) judges some of them otherwise."""
+    m = np.tile(_power_moments(np.array([[-0.5, 0.25]]), np.array([[0.5, 0.5]]), width), (400, 1))
+    m[:, -1] += np.linspace(-2e-8, 2e-8, 400)
+    return (m - alpha * np.asarray(t_ndc)) / (1 - alpha)
+
+
+@pytest.mark.parametrize("depth", [None, "[0,1]"])
+def test_a_declared_target_is_judged_in_float64_in_either_depth_convention(depth):
+    case = CASES["shadow_intensity-lower-float64"]
+    alpha = 0.5
+    t_unit = (1 / 2, 1 / 3, 1 / 4, 1 / 5)
+    t_ndc = _ndc_from_unit_moments(t_unit) if depth else (0.0, 1 / 3, 0.0, 1 / 5)
+    b = _straddling(alpha, t_ndc)
+    prof = Profile(depth=depth, bias=Bias(alpha, t_unit if depth else t_ndc, "inside"))
+    got = contract_mask(case, {"b": b, "zf": np.zeros(len(b))}, prof)
+    assert np.array_equal(got, _inside(b, alpha, t_ndc)) and got.any() and not got.all()
+    t32 = _ndc_from_unit_moments(tuple(float(np.float32(x)) for x in t_unit)) if depth else \
+        tuple(float(np.float32(x)) for x in t_ndc)
+    assert not np.array_equal(got, _inside(b, alpha, t32))
+
+
+def test_a_case_whose_function_takes_no_bias_is_judged_unbiased_under_a_bias():
+    """phi: Algorithm 2 of moments the caller has biased (no ``bias`` key): a profile's bias is reported
+    unused and changes no contract row."""
+    case = CASES["phi-float64"]
+    b = _rows(4)
+    prof = Profile(bias=Bias(0.02, _target(4), "inside"))
+    assert np.array_equal(contract_mask(case, {"b": b}, prof), _inside(b))
+    assert unused_keys(case, prof) == ["bias"]
+
+
+def test_a_bias_target_must_have_as_many_values_as_the_case_takes_moments():
+    from moments_ref import InputError
+
+    four, six = Bias(0.1, _target(4), "inside"), Bias(0.1, _target(6), "inside")
+    profiled_case(CASES["shadow_intensity-lower-float64"], Profile(bias=four))
+    profiled_case(CASES["shadow_intensity6-lower-float64"], Profile(bias=six))
+    with pytest.raises(InputError, match="bias.target with 6 values contradicts case 'shadow_intensity-lower-float64'"
+                                         ": it takes 4 moments"):
+        profiled_case(CASES["shadow_intensity-lower-float64"], Profile(bias=six))
+
+
+def test_unit_depth_float64_inputs_are_rounded_once_to_float64():
+    case = CASES["shadow_intensity-lower-float64"]
+    zf = np.array([-1.0, -0.3, 1 / 3, 0.7, 1 - 2.0 ** -30, 1.0])
+    b = np.tile(_rows(4)[130], (len(zf), 1))
+    got = convert_inputs(case, {"b": b, "zf": zf}, Profile(depth="[0,1]"))
+    assert got["zf"].dtype == np.float64
+    want = [(Fraction(float(z)) + 1) / 2 for z in zf]
+    assert [float(x) for x in got["zf"]] == [q.numerator / q.denominator for q in want]

@@ -106,8 +106,10 @@ def test_a_texel_left_holding_the_poison_is_unwritten_and_its_row_fails(goldens,
     raw = _image(case, meta, arrays)
     raw[2, 5] = FILL
     v, unwritten, outside, _, _ = _judged(goldens, case, raw, "storage_image")
+    v, unwritten, outside, _, out = _judged(goldens, case, raw, "storage_image")
     assert unwritten == (1, (2, 5)) and outside == (0, None)
     assert not v.passed and not v.row_pass[2 * w + 5] and v.row_pass.sum() == len(v.row_pass) - 1
+    assert np.isnan(out[2 * w + 5]).all() and not np.isnan(np.delete(out, 2 * w + 5, axis=0)).any()
     raw[2, 5, 0] = 0  # one component written: the texel was written (its codes are judged)
     assert _judged(goldens, case, raw, "storage_image")[1] == (0, None)
 
