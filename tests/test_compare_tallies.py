@@ -120,3 +120,17 @@ def test_a_tie_row_accepts_its_stored_codes_and_no_other_row_does():
     got[1] = [2, 3]
     v = compare(entry, expected, {"c": got})
     assert list(np.flatnonzero(~v.row_pass)) == [1] and np.isinf(v.score[1]) and v.error[1] == 1
+
+
+def test_a_row_held_to_no_value_and_no_range_still_needs_a_finite_value():
+    entry, expected = _float_case()
+    entry["value_range"] = None
+    expected["v_tolerance_float32"][[2, 3]] = np.inf
+    expected["result"][[2, 3]] = "acceptable"
+    got = np.full((N, 2), 0.5, np.float32)
+    got[2] = [1e30, -7.0]  # any finite value: no range to leave
+    got[3, 1] = np.nan
+    v = compare(entry, expected, {"v": got})
+    assert list(np.flatnonzero(~v.row_pass)) == [3] and list(np.flatnonzero(v.nonfinite)) == [3]
+    got[3, 1] = -np.inf
+    assert list(np.flatnonzero(~compare(entry, expected, {"v": got}).row_pass)) == [3]

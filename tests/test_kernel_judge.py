@@ -281,3 +281,15 @@ def test_the_reports_head_line_says_what_ran():
     assert vw.format().splitlines()[0] == ("PASS  kernel main (k.glsl, glsl) on kernel-vwss-points: 3200 points, "
                                           "8 views of 40×56; on gl")
     assert vw.format().splitlines()[1] == "      work group 64×1×1; bindings: "
+
+
+def test_every_shared_word_is_named_by_its_moment_and_cell():
+    """Exhaustively: the word gpu.banks places moment j of cell (x, y) at (HPG17 §4.1, Figure 6) is
+    reported as that moment and cell."""
+    from moments_ref.conformance.kernel.verdict import _cell
+    from moments_ref.gpu.banks import BLOCK_IN, shared_index
+
+    for j in range(1, 5):
+        for y in range(BLOCK_IN[1]):
+            for x in range(BLOCK_IN[0]):
+                assert _cell(int(shared_index(j, x, y))) == f"b{j} cell (x {x}, y {y})", (j, x, y)
