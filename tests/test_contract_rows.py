@@ -492,3 +492,50 @@ def test_unit_depth_float64_inputs_are_rounded_once_to_float64():
     assert got["zf"].dtype == np.float64
     want = [(Fraction(float(z)) + 1) / 2 for z in zf]
     assert [float(x) for x in got["zf"]] == [q.numerator / q.denominator for q in want]
+
+
+# ---------------------------------------------------------------- a profile refused, naming its key
+
+_B = {"alpha": 0.1, "target": [0.0, 0.375, 0.0, 0.375], "applied": "inside"}
+
+
+@pytest.mark.parametrize("data, message", [
+    ([1, 2], "profile p: expected a table of keys"),
+    ({"bias": 3}, r"profile p: bias: expected a table \(alpha, target, applied\)"),
+    ({"bias": {**_B, "beta": 1}}, r"profile p: bias.beta: unknown key"),
+    ({"bias": {"alpha": 0.1, "target": _B["target"]}}, r"profile p: bias.applied: missing"),
+    ({"bias": {**_B, "applied": "after"}}, r"profile p: bias.applied: expected one of 'inside', 'before', got 'after'"),
+    ({"bias": {**_B, "target": [0.0, 0.5, 0.0, 0.2]}}, r"bias.target: \[0.0, 0.5, 0.0, 0.2\] is not a moment vector"),
+    ({"format": "up"}, r"profile p: format: expected a table of texel-format choices"),
+    ({"format": {"rounding": "up"}}, r"profile p: format.rounding: unknown key"),
+    ({"functions": {"f": {"functions": {}}}}, r"profile p: functions.f.functions: unknown key"),
+])
+def test_a_profile_is_refused_naming_the_key(data, message):
+    from moments_ref import InputError
+
+    with pytest.raises(InputError, match=message):
+        parse_profile(data, "p")
+
+
+def test_a_singular_target_is_a_moment_vector_and_a_slightly_negative_one_is_not():
+    """b* = (0, 1, 0, 1) (±1, equal weights): λ_min = 0, on the boundary: allowed; b4 lowered by 1e-6:
+    λ_min about −5e-7 < 0: no distribution on the real line has it."""
+    from moments_ref import InputError
+
+    ok = parse_profile({"bias": {**_B, "target": [0.0, 1.0, 0.0, 1.0]}}, "p")
+    assert ok.bias.target == (0.0, 1.0, 0.0, 1.0)
+    with pytest.raises(InputError, match="negative eigenvalue"):
+        parse_profile({"bias": {**_B, "target": [0.0, 1.0, 0.0, 1.0 - 1e-6]}}, "p")
+
+
+def test_a_profile_file_must_be_a_regular_file(tmp_path):
+    from moments_ref import InputError
+    from moments_ref.golden.profile import load_profile
+
+    with pytest.raises(InputError, match="expected a regular file"):
+        load_profile(tmp_path)
+    (tmp_path / "p.toml").write_text('depth = "[0,1]"\n[functions.f]\noutput = "visibility"\n')
+    assert load_profile(tmp_path / "p.toml").depth == "[0,1]"
+    p = profile_from_args(tmp_path / "p.toml", function="f")
+    assert (p.depth, p.output, p.functions) == ("[0,1]", "visibility", ())
+    assert profile_from_args(tmp_path / "p.toml").output is None
