@@ -293,3 +293,50 @@ def test_every_shared_word_is_named_by_its_moment_and_cell():
         for y in range(BLOCK_IN[1]):
             for x in range(BLOCK_IN[0]):
                 assert _cell(int(shared_index(j, x, y))) == f"b{j} cell (x {x}, y {y})", (j, x, y)
+
+
+def test_vwss_keys_decode_to_reversed_depths_the_clear_key_to_the_empty_depth_and_words_past_are_outside():
+    from moments_ref.golden.kernels import EMPTY_DEPTH
+    from moments_ref.techniques.vwss.warp import EMPTY_KEY, depth_key
+
+    case = "kernel-vwss-points"
+    d = golden_folder((case,))
+    meta = load_manifest(d)["cases"][case]
+    arrays = load_case_arrays(d, case, meta)
+    kw = meta["kwargs"]
+    n = kw["views"] * kw["height"] * kw["width"]
+    want = np.asarray(arrays["depth_float32"], np.float32)
+    empty = want == np.float32(EMPTY_DEPTH)
+    assert empty.any() and not empty.all()
+    keys = np.where(empty, EMPTY_KEY, depth_key(np.where(empty, 0, want))).astype(np.uint32)
+    raw = np.concatenate([keys, np.zeros(kw["height"] * kw["width"], np.uint32)])  # the harness clears to 0
+    v, unwritten, outside, codes, out = judge(case, meta, arrays, raw, "buffer", 0)
+    assert v.passed and outside == (0, None) and codes is None and unwritten == (0, None)
+    assert out.dtype == np.float32 and np.array_equal(out, want)
+    raw[n + 3] = 1  # a key past the last view
+    raw[n - 1] = 7  # and the last texel of the last view: inside the output
+    v, _, outside, _, out = judge(case, meta, arrays, raw, "buffer", 0)
+    assert outside == (1, (3,))
+    i = int(np.flatnonzero(~empty)[0])  # a texel some point reaches, left clear: its row fails
+    raw = np.concatenate([keys, np.zeros(kw["height"] * kw["width"], np.uint32)])
+    raw[i] = EMPTY_KEY
+    v, _, _, _, out = judge(case, meta, arrays, raw, "buffer", 0)
+    assert out[i] == np.float32(EMPTY_DEPTH) and not v.row_pass[i] and v.row_pass.sum() == n - 1
+
+
+def test_the_16_bit_limit_is_exact_and_equal_depths_are_decoded(goldens):
+    """0x10000 is the first code past 16 bits (its row fails); y1's code equal to y2's is a decoder
+    output (y1 = y2, one 32-bit cell: Algorithm 3's input), decoded and judged, not failed unseen."""
+    from moments_ref.packing import unpack64
+
+    case = "kernel-filter-nlq64"
+    meta, arrays = goldens[case]
+    t = np.asarray(arrays["texels"]).reshape(len(arrays["category"]), -1)
+    raw = _buffer(case, meta, arrays)
+    raw[4 * 5 + 2] = 0x10000
+    i = int(np.flatnonzero(t[:, 0] != t[:, 1])[3])
+    raw[4 * i + 1] = t[i, 0]
+    r = unpack64(raw[4 * i: 4 * i + 4].astype(np.uint16)[None])[0]
+    assert r[0] == r[1]
+    _, _, _, _, out = _judged(goldens, case, raw, "buffer")
+    assert np.isnan(out[5]).all() and np.isfinite(out[i]).all()
