@@ -340,3 +340,35 @@ def test_the_16_bit_limit_is_exact_and_equal_depths_are_decoded(goldens):
     assert r[0] == r[1]
     _, _, _, _, out = _judged(goldens, case, raw, "buffer")
     assert np.isnan(out[5]).all() and np.isfinite(out[i]).all()
+
+
+def test_a_failing_rows_lines_give_its_values_to_seven_digits_its_inputs_and_its_comment(goldens):
+    import re
+
+    from moments_ref.conformance.kernel.verdict import format_run
+
+    case = "kernel-filter-nlq64"
+    meta, arrays = goldens[case]
+    raw = _image(case, meta, arrays)
+    raw[1, 2] = FILL
+    v, unwritten, _, codes, _ = _judged(goldens, case, raw, "storage_image")
+    run = DriverRun("gl", "llvmpipe", "moderngl", verdict=v, unwritten=unwritten[0], first_unwritten=unwritten[1],
+                    codes=codes, units=6)
+    lines = format_run(case, meta["kwargs"], run, {}, "block")
+    assert "      category  texels  gated | fails | worst error/tolerance: ratio  error (abs)  tolerance" in lines
+    assert any(x.startswith("      worst texels (failing first, by error/tolerance") for x in lines)
+    i = meta["kwargs"]["width"] + 2
+    k = next(j for j, x in enumerate(lines) if x.startswith(f"        FAIL row {i} [")) - 1
+    expected = re.search(r"expected \[(.*)\]$", lines[k + 1]).group(1).split(", ")
+    assert [float(x) for x in expected] == pytest.approx(np.asarray(arrays["intensity"][i]), abs=5e-8)
+    assert max(len(x.split(".")[1]) for x in expected if "." in x and "e" not in x) == 7
+    assert lines[k + 2].startswith("             inputs: depth=[") and "zf=[" in lines[k + 2]
+    assert lines[k + 3] == f"             ({arrays['comment'][i]})"
+    assert lines[-1] == "      time: -"  # units counted, no dispatch timed: no time per block
+
+
+def test_the_first_race_is_the_one_named():
+    ok = DriverRun("gl", "llvmpipe", "moderngl", passed=True)
+    text = _report([ok], {"driver": "gl", "accesses": 2, "barriers": 1,
+                          "races": [(17, 0, 1, 2), (40, 1, 3, 4)]}).format()
+    assert "FAIL race: 2 shared words" in text and "first: invocation 1 stores word 17" in text
