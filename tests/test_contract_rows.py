@@ -539,3 +539,14 @@ def test_a_profile_file_must_be_a_regular_file(tmp_path):
     p = profile_from_args(tmp_path / "p.toml", function="f")
     assert (p.depth, p.output, p.functions) == ("[0,1]", "visibility", ())
     assert profile_from_args(tmp_path / "p.toml").output is None
+
+
+def test_visibility_spreads_are_one_minus_the_intensitys():
+    """The legitimate evaluations the tolerance spans (spread_hook) turn into visibilities the same way."""
+    case = CASES["shadow_intensity-lower-float64"]
+    vis = profiled_case(case, Profile(output="visibility"))
+    ins = {"b": _rows(4)[120:126], "zf": np.linspace(-0.5, 0.5, 6)}
+    a, c = case.spread_hook(ins, np.float64), vis.spread_hook(ins, np.float64)
+    assert len(a) == len(c) > 0
+    for x, y in zip(a, c):
+        assert all(np.array_equal(1 - np.asarray(u), np.asarray(w), equal_nan=True) for u, w in zip(x, y))
