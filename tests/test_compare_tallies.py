@@ -134,3 +134,18 @@ def test_a_row_held_to_no_value_and_no_range_still_needs_a_finite_value():
     assert list(np.flatnonzero(~v.row_pass)) == [3] and list(np.flatnonzero(v.nonfinite)) == [3]
     got[3, 1] = -np.inf
     assert list(np.flatnonzero(~compare(entry, expected, {"v": got}).row_pass)) == [3]
+
+
+def test_a_negative_code_is_refused_naming_its_row_and_a_bad_precision_or_dtype_naming_the_array():
+    entry, expected, codes = _code_case()
+    c = codes.astype(np.int64)
+    c[2, 1] = -1
+    with pytest.raises(InputError, match=r"'c' row 2 holds the negative code -1 \(int64\)"):
+        compare(entry, expected, {"c": c})
+    entry, expected = _float_case()
+    with pytest.raises(InputError, match="port_dtype: expected float32 or float64, got 'float16'"):
+        compare(entry, expected, {"v": np.zeros((N, 2), np.float32)}, port_dtype="float16")
+    with pytest.raises(InputError, match=r"^results: 'v' expected a real float32 array"):
+        compare(entry, expected, {"v": np.zeros((N, 2), np.int32)})
+    with pytest.raises(InputError, match=r"^results: 'k.v' expected a real float32 array"):
+        compare(entry, expected, {"v": np.zeros((N, 2), np.int32)}, case="k")
