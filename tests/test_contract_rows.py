@@ -550,3 +550,17 @@ def test_visibility_spreads_are_one_minus_the_intensitys():
     assert len(a) == len(c) > 0
     for x, y in zip(a, c):
         assert all(np.array_equal(1 - np.asarray(u), np.asarray(w), equal_nan=True) for u, w in zip(x, y))
+
+
+@pytest.mark.parametrize("name", ["bias_moments-float32-float64", "bias_moments-unorm16-float64"])
+def test_a_default_bias_under_unit_depth_biases_toward_the_same_distribution(name):
+    """The bias is affine in the moments: in [0, 1] depth it must be the [-1, 1] bias seen through
+    z -> (z + 1)/2 (the preset's target converted with the moments), for any target."""
+    from moments_ref.scene.depth import moments_affine
+
+    case = CASES[name]
+    unit = profiled_case(case, Profile(depth="[0,1]"))
+    b = _rows(4)[120:140]
+    r_ndc = np.asarray(case.reference(b=b)[0], np.float64)
+    r_unit = np.asarray(unit.reference(b=moments_affine(b, 0.5, 0.5))[0], np.float64)
+    assert np.abs(r_unit - moments_affine(r_ndc, 0.5, 0.5)).max() < 1e-15  # rounding only
