@@ -43,7 +43,9 @@ def test_one_change_per_mutant_in_function_bodies_only():
     assert got == {
         ("a < b", "a <= b"), ("a < b and (not c)", "a < b or not c"), ("not c", "c"), ("-a", "a"),
         ("np.floor", "np.ceil"), ("abs(a)", "a"), ("np.floor(abs(a) * b) + 1", "np.floor(abs(a) * b) - 1"),
-        ("abs(a) * b", "abs(a) / b"), ("1", "2"),
+        ("abs(a) * b", "abs(a) / b"), ("1", "2"), ("1", "0"),
+        # the guard skipped, and its return always taken (an early return)
+        ("a < b and (not c)", "False"), ("a < b and (not c)", "True"),
     }
     # the default values, the annotation, the f-string message, the docstrings, the module-level
     # constant and the pragma line give none
@@ -203,3 +205,96 @@ def test_a_forked_childs_temporary_files_are_removed_however_it_ends(tmp_path):
         left = Path(where.read_text())
         assert left.name.startswith("left-") and left.parent != Path(tempfile.gettempdir())  # a folder of its own
         assert not left.exists() and not left.parent.exists(), left
+
+
+STYLES = textwrap.dedent('''
+    import numpy as np
+
+
+    def h(x, n, flag, strict=False):
+        check(x)
+        y = x[1:n] * 0.5
+        if flag:
+            y = y[::-1]
+        if strict:
+            raise ValueError("strict")
+        ok = np.isfinite(y)
+        spread = np.nanmax(y) + np.fmax(y, 0).max()
+        return np.where(ok, y, -1.0).astype(np.float64), spread
+''')
+
+
+def test_the_styles_a_one_token_swap_rarely_writes():
+    """Slices one off, constants doubled and halved, flags inverted, guards skipped, a check dropped,
+    NaN handling changed, float64 narrowed, max averaged, where's branches swapped."""
+    got = _by_text(mutants_of(STYLES, "s.py"))
+    for pair in [("1:n", "1:n + 1"), ("1:n", "1:n - 1"), ("0.5", "1.0"), ("0.5", "0.25"), ("flag", "not flag"),
+                 ("strict", "False"), ("check(x)", "pass"), ("np.isfinite(y)", "~np.isnan(y)"),
+                 ("np.nanmax", "np.max"), ("np.fmax", "np.maximum"), ("np.float64", "np.float32"),
+                 ("np.fmax(y, 0).max", "np.fmax(y, 0).mean"), ("1", "0"), ("-1", "1"),
+                 ("np.where(ok, y, -1.0)", "np.where(ok, -1.0, y)")]:
+        assert pair in got, pair
+    # a raise guard is skipped, never forced (that mutant dies on every call: it measures nothing)
+    assert ("strict", "True") not in got
+    ids = [m.id for m in mutants_of(STYLES, "s.py")]
+    assert len(ids) == len(set(ids))
+
+
+@pytest.mark.parametrize("before, after, args, want", [
+    ("1:n", "1:n + 1", ([1.0, 2.0, 4.0, 8.0], 2, False), 2.0),  # unmutated: 1.0
+    ("flag", "not flag", ([1.0, 2.0, 4.0, 8.0], 3, False), 1.0),  # unmutated: 2.0
+    ("check(x)", "pass", ([1.0, 2.0, 4.0], 3, False), 2.0),  # unmutated: check raises
+    ("np.isfinite(y)", "~np.isnan(y)", ([1.0, 2.0, 8.0, float("inf")], 4, False), float("inf")),  # unmutated: -1
+])
+def test_each_style_computes_its_mutant(before, after, args, want):
+    import numpy as np
+
+    namespace = {"check": lambda x: (_ for _ in ()).throw(ValueError("checked"))}
+    exec(compile(STYLES, "s.py", "exec"), namespace)
+    h = namespace["h"]
+    (m,) = [m for m in mutants_of(STYLES, "s.py") if (m.before, m.after) == (before, after)]
+    h.__code__ = mutated_code(STYLES, "s.py", m)
+    if before != "check(x)":
+        namespace["check"] = lambda x: None
+    x, n, flag = args
+    got, _ = h(np.array(x), n, flag)
+    assert float(got[-1]) == want
+
+
+def test_the_default_list_holds_every_module_a_verdict_depends_on():
+    from moments_ref.tools.mutation import VERDICT_MODULES, _sweep_modules
+
+    for need in ("golden/contract.py", "golden/conventions.py", "golden/bilinear.py", "golden/compare.py",
+                 "golden/profile.py", "golden/spread.py", "golden/engine.py", "golden/loader.py",
+                 "conformance/verdict.py", "conformance/kernel/verdict.py", "conformance/kernel/contract.py"):
+        assert f"moments_ref/{need}" in VERDICT_MODULES and f"moments_ref/{need}" in TARGETS
+    sweep = ROOT / "moments_ref" / "sweep"
+    assert set(_sweep_modules()) == ({str(f.relative_to(ROOT)) for f in sweep.rglob("*.py") if f.name != "__main__.py"}
+                                     if sweep.is_dir() else set())
+    assert set(_sweep_modules()) <= set(TARGETS)
+
+
+def test_the_docs_table_is_written_by_the_command(tmp_path):
+    from moments_ref.tools.mutation import DOC_MARKS, write_doc_table
+
+    doc = tmp_path / "t.md"
+    doc.write_text(f"intro\n{DOC_MARKS[0]}\n| module | a |\n|---|---|\n| x.py | 1 |\n| y.py | 2 |\n{DOC_MARKS[1]}\nend\n")
+    write_doc_table(["| module | a |", "|---|---|", "| y.py | 3 |", "| z.py | 4 |"], doc)
+    assert doc.read_text() == (f"intro\n{DOC_MARKS[0]}\n| module | a |\n|---|---|\n| x.py | 1 |\n| y.py | 3 |\n"
+                               f"| z.py | 4 |\n{DOC_MARKS[1]}\nend\n")
+
+
+def test_the_docs_table_is_the_tools_arithmetic():
+    """Each row of docs/testing.md's table: killed + timed out + equivalent + survived = mutants, and the
+    score is (killed + timed out) / (mutants − equivalent), as score_table writes it."""
+    import re
+
+    from moments_ref.tools.mutation import DOC, DOC_MARKS
+
+    block = DOC.read_text().split(DOC_MARKS[0])[1].split(DOC_MARKS[1])[0].strip().splitlines()
+    assert block[0] == "| module | mutants | killed | timed out | equivalent | survived | score |"
+    for row in block[2:]:
+        name, n, k, t, e, s, score = [c.strip() for c in row.strip("|").split("|")]
+        n, k, t, e, s = map(int, (n, k, t, e, s))
+        assert k + t + e + s == n, row
+        assert re.fullmatch(r"(≥ )?\d+%", score) and int(score.strip("≥ %")) == round(100 * (k + t) / (n - e)), row

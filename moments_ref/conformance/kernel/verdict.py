@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...golden.kernels import EMPTY_DEPTH, decode_intensity
+from ...packing import unpack64
 from .._report import fmt
 from ..verdict import compare_case
 
@@ -120,11 +121,13 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False, l
     else:
         misfit = bad | (mapped > 0xFFFF).any(axis=1) if fmt_name != "nlq32" else bad
         codes = np.clip(mapped, 0, 0xFFFF).astype(np.uint16) if fmt_name != "nlq32" else mapped[:, 0].copy()
-        shown = codes
-        if fmt_name == "nlq64":  # y1's code above y2's is no representation (unpack64 refuses it): the texel fails
-            misfit = misfit | (codes[:, 0] > codes[:, 1])
-            shown = np.where(misfit[:, None], np.uint16(0), codes)
-        intensity = decode_intensity(fmt_name, shown, arrays["zf"]).astype(np.float32)
+        if fmt_name == "nlq64":  # y1's code above y2's: no decoder input (Algorithm 3 refuses it); the row fails
+            r = unpack64(codes)
+            misfit = misfit | (r[:, 0] > r[:, 1])
+        # misfit rows are decoded from the global path's codes (Algorithm 3 takes any of those), then failed
+        expected = np.asarray(arrays["texels"]).reshape(codes.shape).astype(codes.dtype)
+        safe = np.where(misfit.reshape((-1,) + (1,) * (codes.ndim - 1)), expected, codes)
+        intensity = decode_intensity(fmt_name, safe, arrays["zf"]).astype(np.float32)
         intensity[misfit] = np.nan
         out = {"intensity": intensity}
     v = compare_case(case, meta, arrays, out, worst_rows, strict)

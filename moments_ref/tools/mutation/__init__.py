@@ -11,7 +11,9 @@ marked *equivalent* in ``tests/mutation_equivalents.toml`` by its id, with the r
 
 Without MODULE it measures :data:`TARGETS`, the verdict engine and its neighbours.
 ``--report`` prints the table of the last runs (``.mutation/results.json``) again, with
-the equivalents file as it is now. docs/testing.md gives the scores and the command.
+the equivalents file as it is now; ``--update-docs`` also writes it into docs/testing.md
+between its ``<!-- scores: begin -->`` and ``<!-- scores: end -->`` lines (:func:`write_doc_table`),
+so the table there is the command's output, never typed.
 """
 
 from __future__ import annotations
@@ -26,21 +28,38 @@ from pathlib import Path
 from ._operators import Mutant, mutants_of, mutated_code
 from ._execute import baseline, collect_coverage, import_tests, module_name_of, run_mutant
 
-__all__ = ["TARGETS", "Mutant", "mutants_of", "load_equivalents", "module_files", "score_table", "main"]
+__all__ = ["TARGETS", "VERDICT_MODULES", "write_doc_table", "Mutant", "mutants_of", "load_equivalents", "module_files", "score_table", "main"]
 
 ROOT = Path(__file__).resolve().parents[3]
-#: The modules measured by default: the verdict engine, its front ends and its neighbours.
-TARGETS = (
+#: The modules every verdict depends on (the golden modules that shape one, the conformance
+#: verdicts, the kernel judge and its contract, the sweep's package once it exists), then neighbours.
+VERDICT_MODULES = (
     "moments_ref/golden/compare.py", "moments_ref/golden/spread.py", "moments_ref/golden/units.py",
-    "moments_ref/conformance/verdict.py", "moments_ref/golden/profile.py",
+    "moments_ref/golden/loader.py", "moments_ref/golden/engine.py", "moments_ref/golden/profile.py",
+    "moments_ref/golden/contract.py", "moments_ref/golden/conventions.py", "moments_ref/golden/bilinear.py",
+    "moments_ref/golden/diagnosis.py", "moments_ref/golden/verifier.py",
+    "moments_ref/conformance/verdict.py", "moments_ref/conformance/kernel/verdict.py",
+    "moments_ref/conformance/kernel/contract.py",
+)
+NEIGHBOURS = (
     "moments_ref/report/_pareto.py", "moments_ref/report/_winners.py", "moments_ref/packing.py",
     "moments_ref/techniques/vwss/shading.py", "moments_ref/scene/raster/_spans.py",
-    "moments_ref/conformance/kernel/verdict.py", "moments_ref/conformance/kernel/contract.py",
-    "moments_ref/conformance/kernel/trace.py",
-    "moments_ref/golden/loader.py", "moments_ref/golden/engine.py",
-    "moments_ref/conformance/kernel/run.py",
+    "moments_ref/conformance/kernel/trace.py", "moments_ref/conformance/kernel/run.py",
 )
+
+
+def _sweep_modules():
+    """The sweep's modules (``moments_ref/sweep/``, its subfolders too) where the package exists."""
+    folder = ROOT / "moments_ref" / "sweep"
+    return tuple(sorted(str(f.relative_to(ROOT)) for f in folder.rglob("*.py")
+                        if f.name != "__main__.py")) if folder.is_dir() else ()
+
+
+#: The modules measured by default: :data:`VERDICT_MODULES`, the sweep's, then :data:`NEIGHBOURS`.
+TARGETS = VERDICT_MODULES + _sweep_modules() + NEIGHBOURS
 EQUIVALENTS = ROOT / "tests" / "mutation_equivalents.toml"
+DOC = ROOT / "docs" / "testing.md"
+DOC_MARKS = ("<!-- scores: begin -->", "<!-- scores: end -->")
 STATE = ROOT / ".mutation"
 
 
@@ -234,6 +253,25 @@ def score_table(state, files, equivalents):
     return head + rows, survivors, stale
 
 
+def write_doc_table(rows, path=None):
+    """Replace the table between :data:`DOC_MARKS` in ``path`` (default docs/testing.md) by ``rows``.
+
+    Rows of modules the state does not hold stay as they are (measured before, by an earlier run);
+    the measured ones are replaced or added, in the order of ``rows``.
+    """
+    path = DOC if path is None else Path(path)
+    text = path.read_text()
+    begin, end = DOC_MARKS
+    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
+        raise SystemExit(f"mutation: {path} needs one {begin} ... {end} block")
+    head, rest = text.split(begin)
+    old, tail = rest.split(end)
+    new = {r.split("|")[1].strip(): r for r in rows[2:]}
+    kept = [r for r in old.strip().splitlines()[2:] if r.split("|")[1].strip() not in new]
+    body = "\n".join(rows[:2] + kept + list(new.values()))
+    path.write_text(f"{head}{begin}\n{body}\n{end}{tail}")
+
+
 def _args(argv):
     ap = argparse.ArgumentParser(prog="python -m moments_ref.tools.mutation", description=__doc__.split("\n\n")[0])
     ap.add_argument("modules", nargs="*", help="files, folders or dotted names (default: TARGETS)")
@@ -248,6 +286,8 @@ def _args(argv):
     ap.add_argument("--only", nargs="+", default=[], metavar="TEXT", help="only mutants whose id contains TEXT")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--report", action="store_true", help="print the table of the last runs, run nothing")
+    ap.add_argument("--update-docs", action="store_true",
+                    help="write the table into docs/testing.md (between its scores markers)")
     return ap.parse_args(argv)
 
 
@@ -281,6 +321,8 @@ def main(argv=None):
                         args.max_seconds)
     rows, survivors, stale = score_table(state, files, load_equivalents())
     print("\n".join(rows))
+    if args.update_docs:
+        write_doc_table(rows)
     for mid, status, note in survivors:
         print(f"{status}: {mid}" + (f" {note}" if note else ""))
     for mid in stale:

@@ -2,7 +2,15 @@
 
 Each mutant changes one operator, one constant or one name inside a function body:
 the changes a slip of the hand makes (``<`` for ``<=``, ``&`` for ``|``, a dropped
-``-`` or ``~``, ``n`` for ``n + 1``, ``floor`` for ``ceil``, ``any`` for ``all``).
+``-`` or ``~``, ``n`` for ``n + 1`` or ``n - 1``, ``floor`` for ``ceil``, ``any`` for
+``all``), and the slips a one-token swap rarely writes: a slice bound one off
+(``x[a:b]`` -> ``x[a:b + 1]``), a float constant doubled or halved, a guard skipped or
+always taken (``if bad: return``/``raise`` -> ``if False``, ``if True`` for a return:
+an early return), a flag ignored or inverted (``if flag`` -> ``if not flag``), a call
+whose result is unused dropped (a check skipped), NaN handling changed
+(``isfinite(x)`` -> ``~isnan(x)``, ``nanmax`` -> ``max``, ``fmax`` -> ``maximum``,
+``nan_to_num`` dropped), float64 narrowed to float32, ``max`` -> ``mean``, and the two
+branches of ``where(c, a, b)`` swapped.
 Strings, docstrings, annotations, decorators, default values and module-level code
 are not mutated: they are messages, types and settings, not the computation.
 
@@ -31,7 +39,11 @@ _SWAP = {"min": "max", "max": "min", "minimum": "maximum", "maximum": "minimum",
          "amax": "amin", "argmin": "argmax", "argmax": "argmin", "floor": "ceil", "ceil": "floor",
          "any": "all", "all": "any", "nanmin": "nanmax", "nanmax": "nanmin", "isinf": "isnan",
          "isnan": "isinf", "float32": "float64", "float64": "float32", "nonzero": "flatnonzero"}
-_DROP_CALL = {"abs", "fabs", "round", "rint", "copysign"}
+_DROP_CALL = {"abs", "fabs", "round", "rint", "copysign", "nan_to_num"}
+# A second partner for some names: NaN handling dropped, a maximum averaged.
+_SWAP2 = {"nanmax": "max", "nanmin": "min", "fmax": "maximum", "fmin": "minimum", "nanmean": "mean",
+          "nansum": "sum", "max": "mean", "amax": "mean"}
+_STOPS = (ast.Return, ast.Raise, ast.Continue, ast.Break)
 
 
 @dataclass(frozen=True)
@@ -71,14 +83,40 @@ def _changes(node):
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not, ast.Invert)):
         return [("unwrap", "operand")]
     if isinstance(node, ast.Constant) and type(node.value) in (bool, int, float):
-        return [("const",)]
-    if isinstance(node, ast.Name) and node.id in _SWAP and isinstance(node.ctx, ast.Load):
-        return [("name",)]
-    if isinstance(node, ast.Attribute) and node.attr in _SWAP and isinstance(node.ctx, ast.Load):
-        return [("attr",)]
-    if isinstance(node, ast.Call) and node.args and not node.keywords and _called(node) in _DROP_CALL:
-        return [("unwrap", "arg0")]
+        if isinstance(node.value, bool):
+            return [("const",)]
+        if isinstance(node.value, int):  # one off either way
+            return [("const",), ("const", -1)]
+        return [("const",)] + ([("const", 0.5)] if node.value != 0.0 else [])  # doubled, halved
+    if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load):
+        return [("name", t) for t in (_SWAP, _SWAP2) if node.id in t]
+    if isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Load):
+        return [("attr", t) for t in (_SWAP, _SWAP2) if node.attr in t]
+    if isinstance(node, ast.Call):
+        return _call_changes(node)
+    if isinstance(node, ast.Slice):  # a bound one off (a constant bound is a constant's change)
+        return [("slice", f, d) for f in ("lower", "upper") if getattr(node, f) is not None
+                and not isinstance(getattr(node, f), ast.Constant) for d in (1, -1)]
+    if isinstance(node, ast.If) and node.body and isinstance(node.body[-1], _STOPS):
+        # a guard skipped; a return always taken (an early return)
+        return [("test", False)] + ([("test", True)] if isinstance(node.body[-1], ast.Return) else [])
+    if isinstance(node, (ast.If, ast.IfExp, ast.While)) and isinstance(node.test, (ast.Name, ast.Attribute)):
+        return [("flag",)]  # a flag inverted
+    if isinstance(node, ast.Expr) and isinstance(node.value, ast.Call):
+        return [("drop",)]  # a call for its effect (a check) dropped
     return []
+
+
+def _call_changes(node):
+    out = []
+    name = _called(node)
+    if node.args and not node.keywords and name in _DROP_CALL:
+        out.append(("unwrap", "arg0"))
+    if name == "isfinite" and len(node.args) == 1:  # finiteness reduced to NaN
+        out.append(("nan",))
+    if name == "where" and len(node.args) == 3:
+        out.append(("swap",))
+    return out
 
 
 def _called(call):
@@ -86,11 +124,13 @@ def _called(call):
     return f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else None
 
 
-def _new_const(v):
+def _new_const(v, factor=None):
     if isinstance(v, bool):
         return not v
     if isinstance(v, int):
-        return v + 1
+        return v + (1 if factor is None else factor)
+    if factor is not None:
+        return v * factor
     return 1.0 if v == 0.0 else 2.0 * v
 
 
@@ -102,15 +142,37 @@ def _apply(node, change, parent):
     elif kind == "op":
         node.op = (_BOOL if isinstance(node, ast.BoolOp) else _BIN)[type(node.op)]()
     elif kind == "const":
-        node.value = _new_const(node.value)
+        node.value = _new_const(node.value, *change[1:])
     elif kind == "name":
-        node.id = _SWAP[node.id]
+        node.id = change[1][node.id]
     elif kind == "attr":
-        node.attr = _SWAP[node.attr]
+        node.attr = change[1][node.attr]
     elif kind == "unwrap":
         inner = node.operand if change[1] == "operand" else node.args[0]
         _replace(parent, node, inner)
         return inner
+    elif kind == "slice":
+        op = ast.Add() if change[2] > 0 else ast.Sub()
+        setattr(node, change[1], ast.BinOp(getattr(node, change[1]), op, ast.Constant(1)))
+    elif kind == "test":
+        node.test = ast.Constant(change[1])
+    elif kind == "flag":
+        node.test = ast.UnaryOp(ast.Not(), node.test)
+    elif kind == "nan":
+        f = node.func
+        if isinstance(f, ast.Name):
+            f.id = "isnan"
+        else:
+            f.attr = "isnan"
+        new = ast.UnaryOp(ast.Invert(), node)
+        _replace(parent, node, new)
+        return new
+    elif kind == "swap":
+        node.args[1], node.args[2] = node.args[2], node.args[1]
+    elif kind == "drop":
+        new = ast.Pass()
+        _replace(parent, node, new)
+        return new
     return node
 
 
@@ -179,10 +241,14 @@ def mutants_of(source, path):
         if top is None:  # module and class level: settings, tables, imports, fields
             continue
         for change in _changes(node):
-            before = _text(node)
+            before = _text(node) if not isinstance(node, (ast.If, ast.While)) else ""
             mutated = copy.deepcopy(node)
             holder = ast.Module(body=[ast.Expr(mutated)], type_ignores=[])
             after = _text(_apply(mutated, change, holder.body[0]))
+            if change[0] in ("test", "flag"):  # the statement's test, not the whole statement
+                before, after = _text(node.test), _text(mutated.test)
+            if after == before:
+                continue
             key = (func, before, after)
             k = seen.get(key, 0)
             seen[key] = k + 1
