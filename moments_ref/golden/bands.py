@@ -194,9 +194,9 @@ def interval_parts(case, dt, expected, contract, noise, core, hooks):
                 fine = np.isfinite(h) & c & ((np.abs(h - e) <= cap) | chained)
                 hazard |= np.isfinite(h) & c & ~fine
                 lo, hi = np.where(fine, np.minimum(lo, h), lo), np.where(fine, np.maximum(hi, h), hi)
-            if chained:
-                ill |= (e - lo > cap) | (hi - e > cap)
             m = _margin(case, e, dt, noise[i], hi - lo)
+            if chained:  # the margin stands in for the chain's unenumerated reassociations: beyond the cap, ill
+                ill |= (e - (lo - m) > cap) | ((hi + m) - e > cap)
             lo = np.where(ill, lo - m, np.maximum(lo - m, e - cap))
             hi = np.where(ill, hi + m, np.minimum(hi + m, e + cap))
         else:
