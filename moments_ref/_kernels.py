@@ -23,7 +23,7 @@ import numpy as np
 
 from ._arrays import float_dtype
 
-__all__ = ["CHUNK", "MSM_CHUNK", "SHADE_CHUNK", "PHI_CHUNK", "ENCODE_CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "WARP_BLOCK",
+__all__ = ["CHUNK", "MSM_CHUNK", "SHADE_CHUNK", "PHI_CHUNK", "ENCODE_CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "SWEEP_CHUNK", "WARP_BLOCK",
            "SHADING_BLOCK", "FILTER_BAND_BYTES", "RESOLVE_BYTES", "PATH_BAND_TEXELS", "RASTER_ROW_BUDGET", "RASTER_SAMPLE_BUDGET", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
 
@@ -54,6 +54,10 @@ RESOLVE_CHUNK = 1 << 14
 #: Triangles set up per call of the rasterizer (:mod:`moments_ref.scene.raster`): bounds the per-triangle arrays
 #: and keeps them in cache (1 M small triangles into 1024²: 2^15 gives 2.4 M/s, 2^17 2.0 M/s, 2^13 2.0 M/s).
 RASTER_SETUP_CHUNK = 1 << 15
+#: Rows per chunk of the differential sweep (:mod:`moments_ref.sweep`): the unit of determinism (the rows of
+#: chunk i depend only on seed, case, profile and i, so it never changes with the machine), one driver dispatch
+#: and one reference pass each (the stages' rows/s at this size: ``moments-ref bench --only sweep``).
+SWEEP_CHUNK = 1 << 17
 #: Point-view pairs per block of :mod:`moments_ref.techniques.vwss.warp`: the temporaries stay in cache and the
 #: thin (n, 4) @ (4, 4k) product stays under OpenBLAS's multithreading threshold (m·n·k ≤ 2^18), whose threads
 #: cost more than they save on it.

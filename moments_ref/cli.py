@@ -108,13 +108,18 @@ def _profile(args):
     return profile_from_args(getattr(args, "profile", None), getattr(args, "function", None), **flags)
 
 
-def _add_profile(sp):
-    """``--profile FILE``, one flag per profile key, ``--strict``, ``--rows``, ``--json`` (docs/ports.md)."""
+def _add_profile_keys(sp):
+    """``--profile FILE`` and one flag per profile key (docs/ports.md)."""
     from .golden.profile import FLAGS
 
     sp.add_argument("--profile", type=Path, metavar="FILE.toml", help="the engine's conventions (docs/ports.md)")
     for flag, _, text in FLAGS:
         sp.add_argument(flag, metavar="VALUE", help=text)
+
+
+def _add_profile(sp):
+    """``--profile FILE``, one flag per profile key, ``--strict``, ``--rows``, ``--json`` (docs/ports.md)."""
+    _add_profile_keys(sp)
     sp.add_argument("--strict", action="store_true",
                     help="gate the rows beyond the algorithm's contract too (robustness rows)")
     sp.add_argument("--rows", type=_rows_arg, default=None, metavar="N|all",
@@ -340,17 +345,10 @@ def _add_oracle(sub):
     sw = sub.add_parser("sweep", help="judge a port on millions of engine-like rows; confirm and shrink each failure "
                                       "(docs/sweep.md)")
     _add_port(sw)
-    from .golden.profile import FLAGS
+    _add_profile_keys(sw)
+    from .sweep.command import add_options
 
-    sw.add_argument("--profile", type=Path, metavar="FILE.toml", help="the engine's conventions (docs/ports.md)")
-    for flag, _, text in FLAGS:
-        sw.add_argument(flag, metavar="VALUE", help=text)
-    sw.add_argument("--rows", default="1e6", metavar="N", help="rows to draw (default 1e6; accepts 1e8)")
-    sw.add_argument("--seed", type=_int_in(0), default=0, help="seed of the draw (default 0)")
-    sw.add_argument("--workers", type=_int_in(1), default=None, metavar="N",
-                    help="spawned worker processes, one driver context each (default: 2, 1 below two chunks)")
-    sw.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this Dask scheduler (tcp://host:8786)")
-    sw.add_argument("--out", type=folder_arg, help="checkpoint (resumed) and one golden folder per shrunk failure")
+    add_options(sw, _int_in, folder_arg)
     sw.add_argument("--json", type=Path, metavar="FILE", help="write the result as JSON")
     _add_source_options(sw)
     sw.set_defaults(func=_cmd_sweep)

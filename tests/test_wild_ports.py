@@ -26,8 +26,9 @@ LEGIT = {
     "biased_caller": ({"hlsl": "ComputeBiasedShadowIntensity", "glsl": "ComputeBiasedShadowIntensity",
                        "wgsl": "compute_biased_shadow_intensity"}, ALG1),
     "engine01": ({"hlsl": "EngineVisibility01", "glsl": "engine_visibility01", "wgsl": "engine_visibility01"}, ALG1),
-    "author_shade": ({"hlsl": "AuthorShade", "glsl": "author_shade", "wgsl": "author_shade"}, ["shade-float32"]),
 }
+#: The HPG17 author's demo shading: its root is the printed -p/2 - sqrt(p^2/4 - q), which cancels in float32.
+AUTHOR_SHADE = {"hlsl": "AuthorShade", "glsl": "author_shade", "wgsl": "author_shade"}
 SINGULAR = {"hlsl": "SingularTargetVisibility", "glsl": "singular_target_visibility",
             "wgsl": "singular_target_visibility"}
 
@@ -47,6 +48,21 @@ def test_a_legitimate_port_passes_with_its_profile_and_no_adapter(drivers, stem,
     report = _run(stem, language, function, case, driver)
     assert report.passed, report.format()
     assert any(n.startswith("profile: ") for n in report.notes)
+
+
+@pytest.mark.parametrize("driver", ["gl", "vulkan"])
+@pytest.mark.parametrize("language", ["hlsl", "glsl", "wgsl"])
+def test_the_authors_demo_root_fails_where_the_printed_formula_cancels(drivers, language, driver):
+    """With its clamp declared, the demo's shading fails only rows flagged ``printed_hazard`` (the band of the
+    interval model no longer stretches to 16 × the printed formula's error: it returned 0.99998 for 0.0154),
+    and the report names the printed root and the stable one."""
+    report = _run("author_shade", language, AUTHOR_SHADE[language], "shade-float32", driver)
+    assert not report.passed
+    gated = [g for g in report.groups if g.level == "contract"]
+    assert gated and all("printed_hazard" in g.flags.split(",") for g in gated), gated
+    assert sum(len(g.rows) for g in gated) == report.failures
+    text = report.format()
+    assert "printed formula" in text and "without cancellation" in text
 
 
 @pytest.mark.parametrize("driver", ["gl", "vulkan"])

@@ -291,7 +291,7 @@ def _main(args):
     if get("all"):
         from .._io import write_text
 
-        given = [f"--{lang}" for lang in LANGUAGES if get(lang) is not None]
+        given = [f"--{lang}" for lang in ALL_LANGUAGES if get(lang) is not None]
         if given:  # --all runs the shipped ports: a port named beside it would silently go untested
             raise InputError(f"conformance: --all runs the shipped ports; {given[0]} FILE cannot be given with it "
                              f"(drop --all to test {get(given[0][2:])})")

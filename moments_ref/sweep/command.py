@@ -11,13 +11,24 @@ import json
 import sys
 
 from .._arrays import InputError
-from ..conformance import LANGUAGES
+from ..conformance import ALL_LANGUAGES as LANGUAGES
 from ..conformance._cli import harness_failure, resolve_port, source_options
 
-__all__ = ["main", "parse_rows", "MAX_ROWS", "make_spec"]
+__all__ = ["main", "parse_rows", "MAX_ROWS", "make_spec", "add_options"]
 
 #: The most rows one sweep draws (refused above, before any work).
 MAX_ROWS = 10**10
+
+
+def add_options(sw, positive_int, folder_arg):
+    """The sweep's own options (after the port, profile and source options the command shares with
+    ``conformance``); ``positive_int`` and ``folder_arg`` are the command line's argument types."""
+    sw.add_argument("--rows", default="1e6", metavar="N", help="rows to draw (default 1e6; accepts 1e8)")
+    sw.add_argument("--seed", type=positive_int(0), default=0, help="seed of the draw (default 0)")
+    sw.add_argument("--workers", type=positive_int(1), default=None, metavar="N",
+                    help="spawned worker processes, one driver context each (default: 2, 1 below two chunks)")
+    sw.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--out", type=folder_arg, help="checkpoint (resumed) and one golden folder per shrunk failure")
 
 
 def parse_rows(text):

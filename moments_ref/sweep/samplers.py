@@ -49,12 +49,13 @@ import zlib
 import numpy as np
 
 from .. import moments, nonlinear, packing
+from .._kernels import SWEEP_CHUNK
 from ..golden.contract import XI4_RANGE
 
 __all__ = ["CHUNK", "TEXELS", "RECEIVERS", "STRATA", "SAMPLERS", "chunk_rng", "draw_chunk", "draw_rows", "build_inputs", "draw_texels", "sweepable"]
 
-#: Rows per chunk (fixed: the rows of chunk i do not depend on how a sweep is split).
-CHUNK = 1 << 17
+#: Rows per chunk (fixed: the rows of chunk i do not depend on how a sweep is split; moments_ref._kernels).
+CHUNK = SWEEP_CHUNK
 TEXELS = ("one", "two", "three", "four", "cluster")
 RECEIVERS = ("uniform", "near", "end")
 #: Stratum names, ``"<texel>/<receiver>"``, in the order of the stratum index.
