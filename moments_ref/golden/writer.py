@@ -32,7 +32,8 @@ from .._arrays import InputError
 from .._io import folder_lock, marked_incomplete, save_npz, write_text
 from .cases import CASES
 from .notes import CATEGORIES, NOTES, RESULTS
-from .spread import FLOOR_ULPS, PERTURB_ULPS, SAFETY, gated_summary, golden_arrays, ulp
+from . import bands
+from .spread import gated_summary, golden_arrays, ulp
 
 __all__ = ["write", "write_rows", "SCHEMA_VERSION", "SCHEMA_HISTORY", "CATEGORIES", "golden_arrays", "manifest_entry"]
 
@@ -160,10 +161,15 @@ def _write(out_dir, cases, progress, profile):
         "package": "moments_ref",
         "package_version": __version__,
         "numpy_version": np.__version__,
-        "tolerance_rule": f"per row and output component: {SAFETY:g} x the largest deviation of legitimate "
-                          f"implementations (reference in float32 and float64, inputs scaled by 1 +- "
-                          f"{PERTURB_ULPS} ulps), at least {FLOOR_ULPS} ulps; metric per case (abs or ulps); "
-                          "integer outputs exact, ties accept the stored acceptable codes",
+        "tolerance_rule": "per row and output component: the interval spanned by the legitimate evaluations "
+                          "(reference in float32 and float64, on inputs scaled jointly by 1 +- "
+                          f"{bands.PERTURB_ULPS} ulps and per component by 1 +- {bands.INDEPENDENT_ULPS} ulp, "
+                          "the papers' formulations within the cap), widened by a margin (the largest of "
+                          f"{bands.MARGIN_NOISE:g} x the case's rounding noise, {bands.MARGIN_WIDTH:g} x the "
+                          f"interval's width, {bands.FLOOR_ULPS} ulps), bounded outputs capped at {bands.CAP:g} of "
+                          "their range (wider: ill-conditioned, flag wide_spread); stored as the smallest "
+                          "symmetric tolerance that holds the band; integer outputs exact, ties accept the "
+                          "stored acceptable codes",
         "notes": NOTES,
         "results": RESULTS,
         "cases": {},
