@@ -1,11 +1,13 @@
 """golden.bands: bands from the interval of legitimate evaluations, checked by independent means.
 
 Independent means here: the exact values of the mpmath twins (moments_ref.precise, through the case's
-truth) over the float32 neighbourhood of a row, and float32 transliterations of shipped code
-(golden.paper.cholesky_bound is ports/glsl/msm.glsl operation by operation).
+truth) over the float32 neighbourhood of a row, and the shipped ports/glsl/msm.glsl run on the driver
+(the band counts golden.paper.cholesky_bound, a transliteration of that file, as legitimate: judging the
+transliteration against the band would compare the band with a part of itself).
 """
 
 import numpy as np
+import pytest
 
 from moments_ref.golden import bands
 from moments_ref.golden.cases import CASES
@@ -28,18 +30,36 @@ def _near_singular_rows(n=4000, seed=7):
     return b32, zf
 
 
-def test_the_shipped_cholesky_upper_bound_lies_in_its_band_near_singular_texels():
-    case = CASES["shadow_intensity-upper-float32"]
+@pytest.mark.parametrize("bound", ["upper", "lower"])
+def test_the_shipped_port_lies_in_its_band_near_singular_texels(ctx, bound):
+    from moments_ref.conformance import PORTS_DIR, run_function
+
+    case = CASES[f"shadow_intensity-{bound}-float32"]
     b, zf = _near_singular_rows()
     (lo, hi), = [bands.legitimate_interval(case, {"b": b, "zf": zf})[0]["intensity"]]
-    got = np.asarray(cholesky_bound(b, zf, "upper"), np.float64)
+    got = np.asarray(run_function(PORTS_DIR / "glsl" / "msm.glsl", f"shadow_intensity_{bound}", {"b": b, "zf": zf},
+                                  {"intensity": ("float32", zf.shape)}, adapter="gl")[0]["intensity"], np.float64)
     inside = rows_inside(case.contract, {"b": b, "zf": zf})  # robustness rows are judged apart
     assert inside.mean() > 0.5
-    ok = np.isnan(got) | ((got >= lo) & (got <= hi)) | ~inside
+    ok = ((got >= lo) & (got <= hi)) | ~inside
     assert ok.all(), np.flatnonzero(~ok)[:5]
-    # The class exists: the plain evaluation leaves the float64 reference by more than 1e-5 on some rows.
+    # The class exists: the driver's value leaves the float64 reference by more than 1e-5 on some rows
+    # (the plain float32 Cholesky evaluation the shipped file and the paper use lands z2 just above zf).
     ref = np.asarray(case.reference(b=b.astype(np.float64), zf=zf.astype(np.float64))[0])
-    assert np.nanmax(np.where(inside, np.abs(got - ref), 0)) > 1e-5
+    if bound == "upper":
+        assert np.nanmax(np.where(inside, np.abs(got - ref), 0)) > 1e-5
+
+
+def test_the_transliteration_of_the_shipped_port_matches_the_driver(ctx):
+    """golden.paper.cholesky_bound is what makes the band hold the shipped port: it must be that port."""
+    from moments_ref.conformance import PORTS_DIR, run_function
+
+    b, zf = _near_singular_rows(1000, seed=11)
+    got = np.asarray(run_function(PORTS_DIR / "glsl" / "msm.glsl", "shadow_intensity_upper", {"b": b, "zf": zf},
+                                  {"intensity": ("float32", zf.shape)}, adapter="gl")[0]["intensity"], np.float64)
+    mine = np.asarray(cholesky_bound(b, zf, "upper"), np.float64)
+    # llvmpipe runs the file's operations in the file's order, without contraction: bit for bit, NaN rows alike.
+    assert np.array_equal(mine, got, equal_nan=True) and np.isfinite(got).mean() > 0.9
 
 
 def test_bounded_bands_are_capped_unless_ill_conditioned():
@@ -73,7 +93,7 @@ def test_an_ill_conditioned_upper_bound_row_answered_by_a_correct_port_passes():
     wide = np.flatnonzero([("wide_spread" in f) and ("robustness" not in f) for f in a["flags"]])[:4]
     assert wide.size
     inputs = {"b": a["b"][wide], "zf": a["zf"][wide]}
-    (lo, hi), ill = [(v, i) for v, i in [tuple(bands.legitimate_interval(case, inputs))]][0][0]["intensity"], None
+    lo, hi = bands.legitimate_interval(case, inputs)[0]["intensity"]
     eps = float(np.finfo(np.float32).eps)
     for f in (1 + eps, 1 - eps):  # exact values (mpmath) on float32 neighbours
         nb = {"b": (inputs["b"].astype(np.float64) * f).astype(np.float32), "zf": inputs["zf"]}
@@ -82,14 +102,14 @@ def test_an_ill_conditioned_upper_bound_row_answered_by_a_correct_port_passes():
         assert not bands.confirm(case, inputs, {"intensity": exact}).any()
 
 
-def test_bands_of_a_million_rows_take_seconds():
-    import time
-
+def test_bands_of_many_rows_are_finite_and_ordered():
+    # Speed is measured by `moments-ref bench --only sweep`, not asserted here.
     case = CASES["shadow_intensity-lower-float32"]
     b, zf = _near_singular_rows(200_000, seed=3)
-    t = time.perf_counter()
-    bands.legitimate_interval(case, {"b": b, "zf": zf})
-    assert time.perf_counter() - t < 20  # 2e5 rows; ~5x that for 1e6 on a loaded 2-core machine
+    (lo, hi), ill = [(v["intensity"], i) for v, i in [bands.legitimate_interval(case, {"b": b, "zf": zf})]][0]
+    inside = rows_inside(case.contract, {"b": b, "zf": zf})
+    assert lo.shape == hi.shape == (200_000,) and ill.shape == (200_000,)
+    assert (lo[inside] <= hi[inside]).all() and np.isfinite(lo[inside & ~ill]).all()
 
 
 def _biased_port(alpha, target):

@@ -43,7 +43,7 @@ from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
 __all__ = ["legitimate_interval", "confirm", "evaluations", "case_noise", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
-           "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS"]
+           "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
 #: Joint scaling of the float inputs, in ulps of the port's precision.
 PERTURB_ULPS = 3
@@ -227,8 +227,8 @@ def noise_of(case, dt, expected, core, random_rows):
     return tuple(out)
 
 
-#: Structured rows (exact relations between inputs) are perturbed only jointly, as in golden.spread.
-_STRUCTURED = ("support_point", "fold", "code_boundary", "singular_hankel")
+#: Rows whose meaning rests on exact relations between inputs: perturbed only jointly.
+STRUCTURED = ("support_point", "fold", "code_boundary", "singular_hankel")
 _NOISE = {}
 
 
@@ -240,7 +240,7 @@ def case_noise(case, dt):
         inputs, category, _, flags = case_table(case)
         inputs = {k: inputs[k] for k in case.inputs}
         n = len(category)
-        free = np.array([not any(f in _STRUCTURED for f in fl) for fl in flags], bool)
+        free = np.array([not any(f in STRUCTURED for f in fl) for fl in flags], bool)
         free = free & ~equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
         expected = expected_outputs(case, inputs)
         core, _ = evaluations(case, inputs, np.dtype(dt), free)

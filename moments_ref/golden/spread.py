@@ -9,10 +9,10 @@ with *legitimate* evaluations of the same equation:
   error of that size is what operations up to 3 ulps off (GLSL/HLSL division and
   square root, fused multiply-add, rearranged formulas) produce.
 
-The tolerance of a row (per output component) is ``SAFETY`` times the largest
-deviation among them, and never below a floor of ``FLOOR_ULPS`` ulps of the expected
-value in the port's precision: a floor measured in ulps never exceeds the effect of
-a function that changes its input by a few ulps (biasing). Metric ``"abs"``
+The band of a row is the interval those evaluations span, widened by a margin and capped
+for bounded outputs (:mod:`moments_ref.golden.bands`, the one model the goldens and the
+sweep share); the golden file stores, per output component, the smallest symmetric
+tolerance about the expected value that holds it. Metric ``"abs"``
 tolerances are absolute, ``"ulps"`` tolerances count units in the last place of the
 port's precision. Rows whose value is undefined (flags in
 :data:`moments_ref.golden.notes.UNGATED`) get an infinite tolerance and result
@@ -36,16 +36,14 @@ import math
 
 import numpy as np
 
-from .bands import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, equal_inputs, evaluations, interval_parts, noise_of
+from .bands import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, STRUCTURED, equal_inputs, evaluations, interval_parts, noise_of
 from .cases import CASES, case_table, evaluate_reference, expected_outputs
 from .notes import ROBUSTNESS, UNGATED, UNGATED32
 from .units import PORT_DTYPES, ceil2, ulp
 
-__all__ = ["derive", "golden_arrays", "gated_summary", "robust_rows", "ceil2", "row_tolerance", "SAFETY", "FLOOR_ULPS",
+__all__ = ["derive", "golden_arrays", "gated_summary", "robust_rows", "ceil2", "row_tolerance", "FLOOR_ULPS",
            "PERTURB_ULPS", "INDEPENDENT_ULPS", "STRUCTURED", "ulp", "PORT_DTYPES", "TIE_BAND", "TruthMismatch"]
 
-#: Kept for the engine cases' tolerance rule and older imports; the golden bands use no safety factor.
-SAFETY = 16.0
 _NUDGE = 8 * float(np.finfo(np.float32).eps)
 _WIDE = 0.1
 #: Where a float implementation may store the neighbouring code: the exact scaled value
@@ -57,8 +55,6 @@ class TruthMismatch(AssertionError):
     """The reference's codes disagree with the ground truth away from a rounding boundary."""
 
 
-#: Rows whose meaning rests on exact relations between inputs: perturbed only jointly.
-STRUCTURED = ("support_point", "fold", "code_boundary", "singular_hankel")
 
 
 def _float_tolerances(case, inputs, expected, n, flags, category):
