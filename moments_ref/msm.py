@@ -78,7 +78,7 @@ import numpy as np
 
 from ._arrays import InputError, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import MSM_CHUNK, SINGULAR_RTOL, broadcast_chunks, copysign_inplace, singular_thresholds, two_point
+from ._kernels import MSM_CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds, two_point
 
 __all__ = [
     "shadow_intensity",

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._arrays import InputError, brief
-from .golden.cases import CASES
+from .golden.cases import CASES, call_implementation
 from .golden.loader import load_case
 from .golden.compare import compare
 from .golden.spread import derive, row_tolerance
@@ -162,20 +162,6 @@ def _concat(a, b):
     return out
 
 
-def _call(candidate, c, arrays, vectorized):
-    args = [arrays[k] for k in c.inputs]
-    if vectorized:
-        got = candidate(*args)
-    else:
-        rows = [candidate(*[a[i] for a in args]) for i in range(len(args[0]))]
-        got = (tuple(np.stack([np.asarray(r[j]) for r in rows]) for j in range(len(c.outputs)))
-               if len(c.outputs) > 1 else np.stack([np.asarray(r) for r in rows]))
-    got = tuple(got) if isinstance(got, (tuple, list)) else (got,)
-    if len(got) != len(c.outputs):
-        raise InputError(f"candidate: expected {len(c.outputs)} output(s) {c.outputs}, got {len(got)}")
-    return dict(zip(c.outputs, (np.asarray(g) for g in got)))
-
-
 def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized=True, profile=None, strict=False,
           golden_dir=None):
     """Run ``candidate`` on golden and hypothesis rows and judge it like ``verify``.
@@ -236,7 +222,7 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         from .golden.conventions import profile_arrays
 
         c, arrays = profile_arrays(c, arrays, profile)
-    got = _call(candidate, c, arrays, vectorized)
+    got = call_implementation(candidate, c, arrays, vectorized, argument="candidate")
     verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name, strict=strict)
     return _report(c, name, dtype, arrays, got, verdict)
 
@@ -296,7 +282,7 @@ def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True):
         distinct failure shrunk to a small row. Runs in this process.
     """
     from .golden import CASES
-    from .sweep import Port, SweepSpec, sweep_port
+    from .sweep import Port, sweep_port
 
     name = case if case in CASES else f"{case}-float32"
     if name not in CASES:

@@ -27,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from .. import precise
+from .._arrays import InputError
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import contract as _contract_mod
 from . import bilinear, endtoend, engine, kernels, texel_truth
@@ -38,7 +39,7 @@ from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inve
                              _reencode_rows, _representation_rows, _shade_rows)
 from .truth import shade_clamped
 
-__all__ = ["Case", "CASES", "case_rows", "case_table", "evaluate_reference", "expected_outputs"]
+__all__ = ["Case", "CASES", "case_rows", "case_table", "evaluate_reference", "expected_outputs", "call_implementation"]
 
 
 @dataclass(frozen=True)
@@ -324,3 +325,23 @@ def expected_outputs(case, inputs):
         as64 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.float64)) for k, v in inputs.items()}
         return case.truth(**as64)
     return evaluate_reference(case, inputs, np.float64)
+
+
+def call_implementation(fn, case, inputs, vectorized=True, argument="fn"):
+    """A foreign implementation's outputs on the case's rows, as ``{output: array}``.
+
+    ``fn(*inputs)`` in the case's input order; with ``vectorized=False`` once per row, the rows
+    stacked. ``argument`` names ``fn`` in the refusal of a wrong number of outputs (``oracle.check``
+    calls it ``candidate``).
+    """
+    args = [inputs[k] for k in case.inputs]
+    if vectorized:
+        got = fn(*args)
+    else:
+        rows = [fn(*[a[i] for a in args]) for i in range(len(args[0]))]
+        got = (tuple(np.stack([np.asarray(r[j]) for r in rows]) for j in range(len(case.outputs)))
+               if len(case.outputs) > 1 else np.stack([np.asarray(r) for r in rows]))
+    got = tuple(got) if isinstance(got, (tuple, list)) else (got,)
+    if len(got) != len(case.outputs):
+        raise InputError(f"{argument}: expected {len(case.outputs)} output(s) {case.outputs}, got {len(got)}")
+    return dict(zip(case.outputs, (np.asarray(g) for g in got)))

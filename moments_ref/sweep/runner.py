@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arrays import InputError
+from ..golden.cases import call_implementation
 from . import judge
 from .samplers import CHUNK, STRATA, draw_chunk
 
@@ -92,27 +92,12 @@ def evaluate(spec, inputs, driver):
     case, port = spec.case, spec.port
     n = len(next(iter(inputs.values())))
     if port.fn is not None:
-        return _call(port.fn, case, inputs, port.vectorized)
+        return call_implementation(port.fn, case, inputs, port.vectorized)
     from ..conformance import run_function
 
     shapes = {o: (np.float32 if not case.integer_output else np.uint32, (n,) + _out_shape(case, o)) for o in case.outputs}
     got, _ = run_function(port.path, port.function, inputs, shapes, port.language, driver, port.options)
     return got
-
-
-def _call(fn, case, inputs, vectorized):
-    """A Python implementation's outputs: ``fn(*inputs)`` (or once per row), as ``{output: array}``."""
-    args = [inputs[k] for k in case.inputs]
-    if vectorized:
-        got = fn(*args)
-    else:
-        rows = [fn(*[a[i] for a in args]) for i in range(len(args[0]))]
-        got = tuple(np.stack([np.asarray(r if len(case.outputs) == 1 else r[j]) for r in rows])
-                    for j in range(len(case.outputs)))
-    got = tuple(got) if isinstance(got, (tuple, list)) else (got,)
-    if len(got) != len(case.outputs):
-        raise InputError(f"fn: expected {len(case.outputs)} output(s) {case.outputs}, got {len(got)}")
-    return dict(zip(case.outputs, (np.asarray(g) for g in got)))
 
 
 def _out_shape(case, o):
