@@ -66,8 +66,8 @@ def _contradiction(case, what, why):
 
 
 def _check(case, profile):
-    if profile.depth not in (None, "[-1,1]") and not case.depth_roles:
-        _contradiction(case, f"depth = {profile.depth!r}", "its quantities are defined for depths in [-1, 1]")
+    if profile.depth not in (None, case.depth) and not case.depth_roles:
+        _contradiction(case, f"depth = {profile.depth!r}", f"its quantities are defined for depths in {case.depth}")
     if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
         _contradiction(case, "output = 'visibility'", "it returns no shadow intensity")
     b = profile.bias

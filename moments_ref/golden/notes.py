@@ -96,6 +96,12 @@ NOTES = {
         "effect": "robustness row, result acceptable: ungated (the value is undefined; with --strict the output "
                   "must be finite and in [0, 1])",
     },
+    "receiver_at_depth_0": {
+        "description": "Hausdorff bound: a receiver at depth 0, where the four-point representation (0, zf, x, 1) "
+                       "divides by zf; the bound is defined there (no mass lies below 0: the lower bound is 0, the "
+                       "upper bound Algorithm 1's principal representation through 0)",
+        "effect": "gated: a port that takes the four-point branch at zf = 0 returns NaN or inf and fails here",
+    },
     "near_far": {
         "description": "engine case: a mixture of the near and far planes (and a third depth): the moments of a "
                        "distribution on the ends of the depth range, which a bias toward a two-point target on the "
