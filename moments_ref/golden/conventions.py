@@ -119,6 +119,8 @@ def unused_keys(case, profile):
         out.append("clamp_test")
     if profile.format and "format" not in case.profile_keys:
         out.append("format")
+    if profile.bound is not None and not case.name.startswith(("shadow_intensity-", "hausdorff-")):
+        out.append("bound")  # four-moment bounds only (golden.cases.bound_case)
     return out
 
 

@@ -157,6 +157,9 @@ CAUSES = {
     "printed_hazard": "a printed formula (the papers' root -p/2 - sqrt(p^2/4 - q)) cancels here in float32: a port "
                       "that copied it fails this row; take the root without cancellation (t = -(q1 + sign(q1) "
                       "sqrt(disc))/2, z = t/q2 and q0/t)",
+    "receiver_at_depth_0": "a receiver at depth 0: the Hausdorff bound's four-point weights divide by zf there; "
+                           "the bound is defined (lower 0: nothing lies below 0), so take the three-point branch "
+                           "or return it at zf <= 0",
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",
