@@ -107,3 +107,18 @@ def test_bad_input_names_the_argument():
         hausdorff.shadow_intensity([0.5, np.nan, 0.2, 0.1], 0.5)
     with pytest.raises(InputError, match="zf"):
         hausdorff.shadow_intensity([0.5, 0.3, 0.2, 0.1], [np.inf])
+
+
+def test_a_case_registers_its_flags_in_the_manifest(tmp_path):
+    """The Hausdorff cases bring their flag in their registry entry (Case(notes=...)): the manifest's
+    notes table and the diagnosis's causes hold it; a second, different text for a flag is refused."""
+    import json
+
+    from moments_ref.golden import notes, writer
+
+    writer.write(tmp_path, cases=["hausdorff-lower-float32"])
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert "receiver_at_depth_0" in manifest["notes"]
+    assert "divide by zf" in notes.cause("receiver_at_depth_0", "stiff")
+    with pytest.raises(ValueError, match="receiver_at_depth_0"):
+        notes.register("receiver_at_depth_0", "another text", "another effect")

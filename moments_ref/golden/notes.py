@@ -13,7 +13,7 @@ References
 
 from __future__ import annotations
 
-__all__ = ["CATEGORIES", "NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause"]
+__all__ = ["CATEGORIES", "NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause", "register"]
 
 #: The flag of rows beyond the algorithm's contract (:mod:`moments_ref.golden.contract`).
 ROBUSTNESS = "robustness"
@@ -96,12 +96,6 @@ NOTES = {
         "effect": "robustness row, result acceptable: ungated (the value is undefined; with --strict the output "
                   "must be finite and in [0, 1])",
     },
-    "receiver_at_depth_0": {
-        "description": "Hausdorff bound: a receiver at depth 0, where the four-point representation (0, zf, x, 1) "
-                       "divides by zf; the bound is defined there (no mass lies below 0: the lower bound is 0, the "
-                       "upper bound Algorithm 1's principal representation through 0)",
-        "effect": "gated: a port that takes the four-point branch at zf = 0 returns NaN or inf and fails here",
-    },
     "near_far": {
         "description": "engine case: a mixture of the near and far planes (and a third depth): the moments of a "
                        "distribution on the ends of the depth range, which a bias toward a two-point target on the "
@@ -157,15 +151,24 @@ CAUSES = {
     "printed_hazard": "a printed formula (the papers' root -p/2 - sqrt(p^2/4 - q)) cancels here in float32: a port "
                       "that copied it fails this row; take the root without cancellation (t = -(q1 + sign(q1) "
                       "sqrt(disc))/2, z = t/q2 and q0/t)",
-    "receiver_at_depth_0": "a receiver at depth 0: the Hausdorff bound's four-point weights divide by zf there; "
-                           "the bound is defined (lower 0: nothing lies below 0), so take the three-point branch "
-                           "or return it at zf <= 0",
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",
     "shadow_edge": "a shadow edge across the 2x2 texels: a wrong sample position or weight changes the result most",
     "weight_grid": "a fraction on the 8-bit weight grid: only the filter's rounding is allowed",
 }
+
+
+def register(flag, description, effect, cause=None):
+    """Add a flag that one case's rows introduce (its ``Case(notes=...)`` entry in golden/cases.py).
+
+    The flag joins :data:`NOTES` (the manifest's notes table) and, with ``cause``, :data:`CAUSES`
+    (the diagnosis's line), so that a new case is one registry entry, not three lists. A flag
+    registered twice must say the same thing (``ValueError`` otherwise).
+    """
+    note = {"description": description, "effect": effect}
+    if NOTES.setdefault(flag, note) != note or (cause is not None and CAUSES.setdefault(flag, cause) != cause):
+        raise ValueError(f"golden note {flag!r} is registered twice with different text")
 
 
 def cause(flags, category):
