@@ -15,6 +15,9 @@ References
        lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
        moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
        Cited by slide title, e.g. Slides, "Bias the moments".
+.. [3] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
+       In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
+       '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
 """
 
 from __future__ import annotations
