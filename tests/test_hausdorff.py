@@ -122,3 +122,35 @@ def test_a_case_registers_its_flags_in_the_manifest(tmp_path):
     assert "divide by zf" in notes.cause("receiver_at_depth_0", "stiff")
     with pytest.raises(ValueError, match="receiver_at_depth_0"):
         notes.register("receiver_at_depth_0", "another text", "another effect")
+
+
+def test_the_bound_key_picks_the_hausdorff_cases_and_is_refused_when_misspelled():
+    from moments_ref.golden.cases import CASES, bound_case
+    from moments_ref.golden.conventions import unused_keys
+    from moments_ref.golden.profile import Profile, parse_profile
+
+    p = parse_profile({"bound": "hausdorff", "depth": "[0,1]"})
+    assert p.bound == "hausdorff" and "bound hausdorff" in p.describe()
+    assert Profile().key == parse_profile({}).key and "bound" not in Profile().canonical  # old hashes kept
+    assert bound_case("shadow_intensity-upper-float64", p.bound) == "hausdorff-upper-float64"
+    assert bound_case("shadow_intensity6-lower-float32", p.bound) == "shadow_intensity6-lower-float32"
+    assert bound_case("shadow_intensity-lower", None) == "shadow_intensity-lower"
+    assert unused_keys(CASES["shade-float32"], p) == ["bound"]  # named in the verdict, not dropped
+    assert unused_keys(CASES["hausdorff-lower-float32"], p) == []
+    with pytest.raises(InputError, match="bound"):
+        parse_profile({"bound": "hausdorf"})
+    with pytest.raises(InputError, match="did you mean 'bound'"):
+        parse_profile({"bond": "hausdorff"})
+
+
+def test_oracle_check_judges_a_declared_hausdorff_port_by_the_hausdorff_cases():
+    from moments_ref import oracle
+    from moments_ref.golden.profile import parse_profile
+
+    port = lambda b, zf: hausdorff.shadow_intensity(b, zf)  # noqa: E731
+    declared = oracle.check(port, "shadow_intensity-lower", n_hypothesis=0,
+                            profile=parse_profile({"bound": "hausdorff", "depth": "[0,1]"}))
+    assert declared.passed
+    undeclared = oracle.check(port, "shadow_intensity-lower", n_hypothesis=0,
+                              profile=parse_profile({"depth": "[0,1]"}))
+    assert not undeclared.passed  # Algorithm 1's bound is another function
