@@ -69,3 +69,15 @@ def test_the_advice_is_not_given_to_a_port_it_does_not_explain(drivers):
                   profile=replace(PROFILE, bound=None))
     assert not report.passed
     assert not [g for g in report.groups if g.flags == 'bound = "hausdorff"'], report.format()
+
+
+def test_both_drivers_judge_the_declared_case(drivers):
+    """``--adapter both`` runs the case the declaration picks on each driver (not Algorithm 1's rows)."""
+    import io
+
+    out, err = io.StringIO(), io.StringIO()
+    rc = conformance.run_cli(HERE / "hausdorff_depth0_division.glsl", "hausdorffLower", "shadow_intensity-lower-float32",
+                             golden_folder(CASES), out=out, err=err, adapter="both", profile=PROFILE)
+    text = out.getvalue()
+    assert rc == 1, err.getvalue()
+    assert text.count("on hausdorff-lower-float32: 252 rows, 4 exceed the tolerance") == 2, text  # gl and vulkan

@@ -352,7 +352,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
         from ..golden.cases import bound_case
 
         case = bound_case(case, profile.bound)  # bound = "hausdorff": judged by the Hausdorff cases
-    gc = gc or load_case(case, golden_dir)
+    gc = gc if gc is not None and gc.name == case else load_case(case, golden_dir)
     from ..golden.diagnosis import convention_groups
     from ..golden.profile import DEFAULT
 
