@@ -1,6 +1,6 @@
 """The Hausdorff bound: moment shadow mapping with depths known to lie in [0, 1].
 
-Peters and Klein 2015 (§3 and the appendix, "Hausdorff moment shadow mapping") offer two
+Peters and Klein 2015 offer two
 bounds of the shadow intensity ``Z(z < zf)`` from four moments ``b = (b1, b2, b3, b4)``
 (b0 = 1): the Hamburger bound (:func:`moments_ref.msm.shadow_intensity`, any real depths)
 and the Hausdorff bound, which also uses that every depth lies in the closed interval
@@ -8,7 +8,8 @@ and the Hausdorff bound, which also uses that every depth lies in the closed int
 WebGPU window depth). Its moments are moments of ``z_unit``; this module takes ``b`` and
 ``zf`` in that space (never the light's NDC).
 
-The bound is the Markov–Krein bound of the Hausdorff moment problem. Among all
+The bound is the Markov–Krein bound of the Hausdorff moment problem (derived here from the
+moment problem itself; the section of the paper that prints it is not cited by number). Among all
 distributions on [0, 1] with the moments b, the smallest ``Z(z < zf)`` is attained by the
 canonical representation that has zf as a point of support, and it is one of two kinds:
 
