@@ -205,6 +205,10 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         from .golden.profile import load_profile
 
         profile = load_profile(profile)
+    if profile is not None and profile.bound is not None:
+        from .golden.cases import bound_case
+
+        case = bound_case(case, profile.bound)  # bound = "hausdorff": judged by the Hausdorff cases
     name = case if case in CASES else f"{case}-{dtype}"
     if name not in CASES:
         stems = sorted({n.rsplit("-", 1)[0] for n in CASES})

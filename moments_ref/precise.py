@@ -41,6 +41,9 @@ References
 .. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
        of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
        1–3, the texel formats and the compute shader of §4.1.
+.. [2] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
+       In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
+       '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
 """
 
 from __future__ import annotations
@@ -69,6 +72,8 @@ __all__ = [
     "shadow_bounds6",
     "shadow_intensity6",
     "canonical_representation6",
+    "hausdorff_bounds",
+    "hausdorff_intensity",
 ]
 
 #: Default working precision in significant decimal digits.
@@ -424,6 +429,57 @@ def canonical_representation(b, zf, dps=DPS):
             depths[idx] = [float(x) for x in d]
             weights[idx] = [float(x) for x in w]
     return depths, weights
+
+
+def _hausdorff_mp(b1, b2, b3, b4, zf, tol):
+    """(lower, upper) of the Hausdorff bound for mpmath scalars (depths in [0, 1]).
+
+    Algorithm 1's canonical representation where its roots lie in [0, 1]; else the
+    four points ``(0, zf, x, 1)``: x from ``E[Z (Z − 1)(Z − zf)(Z − x)] = 0`` with the
+    polynomial ``Z (Z − 1)(Z − zf)`` multiplied out in mpmath, the weights from the
+    Vandermonde system of ``(1, b1, b2, b3)`` (``mpmath.lu_solve``).
+    """
+    m = (mpmath.mpf(1), b1, b2, b3, b4)
+    depths, weights = _canonical_mp(b1, b2, b3, b4, zf, tol)
+    if all(0 <= z <= 1 for z in depths[1:]) or not 0 < zf < 1:
+        lower = mpmath.fsum(w for z, w in zip(depths[1:], weights[1:]) if z < zf)
+        upper = lower + weights[0]
+    else:
+        c = [mpmath.mpf(0), zf, -(1 + zf), mpmath.mpf(1)]  # Z (Z − 1)(Z − zf), ascending powers
+        x = mpmath.fsum(ck * m[k + 1] for k, ck in enumerate(c)) / mpmath.fsum(ck * m[k] for k, ck in enumerate(c))
+        zs = (mpmath.mpf(0), zf, x, mpmath.mpf(1))
+        w = _solve(mpmath.matrix([[z ** k for z in zs] for k in range(4)]), mpmath.matrix(m[:4]))
+        lower = w[0] + (w[2] if x < zf else 0)
+        upper = lower + w[1]
+    if zf <= 0:
+        lower = mpmath.mpf(0)  # no mass of a distribution on [0, 1] lies below 0
+    if zf >= 1:
+        upper = mpmath.mpf(1)
+    clamp = lambda v: min(max(v, mpmath.mpf(0)), mpmath.mpf(1))  # noqa: E731 (saturate, as the kernel)
+    return clamp(lower), clamp(upper)
+
+
+def hausdorff_bounds(b, zf, dps=DPS):
+    """mpmath twin of :func:`moments_ref.hausdorff.shadow_bounds` (Peters and Klein 2015, Hausdorff bound).
+
+    ``b`` moments of depths in [0, 1] and ``zf`` in [0, 1] (the ``unit`` depth space); any
+    float dtype, converted exactly. Returns ``(lower, upper)`` as float64 arrays.
+    """
+    dps = _check_dps(dps)
+    b, zf, shape = _prepare(b, zf)
+    lower = np.empty(shape, dtype=np.float64)
+    upper = np.empty(shape, dtype=np.float64)
+    with mpmath.workdps(dps):
+        tol = _tol(dps)
+        for idx in np.ndindex(shape):
+            lo, up = _hausdorff_mp(*(_mp(v) for v in b[idx]), _mp(zf[idx]), tol)
+            lower[idx], upper[idx] = float(lo), float(up)
+    return lower, upper
+
+
+def hausdorff_intensity(b, zf, bound="lower", dps=DPS):
+    """mpmath twin of :func:`moments_ref.hausdorff.shadow_intensity`: ``bound`` of :func:`hausdorff_bounds`."""
+    return _one_bound(hausdorff_bounds, b, zf, bound, dps)
 
 
 def pivots(b, dps=DPS):

@@ -17,6 +17,15 @@ def test_api_doc_is_current():
         "regenerate: python -m moments_ref.tools.apidoc > docs/api.md"
 
 
+def test_golden_contract_table_is_current():
+    """docs/golden.md's contract table is generated from the cases' registry entries (golden.casedoc)."""
+    from moments_ref.golden.casedoc import MARKERS, contracts_markdown
+
+    text = (ROOT / "docs" / "golden.md").read_text()
+    block = text.split(MARKERS[0], 1)[1].split(MARKERS[1], 1)[0]
+    assert block == contracts_markdown(), "regenerate: python -m moments_ref.tools.apidoc --cases"
+
+
 def test_every_public_module_is_documented():
     """Every public module with names of its own has a section in docs/api.md; the others are
     re-exported by their package (checked here name by name), the CLI, package data or a shim."""

@@ -86,6 +86,10 @@ def compare_drivers(path, function, case, golden_dir=None, language=None, gc=Non
     from ._cases import load_case
 
     language = language_of(path, language)
+    if verdict.get("profile") is not None and verdict["profile"].bound is not None:
+        from ..golden.cases import bound_case
+
+        case = bound_case(case, verdict["profile"].bound)  # the case run_case judges (bound = "hausdorff")
     gc = gc or load_case(case, golden_dir)
     reports = {d: run_case(path, function, case, golden_dir, language, d, gc=gc, options=options, **verdict)
                for d in DRIVERS}

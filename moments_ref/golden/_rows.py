@@ -275,3 +275,52 @@ def _msm6_rows(rng, dtype):
     return Rows.concat(parts)
 
 
+
+
+#: The endpoints' moments (equal mass at 0 and 1): the target toward which the Hausdorff rows are biased.
+_ENDS_TARGET = np.full(4, 0.5)
+
+
+def _hausdorff_rows(rng, dtype):
+    """Rows for the Hausdorff bound (moments_ref.hausdorff): (b, zf), depths and receivers in [0, 1]."""
+    parts = []
+    z, w = _random_distributions(rng, 120)
+    z = 0.5 * (z + 1)
+    parts.append(_rows({"b": power_moments(z, w), "zf": rng.uniform(0, 1, 120)}, "random",
+                       "3 to 8 random depths in [0, 1], random weights (inside the moment space)"))
+    z, w = _random_distributions(rng, 40)
+    b = 0.99994 * power_moments(0.5 * (z + 1), w) + 6e-5 * _ENDS_TARGET
+    parts.append(_rows({"b": b, "zf": rng.uniform(0, 1, 40)}, "random",
+                       "3 to 8 random depths in [0, 1], mixed 6e-5 toward the ends' moments (0.5, 0.5, 0.5, 0.5)"))
+    # Stiff: one depth mixed toward the ends (a flat receiver's texel): the distribution {0, d, 1} is unique.
+    for d in (0.1, 0.35, 0.5, 0.9):
+        b1 = 0.99994 * power_moments([d]) + 6e-5 * _ENDS_TARGET
+        zf = np.array([0.0, 0.5 * d, d - 1e-3, d + 1e-3, 0.5 * (d + 1), 1.0])
+        parts.append(_rows({"b": np.repeat(b1[None], len(zf), 0), "zf": zf}, "stiff",
+                           [f"one depth {d} mixed 6e-5 toward the ends (mass at 0, {d} and 1), zf = {x:.9g}"
+                            for x in zf], [("receiver_at_depth_0",) if x == 0 else () for x in zf]))
+    # Stiff: mass at the near and far planes and one depth between (a texel straddling both ends): on the
+    # boundary of the moment space of [0, 1]; at zf = 0 Algorithm 1's roots d and 1 round to either side of 1,
+    # and a port that then takes the four-point branch divides by zf.
+    for d in np.linspace(0.05, 0.95, 12):
+        b3 = power_moments(np.array([0.0, d, 1.0]), rng.dirichlet(np.ones(3)))
+        zf = np.array([0.0, 0.5 * d, 0.5 * (d + 1)])
+        parts.append(_rows({"b": np.repeat(b3[None], len(zf), 0), "zf": zf}, "stiff",
+                           [f"depths 0, {d:.3g} and 1 (near plane, one depth, far plane), zf = {x:.9g}" for x in zf],
+                           [("receiver_at_depth_0",) if x == 0 else () for x in zf]))
+    # Edge: receivers at the ends of the depth range, where the four-point formula divides by zf or 1 - zf.
+    z, w = _random_distributions(rng, 10)
+    be = power_moments(0.5 * (z + 1), w)
+    for x in (0.0, 1.0):
+        parts.append(_rows({"b": be, "zf": np.full(len(be), x)}, "edge",
+                           f"random distribution in [0, 1], receiver at depth {x:g}",
+                           ("receiver_at_depth_0",) if x == 0 else ()))
+    # Robustness: moments of depths in [-1, 1] (outside the interval's moment space), receivers beyond [0, 1].
+    z, w = _random_distributions(rng, 8)
+    z[:, 0] = -0.5  # one depth below the interval, with weight at least 0.05 / 8
+    parts.append(_rows({"b": power_moments(z, w), "zf": rng.uniform(0, 1, 8)}, "edge",
+                       "3 to 8 depths in [-1, 1], one at -0.5: moments outside the moment space of [0, 1]",
+                       ("outside_moment_space",)))
+    parts.append(_rows({"b": be[:4], "zf": np.array([-0.5, -1e-3, 1.001, 2.0])}, "edge",
+                       "random distribution in [0, 1], receiver beyond [0, 1]"))
+    return Rows.concat(parts)

@@ -15,6 +15,9 @@ References
        lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
        moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
        Cited by slide title, e.g. Slides, "Bias the moments".
+.. [3] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
+       In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
+       '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
 """
 
 from __future__ import annotations
@@ -33,13 +36,14 @@ from . import contract as _contract_mod
 from . import bilinear, endtoend, engine, kernels, texel_truth
 from .paper import alg1_paper_spread, alg3_paper_spread
 from .variants import alg1_variant, bias_variant, phi_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
-from ._rows import (_moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
+from ._rows import (_hausdorff_rows, _moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
                              _reencode_rows, _representation_rows, _shade_rows)
+from .notes import register as _register_note
 from .truth import shade_clamped
 
-__all__ = ["Case", "CASES", "case_rows", "case_table", "evaluate_reference", "expected_outputs", "call_implementation"]
+__all__ = ["Case", "CASES", "bound_case", "case_rows", "case_table", "evaluate_reference", "expected_outputs", "call_implementation"]
 
 
 @dataclass(frozen=True)
@@ -76,6 +80,8 @@ class Case:
     aux: tuple = ()  # extra row arrays stored in the golden file, not given to the port (engine distributions)
     deriver: Callable | None = None  # replaces spread.derive: (case, arrays, category, comment, flags, contract)
     engine: dict = field(default_factory=dict)  # context of an engine case (golden.engine)
+    depth: str = "[-1,1]"  # the depth convention the case's inputs are written in (a profile may declare it)
+    notes: dict = field(default_factory=dict)  # flags its rows introduce: flag -> (description, effect, cause)
 
     @property
     def contract_text(self):
@@ -216,7 +222,28 @@ def _float_cases(dt):
                            "expected from the mpmath twin")
           for bound in ("lower", "upper")],
     ]
-    return cases + _nonlinear_cases(dt)
+    return cases + _hausdorff_cases(dt) + _nonlinear_cases(dt)
+
+
+#: The flag of the Hausdorff rows at a receiver at depth 0: (description, effect, the diagnosis's cause).
+_DEPTH_0 = {"receiver_at_depth_0": (
+    "Hausdorff bound: a receiver at depth 0, where the four-point representation (0, zf, x, 1) divides by zf; "
+    "the bound is defined there (no mass lies below 0: the lower bound is 0, the upper bound Algorithm 1's "
+    "principal representation through 0)",
+    "gated: a port that takes the four-point branch at zf = 0 returns inf or NaN and fails here",
+    "a receiver at depth 0: the Hausdorff bound's four-point weights divide by zf there; the bound is defined "
+    "(lower 0: nothing lies below 0), so take the three-point branch or return it at zf <= 0")}
+
+
+def _hausdorff_cases(dt):
+    """The Hausdorff bound (Peters and Klein 2015), depths in [0, 1]: a port declares ``bound = "hausdorff"``."""
+    return [Case(f"hausdorff-{bound}-{dt}", "hausdorff.shadow_intensity", dt, ("b", "zf"), ("intensity",),
+                 _hausdorff_rows, _wrap("hausdorff.shadow_intensity", bound=bound),
+                 _precise("hausdorff_intensity", bound=bound), {"bound": bound}, value_range=(0, 1),
+                 contract="hausdorff", depth="[0,1]", width=4, notes=_DEPTH_0,
+                 description=f"Peters and Klein 2015, the Hausdorff {bound} bound (depths and zf in [0, 1]); "
+                             "expected values from the mpmath twin")
+            for bound in ("lower", "upper")]
 
 
 def _nonlinear_cases(dt):
@@ -275,6 +302,20 @@ def _cases():
 
 
 CASES = {c.name: c for c in _cases()}
+for _case in CASES.values():  # the flags a case's entry brings, into the notes table (golden.notes.register)
+    for _flag, _text in _case.notes.items():
+        _register_note(_flag, *_text)
+
+
+def bound_case(name, bound):
+    """The case a port of ``msm.shadow_intensity`` is judged by when its profile declares ``bound``.
+
+    ``bound = "hausdorff"`` (docs/ports.md) maps ``shadow_intensity-{lower,upper}[-dtype]`` to
+    ``hausdorff-{lower,upper}[-dtype]``; any other name, or no declaration, is returned as given.
+    """
+    if bound == "hausdorff" and name.startswith("shadow_intensity-"):
+        return "hausdorff-" + name.removeprefix("shadow_intensity-")
+    return name
 
 
 def _seed(name):

@@ -41,10 +41,14 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["PD_MIN", "XI4_RANGE", "hankel_lambda_min", "moments_inside", "moments_of_a_distribution",
-           "representation_inside", "rows_inside", "TEXT", "ALGORITHM1", "ALGORITHM3", "CHAIN"]
+           "representation_inside", "rows_inside", "TEXT", "ALGORITHM1", "ALGORITHM3", "CHAIN",
+           "HAUSDORFF", "HAUSDORFF_SLACK", "hausdorff_inside"]
 
 #: Smallest eigenvalue of B(b) above which moments are inside the moment space (see above).
 PD_MIN = 1e-12
+#: How far the localizing matrix of z (1 − z) may be negative in a Hausdorff contract row: float32
+#: rounding of moments of order 1 (a few units of 2⁻²⁴) on the boundary of the moment space of [0, 1].
+HAUSDORFF_SLACK = 1e-6
 #: The range of Ψ4⁻¹ (HPG17 §3.3), widened by two float32 spacings for the decoders' rounding.
 XI4_RANGE = (1.2e-7 * (1 - 2.0**-22), 0.25 * (1 + 2.0**-22))
 
@@ -54,6 +58,9 @@ ALGORITHM3 = ("representations the 64- and 32-bit decoders produce (HPG17 §3.3,
               "v2 in [0, 1], y1 <= y2 in [-1, 1]; smaller xi4 are robustness rows")
 CHAIN = ("filtered moments of a depth distribution (B(b) positive semidefinite), biased by the chain before "
          "Algorithm 2 or 1 (HPG17 §3.2): moments outside the moment space are robustness rows")
+HAUSDORFF = ("moments of a distribution on [0, 1] whose Hankel matrix B(b) is positive definite (a biased "
+             "texel of depths in [0, 1]), receivers zf in [0, 1] (0 and 1 included), Peters and Klein 2015; moments "
+             "outside the moment space of [0, 1] and receivers beyond it are robustness rows")
 
 
 def hankel_lambda_min(b):
@@ -84,6 +91,21 @@ def moments_of_a_distribution(b, bias=None):
     return hankel_lambda_min(_biased(b, bias)) > -PD_MIN
 
 
+def hausdorff_inside(b, zf):
+    """Rows of moments b of a distribution on [0, 1] with B(b) positive definite, and zf in [0, 1].
+
+    The closed moment space of [0, 1] (degree 4): B(b) ⪰ 0 and the localizing matrix of
+    z (1 − z), ``[[b1 − b2, b2 − b3], [b2 − b3, b3 − b4]]``, ⪰ 0, up to :data:`HAUSDORFF_SLACK`
+    (float32 rounding of a texel on the boundary, such as one depth mixed toward the ends).
+    """
+    b = np.asarray(b, np.float64)
+    b1, b2, b3, b4 = (b[..., k] for k in range(4))
+    loc = np.stack([np.stack([b1 - b2, b2 - b3], -1), np.stack([b2 - b3, b3 - b4], -1)], -2)
+    zf = np.asarray(zf, np.float64)
+    return ((hankel_lambda_min(b) > PD_MIN) & (np.linalg.eigvalsh(loc)[..., 0] > -HAUSDORFF_SLACK)
+            & (zf >= 0) & (zf <= 1))
+
+
 def representation_inside(r):
     """Rows of ``(n, 4)`` representations that a texel decoder can produce (Algorithm 3's contract)."""
     r = np.asarray(r, np.float64)
@@ -93,7 +115,7 @@ def representation_inside(r):
 
 
 #: The contracts by kind (a case's ``contract``), in words for the manifest.
-TEXT = {"moments_inside": ALGORITHM1, "distribution": CHAIN, "representation": ALGORITHM3}
+TEXT = {"moments_inside": ALGORITHM1, "distribution": CHAIN, "representation": ALGORITHM3, "hausdorff": HAUSDORFF}
 
 
 def rows_inside(kind, inputs, bias=None):
@@ -106,6 +128,8 @@ def rows_inside(kind, inputs, bias=None):
         return representation_inside(inputs["r"])
     if kind == "distribution":
         return moments_of_a_distribution(inputs["b"])
+    if kind == "hausdorff":
+        return hausdorff_inside(inputs["b"], inputs["zf"])
     if kind == "moments_inside":
         return moments_inside(inputs["b"], bias)
     raise ValueError(f"unknown contract kind {kind!r}")

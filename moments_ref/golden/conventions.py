@@ -66,8 +66,8 @@ def _contradiction(case, what, why):
 
 
 def _check(case, profile):
-    if profile.depth not in (None, "[-1,1]") and not case.depth_roles:
-        _contradiction(case, f"depth = {profile.depth!r}", "its quantities are defined for depths in [-1, 1]")
+    if profile.depth not in (None, case.depth) and not case.depth_roles:
+        _contradiction(case, f"depth = {profile.depth!r}", f"its quantities are defined for depths in {case.depth}")
     if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
         _contradiction(case, "output = 'visibility'", "it returns no shadow intensity")
     b = profile.bias
@@ -119,6 +119,8 @@ def unused_keys(case, profile):
         out.append("clamp_test")
     if profile.format and "format" not in case.profile_keys:
         out.append("format")
+    if profile.bound is not None and not case.name.startswith(("shadow_intensity-", "hausdorff-")):
+        out.append("bound")  # four-moment bounds only (golden.cases.bound_case)
     return out
 
 

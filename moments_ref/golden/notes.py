@@ -13,7 +13,7 @@ References
 
 from __future__ import annotations
 
-__all__ = ["CATEGORIES", "NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause"]
+__all__ = ["CATEGORIES", "NOTES", "RESULTS", "UNGATED", "UNGATED32", "ROBUSTNESS", "CAUSES", "cause", "register"]
 
 #: The flag of rows beyond the algorithm's contract (:mod:`moments_ref.golden.contract`).
 ROBUSTNESS = "robustness"
@@ -157,6 +157,18 @@ CAUSES = {
     "shadow_edge": "a shadow edge across the 2x2 texels: a wrong sample position or weight changes the result most",
     "weight_grid": "a fraction on the 8-bit weight grid: only the filter's rounding is allowed",
 }
+
+
+def register(flag, description, effect, cause=None):
+    """Add a flag that one case's rows introduce (its ``Case(notes=...)`` entry in golden/cases.py).
+
+    The flag joins :data:`NOTES` (the manifest's notes table) and, with ``cause``, :data:`CAUSES`
+    (the diagnosis's line), so that a new case is one registry entry, not three lists. A flag
+    registered twice must say the same thing (``ValueError`` otherwise).
+    """
+    note = {"description": description, "effect": effect}
+    if NOTES.setdefault(flag, note) != note or (cause is not None and CAUSES.setdefault(flag, cause) != cause):
+        raise ValueError(f"golden note {flag!r} is registered twice with different text")
 
 
 def cause(flags, category):

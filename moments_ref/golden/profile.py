@@ -23,6 +23,10 @@ flag (:data:`FLAGS`). The keys (docs/ports.md):
 ``[format]``           the texel-format choices the paper leaves open
                        (:data:`FORMAT_KEYS`: decode positions, the rounding of the ξ4
                        code at 64 bits; docs/formats.md).
+``bound``              ``"hamburger"`` (default: Algorithm 1) or ``"hausdorff"`` (Peters
+                       and Klein 2015's Hausdorff bound, depths in [0, 1]): the bound a
+                       ``shadow_intensity`` port computes; ``"hausdorff"`` judges it by
+                       the ``hausdorff-*`` cases (:func:`moments_ref.golden.cases.bound_case`).
 ``[functions.NAME]``   the same keys for one function of the file, overriding the
                        file's (one file often holds a function that biases and one
                        that does not).
@@ -57,13 +61,15 @@ from .._toml import check_values, exact_int, finite_float, load_toml
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["Profile", "Bias", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED", "FORMAT_KEYS",
-           "CLAMP_TESTS",
+           "CLAMP_TESTS", "BOUNDS",
            "FLAGS", "profile_from_args", "DEFAULT"]
 
 DEPTHS = ("[-1,1]", "[0,1]")
 OUTPUTS = ("intensity", "visibility")
 CLAMP_TESTS = ("stored", "clamped")
 APPLIED = ("inside", "before")
+#: The bounds a shadow_intensity port may compute (key ``bound``; docs/ports.md).
+BOUNDS = ("hamburger", "hausdorff")
 #: Texel-format choices the paper leaves open (docs/formats.md), with their allowed values; unset
 #: keys keep the format's own choices (:mod:`moments_ref.packing`). ``*_decode``: where the 32-bit
 #: decoder reads a cell (its lower end, centre or upper end); ``xi_rounding``: the 64-bit Ψ4 code
@@ -73,7 +79,7 @@ _POSITIONS = ("lower", "centre", "upper")
 #: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4).
 FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
                "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17))}
-_KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format")
+_KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format", "bound")
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).
 MAX_PROFILE = 1 << 20
@@ -105,6 +111,7 @@ class Profile:
     clamp: float | None = None
     clamp_test: str | None = None
     format: tuple = ()  # sorted (key, value) pairs
+    bound: str | None = None  # "hamburger" or "hausdorff" (BOUNDS)
     functions: tuple = ()  # sorted (name, Profile) pairs
     source: str = "profile"
 
@@ -125,7 +132,8 @@ class Profile:
                                                 "applied": self.bias.applied}
         return {"depth": self.depth, "output": self.output, "bias": bias, "clamp": self.clamp,
                 "clamp_test": self.clamp_test, "format": dict(self.format),
-                "functions": {k: v.canonical for k, v in self.functions}}
+                "functions": {k: v.canonical for k, v in self.functions},
+                **({"bound": self.bound} if self.bound is not None else {})}  # absent: the hashes stay
 
     @property
     def key(self):
@@ -139,7 +147,8 @@ class Profile:
     def describe(self):
         """One line for reports."""
         c = self.canonical
-        parts = [f"{k} {c[k]}" for k in ("depth", "output", "clamp", "clamp_test") if c[k] is not None]
+        parts = [f"{k} {c[k]}" for k in ("depth", "output", "clamp", "clamp_test", "bound")
+                 if c.get(k) is not None]
         if self.bias is not None:
             b = self.bias
             parts.append("no bias" if not b.active else f"bias alpha {b.alpha:g} toward {list(b.target)} ({b.applied})")
@@ -244,6 +253,8 @@ def _table(data, src, prefix=""):
             fields["clamp_test"] = _choice(v, CLAMP_TESTS, src, key)
         elif k == "format":
             fields["format"] = _format(v, src, key)
+        elif k == "bound":
+            fields["bound"] = _choice(v, BOUNDS, src, key)
         elif k == "functions" and not prefix:
             continue
         else:
@@ -297,6 +308,7 @@ FLAGS = (
     ("--bias-applied", "bias.applied", "where the bias is applied: inside the tested function or before the call"),
     ("--clamp", "clamp", "Algorithm 3's clamp offset (default 1e-6; allowed 1e-7 .. 1/65535)"),
     ("--clamp-test", "clamp_test", "the y2 of Algorithm 3's case test: stored (default) or clamped"),
+    ("--bound", "bound", "the bound a shadow_intensity port computes: hamburger (default) or hausdorff"),
     *[(f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(map(str, v))})")
       for k, v in FORMAT_KEYS.items()],
 )

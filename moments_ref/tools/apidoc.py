@@ -2,7 +2,8 @@
 
 ``python -m moments_ref.tools.apidoc > docs/api.md``; ``--layout`` prints the table of
 docs/architecture.md (the README links to it); ``--columns`` rewrites the column table
-of docs/report.md (:mod:`moments_ref.report.columns`); ``tests/test_docs.py`` checks that
+of docs/report.md (:mod:`moments_ref.report.columns`); ``--cases`` rewrites the contract
+table of docs/golden.md (:mod:`moments_ref.golden.casedoc`); ``tests/test_docs.py`` checks that
 the file lists every public name.
 """
 
@@ -86,5 +87,9 @@ if __name__ == "__main__":  # pragma: no cover
         from ..report.columns import write_docs
 
         print(f"wrote {write_docs(Path(__file__).resolve().parents[2] / 'docs' / 'report.md')}")
+    elif "--cases" in sys.argv[1:]:  # the contract table of docs/golden.md, from the cases' registry entries
+        from ..golden.casedoc import write_docs as write_cases
+
+        print(f"wrote {write_cases(Path(__file__).resolve().parents[2] / 'docs' / 'golden.md')}")
     else:
         print(layout_markdown() if "--layout" in sys.argv[1:] else render())
