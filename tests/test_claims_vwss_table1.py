@@ -48,3 +48,17 @@ def test_other_view_counts_are_not_measurable():
     res = _res(0.05, 0.1)
     res.rows[0]["views"] = 8
     assert _claim24(res).verdict == "not measurable here"
+
+
+def test_vwss_md_table_shows_paper_ours_metric_and_setting():
+    from moments_ref.claims import markdown_table
+
+    c = _claim24(_res(0.0667, 0.1))
+    header, _, row = markdown_table([c]).splitlines()
+    cols = [x.strip() for x in header.strip("|").split("|")]
+    cells = [x.strip() for x in row.strip("|").split("|")]
+    assert cols == ["id", "source", "statement", "paper", "ours", "metric", "setting", "verdict", "why"]
+    cell = dict(zip(cols, cells))
+    assert "0.41-0.65" in cell["paper"] and cell["ours"].startswith("VWSS/PCSS RMSE 0.667 on knot")
+    assert "VWSS/PCSS < 1" in cell["metric"] and "map_size 1024" in cell["setting"] and "views 24" in cell["setting"]
+    assert cell["verdict"] == "holds"
