@@ -129,7 +129,7 @@ def _ranks_brute_force(n, q, tail):
 def test_quantile_interval_ranks_and_coverage(n, q):
     import numpy as np
 
-    from moments_ref.tools import stability
+    from moments_ref.tools import intervals as stability
 
     x = np.arange(1.0, n + 1)  # x_(k) = k: the interval's ends are its ranks
     lo, hi = stability.quantile_interval(x, q)
@@ -141,3 +141,18 @@ def test_quantile_interval_ranks_and_coverage(n, q):
     assert np.mean(hits) >= 0.92
     # the largest of n uniform draws is exceeded by a fresh one with probability 1/(n+1): within the bound
     assert 1 / (n + 1) <= stability.exceedance_bound(n) <= 3.1 / n
+
+
+def test_intervals_refuse_bad_input():
+    import numpy as np
+
+    from moments_ref import InputError
+    from moments_ref.tools import intervals
+
+    for args, match in ((([],), "x: expected at least one"), (([1.0, np.nan],), "NaN"),
+                        (([1.0], 1.0), "q: expected a value in"), (([1.0], 0.5, 0), "confidence")):
+        with pytest.raises(InputError, match=match):
+            intervals.quantile_interval(*args)
+    with pytest.raises(InputError, match="n: expected a positive integer"):
+        intervals.exceedance_bound(0)
+    assert intervals.quantile_interval([np.inf, 1.0, 2.0], 0.5)[1] == np.inf  # an infinite error is a value

@@ -34,36 +34,11 @@ import numpy as np
 from .. import msm, precise
 from .._io import write_text
 from ..moments import BIAS_FLOAT32, bias_moments, hankel, power_moments
+from .intervals import CONFIDENCE, exceedance_bound, quantile_interval
 
 __all__ = ["measure", "measure_msm", "measure_two_point", "measure_nonlinear", "write_markdown", "main",
-           "quantile_interval", "exceedance_bound", "DISTRIBUTIONS", "distributions_markdown"]
+           "DISTRIBUTIONS", "distributions_markdown"]
 
-#: Confidence of the intervals the report states.
-CONFIDENCE = 0.95
-
-
-def quantile_interval(x, q=0.99, confidence=CONFIDENCE):
-    """Distribution-free confidence interval ``(lo, hi)`` for the ``q``-quantile of the sampled distribution.
-
-    Order statistics ``x_(l) ≤ x_(u)`` (1-based ranks) with ``P(l ≤ B < u) ≥ confidence``,
-    ``B ~ Binomial(n, q)`` the number of draws below the quantile, split evenly between
-    the tails. ``hi`` is ``inf`` where ``u > n``: the sample is too small to bound
-    the quantile from above (n = 300 cannot for the 99th percentile).
-    """
-    from scipy.stats import binom
-
-    x = np.sort(np.asarray(x, np.float64).ravel())
-    n, tail = x.size, (1 - confidence) / 2
-    lo_rank = int(binom.ppf(tail, n, q))  # P(B < lo_rank) <= tail
-    hi_rank = int(binom.ppf(1 - tail, n, q)) + 1  # P(B >= hi_rank) <= tail
-    lo = x[lo_rank - 1] if lo_rank >= 1 else -np.inf
-    hi = x[hi_rank - 1] if hi_rank <= n else np.inf
-    return float(lo), float(hi)
-
-
-def exceedance_bound(n, confidence=CONFIDENCE):
-    """One-sided bound on P(a fresh draw exceeds the largest of ``n``): ``1 − (1 − confidence)^(1/n)``."""
-    return 1.0 - (1.0 - confidence) ** (1.0 / n)
 
 DTYPES = (np.float32, np.float64)
 #: Distance bins (upper edges) of the two-point table.
