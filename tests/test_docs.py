@@ -156,3 +156,26 @@ def test_intervals_refuse_bad_input():
     with pytest.raises(InputError, match="n: expected a positive integer"):
         intervals.exceedance_bound(0)
     assert intervals.quantile_interval([np.inf, 1.0, 2.0], 0.5)[1] == np.inf  # an infinite error is a value
+
+
+def test_msm6_unorm10_shares_are_the_commands():
+    from moments_ref.tools import random_figures
+
+    doc = (ROOT / "docs" / "msm6.md").read_text(encoding="utf-8")
+    begin, end = random_figures.UNORM10_MARKERS
+    assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == random_figures.unorm10_block().strip(), \
+        "regenerate: python -m moments_ref.tools.random_figures"
+
+
+@pytest.mark.parametrize("k, n", [(3032, 4000), (0, 100), (50, 100), (4000, 4000), (1, 7)])
+def test_wilson_interval_is_the_set_the_score_test_accepts(k, n):
+    """Independently of the closed form: the ends solve |k/n − p| = z √(p (1 − p) / n), and p inside passes."""
+    import numpy as np
+
+    from moments_ref.tools import intervals
+
+    lo, hi = intervals.wilson_interval(k, n)
+    z, p_hat = 1.959963984540054, k / n
+    p = np.linspace(0, 1, 200001)
+    accepted = p[np.abs(p_hat - p) <= z * np.sqrt(p * (1 - p) / n)]
+    assert lo == pytest.approx(accepted.min(), abs=2e-5) and hi == pytest.approx(accepted.max(), abs=2e-5)

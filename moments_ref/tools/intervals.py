@@ -19,7 +19,7 @@ import numpy as np
 
 from .._arrays import InputError
 
-__all__ = ["CONFIDENCE", "quantile_interval", "exceedance_bound"]
+__all__ = ["CONFIDENCE", "quantile_interval", "exceedance_bound", "wilson_interval"]
 
 #: Confidence of the intervals the reports state.
 CONFIDENCE = 0.95
@@ -61,6 +61,26 @@ def exceedance_bound(n, confidence=CONFIDENCE):
         raise InputError(f"n: expected a positive integer, got {n!r}")
     _check(np.zeros(1), 0.5, confidence)
     return 1.0 - (1.0 - confidence) ** (1.0 / n)
+
+
+def wilson_interval(k, n, confidence=CONFIDENCE):
+    """The Wilson score interval ``(lo, hi)`` of a share ``k / n`` (Wilson 1927).
+
+    The proportions p whose normal test does not reject ``k / n``:
+    ``|k/n − p| ≤ z √(p (1 − p) / n)``, z the two-sided normal quantile of ``confidence``.
+    """
+    from scipy.stats import norm
+
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise InputError(f"n: expected a positive integer, got {n!r}")
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= n:
+        raise InputError(f"k: expected an integer in [0, n = {n}], got {k!r}")
+    _check(np.zeros(1), 0.5, confidence)
+    z = float(norm.ppf(0.5 + confidence / 2))
+    p = k / n
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    c = p + z * z / (2 * n)
+    return float(max((c - half) / (1 + z * z / n), 0.0)), float(min((c + half) / (1 + z * z / n), 1.0))
 
 
 def _check(x, q, confidence):
