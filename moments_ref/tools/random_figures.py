@@ -1,8 +1,8 @@
 """The docs' figures from random rows that no other command writes, with their sample and interval.
 
 ``python -m moments_ref.tools.random_figures`` rewrites the marked block of docs/msm6.md:
-the share of 2×R10G10B10A2-quantized six-moment vectors (the Slides' storage) inside the moment space after
-biasing with each α (:func:`moments_ref.msm6.measure_unorm10_bias`), with the
+the share of 2×R10G10B10A2-quantized six-moment vectors (the Slides' storage) inside the
+moment space after biasing with each α (:func:`moments_ref.msm6.measure_unorm10_bias`), with the
 distribution the vectors are drawn from, their count and each share's 95 % Wilson
 interval (:func:`moments_ref.tools.intervals.wilson_interval`). tests/test_docs.py
 checks that the block in the docs is what this writes.
