@@ -141,42 +141,32 @@ MSM_CATEGORIES = {
 
 
 #: What each category draws (per dtype the same ``n`` rows, seeded per (seed, category)).
-DISTRIBUTIONS = {
-    "msm": {
-        "random": "1 to 8 depths uniform in [-1, 1], weights uniform in [1e-3, 1] normalised; zf uniform in [-1, 1]",
-        "variance near the bias floor": "4 depths within 0, 1e-8, 1e-6 or 1e-4 of a uniform centre; zf at the "
-                                        "centre or 1e-8 to 0.1 (log-uniform) from it",
-        "zf at a support point": "1 to 3 depths as in random; zf one of them",
-        **{f"zf next to a support point ({o:g})": f"1 to 3 depths as in random; zf one of them ± {o:g}"
-           for o in OFFSETS},
-        "mass near ±1": "4 depths, each with probability 3/4 one of -1, -1+1e-6, 1-1e-6, 1, 1-1e-3, else "
-                        "uniform; zf uniform or within 1e-7 to 0.1 of ±1",
-        "outside the moment space before biasing": "1 to 3 depths; ξ4 or σ² pushed 1e-9 to 1e-5 (log-uniform) "
-                                                   "below 0; zf a depth + 0, 1e-6, -1e-4, 1e-2 or 0.3",
-    },
-    "nonlinear": {
-        "random": "y1 < y2 uniform in [-1, 1], v2 uniform in [0.01, 0.99], Ψ4(ξ4) uniform in [0, 1]; shade's zf "
-                  "uniform (2/5) or y1 or y2 + 0, ±1e-6, ±1e-4, ±1e-2 (3/5)",
-        "zf at y1 or y2": "the random representations; zf y1 or y2",
-        "ξ4 at the clamp 1.2e-7": "random with ξ4 = 1.2e-7",
-        "y2 − y1 ≈ 1e-6": "random with y2 = y1 + 1e-6",
-        "v2 ≈ 1e-6": "random with v2 = 1e-6",
-        "v2 ≈ 1 − 1e-6": "random with v2 = 1 - 1e-6",
-        "depths at ±1": "random with y1 = -1, y2 = 1 or both",
-    },
-}
+DISTRIBUTIONS = {"msm": {
+    "random": "1 to 8 depths uniform in [-1, 1], weights uniform in [1e-3, 1] normalised; zf uniform in [-1, 1]",
+    "variance near the bias floor": "4 depths within 0, 1e-8, 1e-6 or 1e-4 of a uniform centre; zf at the centre "
+                                    "or 1e-8 to 0.1 (log-uniform) from it",
+    "zf at a support point": "1 to 3 depths as in random; zf one of them",
+    **{f"zf next to a support point ({o:g})": f"1 to 3 depths as in random; zf one of them ± {o:g}" for o in OFFSETS},
+    "mass near ±1": "4 depths, each with probability 3/4 one of -1, -1+1e-6, 1-1e-6, 1, 1-1e-3, else uniform; zf "
+                    "uniform or within 1e-7 to 0.1 of ±1",
+    "outside the moment space before biasing": "1 to 3 depths; ξ4 or σ² pushed 1e-9 to 1e-5 (log-uniform) below 0; "
+                                               "zf a depth + 0, 1e-6, -1e-4, 1e-2 or 0.3"}, "nonlinear": {
+    "random": "y1 < y2 uniform in [-1, 1], v2 uniform in [0.01, 0.99], Ψ4(ξ4) uniform in [0, 1]; shade's zf uniform "
+              "(2/5) or y1 or y2 + 0, ±1e-6, ±1e-4, ±1e-2 (3/5)",
+    "zf at y1 or y2": "the random representations; zf y1 or y2", "ξ4 at the clamp 1.2e-7": "random with ξ4 = 1.2e-7",
+    "y2 − y1 ≈ 1e-6": "random with y2 = y1 + 1e-6", "v2 ≈ 1e-6": "random with v2 = 1e-6",
+    "v2 ≈ 1 − 1e-6": "random with v2 = 1 - 1e-6", "depths at ±1": "random with y1 = -1, y2 = 1 or both"}}
 
 
 def distributions_markdown(n=300, seed=0):
     """The report's section naming each category's distribution, count and intervals (docs/stability.md)."""
-    out = ["## Sampled distributions", "",
-           f"Every table row is one category in one dtype: n = {n} seeded rows (seed {seed}; the two-point table "
-           f"{5 * n} rows, binned). 'p99 95 % CI' is a distribution-free {CONFIDENCE:.0%} interval for the "
-           "category's 99th percentile from the order statistics (binomial ranks; ∞ where n rows cannot bound "
-           "it from above). 'max' is the largest error of the sample, not of the category: with "
-           f"{CONFIDENCE:.0%} confidence a fresh row of the category exceeds it with probability at most "
-           f"{exceedance_bound(n):.1%} (1 − 0.05^(1/n)).", "",
-           "| functions | category | distribution |", "|---|---|---|"]
+    out = ["## Sampled distributions", "", (
+        f"Every table row is one category in one dtype: n = {n} seeded rows (seed {seed}; the two-point table {5 * n} "
+        f"rows, binned). 'p99 95 % CI' is a distribution-free {CONFIDENCE:.0%} interval for the category's 99th "
+        "percentile from the order statistics (binomial ranks; ∞ where n rows cannot bound it from above). 'max' is "
+        f"the largest error of the sample, not of the category: with {CONFIDENCE:.0%} confidence a fresh row of the "
+        f"category exceeds it with probability at most {exceedance_bound(n):.1%} (1 − 0.05^(1/n))."), "",
+        "| functions | category | distribution |", "|---|---|---|"]
     for fam, label in (("msm", "msm.shadow_intensity"), ("nonlinear", "nonlinear.phi, nonlinear.shade")):
         out += [f"| {label} | {c} | {d} |" for c, d in DISTRIBUTIONS[fam].items()]
     return "\n".join(out) + "\n"
