@@ -107,7 +107,8 @@ def test_stability_figures_state_their_distribution_count_and_interval():
         "regenerate: moments-ref stability --out docs/"
     for cat in (*stability.MSM_CATEGORIES, *stability.NONLINEAR_CATEGORIES):
         assert f"| {cat} |" in doc.split("## Sampled distributions", 1)[1].split("\n## ", 1)[0]
-    rows = re.findall(r"^\| [^|]+ \| float(?:32|64) \| (\d+) \| [^|]+ \| ([^|]+) \| \[([^,]+), ([^\]]+)\] \|", doc, re.M)
+    row = r"^\| [^|]+ \| float(?:32|64) \| (\d+) \| [^|]+ \| ([^|]+) \| \[([^,]+), ([^\]]+)\] \|"
+    rows = re.findall(row, doc, re.M)
     assert len(rows) > 50
     for n, p99, lo, hi in rows:
         assert int(n) == 300 and hi.strip() == "∞"  # 300 rows cannot bound a 99th percentile from above
