@@ -385,14 +385,18 @@ def test_patio_gap_is_four_texels_at_every_map_size(size):
 def test_texel_offsets_resolve_per_map_and_need_a_directional_light(tmp_path):
     text = GOOD.replace('role = "occluder"', 'role = "occluder"\ntexel_offset = [2, 0, 0]', 1)
     sc = load_scene(_write(tmp_path, text))
-    assert sc.texel_shift == 0 and sc.objects[1].texel_offset == (2.0, 0.0, 0.0)
-    moved = sc.at_shadow_map(64)
-    t = sc.texel_size(64)
-    # a directional map of [64, 32] texels over the hull: the texel is the larger of its two sides
-    assert np.allclose(moved.occluder.vertices - sc.occluder.vertices, [2 * t, 0, 0])
-    assert np.array_equal(moved.receiver.vertices, sc.receiver.vertices)
-    again = moved.at_shadow_map(128)  # resolving for another map moves by the difference
-    assert np.allclose(again.occluder.vertices, sc.at_shadow_map(128).occluder.vertices)
+    plain = load_scene(_write(tmp_path, GOOD))
+    # loaded: resolved for the scene's own [64, 32] map (the texel is the larger of its two sides)
+    t = sc.texel_size()
+    assert sc.texel_shift == t and sc.objects[1].texel_offset == (2.0, 0.0, 0.0)
+    assert np.allclose(sc.occluder.vertices - plain.occluder.vertices, [2 * t, 0, 0])
+    assert np.array_equal(sc.receiver.vertices, plain.receiver.vertices)
+    moved = sc.at_shadow_map(256)  # resolving for another map moves by the difference
+    assert np.allclose(moved.occluder.vertices - plain.occluder.vertices, [2 * sc.texel_size(256), 0, 0])
+    assert np.allclose(moved.at_shadow_map((64, 32)).occluder.vertices, sc.occluder.vertices)
+    # the depth map of another size is rasterized with the objects placed for it
+    assert np.array_equal(sc.shadow_map(size=256, samples=1)[0], moved.shadow_map(size=256, samples=1)[0])
+    assert not np.array_equal(sc.shadow_map(size=256, samples=1)[0], plain.shadow_map(size=256, samples=1)[0])
     assert load_scene("railing").at_shadow_map(64) is not None  # no offsets: the scene itself
     area = text.replace('type = "directional"\ndirection = [0, -1, 0.2]',
                         'type = "area"\ncenter = [0, 3, 0]\nnormal = [0, -1, 0]\nwidth = 1\nheight = 1')

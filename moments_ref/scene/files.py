@@ -38,8 +38,9 @@ Texel offsets. A configuration defined by the filter's footprint (HPG17 Figure 9
 three occluders within one 9×9 filter region, §4.1) is a size in texels, not in
 world units: ``texel_offset`` moves an object by that many texels of the run's
 shadow map (world axes, unit :meth:`Scene.texel_size`), so that the configuration is
-the same at every map size. The pipeline resolves them for the map it rasterizes
-(:meth:`Scene.at_shadow_map`); a loaded scene holds them unresolved (offset 0).
+the same at every map size. A loaded scene holds them resolved for its own
+``shadow_map_size``; :meth:`Scene.shadow_map` and the pipeline resolve them for the map
+they rasterize (:meth:`Scene.at_shadow_map`).
 Directional lights only (an area light's perspective texels vary over the map).
 The unit is measured on the scene's own hull, so offsets are meant for objects
 inside the hull of the others (moving the hull would move the unit).
@@ -138,7 +139,7 @@ class Scene:
     outputs : tuple of str
     params : dict
     texel_shift : float, the world size of the texel the objects' ``texel_offset``
-        are resolved for (0: unresolved, as loaded; :meth:`at_shadow_map`)
+        are resolved for (:meth:`at_shadow_map`; 0 without offsets)
     """
 
     name: str
@@ -228,8 +229,9 @@ class Scene:
         samples = self.msaa if samples is None else samples
         if np.isscalar(samples) and (np.isscalar(size) or len(size) == 2):
             check_memory(shadow_map_memory(size, samples), f"shadow map {size} with {samples} samples")
-        m = self.occluder_mesh(translucent=translucent, exclude=exclude)
-        return rasterize_depth(m.vertices, m.triangles, self.light_clip_from_world(),
+        own = self.at_shadow_map(size)  # objects placed in texels (texel_offset): for this map
+        m = own.occluder_mesh(translucent=translucent, exclude=exclude)
+        return rasterize_depth(m.vertices, m.triangles, own.light_clip_from_world(),
                                size, samples=samples, cull=cull)
 
 
@@ -500,7 +502,7 @@ def load_scene(name_or_path) -> Scene:
     receiver, rsrc = merge(meshes[i] for i in rec)
     occluder, osrc = merge(meshes[i] for i in occ)
     occ_obj = np.asarray(occ)[osrc]
-    return Scene(
+    return Scene(  # objects placed in texels (texel_offset) resolved for the scene's own map
         name=name, description=desc, path=path,
         receiver=receiver, occluder=occluder,
         receiver_object=np.asarray(rec)[rsrc], occluder_object=occ_obj,
@@ -508,4 +510,4 @@ def load_scene(name_or_path) -> Scene:
         occluder_opacity=np.array([infos[i].opacity for i in occ_obj], dtype=np.float64).reshape(-1),
         objects=tuple(infos), light=light, camera=camera,
         shadow_map_size=(hw[0], hw[1]), msaa=int(msaa), outputs=tuple(outputs), params=dict(params),
-    )
+    ).at_shadow_map()
