@@ -123,12 +123,21 @@ def _cell(x) -> str:
 
 
 def markdown_table(claims) -> str:
-    """The claims as a markdown table: id, source, paper's figure, ours, verdict, why."""
-    lines = ["| id | source | statement | paper | measured | verdict | why |", "|---|---|---|---|---|---|---|"]
+    """The claims as a markdown table: id, source, statement, the paper's figure, ours, metric, setting, verdict, why.
+
+    ``ours`` is ``measured["ours"]`` where the claim states one (else every measured
+    value); ``metric`` is ``settings["metric"]`` and ``setting`` the other settings.
+    """
+    lines = ["| id | source | statement | paper | ours | metric | setting | verdict | why |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for c in claims:
         v = c.verdict if c.verdict == "holds" else f"**{c.verdict}**"
+        m = c.measured if isinstance(c.measured, dict) else {}
+        st = dict(c.settings) if isinstance(c.settings, dict) else {}
+        metric = st.pop("metric", "")
         lines.append(f"| `{c.id}` | {_cell(c.source)} | {_cell(c.statement)} | {_cell(c.paper)} | "
-                     f"{_cell(_plain(c.measured))} | {v} | {_cell(c.why)} |")
+                     f"{_cell(m['ours'] if 'ours' in m else _plain(c.measured))} | {_cell(metric)} | "
+                     f"{_cell(_plain(st))} | {v} | {_cell(c.why)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -102,3 +102,90 @@ def test_shared_parameter_docs_are_written_once_and_filled():
         for obj in vars(mod).values():
             if inspect.isfunction(obj) and obj.__module__ == m.name and obj.__doc__:
                 assert "%(" not in obj.__doc__ or "fill" in obj.__name__, f"{m.name}.{obj.__name__}: unfilled"
+
+
+def test_stability_figures_state_their_distribution_count_and_interval():
+    """docs/stability.md's figures from random rows: the distributions block is the command's, and every
+    error row carries its count and a 95 % interval around its 99th percentile."""
+    import re
+
+    from moments_ref.tools import stability
+
+    doc = (ROOT / "docs" / "stability.md").read_text(encoding="utf-8")
+    assert stability.distributions_markdown(300, 0).strip() in doc, \
+        "regenerate: moments-ref stability --out docs/"
+    for cat in (*stability.MSM_CATEGORIES, *stability.NONLINEAR_CATEGORIES):
+        assert f"| {cat} |" in doc.split("## Sampled distributions", 1)[1].split("\n## ", 1)[0]
+    row = r"^\| [^|]+ \| float(?:32|64) \| (\d+) \| [^|]+ \| ([^|]+) \| \[([^,]+), ([^\]]+)\] \|"
+    rows = re.findall(row, doc, re.M)
+    assert len(rows) > 50
+    for n, p99, lo, hi in rows:
+        assert int(n) == 300 and hi.strip() == "∞"  # 300 rows cannot bound a 99th percentile from above
+        assert float(lo) <= float(p99)
+
+
+def _ranks_brute_force(n, q, tail):
+    """The order-statistic ranks of the quantile interval, from the binomial sums written out (no SciPy)."""
+    from math import comb
+
+    pmf = [comb(n, k) * q ** k * (1 - q) ** (n - k) for k in range(n + 1)]
+    cdf = [sum(pmf[:k + 1]) for k in range(n + 1)]
+    lo = next(k for k in range(n + 1) if cdf[k] >= tail)  # P(B < lo) <= tail
+    hi = next(k for k in range(n + 1) if cdf[k] >= 1 - tail) + 1  # P(B >= hi) <= tail
+    return lo, hi
+
+
+@pytest.mark.parametrize("n, q", [(300, 0.99), (300, 0.9), (50, 0.5), (1000, 0.99)])
+def test_quantile_interval_ranks_and_coverage(n, q):
+    import numpy as np
+
+    from moments_ref.tools import intervals as stability
+
+    x = np.arange(1.0, n + 1)  # x_(k) = k: the interval's ends are its ranks
+    lo, hi = stability.quantile_interval(x, q)
+    want_lo, want_hi = _ranks_brute_force(n, q, 0.025)
+    assert lo == want_lo and (hi == want_hi if want_hi <= n else hi == np.inf)
+    # coverage of the true quantile of uniform draws, at least the stated 95 % (up to the simulation's noise)
+    rng = np.random.default_rng(7)
+    hits = [lo_ <= q <= hi_ for lo_, hi_ in (stability.quantile_interval(rng.random(n), q) for _ in range(400))]
+    assert np.mean(hits) >= 0.92
+    # the largest of n uniform draws is exceeded by a fresh one with probability 1/(n+1): within the bound
+    assert 1 / (n + 1) <= stability.exceedance_bound(n) <= 3.1 / n
+
+
+def test_intervals_refuse_bad_input():
+    import numpy as np
+
+    from moments_ref import InputError
+    from moments_ref.tools import intervals
+
+    for args, match in ((([],), "x: expected at least one"), (([1.0, np.nan],), "NaN"),
+                        (([1.0], 1.0), "q: expected a value in"), (([1.0], 0.5, 0), "confidence")):
+        with pytest.raises(InputError, match=match):
+            intervals.quantile_interval(*args)
+    with pytest.raises(InputError, match="n: expected a positive integer"):
+        intervals.exceedance_bound(0)
+    assert intervals.quantile_interval([np.inf, 1.0, 2.0], 0.5)[1] == np.inf  # an infinite error is a value
+
+
+def test_msm6_unorm10_shares_are_the_commands():
+    from moments_ref.tools import random_figures
+
+    doc = (ROOT / "docs" / "msm6.md").read_text(encoding="utf-8")
+    begin, end = random_figures.UNORM10_MARKERS
+    assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == random_figures.unorm10_block().strip(), \
+        "regenerate: python -m moments_ref.tools.random_figures"
+
+
+@pytest.mark.parametrize("k, n", [(3032, 4000), (0, 100), (50, 100), (4000, 4000), (1, 7)])
+def test_wilson_interval_is_the_set_the_score_test_accepts(k, n):
+    """Independently of the closed form: the ends solve |k/n − p| = z √(p (1 − p) / n), and p inside passes."""
+    import numpy as np
+
+    from moments_ref.tools import intervals
+
+    lo, hi = intervals.wilson_interval(k, n)
+    z, p_hat = 1.959963984540054, k / n
+    p = np.linspace(0, 1, 200001)
+    accepted = p[np.abs(p_hat - p) <= z * np.sqrt(p * (1 - p) / n)]
+    assert lo == pytest.approx(accepted.min(), abs=2e-5) and hi == pytest.approx(accepted.max(), abs=2e-5)

@@ -304,6 +304,7 @@ def test_scene_file_with_obj(tmp_path):
     ('role = "occluder"', 'role = "occluder"\ntranslucent = true', "objects[1].opacity", "missing"),
     ("{ translate = [0, 1, 0] }", "{ shear = 1 }", "objects[1].transform[0].shear", "unknown transform"),
     ("msaa = 4", "msaa = 4\nmsaa = 1", "", "not valid TOML"),
+    ('role = "occluder"', 'role = "occluder"\ntexel_offset = [1, 0]', "objects[1].texel_offset", "3 finite numbers"),
 ])
 def test_bad_scene_files_name_file_key_problem(tmp_path, old, new, key, problem):
     assert old in GOOD
@@ -346,3 +347,58 @@ def test_knot_fragments_with_back_face_culling_match_depth_map():
     np.minimum.at(m, frags.texel, frags.depth)
     np.testing.assert_array_equal(m.reshape(128, 128, 1), d)
     assert st_.culled > 0.3 * occ.n_triangles
+
+
+def _nearest_texels(scene, size, name, row_point):
+    """Texels of the map row through ``row_point`` where object ``name`` is the nearest occluder (rasterized)."""
+    others = [o.name for o in scene.objects if o.name != name]
+    d_all, _ = scene.shadow_map(size=size, samples=1)
+    d_one, _ = scene.shadow_map(size=size, samples=1, exclude=others)
+    xy, _ = project_points(np.asarray([row_point, np.add(row_point, [1.0, 0, 0])]), scene.light_clip_from_world(), size)
+    r, c = np.floor(xy[0]).astype(int)[::-1]
+    assert abs(xy[1, 0] - xy[0, 0]) > abs(xy[1, 1] - xy[0, 1])  # world x runs along the map's rows (reversed)
+    mine = (d_one[r, :, 0] < 1) & (d_all[r, :, 0] == d_one[r, :, 0])
+    return np.flatnonzero(mine), c
+
+
+@pytest.mark.parametrize("size", [256, 1024, 2048])
+def test_patio_gap_is_four_texels_at_every_map_size(size):
+    """HPG17 Figure 9 in texels: the hand rail is the nearest occluder on 4 texels between roof and umbrella.
+
+    Measured on the rasterized map (not the offsets' arithmetic): on the row through the
+    ground line, the rail's texels lie between the roof's last and the umbrella's first,
+    and a 9x9 footprint centred on a rail texel reaches both.
+    """
+    sc = load_scene("patio").at_shadow_map(size)
+    assert sc.texel_shift == pytest.approx(sc.texel_size(size)) and sc.texel_shift > 0
+    rail, c = _nearest_texels(sc, size, "railing", [0.0, 0.5, 0.0])
+    roof, _ = _nearest_texels(sc, size, "roof", [0.0, 0.5, 0.0])
+    umbrella, _ = _nearest_texels(sc, size, "umbrella", [0.0, 0.5, 0.0])
+    near = rail[np.abs(rail - c) <= 8]
+    assert 3 <= near.size <= 5 and np.all(np.diff(near) == 1)
+    # the rail's neighbours on the row are a roof texel on one side, an umbrella texel on the other
+    sides = {near[0] - 1, near[-1] + 1}
+    assert len(sides & set(roof)) == 1 and len(sides & set(umbrella)) == 1
+    assert near[-1] + 1 - (near[0] - 1) <= 8  # both within ±4 texels of a rail texel
+
+
+def test_texel_offsets_resolve_per_map_and_need_a_directional_light(tmp_path):
+    text = GOOD.replace('role = "occluder"', 'role = "occluder"\ntexel_offset = [2, 0, 0]', 1)
+    sc = load_scene(_write(tmp_path, text))
+    plain = load_scene(_write(tmp_path, GOOD))
+    # loaded: resolved for the scene's own [64, 32] map (the texel is the larger of its two sides)
+    t = sc.texel_size()
+    assert sc.texel_shift == t and sc.objects[1].texel_offset == (2.0, 0.0, 0.0)
+    assert np.allclose(sc.occluder.vertices - plain.occluder.vertices, [2 * t, 0, 0])
+    assert np.array_equal(sc.receiver.vertices, plain.receiver.vertices)
+    moved = sc.at_shadow_map(256)  # resolving for another map moves by the difference
+    assert np.allclose(moved.occluder.vertices - plain.occluder.vertices, [2 * sc.texel_size(256), 0, 0])
+    assert np.allclose(moved.at_shadow_map((64, 32)).occluder.vertices, sc.occluder.vertices)
+    # the depth map of another size is rasterized with the objects placed for it
+    assert np.array_equal(sc.shadow_map(size=256, samples=1)[0], moved.shadow_map(size=256, samples=1)[0])
+    assert not np.array_equal(sc.shadow_map(size=256, samples=1)[0], plain.shadow_map(size=256, samples=1)[0])
+    assert load_scene("railing").at_shadow_map(64) is not None  # no offsets: the scene itself
+    area = text.replace('type = "directional"\ndirection = [0, -1, 0.2]',
+                        'type = "area"\ncenter = [0, 3, 0]\nnormal = [0, -1, 0]\nwidth = 1\nheight = 1')
+    with pytest.raises(InputError, match=r"objects\[1\]\.texel_offset.*directional"):
+        load_scene(_write(tmp_path, area))

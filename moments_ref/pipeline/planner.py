@@ -126,6 +126,8 @@ def _context(scene, st: Settings):
         (st.shadow_map_size, st.shadow_map_size) if np.isscalar(st.shadow_map_size) else tuple(st.shadow_map_size))
     if st.gbuffer not in GBUFFERS:
         raise InputError(f"gbuffer: expected one of {', '.join(GBUFFERS)}, got {st.gbuffer!r}")
+    if hasattr(scene, "at_shadow_map"):  # objects placed in texels of the map this run rasterizes
+        scene = scene.at_shadow_map(size)
     return PlanContext(scene=scene, size=size, samples=scene.msaa if st.msaa is None else int(st.msaa),
                        resolution=tuple(scene.camera.resolution) if st.resolution is None else tuple(st.resolution),
                        params={**scene.params, **(st.params or {})},

@@ -51,7 +51,7 @@ def run(scene, outputs=None, settings=None, **old) -> RunResult:
     spreads = {n: {"texel": spread(cost(times, t.texel, repeats)),
                    "fragment": spread(cost(times, [t.shade], repeats))} for n, t in plans.items()}
     ctx = rp.context
-    return RunResult(scene=scene, techniques=list(plans), stages=order, seconds=seconds,
+    return RunResult(scene=ctx.scene, techniques=list(plans), stages=order, seconds=seconds,
                      gbuffer=values.get(ctx.receivers),
                      shadow={n: _intensity(values[t.shade], t.result) for n, t in plans.items()},
                      reference={n: _intensity(values[t.reference], t.reference_result)

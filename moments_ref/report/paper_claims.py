@@ -48,7 +48,9 @@ Claims (HPG17 §5 unless stated):
 * ``hpg17-four-moment-leak-three-occluders`` (§6, Figure 9): "When the filter
   region in the shadow map contains three or more occluders, light will leak onto
   fully shadowed surfaces." Measured on ``patio`` (Figure 9 built so that roof,
-  hand rail and umbrella rim lie side by side over the ground line): light in full
+  hand rail and umbrella rim lie side by side over the ground line, the rail
+  filling a 4-texel gap at every map size: the 9×9 filter region is a size in
+  texels, so the scene places the gap in texels of the run's map): light in full
   shadow where the 9×9 footprint holds three or more distinct occluder depths
   against where it holds one or two, after PCF (exact) shows none there.
 * ``slides-scattering-filtered-temporal`` (Slides, "Prefiltered single
@@ -445,7 +447,8 @@ def _three_occluder_claim(measured, full):
                  verdict=verdict_of(holds),
                  why=("fully shadowed pixels (reference >= 0.999) whose 9x9 footprint holds three or more occluder "
                       "depths (roof 3.0, umbrella rim 1.7 and hand rail 0.5 above the ground line, side by side "
-                      "seen from the light, as in Figure 9) against those holding one or two: "
+                      "seen from the light, as in Figure 9; the rail fills a 4-texel gap between roof edge and rim at "
+                      "every map size, placed in texels of the run's map) against those holding one or two: "
                       + ", ".join(f"{k} mean {v['three_or_more']['leak_mean']:.3f} ({v['three_or_more']['leak_area_3pct']:.0%}"
                                   f" above 3 %) vs {v['one_or_two']['leak_mean']:.1e}" for k, v in four.items())
                       + (f"; PCF (exact, the non-leaker) {pcf['leak_mean']:.1e}" if pcf else "")

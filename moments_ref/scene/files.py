@@ -32,6 +32,18 @@ A scene file holds::
     role = "receiver"                # "receiver", "occluder" or "both"
     translucent = false              # optional; with opacity in (0, 1]
     opacity = 1.0
+    texel_offset = [2, 0, 0]         # optional: a translation in shadow-map texels, after transform
+
+Texel offsets. A configuration defined by the filter's footprint (HPG17 Figure 9:
+three occluders within one 9×9 filter region, §4.1) is a size in texels, not in
+world units: ``texel_offset`` moves an object by that many texels of the run's
+shadow map (world axes, unit :meth:`Scene.texel_size`), so that the configuration is
+the same at every map size. A loaded scene holds them resolved for its own
+``shadow_map_size``; :meth:`Scene.shadow_map` and the pipeline resolve them for the map
+they rasterize (:meth:`Scene.at_shadow_map`).
+Directional lights only (an area light's perspective texels vary over the map).
+The unit is measured on the scene's own hull, so offsets are meant for objects
+inside the hull of the others (moving the hull would move the unit).
 
 Roles: occluders are drawn into the shadow map; receivers are the surfaces whose
 shadowing is evaluated; "both" puts an object in both sets (HPG17 Figure 1: the
@@ -63,7 +75,7 @@ References
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
@@ -91,18 +103,19 @@ def shadow_map_memory(size, samples) -> int:
 
 ROLES = ("receiver", "occluder", "both")
 _TOP_KEYS = {"name", "description", "shadow_map_size", "msaa", "outputs", "params", "light", "camera", "objects"}
-_OBJ_KEYS = {"name", "generator", "obj", "params", "transform", "role", "translucent", "opacity"}
+_OBJ_KEYS = {"name", "generator", "obj", "params", "transform", "role", "translucent", "opacity", "texel_offset"}
 
 
 @dataclass(frozen=True)
 class SceneObject:
-    """One entry of ``objects``: its name, role, translucency and triangle count."""
+    """One entry of ``objects``: its name, role, translucency, triangle count and texel offset."""
 
     name: str
     role: str
     translucent: bool
     opacity: float
     n_triangles: int
+    texel_offset: tuple = (0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -125,6 +138,8 @@ class Scene:
     msaa : int
     outputs : tuple of str
     params : dict
+    texel_shift : float, the world size of the texel the objects' ``texel_offset``
+        are resolved for (:meth:`at_shadow_map`; 0 without offsets)
     """
 
     name: str
@@ -143,6 +158,7 @@ class Scene:
     msaa: int
     outputs: tuple
     params: dict = field(default_factory=dict)
+    texel_shift: float = 0.0
 
     def bounds(self) -> np.ndarray:
         """(2, 3) bounding box of all geometry."""
@@ -162,6 +178,36 @@ class Scene:
 
     #: Old name (DeprecationWarning).
     shadow_view_proj = alias("light_clip_from_world")
+
+    def texel_size(self, size=None) -> float:
+        """World width of one texel of the directional light's map at ``size`` (default the scene's own).
+
+        The larger side of a texel: ``2 / (W |row 0|)`` and ``2 / (H |row 1|)`` of the
+        orthographic :meth:`light_clip_from_world` (HPG17 §5: fitted to the scene's hull).
+        """
+        if not isinstance(self.light, DirectionalLight):
+            raise InputError(f"scene {self.name!r}: texel_size needs a directional light (an area light's "
+                             "perspective texels vary over its map)")
+        h, w = _size_hw(self.shadow_map_size if size is None else size)
+        rows = np.linalg.norm(self.light_clip_from_world()[:2, :3], axis=1)
+        return float(max(2.0 / (w * rows[0]), 2.0 / (h * rows[1])))
+
+    def at_shadow_map(self, size=None) -> "Scene":
+        """The scene with its objects' ``texel_offset`` resolved for a shadow map of ``size``.
+
+        Each object moves by ``texel_offset × texel_size(size)`` (world axes); a scene
+        without offsets is returned as it is. Resolving again for another size moves
+        by the difference (:attr:`texel_shift` records the unit applied).
+        """
+        offsets = np.array([o.texel_offset for o in self.objects], dtype=np.float64).reshape(-1, 3)
+        if not offsets.any():
+            return self
+        t = self.texel_size(size)
+        if t == self.texel_shift:
+            return self
+        step = (t - self.texel_shift) * offsets
+        return replace(self, receiver=_moved(self.receiver, self.receiver_object, step),
+                       occluder=_moved(self.occluder, self.occluder_object, step), texel_shift=t)
 
     def occluder_mesh(self, translucent=None, exclude=()) -> Mesh:
         """Occluder triangles: all (None), only opaque (False) or only translucent (True),
@@ -183,9 +229,22 @@ class Scene:
         samples = self.msaa if samples is None else samples
         if np.isscalar(samples) and (np.isscalar(size) or len(size) == 2):
             check_memory(shadow_map_memory(size, samples), f"shadow map {size} with {samples} samples")
-        m = self.occluder_mesh(translucent=translucent, exclude=exclude)
-        return rasterize_depth(m.vertices, m.triangles, self.light_clip_from_world(),
+        own = self.at_shadow_map(size)  # objects placed in texels (texel_offset): for this map
+        m = own.occluder_mesh(translucent=translucent, exclude=exclude)
+        return rasterize_depth(m.vertices, m.triangles, own.light_clip_from_world(),
                                size, samples=samples, cull=cull)
+
+
+def _size_hw(size):
+    return (int(size), int(size)) if np.isscalar(size) else (int(size[0]), int(size[1]))
+
+
+def _moved(mesh, triangle_object, step):
+    """``mesh`` with each vertex moved by ``step`` of the object its triangles belong to."""
+    obj = np.full(len(mesh.vertices), -1, dtype=np.int64)
+    obj[mesh.triangles] = np.asarray(triangle_object, dtype=np.int64)[:, None]
+    move = np.where((obj >= 0)[:, None], step[np.maximum(obj, 0)], 0.0)
+    return Mesh(mesh.vertices + move, mesh.triangles)
 
 
 #: Largest entry of an object's composed transform (a scene 1e9 wide scaled by 1e9 still fits float64 products).
@@ -276,7 +335,9 @@ def _object(ctx, obj, i, base):
         raise ctx.error(f"{where}.opacity", "an opacity below 1 needs translucent = true")
     if translucent and role == "receiver":
         raise ctx.error(f"{where}.translucent", "a translucent object must be an occluder (role occluder or both)")
-    return SceneObject(name, role, translucent, opacity, mesh.n_triangles), mesh
+    offset = tuple(float(x) for x in ctx.vec3(obj, "texel_offset", f"{where}.")) if "texel_offset" in obj else (
+        0.0, 0.0, 0.0)
+    return SceneObject(name, role, translucent, opacity, mesh.n_triangles, offset), mesh
 
 
 def _light(ctx, t):
@@ -434,10 +495,14 @@ def load_scene(name_or_path) -> Scene:
         raise ctx.error("objects", "no object with role receiver or both")
     if not occ:
         raise ctx.error("objects", "no object with role occluder or both")
+    moved = next((i for i, o in enumerate(infos) if any(o.texel_offset)), None)
+    if moved is not None and not isinstance(light, DirectionalLight):
+        raise ctx.error(f"objects[{moved}].texel_offset", "needs a directional light (an area light's perspective "
+                        "texels vary over its map)")
     receiver, rsrc = merge(meshes[i] for i in rec)
     occluder, osrc = merge(meshes[i] for i in occ)
     occ_obj = np.asarray(occ)[osrc]
-    return Scene(
+    return Scene(  # objects placed in texels (texel_offset) resolved for the scene's own map
         name=name, description=desc, path=path,
         receiver=receiver, occluder=occluder,
         receiver_object=np.asarray(rec)[rsrc], occluder_object=occ_obj,
@@ -445,4 +510,4 @@ def load_scene(name_or_path) -> Scene:
         occluder_opacity=np.array([infos[i].opacity for i in occ_obj], dtype=np.float64).reshape(-1),
         objects=tuple(infos), light=light, camera=camera,
         shadow_map_size=(hw[0], hw[1]), msaa=int(msaa), outputs=tuple(outputs), params=dict(params),
-    )
+    ).at_shadow_map()

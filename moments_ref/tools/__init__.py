@@ -5,6 +5,8 @@
 * :mod:`.figures`: ``moments-ref figure3|figure4``, HPG17 Figures 3 and 4 as data and plots.
 * :mod:`.strategies`: hypothesis strategies for depth distributions and moments.
 * :mod:`.decoders`: the 32-bit decoder choice of docs/formats.md, measured.
+* :mod:`.intervals`: intervals for figures from random rows (a quantile's, a maximum's, a share's).
+* :mod:`.random_figures`: the docs' figures from random rows no other command writes (docs/msm6.md).
 * :mod:`.claim_parameters`: the unstated parameters of the EVSM and VWSS claims, varied.
 * :mod:`.apidoc`: docs/api.md and the layout tables, generated from the package.
 * :mod:`.layout`: the layers, read from the folders.

@@ -34,8 +34,11 @@ import numpy as np
 from .. import msm, precise
 from .._io import write_text
 from ..moments import BIAS_FLOAT32, bias_moments, hankel, power_moments
+from .intervals import CONFIDENCE, exceedance_bound, quantile_interval
 
-__all__ = ["measure", "measure_msm", "measure_two_point", "measure_nonlinear", "write_markdown", "main"]
+__all__ = ["measure", "measure_msm", "measure_two_point", "measure_nonlinear", "write_markdown", "main",
+           "DISTRIBUTIONS", "distributions_markdown"]
+
 
 DTYPES = (np.float32, np.float64)
 #: Distance bins (upper edges) of the two-point table.
@@ -137,6 +140,38 @@ MSM_CATEGORIES = {
 }
 
 
+#: What each category draws (per dtype the same ``n`` rows, seeded per (seed, category)).
+DISTRIBUTIONS = {"msm": {
+    "random": "1 to 8 depths uniform in [-1, 1], weights uniform in [1e-3, 1] normalised; zf uniform in [-1, 1]",
+    "variance near the bias floor": "4 depths within 0, 1e-8, 1e-6 or 1e-4 of a uniform centre; zf at the centre "
+                                    "or 1e-8 to 0.1 (log-uniform) from it",
+    "zf at a support point": "1 to 3 depths as in random; zf one of them",
+    **{f"zf next to a support point ({o:g})": f"1 to 3 depths as in random; zf one of them ± {o:g}" for o in OFFSETS},
+    "mass near ±1": "4 depths, each with probability 3/4 one of -1, -1+1e-6, 1-1e-6, 1, 1-1e-3, else uniform; zf "
+                    "uniform or within 1e-7 to 0.1 of ±1",
+    "outside the moment space before biasing": "1 to 3 depths; ξ4 or σ² pushed 1e-9 to 1e-5 (log-uniform) below 0; "
+                                               "zf a depth + 0, 1e-6, -1e-4, 1e-2 or 0.3"}, "nonlinear": {
+    "random": "y1 < y2 uniform in [-1, 1], v2 uniform in [0.01, 0.99], Ψ4(ξ4) uniform in [0, 1]; shade's zf uniform "
+              "(2/5) or y1 or y2 + 0, ±1e-6, ±1e-4, ±1e-2 (3/5)",
+    "zf at y1 or y2": "the random representations; zf y1 or y2", "ξ4 at the clamp 1.2e-7": "random with ξ4 = 1.2e-7",
+    "y2 − y1 ≈ 1e-6": "random with y2 = y1 + 1e-6", "v2 ≈ 1e-6": "random with v2 = 1e-6",
+    "v2 ≈ 1 − 1e-6": "random with v2 = 1 - 1e-6", "depths at ±1": "random with y1 = -1, y2 = 1 or both"}}
+
+
+def distributions_markdown(n=300, seed=0):
+    """The report's section naming each category's distribution, count and intervals (docs/stability.md)."""
+    out = ["## Sampled distributions", "", (
+        f"Every table row is one category in one dtype: n = {n} seeded rows (seed {seed}; the two-point table {5 * n} "
+        f"rows, binned). 'p99 95 % CI' is a distribution-free {CONFIDENCE:.0%} interval for the category's 99th "
+        "percentile from the order statistics (binomial ranks; ∞ where n rows cannot bound it from above). 'max' is "
+        f"the largest error of the sample, not of the category: with {CONFIDENCE:.0%} confidence a fresh row of the "
+        f"category exceeds it with probability at most {exceedance_bound(n):.1%} (1 − 0.05^(1/n))."), "",
+        "| functions | category | distribution |", "|---|---|---|"]
+    for fam, label in (("msm", "msm.shadow_intensity"), ("nonlinear", "nonlinear.phi, nonlinear.shade")):
+        out += [f"| {label} | {c} | {d} |" for c, d in DISTRIBUTIONS[fam].items()]
+    return "\n".join(out) + "\n"
+
+
 def _worst(err, fast, exact, inputs, **meta):
     """Summary row: worst abs error, its input, 99th percentile, count of non-finite.
 
@@ -152,6 +187,7 @@ def _worst(err, fast, exact, inputs, **meta):
         n=int(err.size),
         max_abs_error=float(err[i]),
         p99_abs_error=float(np.quantile(err, 0.99)),
+        p99_interval=quantile_interval(err, 0.99),
         nonfinite=int(bad.sum()),
         worst_input={k: [v.item() for v in np.atleast_1d(a[i])] for k, a in inputs.items()},
         worst_fast=fast[i].tolist() if fast.ndim > 1 else float(fast[i]),
@@ -503,18 +539,20 @@ def write_markdown(path, rows):
            "absolute error, 'p99' its 99th percentile, 'NaN/inf' the number of non-finite results,",
            "'in thr.' the number of inputs whose exact pivots σ², ξ4 lie inside msm's singular threshold",
            "for the dtype; the worst input is printed so that it can be replayed, with the kernel's and",
-           "the exact result.", ""]
+           "the exact result.", "", distributions_markdown(rows[0]["n"] if rows else 300)]
     err = [r for r in rows if r["table"] == "error"]
     for fn in dict.fromkeys(r["function"] for r in err):
         rs = [r for r in err if r["function"] == fn]
         thr = "within_threshold" in rs[0]
         out += [f"## {fn}", "",
-                "| category | dtype | n | max | p99 | NaN/inf |" + (" in thr. |" if thr else "")
+                "| category | dtype | n | max | p99 | p99 95 % CI | NaN/inf |" + (" in thr. |" if thr else "")
                 + " worst input | kernel | exact |",
-                "|---|---|---|---|---|---|" + ("---|" if thr else "") + "---|---|---|"]
+                "|---|---|---|---|---|---|---|" + ("---|" if thr else "") + "---|---|---|"]
         for r in rs:
+            lo, hi = r["p99_interval"]
             out.append(f"| {r['category']} | {r['dtype']} | {r['n']} | {_e(r['max_abs_error'])} | "
-                       f"{_e(r['p99_abs_error'])} | {r['nonfinite']} |"
+                       f"{_e(r['p99_abs_error'])} | [{_e(lo)}, {'∞' if math.isinf(hi) else _e(hi)}] | "
+                       f"{r['nonfinite']} |"
                        + (f" {r['within_threshold']} |" if thr else "")
                        + f" {_input_text(r)} | {_e(r['worst_fast'])} | {_e(r['worst_exact'])} |")
         out.append("")
