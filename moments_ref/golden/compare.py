@@ -32,6 +32,9 @@ tolerance at each row's worst value. The rule, the same for every harness:
   ``ulps`` (units in the last place of the port's precision at the expected
   value). Rows with an infinite tolerance (``result`` acceptable: the value is
   undefined there) need only a finite value within the case's ``value_range``;
+* rows flagged ``wide_spread`` (ill-conditioned, :mod:`moments_ref.golden.bands`) are judged by their
+  band like every row, are marked in ``Verdict.ill``, and never count as passes (the harnesses
+  report them in their own section);
 * rows flagged ``robustness`` (beyond the algorithm's contract,
   :mod:`moments_ref.golden.contract`) are judged by the same rule, but only
   ``strict=True`` lets them fail the verdict; otherwise what they would fail for
@@ -48,7 +51,7 @@ from .._arrays import InputError
 from .spread import robust_rows
 from .units import ulp
 
-__all__ = ["compare", "Verdict", "check_dtypes", "port_precision"]
+__all__ = ["compare", "Verdict", "check_dtypes", "port_precision", "ill_rows"]
 
 
 @dataclass
@@ -67,6 +70,19 @@ class Verdict:
     strict_pass: np.ndarray | None = None  # (n,) bool: the row passes when robustness rows are gated too
     nonfinite: np.ndarray | None = None  # (n,) bool: a NaN or infinite output value
     outside_range: np.ndarray | None = None  # (n,) bool: a finite value outside the case's value_range
+    ill: np.ndarray | None = None  # (n,) bool: ill-conditioned rows (flag wide_spread), judged by their band
+
+    def ill_tally(self):
+        """Ill-conditioned rows (flag ``wide_spread``): how many, inside their band, outside it (failing).
+
+        They are judged by their band (the exact values over the float32 neighbourhood and every legitimate
+        evaluation), but never count as passes of the port: a row whose answer moves under 1-ulp changes of the
+        input cannot tell a correct port from a wrong one that lands in the band."""
+        ill = np.zeros(len(self.row_pass), bool) if self.ill is None else self.ill
+        if self.gated is not None:
+            ill = ill & self.gated  # an ungated row (undefined value) has no band to lie in
+        return {"rows": int(ill.sum()), "inside": int((ill & self.strict_pass).sum()),
+                "outside": int((ill & ~self.strict_pass).sum())}
 
     @property
     def passed(self):
@@ -225,4 +241,12 @@ def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
         score = np.maximum(score, s)
     verdict_pass = row_pass | lenient
     return Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated, robust,
-                   bool(strict), row_pass, nonfinite, outside)
+                   bool(strict), row_pass, nonfinite, outside, ill_rows(expected, n))
+
+
+def ill_rows(arrays, n):
+    """``(n,)`` bool: the rows flagged ``wide_spread`` (ill-conditioned) in a golden file's ``flags``."""
+    flags = arrays.get("flags") if hasattr(arrays, "get") else None
+    if flags is None:
+        return np.zeros(n, bool)
+    return np.array(["wide_spread" in str(f).split(",") for f in np.asarray(flags).reshape(-1)], bool)
