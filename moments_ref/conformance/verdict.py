@@ -174,25 +174,6 @@ def _worst_value(o, arrays, got, i):
     return int(np.argmax(np.where(np.isnan(r), np.inf, r)))
 
 
-def _confirm_ill(meta, arrays, got, v, case):
-    """Ill-conditioned rows inside their (symmetric) band are judged by their neighbourhood: a row fails whose
-    value lies outside every neighbour's exact value and every legitimate evaluation
-    (:func:`moments_ref.golden.bands.confirm`; issue 37's item 2). Needs the plain ``case`` (no profile)."""
-    if case is None or case.deriver is not None or case.integer_output or v.ill is None or meta["exact"]:
-        return
-    sel = np.flatnonzero(v.ill & v.gated & v.strict_pass)
-    if not sel.size:
-        return
-    from ..golden.bands import confirm
-
-    wrong = confirm(case, {k: np.asarray(arrays[k])[sel] for k in case.inputs},
-                    {o: np.asarray(got[o])[sel] for o in meta["compare"]}, GATE_DTYPE)
-    bad = sel[wrong]
-    v.strict_pass[bad] = False
-    v.row_pass[bad] = v.robust[bad] & (not v.strict)
-    v.score[bad] = np.maximum(v.score[bad], np.nextafter(1.0, 2.0))
-
-
 def ill_section(meta, arrays, got, v, case=None, rows=10):
     """The ill-conditioned rows (flag ``wide_spread``) a porter reads: failing rows first, at most ``rows``.
 
@@ -259,8 +240,7 @@ def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None
     category = np.asarray(arrays["category"]).astype(str)
     n = len(category)
     got, misfit = _narrow(meta, got, n)
-    v = compare(meta, arrays, got, GATE_DTYPE, case=name, strict=strict)
-    _confirm_ill(meta, arrays, got, v, case)
+    v = compare(meta, arrays, got, GATE_DTYPE, case=name, strict=strict, neighbourhood=case)
     v.row_pass &= ~misfit
     row_pass = v.row_pass
     score = np.where(misfit, np.inf, v.score)
