@@ -257,11 +257,16 @@ def confirm_ill(v, case, entry, expected, candidate):
     The stored tolerance is symmetric about the expected value, so on a row whose exact value jumps it holds
     values on one side that no neighbour has. A row fails whose value lies outside every neighbour's exact value
     and every legitimate evaluation (:func:`moments_ref.golden.bands.confirm`: mpmath over the float32
-    neighbourhood; issue 37, item 2). ``case``: the plain case the arrays hold (no profile).
+    neighbourhood; issue 37, item 2). ``case``: the plain case the arrays hold (no profile). Only rows of one
+    value each (not kernel maps, blocks or vectors: the flag is per row, the band per value).
     """
     if case.deriver is not None or case.integer_output or entry["metric"] == "exact" or v.ill is None:
         return
     if case.function.startswith("kernels."):  # a kernel case's rows are the texels of one map: none stands alone
+        return
+    if any(np.ndim(expected[o]) != 1 for o in entry["compare"]):
+        # The flag is per row, the band per value: on a row of many values (a block's pixels, a vector) the values
+        # that are not ill-conditioned keep their band's margin, which confirm's span has not.
         return
     sel = np.flatnonzero(v.ill & v.gated & v.strict_pass)
     if not sel.size:

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..moments import bias_moments
 
-__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "TRANSCENDENTAL_ULPS",
+__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "TRANSCENDENTAL_ULPS", "FUSED_STAGES",
            "block_spread", "chain_spread", "msm_spread"]
 
 #: How far a GPU's log and exp may be off (GLSL 4.30 §4.7.1: 3 ulp outside [0.5, 2]).
@@ -46,10 +46,15 @@ _EPS32 = float(np.finfo(np.float32).eps)
 
 def float32_filters(depth):
     """Filtered moments ``(H, W, 4)`` float32 of one block of MSAA depths, as GPUs compute them: every
-    legitimate float32 kernel of :data:`moments_ref.gpu.filter32.VARIANTS` (the one place they live)."""
+    legitimate float32 kernel of :data:`moments_ref.gpu.filter32.VARIANTS` (the one place they live), and the
+    filter with exact sums rounded once to float32 (float64 arithmetic: the limit every order of the sums
+    approaches, and what a port that filters in double precision stores)."""
     from ..gpu.filter32 import variant_moments
+    from ..gpu.filtering import blur, resolve_moments
 
-    return list(variant_moments(np.asarray(depth, np.float32)).values())
+    d = np.asarray(depth, np.float32)
+    exact = blur(resolve_moments(d.astype(np.float64))).astype(np.float32)
+    return list(variant_moments(d).values()) + [exact]
 
 
 def _nudge_xi(r, sign, decoded):
@@ -87,23 +92,35 @@ def nlq_chain_gpu(fmt, bias, clamp=None, case_test="stored", sign=1, texel=None)
     return chain
 
 
-def nlq_chain_fused(fmt, bias, clamp=None, case_test="stored", swapped=False, texel=None):
+#: The stages of the NLQ chain each compiled plainly (None: the reference's operations) or contracted either way
+#: (:data:`moments_ref.gpu.fused32.CONTRACTIONS`): (bias, Φ, Algorithm 3). A compiler decides per expression, so
+#: the bias and Φ, between which an ill-conditioned texel amplifies one rounding most, are enumerated jointly.
+FUSED_STAGES = tuple((bi, ph, ph if ph is not None else bi) for bi in (None, False, True) for ph in (None, False, True)
+                     if (bi, ph) != (None, None))
+
+
+def nlq_chain_fused(fmt, bias, clamp=None, case_test="stored", stages=(False, False, False), texel=None):
     """The NLQ chain of :func:`moments_ref.golden.endtoend.nlq_chain` as a compiler contracts and reassociates it
-    (:mod:`moments_ref.gpu.fused32`; ``swapped``: the other product fused, sums in the other order), float32."""
+    (:mod:`moments_ref.gpu.fused32`), float32. ``stages``: per stage (bias, Φ, Algorithm 3) None (the reference's
+    operations), False or True (``swapped``: the other product fused, sums in the other order)."""
 
     def chain(b, zf):
         from ..gpu.fused32 import bias_fused, phi_fused, shade_fused
-        from ..nonlinear import SHADE_TOLERANCE
+        from ..nonlinear import SHADE_TOLERANCE, phi
         from ..packing import pack32, pack64, unpack32, unpack64
-        from .variants import decode32, rounding64
+        from .variants import decode32, rounding64, shade_reference
 
+        sb, sp, ss = stages
         b = np.asarray(b, np.float32)
-        r = phi_fused(b if bias is None else bias_fused(b, bias), swapped)
+        if bias is not None:
+            b = bias_moments(b, bias) if sb is None else bias_fused(b, bias, sb)
+        r = phi(b) if sp is None else phi_fused(b, sp)
         if fmt == "64":
             r = unpack64(pack64(r, **rounding64(texel)), dtype=np.float32)
         else:
             r = unpack32(pack32(r), dtype=np.float32, **decode32(texel))
-        return (shade_fused(r, zf, SHADE_TOLERANCE if clamp is None else clamp, swapped, case_test),)
+        c = SHADE_TOLERANCE if clamp is None else clamp
+        return shade_reference(c, case_test)(r, zf) if ss is None else (shade_fused(r, zf, c, ss, case_test),)
 
     return chain
 
@@ -146,7 +163,7 @@ def chain_spread(fmt, bias, clamp=None, case_test="stored", texel=None):
             return []
         b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
         return [nlq_chain_gpu(fmt, bias, clamp, case_test, s, texel)(b, zf) for s in (1, -1)] + [
-            nlq_chain_fused(fmt, bias, clamp, case_test, s, texel)(b, zf) for s in (False, True)]
+            nlq_chain_fused(fmt, bias, clamp, case_test, s, texel)(b, zf) for s in FUSED_STAGES]
 
     return hook
 
@@ -162,7 +179,7 @@ def block_spread(fmt, bias, clamp=None, case_test="stored", guard=4, nlq_chain=N
         depth, zf = np.asarray(inputs["depth"]), np.asarray(inputs["zf"], dt)
         chains = [nlq_chain(fmt, bias, clamp, case_test, texel)] + [
             nlq_chain_gpu(fmt, bias, clamp, case_test, s, texel) for s in (1, -1)] + [
-            nlq_chain_fused(fmt, bias, clamp, case_test, s, texel) for s in (False, True)]
+            nlq_chain_fused(fmt, bias, clamp, case_test, s, texel) for s in FUSED_STAGES]
         outs = []
         per_block = [float32_filters(depth[i]) for i in range(len(depth))]  # one block per row
         for k in range(len(per_block[0])):

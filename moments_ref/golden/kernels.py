@@ -223,7 +223,7 @@ def _variant_texels(fmt, h, w, key, depth_bytes):
         pack = pack64 if fmt == "nlq64" else pack32
         found += [pack(_xi_perturbed(r, s)) for s in (1, -1)]
         # The bias and Φ as a compiler contracts and reassociates them (either product of each sum fused).
-        found += [pack(fused32.phi_fused(fused32.bias_fused(m0, BIAS_FLOAT32), s)) for s in fused32.CONTRACTIONS]
+        found += [pack(fused32.phi_fused(fused32.bias_fused(m0, BIAS_FLOAT32, s), s)) for s in fused32.CONTRACTIONS]
     return tuple(found)
 
 

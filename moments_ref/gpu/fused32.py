@@ -10,7 +10,7 @@ by a rounding of each product that was or was not fused, and by the order of eac
 samples, the block); this module does it for the rest of the chain, the arithmetic of
 HPG17 §3.2 and Algorithms 2 and 3 on one texel:
 
-* :func:`bias_fused`: ``b (1 − α) + α b*`` as one fma (HPG17 §3.2, Slides "Bias the moments");
+* :func:`bias_fused`: ``b (1 − α) + α b*`` with either product fused (HPG17 §3.2, Slides "Bias the moments");
 * :func:`phi_fused`: Algorithm 2 with every ``a b ± c`` fused (σ², q1, q0, the
   discriminant, ξ4 of Eq. (3));
 * :func:`shade_fused`: Algorithm 3 with every ``a b ± c`` fused (P, q1/2, the
@@ -62,12 +62,18 @@ def fma32(a, b, c):
     return (np.asarray(a, np.float64) * np.asarray(b, np.float64) + np.asarray(c, np.float64)).astype(_F32)
 
 
-def bias_fused(b, preset):
-    """HPG17 §3.2's ``(1 − α) b + α b*`` with the product of b fused into the sum, float32 ``(..., 4)``."""
+def bias_fused(b, preset, swapped=False):
+    """HPG17 §3.2's ``(1 − α) b + α b*`` with one product fused into the sum, float32 ``(..., 4)``.
+
+    ``swapped=False``: ``fma(b, 1 − α, α b*)``; ``True``: ``fma(α, b*, (1 − α) b)``.
+    """
     p = bias_preset(preset)
     b = np.asarray(b, _F32)
     alpha = _F32(p.alpha)
-    return fma32(b, _F32(1) - alpha, alpha * np.asarray(p.target, _F32))
+    target = np.asarray(p.target, _F32)
+    if swapped:
+        return fma32(alpha, target, (_F32(1) - alpha) * b)
+    return fma32(b, _F32(1) - alpha, alpha * target)
 
 
 def phi_fused(b, swapped=False):
