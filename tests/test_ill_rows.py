@@ -85,7 +85,7 @@ def test_the_ill_section_is_printed(upper):
     rep = ConformanceReport(CASE, "f", "f.glsl", "r", len(got), False, v.categories, v.worst, {}, [], None,
                             "glsl", "gl", {"intensity": got}, "abs", v.row_pass, v.groups, v.compared, v.record, v.ill)
     text = rep.format()
-    assert f"ill-conditioned (flag wide_spread" in text and f"{len(ill)} rows" in text
+    assert "ill-conditioned (flag wide_spread" in text and f"{len(ill)} rows" in text
     assert "exact over the neighbourhood [" in text
 
 
