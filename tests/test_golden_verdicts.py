@@ -111,9 +111,9 @@ def test_conformance_judges_through_golden_compare(ctx, golden_dir, monkeypatch)
 
     calls = []
 
-    def spy(entry, expected, candidate, port_dtype=None, case="", strict=False):
+    def spy(entry, expected, candidate, port_dtype=None, case="", strict=False, neighbourhood=None):
         calls.append((case, port_dtype))
-        v = real_compare(entry, expected, candidate, port_dtype, case, strict)
+        v = real_compare(entry, expected, candidate, port_dtype, case, strict, neighbourhood)
         v.row_pass[:] = False
         v.score[:] = np.inf
         return v

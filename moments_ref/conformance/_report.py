@@ -53,6 +53,7 @@ class ConformanceReport:
     groups: list = field(default_factory=list)  # golden.diagnosis.Group: failing rows by level, flag and cause
     verdict: object = field(default=None, repr=False)  # the golden.compare.Verdict
     record: dict | None = field(default=None, repr=False)  # every row's verdict, for --json
+    ill: list = field(default_factory=list)  # the ill-conditioned rows shown (conformance.verdict.ill_section)
 
     @property
     def passed(self):
@@ -94,6 +95,23 @@ class ConformanceReport:
         return [f"      {verdict:4} row {r['index']} [{r['category']}] {head}",
                 f"           inputs: {ins}", f"           ({r['comment']})", f"           tc_id {r['tc_id']}{flags}"]
 
+    def _ill_lines(self):
+        """The ill-conditioned rows' own section: judged by their band, never counted as passes."""
+        t = self.verdict.ill_tally()
+        if not t["rows"]:
+            return []
+        lines = [f"      ill-conditioned (flag wide_spread: the exact value moves under 1-ulp changes of the input): "
+                 f"{t['rows']} rows, {t['inside']} explained by their neighbourhood, {t['outside']} outside every "
+                 f"neighbour's exact value and legitimate evaluation (fail); never counted as passes"]
+        for r in self.ill:
+            at = "" if r["value"] is None else f" (value {r['value']})"
+            ins = "; ".join(f"{k}={_arr(v, np.asarray(v).dtype.kind in 'ui')}" for k, v in r["inputs"].items()
+                            if np.size(v) <= 8)
+            exact = f", exact over the neighbourhood [{r['exact'][0]:.9g}, {r['exact'][1]:.9g}]" if "exact" in r else ""
+            lines.append(f"      {'ok' if r['passed'] else 'FAIL':4} row {r['index']}{at}: got {r['got']:.9g}, band "
+                         f"[{r['band'][0]:.9g}, {r['band'][1]:.9g}]{exact}" + (f"; {ins}" if ins else ""))
+        return lines
+
     def format(self):
         """The report as printed by ``moments-ref conformance``."""
         lines = [f"{'PASS' if self.passed else 'FAIL'}  {self.function} ({self.path}, {self.language}) on "
@@ -111,6 +129,7 @@ class ConformanceReport:
                 lines.append(f"      beyond the algorithm's contract: {t['rows']} rows, {t['would_fail']} outside "
                              f"their tolerance ({t['nonfinite']} NaN or infinite, {t['outside_range']} out of range); "
                              f"{mode}")
+            lines += self._ill_lines()
         if self.worst:
             lines.append("      worst rows (failing rows first by error/tolerance; per-row tolerances of the "
                          "golden file, verdict by golden.compare):")

@@ -23,7 +23,8 @@ import numpy as np
 
 from ..golden.compare import compare
 
-__all__ = ["GATE_DTYPE", "CategoryResult", "CaseVerdict", "compare_case", "ulp_distance", "select_worst"]
+__all__ = ["GATE_DTYPE", "CategoryResult", "CaseVerdict", "compare_case", "ulp_distance", "select_worst",
+           "ill_section"]
 
 #: The precision every shader port is judged in (its tolerance column).
 GATE_DTYPE = "float32"
@@ -58,6 +59,7 @@ class CaseVerdict:
     notes: list = field(default_factory=list)
     groups: list = field(default_factory=list)  # golden.diagnosis.Group: failing rows by level, flag, cause
     compared: object = None  # the golden.compare.Verdict
+    ill: list = field(default_factory=list)  # dicts of the ill-conditioned rows shown (:func:`ill_section`)
     record: dict | None = None  # every row's verdict (golden.diagnosis.json_rows), for --json
 
     @property
@@ -144,7 +146,8 @@ def _categories(category, v, score, row_pass, differs):
         if not sel.size:
             continue
         w = sel[int(np.argmax(score[sel]))]
-        out[c] = CategoryResult(c, int(sel.size), int(v.gated[sel].sum()), int((~row_pass[sel]).sum()),
+        gated = v.gated & ~v.ill if v.ill is not None else v.gated  # ill-conditioned rows never count as passes
+        out[c] = CategoryResult(c, int(sel.size), int(gated[sel].sum()), int((~row_pass[sel]).sum()),
                                 float(score[w]), float(v.error[w]), float(v.tolerance[w]),
                                 int(differs[sel].sum()), int((differs & row_pass)[sel].sum()))
     return out
@@ -161,7 +164,49 @@ def _components(meta, arrays, got, row_pass):
     return {"ulps": "[" + ", ".join(str(int(x)) if x < 1e6 else f"{x:.3g}" for x in u) + "]"}
 
 
-def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None):
+def _worst_value(o, arrays, got, i):
+    """Index of the row's value (pixel, component) farthest from the expected one, in tolerances."""
+    e = np.asarray(arrays[o][i], np.float64).ravel()
+    g = np.asarray(got[o][i], np.float64).ravel()
+    t = np.asarray(arrays[f"{o}_tolerance_{GATE_DTYPE}"][i], np.float64).ravel()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.where(np.isfinite(g), np.abs(g - e) / np.where(t > 0, t, 1), np.inf)
+    return int(np.argmax(np.where(np.isnan(r), np.inf, r)))
+
+
+def ill_section(meta, arrays, got, v, case=None, rows=10):
+    """The ill-conditioned rows (flag ``wide_spread``) a porter reads: failing rows first, at most ``rows``.
+
+    Each: index, tc_id, inputs, the port's value and the band at the row's worst value (pixel, component),
+    whether it lies in the band, and where ``case`` (the :class:`~moments_ref.golden.cases.Case` the golden file
+    was generated from, no profile) is given, the interval of exact values over the input's float32
+    neighbourhood there (:func:`moments_ref.golden.bands.neighbourhood_interval`).
+    """
+    if v.ill is None or meta["exact"] or not v.ill.any():
+        return []
+    o = meta["compare"][0]
+    sel = np.flatnonzero(v.ill & v.gated)  # an ungated row (undefined value) needs no band
+    sel = np.concatenate([sel[~v.strict_pass[sel]], sel[v.strict_pass[sel]]])[:rows]
+    exact = None
+    if case is not None and case.deriver is None and not case.integer_output:
+        from ..golden.bands import neighbourhood_interval
+
+        exact = neighbourhood_interval(case, {k: np.asarray(arrays[k])[sel] for k in case.inputs})[o]
+    out = []
+    for j, i in enumerate(sel):
+        k = _worst_value(o, arrays, got, i)
+        e = float(np.asarray(arrays[o][i], np.float64).ravel()[k])
+        t = float(np.asarray(arrays[f"{o}_tolerance_{GATE_DTYPE}"][i], np.float64).ravel()[k])
+        r = {"index": int(i), "tc_id": int(arrays["tc_id"][i]), "value": k if np.ndim(arrays[o][i]) else None,
+             "inputs": {n: arrays[n][i] for n in meta["inputs"]}, "got": float(np.asarray(got[o][i]).ravel()[k]),
+             "band": (e - t, e + t), "passed": bool(v.strict_pass[i])}
+        if exact is not None:
+            r["exact"] = tuple(float(np.asarray(x[j], np.float64).ravel()[k]) for x in exact)
+        out.append(r)
+    return out
+
+
+def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None, case=None):
     """Judge a port's outputs on one golden case with :func:`moments_ref.golden.compare.compare`.
 
     Parameters
@@ -182,6 +227,9 @@ def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None
         Robustness rows (beyond the algorithm's contract) fail the verdict too.
     extra : callable, optional
         ``verdict -> [diagnosis.Group]``: causes told by outputs (a singular bias target).
+    case : moments_ref.golden.cases.Case, optional
+        The case the golden file holds, without a profile: its ill-conditioned rows are shown with the
+        interval of exact values over their neighbourhood (:func:`ill_section`).
 
     Returns
     -------
@@ -192,7 +240,7 @@ def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None
     category = np.asarray(arrays["category"]).astype(str)
     n = len(category)
     got, misfit = _narrow(meta, got, n)
-    v = compare(meta, arrays, got, GATE_DTYPE, case=name, strict=strict)
+    v = compare(meta, arrays, got, GATE_DTYPE, case=name, strict=strict, neighbourhood=case)
     v.row_pass &= ~misfit
     row_pass = v.row_pass
     score = np.where(misfit, np.inf, v.score)
@@ -209,6 +257,8 @@ def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None
     verdict.groups = groups(v, arrays, extra(v) if extra else ())
     verdict.compared = v
     verdict.record = json_rows(name, meta, arrays, got, v, verdict.groups)
+    verdict.ill = ill_section(meta, arrays, got, v, case)
+    verdict.record["ill_conditioned"] = dict(v.ill_tally(), shown=[_plain_ill(r) for r in verdict.ill])
     if meta["dtype"] == "float64" and any(np.asarray(arrays[k]).dtype.kind == "f" for k in meta["inputs"]):
         verdict.notes.append("float64 case: inputs rounded to float32 for upload; judged by the golden file's "
                              "float32 tolerance column")
@@ -216,3 +266,15 @@ def compare_case(name, meta, arrays, got, worst_rows=5, strict=False, extra=None
         verdict.notes.append(f"{int(misfit.sum())} rows hold a word wider than the format's "
                              f"{meta['outputs'][meta['compare'][0]]['dtype']} codes (failed)")
     return verdict
+
+
+def _plain_ill(r):
+    """An :func:`ill_section` row as plain JSON values."""
+    out = {k: v for k, v in r.items() if k != "inputs"}
+    out["inputs"] = {k: np.asarray(v).tolist() for k, v in r["inputs"].items()}
+    finite = lambda x: [float(a) if np.isfinite(a) else None for a in x]  # noqa: E731 (JSON has no inf)
+    out["band"] = finite(r["band"])
+    out["got"] = finite([r["got"]])[0]
+    if "exact" in r:
+        out["exact"] = finite(r["exact"])
+    return out

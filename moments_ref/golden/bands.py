@@ -42,7 +42,7 @@ from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
-__all__ = ["legitimate_interval", "confirm", "evaluations", "case_noise", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
+__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
            "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
 #: Joint scaling of the float inputs, in ulps of the port's precision.
@@ -57,10 +57,11 @@ MARGIN_NOISE = 4.0
 #: ... and this many times the width of the row's interval: a port's own operation order is another point of
 #: the same neighbourhood, and its forward error reaches a few times what 1–3 ulps of the input give.
 MARGIN_WIDTH = 3.0
-#: The chained cases (``endtoend.*``, ``kernels.*``: a filter, a quantizer and Algorithm 3 in one shader) keep
-#: 16 times the width and the noise: the reassociation and contraction a SPIR-V or GLSL compiler applies to the chain's sums
-#: are not yet enumerated as evaluations of their own, and this factor is what covers them (capped as above).
-MARGIN_WIDTH_CHAIN = 16.0
+#: The chained cases (``endtoend.*``, ``kernels.*``: a filter, a quantizer and Algorithm 3 in one shader). Their
+#: ``spread_hook`` is the chain as a GPU and its compiler evaluate it (:mod:`moments_ref.golden.gpuspread`: the sums
+#: over samples, taps and block in every order, every ``a·b + c`` fused or not, log and exp a few ulps off), so they
+#: take the same margin as every case; their hooks are legitimate GPU evaluations, not printed formulas, and widen
+#: the band without the cap (beyond it the row is ill-conditioned).
 CHAINED = ("endtoend.", "kernels.")
 #: No band of a bounded output reaches farther than this fraction of its range from the expected value.
 CAP = 0.02
@@ -158,8 +159,6 @@ def _span(e, values):
 
 
 def _margin(case, e, dt, noise, width):
-    if case.function.startswith(CHAINED):
-        width, noise = width * (MARGIN_WIDTH_CHAIN / MARGIN_WIDTH), noise * (MARGIN_WIDTH_CHAIN / MARGIN_NOISE)
     scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
     if case.metric == "ulps":
         return np.maximum(FLOOR_ULPS * ulp(e, dt), MARGIN_WIDTH * width)
@@ -195,7 +194,7 @@ def interval_parts(case, dt, expected, contract, noise, core, hooks):
                 hazard |= np.isfinite(h) & c & ~fine
                 lo, hi = np.where(fine, np.minimum(lo, h), lo), np.where(fine, np.maximum(hi, h), hi)
             m = _margin(case, e, dt, noise[i], hi - lo)
-            if chained:  # the margin stands in for the chain's unenumerated reassociations: beyond the cap, ill
+            if chained:  # the GPU's own chains (every order and contraction) span beyond the cap: ill
                 ill |= (e - (lo - m) > cap) | ((hi + m) - e > cap)
             lo = np.where(ill, lo - m, np.maximum(lo - m, e - cap))
             hi = np.where(ill, hi + m, np.minimum(hi + m, e + cap))
@@ -331,23 +330,8 @@ def _within_cap(case, hook, exact):
     return tuple(out)
 
 
-def confirm(case, inputs, got, port_dtype="float32", seed=12345):
-    """``(n,)`` bool: rows whose ``got`` lies outside every neighbour's exact value and every legitimate evaluation.
-
-    The exact values (the case's mpmath ``truth``, :mod:`moments_ref.precise`) are computed on
-    the row, on its float inputs scaled by ``1 ± k`` float32 ulps (k = 1 … PERTURB_ULPS) and on
-    :data:`NEIGHBOURS` points whose float inputs differ by at most PERTURB_ULPS float32 ulps per
-    component, each rounded to the inputs' dtype (a neighbour is an input the port could have
-    received). ``got`` is explained where it lies within the span of those exact values and of
-    the legitimate evaluations (formulations only within the cap), widened by ``FLOOR_ULPS``
-    ulps of max(|value|, scale) in ``port_dtype``. Integer outputs must equal one of the codes.
-    Meant for the few flagged rows of a sweep, not for millions. NaN is never explained.
-    """
-    n = len(next(iter(inputs.values())))
-    if n == 0:
-        return np.zeros(0, bool)
-    inputs = {k: inputs[k] for k in case.inputs}
-    dt = np.dtype(port_dtype)
+def _exact_values(case, inputs, seed=12345):
+    """The exact values (:func:`_exact`) on the rows and on their float32 neighbourhood (:func:`confirm`'s points)."""
     rng = np.random.default_rng(seed)
     eps = float(np.finfo(np.float32).eps)
 
@@ -367,6 +351,45 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
             values.append(_exact(case, p))
         except InputError:  # a neighbour outside the function's domain
             pass
+    return values
+
+
+def neighbourhood_interval(case, inputs, seed=12345):
+    """Per output ``(lo, hi)``: the least and largest exact value over the rows' float32 neighbourhood.
+
+    The points of :func:`confirm` (the row, its float inputs scaled by ``1 ± k`` float32 ulps, and
+    :data:`NEIGHBOURS` random points within PERTURB_ULPS ulps per component), each valued by the case's mpmath
+    ``truth`` (:mod:`moments_ref.precise`), else its float64 reference. Meant for the few ill-conditioned rows a
+    report shows: where the exact value jumps under 1-ulp changes of the input, this is where it jumps.
+    """
+    inputs = {k: inputs[k] for k in case.inputs}
+    values = _exact_values(case, inputs, seed)
+    out = {}
+    for i, o in enumerate(case.outputs):
+        e = np.asarray(values[0][i], np.float64)
+        lo, hi, _ = _span(e, [v[i] for v in values])
+        out[o] = (lo, hi)
+    return out
+
+
+def confirm(case, inputs, got, port_dtype="float32", seed=12345):
+    """``(n,)`` bool: rows whose ``got`` lies outside every neighbour's exact value and every legitimate evaluation.
+
+    The exact values (the case's mpmath ``truth``, :mod:`moments_ref.precise`) are computed on
+    the row, on its float inputs scaled by ``1 ± k`` float32 ulps (k = 1 … PERTURB_ULPS) and on
+    :data:`NEIGHBOURS` points whose float inputs differ by at most PERTURB_ULPS float32 ulps per
+    component, each rounded to the inputs' dtype (a neighbour is an input the port could have
+    received). ``got`` is explained where it lies within the span of those exact values and of
+    the legitimate evaluations (formulations only within the cap), widened by ``FLOOR_ULPS``
+    ulps of max(|value|, scale) in ``port_dtype``. Integer outputs must equal one of the codes.
+    Meant for the few flagged rows of a sweep, not for millions. NaN is never explained.
+    """
+    n = len(next(iter(inputs.values())))
+    if n == 0:
+        return np.zeros(0, bool)
+    inputs = {k: inputs[k] for k in case.inputs}
+    dt = np.dtype(port_dtype)
+    values = _exact_values(case, inputs, seed)
     if not case.integer_output:
         core, hooks = evaluations(case, inputs, dt)
         values += core + [_within_cap(case, h, values[0]) for h in hooks]

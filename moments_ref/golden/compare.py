@@ -32,6 +32,9 @@ tolerance at each row's worst value. The rule, the same for every harness:
   ``ulps`` (units in the last place of the port's precision at the expected
   value). Rows with an infinite tolerance (``result`` acceptable: the value is
   undefined there) need only a finite value within the case's ``value_range``;
+* rows flagged ``wide_spread`` (ill-conditioned, :mod:`moments_ref.golden.bands`) are judged by their
+  band like every row, are marked in ``Verdict.ill``, and never count as passes (the harnesses
+  report them in their own section);
 * rows flagged ``robustness`` (beyond the algorithm's contract,
   :mod:`moments_ref.golden.contract`) are judged by the same rule, but only
   ``strict=True`` lets them fail the verdict; otherwise what they would fail for
@@ -48,7 +51,7 @@ from .._arrays import InputError
 from .spread import robust_rows
 from .units import ulp
 
-__all__ = ["compare", "Verdict", "check_dtypes", "port_precision"]
+__all__ = ["compare", "Verdict", "check_dtypes", "port_precision", "ill_rows", "confirm_ill"]
 
 
 @dataclass
@@ -67,6 +70,19 @@ class Verdict:
     strict_pass: np.ndarray | None = None  # (n,) bool: the row passes when robustness rows are gated too
     nonfinite: np.ndarray | None = None  # (n,) bool: a NaN or infinite output value
     outside_range: np.ndarray | None = None  # (n,) bool: a finite value outside the case's value_range
+    ill: np.ndarray | None = None  # (n,) bool: ill-conditioned rows (flag wide_spread), judged by their band
+
+    def ill_tally(self):
+        """Ill-conditioned rows (flag ``wide_spread``): how many, inside their band, outside it (failing).
+
+        They are judged by their band (the exact values over the float32 neighbourhood and every legitimate
+        evaluation), but never count as passes of the port: a row whose answer moves under 1-ulp changes of the
+        input cannot tell a correct port from a wrong one that lands in the band."""
+        ill = np.zeros(len(self.row_pass), bool) if self.ill is None else self.ill
+        if self.gated is not None:
+            ill = ill & self.gated  # an ungated row (undefined value) has no band to lie in
+        return {"rows": int(ill.sum()), "inside": int((ill & self.strict_pass).sum()),
+                "outside": int((ill & ~self.strict_pass).sum())}
 
     @property
     def passed(self):
@@ -174,7 +190,7 @@ def _float(o, entry, expected, cand, n, dt):
     return (flat(ok).all(axis=1), flat(ratio).max(axis=1), flat(err)[rows, k], flat(tol)[rows, k]), bad
 
 
-def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
+def compare(entry, expected, candidate, port_dtype=None, case="", strict=False, neighbourhood=None):
     """Judge a port's outputs on one golden case; see the module docstring.
 
     Parameters
@@ -191,6 +207,10 @@ def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
         The case name, for messages.
     strict : bool
         Robustness rows (flag ``robustness``) fail the verdict too.
+    neighbourhood : moments_ref.golden.cases.Case, optional
+        The case the golden arrays hold, without a profile: its ill-conditioned rows inside their stored
+        (symmetric) band are judged by their neighbourhood (:func:`confirm_ill`). ``verify``, ``oracle.check``,
+        ``conformance`` and the mutation runner pass it where no profile applies, so the rule stays one.
 
     Returns
     -------
@@ -224,5 +244,46 @@ def compare(entry, expected, candidate, port_dtype=None, case="", strict=False):
         row_err, row_tol = np.where(worse, err, row_err), np.where(worse, tol, row_tol)
         score = np.maximum(score, s)
     verdict_pass = row_pass | lenient
-    return Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated, robust,
-                   bool(strict), row_pass, nonfinite, outside)
+    v = Verdict(case, dt, verdict_pass, np.maximum(score, 0.0), row_err, row_tol, row_gated, robust,
+                bool(strict), row_pass, nonfinite, outside, ill_rows(expected, n))
+    if neighbourhood is not None:
+        confirm_ill(v, neighbourhood, entry, expected, candidate)
+    return v
+
+
+def confirm_ill(v, case, entry, expected, candidate):
+    """Judge the ill-conditioned rows inside their stored band by their neighbourhood, in place on ``v``.
+
+    The stored tolerance is symmetric about the expected value, so on a row whose exact value jumps it holds
+    values on one side that no neighbour has. A row fails whose value lies outside every neighbour's exact value
+    and every legitimate evaluation (:func:`moments_ref.golden.bands.confirm`: mpmath over the float32
+    neighbourhood; issue 37, item 2). ``case``: the plain case the arrays hold (no profile). Only rows of one
+    value each (not kernel maps, blocks or vectors: the flag is per row, the band per value).
+    """
+    if case.deriver is not None or case.integer_output or entry["metric"] == "exact" or v.ill is None:
+        return
+    if case.function.startswith("kernels."):  # a kernel case's rows are the texels of one map: none stands alone
+        return
+    if any(np.ndim(expected[o]) != 1 for o in entry["compare"]):
+        # The flag is per row, the band per value: on a row of many values (a block's pixels, a vector) the values
+        # that are not ill-conditioned keep their band's margin, which confirm's span has not.
+        return
+    sel = np.flatnonzero(v.ill & v.gated & v.strict_pass)
+    if not sel.size:
+        return
+    from .bands import confirm
+
+    wrong = confirm(case, {k: np.asarray(expected[k])[sel] for k in case.inputs},
+                    {o: np.asarray(candidate[o])[sel] for o in entry["compare"]}, v.port_dtype)
+    bad = sel[wrong]
+    v.strict_pass[bad] = False
+    v.row_pass[bad] = v.robust[bad] & (not v.strict)
+    v.score[bad] = np.maximum(v.score[bad], np.nextafter(1.0, 2.0))
+
+
+def ill_rows(arrays, n):
+    """``(n,)`` bool: the rows flagged ``wide_spread`` (ill-conditioned) in a golden file's ``flags``."""
+    flags = arrays.get("flags") if hasattr(arrays, "get") else None
+    if flags is None:
+        return np.zeros(n, bool)
+    return np.array(["wide_spread" in str(f).split(",") for f in np.asarray(flags).reshape(-1)], bool)

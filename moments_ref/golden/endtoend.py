@@ -34,7 +34,7 @@ import numpy as np
 from ..gpu.filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows, _msm_rows
-from .gpuspread import block_spread, chain_spread
+from .gpuspread import block_spread, chain_spread, msm_spread
 
 __all__ = ["case_specs", "nlq_chain", "BLOCK", "GUARD"]
 
@@ -149,7 +149,7 @@ def case_specs(dt):
     specs.append(dict(name=f"e2e-msm64-{dt}", function="endtoend.msm64", dtype=dt, inputs=("b", "zf"),
                       outputs=("intensity",), rows=_msm_rows, reference=_msm64(), truth=None, value_range=(0, 1),
                       **_CHAIN, profile_keys=("bias",), default_bias=("inside", BIAS_UNORM16),
-                      variant=_chain_variant(_msm64), width=4,
+                      variant=_chain_variant(_msm64, hook=msm_spread), width=4, spread_hook=msm_spread(BIAS_UNORM16),
                       description="filtered moments b -> encode_unorm16 -> decode_unorm16 -> "
                                   "bias_moments(BIAS_UNORM16) -> Algorithm 1; compared as shadow intensities"))
     for f in ("64", "32"):

@@ -54,7 +54,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..gpu import filter32
+from ..gpu import filter32, fused32
 from ..gpu.filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows
@@ -222,6 +222,8 @@ def _variant_texels(fmt, h, w, key, depth_bytes):
         r = phi(bias_moments(m0, BIAS_FLOAT32))
         pack = pack64 if fmt == "nlq64" else pack32
         found += [pack(_xi_perturbed(r, s)) for s in (1, -1)]
+        # The bias and Φ as a compiler contracts and reassociates them (either product of each sum fused).
+        found += [pack(fused32.phi_fused(fused32.bias_fused(m0, BIAS_FLOAT32, s), s)) for s in fused32.CONTRACTIONS]
     return tuple(found)
 
 
