@@ -42,7 +42,7 @@ from ..scene import depth as _depth
 from .cases import CASES
 from .contract import rows_inside
 from .notes import ROBUSTNESS
-from .profile import DEFAULT, Bias
+from .profile import DEFAULT, Bias, ignored_keys
 
 __all__ = ["profile_arrays", "profiled_arrays", "profiled_case", "convert_inputs", "contract_mask", "cache_dir",
            "unused_keys"]
@@ -109,17 +109,8 @@ def _biases(case, profile):
 
 
 def unused_keys(case, profile):
-    """Profile keys that do not apply to ``case`` (reported, not refused)."""
-    out = []
-    if profile.bias is not None and "bias" not in case.profile_keys:
-        out.append("bias")
-    if profile.clamp is not None and "clamp" not in case.profile_keys:
-        out.append("clamp")
-    if profile.clamp_test is not None and "clamp" not in case.profile_keys:
-        out.append("clamp_test")
-    if profile.format and "format" not in case.profile_keys:
-        out.append("format")
-    return out
+    """The profile keys ``case`` cannot use (named in its verdict; :func:`~.profile.ignored_keys` gives why)."""
+    return [k for k, _ in ignored_keys(case, profile)]
 
 
 def _visibility(fn):

@@ -205,6 +205,12 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
                              f"({manifest.get('profile')}); verify it without --profile or with that one")
         profile = None  # the folder's expected values are already this profile's
     results = load_results(results_path, manifest)
+    from .cases import CASES
+    from .profile import ignored_note, refuse_meaningless
+
+    if profile is not None and not profile.is_default:  # a key no verified case can use is refused, not dropped
+        refuse_meaningless([CASES[n] for n, meta in manifest["cases"].items() if n in CASES and any(
+            f"{n}.{o}" in results for o in meta["compare"])], profile)
     report = []
     for name, meta in manifest["cases"].items():
         keys = {o: f"{name}.{o}" for o in meta["compare"]}
@@ -216,8 +222,11 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
         if profile is not None and not profile.is_default:
             meta, gold, target = _profiled(name, meta, gold, profile)
         got = {o: results[k] for o, k in keys.items() if k in results}
-        report.append(_case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
-                                   _causes(name, base, got, profile, target, port_dtype or meta["dtype"])))
+        result = _case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
+                              _causes(name, base, got, profile, target, port_dtype or meta["dtype"]))
+        if profile is not None and name in CASES:  # the declared keys this case ignores, and why
+            result.message = "; ".join([result.message] * bool(result.message) + ignored_note(CASES[name], profile))
+        report.append(result)
     if not report or all(c.status == "missing" for c in report):
         raise InputError("results: no array matches a golden case output ('<case>.<output>')")
     return VerifyReport(report)

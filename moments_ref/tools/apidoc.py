@@ -2,7 +2,8 @@
 
 ``python -m moments_ref.tools.apidoc > docs/api.md``; ``--layout`` prints the table of
 docs/architecture.md (the README links to it); ``--columns`` rewrites the column table
-of docs/report.md (:mod:`moments_ref.report.columns`); ``tests/test_docs.py`` checks that
+of docs/report.md (:mod:`moments_ref.report.columns`), ``--profile-keys`` the key table of
+docs/ports.md (:data:`moments_ref.golden.profile.KEYS`); ``tests/test_docs.py`` checks that
 the file lists every public name.
 """
 
@@ -86,5 +87,9 @@ if __name__ == "__main__":  # pragma: no cover
         from ..report.columns import write_docs
 
         print(f"wrote {write_docs(Path(__file__).resolve().parents[2] / 'docs' / 'report.md')}")
+    elif "--profile-keys" in sys.argv[1:]:  # the key table of docs/ports.md (golden.profile.KEYS)
+        from ..golden.profile import write_docs as write_keys
+
+        print(f"wrote {write_keys(Path(__file__).resolve().parents[2] / 'docs' / 'ports.md')}")
     else:
         print(layout_markdown() if "--layout" in sys.argv[1:] else render())
