@@ -199,6 +199,7 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
     if port_dtype not in (None, "float32", "float64"):
         raise InputError(f"port_dtype: expected float32 or float64, got {port_dtype!r}")
     manifest = load_manifest(golden_dir)
+    declared = profile  # the caller's clamp applies also where the folder holds this profile's expected values
     if manifest.get("profile_key") is not None and profile is not None and not profile.is_default:
         if profile.key != manifest["profile_key"]:
             raise InputError("profile: the golden folder was written for another profile "
@@ -222,10 +223,16 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
         if profile is not None and not profile.is_default:
             meta, gold, target = _profiled(name, meta, gold, profile)
         got = {o: results[k] for o, k in keys.items() if k in results}
+        said = []
+        if declared is not None and name in CASES:  # a declared caller's clamp, applied first (golden.receiver)
+            from .receiver import clamp_outputs
+
+            got, said = clamp_outputs(CASES[name], declared, got)
         result = _case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
                               _causes(name, base, got, profile, target, port_dtype or meta["dtype"]))
         if profile is not None and name in CASES:  # the declared keys this case ignores, and why
-            result.message = "; ".join([result.message] * bool(result.message) + ignored_note(CASES[name], profile))
+            result.message = "; ".join([result.message] * bool(result.message) + ignored_note(CASES[name], profile)
+                                       + said)
         report.append(result)
     if not report or all(c.status == "missing" for c in report):
         raise InputError("results: no array matches a golden case output ('<case>.<output>')")
