@@ -227,17 +227,19 @@ def profile_arrays(case, arrays, profile, fed=None):
     inputs = {k: np.asarray(arrays[k]) for k in tuple(case.inputs) + tuple(case.aux)}
     inside = contract_mask(case, inputs, profile)
     conv = convert_inputs(case, inputs, fed)
-    conv.update(feed(case, conv, fed))
-    seen = {**conv, **judged(case, conv, profile)}
+    fed_receiver = feed(case, conv, fed)
+    conv.update(fed_receiver)
+    own = judged(case, conv, profile)
+    seen = {**conv, **own}
     before, inside_bias = _biases(case, profile)
     biased = (before is not None or inside_bias is not None) and case.contract == "moments_inside"
     labels = (np.asarray(arrays["category"]), list(np.asarray(arrays["comment"])), _strip(arrays["flags"], biased))
     if pcase.deriver is not None:
-        out = dict(pcase.deriver(judge, seen, *labels, contract=inside))
+        derived = pcase.deriver(judge, seen, *labels, contract=inside)
     else:
-        out = dict(derive(judge, {k: seen[k] for k in case.inputs}, *labels, contract=inside))
-    out.update(conv)  # the port's inputs: what it is fed
-    return pcase, out
+        derived = derive(judge, {k: seen[k] for k in case.inputs}, *labels, contract=inside)
+    # the port's receiver inputs are what it is fed, not the receiver it computes from them
+    return pcase, {**conv, **derived, **{k: conv[k] for k in {**fed_receiver, **own}}}
 
 
 _CODE = []

@@ -264,10 +264,10 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
     declared = profiled_arrays(name, profile, arrays=base_arrays)[1]
     for p, level, what in _candidates(case, profile):
         try:
-            pcase, arrays = profiled_arrays(name, p, arrays=base_arrays, fed=profile)
+            pcase, arrays = profiled_arrays(name, p, arrays=base_arrays, disk=False, fed=profile)
             arrays = unchanged_band(arrays, declared, port_dtype)
             seen, _ = clamp_outputs(case, p, got)
-            v = compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name)
+            v = compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name, strict=verdict.strict)
         except (InputError, TypeError, ValueError, KeyError):  # a choice this version cannot evaluate
             continue
         if v.failures == 0:
