@@ -150,3 +150,22 @@ def test_a_candidate_never_widens_a_rows_band():
     d = {"intensity": np.zeros(3), "intensity_tolerance_float32": np.array([1e-6, 1e-3, 0.5])}
     out = unchanged_band(a, d, "float32")
     assert out["intensity_tolerance_float32"].tolist() == [1e-6, 1e-6, 0.5]
+
+
+def test_oracle_check_honours_the_receiver_and_clamp_keys_and_the_sweep_refuses_them():
+    from moments_ref import oracle
+    from moments_ref.sweep.command import make_spec
+
+    g = golden.CASES[CASE]
+
+    def port(b, zf, slope):  # a Python port: slope-scaled offset, fully shadowed rows overshoot [0, 1] by 0.01
+        own = (zf - np.float32(1e-4) * slope).astype(np.float32)
+        v = golden.evaluate_reference(g, {"b": b, "zf": own}, g.dtype)[0]
+        return np.where(v >= 1 - 1e-6, v + np.float32(0.01), v).astype(np.float32)
+
+    declared = parse_profile({"receiver_slope": 1e-4, "output_clamp": True})
+    assert oracle.check(port, "shadow_intensity-lower", n_hypothesis=0, profile=declared).passed
+    for partial in ({"receiver_slope": 1e-4}, {"receiver_slope": 1e-4 * 1.5, "output_clamp": True}):
+        assert not oracle.check(port, "shadow_intensity-lower", n_hypothesis=0, profile=parse_profile(partial)).passed
+    with pytest.raises(InputError, match="receiver_slope: the sweep does not honour"):
+        make_spec(CASE, None, profile=declared)
