@@ -23,7 +23,7 @@ import numpy as np
 from .notes import ROBUSTNESS, cause
 
 __all__ = ["Group", "groups", "group_lines", "json_rows", "write_json", "target_groups", "convention_groups",
-           "unchanged_band", "OFFSET_CANDIDATES",
+           "unchanged_band", "OFFSET_CANDIDATES", "SAMPLE_ROWS",
            "CLAMP_CANDIDATES"]
 
 
@@ -240,21 +240,46 @@ def unchanged_band(arrays, declared, port_dtype):
     return out
 
 
+#: Failing rows a candidate is first judged on (derived alone, cheaply) before all rows are.
+SAMPLE_ROWS = 8
+
+
+def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, strict):
+    """The candidate ``p``'s verdict on ``rows`` (all rows: None) with each row's unchanged band."""
+    from .cases import CASES
+    from .compare import compare
+    from .conventions import profile_arrays, profiled_arrays
+    from .receiver import clamp_outputs
+    from .writer import manifest_entry
+
+    case = CASES[name]
+    if rows is None:
+        pcase, arrays = profiled_arrays(name, p, arrays=base_arrays, disk=False, fed=profile)
+    else:
+        n = len(np.asarray(base_arrays["category"]))
+        pick = lambda d: {k: (np.asarray(v)[rows] if np.ndim(v) and len(v) == n else v)  # noqa: E731
+                          for k, v in d.items()}
+        pcase, arrays = profile_arrays(case, pick(base_arrays), p, profile)
+        declared, got = pick(declared), pick(got)
+    arrays = unchanged_band(arrays, declared, port_dtype)
+    seen, _ = clamp_outputs(case, p, got)
+    return compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name, strict=strict)
+
+
 def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
     """A ``format`` (texel-format choice) or ``convention`` (clamp, receiver, caller's clamp) group when
     another declaration explains the port's failing rows: told by outputs, and checked.
 
     Each candidate (:func:`_candidates`) is judged on the inputs the port was given, with the
-    candidate's expected values and each row's unchanged band (:func:`unchanged_band`). It is
-    suggested only if every failing row then passes and no passing row fails: advice never
-    names a declaration under which a failing row passes for another cause (issue 37 item 5).
+    candidate's expected values and each row's unchanged band (:func:`unchanged_band`): first on
+    a few failing rows alone (:data:`SAMPLE_ROWS`, a cheap refusal of most candidates), then on
+    every row. It is suggested only if every failing row then passes and no passing row fails:
+    advice never names a declaration under which a failing row passes for another cause (issue
+    37 item 5).
     """
     from .._arrays import InputError
     from .cases import CASES
-    from .compare import compare
     from .conventions import profiled_arrays
-    from .receiver import clamp_outputs
-    from .writer import manifest_entry
 
     fail = ~verdict.row_pass
     case = CASES.get(name)
@@ -262,12 +287,14 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
         return []
     got = _narrowed(got, base_arrays)
     declared = profiled_arrays(name, profile, arrays=base_arrays)[1]
+    # rows derive alone unless the case's arrays are whole-case or the feed depends on the row count (slopes)
+    sample = np.flatnonzero(fail)[:SAMPLE_ROWS] if case.row_inputs and not profile.receiver_slope else None
     for p, level, what in _candidates(case, profile):
         try:
-            pcase, arrays = profiled_arrays(name, p, arrays=base_arrays, disk=False, fed=profile)
-            arrays = unchanged_band(arrays, declared, port_dtype)
-            seen, _ = clamp_outputs(case, p, got)
-            v = compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name, strict=verdict.strict)
+            if sample is not None and _judge(name, p, sample, base_arrays, declared, got, profile, port_dtype,
+                                             verdict.strict).failures:
+                continue
+            v = _judge(name, p, None, base_arrays, declared, got, profile, port_dtype, verdict.strict)
         except (InputError, TypeError, ValueError, KeyError):  # a choice this version cannot evaluate
             continue
         if v.failures == 0:
