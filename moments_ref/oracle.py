@@ -220,7 +220,9 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         arrays = _concat(arrays, _hypothesis_arrays(c, int(n_hypothesis)))
     if profile is not None and not profile.is_default:
         from .golden.conventions import profile_arrays
+        from .golden.profile import refuse_meaningless
 
+        refuse_meaningless([c], profile)  # the one case checked: a key it cannot use is refused, not dropped
         c, arrays = profile_arrays(c, arrays, profile)
     got = call_implementation(candidate, c, arrays, vectorized, argument="candidate")
     if profile is not None and profile.output_clamp:  # the caller's clamp, declared (golden.receiver)

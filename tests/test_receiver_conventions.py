@@ -169,3 +169,14 @@ def test_oracle_check_honours_the_receiver_and_clamp_keys_and_the_sweep_refuses_
         assert not oracle.check(port, "shadow_intensity-lower", n_hypothesis=0, profile=parse_profile(partial)).passed
     with pytest.raises(InputError, match="receiver_slope: the sweep does not honour"):
         make_spec(CASE, None, profile=declared)
+
+
+def test_golden_and_oracle_check_refuse_a_key_no_selected_case_can_use(tmp_path):
+    from moments_ref import oracle
+
+    clamp = parse_profile({"clamp": 5e-6})
+    with pytest.raises(InputError, match="clamp: no selected case can use it"):
+        golden.write(tmp_path / "g", [CASE], profile=clamp)
+    assert not (tmp_path / "g" / "manifest.json").exists()
+    with pytest.raises(InputError, match="clamp: no selected case can use it .*Algorithm 3 clamp"):
+        oracle.check(lambda b, zf: b[..., 0], "shadow_intensity-lower", n_hypothesis=0, profile=clamp)
