@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from moments_ref import InputError, conformance, golden, precise
-from moments_ref.conformance._run import SourceOptions
+from moments_ref.conformance import SourceOptions
 from moments_ref.golden.conventions import profiled_arrays
 from moments_ref.golden.profile import parse_profile
 from moments_ref.ports import PORTS_DIR
