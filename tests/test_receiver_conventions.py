@@ -71,7 +71,8 @@ def test_without_its_key_the_port_fails_and_the_advice_names_the_key(drivers, ke
 
 def test_without_receiver_slope_the_extra_argument_is_refused(drivers):
     file, function, _, _ = PORTS["receiver_slope"]
-    with pytest.raises(Exception, match="expected signature: float slope_shadow\\(vec4 b, float zf\\)"):
+    with pytest.raises(Exception, match="expected signature: float slope_shadow\\(vec4 b, float zf\\); a function "
+                                        "that also takes the receiver's slope declares receiver_slope"):
         _run(FIX / file, function, None, "gl")
 
 
