@@ -225,10 +225,16 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
     plain = c  # no profile: ill-conditioned rows are judged by their neighbourhood (golden.compare.confirm_ill)
     if profile is not None and not profile.is_default:
         from .golden.conventions import profile_arrays
+        from .golden.profile import refuse_meaningless
 
+        refuse_meaningless([c], profile)  # the one case checked: a key it cannot use is refused, not dropped
         c, arrays = profile_arrays(c, arrays, profile)
         plain = None
     got = call_implementation(candidate, c, arrays, vectorized, argument="candidate")
+    if profile is not None and profile.output_clamp:  # the caller's clamp, declared (golden.receiver)
+        from .golden.receiver import clamp_outputs
+
+        got, _ = clamp_outputs(c, profile, got)
     verdict = compare(manifest_entry(c, arrays), arrays, got, dtype, case=name, strict=strict, neighbourhood=plain)
     return _report(c, name, dtype, arrays, got, verdict)
 

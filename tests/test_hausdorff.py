@@ -131,7 +131,7 @@ def test_the_bound_key_picks_the_hausdorff_cases_and_is_refused_when_misspelled(
 
     p = parse_profile({"bound": "hausdorff", "depth": "[0,1]"})
     assert p.bound == "hausdorff" and "bound hausdorff" in p.describe()
-    assert Profile().key == parse_profile({}).key and "bound" not in Profile().canonical  # old hashes kept
+    assert Profile().key == parse_profile({}).key and Profile().canonical["bound"] is None
     assert bound_case("shadow_intensity-upper-float64", p.bound) == "hausdorff-upper-float64"
     assert bound_case("shadow_intensity6-lower-float32", p.bound) == "shadow_intensity6-lower-float32"
     assert bound_case("shadow_intensity-lower", None) == "shadow_intensity-lower"

@@ -332,3 +332,53 @@ def test_a_misspelled_key_is_refused_naming_the_nearest_valid_key(text, key, nea
 
     with pytest.raises(InputError, match=f"{key}: unknown key \\(did you mean '{near}'\\?"):
         parse_profile(tomllib.loads(text))
+
+
+# ---------------------------------------------------------------------------
+# One registry of keys (golden.profile.KEYS): parser, flags, docs and the case check read it
+
+
+def test_the_key_table_of_docs_ports_is_generated():
+    """docs/ports.md's key table is what KEYS writes, and KEYS, Profile's fields and the flags name the same keys."""
+    import dataclasses
+    from pathlib import Path
+
+    from moments_ref.golden.profile import FLAGS, KEYS, MARKERS, keys_markdown
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "ports.md").read_text()
+    table = text.split(MARKERS[0], 1)[1].split(MARKERS[1], 1)[0]
+    assert table == keys_markdown(), "regenerate: python -m moments_ref.tools.apidoc --profile-keys"
+    names = [k.name for k in KEYS]
+    assert [f.name for f in dataclasses.fields(Profile) if f.name not in ("functions", "source")] == names
+    assert {p.partition(".")[0] for _, p, _ in FLAGS} == set(names)
+    assert all(f"`{n}`" in table for n in names)
+
+
+def test_a_key_a_case_ignores_is_named_with_why_and_one_no_case_can_use_is_refused(gdir, tmp_path):
+    from moments_ref.golden.cases import CASES as ALL
+    from moments_ref.golden.profile import ignored_keys, ignored_note, refuse_meaningless
+
+    biased = parse_profile({"bias": {"alpha": 1e-4, "target": [0, 0.375, 0, 0.375], "applied": "inside"},
+                            "receiver_offset": 1e-6})
+    # shade takes biased, quantized moments: bias means nothing for it, the receiver offset does
+    assert [k for k, _ in ignored_keys(ALL["shade-float32"], biased)] == ["bias"]
+    assert "biases no moments" in ignored_note(ALL["shade-float32"], biased)[0]
+    assert ignored_keys(ALL["shadow_intensity-lower-float32"], biased) == []
+    assert [k for k, _ in ignored_keys(ALL["pack64-float32"], biased)] == ["bias", "receiver_offset"]
+    refuse_meaningless([ALL["shade-float32"], ALL["shadow_intensity-lower-float32"]], biased)  # one uses each
+    with pytest.raises(InputError, match="bias: no selected case can use it"):
+        refuse_meaningless([ALL["shade-float32"]], biased)
+    # the command line: a flag no case of the run can use is exit 2, a file's key the case ignores is named
+    r = _cli("conformance", "--glsl", "nonlinear.glsl", "--function", "shade", "--case", "shade-float32",
+             "--bias-alpha", "1e-4", "--bias-target", "0,0.375,0,0.375", "--bias-applied", "inside", "--golden", gdir)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "bias: no selected case can use it" in r.stderr
+    f = tmp_path / "engine.toml"
+    f.write_text('[bias]\nalpha = 1e-4\ntarget = [0, 0.375, 0, 0.375]\napplied = "inside"\n')
+    r = _cli("conformance", "--glsl", "nonlinear.glsl", "--function", "shade", "--case", "shade-float32",
+             "--profile", f, "--golden", gdir)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "profile keys this case ignores: bias (it biases no moments" in r.stdout
+    # verify: the keys no verified case can use are refused
+    res = _reference_results(gdir, tmp_path / "r.npz", names=("shade-float32",))
+    r = _cli("verify", "--golden", gdir, "--results", res, "--profile", f)
+    assert r.returncode == 2 and "bias: no selected case can use it" in r.stderr

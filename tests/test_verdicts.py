@@ -169,17 +169,27 @@ def test_verify_groups_failures_lists_every_row_and_writes_json(tmp_path):
 
 
 def test_an_undeclared_clamp_convention_is_labelled_not_counted_as_arithmetic(tmp_path):
-    # The author's Algorithm 3 without its profile: every failing row is explained by clamp = 5e-6 with the
-    # case test on the clamped y2, and the report says so (format/convention failures apart from arithmetic).
+    # Algorithm 3 with a 5e-6 clamp (the author's offset), no profile: every failing row is explained by that
+    # declaration within its unchanged band, and the report says so (convention failures apart from arithmetic).
     gdir = tmp_path / "g"
     golden.write(gdir, ["shade-float32"])
     with np.load(gdir / "shade-float32.npz") as g:
         r, zf = g["r"], g["zf"]
-    got = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "no_xi_guard": True, "unclamped": True})
+    got = ports.alg3(r, zf, {"clamp": 5e-6, "no_xi_guard": True})
     np.savez(tmp_path / "r.npz", **{"shade-float32.intensity": got})
     case = golden.verify(gdir, tmp_path / "r.npz").cases[0]
     assert case.status == "fail" and case.groups[0].level == "convention"
     assert case.groups[0].count == case.verdict.failures and "clamp = 5e-06" in case.groups[0].flags
+    # The author's demo also tests the case on the clamped y2: on two `clamp` rows its output (0.999995) lies
+    # within the band of that declaration's own expected value (0.99987 +- 4.9e-4) but not within the row's
+    # band (1.3e-6): the declaration would pass them only by widening the band, so it is not advised (issue 37
+    # item 5), though declared it passes.
+    author = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "no_xi_guard": True, "unclamped": True})
+    np.savez(tmp_path / "u.npz", **{"shade-float32.intensity": author})
+    case = golden.verify(gdir, tmp_path / "u.npz").cases[0]
+    assert case.status == "fail" and all(g.level != "convention" for g in case.groups)
+    declared = parse_profile({"clamp": 5e-6, "clamp_test": "clamped"})
+    assert golden.verify(gdir, tmp_path / "u.npz", profile=declared).cases[0].status == "pass"
     # The demo's printed root cancels (0.99998 for 0.0154): the declaration explains the clamp rows, never the
     # rows where the root is wrong (issue 37: advice that would turn a true FAIL into a PASS is not given).
     demo = ports.alg3(r, zf, {"clamp": 5e-6, "zp_test": True, "literal_root": True, "no_xi_guard": True,

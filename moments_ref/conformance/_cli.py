@@ -317,10 +317,13 @@ def _main(args):
     if missing:
         raise InputError(f"conformance: --{missing[0]} is required (or use --all)")
     language, path = files[0]
-    from ..golden.profile import FLAGS, profile_from_args
+    from ..golden.cases import CASES
+    from ..golden.profile import FLAGS, flag_keys, profile_from_args, refuse_meaningless
 
     flags = {f[2:].replace("-", "_"): get(f[2:].replace("-", "_")) for f, _, _ in FLAGS}
     profile = profile_from_args(get("profile"), get("function"), **flags)
+    if get("case") in CASES:  # a flag is this run's declaration: refused where the case cannot use it
+        refuse_meaningless([CASES[get("case")]], profile, flag_keys(flags))
     return run_cli(path, get("function"), get("case"), get("golden"), language=language, adapter=get("adapter"),
                    options=source_options(args), profile=profile, strict=bool(get("strict")),
                    rows=get("rows") if get("rows") is not None else 5, json_path=get("json"))

@@ -302,16 +302,15 @@ def run_function(path, function, inputs, outputs, language=None, adapter=None, o
 
 def _profiled(gc, profile):
     """The golden case as an engine with ``profile`` sees it, the target diagnosis and report notes."""
-    from ..golden.conventions import profiled_arrays, unused_keys
+    from ..golden.conventions import profiled_arrays
     from ..golden.diagnosis import target_groups
+    from ..golden.profile import ignored_note
     from ..golden.writer import manifest_entry
 
     pcase, arrays = profiled_arrays(gc.name, profile, arrays=gc.arrays)
     meta = dict(gc.meta, **{k: v for k, v in manifest_entry(pcase, arrays).items() if k not in ("sha256", "size")})
     notes = [f"profile: {profile.describe()}"]
-    unused = unused_keys(pcase, profile)
-    if unused:
-        notes.append(f"profile keys not used by this case: {', '.join(unused)}")
+    notes += ignored_note(pcase, profile)
     extra = lambda v: target_groups(v, arrays, profile.bias, pcase.engine)  # noqa: E731
     return GoldenCase(gc.name, meta, arrays, gc.source), extra, notes
 
@@ -366,6 +365,12 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     notes = notes + prepared
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
+    if profile is not None and profile.output_clamp:  # the caller's clamp, declared: applied first, and said
+        from ..golden.cases import CASES
+        from ..golden.receiver import clamp_outputs
+
+        got, said = clamp_outputs(CASES[case], profile, got) if case in CASES else (got, [])
+        notes = notes + said
 
     def extra(v):  # causes told by outputs: a singular bias target, another clamp or texel format
         found = by_target(v) if by_target is not None else []

@@ -333,5 +333,8 @@ def wrapped_compile_error(compiler, errors, signature):
     notes = [compiler] if compiler else []
     if any(WRAPPER in e for e in errors):
         notes.append(f"expected signature: {signature}")
+        params = signature.partition("(")[2]
+        if re.search(r"\bzf\b", params) and not re.search(r"\bslope\b", params):  # the slope as one more argument
+            notes.append("a function that also takes the receiver's slope declares receiver_slope (docs/ports.md)")
     head = "the wrapped function does not compile" + (f" ({'; '.join(notes)})" if notes else "")
     return ShaderError(head + ":\n" + "\n".join(errors))

@@ -42,7 +42,7 @@ from ..scene import depth as _depth
 from .cases import CASES
 from .contract import rows_inside
 from .notes import ROBUSTNESS
-from .profile import DEFAULT, Bias
+from .profile import DEFAULT, Bias, ignored_keys
 
 __all__ = ["profile_arrays", "profiled_arrays", "profiled_case", "convert_inputs", "contract_mask", "cache_dir",
            "unused_keys"]
@@ -109,19 +109,8 @@ def _biases(case, profile):
 
 
 def unused_keys(case, profile):
-    """Profile keys that do not apply to ``case`` (reported, not refused)."""
-    out = []
-    if profile.bias is not None and "bias" not in case.profile_keys:
-        out.append("bias")
-    if profile.clamp is not None and "clamp" not in case.profile_keys:
-        out.append("clamp")
-    if profile.clamp_test is not None and "clamp" not in case.profile_keys:
-        out.append("clamp_test")
-    if profile.format and "format" not in case.profile_keys:
-        out.append("format")
-    if profile.bound is not None and not case.name.startswith(("shadow_intensity-", "hausdorff-")):
-        out.append("bound")  # four-moment bounds only (golden.cases.bound_case)
-    return out
+    """The profile keys ``case`` cannot use (named in its verdict; :func:`~.profile.ignored_keys` gives why)."""
+    return [k for k, _ in ignored_keys(case, profile)]
 
 
 def _visibility(fn):
@@ -148,6 +137,8 @@ def profiled_case(case, profile):
                       truth=None if out.truth is None else _visibility(out.truth),
                       spread_hook=None if hook is None else
                       (lambda ins, dt: [tuple(1 - np.asarray(x) for x in v) for v in hook(ins, dt)]))
+    if profile.receiver_slope and "zf" in case.inputs:  # the port takes the receiver's slope as its last argument
+        out = replace(out, inputs=tuple(out.inputs) + ("slope",))
     kwargs = dict(out.kwargs)
     if not profile.is_default:
         kwargs["profile"] = {k: v for k, v in profile.canonical.items() if v not in (None, {}, [])}
@@ -220,23 +211,35 @@ def _strip(flags, biased=False):
     return out
 
 
-def profile_arrays(case, arrays, profile):
-    """``(case', arrays')``: the rows of ``arrays`` (a golden case's) as an engine with ``profile`` sees them."""
+def profile_arrays(case, arrays, profile, fed=None):
+    """``(case', arrays')``: the rows of ``arrays`` (a golden case's) as an engine with ``profile`` sees them.
+
+    The port is fed the inputs of ``fed`` (default ``profile``) and judged at what a function
+    with ``profile`` computes from them (:mod:`.receiver`: its receiver offset and convention):
+    the diagnosis judges a port's outputs under another declaration with the inputs it was given.
+    """
+    from .receiver import feed, judged
     from .spread import derive
 
     pcase = profiled_case(case, profile)
+    judge = replace(pcase, inputs=case.inputs)  # the reference takes the receiver, not its slope
+    fed = profile if fed is None else fed
     inputs = {k: np.asarray(arrays[k]) for k in tuple(case.inputs) + tuple(case.aux)}
     inside = contract_mask(case, inputs, profile)
-    conv = convert_inputs(case, inputs, profile)
-    out = dict(conv)
+    conv = convert_inputs(case, inputs, fed)
+    fed_receiver = feed(case, conv, fed)
+    conv.update(fed_receiver)
+    own = judged(case, conv, profile)
+    seen = {**conv, **own}
     before, inside_bias = _biases(case, profile)
     biased = (before is not None or inside_bias is not None) and case.contract == "moments_inside"
     labels = (np.asarray(arrays["category"]), list(np.asarray(arrays["comment"])), _strip(arrays["flags"], biased))
     if pcase.deriver is not None:
-        out.update(pcase.deriver(pcase, conv, *labels, contract=inside))
+        derived = pcase.deriver(judge, seen, *labels, contract=inside)
     else:
-        out.update(derive(pcase, {k: conv[k] for k in case.inputs}, *labels, contract=inside))
-    return pcase, out
+        derived = derive(judge, {k: seen[k] for k in case.inputs}, *labels, contract=inside)
+    # the port's receiver inputs are what it is fed, not the receiver it computes from them
+    return pcase, {**conv, **derived, **{k: conv[k] for k in {**fed_receiver, **own}}}
 
 
 _CODE = []
@@ -299,31 +302,32 @@ def _load_cached(path, key, pcase):
     return data
 
 
-def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True):
+def profiled_arrays(name, profile=DEFAULT, arrays=None, disk=True, fed=None):
     """``(case', arrays')`` of golden case ``name`` under ``profile``, cached.
 
     ``arrays``: the case's golden arrays (from a golden folder); default: generated.
-    The default profile returns the golden arrays themselves.
+    The default profile returns the golden arrays themselves. ``fed``: the profile whose
+    inputs the port was given, if not ``profile`` (:func:`profile_arrays`).
     """
     if name not in CASES:
         raise InputError(f"case: unknown case {name!r}")
     case = CASES[name]
     # The profile is checked against the case before any array is generated: a case the profile
     # contradicts is refused at once (``golden --profile`` leaves most cases out).
-    pcase = None if profile.is_default else profiled_case(case, profile)
+    pcase = None if profile.is_default and fed is None else profiled_case(case, profile)
     if arrays is None:
         from .spread import golden_arrays
 
         arrays = golden_arrays(case)
-    if profile.is_default:
+    if profile.is_default and fed is None:
         return case, arrays
-    key = _key(case, arrays, profile)
+    key = _key(case, arrays, profile) + ("" if fed is None else ":fed:" + fed.key)
     if key in _MEMO:
         return pcase, _MEMO[key]
-    path = cache_dir() / f"{key}.npz"
+    path = cache_dir() / f"{key.replace(':fed:', '-')}.npz"
     data = _load_cached(path, key, pcase) if disk else None
     if data is None:
-        _, data = profile_arrays(case, arrays, profile)
+        _, data = profile_arrays(case, arrays, profile, fed)
         if disk:
             from .._io import save_npz
 

@@ -22,7 +22,9 @@ import numpy as np
 
 from .notes import ROBUSTNESS, cause
 
-__all__ = ["bound_groups", "Group", "groups", "group_lines", "json_rows", "write_json", "target_groups", "convention_groups",
+__all__ = ["bound_groups", "Group", "groups", "group_lines", "json_rows", "write_json", "target_groups",
+           "convention_groups",
+           "unchanged_band", "OFFSET_CANDIDATES", "SAMPLE_ROWS",
            "CLAMP_CANDIDATES"]
 
 
@@ -176,29 +178,41 @@ def write_json(path, cases, extra=None):
 
 #: Choices a port may have made without declaring them, tried by :func:`convention_groups`.
 CLAMP_CANDIDATES = (1e-6, 5e-6, 1e-5, 1 / 65535)
+#: Constant receiver offsets (toward the light) engines use as acne guards, tried likewise.
+OFFSET_CANDIDATES = (1e-6, 1e-5, 1e-4, 1e-3)
 
 
 def _candidates(case, profile):
-    """Profiles that differ from ``profile`` in the clamp (with its case test) or in one texel-format key."""
+    """``(profile', level, what)``: profiles differing from ``profile`` in one declaration the case can use.
+
+    The clamp (with its case test), one texel-format key, a constant receiver offset, the
+    receiver's depth convention, a caller's clamp; the slope-scaled offset is not tried (it
+    changes the function's arguments).
+    """
     from dataclasses import replace
 
-    from .profile import CLAMP_TESTS, FORMAT_KEYS
+    from .profile import CLAMP_TESTS, DEPTHS, FORMAT_KEYS, KEYS
 
+    usable = {k.name for k in KEYS if k.ignored_by(case) is None}
     out = []
-    if "clamp" in case.profile_keys:
-        for c in CLAMP_CANDIDATES:
-            for t in CLAMP_TESTS:
-                p = replace(profile, clamp=c, clamp_test=t)
-                if p.key != profile.key:
-                    out.append((p, "convention", f"clamp = {c:g}, clamp_test = {t!r}"))
-    if "format" in case.profile_keys:
+    if "clamp" in usable:
+        out += [(replace(profile, clamp=c, clamp_test=t), "convention", f"clamp = {c:g}, clamp_test = {t!r}")
+                for c in CLAMP_CANDIDATES for t in CLAMP_TESTS]
+    if "format" in usable:
         current = dict(profile.format)
-        for k, values in FORMAT_KEYS.items():
-            for v in values:
-                if current.get(k) != v:
-                    p = replace(profile, format=tuple(sorted({**current, k: v}.items())))
-                    out.append((p, "format", f"format.{k} = {v!r}"))
-    return out
+        out += [(replace(profile, format=tuple(sorted({**current, k: v}.items()))), "format", f"format.{k} = {v!r}")
+                for k, values in FORMAT_KEYS.items() for v in values if current.get(k) != v]
+    if "receiver_offset" in usable:
+        out += [(replace(profile, receiver_offset=c), "convention", f"receiver_offset = {c:g}")
+                for c in OFFSET_CANDIDATES]
+    if "receiver_depth" in usable:
+        from .receiver import receiver_convention
+
+        out += [(replace(profile, receiver_depth=d), "convention", f"receiver_depth = {d!r}") for d in DEPTHS
+                if d != receiver_convention(case, profile)]
+    if "output_clamp" in usable:
+        out.append((replace(profile, output_clamp=True), "convention", "output_clamp = true"))
+    return [(p, level, what) for p, level, what in out if p.key != profile.key]
 
 
 def _narrowed(got, arrays):
@@ -214,39 +228,86 @@ def _narrowed(got, arrays):
     return out
 
 
-def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
-    """A ``format`` (texel-format choice) or ``convention`` (Algorithm 3's clamp) group when the port's
-    outputs on its failing rows are those of another choice the paper leaves open: told by outputs, by
-    judging them against that choice's expected values (derived like any profile's, cached)."""
-    from .._arrays import InputError
+def unchanged_band(arrays, declared, port_dtype):
+    """``arrays`` (a candidate's) with each row's band no wider than under the ``declared`` arrays.
+
+    The band is kept around the candidate's expected value, its half-width the smaller of the
+    two: a candidate declaration explains a row only within the band the row already had.
+    """
+    out = dict(arrays)
+    for k in arrays:
+        if k.endswith(f"_tolerance_{port_dtype}") and k in declared:
+            out[k] = np.minimum(np.asarray(arrays[k]), np.asarray(declared[k]))
+    return out
+
+
+#: Failing rows a candidate is first judged on (derived alone, cheaply) before all rows are.
+SAMPLE_ROWS = 8
+
+
+def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, strict):
+    """The candidate ``p``'s verdict on ``rows`` (all rows: None) with each row's unchanged band."""
     from .cases import CASES
     from .compare import compare
-    from .conventions import profiled_arrays
+    from .conventions import profile_arrays, profiled_arrays
+    from .receiver import clamp_outputs
     from .writer import manifest_entry
+
+    case = CASES[name]
+    if rows is None:
+        pcase, arrays = profiled_arrays(name, p, arrays=base_arrays, disk=False, fed=profile)
+    else:
+        n = len(np.asarray(base_arrays["category"]))
+        pick = lambda d: {k: (np.asarray(v)[rows] if np.ndim(v) and len(v) == n else v)  # noqa: E731
+                          for k, v in d.items()}
+        pcase, arrays = profile_arrays(case, pick(base_arrays), p, profile)
+        declared, got = pick(declared), pick(got)
+    arrays = unchanged_band(arrays, declared, port_dtype)
+    seen, _ = clamp_outputs(case, p, got)
+    return compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name, strict=strict)
+
+
+def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
+    """A ``format`` (texel-format choice) or ``convention`` (clamp, receiver, caller's clamp) group when
+    another declaration explains the port's failing rows: told by outputs, and checked.
+
+    Each candidate (:func:`_candidates`) is judged on the inputs the port was given, with the
+    candidate's expected values and each row's unchanged band (:func:`unchanged_band`): first on
+    a few failing rows alone (:data:`SAMPLE_ROWS`, a cheap refusal of most candidates), then on
+    every row. It is suggested only if every failing row then passes and no passing row fails:
+    advice never names a declaration under which a failing row passes for another cause (issue
+    37 item 5).
+    """
+    from .._arrays import InputError
+    from .cases import CASES
+    from .conventions import profiled_arrays
 
     fail = ~verdict.row_pass
     case = CASES.get(name)
     if case is not None and fail.any() and name.startswith("shadow_intensity-") and profile.bound != "hausdorff":
-        return bound_groups(case, verdict, base_arrays, got, profile)
-    if case is None or not fail.any() or not {"clamp", "format"} & set(case.profile_keys):
+        bound = bound_groups(case, verdict, base_arrays, got, profile)
+        if bound:
+            return bound
+    if case is None or not fail.any():
         return []
     got = _narrowed(got, base_arrays)
-    best = None
+    declared = profiled_arrays(name, profile, arrays=base_arrays)[1]
+    # rows derive alone unless the case's arrays are whole-case or the feed depends on the row count (slopes)
+    sample = np.flatnonzero(fail)[:SAMPLE_ROWS] if case.row_inputs and not profile.receiver_slope else None
     for p, level, what in _candidates(case, profile):
         try:
-            pcase, arrays = profiled_arrays(name, p, arrays=base_arrays)
-            v = compare(manifest_entry(pcase, arrays), arrays, got, port_dtype, case=name)
-        except (InputError, TypeError, ValueError):  # a choice this version cannot evaluate
+            if sample is not None and _judge(name, p, sample, base_arrays, declared, got, profile, port_dtype,
+                                             verdict.strict).failures:
+                continue
+            v = _judge(name, p, None, base_arrays, declared, got, profile, port_dtype, verdict.strict)
+        except (InputError, TypeError, ValueError, KeyError):  # a choice this version cannot evaluate
             continue
-        explained = fail & v.row_pass
-        if v.failures < verdict.failures and (best is None or explained.sum() > best[0].sum()):
-            best = (explained, level, what)
-    if best is None or best[0].sum() < max(1, fail.sum() // 2):
-        return []
-    explained, level, what = best
-    return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
-                  f"the outputs on these rows are those of {what}: a choice the paper leaves open, not an "
-                  "arithmetic error; declare it in the profile (docs/ports.md)")]
+        if v.failures == 0:
+            return [Group(level, what, [int(i) for i in np.flatnonzero(fail)],
+                          f"the outputs are those of {what}: every failing row passes with it, within its "
+                          "unchanged band; a convention, not an arithmetic error: declare it in the profile "
+                          "(docs/ports.md)")]
+    return []
 
 
 def bound_groups(case, verdict, base_arrays, got, profile):

@@ -1,36 +1,13 @@
 """Engine profiles: a porter declares the engine's conventions once, instead of writing adapters.
 
 A profile is a TOML file (``--profile FILE.toml`` of ``conformance`` and ``verify``,
-``profile=`` of :func:`moments_ref.oracle.check`); every key also has a command-line
-flag (:data:`FLAGS`). The keys (docs/ports.md):
-
-=====================  ==========================================================
-``depth``              ``"[-1,1]"`` (the papers', default) or ``"[0,1]"`` (Direct3D,
-                       Vulkan, WebGPU): the depth convention of the tested function's
-                       moments and depths (:mod:`moments_ref.scene.depth`).
-``output``             ``"intensity"`` (default: 1 = fully shadowed) or
-                       ``"visibility"`` (1 − intensity: the light that arrives).
-``[bias]``             the engine's moment bias b' = (1 − α) b + α b* (HPG17 §3.2):
-                       ``alpha``, ``target`` (b*, in the engine's own depth
-                       convention), ``applied = "inside"`` (the tested function biases)
-                       or ``"before"`` (its caller does, just before the call: the
-                       harness then biases the inputs). ``bias = "none"``: no bias.
-``clamp``              Algorithm 3's clamp offset (HPG17 §3.4; default 1e-6), inside
-                       :data:`moments_ref.nonlinear.CLAMP_BAND`.
-``clamp_test``         the y2 that Algorithm 3's case test ``zf ≤ y2`` compares with:
-                       ``"stored"`` (default) or ``"clamped"`` (max(y2, y1 + clamp), the
-                       author's demo code); the paper does not say.
-``[format]``           the texel-format choices the paper leaves open
-                       (:data:`FORMAT_KEYS`: decode positions, the rounding of the ξ4
-                       code at 64 bits; docs/formats.md).
-``bound``              ``"hamburger"`` (default: Algorithm 1) or ``"hausdorff"`` (Peters
-                       and Klein 2015's Hausdorff bound, depths in [0, 1]): the bound a
-                       ``shadow_intensity`` port computes; ``"hausdorff"`` judges it by
-                       the ``hausdorff-*`` cases (:func:`moments_ref.golden.cases.bound_case`).
-``[functions.NAME]``   the same keys for one function of the file, overriding the
-                       file's (one file often holds a function that biases and one
-                       that does not).
-=====================  ==========================================================
+``profile=`` of :func:`moments_ref.oracle.check`). Every key is one entry of :data:`KEYS`
+(name, values, default, one sentence, its parser, its command-line flags, and which cases
+can use it): the parser, the nearest-key refusal of a misspelling, the flags
+(:data:`FLAGS`), the key table of docs/ports.md (:func:`keys_markdown`, written by
+``python -m moments_ref.tools.apidoc --profile-keys``) and the check of which case ignores
+which key (:func:`ignored_keys`) all read it. ``[functions.NAME]`` holds the same keys for
+one function of the file, overriding the file's.
 
 Refused with :class:`~moments_ref.InputError` (exit status 2, one line naming the
 key): unknown keys, values of the wrong type, a bias target whose Hankel matrix is
@@ -51,7 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -60,16 +37,14 @@ from .._arrays import InputError
 from .._toml import check_values, exact_int, finite_float, load_toml
 from .contract import PD_MIN, hankel_lambda_min
 
-__all__ = ["Profile", "Bias", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED", "FORMAT_KEYS",
-           "CLAMP_TESTS", "BOUNDS",
-           "FLAGS", "profile_from_args", "DEFAULT"]
+__all__ = ["Profile", "Bias", "Key", "KEYS", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED",
+           "FORMAT_KEYS", "CLAMP_TESTS", "BOUNDS", "FLAGS", "profile_from_args", "DEFAULT", "ignored_keys", "ignored_note",
+           "refuse_meaningless", "flag_keys", "keys_markdown", "write_docs"]
 
 DEPTHS = ("[-1,1]", "[0,1]")
 OUTPUTS = ("intensity", "visibility")
 CLAMP_TESTS = ("stored", "clamped")
 APPLIED = ("inside", "before")
-#: The bounds a shadow_intensity port may compute (key ``bound``; docs/ports.md).
-BOUNDS = ("hamburger", "hausdorff")
 #: Texel-format choices the paper leaves open (docs/formats.md), with their allowed values; unset
 #: keys keep the format's own choices (:mod:`moments_ref.packing`). ``*_decode``: where the 32-bit
 #: decoder reads a cell (its lower end, centre or upper end); ``xi_rounding``: the 64-bit Ψ4 code
@@ -77,9 +52,10 @@ BOUNDS = ("hamburger", "hausdorff")
 _POSITIONS = ("lower", "centre", "upper")
 #: ``subtexel_bits``: the sub-texel precision of the engine's texture filter (bilinear cases,
 #: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4).
+#: The bounds a shadow_intensity port may compute (key ``bound``; docs/ports.md).
+BOUNDS = ("hamburger", "hausdorff")
 FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
                "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17))}
-_KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format", "bound")
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).
 MAX_PROFILE = 1 << 20
@@ -99,64 +75,6 @@ class Bias:
 
 
 NO_BIAS = Bias(0.0, (), "inside")
-
-
-@dataclass(frozen=True)
-class Profile:
-    """Declared conventions; ``None`` keys leave each case's own (the papers') convention."""
-
-    depth: str | None = None
-    output: str | None = None
-    bias: Bias | None = None
-    clamp: float | None = None
-    clamp_test: str | None = None
-    format: tuple = ()  # sorted (key, value) pairs
-    bound: str | None = None  # "hamburger" or "hausdorff" (BOUNDS)
-    functions: tuple = ()  # sorted (name, Profile) pairs
-    source: str = "profile"
-
-    def for_function(self, name):
-        """This profile with the keys of ``[functions.NAME]`` applied (the file's, if none)."""
-        table = dict(self.functions).get(name)
-        if table is None:
-            return replace(self, functions=())
-        merged = {k: getattr(table, k) if getattr(table, k) not in (None, ()) else getattr(self, k) for k in _KEYS}
-        if table.format:
-            merged["format"] = tuple(sorted({**dict(self.format), **dict(table.format)}.items()))
-        return replace(self, functions=(), **merged)
-
-    @property
-    def canonical(self):
-        """The profile's content as plain JSON values (what the cache key hashes)."""
-        bias = None if self.bias is None else {"alpha": self.bias.alpha, "target": list(self.bias.target),
-                                                "applied": self.bias.applied}
-        return {"depth": self.depth, "output": self.output, "bias": bias, "clamp": self.clamp,
-                "clamp_test": self.clamp_test, "format": dict(self.format),
-                "functions": {k: v.canonical for k, v in self.functions},
-                **({"bound": self.bound} if self.bound is not None else {})}  # absent: the hashes stay
-
-    @property
-    def key(self):
-        """sha256 of :attr:`canonical`: two profiles with the same content share derived goldens."""
-        return hashlib.sha256(json.dumps(self.canonical, sort_keys=True).encode()).hexdigest()
-
-    @property
-    def is_default(self):
-        return self.canonical == Profile().canonical
-
-    def describe(self):
-        """One line for reports."""
-        c = self.canonical
-        parts = [f"{k} {c[k]}" for k in ("depth", "output", "clamp", "clamp_test", "bound")
-                 if c.get(k) is not None]
-        if self.bias is not None:
-            b = self.bias
-            parts.append("no bias" if not b.active else f"bias alpha {b.alpha:g} toward {list(b.target)} ({b.applied})")
-        parts += [f"{k} {v}" for k, v in self.format]
-        return ", ".join(parts) or "the papers' conventions"
-
-
-DEFAULT = Profile()
 
 
 def _where(src, key):
@@ -180,6 +98,10 @@ def _choice(v, allowed, src, key):
     if v not in allowed:
         raise InputError(f"{_where(src, key)}: expected one of {', '.join(repr(a) for a in allowed)}, got {v!r}")
     return v
+
+
+def _choices(allowed):
+    return lambda v, src, key: _choice(v, allowed, src, key)
 
 
 def _target(v, src, key):
@@ -236,29 +158,275 @@ def _format(v, src, key="format"):
     return tuple(sorted(out.items()))
 
 
+#: Largest receiver offset accepted (depth units): an acne guard, not a change of the receiver.
+MAX_RECEIVER_OFFSET = 1e-2
+
+
+def _offset(v, src, key):
+    c = _number(v, src, key)
+    if not 0 <= c <= MAX_RECEIVER_OFFSET:
+        raise InputError(f"{_where(src, key)}: expected a number in [0, {MAX_RECEIVER_OFFSET:g}] (toward the light), "
+                         f"got {c!r}")
+    return c or None
+
+
+def _flag(v, src, key):
+    if not isinstance(v, bool):
+        raise InputError(f"{_where(src, key)}: expected true or false, got {v!r}")
+    return v or None
+
+
+def _uses(token, why):
+    """``case -> None`` (the case uses the key) or the reason it cannot, from the case's ``profile_keys``."""
+    return lambda case: None if token in case.profile_keys else why(case)
+
+
+def _receiver(case):
+    return None if "zf" in case.inputs else f"it takes no receiver depth zf (inputs {', '.join(case.inputs)})"
+
+
+def _bounded(case):
+    return None if tuple(case.outputs) == ("intensity",) else \
+        f"its outputs ({', '.join(case.outputs)}) are not a shadow intensity in [0, 1]"
+
+
+def _four_moment_bound(case):
+    return None if case.name.startswith(("shadow_intensity-", "hausdorff-")) else \
+        "it is not a four-moment shadow_intensity bound (golden.cases.bound_case)"
+
+
+def _always(case):
+    return None  # used by every case, or refused for it (golden.conventions: a contradiction)
+
+
+def _number_text(text, flag):
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{flag}: expected a number, got {text!r}") from None
+
+
+def _int_text(text, flag):
+    try:
+        return int(text)
+    except ValueError:
+        raise InputError(f"{flag}: expected an integer, got {text!r}") from None
+
+
+def _list_text(text, flag):
+    try:
+        return [float(x) for x in str(text).split(",")]
+    except ValueError:
+        raise InputError(f"{flag}: expected comma-separated numbers, got {text!r}") from None
+
+
+def _bool_text(text, flag):
+    if str(text).lower() not in ("true", "false"):
+        raise InputError(f"{flag}: expected true or false, got {text!r}")
+    return str(text).lower() == "true"
+
+
+def _same(text, flag):
+    return text
+
+
+@dataclass(frozen=True)
+class Key:
+    """One profile key: what the parser, the flags, the docs' table and the case check read.
+
+    ``parse(value, source, key_path)`` returns the :class:`Profile` field's value (``None``:
+    the default); ``ignored_by(case)`` is ``None`` where the case uses the key, else the reason
+    it cannot; ``flags`` are ``(flag, key path, help, text -> value)``; ``rows`` are the docs
+    table's ``(key, values, default)`` rows (the key's own first).
+    """
+
+    name: str
+    parse: object
+    doc: str
+    rows: tuple
+    ignored_by: object = _always
+    flags: tuple = ()
+
+
+_NOT_BIASED = _uses("bias", lambda c: f"it biases no moments: its inputs ({', '.join(c.inputs)}) are taken as given")
+_NO_CLAMP = _uses("clamp", lambda c: "it has no Algorithm 3 clamp (HPG17 §3.4)")
+_NO_TEXEL = _uses("format", lambda c: "it reads or writes no texel format whose choices the paper leaves open")
+
+#: The profile keys, in the docs' order. Adding a key: its entry here, its field on :class:`Profile`,
+#: its consumer (golden.conventions), its test (docs/architecture.md, "Add a profile key").
+KEYS = (
+    Key("depth", _choices(DEPTHS), "the depth convention of the tested function's moments and depths "
+        "(moments_ref.scene.depth); the inputs are converted exactly",
+        (("depth", "`\"[-1,1]\"`, `\"[0,1]\"`", "`\"[-1,1]\"` (the papers')"),),
+        flags=(("--depth", "depth", "depth convention of the tested function: [-1,1] (the papers') or [0,1]", _same),)),
+    Key("output", _choices(OUTPUTS), "what the function returns: the shadow intensity (1 = fully shadowed) or the "
+        "visibility 1 - intensity", (("output", "`\"intensity\"`, `\"visibility\"`", "`\"intensity\"`"),),
+        flags=(("--output", "output", "what it returns: intensity (1 = shadowed) or visibility (1 - intensity)",
+                _same),)),
+    Key("bias", _bias, "the engine's moment bias b' = (1 - alpha) b + alpha b* (HPG17 §3.2), applied inside the "
+        "tested function or by its caller (the harness then biases the inputs)",
+        (("bias", "a table `[bias]`, or `\"none\"`", "each case's own bias (the papers' presets; docs/golden.md)"),
+         ("bias.alpha", "a number in [0, 1) (0: no bias)", "none: required in a `[bias]` table"),
+         ("bias.target", "4 (or 6) numbers, a moment vector in the engine's depth convention",
+          "none: required in a `[bias]` table"),
+         ("bias.applied", "`\"inside\"` (the tested function biases) or `\"before\"` (its caller does; the harness "
+          "biases the inputs)", "none: required in a `[bias]` table")),
+        _NOT_BIASED,
+        (("--bias-alpha", "bias.alpha", "the engine's bias alpha (0: none)", _number_text),
+         ("--bias-target", "bias.target", "the bias target b*, comma-separated, in the engine's depth convention",
+          _list_text),
+         ("--bias-applied", "bias.applied", "where the bias is applied: inside the tested function or before the call",
+          _same))),
+    Key("clamp", _clamp, "Algorithm 3's clamp offset (HPG17 §3.4), inside moments_ref.nonlinear.CLAMP_BAND",
+        (("clamp", "1e-7 .. 1/65535", "1e-6 (HPG17 §3.4)"),), _NO_CLAMP,
+        (("--clamp", "clamp", "Algorithm 3's clamp offset (default 1e-6; allowed 1e-7 .. 1/65535)", _number_text),)),
+    Key("clamp_test", _choices(CLAMP_TESTS), "the y2 that Algorithm 3's case test zf <= y2 compares with: the stored "
+        "one or max(y2, y1 + clamp) (the author's demo code); the paper does not say",
+        (("clamp_test", "`\"stored\"`, `\"clamped\"`", "`\"stored\"`"),), _NO_CLAMP,
+        (("--clamp-test", "clamp_test", "the y2 of Algorithm 3's case test: stored (default) or clamped", _same),)),
+    Key("format", _format, "the texel-format choices the paper leaves open (docs/formats.md)",
+        (("format", "a table `[format]` of the keys below", "each format's own choices"),
+         ("format.depth_decode`, `format.v2_decode`, `format.xi_decode", "`\"lower\"`, `\"centre\"`, `\"upper\"`",
+          "the format's own (docs/formats.md)"),
+         ("format.xi_rounding", "`\"up\"`, `\"nearest\"`", "`\"up\"`"),
+         ("format.subtexel_bits", "4 .. 16", "exact weights")), _NO_TEXEL,
+        tuple((f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(map(str, v))})",
+               _int_text if k == "subtexel_bits" else _same) for k, v in FORMAT_KEYS.items())),
+    Key("receiver_offset", _offset, "a constant offset the function subtracts from the receiver depth zf (toward the "
+        "light, in the moments' depth convention) before the bound: the expected value is the bound at zf - offset",
+        (("receiver_offset", f"0 .. {MAX_RECEIVER_OFFSET:g}", "0"),), _receiver,
+        (("--receiver-offset", "receiver_offset", "constant receiver offset toward the light, inside the function",
+          _number_text),)),
+    Key("receiver_slope", _offset, "a slope-scaled receiver offset c: the function takes the receiver's slope as its "
+        "last argument and subtracts c * slope from zf; the golden rows gain a `slope` input",
+        (("receiver_slope", f"0 .. {MAX_RECEIVER_OFFSET:g}", "0 (no `slope` argument)"),), _receiver,
+        (("--receiver-slope", "receiver_slope", "slope-scaled receiver offset: the function subtracts c * slope",
+          _number_text),)),
+    Key("receiver_depth", _choices(DEPTHS), "the depth convention of the receiver zf when it differs from the moments' "
+        "(a [0,1] receiver mapped inside to the moments' [-1,1]); fed rounded to float32 as an engine does",
+        (("receiver_depth", "`\"[-1,1]\"`, `\"[0,1]\"`", "the moments' (`depth`)"),), _receiver,
+        (("--receiver-depth", "receiver_depth", "depth convention of the receiver zf, if not the moments'", _same),)),
+    Key("output_clamp", _flag, "the caller clamps the result to [0, 1]: the port's output is clamped before the "
+        "comparison, and the verdict says so", (("output_clamp", "`true`, `false`", "`false`"),), _bounded,
+        (("--output-clamp", "output_clamp", "the caller clamps the result to [0, 1] (true or false)", _bool_text),)),
+    Key("bound", _choices(BOUNDS), "the bound a shadow_intensity port computes: Algorithm 1's (Hamburger) or Peters "
+        "and Klein 2015's Hausdorff bound (depths in [0, 1]), judged by the hausdorff-* cases",
+        (("bound", "`\"hamburger\"`, `\"hausdorff\"`", "`\"hamburger\"` (Algorithm 1)"),), _four_moment_bound,
+        (("--bound", "bound", "the bound a shadow_intensity port computes: hamburger (default) or hausdorff", _same),)),
+)
+_BY_NAME = {k.name: k for k in KEYS}
+_KEYS = tuple(_BY_NAME)
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Declared conventions (one field per entry of :data:`KEYS`); ``None`` keeps each case's own."""
+
+    depth: str | None = None
+    output: str | None = None
+    bias: Bias | None = None
+    clamp: float | None = None
+    clamp_test: str | None = None
+    format: tuple = ()  # sorted (key, value) pairs
+    receiver_offset: float | None = None
+    receiver_slope: float | None = None
+    receiver_depth: str | None = None
+    output_clamp: bool | None = None
+    bound: str | None = None  # "hamburger" or "hausdorff" (BOUNDS)
+    functions: tuple = ()  # sorted (name, Profile) pairs
+    source: str = "profile"
+
+    def for_function(self, name):
+        """This profile with the keys of ``[functions.NAME]`` applied (the file's, if none)."""
+        table = dict(self.functions).get(name)
+        if table is None:
+            return replace(self, functions=())
+        merged = {k: getattr(table, k) if getattr(table, k) not in (None, ()) else getattr(self, k) for k in _KEYS}
+        if table.format:
+            merged["format"] = tuple(sorted({**dict(self.format), **dict(table.format)}.items()))
+        return replace(self, functions=(), **merged)
+
+    @property
+    def declared(self):
+        """The keys this profile sets (not left at their default)."""
+        return tuple(k for k in _KEYS if getattr(self, k) not in (None, ()))
+
+    @property
+    def canonical(self):
+        """The profile's content as plain JSON values (what the cache key hashes)."""
+        out = {k: getattr(self, k) for k in _KEYS}
+        b = self.bias
+        out["bias"] = None if b is None else {"alpha": b.alpha, "target": list(b.target), "applied": b.applied}
+        out["format"] = dict(self.format)
+        out["functions"] = {k: v.canonical for k, v in self.functions}
+        return out
+
+    @property
+    def key(self):
+        """sha256 of :attr:`canonical`: two profiles with the same content share derived goldens."""
+        return hashlib.sha256(json.dumps(self.canonical, sort_keys=True).encode()).hexdigest()
+
+    @property
+    def is_default(self):
+        return self.canonical == Profile().canonical
+
+    def describe(self):
+        """One line for reports."""
+        parts = []
+        for k in self.declared:
+            if k == "bias":
+                b = self.bias
+                parts.append("no bias" if not b.active else
+                             f"bias alpha {b.alpha:g} toward {list(b.target)} ({b.applied})")
+            elif k == "format":
+                parts += [f"{f} {v}" for f, v in self.format]
+            else:
+                parts.append(f"{k} {getattr(self, k)}")
+        return ", ".join(parts) or "the papers' conventions"
+
+
+DEFAULT = Profile()
+
+
+def ignored_keys(case, profile):
+    """``[(key, reason)]``: the keys ``profile`` declares that ``case`` cannot use, each with why (:data:`KEYS`)."""
+    out = []
+    for name in profile.declared:
+        why = _BY_NAME[name].ignored_by(case)
+        if why is not None:
+            out.append((name, why))
+    return out
+
+
+def ignored_note(case, profile):
+    """The verdict's note naming the declared keys ``case`` ignores and why (``[]`` if none)."""
+    found = ignored_keys(case, profile)
+    if not found:
+        return []
+    return ["profile keys this case ignores: " + "; ".join(f"{k} ({why})" for k, why in found)]
+
+
+def refuse_meaningless(cases, profile, keys=None):
+    """:class:`InputError` when a declared key (of ``keys``, default every declared one) can mean nothing for any
+    of ``cases``: a declaration is used or refused, never silently dropped."""
+    cases = list(cases)
+    for name in keys if keys is not None else profile.declared:
+        if name not in profile.declared or not cases:
+            continue
+        why = [_BY_NAME[name].ignored_by(c) for c in cases]
+        if all(w is not None for w in why):
+            raise InputError(f"profile {profile.source}: {name}: no selected case can use it "
+                             f"({cases[0].name}: {why[0]}{'' if len(cases) == 1 else ', and the others'})")
+
+
 def _table(data, src, prefix=""):
     """A Profile from one TOML table (the file's top level or one [functions.NAME])."""
     fields = {}
     for k, v in data.items():
-        key = f"{prefix}{k}"
-        if k == "depth":
-            fields["depth"] = _choice(v, DEPTHS, src, key)
-        elif k == "output":
-            fields["output"] = _choice(v, OUTPUTS, src, key)
-        elif k == "bias":
-            fields["bias"] = _bias(v, src, key)
-        elif k == "clamp":
-            fields["clamp"] = _clamp(v, src, key)
-        elif k == "clamp_test":
-            fields["clamp_test"] = _choice(v, CLAMP_TESTS, src, key)
-        elif k == "format":
-            fields["format"] = _format(v, src, key)
-        elif k == "bound":
-            fields["bound"] = _choice(v, BOUNDS, src, key)
-        elif k == "functions" and not prefix:
-            continue
-        else:
-            raise _unknown(src, key, k, _KEYS + (() if prefix else ("functions",)))
+        if k in _BY_NAME:
+            fields[k] = _BY_NAME[k].parse(v, src, f"{prefix}{k}")
+        elif k != "functions" or prefix:
+            raise _unknown(src, f"{prefix}{k}", k, _KEYS + (() if prefix else ("functions",)))
     return Profile(**fields, source=src)
 
 
@@ -299,38 +467,15 @@ def _read(path):
         return f.read(MAX_PROFILE + 1)
 
 
-#: Command-line flags, one per key: (flag, key path, help).
-FLAGS = (
-    ("--depth", "depth", "depth convention of the tested function: [-1,1] (the papers') or [0,1]"),
-    ("--output", "output", "what it returns: intensity (1 = shadowed) or visibility (1 - intensity)"),
-    ("--bias-alpha", "bias.alpha", "the engine's bias alpha (0: none)"),
-    ("--bias-target", "bias.target", "the bias target b*, comma-separated, in the engine's depth convention"),
-    ("--bias-applied", "bias.applied", "where the bias is applied: inside the tested function or before the call"),
-    ("--clamp", "clamp", "Algorithm 3's clamp offset (default 1e-6; allowed 1e-7 .. 1/65535)"),
-    ("--clamp-test", "clamp_test", "the y2 of Algorithm 3's case test: stored (default) or clamped"),
-    ("--bound", "bound", "the bound a shadow_intensity port computes: hamburger (default) or hausdorff"),
-    *[(f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(map(str, v))})")
-      for k, v in FORMAT_KEYS.items()],
-)
+#: Command-line flags, one per key (from :data:`KEYS`): (flag, key path, help).
+FLAGS = tuple(f[:3] for k in KEYS for f in k.flags)
+_CONVERT = {f[1]: f[3] for k in KEYS for f in k.flags}
 
 
-def _flag_value(path, text):
-    if path in ("bias.alpha", "clamp"):
-        try:
-            return float(text)
-        except ValueError:
-            raise InputError(f"--{path.replace('.', '-')}: expected a number, got {text!r}") from None
-    if path == "format.subtexel_bits":
-        try:
-            return int(text)
-        except ValueError:
-            raise InputError(f"--format-subtexel-bits: expected an integer, got {text!r}") from None
-    if path == "bias.target":
-        try:
-            return [float(x) for x in str(text).split(",")]
-        except ValueError:
-            raise InputError(f"--bias-target: expected comma-separated numbers, got {text!r}") from None
-    return text
+def flag_keys(flags):
+    """The profile keys named by the flags given (``flags`` as for :func:`profile_from_args`)."""
+    return tuple(dict.fromkeys(p.partition(".")[0] for f, p, _ in FLAGS
+                               if flags.get(f[2:].replace("-", "_")) is not None))
 
 
 def profile_from_args(path=None, function=None, **flags):
@@ -341,7 +486,7 @@ def profile_from_args(path=None, function=None, **flags):
     """
     base = load_profile(path) if path is not None else DEFAULT
     base = base.for_function(function) if function else replace(base, functions=())
-    given = {p: _flag_value(p, flags[f[2:].replace("-", "_")]) for f, p, _ in FLAGS
+    given = {p: _CONVERT[p](flags[f[2:].replace("-", "_")], f) for f, p, _ in FLAGS
              if flags.get(f[2:].replace("-", "_")) is not None}
     if not given:
         return base
@@ -359,3 +504,29 @@ def profile_from_args(path=None, function=None, **flags):
         data["bias"] = bias
     flagged = _table(data, "flags")
     return replace(base, **{k: getattr(flagged, k) for k in _KEYS if getattr(flagged, k) not in (None, ())})
+
+
+#: The markers of the key table in docs/ports.md.
+MARKERS = ("<!-- profile keys: begin -->\n", "\n<!-- profile keys: end -->")
+
+
+def keys_markdown():
+    """The key table of docs/ports.md: every key of :data:`KEYS` with its values, default and sentence."""
+    lines = ["| key | values | default | what |", "|---|---|---|---|"]
+    for k in KEYS:
+        for i, (name, values, default) in enumerate(k.rows):
+            lines.append(f"| `{name}` | {values} | {default} | {k.doc.replace('|', '/') if i == 0 else ''} |")
+    lines.append("| `[functions.NAME]` | any key above, for one function | the file's keys | "
+                 "one function of the file, chosen by `--function` |")
+    return "\n".join(lines)
+
+
+def write_docs(path):
+    """Rewrite the key table between :data:`MARKERS` in ``path`` (docs/ports.md); return the path."""
+    from .._io import write_text
+
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    head, rest = text.split(MARKERS[0], 1)
+    _, tail = rest.split(MARKERS[1], 1)
+    return write_text(path, head + MARKERS[0] + keys_markdown() + MARKERS[1] + tail)

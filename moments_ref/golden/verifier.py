@@ -200,12 +200,19 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
     if port_dtype not in (None, "float32", "float64"):
         raise InputError(f"port_dtype: expected float32 or float64, got {port_dtype!r}")
     manifest = load_manifest(golden_dir)
+    declared = profile  # the caller's clamp applies also where the folder holds this profile's expected values
     if manifest.get("profile_key") is not None and profile is not None and not profile.is_default:
         if profile.key != manifest["profile_key"]:
             raise InputError("profile: the golden folder was written for another profile "
                              f"({manifest.get('profile')}); verify it without --profile or with that one")
         profile = None  # the folder's expected values are already this profile's
     results = load_results(results_path, manifest)
+    from .cases import CASES
+    from .profile import ignored_note, refuse_meaningless
+
+    if profile is not None and not profile.is_default:  # a key no verified case can use is refused, not dropped
+        refuse_meaningless([CASES[n] for n, meta in manifest["cases"].items() if n in CASES and any(
+            f"{n}.{o}" in results for o in meta["compare"])], profile)
     report = []
     for name, meta in manifest["cases"].items():
         keys = {o: f"{name}.{o}" for o in meta["compare"]}
@@ -217,10 +224,19 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
         if profile is not None and not profile.is_default:
             meta, gold, target = _profiled(name, meta, gold, profile)
         got = {o: results[k] for o, k in keys.items() if k in results}
+        said = []
+        if declared is not None and name in CASES:  # a declared caller's clamp, applied first (golden.receiver)
+            from .receiver import clamp_outputs
+
+            got, said = clamp_outputs(CASES[name], declared, got)
         # no profile (the folder's or the call's): ill-conditioned rows are judged by their neighbourhood
         plain = CASES.get(name) if target is None and manifest.get("profile_key") is None else None
-        report.append(_case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
-                                   _causes(name, base, got, profile, target, port_dtype or meta["dtype"]), plain))
+        result = _case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
+                              _causes(name, base, got, profile, target, port_dtype or meta["dtype"]), plain)
+        if profile is not None and name in CASES:  # the declared keys this case ignores, and why
+            result.message = "; ".join([result.message] * bool(result.message) + ignored_note(CASES[name], profile)
+                                       + said)
+        report.append(result)
     if not report or all(c.status == "missing" for c in report):
         raise InputError("results: no array matches a golden case output ('<case>.<output>')")
     return VerifyReport(report)

@@ -146,7 +146,9 @@ def _write(out_dir, cases, progress, profile):
     derived, skipped = {}, []
     if profile is not None and not profile.is_default:
         from .conventions import profiled_arrays
+        from .profile import refuse_meaningless
 
+        refuse_meaningless([CASES[n] for n in names], profile)  # a key no written case can use: exit 2, at once
         for name in list(names):
             try:
                 derived[name] = profiled_arrays(name, profile)

@@ -3,7 +3,8 @@
 ``python -m moments_ref.tools.apidoc > docs/api.md``; ``--layout`` prints the table of
 docs/architecture.md (the README links to it); ``--columns`` rewrites the column table
 of docs/report.md (:mod:`moments_ref.report.columns`); ``--cases`` rewrites the contract
-table of docs/golden.md (:mod:`moments_ref.golden.casedoc`); ``tests/test_docs.py`` checks that
+table of docs/golden.md (:mod:`moments_ref.golden.casedoc`), ``--profile-keys`` the key table of
+docs/ports.md (:data:`moments_ref.golden.profile.KEYS`); ``tests/test_docs.py`` checks that
 the file lists every public name.
 """
 
@@ -91,5 +92,9 @@ if __name__ == "__main__":  # pragma: no cover
         from ..golden.casedoc import write_docs as write_cases
 
         print(f"wrote {write_cases(Path(__file__).resolve().parents[2] / 'docs' / 'golden.md')}")
+    elif "--profile-keys" in sys.argv[1:]:  # the key table of docs/ports.md (golden.profile.KEYS)
+        from ..golden.profile import write_docs as write_keys
+
+        print(f"wrote {write_keys(Path(__file__).resolve().parents[2] / 'docs' / 'ports.md')}")
     else:
         print(layout_markdown() if "--layout" in sys.argv[1:] else render())
