@@ -285,9 +285,11 @@ def _main(args):
             raise InputError(f"conformance: --kernel expects one of {options_phrase()} FILE, got {len(files)}")
         language, path = files[0]
         _refuse_for_kernels(args)
+        declared = _kernel_declared(args)
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
                           get("adapter"), rows=get("rows") if get("rows") is not None else 5, json_path=get("json"),
-                          options=source_options(args), strict=bool(get("strict")), layout=_kernel_layout(args))
+                          options=source_options(args), strict=bool(get("strict")), layout=declared["layout"],
+                          v2_cell=declared.get("v2_cell"))
     if get("all"):
         from .._io import write_text
 
@@ -346,14 +348,15 @@ def _refuse_for_kernels(args):
                          "fix theirs (a kernel profile declares only its [kernel] table: docs/ports.md, \"Kernels\")")
 
 
-def _kernel_layout(args):
-    """The output layout declared by ``--kernel-layout`` or the ``[kernel]`` table of ``--profile`` (exit 2 for any
-    other profile key: the kernel cases fix the engine's other conventions)."""
+def _kernel_declared(args):
+    """``{"layout": ..., "v2_cell": ...}``: the output layout declared by ``--kernel-layout`` or the ``[kernel]``
+    table of ``--profile``, and the √v2 grid of its ``[format]`` table (exit 2 for any other profile key: the
+    kernel cases fix the engine's other conventions)."""
     from .kernel.declared import kernel_profile
 
     get = lambda k: getattr(args, k, None)  # noqa: E731
     declared = kernel_profile(get("profile")) if get("profile") is not None else {}
-    return get("kernel_layout") or declared.get("layout", "interleaved")
+    return {**declared, "layout": get("kernel_layout") or declared.get("layout", "interleaved")}
 
 
 def source_options(args):

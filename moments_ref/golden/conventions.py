@@ -66,6 +66,11 @@ def _contradiction(case, what, why):
 
 
 def _check(case, profile):
+    from .cells import DEFAULT_CELL, HONOURED_BY
+
+    cell = dict(profile.format).get("v2_cell", DEFAULT_CELL)
+    if cell != DEFAULT_CELL and case.name not in HONOURED_BY:
+        _contradiction(case, f"format.v2_cell = {cell!r}", f"only {', '.join(HONOURED_BY)} follows a declared √v2 grid")
     if profile.depth not in (None, "[-1,1]") and not case.depth_roles:
         _contradiction(case, f"depth = {profile.depth!r}", "its quantities are defined for depths in [-1, 1]")
     if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
@@ -234,6 +239,8 @@ def profile_arrays(case, arrays, profile):
         out.update(pcase.deriver(pcase, conv, *labels, contract=inside))
     else:
         out.update(derive(pcase, {k: conv[k] for k in case.inputs}, *labels, contract=inside))
+    if pcase.extra is not None:  # a kernel case's expected codes, under the declared format
+        out.update(pcase.extra(conv))
     return pcase, out
 
 

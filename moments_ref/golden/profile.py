@@ -54,6 +54,7 @@ import numpy as np
 
 from .._arrays import InputError
 from .._toml import check_values, exact_int, finite_float, load_toml
+from .cells import V2_CELLS
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["Profile", "Bias", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED", "FORMAT_KEYS",
@@ -70,9 +71,11 @@ APPLIED = ("inside", "before")
 #: rounded up (the lower-bound guarantee) or to nearest (a UNORM render-target write).
 _POSITIONS = ("lower", "centre", "upper")
 #: ``subtexel_bits``: the sub-texel precision of the engine's texture filter (bilinear cases,
-#: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4).
+#: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4). ``v2_cell``: the 32-bit √v2 grid
+#: (:mod:`moments_ref.golden.cells`), honoured by the 32-bit kernel case.
 FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
-               "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17))}
+               "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17)),
+               "v2_cell": V2_CELLS}  # the 32-bit √v2 grid (golden.cells; kernel-filter-nlq32 only)
 _KEYS = ("depth", "output", "bias", "clamp", "clamp_test", "format")
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).
