@@ -342,21 +342,26 @@ def _refuse_for_kernels(args):
                          "the case's own (docs/ports.md, \"Kernels\")")
     if get("adapter") == "as-written":
         raise InputError("conformance: --adapter as-written is for functions; kernels run on gl, vulkan or both")
-    flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None]
+    flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None and f != "--format-v2-cell"]
     if flags:
         raise InputError(f"conformance: {flags[0]} declares an engine's convention for functions; the kernel cases "
-                         "fix theirs (a kernel profile declares only its [kernel] table: docs/ports.md, \"Kernels\")")
+                         "fix theirs (a kernel profile declares only its [kernel] table and [format] v2_cell: "
+                         "docs/ports.md, \"Kernels\")")
 
 
 def _kernel_declared(args):
     """``{"layout": ..., "v2_cell": ...}``: the output layout declared by ``--kernel-layout`` or the ``[kernel]``
     table of ``--profile``, and the √v2 grid of its ``[format]`` table (exit 2 for any other profile key: the
     kernel cases fix the engine's other conventions)."""
+    from ..golden.cells import V2_CELLS
     from .kernel.declared import kernel_profile
 
     get = lambda k: getattr(args, k, None)  # noqa: E731
     declared = kernel_profile(get("profile")) if get("profile") is not None else {}
-    return {**declared, "layout": get("kernel_layout") or declared.get("layout", "interleaved")}
+    cell = get("format_v2_cell") or declared.get("v2_cell")
+    if cell is not None and cell not in V2_CELLS:
+        raise InputError(f"conformance: --format-v2-cell: expected one of {', '.join(V2_CELLS)}, got {cell!r}")
+    return {**declared, "layout": get("kernel_layout") or declared.get("layout", "interleaved"), "v2_cell": cell}
 
 
 def source_options(args):
