@@ -366,10 +366,16 @@ def _kernel_declared(args):
 
 def source_options(args):
     """:class:`SourceOptions` from the CLI's ``--include``, ``--define``, ``--prelude``, ``--max-source``,
-    ``--keep-unused`` and ``--uniform`` (absent ones take their defaults)."""
+    ``--keep-unused`` and ``--uniform`` (absent ones take their defaults); a function's ``--profile`` adds its
+    ``[uniforms]`` table, under the command line's values."""
+    from ._uniforms import merge_uniforms, profile_uniforms
+
     get = lambda k: getattr(args, k, None)  # noqa: E731
+    items, origin = profile_uniforms(get("profile")) if get("profile") and not get("kernel") else ((), "")
+    uniforms, origins = merge_uniforms(tuple(get("uniform") or ()), items, origin)
     return SourceOptions(tuple(get("include") or ()), tuple(get("define") or ()), get("prelude"),
-                         get("max_source"), bool(get("keep_unused")), uniforms=tuple(get("uniform") or ()))
+                         get("max_source"), bool(get("keep_unused")), uniforms=uniforms,
+                         uniform_origins=tuple(origins.items()))
 
 
 def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):

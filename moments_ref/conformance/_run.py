@@ -28,9 +28,9 @@ from . import languages as _languages
 from ._cases import GoldenCase, load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
-from ._decls import keep_used, used_resources
+from ._decls import keep_used, split_declarations, used_resources
 from ._textures import consumed, texture_args
-from ._uniforms import constant_declaration, parse_uniforms
+from ._uniforms import check_names, constant_declaration, member_names, parse_uniforms
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_slang, wrap_wgsl
 from .verdict import compare_case
@@ -94,6 +94,15 @@ class SourceOptions:
     keep_unused: bool = False
     exact: bool = True
     uniforms: tuple = ()  # NAME=VALUE: values of the uniform / constant-buffer members the function reads
+    uniform_origins: tuple = ()  # (NAME, where its value came from: "--uniform" or "profile FILE")
+
+    def uniform_note(self):
+        """The report's line naming each uniform value and where it came from, or None."""
+        if not self.uniforms:
+            return None
+        origins = dict(self.uniform_origins)
+        return "uniforms: " + "; ".join(f"{k} = {','.join(v)} ({origins.get(k, '--uniform')})"
+                                        for k, v in parse_uniforms(self.uniforms).items())
 
 
 def _check_defined(src, path, function, sig):
@@ -103,7 +112,7 @@ def _check_defined(src, path, function, sig):
                           f"expected signature: {sig}")
 
 
-def _only_used(src, function, language, keep_unused, uniforms=()):
+def _only_used(src, function, language, keep_unused, uniforms=(), origins=()):
     """Blank the declarations ``function`` does not use; give uniforms their ``--uniform`` values; refuse
     resources it needs bound."""
     if keep_unused and not uniforms:
@@ -112,6 +121,11 @@ def _only_used(src, function, language, keep_unused, uniforms=()):
     if keep_unused:
         body = src.body
     values = parse_uniforms(uniforms)
+    if values:  # a name no member of the file has: exit 2 naming the nearest member
+        decls, _ = split_declarations(src.body, language)
+        known = [n for d, _ in used_resources(decls, language)
+                 for n in member_names(src.body[d.start:d.end], language, src.body)]
+        check_names(values, known, dict(origins))
     for d, what in sorted(used_resources(kept, language), key=lambda x: -x[0].start):
         line = src.body.count("\n", 0, d.start) + 1
         text = src.body[d.start:d.end]
@@ -152,7 +166,7 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     _check_defined(src, path, function, sig)
     if language == "slang":  # Slang keeps only what the entry point uses; modules are its own
         return _slang_route(target, src, path, function, sig, ins, outs, options)
-    src = _only_used(src, function, language, options.keep_unused, options.uniforms)
+    src = _only_used(src, function, language, options.keep_unused, options.uniforms, options.uniform_origins)
     tex = {} if inputs is None else texture_args(src.body, function, language, ins,
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
                                                   len(next(iter(inputs.values()))))
@@ -359,7 +373,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
     execute, renderer, prepared = _prepare(language, target, path, function, ins, outs, options, gc.inputs)
-    notes = notes + prepared
+    notes = notes + prepared + ([options.uniform_note()] if options is not None and options.uniforms else [])
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
 

@@ -23,6 +23,9 @@ flag (:data:`FLAGS`). The keys (docs/ports.md):
 ``[format]``           the texel-format choices the paper leaves open
                        (:data:`FORMAT_KEYS`: decode positions, the rounding of the ξ4
                        code at 64 bits; docs/formats.md).
+``[uniforms]``         values of the uniform, constant-buffer and push-constant
+                       members the tested function reads (``NAME = 1.0``, a vector
+                       ``NAME = [a, b]``): as ``--uniform``, which wins over it.
 ``[functions.NAME]``   the same keys for one function of the file, overriding the
                        file's (one file often holds a function that biases and one
                        that does not).
@@ -247,10 +250,10 @@ def _table(data, src, prefix=""):
             fields["clamp_test"] = _choice(v, CLAMP_TESTS, src, key)
         elif k == "format":
             fields["format"] = _format(v, src, key)
-        elif k == "functions" and not prefix:
-            continue
+        elif k == "functions" and not prefix or k == "uniforms" and not prefix:
+            continue  # [uniforms]: the values of a port's uniform members (conformance._uniforms)
         else:
-            raise _unknown(src, key, k, _KEYS + (() if prefix else ("functions",)))
+            raise _unknown(src, key, k, _KEYS + (() if prefix else ("functions", "uniforms")))
     return Profile(**fields, source=src)
 
 
