@@ -44,6 +44,8 @@ DRIVERS = _languages.DRIVERS
 #: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
 #: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).
 AS_WRITTEN = "as-written"
+#: The optional CPU driver of Slang functions (:mod:`._slangcpu`).
+CPU = "cpu"
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
 DEFAULT_DRIVER = {k: v.default for k, v in _languages.TABLE.items()}
 _SPIRV = {}
@@ -64,6 +66,11 @@ def parse_adapter(spec, language):
         return Target(DEFAULT_DRIVER[language])
     if spec == AS_WRITTEN:
         return Target(AS_WRITTEN)
+    if spec == CPU:
+        if language != "slang":
+            raise InputError(f"adapter: cpu runs Slang files (Slang's cpp target and the system C++ compiler); "
+                             f"{language} runs on gl or vulkan")
+        return Target(CPU)
     driver, _, name = spec.partition(":")
     if driver.lower() in DRIVERS:
         return Target(driver.lower(), name or None)
@@ -186,6 +193,27 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
 
 
+def _slang_cpu(wrapper, dirs, known, sig, ins, outs):
+    """Slang → C++ → the system compiler → a child process (:mod:`._slangcpu`)."""
+    from . import _slangcpu
+    from ._source import wrapped_compile_error
+    from ._supervisor import watchdog
+
+    reason = _slangcpu.not_available()
+    if reason:
+        raise InputError(reason)
+
+    def failed(errors):
+        return wrapped_compile_error("Slang", [_languages.unmangle("slang", e, known) for e in errors], sig)
+
+    def execute(a, n):
+        res, timings, _ = _slangcpu.run_cpu(wrapper, dirs, failed, ins, outs, a, n, LOCAL_SIZE, watchdog())
+        return res, timings
+
+    note = "precise: cpu: the C++ compiler runs with -ffp-contract=off, so every operation is rounded as written"
+    return execute, f"CPU: Slang's cpp target and {Path(_slangcpu.compiler()).name}", [note]
+
+
 def _slang_route(target, src, path, function, sig, ins, outs, options):
     """Slang → GLSL; OpenGL runs it (barriers lowered), Vulkan gets glslang's SPIR-V of it (keeps ``precise``)."""
     if target.driver == AS_WRITTEN:
@@ -197,6 +225,8 @@ def _slang_route(target, src, path, function, sig, ins, outs, options):
     wrapper = wrap_slang(src, function, ins, outs, space)
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
     known = _slang.identifiers(src.body, dirs)
+    if target.driver == CPU:
+        return _slang_cpu(wrapper, dirs, known, sig, ins, outs)
     glsl = _cached(["slang", wrapper, *map(str, dirs)],
                    lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig,
                                              lambda e: _languages.unmangle("slang", e, known)))

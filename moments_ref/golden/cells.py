@@ -19,6 +19,12 @@ References
 .. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
        of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
        1–3, the texel formats and the compute shader of §4.1.
+.. [2] HPG17 demo: The demo code accompanying HPG17 (Direct3D; C. Peters), whose 32-bit texel
+       functions ``QuantizeMomentsNonLinear32Bit`` and ``UnpackMomentsNonLinear32Bit`` are public
+       in engine code ported from it, e.g. the repository kingofthebongo2008/UCEngine,
+       ``src/uc_dev/private/gx/dx12/shaders/shadows/moment_shadow_maps_32.hlsli`` and
+       ``shadows.hlsli`` (cited for their behaviour; no code is copied). Its 64-bit format is a
+       UNORM16 render-target write (``moment_shadow_maps_64.hlsli``).
 """
 
 from __future__ import annotations

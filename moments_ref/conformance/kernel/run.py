@@ -418,6 +418,10 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     require(language)
     if case not in KERNEL_CASES:
         raise InputError(f"case: {case!r} is not a kernel case; kernel cases: {', '.join(KERNEL_CASES)}")
+    if adapter == "cpu":
+        from .._slangcpu import KERNEL_REFUSAL
+
+        raise InputError(KERNEL_REFUSAL)
     limit = watchdog() if time_limit is None else float(time_limit)
     if not limit > 0:
         raise InputError(f"time_limit: expected a positive number of seconds, got {time_limit!r}")
