@@ -193,7 +193,7 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
 
 
-def _slang_cpu(wrapper, dirs, known, sig, ins, outs):
+def _slang_cpu(wrapper, dirs, known, sig, ins, outs, note=None):
     """Slang → C++ → the system compiler → a child process (:mod:`._slangcpu`)."""
     from . import _slangcpu
     from ._source import wrapped_compile_error
@@ -210,8 +210,8 @@ def _slang_cpu(wrapper, dirs, known, sig, ins, outs):
         res, timings, _ = _slangcpu.run_cpu(wrapper, dirs, failed, ins, outs, a, n, LOCAL_SIZE, watchdog())
         return res, timings
 
-    note = "precise: cpu: the C++ compiler runs with -ffp-contract=off, so every operation is rounded as written"
-    return execute, f"CPU: Slang's cpp target and {Path(_slangcpu.compiler()).name}", [note]
+    name = Path(_slangcpu.compiler()).name
+    return execute, f"CPU: Slang's cpp target and {name} -O2 -ffp-contract=off", [note] if note else []
 
 
 def _slang_route(target, src, path, function, sig, ins, outs, options):
@@ -226,7 +226,7 @@ def _slang_route(target, src, path, function, sig, ins, outs, options):
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
     known = _slang.identifiers(src.body, dirs)
     if target.driver == CPU:
-        return _slang_cpu(wrapper, dirs, known, sig, ins, outs)
+        return _slang_cpu(wrapper, dirs, known, sig, ins, outs, _languages.precise_note("slang", CPU, src.body))
     glsl = _cached(["slang", wrapper, *map(str, dirs)],
                    lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig,
                                              lambda e: _languages.unmangle("slang", e, known)))
