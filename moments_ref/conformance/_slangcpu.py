@@ -14,6 +14,12 @@ watchdog bounds it).
 
 Functions only: Slang's ``cpp`` target refuses ``GroupMemoryBarrierWithGroupSync`` (error
 E36107, "unavailable features in entry point"), so no kernel of HPG17 §4.1 runs here.
+
+References
+----------
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations
