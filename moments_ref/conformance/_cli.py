@@ -92,7 +92,9 @@ def harness_failure(exc):
 def _targets(adapter):
     """``[(language, adapter spec)]`` for ``--all``: every language on every driver, or on ``adapter``.
 
-    Slang only where its extra is installed (:func:`.languages.available`)."""
+    ``both`` is every driver, as without ``adapter``. Slang only where its extra is installed
+    (:func:`.languages.available`)."""
+    adapter = None if adapter == "both" else adapter
     return [(lang, adapter or driver) for lang in ALL_LANGUAGES if available(lang)
             for driver in ((adapter,) if adapter else DRIVERS)]
 
