@@ -219,8 +219,8 @@ def _slang_route(target, src, path, function, sig, ins, outs, options):
     if target.driver == AS_WRITTEN:
         raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL; Slang runs on gl or vulkan")
     if options.uniforms:
-        raise InputError("uniform: --uniform is for GLSL, HLSL and WGSL files; in Slang, pass the value as an "
-                         "argument of an adapter function")
+        raise InputError("uniform: uniform values (--uniform, a profile's [uniforms]) are for GLSL, HLSL and WGSL "
+                         "files; in Slang, pass the value as an argument of an adapter function")
     space = free_group(src.body, r"(?:\bspace|vk::binding\s*\(\s*\d+\s*,\s*)(\d+)")
     wrapper = wrap_slang(src, function, ins, outs, space)
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
