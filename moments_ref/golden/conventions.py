@@ -70,7 +70,8 @@ def _check(case, profile):
 
     cell = dict(profile.format).get("v2_cell", DEFAULT_CELL)
     if cell != DEFAULT_CELL and case.name not in HONOURED_BY:
-        _contradiction(case, f"format.v2_cell = {cell!r}", f"only {', '.join(HONOURED_BY)} follows a declared √v2 grid")
+        _contradiction(case, f"format.v2_cell = {cell!r}",
+                       f"only {', '.join(HONOURED_BY)} follows a declared √v2 grid")
     if profile.depth not in (None, "[-1,1]") and not case.depth_roles:
         _contradiction(case, f"depth = {profile.depth!r}", "its quantities are defined for depths in [-1, 1]")
     if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
