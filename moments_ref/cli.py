@@ -365,7 +365,7 @@ def _add_port(sp):
     sp.add_argument("--function", help="the function to test")
     sp.add_argument("--case", help="golden case, e.g. shade-float32")
     sp.add_argument("--adapter", help="driver: gl, vulkan, vulkan:NAME, an adapter name, both (gl and vulkan, "
-                                      "and the rows where they differ) or as-written (default per language)")
+                                      "and the rows where they differ), as-written or cpu (Slang functions via C++)")
 
 
 def _add_source_options(cf):

@@ -382,3 +382,12 @@ def test_what_each_compiler_changes(drivers, language, driver):
     from moments_ref.conformance import _probes
 
     assert tuple(_probes.rules(language, driver).values()) == _RULES_MEASURED[(language, driver)]
+
+
+def test_all_with_adapter_both_runs_every_driver():
+    # --all --adapter both is the default (every language on gl and vulkan), not a Vulkan adapter named "both".
+    from moments_ref.conformance import _cli
+
+    assert _cli._targets("both") == _cli._targets(None)
+    assert {d for _, d in _cli._targets(None)} == set(_run.DRIVERS)
+    assert {d for _, d in _cli._targets("gl")} == {"gl"}

@@ -50,11 +50,13 @@ def test_without_the_extra_slang_exits_2_with_the_install_line(monkeypatch, caps
 
 
 def test_the_table_names_every_language_once():
-    # Suffixes belong to one language each; every language has a route to both drivers.
+    # Suffixes belong to one language each; every language has a route to both drivers (Slang also to the CPU).
     seen = [s for lang in languages.TABLE.values() for s in lang.suffixes]
     assert len(seen) == len(set(seen))
     assert set(languages.LANGUAGES) == {"glsl", "hlsl", "wgsl", "slang"}
-    assert all(set(lang.routes) == set(languages.DRIVERS) for lang in languages.TABLE.values())
+    assert all(set(lang.routes) - ({"cpu"} if name == "slang" else set()) == set(languages.DRIVERS)
+               for name, lang in languages.TABLE.items())
+    assert "cpu" in languages.TABLE["slang"].routes and "cpu" in languages.TABLE["slang"].precise
     assert languages.language_of("x.slang") == "slang" and conformance.LANGUAGES == ("glsl", "hlsl", "wgsl")
     assert languages.unmangle("slang", "uniform block block_Params_0, depth_0, f_12 x_1", {"Params", "depth", "f"}) \
         == "uniform block Params, depth, f x_1"
@@ -177,3 +179,37 @@ def test_kernel_json_is_written(drivers, kernel_goldens, tmp_path, capsys):
     assert data["command"] == "conformance --kernel" and data["passed"] is True
     assert [r["driver"] for r in data["cases"]] == ["gl", "vulkan"]
     assert all(r["passed"] and r["codes"]["differ"] == 0 for r in data["cases"])
+
+
+# --- --adapter cpu: Slang's cpp target and the system C++ compiler (functions only) -------------
+
+needs_cpu = pytest.mark.skipif(not _slang.available() or __import__("moments_ref.conformance._slangcpu",
+                                                                      fromlist=["x"]).compiler() is None,
+                               reason="needs the Slang extra and a C++ compiler")
+
+
+@needs_cpu
+def test_cpu_adapter_runs_slang_functions_and_fails_their_mutants(golden_dir, tmp_path):
+    # A third driver: compiled by the system C++ compiler, not by Mesa. The shipped port passes; a
+    # one-change mutant fails there too.
+    for path, function, case in ((SLANG_DIR / "packing.slang", "pack32", "pack32-float32"),):
+        report = conformance.run_case(path, function, case, golden_dir, "slang", "cpu")
+        assert report.passed and report.driver == "cpu", report.format()
+        assert "-ffp-contract=off" in report.format()
+    fname, old, new, function, case = MUTANTS[-2]  # pack32 rounding to nearest instead of truncating
+    report = conformance.run_case(one_change(tmp_path, SLANG_DIR, fname, old, new), function, case, golden_dir,
+                                  "slang", "cpu")
+    assert not report.passed, report.format()
+
+
+@needs_slang
+def test_cpu_adapter_refusals(capsys):
+    # Other languages, and kernels (Slang's cpp target refuses the barrier), exit 2 with one line.
+    glsl = str(Path(conformance.__file__).parents[1] / "ports" / "glsl" / "msm.glsl")
+    for argv, word in ((["conformance", "--glsl", glsl, "--function", "shadow_intensity_lower", "--case",
+                         "shadow_intensity-lower-float32", "--adapter", "cpu"], "cpu runs Slang files"),
+                       (["conformance", "--kernel", "--slang", "hpg17_filter_nlq64.slang", "--entry", "filter_nlq64",
+                         "--case", "kernel-filter-nlq64", "--adapter", "cpu"], "E36107")):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and word in err[0], err

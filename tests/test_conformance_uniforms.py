@@ -24,7 +24,7 @@ SOURCES = {
 TARGET = "bias_target=0,0.375,0,0.375"
 
 
-def _run(tmp_path, language, *uniforms):
+def _run(tmp_path, language, *uniforms, extra=()):
     f = tmp_path / f"engine.{language}"
     f.write_text(SOURCES[language])
     err, out = io.StringIO(), io.StringIO()
@@ -32,7 +32,7 @@ def _run(tmp_path, language, *uniforms):
 
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli.main(["conformance", f"--{language}", str(f), "--function", "engine_bias", "--case", CASE,
-                         *[x for u in uniforms for x in ("--uniform", u)]])
+                         *[x for u in uniforms for x in ("--uniform", u)], *extra])
     return code, out.getvalue(), err.getvalue(), f
 
 
@@ -67,3 +67,37 @@ def test_kernels_refuse_uniform(capsys):
     assert cli.main(["conformance", "--kernel", "--glsl", "hpg17_filter_nlq32.glsl", "--entry", "main",
                      "--case", "kernel-filter-nlq32", "--uniform", "a=1"]) == 2
     assert "--uniform" in capsys.readouterr().err
+
+
+def _run_profile(tmp_path, toml, *uniforms, language="glsl"):
+    p = tmp_path / "engine.toml"
+    p.write_text(toml)
+    return _run(tmp_path, language, *uniforms, extra=("--profile", str(p)))
+
+
+@pytest.mark.parametrize("language", ["glsl", "wgsl"])
+def test_profile_uniforms_and_the_command_line_on_top(drivers, tmp_path, language, monkeypatch):
+    good = '[uniforms]\nalpha = 3e-7\nbias_target = [0, 0.375, 0, 0.375]\n'
+    code, out, err, f = _run_profile(tmp_path, good, language=language)
+    assert code == 0, err + out
+    assert "uniforms: alpha = 3e-07 (profile engine.toml); bias_target = 0,0.375,0,0.375 (profile engine.toml)" in out
+    # The command line wins over the profile, and the report says which value came from where.
+    code, out, err, f = _run_profile(tmp_path, good, "alpha=6e-5", language=language)
+    assert code == 1 and "alpha = 6e-5 (--uniform); bias_target = 0,0.375,0,0.375 (profile engine.toml)" in out
+    code, out, err, f = _run_profile(tmp_path, good.replace("3e-7", "6e-5"), "alpha=3e-7", language=language)
+    assert code == 0 and "alpha = 3e-7 (--uniform)" in out, err + out
+    # An instance's members under [uniforms.INSTANCE] (GLSL and WGSL blocks name an instance).
+    code, out, err, f = _run_profile(tmp_path, '[uniforms.params]\nalpha = 3e-7\nbias_target = [0, 0.375, 0, 0.375]\n',
+                                     language=language)
+    assert code == 0 and "params.alpha = 3e-07" in out, err + out
+
+
+def test_unknown_uniform_names_exit_2_naming_the_nearest_member(drivers, tmp_path):
+    code, out, err, f = _run(tmp_path, "glsl", "alpah=3e-7", TARGET)
+    assert code == 2 and not out and "'alpah' (from --uniform)" in err and "did you mean 'alpha'" in err, err
+    code, out, err, f = _run_profile(tmp_path, '[uniforms]\nalpha = 3e-7\nbias_targe = [0, 0.375, 0, 0.375]\n')
+    assert code == 2 and "'bias_targe' (from profile engine.toml)" in err and "'bias_target'" in err, err
+    assert len(err.strip().splitlines()) == 1
+    for bad in ('[uniforms]\nalpha = "x"\n', '[uniforms]\nalpha = []\n', 'uniforms = 3\n'):
+        code, out, err, f = _run_profile(tmp_path, bad)
+        assert code == 2 and "uniforms" in err and len(err.strip().splitlines()) == 1, (bad, err)

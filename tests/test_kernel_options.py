@@ -148,3 +148,47 @@ def test_declared_output_layouts(drivers, nlq64, tmp_path):
     code, out, err = _cli(["--glsl", "x.glsl", "--function", "f", "--case", "psi4-float32"][:0] + _shipped(
         str(golden_folder((CASE,))), "--kernel-layout", "packed16"))
     assert code == 2 and "packed16" in err, err
+
+
+# --- the 32-bit √v2 grid a profile declares ([format] v2_cell) ---------------------------------
+
+def _cell_kernel(goldens, fixture, *extra):
+    return _cli(["--glsl", str(FIXTURES / fixture), "--entry", "main", "--case", CASE, "--golden", goldens,
+                 "--include", str(PORTS_DIR / "glsl"), "--adapter", "gl", *extra])
+
+
+def test_declared_v2_grid_passes_its_kernel_and_fails_the_mutant(drivers, goldens, tmp_path):
+    p = tmp_path / "round127.toml"
+    p.write_text('[format]\nv2_cell = "round127"\n')
+    out_json = tmp_path / "k.json"
+    code, out, err = _cell_kernel(goldens, "nlq32_round127.glsl", "--profile", str(p), "--json", str(out_json))
+    assert code == 0, err + out
+    assert "v2_cell = 'round127'" in out and "codes: " in out and " 0 differ" in out
+    assert json.loads(out_json.read_text())["v2_cell"] == "round127"
+    # The flag declares it too.
+    code, out, err = _cell_kernel(goldens, "nlq32_round127.glsl", "--format-v2-cell", "round127")
+    assert code == 0, err + out
+    # Undeclared: the sqrt(v2) field fails, and its hint names the key (that grid explains every failing texel).
+    code, out, err = _cell_kernel(goldens, "nlq32_round127.glsl")
+    assert code == 1, err + out
+    assert 'field sqrt(v2) cell (bits 19-25)' in out and 'declare [format] v2_cell = "round127"' in out
+    # The one-change mutant (floor instead of round) fails with the declaration, and without it
+    # gets no suggestion: the other grid does not explain its texels.
+    code, out, err = _cell_kernel(goldens, "nlq32_round127_floor.glsl", "--profile", str(p))
+    assert code == 1 and out.startswith("FAIL"), err + out
+    code, out, err = _cell_kernel(goldens, "nlq32_round127_floor.glsl")
+    assert code == 1 and "field sqrt(v2)" in out and "v2_cell" not in out, out
+
+
+def test_declared_v2_grid_refusals(drivers, goldens, nlq64, tmp_path):
+    p = tmp_path / "decode.toml"
+    p.write_text('[format]\nv2_decode = "lower"\n')
+    code, out, err = _cli(_shipped(goldens, "--profile", str(p)))
+    assert code == 2 and "format.v2_decode" in err and len(err.strip().splitlines()) == 1, err
+    p.write_text('[format]\nv2_cell = "round128"\n')
+    code, out, err = _cli(_shipped(goldens, "--profile", str(p)))
+    assert code == 2 and "format.v2_cell = 'round128'" in err, err
+    code, out, err = _cli(_shipped(goldens, "--format-v2-cell", "nearest"))
+    assert code == 2 and "--format-v2-cell" in err, err
+    code, out, err = _layout(nlq64, "nlq64_planar.glsl", "--kernel-layout", "planar", "--format-v2-cell", "round127")
+    assert code == 2 and "kernel-filter-nlq64" in err and "v2_cell" in err, err

@@ -92,7 +92,9 @@ def harness_failure(exc):
 def _targets(adapter):
     """``[(language, adapter spec)]`` for ``--all``: every language on every driver, or on ``adapter``.
 
-    Slang only where its extra is installed (:func:`.languages.available`)."""
+    ``both`` is every driver, as without ``adapter``. Slang only where its extra is installed
+    (:func:`.languages.available`)."""
+    adapter = None if adapter == "both" else adapter
     return [(lang, adapter or driver) for lang in ALL_LANGUAGES if available(lang)
             for driver in ((adapter,) if adapter else DRIVERS)]
 
@@ -285,9 +287,11 @@ def _main(args):
             raise InputError(f"conformance: --kernel expects one of {options_phrase()} FILE, got {len(files)}")
         language, path = files[0]
         _refuse_for_kernels(args)
+        declared = _kernel_declared(args)
         return kernel_cli(resolve_port(path, language), get("entry"), get("case"), language, get("golden"),
                           get("adapter"), rows=get("rows") if get("rows") is not None else 5, json_path=get("json"),
-                          options=source_options(args), strict=bool(get("strict")), layout=_kernel_layout(args))
+                          options=source_options(args), strict=bool(get("strict")), layout=declared["layout"],
+                          v2_cell=declared.get("v2_cell"))
     if get("all"):
         from .._io import write_text
 
@@ -343,28 +347,40 @@ def _refuse_for_kernels(args):
                          "the case's own (docs/ports.md, \"Kernels\")")
     if get("adapter") == "as-written":
         raise InputError("conformance: --adapter as-written is for functions; kernels run on gl, vulkan or both")
-    flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None]
+    flags = [f for f, _, _ in FLAGS if get(f[2:].replace("-", "_")) is not None and f != "--format-v2-cell"]
     if flags:
         raise InputError(f"conformance: {flags[0]} declares an engine's convention for functions; the kernel cases "
-                         "fix theirs (a kernel profile declares only its [kernel] table: docs/ports.md, \"Kernels\")")
+                         "fix theirs (a kernel profile declares only its [kernel] table and [format] v2_cell: "
+                         "docs/ports.md, \"Kernels\")")
 
 
-def _kernel_layout(args):
-    """The output layout declared by ``--kernel-layout`` or the ``[kernel]`` table of ``--profile`` (exit 2 for any
-    other profile key: the kernel cases fix the engine's other conventions)."""
+def _kernel_declared(args):
+    """``{"layout": ..., "v2_cell": ...}``: the output layout declared by ``--kernel-layout`` or the ``[kernel]``
+    table of ``--profile``, and the √v2 grid of its ``[format]`` table (exit 2 for any other profile key: the
+    kernel cases fix the engine's other conventions)."""
+    from ..golden.cells import V2_CELLS
     from .kernel.declared import kernel_profile
 
     get = lambda k: getattr(args, k, None)  # noqa: E731
     declared = kernel_profile(get("profile")) if get("profile") is not None else {}
-    return get("kernel_layout") or declared.get("layout", "interleaved")
+    cell = get("format_v2_cell") or declared.get("v2_cell")
+    if cell is not None and cell not in V2_CELLS:
+        raise InputError(f"conformance: --format-v2-cell: expected one of {', '.join(V2_CELLS)}, got {cell!r}")
+    return {**declared, "layout": get("kernel_layout") or declared.get("layout", "interleaved"), "v2_cell": cell}
 
 
 def source_options(args):
     """:class:`SourceOptions` from the CLI's ``--include``, ``--define``, ``--prelude``, ``--max-source``,
-    ``--keep-unused`` and ``--uniform`` (absent ones take their defaults)."""
+    ``--keep-unused`` and ``--uniform`` (absent ones take their defaults); a function's ``--profile`` adds its
+    ``[uniforms]`` table, under the command line's values."""
+    from ._uniforms import merge_uniforms, profile_uniforms
+
     get = lambda k: getattr(args, k, None)  # noqa: E731
+    items, origin = profile_uniforms(get("profile")) if get("profile") and not get("kernel") else ((), "")
+    uniforms, origins = merge_uniforms(tuple(get("uniform") or ()), items, origin)
     return SourceOptions(tuple(get("include") or ()), tuple(get("define") or ()), get("prelude"),
-                         get("max_source"), bool(get("keep_unused")), uniforms=tuple(get("uniform") or ()))
+                         get("max_source"), bool(get("keep_unused")), uniforms=uniforms,
+                         uniform_origins=tuple(origins.items()))
 
 
 def bench_conformance(cases=None, repeat=3, ctx=None, language="glsl", adapter=None):

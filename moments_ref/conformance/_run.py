@@ -28,9 +28,9 @@ from . import languages as _languages
 from ._cases import GoldenCase, load_case
 from ._report import ConformanceReport
 from ._slots import Slot, signature
-from ._decls import keep_used, used_resources
+from ._decls import keep_used, split_declarations, used_resources
 from ._textures import consumed, texture_args
-from ._uniforms import constant_declaration, parse_uniforms
+from ._uniforms import check_names, constant_declaration, member_names, parse_uniforms
 from ._source import ShaderError, check_identifier, defined_functions, load_source, strip_comments
 from ._wrap import LOCAL_SIZE, free_group, glsl_version, wrap_glsl, wrap_hlsl, wrap_slang, wrap_wgsl
 from .verdict import compare_case
@@ -44,6 +44,8 @@ DRIVERS = _languages.DRIVERS
 #: The reference evaluation: OpenGL reading glslang's SPIR-V with every operation pinned
 #: (``NoContraction``), i.e. each result rounded in program order (GLSL, HLSL).
 AS_WRITTEN = "as-written"
+#: The optional CPU driver of Slang functions (:mod:`._slangcpu`).
+CPU = "cpu"
 #: The driver a language runs on unless ``--adapter`` says otherwise (docs/conformance.md says why).
 DEFAULT_DRIVER = {k: v.default for k, v in _languages.TABLE.items()}
 _SPIRV = {}
@@ -64,6 +66,11 @@ def parse_adapter(spec, language):
         return Target(DEFAULT_DRIVER[language])
     if spec == AS_WRITTEN:
         return Target(AS_WRITTEN)
+    if spec == CPU:
+        if language != "slang":
+            raise InputError(f"adapter: cpu runs Slang files (Slang's cpp target and the system C++ compiler); "
+                             f"{language} runs on gl or vulkan")
+        return Target(CPU)
     driver, _, name = spec.partition(":")
     if driver.lower() in DRIVERS:
         return Target(driver.lower(), name or None)
@@ -94,6 +101,15 @@ class SourceOptions:
     keep_unused: bool = False
     exact: bool = True
     uniforms: tuple = ()  # NAME=VALUE: values of the uniform / constant-buffer members the function reads
+    uniform_origins: tuple = ()  # (NAME, where its value came from: "--uniform" or "profile FILE")
+
+    def uniform_note(self):
+        """The report's line naming each uniform value and where it came from, or None."""
+        if not self.uniforms:
+            return None
+        origins = dict(self.uniform_origins)
+        return "uniforms: " + "; ".join(f"{k} = {','.join(v)} ({origins.get(k, '--uniform')})"
+                                        for k, v in parse_uniforms(self.uniforms).items())
 
 
 def _check_defined(src, path, function, sig):
@@ -103,7 +119,7 @@ def _check_defined(src, path, function, sig):
                           f"expected signature: {sig}")
 
 
-def _only_used(src, function, language, keep_unused, uniforms=()):
+def _only_used(src, function, language, keep_unused, uniforms=(), origins=()):
     """Blank the declarations ``function`` does not use; give uniforms their ``--uniform`` values; refuse
     resources it needs bound."""
     if keep_unused and not uniforms:
@@ -112,6 +128,11 @@ def _only_used(src, function, language, keep_unused, uniforms=()):
     if keep_unused:
         body = src.body
     values = parse_uniforms(uniforms)
+    if values:  # a name no member of the file has: exit 2 naming the nearest member
+        decls, _ = split_declarations(src.body, language)
+        known = [n for d, _ in used_resources(decls, language)
+                 for n in member_names(src.body[d.start:d.end], language, src.body)]
+        check_names(values, known, dict(origins))
     for d, what in sorted(used_resources(kept, language), key=lambda x: -x[0].start):
         line = src.body.count("\n", 0, d.start) + 1
         text = src.body[d.start:d.end]
@@ -152,7 +173,7 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     _check_defined(src, path, function, sig)
     if language == "slang":  # Slang keeps only what the entry point uses; modules are its own
         return _slang_route(target, src, path, function, sig, ins, outs, options)
-    src = _only_used(src, function, language, options.keep_unused, options.uniforms)
+    src = _only_used(src, function, language, options.keep_unused, options.uniforms, options.uniform_origins)
     tex = {} if inputs is None else texture_args(src.body, function, language, ins,
                                                   {k: np.asarray(v).dtype for k, v in inputs.items()},
                                                   len(next(iter(inputs.values()))))
@@ -172,17 +193,40 @@ def _prepare(language, target, path, function, ins, outs, options=None, inputs=N
     return _hlsl(target, src, function, sig, ins, outs, options.exact, tex)
 
 
+def _slang_cpu(wrapper, dirs, known, sig, ins, outs, note=None):
+    """Slang → C++ → the system compiler → a child process (:mod:`._slangcpu`)."""
+    from . import _slangcpu
+    from ._source import wrapped_compile_error
+    from ._supervisor import watchdog
+
+    reason = _slangcpu.not_available()
+    if reason:
+        raise InputError(reason)
+
+    def failed(errors):
+        return wrapped_compile_error("Slang", [_languages.unmangle("slang", e, known) for e in errors], sig)
+
+    def execute(a, n):
+        res, timings, _ = _slangcpu.run_cpu(wrapper, dirs, failed, ins, outs, a, n, LOCAL_SIZE, watchdog())
+        return res, timings
+
+    name = Path(_slangcpu.compiler()).name
+    return execute, f"CPU: Slang's cpp target and {name} -O2 -ffp-contract=off", [note] if note else []
+
+
 def _slang_route(target, src, path, function, sig, ins, outs, options):
     """Slang → GLSL; OpenGL runs it (barriers lowered), Vulkan gets glslang's SPIR-V of it (keeps ``precise``)."""
     if target.driver == AS_WRITTEN:
         raise InputError(f"adapter: {AS_WRITTEN} needs GLSL or HLSL; Slang runs on gl or vulkan")
     if options.uniforms:
-        raise InputError("uniform: --uniform is for GLSL, HLSL and WGSL files; in Slang, pass the value as an "
-                         "argument of an adapter function")
+        raise InputError("uniform: uniform values (--uniform, a profile's [uniforms]) are for GLSL, HLSL and WGSL "
+                         "files; in Slang, pass the value as an argument of an adapter function")
     space = free_group(src.body, r"(?:\bspace|vk::binding\s*\(\s*\d+\s*,\s*)(\d+)")
     wrapper = wrap_slang(src, function, ins, outs, space)
     dirs = [Path(path).resolve().parent, *options.include_dirs, PORTS_DIR / "slang"]
     known = _slang.identifiers(src.body, dirs)
+    if target.driver == CPU:
+        return _slang_cpu(wrapper, dirs, known, sig, ins, outs, _languages.precise_note("slang", CPU, src.body))
     glsl = _cached(["slang", wrapper, *map(str, dirs)],
                    lambda: _slang.slang_glsl(wrapper, "mr_main", dirs, sig,
                                              lambda e: _languages.unmangle("slang", e, known)))
@@ -362,7 +406,7 @@ def run_case(path, function, case, golden_dir=None, language=None, adapter=None,
     specs = gc.output_specs()
     outs = [Slot.of(k, dt, shape) for k, (dt, shape) in specs.items()]
     execute, renderer, prepared = _prepare(language, target, path, function, ins, outs, options, gc.inputs)
-    notes = notes + prepared
+    notes = notes + prepared + ([options.uniform_note()] if options is not None and options.uniforms else [])
     got, timings = execute(gc.inputs, len(gc.category))
     got = {k: v.reshape(specs[k][1]) for k, v in got.items()}
     if profile is not None and profile.output_clamp:  # the caller's clamp, declared: applied first, and said

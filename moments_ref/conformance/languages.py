@@ -80,8 +80,12 @@ TABLE = {
         'pip install -e ".[slang]" (or: pip install slangpy)', "hlsl", None, r"\b(?:block_)?([A-Za-z_]\w*?)_\d+\b", "string",
         True,
         {"gl": "Slang -> GLSL (barriers lowered for OpenGL) -> moderngl",
-         "vulkan": "Slang -> GLSL -> glslang -> SPIR-V -> wgpu"}, "gl",
+         "vulkan": "Slang -> GLSL -> glslang -> SPIR-V -> wgpu",
+         "cpu": "Slang -> C++ (cpp target) -> the system C++ compiler -> a child process (functions only, optional)"},
+        "gl",
         {"gl": "kept: Slang's GLSL writes precise",
+         "cpu": "every operation rounded as written (C++ compiled with -ffp-contract=off; Slang's `precise` "
+                "defined away)",
          "vulkan": "kept: Slang's GLSL writes precise and glslang NoContraction (Slang's own SPIR-V drops it, "
                    "its WGSL writes `precise var`, which naga refuses: neither is used)"},
         ("msm", "nonlinear", "packing"), False),

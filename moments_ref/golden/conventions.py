@@ -66,6 +66,12 @@ def _contradiction(case, what, why):
 
 
 def _check(case, profile):
+    from .cells import DEFAULT_CELL, HONOURED_BY
+
+    cell = dict(profile.format).get("v2_cell", DEFAULT_CELL)
+    if cell != DEFAULT_CELL and case.name not in HONOURED_BY:
+        _contradiction(case, f"format.v2_cell = {cell!r}",
+                       f"only {', '.join(HONOURED_BY)} follows a declared √v2 grid")
     if profile.depth not in (None, case.depth) and not case.depth_roles:
         _contradiction(case, f"depth = {profile.depth!r}", f"its quantities are defined for depths in {case.depth}")
     if profile.output == "visibility" and tuple(case.outputs) != ("intensity",):
@@ -239,7 +245,10 @@ def profile_arrays(case, arrays, profile, fed=None):
     else:
         derived = derive(judge, {k: seen[k] for k in case.inputs}, *labels, contract=inside)
     # the port's receiver inputs are what it is fed, not the receiver it computes from them
-    return pcase, {**conv, **derived, **{k: conv[k] for k in {**fed_receiver, **own}}}
+    out = {**conv, **derived, **{k: conv[k] for k in {**fed_receiver, **own}}}
+    if pcase.extra is not None:  # a kernel case's expected codes, under the declared format
+        out.update(pcase.extra(conv))
+    return pcase, out
 
 
 _CODE = []

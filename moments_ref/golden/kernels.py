@@ -57,10 +57,11 @@ import numpy as np
 from ..gpu import filter32, fused32
 from ..gpu.filtering import blur, resolve_moments
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
+from . import cells
 from ._rows import Rows
 
 __all__ = ["KERNEL_CASES", "FILTER_FORMATS", "MAPS", "EMPTY_DEPTH", "VWSS_MAP", "case_specs", "filter_codes",
-           "vwss_reference", "decode_intensity", "kernel_kwargs", "view_matrices"]
+           "vwss_reference", "decode_intensity", "kernel_kwargs", "view_matrices", "cell_variant"]
 
 #: Output formats of the filter kernel: name -> (texel dtype, components per texel).
 FILTER_FORMATS = {"nlq64": ("uint16", 4), "nlq32": ("uint32", 1), "msm64": ("uint16", 4), "moments": ("float32", 4)}
@@ -151,21 +152,29 @@ def _moments64(depth, h, w):
     return blur(resolve_moments(np.asarray(depth, np.float64).reshape(h, w, -1))).reshape(h * w, 4)
 
 
-def filter_codes(fmt, moments):
-    """The texels a kernel writes for float moments (n, 4): codes in the moments' dtype (not for "moments")."""
+def filter_codes(fmt, moments, v2_cell=cells.DEFAULT_CELL):
+    """The texels a kernel writes for float moments (n, 4): codes in the moments' dtype (not for "moments").
+
+    ``v2_cell``: the √v2 grid of a 32-bit texel (:mod:`moments_ref.golden.cells`).
+    """
     from ..affine import encode_unorm16
+    from ..nonlinear import phi
     from ..packing import nlq_texels
 
     if fmt == "msm64":
         return encode_unorm16(moments)
-    return nlq_texels(moments, fmt)
+    texels = nlq_texels(moments, fmt)
+    if fmt == "nlq32" and v2_cell != cells.DEFAULT_CELL:
+        texels = cells.recode(texels, phi(bias_moments(moments, BIAS_FLOAT32))[..., 2], v2_cell)
+    return texels
 
 
-def decode_intensity(fmt, texels, zf):
+def decode_intensity(fmt, texels, zf, v2_cell=cells.DEFAULT_CELL):
     """Shade decoded texels at the fragment depths ``zf`` (n, K) in float64: (n, K) intensities.
 
     NLQ: unpack64 / unpack32 and Algorithm 3 (HPG17); msm64: ``decode_unorm16``,
-    ``BIAS_UNORM16`` and the lower bound of Algorithm 1.
+    ``BIAS_UNORM16`` and the lower bound of Algorithm 1. ``v2_cell``: the √v2 grid of a
+    32-bit texel (:mod:`moments_ref.golden.cells`).
     """
     from ..affine import decode_unorm16
     from ..msm import shadow_intensity
@@ -177,10 +186,12 @@ def decode_intensity(fmt, texels, zf):
         b = bias_moments(decode_unorm16(np.asarray(texels, np.uint16)), BIAS_UNORM16)
         return shadow_intensity(np.broadcast_to(b[:, None, :], zf.shape + (4,)), zf)
     r = unpack64(np.asarray(texels, np.uint16)) if fmt == "nlq64" else unpack32(np.asarray(texels, np.uint32))
+    if fmt == "nlq32" and v2_cell != cells.DEFAULT_CELL:
+        r[..., 2] = cells.decode_v2(texels, v2_cell)
     return shade(np.broadcast_to(r[:, None, :], zf.shape + (4,)), zf)
 
 
-def _filter_reference(fmt, h, w):
+def _filter_reference(fmt, h, w, cell=cells.DEFAULT_CELL):
     def reference(depth, zf):
         dt = np.asarray(depth).dtype
         if dt == np.float32:
@@ -190,7 +201,7 @@ def _filter_reference(fmt, h, w):
         if fmt == "moments":
             return (m.astype(dt),)
         # The decode is float64 (it measures the codes alone); the result in the inputs' dtype (the policy).
-        return (decode_intensity(fmt, filter_codes(fmt, m.astype(dt)), zf).astype(dt),)
+        return (decode_intensity(fmt, filter_codes(fmt, m.astype(dt), cell), zf, cell).astype(dt),)
 
     return reference
 
@@ -205,34 +216,42 @@ def _xi_perturbed(r, sign):
 
 
 @lru_cache(maxsize=8)
-def _variant_texels(fmt, h, w, key, depth_bytes):
-    """Codes of the legitimate float32 kernels for one map (cached: the spread and the code table share them)."""
+def _variant_texels(fmt, h, w, key, depth_bytes, cell=cells.DEFAULT_CELL):
+    """Codes of the legitimate float32 kernels for one map (cached: the spread and the code table share them);
+    ``cell``: the declared √v2 grid of a 32-bit texel, whose code a float32 kernel may also round in float32."""
     from ..nonlinear import phi
     from ..packing import pack32, pack64
 
     depth = np.frombuffer(depth_bytes, np.float32).reshape(h, w, -1)
     found = []
     for m in filter32.variant_moments(depth).values():
-        found.append(filter_codes(fmt, m.reshape(h * w, 4)))
+        found.append(filter_codes(fmt, m.reshape(h * w, 4), cell))
     m0 = filter32.filter_float32(depth).reshape(h * w, 4)
     nudge = np.where(np.arange(4) % 2 == 0, 1, -1).astype(np.float32)
     for s in (1, -1):  # Φ or the optimized basis on moments 2 ulps apart (fma, other formulas)
-        found.append(filter_codes(fmt, (m0 + s * nudge * 2 * np.spacing(m0)).astype(np.float32)))
+        found.append(filter_codes(fmt, (m0 + s * nudge * 2 * np.spacing(m0)).astype(np.float32), cell))
     if fmt in ("nlq64", "nlq32"):
         r = phi(bias_moments(m0, BIAS_FLOAT32))
         pack = pack64 if fmt == "nlq64" else pack32
-        found += [pack(_xi_perturbed(r, s)) for s in (1, -1)]
+        xi = [pack(_xi_perturbed(r, s)) for s in (1, -1)]
+        if fmt == "nlq32" and cell != cells.DEFAULT_CELL:
+            xi = [cells.recode(t, r[:, 2], cell) for t in xi]
+            xi.append(cells.recode(pack(r), r[:, 2], cell, np.float32))  # √v2's code rounded in float32
+        found += xi
         # The bias and Φ as a compiler contracts and reassociates them (either product of each sum fused).
-        found += [pack(fused32.phi_fused(fused32.bias_fused(m0, BIAS_FLOAT32, s), s)) for s in fused32.CONTRACTIONS]
+        for s in fused32.CONTRACTIONS:
+            rf = fused32.phi_fused(fused32.bias_fused(m0, BIAS_FLOAT32, s), s)
+            t = pack(rf)
+            found.append(cells.recode(t, rf[:, 2], cell) if fmt == "nlq32" and cell != cells.DEFAULT_CELL else t)
     return tuple(found)
 
 
-def _texels_of(fmt, h, w, depth):
+def _texels_of(fmt, h, w, depth, cell=cells.DEFAULT_CELL):
     d = np.ascontiguousarray(np.asarray(depth, np.float32))
-    return _variant_texels(fmt, h, w, (fmt, h, w), d.tobytes())
+    return _variant_texels(fmt, h, w, (fmt, h, w), d.tobytes(), cell)
 
 
-def _filter_spread(fmt, h, w):
+def _filter_spread(fmt, h, w, cell=cells.DEFAULT_CELL):
     def hook(inputs, dt):
         if np.dtype(dt) != np.float32:
             return []
@@ -240,20 +259,33 @@ def _filter_spread(fmt, h, w):
         if fmt == "moments":
             return [(m.reshape(h * w, 4),) for m in filter32.variant_moments(
                 np.asarray(depth, np.float32).reshape(h, w, -1)).values()]
-        return [(decode_intensity(fmt, t, inputs["zf"]),) for t in _texels_of(fmt, h, w, depth)]
+        return [(decode_intensity(fmt, t, inputs["zf"], cell),) for t in _texels_of(fmt, h, w, depth, cell)]
 
     return hook
 
 
-def _filter_extra(fmt, h, w):
+def _filter_extra(fmt, h, w, cell=cells.DEFAULT_CELL):
     """``texels`` (the float32 reference kernel's codes) and ``texels_acceptable`` (n, K, ...) of the variants."""
     def extra(inputs):
         depth = np.asarray(inputs["depth"], np.float32)
-        ref = filter_codes(fmt, _moments64(depth, h, w).astype(np.float32))
-        alts = [ref] + list(_texels_of(fmt, h, w, depth))
+        ref = filter_codes(fmt, _moments64(depth, h, w).astype(np.float32), cell)
+        alts = [ref] + list(_texels_of(fmt, h, w, depth, cell))
         return {"texels": ref, "texels_acceptable": np.stack(alts, axis=1)}
 
     return extra
+
+
+def cell_variant(h, w):
+    """The 32-bit filter case for a profile's ``[format] v2_cell`` (:mod:`moments_ref.golden.cells`): the
+    reference, spread and expected codes of the same kernel storing √v2 on the declared grid."""
+    def variant(fmt=None, **_):
+        cell = (fmt or {}).get("v2_cell", cells.DEFAULT_CELL)
+        if cell == cells.DEFAULT_CELL:
+            return {}
+        return {"reference": _filter_reference("nlq32", h, w, cell), "spread_hook": _filter_spread("nlq32", h, w, cell),
+                "extra": _filter_extra("nlq32", h, w, cell)}
+
+    return variant
 
 
 def kernel_kwargs(name):
@@ -287,6 +319,7 @@ def _filter_specs():
             reference=_filter_reference(fmt, h, w), truth=None, kwargs=kernel_kwargs(f"kernel-filter-{fmt}"),
             value_range=None if moments else (0, 1), spread_hook=_filter_spread(fmt, h, w),
             extra=None if moments else _filter_extra(fmt, h, w),
+            **({"variant": cell_variant(h, w), "profile_keys": ("format",)} if fmt == "nlq32" else {}),
             description=f"HPG17 §4.1 filter kernel on a {h}×{w} map of 4× MSAA depths (several 32×24 blocks, "
                         f"partial blocks, edges): resolve b(z) -> 9² Gaussian (sigma 2.4, clamp-to-edge) -> "
                         + what[fmt]))

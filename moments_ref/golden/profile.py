@@ -7,7 +7,9 @@ can use it): the parser, the nearest-key refusal of a misspelling, the flags
 (:data:`FLAGS`), the key table of docs/ports.md (:func:`keys_markdown`, written by
 ``python -m moments_ref.tools.apidoc --profile-keys``) and the check of which case ignores
 which key (:func:`ignored_keys`) all read it. ``[functions.NAME]`` holds the same keys for
-one function of the file, overriding the file's.
+one function of the file, overriding the file's. ``[uniforms]`` gives values of the uniform, constant-buffer and
+push-constant members the tested function reads (``NAME = 1.0``, ``NAME = [a, b]``), as
+``--uniform`` does (which wins over it; :mod:`moments_ref.conformance._uniforms`).
 
 Refused with :class:`~moments_ref.InputError` (exit status 2, one line naming the
 key): unknown keys, values of the wrong type, a bias target whose Hankel matrix is
@@ -35,6 +37,7 @@ import numpy as np
 
 from .._arrays import InputError
 from .._toml import check_values, exact_int, finite_float, load_toml
+from .cells import V2_CELLS
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["Profile", "Bias", "Key", "KEYS", "load_profile", "parse_profile", "DEPTHS", "OUTPUTS", "APPLIED",
@@ -51,11 +54,13 @@ APPLIED = ("inside", "before")
 #: rounded up (the lower-bound guarantee) or to nearest (a UNORM render-target write).
 _POSITIONS = ("lower", "centre", "upper")
 #: ``subtexel_bits``: the sub-texel precision of the engine's texture filter (bilinear cases,
-#: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4).
+#: golden.bilinear; D3D11 at least 8 bits, Vulkan at least 4). ``v2_cell``: the 32-bit √v2 grid
+#: (:mod:`moments_ref.golden.cells`), honoured by the 32-bit kernel case.
 #: The bounds a shadow_intensity port may compute (key ``bound``; docs/ports.md).
 BOUNDS = ("hamburger", "hausdorff")
 FORMAT_KEYS = {"depth_decode": _POSITIONS, "v2_decode": _POSITIONS, "xi_decode": _POSITIONS,
-               "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17))}
+               "xi_rounding": ("up", "nearest"), "subtexel_bits": tuple(range(4, 17)),
+               "v2_cell": V2_CELLS}  # the 32-bit √v2 grid (golden.cells; kernel-filter-nlq32 only)
 _BIAS_KEYS = ("alpha", "target", "applied")
 #: Largest profile file accepted (bytes).
 MAX_PROFILE = 1 << 20
@@ -289,7 +294,9 @@ KEYS = (
          ("format.depth_decode`, `format.v2_decode`, `format.xi_decode", "`\"lower\"`, `\"centre\"`, `\"upper\"`",
           "the format's own (docs/formats.md)"),
          ("format.xi_rounding", "`\"up\"`, `\"nearest\"`", "`\"up\"`"),
-         ("format.subtexel_bits", "4 .. 16", "exact weights")), _NO_TEXEL,
+         ("format.subtexel_bits", "4 .. 16", "exact weights"),
+         ("format.v2_cell", "`\"floor128\"`, `\"round127\"` (the 32-bit √v2 grid; the 32-bit kernel case only)",
+          "`\"floor128\"` (min(⌊128·√v2⌋, 127))")), _NO_TEXEL,
         tuple((f"--format-{k.replace('_', '-')}", f"format.{k}", f"texel format: {k} ({' or '.join(map(str, v))})",
                _int_text if k == "subtexel_bits" else _same) for k, v in FORMAT_KEYS.items())),
     Key("receiver_offset", _offset, "a constant offset the function subtracts from the receiver depth zf (toward the "
@@ -425,8 +432,10 @@ def _table(data, src, prefix=""):
     for k, v in data.items():
         if k in _BY_NAME:
             fields[k] = _BY_NAME[k].parse(v, src, f"{prefix}{k}")
-        elif k != "functions" or prefix:
-            raise _unknown(src, f"{prefix}{k}", k, _KEYS + (() if prefix else ("functions",)))
+        elif (k == "functions" or k == "uniforms") and not prefix:
+            continue  # [uniforms]: the values of a port's uniform members (conformance._uniforms)
+        else:
+            raise _unknown(src, f"{prefix}{k}", k, _KEYS + (() if prefix else ("functions", "uniforms")))
     return Profile(**fields, source=src)
 
 
@@ -518,6 +527,8 @@ def keys_markdown():
             lines.append(f"| `{name}` | {values} | {default} | {k.doc.replace('|', '/') if i == 0 else ''} |")
     lines.append("| `[functions.NAME]` | any key above, for one function | the file's keys | "
                  "one function of the file, chosen by `--function` |")
+    lines.append("| `[uniforms]` | `NAME = number`, `NAME = [numbers]`, `[uniforms.INSTANCE]` | none | values of the "
+                 "uniform, constant-buffer and push-constant members the function reads, as `--uniform` (which wins) |")
     return "\n".join(lines)
 
 

@@ -34,7 +34,7 @@ def shipped_kernel(case, language):
 
 
 def kernel_cli(path, entry, case, language, golden_dir=None, adapter=None, time_limit=None, out=None, err=None,
-               rows=5, json_path=None, options=None, strict=False, layout="interleaved"):
+               rows=5, json_path=None, options=None, strict=False, layout="interleaved", v2_cell=None):
     """Run a kernel on a case, print the report, return the exit code (0 pass, 1 fail, 2 bad usage or no driver).
 
     ``path``: the file (a shipped kernel's bare name is resolved by the caller); ``rows``:
@@ -42,7 +42,7 @@ def kernel_cli(path, entry, case, language, golden_dir=None, adapter=None, time_
     texel's verdict per driver (the format of function conformance's ``--json``, one record
     per driver); ``options``: ``--include``/``--define``/``--prelude``; ``strict`` gates the
     texels beyond the algorithm's contract; ``layout`` is the declared output layout of a buffer
-    (:mod:`.layout`).
+    (:mod:`.layout`); ``v2_cell`` the declared √v2 grid of a 32-bit texel (:mod:`.declared`).
     """
     out, err = out or sys.stdout, err or sys.stderr
     try:
@@ -52,14 +52,15 @@ def kernel_cli(path, entry, case, language, golden_dir=None, adapter=None, time_
             raise InputError("conformance: --case CASE is required with --kernel")
         keep = 10 ** 9 if rows == "all" else rows
         report = run_kernel(path, entry, case, language, adapter, golden_dir, time_limit, worst_rows=keep,
-                            options=options, strict=strict, layout=layout)
+                            options=options, strict=strict, layout=layout, v2_cell=v2_cell)
         if json_path is not None:
             from ...golden.diagnosis import write_json
             from .verdict import json_records
 
             write_json(json_path, json_records(report), {"command": "conformance --kernel", "entry": entry,
                                                          "case": case, "path": str(path), "language": language,
-                                                         "layout": layout, "passed": report.passed})
+                                                         "layout": layout, "v2_cell": v2_cell or "floor128",
+                                                         "passed": report.passed})
     except (ContextError, ToolError, InputError) as exc:
         print(f"moments-ref conformance: {exc}", file=err)
         return 2

@@ -6,7 +6,9 @@ fields. Where a kernel's texels fail, each field of its codes is compared with t
 global path's code (``texels`` of the golden case): the hint names the field, on how
 many failing texels it differs, the most common difference in cells and the range,
 and the first texels. A kernel that stores √v2 as round(127·√v2) instead of
-min(⌊128·√v2⌋, 127) shows up as the √v2 field, off by a cell or two.
+min(⌊128·√v2⌋, 127) shows up as the √v2 field, off by a cell or two; where the other
+published grid's codes explain every failing texel, the hint's ``suggest`` names the
+profile key that declares it (``[format] v2_cell``, :mod:`.declared`).
 
 References
 ----------
@@ -69,5 +71,9 @@ def format_hint(h):
     where = ", ".join(f"(x {x}, y {y})" for x, y in h["first"])
     rng = f" (range {h['low']:+d} .. {h['high']:+d})" if h["low"] != h["high"] else ""
     cells = "cell" if abs(h["offset"]) == 1 else "cells"
-    return (f"field {h['field']}: differs from the global path's code on {h['texels']} failing texels, by "
+    line = (f"field {h['field']}: differs from the global path's code on {h['texels']} failing texels, by "
             f"{h['offset']:+d} {cells} on {h['share']} of them{rng}; first texels {where}")
+    if h.get("suggest"):
+        line += (f"; every failing texel holds the code of the other published sqrt(v2) grid: if the engine stores "
+                 f"sqrt(v2) so, declare {h['suggest']} in the profile (--profile)")
+    return line

@@ -43,6 +43,7 @@ from .._supervisor import CompileFailed, DriverDied, DriverError, DriverTimeout,
 from . import _spirv, trace
 from ._job import POISON, Bind, Job, Output
 from .bind import match
+from .declared import with_cell
 from .layout import buffer_words, check_layout, element_bytes
 from .contract import BLOCK, contract, dispatches
 from .reflect import from_spirv, from_wgsl
@@ -366,7 +367,8 @@ def numpy_times(case, gc):
 
 
 def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, time_limit=None, gc=None,
-               worst_rows=5, timing=True, shared=True, options=None, strict=False, layout="interleaved"):
+               worst_rows=5, timing=True, shared=True, options=None, strict=False, layout="interleaved",
+               v2_cell=None):
     """Run a compute shader on a kernel case and judge it with the one comparator, on each driver.
 
     Parameters
@@ -401,6 +403,9 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
         Texels beyond the algorithm's contract fail the verdict too.
     layout : {"interleaved", "planar", "packed16"}
         How a filter kernel's output buffer holds its texels (:mod:`.layout`).
+    v2_cell : {"floor128", "round127"}, optional
+        The √v2 grid of a 32-bit texel a profile declares (``[format] v2_cell``,
+        :mod:`moments_ref.golden.cells`): the kernel is judged against that grid's texels.
 
     Returns
     -------
@@ -413,13 +418,17 @@ def run_kernel(path, entry, case, language=None, adapter=None, golden_dir=None, 
     require(language)
     if case not in KERNEL_CASES:
         raise InputError(f"case: {case!r} is not a kernel case; kernel cases: {', '.join(KERNEL_CASES)}")
+    if adapter == "cpu":
+        from .._slangcpu import KERNEL_REFUSAL
+
+        raise InputError(KERNEL_REFUSAL)
     limit = watchdog() if time_limit is None else float(time_limit)
     if not limit > 0:
         raise InputError(f"time_limit: expected a positive number of seconds, got {time_limit!r}")
     targets = [parse_adapter(d, language) for d in KERNEL_DRIVERS] if adapter in (None, "both") else \
         [parse_adapter(adapter, language)]
     c = contract(case)
-    gc = gc or load_case(case, golden_dir)
+    gc = with_cell(gc or load_case(case, golden_dir), v2_cell)
     if layout != "interleaved":
         if case == "kernel-vwss-points":
             raise InputError("kernel layout: kernel-vwss-points writes one key per pixel; layouts are for filter cases")

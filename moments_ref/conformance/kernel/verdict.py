@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...golden.cells import DEFAULT_CELL
 from ...golden.kernels import EMPTY_DEPTH, decode_intensity
 from ...packing import unpack64
 from .._report import fmt
@@ -84,7 +85,8 @@ def _filter_candidate(kw, fmt_name, raw, out_kind, fill, layout="interleaved"):
     return mapped.reshape(h * w, comps), unwritten, outside
 
 
-def _codes_summary(codes, arrays, row_pass, fmt_name=None, width=1):
+def _codes_summary(codes, arrays, row_pass, fmt_name=None, width=1, case=None, cell=DEFAULT_CELL):
+    from .declared import explaining_cell
     from .fields import field_hints
 
     e = arrays["texels"].reshape(len(codes), -1).astype(np.int64)
@@ -93,9 +95,14 @@ def _codes_summary(codes, arrays, row_pass, fmt_name=None, width=1):
     alts = arrays["texels_acceptable"].reshape(len(codes), arrays["texels_acceptable"].shape[1], -1).astype(np.int64)
     accepted = (alts == c[:, None, :]).all(axis=2).any(axis=1) & ~exact
     differ = ~exact & ~accepted
+    hints = field_hints(fmt_name, codes, arrays["texels"], differ & ~row_pass, width)
+    if cell == DEFAULT_CELL and any(h["field"].startswith("sqrt(v2)") for h in hints):
+        other = explaining_cell(case, arrays, codes, ~row_pass)
+        for h in hints:
+            if other and h["field"].startswith("sqrt(v2)"):
+                h["suggest"] = f'[format] v2_cell = "{other}"'
     return {"exact": int(exact.sum()), "accepted": int(accepted.sum()), "differ": int(differ.sum()),
-            "differ_passing": int((differ & row_pass).sum()),
-            "fields": field_hints(fmt_name, codes, arrays["texels"], differ & ~row_pass, width)}
+            "differ_passing": int((differ & row_pass).sum()), "fields": hints}
 
 
 def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False, layout="interleaved"):
@@ -127,11 +134,13 @@ def judge(case, meta, arrays, raw, out_kind, fill, worst_rows=5, strict=False, l
         # misfit rows are decoded from the global path's codes (Algorithm 3 takes any of those), then failed
         expected = np.asarray(arrays["texels"]).reshape(codes.shape).astype(codes.dtype)
         safe = np.where(misfit.reshape((-1,) + (1,) * (codes.ndim - 1)), expected, codes)
-        intensity = decode_intensity(fmt_name, safe, arrays["zf"]).astype(np.float32)
+        cell = kw.get("v2_cell", DEFAULT_CELL)
+        intensity = decode_intensity(fmt_name, safe, arrays["zf"], cell).astype(np.float32)
         intensity[misfit] = np.nan
         out = {"intensity": intensity}
     v = compare_case(case, meta, arrays, out, worst_rows, strict)
-    summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass, fmt_name, kw["width"])
+    summary = None if codes is None else _codes_summary(codes, arrays, v.row_pass, fmt_name, kw["width"], case,
+                                                        kw.get("v2_cell", DEFAULT_CELL))
     return (v, (int(unwritten.sum()), _first(unwritten)), (int(outside.sum()), _first(outside)), summary,
             next(iter(out.values())))
 
@@ -261,6 +270,9 @@ class KernelReport:
                  f"      work group {wg}; bindings: " + "; ".join(
                      f"{b.slot.name} <- {b.resource.declared} (set {b.resource.set}, binding {b.resource.binding})"
                      for b in self.bindings)]
+        if kw.get("v2_cell", DEFAULT_CELL) != DEFAULT_CELL:
+            lines.append(f"      declared by the profile: [format] v2_cell = {kw['v2_cell']!r}; expected texels and "
+                         "intensities are the global path's on that sqrt(v2) grid")
         if self.shared:
             lines += _shared_lines(self.shared)
         for r in self.runs:
