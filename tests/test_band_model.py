@@ -1,0 +1,227 @@
+"""golden.bands' model stated on hand-computed rows, and its verdicts against mpmath.
+
+The margin is max(MARGIN_NOISE × noise, MARGIN_WIDTH × width, FLOOR_ULPS ulps of
+max(|e|, floor scale)) in the port's precision (the module docstring); a bounded output's
+band reaches at most CAP × its range from e unless the row is ill-conditioned. Every expected
+interval below is written out by hand from that rule (powers of two for the ulps, decimal
+arithmetic for the rest), never read from the code. The verdicts on real cases are checked
+against the mpmath twins (the case's ``truth``): the exact value lies inside its band, a value
+beyond the cap lies outside.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from moments_ref.golden import bands
+from moments_ref.golden.cases import CASES, Case
+
+
+def _identity(x):
+    return (np.asarray(x),)
+
+
+def _case(value_range=None, metric="abs", floor_scale=1.0, function="toy", contract=None):
+    return Case(name="toy", function=function, dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity, metric=metric, value_range=value_range, floor_scale=floor_scale,
+                contract=contract)
+
+
+def _band(case, e, core, noise=0.0, hooks=(), contract=None, dt=np.float32):
+    """``interval_parts`` of one output whose evaluations are given per row: ``core``/``hooks`` lists of
+    arrays (one value a row each)."""
+    e = np.asarray(e, np.float64)
+    contract = np.ones(len(e), bool) if contract is None else np.asarray(contract, bool)
+    (lo, hi, ill, hazard, bad), = bands.interval_parts(
+        case, np.dtype(dt), [e], contract, (noise,), [(np.asarray(v, np.float64),) for v in core],
+        [(np.asarray(v, np.float64),) for v in hooks])
+    return lo, hi, ill, hazard, bad
+
+
+def test_the_constants_are_the_documented_ones():
+    # The module docstring, docs/golden.md and the manifests' tolerance_rule state these numbers.
+    assert (bands.MARGIN_NOISE, bands.MARGIN_WIDTH, bands.FLOOR_ULPS, bands.CAP) == (4.0, 3.0, 8, 0.02)
+    assert (bands.PERTURB_ULPS, bands.INDEPENDENT_ULPS) == (3, 1)
+
+
+def test_the_margin_is_the_largest_of_four_noises_three_widths_and_eight_ulps():
+    case = _case()
+    # rows: a spread of 3e-4 (three widths win over four noises of 1e-4), no spread (four noises win)
+    e = [0.5, 0.5]
+    lo, hi, ill, hazard, bad = _band(case, e, [[0.5001, 0.5], [0.4998, 0.5]], noise=1e-4)
+    np.testing.assert_allclose(lo, [0.4998 - 9e-4, 0.5 - 4e-4], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(hi, [0.5001 + 9e-4, 0.5 + 4e-4], rtol=0, atol=1e-15)
+    assert not ill.any() and not hazard.any() and not bad.any()
+    # a larger noise wins over the width
+    lo, hi, *_ = _band(case, e, [[0.5001, 0.5], [0.4998, 0.5]], noise=1e-3)
+    np.testing.assert_allclose(lo, [0.4998 - 4e-3, 0.5 - 4e-3], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(hi, [0.5001 + 4e-3, 0.5 + 4e-3], rtol=0, atol=1e-15)
+
+
+def test_the_margins_floor_is_eight_ulps_of_the_magnitude_or_the_scale_in_the_ports_precision():
+    # No noise, no spread: the floor alone. float32 spacing: 2^-24 in [0.5, 1), 2^-23 in [1, 2), 2^-22 in
+    # [2, 4); below the floor scale 1 the spacing of 1 (0.5 included); with scale 0 the spacing of the value
+    # itself (2^-43 at 1e-6).
+    e = np.array([0.5, 3.0, -3.0, 1e-6, 0.0])
+    want = np.array([2.0**-20, 2.0**-19, 2.0**-19, 2.0**-20, 2.0**-20])
+    lo, hi, *_ = _band(_case(), e, [e])
+    np.testing.assert_allclose(hi - e, want, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(e - lo, want, rtol=1e-9, atol=0)
+    lo, hi, *_ = _band(_case(floor_scale=0.0), e[:4], [e[:4]])
+    np.testing.assert_allclose(hi - e[:4], [2.0**-21, 2.0**-19, 2.0**-19, 2.0**-40], rtol=1e-9, atol=0)
+    # a float64 port: float64 spacings (2^-53 at 0.5, 2^-52 at the scale 1)
+    lo, hi, *_ = _band(_case(floor_scale=0.0), [0.5], [[0.5]], dt=np.float64)
+    assert hi[0] - 0.5 == 2.0**-50 and 0.5 - lo[0] == 2.0**-50
+    lo, hi, *_ = _band(_case(), [0.5], [[0.5]], dt=np.float64)
+    assert hi[0] - 0.5 == 2.0**-49 and 0.5 - lo[0] == 2.0**-49
+
+
+def test_an_ulps_case_ignores_the_noise_and_floors_at_eight_ulps_of_the_value():
+    case = _case(metric="ulps")
+    lo, hi, *_ = _band(case, [0.5, 0.5], [[0.5, 0.5 + 2.0**-20]], noise=1.0)
+    # row 0: 8 ulps of 0.5; row 1: three widths of 2^-20 (above 8 ulps = 2^-21)
+    assert hi.tolist() == [0.5 + 2.0**-21, 0.5 + 2.0**-20 + 3 * 2.0**-20]
+    assert lo.tolist() == [0.5 - 2.0**-21, 0.5 - 3 * 2.0**-20]
+
+
+def test_a_bounded_band_is_capped_at_two_percent_of_the_range_unless_ill_conditioned():
+    e = [0.5, 0.5, 0.5]
+    # row 0: spread 0.01 (margin 0.03), capped at e ± 0.02; row 1: spread 0.025 > 0.02, ill: lo - m, hi + m
+    # uncapped (m = 0.075); row 2: spread 0.015 below, within the cap: margin 0.045, capped both ways
+    lo, hi, ill, hazard, _ = _band(_case(value_range=(0, 1)), e, [[0.51, 0.525, 0.485]])
+    np.testing.assert_allclose(lo, [0.48, 0.5 - 0.075, 0.48], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(hi, [0.52, 0.525 + 0.075, 0.52], rtol=0, atol=1e-15)
+    assert ill.tolist() == [False, True, False] and not hazard.any()
+    # the cap is a fraction of the range: on [-1, 1] it is 0.04, the 0.025 spread is no longer ill
+    lo, hi, ill, *_ = _band(_case(value_range=(-1, 1)), e, [[0.51, 0.525, 0.485]])
+    np.testing.assert_allclose(hi, [0.54, 0.54, 0.54], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lo, [0.5 - 0.03, 0.46, 0.46], rtol=0, atol=1e-15)
+    assert not ill.any()
+    # an unbounded output is never capped
+    lo, hi, ill, *_ = _band(_case(), e, [[0.51, 0.525, 0.485]])
+    np.testing.assert_allclose(hi, [0.54, 0.6, 0.545], rtol=0, atol=1e-15)
+    assert not ill.any()
+
+
+def test_a_spread_below_the_expected_value_is_ill_conditioned_too():
+    lo, hi, ill, *_ = _band(_case(value_range=(0, 1)), [0.5, 0.5], [[0.47, 0.49]])
+    assert ill.tolist() == [True, False]
+    np.testing.assert_allclose(lo, [0.47 - 0.09, 0.48], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(hi, [0.5 + 0.09, 0.52], rtol=0, atol=1e-15)
+
+
+def test_formulations_widen_only_on_contract_rows_within_the_cap_and_flag_a_hazard_beyond():
+    case = _case(value_range=(0, 1))
+    e = [0.5] * 5
+    core = [[0.5] * 5]
+    hook = [[0.51, 0.55, 0.51, np.nan, 0.45]]
+    contract = [True, True, False, True, True]
+    lo, hi, ill, hazard, bad = _band(case, e, core, hooks=hook, contract=contract)
+    f = 2.0**-20  # no spread: the floor of 8 float32 ulps of max(0.5, scale 1)
+    # row 0: the formulation widens (width 0.01, margin 0.03, capped at 0.52); row 1: beyond the cap on a
+    # contract row: a hazard, no widening; row 2: outside the contract: ignored; row 3: no value: ignored;
+    # row 4: beyond the cap below
+    np.testing.assert_allclose(hi, [0.52, 0.5 + f, 0.5 + f, 0.5 + f, 0.5 + f], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lo, [0.48, 0.5 - f, 0.5 - f, 0.5 - f, 0.5 - f], rtol=0, atol=1e-15)
+    assert hazard.tolist() == [False, True, False, False, True]
+    assert not ill.any() and not bad.any()  # formulations never make a row ill-conditioned
+    # an unbounded output: every finite formulation on a contract row widens
+    lo, hi, _, hazard, _ = _band(_case(), e, core, hooks=hook, contract=contract)
+    np.testing.assert_allclose(hi, [0.51 + 0.03, 0.55 + 0.15, 0.5 + f, 0.5 + f, 0.5 + 0.15], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lo, [0.5 - 0.03, 0.5 - 0.15, 0.5 - f, 0.5 - f, 0.45 - 0.15], rtol=0, atol=1e-15)
+    assert not hazard.any()
+
+
+def test_a_legitimate_evaluation_without_a_value_makes_the_band_the_whole_line():
+    for vr in (None, (0, 1)):
+        lo, hi, ill, hazard, bad = _band(_case(value_range=vr), [0.5, 0.5, 0.5],
+                                         [[0.5, np.nan, 0.5], [0.5, 0.5, np.inf]])
+        assert bad.tolist() == [False, True, True]
+        assert lo[1:].tolist() == [-np.inf, -np.inf] and hi[1:].tolist() == [np.inf, np.inf]
+        assert np.isfinite(lo[0]) and np.isfinite(hi[0])
+
+
+def test_the_noise_is_the_90th_percentile_of_the_random_rows_deviations():
+    case = _case()
+    n = 12
+    e = np.zeros(n)
+    dev = np.array([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 1000, np.nan]) * 1e-3
+    random = np.array([True] * 10 + [False, False])
+    # The 90th percentile of 0, 1e-3, ..., 9e-3 by linear interpolation: 8.1e-3 (the edge and NaN rows apart).
+    (noise,) = bands.noise_of(case, np.float32, [e], [(e,), (dev,)], random)
+    assert noise == pytest.approx(8.1e-3, rel=1e-12)
+    # the largest deviation over the evaluations counts, with either sign; a NaN evaluation adds none
+    (noise,) = bands.noise_of(case, np.float32, [e], [(-dev,), (dev / 2,)], random)
+    assert noise == pytest.approx(8.1e-3, rel=1e-12)
+    # without random rows: every row (a NaN evaluation: no deviation, 0), the 90th percentile of 1, 2, 0
+    (noise,) = bands.noise_of(case, np.float32, [e[:3]], [(np.array([1.0, 2.0, np.nan]),)], np.zeros(3, bool))
+    assert noise == pytest.approx(1.8, rel=1e-12)
+    assert bands.noise_of(case, np.float32, [e[:1]], [(np.array([np.nan]),)], np.zeros(1, bool)) == (0.0,)
+
+
+def test_equal_inputs_are_nonzero_magnitudes_met_twice_within_a_row():
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x", "x2"), outputs=("y",), rows=None,
+                reference=_identity)
+    x = np.array([[0.25, 0.5], [0.25, 0.5], [0.0, 0.5], [1.0, 0.5], [-0.3, 0.5], [0.5, 0.75], [0.7, 0.1]])
+    x2 = np.array([0.5, 0.125, 0.0, 1.0, 0.3, 0.25, 0.7])
+    got = bands.equal_inputs(case, {"x": x, "x2": x2}, len(x2))
+    # equal nonzero values; zeros and ones do not count; magnitudes (-0.3 and 0.3) do; equal values anywhere
+    assert got.tolist() == [True, False, False, False, True, False, True]
+    one = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+               reference=_identity)
+    assert bands.equal_inputs(one, {"x": np.array([0.5, 0.5])}, 2).tolist() == [False, False]
+
+
+# ---------------------------------------------------------------------------
+# the verdicts on real cases, against mpmath
+
+
+def _rows(name, k=6, contract_only=True):
+    from moments_ref.golden.spread import golden_arrays
+
+    case = CASES[name]
+    a = golden_arrays(case)
+    flags = [str(f) for f in a["flags"]]
+    keep = [i for i, f in enumerate(flags) if a["category"][i] == "random"
+            and "wide_spread" not in f and ("robustness" not in f or not contract_only)][:k]
+    return case, {i: a[i][keep] for i in case.inputs}
+
+
+@pytest.mark.parametrize("name", ["shadow_intensity-lower-float32", "shade-float32", "psi4-float32"])
+def test_the_exact_value_lies_inside_its_band_and_a_value_beyond_the_cap_outside(name):
+    case, inputs = _rows(name)
+    (lo, hi), = bands.legitimate_interval(case, inputs)[0].values()
+    exact = np.asarray(case.truth(**{k: np.asarray(v, np.float64) for k, v in inputs.items()})[0], np.float64)
+    assert ((lo <= exact) & (exact <= hi)).all()
+    assert (hi - exact <= bands.CAP + 1e-12).all() and (exact - lo <= bands.CAP + 1e-12).all()
+    for wrong in (exact + 0.021, exact - 0.021):
+        assert ((wrong < lo) | (wrong > hi)).all()
+    assert not bands.confirm(case, inputs, {case.outputs[0]: exact}).any()
+    assert bands.confirm(case, inputs, {case.outputs[0]: exact + 0.021}).all()
+    assert bands.confirm(case, inputs, {case.outputs[0]: np.full_like(exact, np.nan)}).all()
+
+
+def test_a_float64_ports_band_is_narrower_than_a_float32_ports_and_holds_the_exact_value():
+    case, inputs = _rows("shadow_intensity-lower-float64")
+    (lo64, hi64), = bands.legitimate_interval(case, inputs, "float64")[0].values()
+    (lo32, hi32), = bands.legitimate_interval(case, inputs, "float32")[0].values()
+    exact = np.asarray(case.truth(**inputs)[0], np.float64)
+    assert ((lo64 <= exact) & (exact <= hi64)).all()
+    assert ((hi64 - lo64) < (hi32 - lo32)).all()
+
+
+def test_an_integer_outputs_band_spans_its_acceptable_codes_and_confirm_wants_one_of_them():
+    case, inputs = _rows("encode_unorm16-float32")
+    (lo, hi), = bands.legitimate_interval(case, inputs)[0].values()
+    code = np.asarray(case.truth(**{k: np.asarray(v, np.float64) for k, v in inputs.items()})[0], np.float64)
+    assert ((lo <= code) & (code <= hi)).all() and (hi - lo <= 1).all()
+    assert not bands.confirm(case, inputs, {"u": code}).any()
+    bad = code.copy()
+    bad[0, 0] += 3
+    assert bands.confirm(case, inputs, {"u": bad}).tolist() == [True] + [False] * (len(code) - 1)
+
+
+def test_confirm_of_no_rows_is_empty():
+    case, inputs = _rows("psi4-float32")
+    assert bands.confirm(case, {k: v[:0] for k, v in inputs.items()}, {"u": np.zeros(0)}).shape == (0,)
