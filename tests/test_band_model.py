@@ -171,6 +171,13 @@ def test_equal_inputs_are_nonzero_magnitudes_met_twice_within_a_row():
     one = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
                reference=_identity)
     assert bands.equal_inputs(one, {"x": np.array([0.5, 0.5])}, 2).tolist() == [False, False]
+    # float64 inputs are compared in float64: 0.1 and 0.1 + 1e-12 are different inputs
+    got = bands.equal_inputs(case, {"x": np.array([[0.1, 0.7]]), "x2": np.array([0.1 + 1e-12])}, 1)
+    assert got.tolist() == [False]
+    # a case whose inputs are all integers has none
+    ints = Case(name="toy", function="toy", dtype="float32", inputs=("k",), outputs=("y",), rows=None,
+                reference=_identity, integer_inputs={"k": "uint16"})
+    assert bands.equal_inputs(ints, {"k": np.array([[3, 3]], np.uint16)}, 1).tolist() == [False]
 
 
 # ---------------------------------------------------------------------------
@@ -225,3 +232,98 @@ def test_an_integer_outputs_band_spans_its_acceptable_codes_and_confirm_wants_on
 def test_confirm_of_no_rows_is_empty():
     case, inputs = _rows("psi4-float32")
     assert bands.confirm(case, {k: v[:0] for k, v in inputs.items()}, {"u": np.zeros(0)}).shape == (0,)
+
+
+# ---------------------------------------------------------------------------
+# the neighbourhood: which points are legitimate evaluations
+
+
+def _concat(x, x2):
+    return (np.concatenate([np.asarray(x), np.asarray(x2)[:, None]], axis=1),)
+
+
+def test_the_neighbourhood_is_three_ulps_jointly_and_one_ulp_alternating_per_component():
+    # reference = the inputs themselves, so the evaluations are the neighbourhood's points. float32 port:
+    # e = 2^-23; x (1 ± 3e) jointly, and on rows without equal inputs x (1 ± e s) with s = +1, -1, +1, -1 over
+    # the components of x then x2 (and the opposite pattern); a value in [-1, 1] whose scaling leaves it stays.
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x", "x2"), outputs=("y",), rows=None,
+                reference=_concat)
+    x = np.array([[0.75, -0.5, 1.0], [0.75, 0.75, 2.0]], np.float32)
+    x2 = np.array([0.3, -1.0], np.float32)
+    core, hooks = bands.evaluations(case, {"x": x, "x2": x2}, np.float32)
+    assert hooks == []
+    e = 2.0**-23
+    alt = np.array([1.0, -1.0, 1.0, -1.0])
+
+    def point(row, f):
+        v = np.append(x[row], x2[row]).astype(np.float64)
+        return tuple(np.where((np.abs(v * f) > 1) & (np.abs(v) <= 1), v, v * f).astype(np.float32).tolist())
+
+    want0 = {point(0, f) for f in (1.0, 1 + 3 * e, 1 - 3 * e, 1 + e * alt, 1 - e * alt)}
+    want1 = {point(1, f) for f in (1.0, 1 + 3 * e, 1 - 3 * e)}  # 0.75 twice: scaled only jointly
+    got = [np.asarray(c[0], np.float64) for c in core]
+    assert all(g.shape == (2, 4) for g in got)
+    assert {tuple(g[0].tolist()) for g in got} == want0 and len(want0) == 5
+    assert {tuple(g[1].tolist()) for g in got} == want1 and len(want1) == 3
+    # the float64 reference on the rows themselves is among them, unrounded
+    case64 = Case(name="toy", function="toy", dtype="float64", inputs=("x", "x2"), outputs=("y",), rows=None,
+                  reference=_concat)
+    x64 = np.array([[0.1, 0.2, 0.3]])
+    core, _ = bands.evaluations(case64, {"x": x64, "x2": np.array([0.4])}, np.float64)
+    assert any(np.array_equal(c[0], [[0.1, 0.2, 0.3, 0.4]]) for c in core)
+    assert all(np.asarray(c[0]).dtype == np.float64 for c in core)
+
+
+def test_an_unperturbed_case_has_no_neighbourhood():
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x", "x2"), outputs=("y",), rows=None,
+                reference=_concat, perturb=False)
+    x = np.array([[0.75, -0.5, 0.25]], np.float32)
+    core, _ = bands.evaluations(case, {"x": x, "x2": np.array([0.3], np.float32)}, np.float32)
+    assert len(core) == 2 and all(np.array_equal(c[0], [[0.75, -0.5, 0.25, np.float32(0.3)]]) for c in core)
+
+
+def _zf(b, zf):
+    return (np.asarray(zf),)
+
+
+def _zf_hook(inputs, dtype):
+    return [(np.asarray(inputs["zf"], np.float64) + 0.01,)]
+
+
+@pytest.mark.parametrize("contract", [None, "moments_inside"])
+def test_a_formulation_widens_every_row_without_a_contract_and_only_contract_rows_with_one(contract):
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("b", "zf"), outputs=("y",), rows=None,
+                reference=_zf, spread_hook=_zf_hook, contract=contract, perturb=False)
+    # row 0: moments strictly inside the moment space (the float32 bias target); row 1: one depth (singular)
+    b = np.array([[0.0, 0.375, 0.0, 0.375], [0.5, 0.25, 0.125, 0.0625]], np.float32)
+    zf = np.array([0.25, 0.25], np.float32)
+    (lo, hi), = bands.legitimate_interval(case, {"b": b, "zf": zf}, "float32", noise=(0.0,))[0].values()
+    f = 2.0**-20  # 8 float32 ulps of the scale 1
+    widened = [0.25 + 0.01 + 0.03, 0.25 + 0.01 + 0.03] if contract is None else [0.25 + 0.01 + 0.03, 0.25 + f]
+    np.testing.assert_allclose(hi, widened, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(lo, [0.25 - 0.03, 0.25 - 0.03] if contract is None else [0.25 - 0.03, 0.25 - f],
+                               rtol=0, atol=1e-9)
+
+
+def test_a_vector_outputs_formulations_count_on_every_component_of_a_contract_row():
+    case = _case()
+    e = np.full((2, 3), 0.5)
+    hook = np.full((2, 3), 0.51)
+    (lo, hi, ill, hazard, bad), = bands.interval_parts(case, np.dtype(np.float32), [e], np.array([True, False]),
+                                                       (0.0,), [(e,)], [(hook,)])
+    f = 2.0**-20
+    np.testing.assert_allclose(hi, [[0.54] * 3, [0.5 + f] * 3], rtol=0, atol=1e-12)
+
+
+def test_the_cap_is_met_exactly_without_making_the_row_ill():
+    # range [0, 50]: the cap is 1 exactly; a spread of exactly 1 is within it, 1 + 2^-40 beyond
+    e = [4.0, 4.0, 4.0, 4.0]
+    lo, hi, ill, *_ = _band(_case(value_range=(0, 50)), e, [[5.0, 3.0, 5.0 + 2.0**-40, 3.0 - 2.0**-40]])
+    assert ill.tolist() == [False, False, True, True]
+    assert hi[:2].tolist() == [5.0, 5.0] and lo[:2].tolist() == [3.0, 3.0]  # margin 3, capped at e ± 1
+
+
+def test_the_floor_scale_is_read_in_float64():
+    # 1 - 2^-30 rounds to 1.0 in float32; a float64 port's floor is 8 ulps of 1 - 2^-30 (2^-53), not of 1.
+    lo, hi, *_ = _band(_case(floor_scale=1 - 2.0**-30), [0.0], [[0.0]], dt=np.float64)
+    assert hi[0] == 8 * 2.0**-53 and lo[0] == -8 * 2.0**-53
