@@ -327,3 +327,126 @@ def test_the_floor_scale_is_read_in_float64():
     # 1 - 2^-30 rounds to 1.0 in float32; a float64 port's floor is 8 ulps of 1 - 2^-30 (2^-53), not of 1.
     lo, hi, *_ = _band(_case(floor_scale=1 - 2.0**-30), [0.0], [[0.0]], dt=np.float64)
     assert hi[0] == 8 * 2.0**-53 and lo[0] == -8 * 2.0**-53
+
+
+# ---------------------------------------------------------------------------
+# confirm: the exact values over the float32 neighbourhood, on toy cases known by hand
+
+E32 = 2.0**-23
+
+
+def _steep_reference(x):
+    x = np.asarray(x)
+    return ((x - x.dtype.type(0.75)) * x.dtype.type(1e6),)
+
+
+def _steep_truth(x):
+    return ((np.asarray(x, np.float64) - 0.75) * 1e6,)
+
+
+def _steep(**kw):
+    # y = (x - 0.75) 10^6: one float32 ulp of x (2^-24 at 0.75) moves y by 0.0596; unperturbed, so the legitimate
+    # evaluations are x itself in float32 and float64 and everything else comes from confirm's neighbours.
+    kw = {"reference": _steep_reference, "truth": _steep_truth, "perturb": False, "floor_scale": 0.0, **kw}
+    return Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None, **kw)
+
+
+def test_confirm_explains_the_exact_values_over_three_float32_ulps_each_way():
+    case = _steep()
+    x = np.array([0.75, 0.75], np.float32)
+    # the neighbours: x (1 ± k 2^-23), k = 1, 2, 3, rounded to float32 (an input the port could have received)
+    nb = np.array([np.float32(0.75 * (1 + s * k * E32)) for k in (1, 2, 3) for s in (1, -1)], np.float64)
+    top, bottom = (nb.max() - 0.75) * 1e6, (nb.min() - 0.75) * 1e6
+    assert top > 0.2 and bottom < -0.2  # 4 ulps of x each way: beyond what one ulp explains
+    assert not bands.confirm(case, {"x": x}, {"y": np.array([top, bottom])}).any()
+    # just beyond the farthest neighbour (the floor is 8 ulps of |y| = 0: nothing)
+    assert bands.confirm(case, {"x": x}, {"y": np.array([top + 1e-3, bottom - 1e-3])}).all()
+    # between the farthest rounded neighbour and the unrounded x (1 + 3 · 2^-23): not an input the port had
+    unrounded = 0.75 * 3 * E32 * 1e6
+    assert unrounded > top + 0.02
+    assert bands.confirm(case, {"x": x}, {"y": np.array([top + 0.02, 0.0])}).tolist() == [True, False]
+
+
+def test_confirm_widens_by_eight_ulps_of_the_magnitude_in_the_ports_precision():
+    case = _steep()
+    x = np.array([0.5], np.float32)  # y = -250000: 8 float32 ulps of 250000 are 8 · 2^-6 = 0.125
+    nb = np.array([np.float32(0.5 * (1 + s * k * E32)) for k in (1, 2, 3) for s in (1, -1)], np.float64)
+    top = (nb.max() - 0.75) * 1e6
+    assert not bands.confirm(case, {"x": x}, {"y": np.array([top + 0.12])}).any()
+    assert bands.confirm(case, {"x": x}, {"y": np.array([top + 0.13])}).all()
+    # a float64 port: 8 float64 ulps (2^-32 · 8 at 250000)
+    assert bands.confirm(case, {"x": x.astype(np.float64)}, {"y": np.array([top + 1e-6])}, "float64").all()
+
+
+def _plus_one_truth(x):
+    return ((np.asarray(x, np.float64) - 0.75) * 1e6 + 1.0,)
+
+
+def test_confirm_takes_the_exact_value_from_the_truth_and_the_reference_without_one():
+    x = np.array([0.75], np.float32)
+    # a truth that differs from the reference by 1: its value is explained (it is the exact one) ...
+    assert not bands.confirm(_steep(truth=_plus_one_truth), {"x": x}, {"y": np.array([1.0])}).any()
+    assert bands.confirm(_steep(), {"x": x}, {"y": np.array([1.0])}).all()
+    # ... and without a truth the float64 reference is the exact value
+    assert not bands.confirm(_steep(truth=None), {"x": x}, {"y": np.array([0.0])}).any()
+    assert bands.confirm(_steep(truth=None), {"x": x}, {"y": np.array([1.0])}).all()
+
+
+def _identity_hook(offsets):
+    def hook(inputs, dtype):
+        return [(np.asarray(inputs["x"], np.float64) + d,) for d in offsets]
+
+    return hook
+
+
+def test_confirm_counts_a_formulation_only_within_the_cap_of_a_bounded_output():
+    # range [-25, 25]: the cap is 1 exactly. Formulations at +1 (at the cap), +1.5 and -2 (beyond).
+    x = np.array([0.25], np.float32)
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity, truth=_identity, value_range=(-25, 25), spread_hook=_identity_hook([1.0, 1.5, -2.0]))
+    for got, wrong in ((1.25, False), (1.75, True), (-1.75, True), (0.25, False)):
+        assert bands.confirm(case, {"x": x}, {"y": np.array([got])}).tolist() == [wrong], got
+    # unbounded: every formulation is a legitimate evaluation
+    free = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity, truth=_identity, spread_hook=_identity_hook([1.0, 1.5, -2.0]))
+    assert not bands.confirm(free, {"x": np.repeat(x, 3)}, {"y": np.array([1.25, 1.75, -1.75])}).any()
+
+
+def test_confirm_of_a_float_output_counts_its_legitimate_evaluations():
+    # the steep case's float32 reference on the row is one; an offset formulation (unbounded) is another
+    case = _steep(spread_hook=lambda inputs, dtype: [(_steep_truth(inputs["x"])[0] + 5.0,)])
+    assert not bands.confirm(case, {"x": np.array([0.75], np.float32)}, {"y": np.array([5.0])}).any()
+    assert bands.confirm(case, {"x": np.array([0.75], np.float32)}, {"y": np.array([5.5])}).all()
+    assert bands.confirm(case, {"x": np.array([0.75], np.float32)}, {"y": np.array([-0.5])}).all()
+
+
+def test_a_float64_ports_band_is_centred_on_the_float64_value():
+    case = Case(name="toy", function="toy", dtype="float64", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity)
+    (lo, hi), = bands.legitimate_interval(case, {"x": np.array([0.1])}, "float64", noise=(0.0,))[0].values()
+    assert lo[0] <= 0.1 <= hi[0] and hi[0] - lo[0] < 1e-14
+    assert not lo[0] <= float(np.float32(0.1)) <= hi[0]  # a float32 evaluation is no float64 port's value
+
+
+def test_a_row_is_ill_conditioned_when_any_component_is():
+    # y = (x, x), the second computed as (x + 10^8) - 10^8: in float32 (spacing 8 at 10^8) it is 0, in float64
+    # x within 10^-8; the first component is well conditioned, the second differs by 0.3 / 0.25 > the cap
+    def ref(x):
+        x = np.asarray(x)
+        big = x.dtype.type(1e8)
+        return (np.stack([x, (x + big) - big], axis=1),)
+
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=ref, value_range=(0, 1), perturb=False)
+    x = np.array([0.3, 0.25], np.float32)
+    bands_, ill = bands.legitimate_interval(case, {"x": x}, "float32", noise=(0.0,))
+    assert ill.tolist() == [True, True]
+    lo, hi = bands_["y"]
+    assert lo.shape == hi.shape == (2, 2)
+
+
+def test_the_float32_algorithm_1s_rounding_noise_is_a_few_ulps_of_its_range():
+    # The noise is measured on the random rows: a float32 Cholesky evaluation deviates by a few ulps of 1 there
+    # (the edge and stiff rows, near singular, deviate by up to 0.1 and must not set it).
+    (noise,) = bands.case_noise(CASES["shadow_intensity-lower-float32"], "float32")
+    assert 2.0**-24 < noise < 16 * 2.0**-23
