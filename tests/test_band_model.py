@@ -113,23 +113,25 @@ def test_a_spread_below_the_expected_value_is_ill_conditioned_too():
 
 def test_formulations_widen_only_on_contract_rows_within_the_cap_and_flag_a_hazard_beyond():
     case = _case(value_range=(0, 1))
-    e = [0.5] * 5
-    core = [[0.5] * 5]
-    hook = [[0.51, 0.55, 0.51, np.nan, 0.45]]
-    contract = [True, True, False, True, True]
+    e = [0.5] * 7
+    core = [[0.5] * 7]
+    hook = [[0.51, 0.55, 0.51, np.nan, 0.45, np.inf, 0.501]]
+    contract = [True, True, False, True, True, True, True]
     lo, hi, ill, hazard, bad = _band(case, e, core, hooks=hook, contract=contract)
     f = 2.0**-20  # no spread: the floor of 8 float32 ulps of max(0.5, scale 1)
     # row 0: the formulation widens (width 0.01, margin 0.03, capped at 0.52); row 1: beyond the cap on a
     # contract row: a hazard, no widening; row 2: outside the contract: ignored; row 3: no value: ignored;
-    # row 4: beyond the cap below
-    np.testing.assert_allclose(hi, [0.52, 0.5 + f, 0.5 + f, 0.5 + f, 0.5 + f], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(lo, [0.48, 0.5 - f, 0.5 - f, 0.5 - f, 0.5 - f], rtol=0, atol=1e-15)
-    assert hazard.tolist() == [False, True, False, False, True]
+    # row 4: beyond the cap below; row 5: infinite: no value, no hazard; row 6: 0.501 (width 0.001, margin 0.003)
+    np.testing.assert_allclose(hi, [0.52, 0.5 + f, 0.5 + f, 0.5 + f, 0.5 + f, 0.5 + f, 0.504], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lo, [0.48, 0.5 - f, 0.5 - f, 0.5 - f, 0.5 - f, 0.5 - f, 0.497], rtol=0, atol=1e-15)
+    assert hazard.tolist() == [False, True, False, False, True, False, False]
     assert not ill.any() and not bad.any()  # formulations never make a row ill-conditioned
     # an unbounded output: every finite formulation on a contract row widens
     lo, hi, _, hazard, _ = _band(_case(), e, core, hooks=hook, contract=contract)
-    np.testing.assert_allclose(hi, [0.51 + 0.03, 0.55 + 0.15, 0.5 + f, 0.5 + f, 0.5 + 0.15], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(lo, [0.5 - 0.03, 0.5 - 0.15, 0.5 - f, 0.5 - f, 0.45 - 0.15], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(hi, [0.51 + 0.03, 0.55 + 0.15, 0.5 + f, 0.5 + f, 0.5 + 0.15, 0.5 + f, 0.504],
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(lo, [0.5 - 0.03, 0.5 - 0.15, 0.5 - f, 0.5 - f, 0.45 - 0.15, 0.5 - f, 0.497],
+                               rtol=0, atol=1e-15)
     assert not hazard.any()
 
 
@@ -158,6 +160,10 @@ def test_the_noise_is_the_90th_percentile_of_the_random_rows_deviations():
     (noise,) = bands.noise_of(case, np.float32, [e[:3]], [(np.array([1.0, 2.0, np.nan]),)], np.zeros(3, bool))
     assert noise == pytest.approx(1.8, rel=1e-12)
     assert bands.noise_of(case, np.float32, [e[:1]], [(np.array([np.nan]),)], np.zeros(1, bool)) == (0.0,)
+    # infinite deviations are no rounding noise; with nothing finite left the noise is 0
+    assert bands.noise_of(case, np.float32, [e[:2]], [(np.array([np.inf, -np.inf]),)], np.zeros(2, bool)) == (0.0,)
+    (noise,) = bands.noise_of(case, np.float32, [e[:3]], [(np.array([np.inf, 1.0, 1.0]),)], np.zeros(3, bool))
+    assert noise == 1.0
 
 
 def test_equal_inputs_are_nonzero_magnitudes_met_twice_within_a_row():
@@ -171,6 +177,8 @@ def test_equal_inputs_are_nonzero_magnitudes_met_twice_within_a_row():
     one = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
                reference=_identity)
     assert bands.equal_inputs(one, {"x": np.array([0.5, 0.5])}, 2).tolist() == [False, False]
+    # one row alone is judged as well
+    assert bands.equal_inputs(case, {"x": x[:1], "x2": x2[:1]}, 1).tolist() == [True]
     # float64 inputs are compared in float64: 0.1 and 0.1 + 1e-12 are different inputs
     got = bands.equal_inputs(case, {"x": np.array([[0.1, 0.7]]), "x2": np.array([0.1 + 1e-12])}, 1)
     assert got.tolist() == [False]
@@ -448,5 +456,17 @@ def test_a_row_is_ill_conditioned_when_any_component_is():
 def test_the_float32_algorithm_1s_rounding_noise_is_a_few_ulps_of_its_range():
     # The noise is measured on the random rows: a float32 Cholesky evaluation deviates by a few ulps of 1 there
     # (the edge and stiff rows, near singular, deviate by up to 0.1 and must not set it).
-    (noise,) = bands.case_noise(CASES["shadow_intensity-lower-float32"], "float32")
+    from dataclasses import replace
+
+    # a copy of the case: measured here, not answered from the noise another test measured on the shipped case
+    (noise,) = bands.case_noise(replace(CASES["shadow_intensity-lower-float32"]), "float32")
     assert 2.0**-24 < noise < 16 * 2.0**-23
+
+
+def test_an_infinite_formulation_never_widens_a_chained_cases_band():
+    # the chained cases (a filter, a quantizer and Algorithm 3 in one shader) take their formulations beyond the
+    # cap, but a formulation without a finite value explains nothing
+    case = _case(value_range=(0, 1), function="kernels.toy")
+    lo, hi, ill, hazard, bad = _band(case, [0.5, 0.5], [[0.5, 0.5]], hooks=[[np.inf, 0.5]])
+    assert np.isfinite(hi).all() and np.isfinite(lo).all() and not hazard.any() and not bad.any()
+    assert hi[0] == hi[1] and lo[0] == lo[1]
