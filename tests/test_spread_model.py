@@ -93,9 +93,10 @@ def test_a_float64_cases_expected_values_are_stored_in_float64():
 
 
 def test_the_ungated_reason_is_the_rows_first_ungated_flag():
-    a = _derive(_case(_identity), [0.5, 0.25], flags=[("outside_moment_space", "near_support_point"), ()])
+    both = ("outside_moment_space", "near_support_point")
+    a = _derive(_case(_identity), [0.5, 0.25, 0.125], flags=[both, (), both])
     levels = gated_summary(_case(_identity), a)["float32"]["levels"]
-    assert levels["contract"]["ungated"] == {"outside_moment_space": 1}
+    assert levels["contract"]["ungated"] == {"outside_moment_space": 2}
 
 
 def test_a_tolerance_of_exactly_0_1_is_not_gated_below_0_1():
