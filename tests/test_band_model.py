@@ -470,3 +470,56 @@ def test_an_infinite_formulation_never_widens_a_chained_cases_band():
     lo, hi, ill, hazard, bad = _band(case, [0.5, 0.5], [[0.5, 0.5]], hooks=[[np.inf, 0.5]])
     assert np.isfinite(hi).all() and np.isfinite(lo).all() and not hazard.any() and not bad.any()
     assert hi[0] == hi[1] and lo[0] == lo[1]
+
+
+def test_an_encoders_band_on_a_rounding_tie_spans_the_truths_and_the_references_codes():
+    # On a tie the truth's code, and the float32 and float64 references' codes, are all legitimate: the band is
+    # their least and largest; away from ties it is the one code.
+    from moments_ref.golden.cases import evaluate_reference
+    from moments_ref.golden.spread import golden_arrays
+
+    case = CASES["encode_unorm16-float32"]
+    b = golden_arrays(case)["b"]
+    codes = np.stack([np.asarray(case.truth(b=b.astype(np.float64))[0], np.float64),
+                      np.asarray(evaluate_reference(case, {"b": b}, np.float32)[0], np.float64),
+                      np.asarray(evaluate_reference(case, {"b": b}, np.float64)[0], np.float64)], axis=1)
+    split = np.flatnonzero((codes.max(axis=1) > codes.min(axis=1)).any(axis=1))
+    assert split.size  # rows whose legitimate codes differ exist among the goldens
+    rows = np.concatenate([split[:6], np.flatnonzero((codes.max(axis=1) == codes.min(axis=1)).all(axis=1))[:4]])
+    (lo, hi), = bands.legitimate_interval(case, {"b": b[rows]})[0].values()
+    assert np.array_equal(lo, codes[rows].min(axis=1)) and np.array_equal(hi, codes[rows].max(axis=1))
+    k = min(6, split.size)
+    assert (hi > lo)[:k].any(axis=1).all() and (hi == lo)[k:].all()
+    assert lo.dtype == np.float64
+
+
+def test_an_engine_cases_band_is_its_golden_tolerance_about_its_expected_value():
+    # Cases with their own deriver (engine, bilinear): the sweep judges by the goldens' tolerance
+    from moments_ref.golden.spread import golden_arrays
+
+    case = CASES["engine-lower-float32"]
+    a = golden_arrays(case)
+    rows = np.arange(0, 40, 5)
+    inputs = {k: a[k][rows] for k in case.inputs + case.aux}  # the engine's distributions travel with the rows
+    got, ill = bands.legitimate_interval(case, inputs)
+    lo, hi = got["intensity"]
+    e, t = a["intensity"][rows], a["intensity_tolerance_float32"][rows]
+    np.testing.assert_allclose(lo, e - t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(hi, e + t, rtol=0, atol=1e-12)
+    assert not ill.any()
+    (lo64, hi64), _ = [(v["intensity"], i) for v, i in [bands.legitimate_interval(case, inputs, "float64")]][0]
+    np.testing.assert_allclose(hi64 - lo64, 2 * a["intensity_tolerance_float64"][rows], rtol=0, atol=1e-12)
+
+
+def test_a_chained_cases_band_is_no_narrower_and_flags_a_row_whose_margin_crosses_the_cap():
+    # The chained cases (endtoend.*, kernels.*) take a margin at least the plain one; a row whose band with that
+    # margin reaches beyond the cap is ill-conditioned and not capped (a spread of 0.006 above: at least three
+    # widths, 0.018, take its top to 0.524 > 0.52). A row without spread keeps the floor.
+    plain, chained = _case(value_range=(0, 1)), _case(value_range=(0, 1), function="kernels.toy")
+    core = [[0.506, 0.5], [0.5, 0.5]]
+    lo_p, hi_p, ill_p, *_ = _band(plain, [0.5, 0.5], core, noise=1e-4)
+    lo_c, hi_c, ill_c, *_ = _band(chained, [0.5, 0.5], core, noise=1e-4)
+    assert ill_p.tolist() == [False, False] and ill_c.tolist() == [True, False]
+    assert hi_p[0] == 0.52 and hi_c[0] >= 0.506 + 0.018 and lo_c[0] <= 0.5 - 0.018
+    assert (lo_c <= lo_p).all() and (hi_c >= hi_p).all()
+    assert hi_c[1] - 0.5 < 0.01 and 0.5 - lo_c[1] < 0.01
