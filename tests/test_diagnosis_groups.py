@@ -145,3 +145,34 @@ def test_readback_words_are_narrowed_to_the_codes_dtype_only_where_they_fit():
     # floats, and outputs the goldens do not hold, stay as they are
     assert _narrowed({"q": np.array([1.0])}, arrays)["q"].dtype == np.float64
     assert _narrowed({"z": np.array([1], np.uint32)}, arrays)["z"].dtype == np.uint32
+
+
+def test_levels_are_ordered_target_format_or_convention_contract_robustness_whatever_their_size():
+    n = 13
+    arrays = {"flags": np.array(["shadow_edge"] * n), "category": np.array(["random"] * n)}
+    v = _verdict([False] * n, robust=[False] * 7 + [True] * 6)
+    extra = [Group("target", "t", [0], ""), Group("format", "f", [1, 2], ""), Group("convention", "c", [3], "")]
+    gs = groups(v, arrays, extra)
+    assert [(g.level, g.count) for g in gs] == [("target", 1), ("format", 2), ("convention", 1), ("contract", 3),
+                                                ("robustness", 6)]
+
+
+def test_json_rows_judge_the_first_compared_output_and_give_string_inputs_as_strings():
+    arrays = {"tc_id": np.array([1]), "category": np.array(["random"]), "flags": np.array([""]),
+              "comment": np.array([""]), "t": np.array(["p"]), "y": np.array([1.0]), "z": np.array([5.0])}
+    v = SimpleNamespace(row_pass=np.array([True]), strict_pass=None, robust=None, level=np.array(["contract"]),
+                        error=np.array([0.0]), tolerance=np.array([1.0]), passed=True, strict=False,
+                        failures=0, robustness_tally=lambda: {})
+    doc = json_rows("toy", {"compare": ["y", "z"], "input_order": ["t"]}, arrays,
+                    {"y": np.array([1.0]), "z": np.array([9.0])}, v)
+    assert doc["rows"][0]["got"] == 1.0 and doc["rows"][0]["expected"] == 1.0
+    assert doc["rows"][0]["inputs"] == {"t": "p"}
+
+
+def test_write_json_refuses_a_non_finite_value_and_writes_nothing(tmp_path):
+    import pytest
+
+    out = tmp_path / "v.json"
+    with pytest.raises(ValueError):
+        write_json(out, [{"x": float("nan")}])
+    assert not out.exists()
