@@ -68,3 +68,26 @@ def test_a_b_bit_filters_weights_are_the_grid_points_at_or_next_to_the_fraction(
     assert lo[0] == 0.5 and hi[0] == 0.5 + 2.0**-24
     (lx, hx), (ly, hy) = bilinear.weight_interval(np.array([[f, 0.3]]), 24)
     assert (lx[0], hx[0]) == (0.5, 0.5 + 2.0**-24) and ly[0] <= 0.3 <= hy[0] and hy[0] - ly[0] == 2.0**-24
+
+
+def test_the_intensity_reference_in_float64_is_algorithm_1_on_the_float64_blend_unrounded():
+    from moments_ref.moments import BIAS_FLOAT32, bias_moments
+    from moments_ref.msm import shadow_intensity
+
+    z = np.array([[0.2, 0.5, -0.3, 0.7], [0.1, -0.4, 0.35, 0.6]])  # one depth per texel: its power moments
+    texels = (z[:, :, None] ** np.arange(1, 5)).reshape(2, 16)
+    zf = np.array([0.3, 0.123456789])
+    got = CASES["shadow_intensity_bilinear-float32"].reference(texels=texels, fraction=FRACTION, zf=zf)[0]
+    b = bilinear.blend(texels, FRACTION[:, 0], FRACTION[:, 1], np.float64)
+    want = np.asarray(shadow_intensity(bias_moments(b, BIAS_FLOAT32), zf), np.float64)
+    assert got.dtype == np.float64 and np.array_equal(got, want)
+    assert ((want > 0.01) & (want < 0.99)).all() and not np.array_equal(want, want.astype(np.float32))
+
+
+def test_the_bilinear_goldens_number_their_rows_from_one():
+    from moments_ref.golden.spread import golden_arrays
+
+    a = golden_arrays(CASES["sample_bilinear-float32"])
+    n = len(a["category"])
+    assert a["tc_id"].tolist() == list(range(1, n + 1)) and a["tc_id"].dtype == np.int32
+    assert (a["result"] == "valid").all()
