@@ -131,3 +131,11 @@ def test_a_shipped_cases_arrays_are_shared_read_only_and_a_copy_is_generated_ane
     b = golden_arrays(doubled)
     assert np.array_equal(b["u"], 2 * np.asarray(case.reference(xi4=a["xi4"].astype(np.float64))[0]))
     assert all(v.flags.writeable for v in b.values())
+
+
+def test_the_summarys_typical_tolerance_is_the_median_of_the_finite_row_tolerances():
+    case = _case(_identity)
+    a = dict(_derive(case, [0.5, 0.25, 0.125, 0.0625]))
+    a["y_tolerance_float32"] = np.array([1e-6, 2e-6, 1e-3, np.inf])
+    s = gated_summary(case, a)["float32"]
+    assert s["median_tolerance"] == 2e-6 and s["gated"] == 3
