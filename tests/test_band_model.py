@@ -472,25 +472,31 @@ def test_an_infinite_formulation_never_widens_a_chained_cases_band():
     assert hi[0] == hi[1] and lo[0] == lo[1]
 
 
-def test_an_encoders_band_on_a_rounding_tie_spans_the_truths_and_the_references_codes():
-    # On a tie the truth's code, and the float32 and float64 references' codes, are all legitimate: the band is
-    # their least and largest; away from ties it is the one code.
+@pytest.mark.parametrize("name", ["encode_unorm16-float32", "pack32-float32"])
+def test_an_encoders_band_spans_the_truths_and_the_references_codes(name):
+    # The truth's code and the float32 and float64 references' codes are all legitimate: the band is their least
+    # and largest, exactly (pack32's codes reach 2^32: no float32 on the way); where they agree, the one code.
     from moments_ref.golden.cases import evaluate_reference
     from moments_ref.golden.spread import golden_arrays
 
-    case = CASES["encode_unorm16-float32"]
-    b = golden_arrays(case)["b"]
-    codes = np.stack([np.asarray(case.truth(b=b.astype(np.float64))[0], np.float64),
-                      np.asarray(evaluate_reference(case, {"b": b}, np.float32)[0], np.float64),
-                      np.asarray(evaluate_reference(case, {"b": b}, np.float64)[0], np.float64)], axis=1)
-    split = np.flatnonzero((codes.max(axis=1) > codes.min(axis=1)).any(axis=1))
-    assert split.size  # rows whose legitimate codes differ exist among the goldens
-    rows = np.concatenate([split[:6], np.flatnonzero((codes.max(axis=1) == codes.min(axis=1)).all(axis=1))[:4]])
-    (lo, hi), = bands.legitimate_interval(case, {"b": b[rows]})[0].values()
+    case = CASES[name]
+    (key,), (out,) = case.inputs, case.outputs
+    x = golden_arrays(case)[key]
+    as64 = x.astype(np.float64)
+    codes = np.stack([np.asarray(case.truth(**{key: as64})[0], np.float64),
+                      np.asarray(evaluate_reference(case, {key: x}, np.float32)[0], np.float64),
+                      np.asarray(evaluate_reference(case, {key: x}, np.float64)[0], np.float64)], axis=1)
+    differ = (codes.max(axis=1) > codes.min(axis=1)).reshape(len(x), -1).any(axis=1)
+    rows = np.concatenate([np.flatnonzero(differ)[:6], np.flatnonzero(~differ)[:4]])
+    (lo, hi), = bands.legitimate_interval(case, {key: x[rows]})[0].values()
     assert np.array_equal(lo, codes[rows].min(axis=1)) and np.array_equal(hi, codes[rows].max(axis=1))
-    k = min(6, split.size)
-    assert (hi > lo)[:k].any(axis=1).all() and (hi == lo)[k:].all()
-    assert lo.dtype == np.float64
+    k = min(6, int(differ.sum()))
+    if name == "encode_unorm16-float32":
+        assert k > 0  # rows whose legitimate codes differ exist among its goldens
+    assert (hi > lo).reshape(len(rows), -1)[:k].any(axis=1).all() and (hi == lo).reshape(len(rows), -1)[k:].all()
+    assert lo.dtype == np.float64 and (codes.max() < 2**24 or name == "pack32-float32")
+    if name == "pack32-float32":
+        assert codes.max() > 2**24
 
 
 def test_an_engine_cases_band_is_its_golden_tolerance_about_its_expected_value():
