@@ -53,6 +53,9 @@ def test_the_report_counts_failures_per_category_and_names_the_worst_rows(folder
     i = int(random[0])
     assert w["tc_id"] == int(g["tc_id"][i]) and w["category"] == "random" and w["flags"] == str(g["flags"][i])
     assert w["tolerance"] == float(g["u_tolerance_float32"][i]) and 9.5 < w["error"] / w["tolerance"] < 10.5
+    for w, k in zip(c.worst, (10.0, 5.0, 3.0)):  # errors are distances: positive, |k| tolerances
+        assert abs(w["error"] / w["tolerance"] - k) < 0.5
+    w = c.worst[0]
     assert w["comment"] == str(g["comment"][i]) and float(w["inputs"]["xi4"]) == float(g["xi4"][i])
 
 
