@@ -230,7 +230,7 @@ def score_table(state, files, equivalents):
     rows, survivors, known = [], [], set()
     for path in files:
         entry = state.get(path)
-        if entry is None:
+        if entry is None or not entry["mutants"]:  # unmeasured, or no mutant to make (sweep/judge.py: two calls)
             continue
         counts = dict.fromkeys(["killed", "timeout", "equivalent", "survived"], 0)
         for mid, (status, by) in entry["mutants"].items():
