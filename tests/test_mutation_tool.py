@@ -265,7 +265,7 @@ def test_the_default_list_holds_every_module_a_verdict_depends_on():
     from moments_ref.tools.mutation import VERDICT_MODULES, _sweep_modules
 
     for need in ("golden/contract.py", "golden/conventions.py", "golden/bilinear.py", "golden/compare.py",
-                 "golden/profile.py", "golden/spread.py", "golden/engine.py", "golden/loader.py",
+                 "golden/profile.py", "golden/spread.py", "golden/bands.py", "golden/engine.py", "golden/loader.py",
                  "conformance/verdict.py", "conformance/kernel/verdict.py", "conformance/kernel/contract.py"):
         assert f"moments_ref/{need}" in VERDICT_MODULES and f"moments_ref/{need}" in TARGETS
     sweep = ROOT / "moments_ref" / "sweep"

@@ -13,9 +13,12 @@ from contextlib import contextmanager
 
 import pytest
 
+import test_band_model as band
 import test_compare_tallies as tallies
 import test_contract_rows as rows
+import test_diagnosis_groups as diag
 import test_kernel_judge as judge
+import test_spread_model as spread
 from moments_ref.tools.mutation import ROOT, mutants_of
 from moments_ref.tools.mutation._operators import mutated_code
 
@@ -44,6 +47,9 @@ CONTRACT = "moments_ref/golden/contract.py"
 VERDICT = "moments_ref/conformance/kernel/verdict.py"
 COMPARE = "moments_ref/golden/compare.py"
 PROFILE = "moments_ref/golden/profile.py"
+BANDS = "moments_ref/golden/bands.py"
+SPREAD = "moments_ref/golden/spread.py"
+DIAGNOSIS = "moments_ref/golden/diagnosis.py"
 
 # (module, mutant, the test that must fail under it, its arguments)
 EXAMPLES = [
@@ -70,6 +76,28 @@ EXAMPLES = [
      tallies.test_the_robustness_tally_counts_each_kind_of_failure_exactly, ()),
     (PROFILE, "Profile.for_function::table.format -> not table.format#0",
      rows.test_a_functions_format_keys_override_the_files_and_keep_the_others, ()),
+    (BANDS, "_margin::np.maximum -> np.minimum#1",
+     band.test_the_margin_is_the_largest_of_four_noises_three_widths_and_eight_ulps, ()),
+    (BANDS, "_margin::np.abs(e) -> e#0",
+     band.test_the_margins_floor_is_eight_ulps_of_the_magnitude_or_the_scale_in_the_ports_precision, ()),
+    (BANDS, "interval_parts::CAP * (case.value_range[1] - case.value_range[0]) -> "
+            "CAP / (case.value_range[1] - case.value_range[0])#0",
+     band.test_a_bounded_band_is_capped_at_two_percent_of_the_range_unless_ill_conditioned, ()),
+    (BANDS, "interval_parts::np.isfinite(h) & c -> np.isfinite(h) | c#1",
+     band.test_formulations_widen_only_on_contract_rows_within_the_cap_and_flag_a_hazard_beyond, ()),
+    (BANDS, "_componentwise::-sign -> sign#0",
+     band.test_the_neighbourhood_is_three_ulps_jointly_and_one_ulp_alternating_per_component, ()),
+    (BANDS, "noise_of::np.fmax -> np.maximum#0", band.test_the_noise_is_the_90th_percentile_of_the_random_rows_deviations, ()),
+    (BANDS, "confirm::PERTURB_ULPS + 1 -> PERTURB_ULPS - 1#0",
+     band.test_confirm_explains_the_exact_values_over_three_float32_ulps_each_way, ()),
+    (SPREAD, "_float_tolerances::np.isnan -> np.isinf#0",
+     spread.test_a_row_without_an_expected_value_gets_an_infinite_tolerance_not_nan, ()),
+    (SPREAD, "_check_truth::0 -> -1#0",
+     spread.test_a_reference_disagreeing_with_its_truth_names_the_first_row_away_from_a_boundary, ()),
+    (DIAGNOSIS, "groups::2 -> 3#0",
+     diag.test_levels_are_ordered_target_format_or_convention_contract_robustness_whatever_their_size, ()),
+    (DIAGNOSIS, "_narrowed::g.max() <= np.iinfo(want).max -> g.max() < np.iinfo(want).max#0",
+     diag.test_readback_words_are_narrowed_to_the_codes_dtype_only_where_they_fit, ()),
 ]
 
 

@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[3]
 #: verdicts, the kernel judge and its contract, the sweep's package once it exists), then neighbours.
 VERDICT_MODULES = (
     "moments_ref/golden/compare.py", "moments_ref/golden/spread.py", "moments_ref/golden/units.py",
+    "moments_ref/golden/bands.py",
     "moments_ref/golden/loader.py", "moments_ref/golden/engine.py", "moments_ref/golden/profile.py",
     "moments_ref/golden/contract.py", "moments_ref/golden/conventions.py", "moments_ref/golden/bilinear.py",
     "moments_ref/golden/diagnosis.py", "moments_ref/golden/verifier.py",
@@ -229,7 +230,7 @@ def score_table(state, files, equivalents):
     rows, survivors, known = [], [], set()
     for path in files:
         entry = state.get(path)
-        if entry is None:
+        if entry is None or not entry["mutants"]:  # unmeasured, or no mutant to make (sweep/judge.py: two calls)
             continue
         counts = dict.fromkeys(["killed", "timeout", "equivalent", "survived"], 0)
         for mid, (status, by) in entry["mutants"].items():
