@@ -88,7 +88,7 @@ EXAMPLES = [
     (BANDS, "_componentwise::-sign -> sign#0",
      band.test_the_neighbourhood_is_three_ulps_jointly_and_one_ulp_alternating_per_component, ()),
     (BANDS, "noise_of::np.fmax -> np.maximum#0", band.test_the_noise_is_the_90th_percentile_of_the_random_rows_deviations, ()),
-    (BANDS, "confirm::PERTURB_ULPS + 1 -> PERTURB_ULPS - 1#0",
+    (BANDS, "_exact_values::PERTURB_ULPS + 1 -> PERTURB_ULPS - 1#0",
      band.test_confirm_explains_the_exact_values_over_three_float32_ulps_each_way, ()),
     (SPREAD, "_float_tolerances::np.isnan -> np.isinf#0",
      spread.test_a_row_without_an_expected_value_gets_an_infinite_tolerance_not_nan, ()),
