@@ -248,7 +248,7 @@ def case_noise(case, dt):
     return _NOISE[key][1]
 
 
-def legitimate_interval(case, inputs, port_dtype="float32", noise=None):
+def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract=None):
     """Per row and output, the band a correct port's value lies in, and the ill-conditioned rows.
 
     Parameters
@@ -259,6 +259,9 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None):
     port_dtype : {"float32", "float64"}
     noise : tuple of float, optional
         The case's rounding noise per output (default: measured on the case's golden rows).
+    contract : (n,) bool, optional
+        The rows inside the case's contract, where they were decided elsewhere (under a profile, on the
+        papers' inputs: :func:`moments_ref.golden.conventions.contract_mask`); default: from ``inputs``.
 
     Returns
     -------
@@ -278,7 +281,8 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None):
     expected = [np.asarray(x, np.float64) for x in evaluate_reference(case, inputs, np.float64)]
     noise = case_noise(case, dt) if noise is None else noise
     core, hooks = evaluations(case, inputs, dt)
-    parts = interval_parts(case, dt, expected, _contract(case, inputs, n), noise, core, hooks)
+    contract = _contract(case, inputs, n) if contract is None else np.asarray(contract, bool)
+    parts = interval_parts(case, dt, expected, contract, noise, core, hooks)
     bands, ill = {}, np.zeros(n, bool)
     for o, (lo, hi, wide, _, _) in zip(case.outputs, parts):
         bands[o] = (lo, hi)

@@ -55,9 +55,6 @@ def make_spec(case_name, port, adapter=None, profile=None, seed=0, rows=10**6):
                          f"{', '.join(SAMPLERS)}")
     key = "default"
     if profile is not None and not profile.is_default:
-        if profile.depth == "[0,1]" or (profile.bias is not None and profile.bias.applied == "before"):
-            raise InputError("--profile: the sweep draws in the papers' depth range with the harness's bias inside "
-                             "the case; a [0,1] depth range or a bias applied before the call is not supported yet")
         key = profile.key
     if adapter is None and port.language is not None:
         from ..conformance import DEFAULT_DRIVER

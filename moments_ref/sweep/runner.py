@@ -80,6 +80,11 @@ class SweepSpec:
         return _CASES[key]
 
     @property
+    def shaping(self):
+        """The profile that shapes the draw (None for the default profile)."""
+        return None if self.profile is None or self.profile.is_default else self.profile
+
+    @property
     def chunks(self):
         return -(-self.rows // CHUNK)
 
@@ -136,10 +141,10 @@ def run_chunk(spec, chunk):
     """Judge chunk ``chunk`` of ``spec``: counts per stratum, kept rows and seconds per stage."""
     case, t = spec.case, dict.fromkeys(STAGES, 0.0)
     t0 = time.perf_counter()
-    inputs, params = draw_chunk(case, spec.seed, chunk, spec.chunk_rows(chunk), spec.profile_key)
+    inputs, params = draw_chunk(case, spec.seed, chunk, spec.chunk_rows(chunk), spec.profile_key, spec.shaping)
     t["draw"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype)
+    bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, params.get("contract"))
     t["reference"] = time.perf_counter() - t0
     n, strata = len(ill), params["stratum"]
     ungated = np.zeros(n, bool)

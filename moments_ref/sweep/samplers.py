@@ -20,9 +20,11 @@ receivers
 
 Texel formats: the moments b(z) = Σ w_i (z_i, z_i², z_i³, z_i⁴) are computed in float64
 and rounded once to float32 (a 128-bit float texel, HPG17 §2). Per case
-(:data:`SAMPLERS`): Algorithm 1 (``shadow_intensity-*``) gets them biased with the case's
-declared preset (Slides, "Bias the moments": BIAS_FLOAT32, b' = (1 − α) b + α b*, in
-float32 as a shader does); Algorithm 3 (``shade``) gets the representation r = Φ(b') of
+(:data:`SAMPLERS`): Algorithm 1 (``shadow_intensity-*``) gets them biased by the harness
+(Slides, "Bias the moments": BIAS_FLOAT32, b' = (1 − α) b + α b*, in float32 as a shader
+does), or unbiased where the profile declares the bias (inside the port, or applied just
+before the call exactly as for the golden rows, :mod:`.profiled`), in the profile's depth
+range; Algorithm 3 (``shade``) gets the representation r = Φ(b') of
 the biased moments (HPG17 Eq. (5)), and with probability 1/2 the one the 64-bit or the
 32-bit non-linear texel decodes to (pack64/unpack64, pack32/unpack32); the chains
 (``e2e-*``) get the unbiased moments; the texel decoders (``unpack64``, ``unpack32``)
@@ -51,6 +53,7 @@ import numpy as np
 from .. import moments, nonlinear, packing
 from .._kernels import SWEEP_CHUNK
 from ..golden.contract import XI4_RANGE
+from . import profiled
 
 __all__ = ["CHUNK", "TEXELS", "RECEIVERS", "STRATA", "SAMPLERS", "chunk_rng", "draw_chunk", "draw_rows", "build_inputs", "draw_texels", "sweepable"]
 
@@ -143,17 +146,12 @@ def _representation(b, fmt):
     return np.choose(np.asarray(fmt)[:, None], [r, r64, r32]).astype(np.float32)
 
 
-def _preset(case):
-    kw = case.kwargs.get("harness_bias")
-    if kw is not None:
-        return moments.BiasPreset(float(kw["alpha"]), tuple(kw["target"]), "declared")
-    return moments.BIAS_FLOAT32
-
-
 def _algorithm1(case, b, zf, fmt):
     if (case.kwargs.get("profile") or {}).get("bias") is not None:
-        return {"b": b, "zf": zf}  # the profile's port biases inside: it gets the texel's moments
-    return {"b": _biased(b, _preset(case)), "zf": zf}
+        # The profile declares the bias: the port biases inside, or the harness just before the call (exactly,
+        # in the engine's frame, :mod:`.profiled`); either way the row starts from the texel's moments.
+        return {"b": b, "zf": zf}
+    return {"b": _biased(b, moments.BIAS_FLOAT32), "zf": zf}
 
 
 def _shade(case, b, zf, fmt):
@@ -197,11 +195,24 @@ def sweepable(name):
     return _sampler(name) is not None
 
 
-def build_inputs(case, rows):
-    """The case's inputs for row parameters ``rows`` (``z``, ``w`` (n, 6), ``zf`` (n,), ``fmt`` (n,))."""
+def build_inputs(case, rows, profile=None):
+    """The case's inputs for row parameters ``rows`` (``z``, ``w`` (n, 6), ``zf`` (n,), ``fmt`` (n,)).
+
+    Under a ``profile`` (:class:`~moments_ref.golden.profile.Profile`; ``case`` profiled by it) the
+    rows are drawn in the papers' frame and converted as the golden rows are (:mod:`.profiled`: a
+    [0, 1] depth range, a bias applied before the call); ``rows`` then also gets ``contract``, the
+    rows inside the case's contract decided on the papers' inputs with the declared bias
+    (:func:`moments_ref.golden.conventions.contract_mask`), None where the conversion changes nothing.
+    """
     b = _texel_moments(rows["z"], rows["w"])
     zf = np.asarray(rows["zf"], np.float64).astype(np.float32)
     inputs = _sampler(case.name)(case, b, zf, np.asarray(rows["fmt"]))
+    if profile is not None and (profiled.unit_depth(case) or profiled.harness_bias(case) is not None):
+        from ..golden import CASES
+        from ..golden.conventions import contract_mask
+
+        rows["contract"] = contract_mask(CASES[case.name], inputs, profile)
+        inputs = profiled.convert_inputs(case, inputs)
     return {k: np.ascontiguousarray(v) for k, v in inputs.items()}
 
 
@@ -220,7 +231,8 @@ def draw_rows(case, seed, chunk, rows=CHUNK, profile_key="default"):
     return {"z": z[:rows], "w": w[:rows], "zf": zf[:rows], "fmt": fmt[:rows], "stratum": stratum[:rows]}
 
 
-def draw_chunk(case, seed, chunk, rows=CHUNK, profile_key="default"):
-    """The first ``rows`` rows of chunk ``chunk``: ``(inputs, row parameters)`` (:func:`draw_rows`)."""
+def draw_chunk(case, seed, chunk, rows=CHUNK, profile_key="default", profile=None):
+    """The first ``rows`` rows of chunk ``chunk``: ``(inputs, row parameters)`` (:func:`draw_rows`,
+    :func:`build_inputs`)."""
     params = draw_rows(case, seed, chunk, rows, profile_key)
-    return build_inputs(case, params), params
+    return build_inputs(case, params, profile), params
