@@ -76,7 +76,8 @@ def test_judge_flags_a_wrong_value_and_confirms_it():
 
 
 @pytest.mark.parametrize("argv, text", [
-    (["--rows", "1.5"], "--rows"), (["--case", "nope"], "--case"), (["--case", "kernel-filter-nlq64-float32"], "--case")])
+    (["--rows", "1.5"], "--rows"), (["--case", "nope"], "--case"), (["--case", "kernel-filter-nlq64-float32"], "--case"),
+    (["--case", "engine-lower-float32"], "judge them with conformance")])
 def test_cli_bad_usage_exits_2_with_one_line(argv, text):
     args = ["--glsl", "msm.glsl", "--function", "shadow_intensity_lower", "--case", CASE, "--rows", "10"]
     for k in range(0, len(argv), 2):
@@ -110,3 +111,25 @@ def test_dask_local_cluster_equals_local_run():
     local = run_chunks(spec)
     strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa: E731
     assert strip(remote) == strip(local)
+
+
+def test_six_moment_bound_is_swept_the_reference_passes_and_a_mutant_is_found():
+    from moments_ref import msm6
+
+    case = "shadow_intensity6-lower-float32"
+    assert oracle.sweep(lambda b, zf: msm6.shadow_intensity(b, zf, bound="lower"), case, rows=4000).passed
+
+    def acne(b, zf):  # one-change mutant: an absolute acne offset of 1e-3 on zf
+        return msm6.shadow_intensity(b, np.asarray(zf, np.float32) - np.float32(1e-3), bound="lower")
+
+    res = oracle.sweep(acne, case, rows=4000, shrink=False)
+    assert not res.passed
+    # The texel's six moments are those of its depths (float32), biased with BIAS6_FLOAT32.
+    params = draw_rows(golden.CASES[case], 0, 0, rows=50)
+    from moments_ref.sweep.samplers import build_inputs
+    from moments_ref.moments import bias_moments, power_moments
+    from moments_ref.msm6 import BIAS6_FLOAT32
+
+    b = build_inputs(golden.CASES[case], params)["b"]
+    want = bias_moments(power_moments(params["z"], params["w"], n=6).astype(np.float32), BIAS6_FLOAT32)
+    assert b.shape == (50, 6) and np.array_equal(b, want)

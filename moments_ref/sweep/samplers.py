@@ -24,7 +24,9 @@ and rounded once to float32 (a 128-bit float texel, HPG17 §2). Per case
 (Slides, "Bias the moments": BIAS_FLOAT32, b' = (1 − α) b + α b*, in float32 as a shader
 does), or unbiased where the profile declares the bias (inside the port, or applied just
 before the call exactly as for the golden rows, :mod:`.profiled`), in the profile's depth
-range; Algorithm 3 (``shade``) gets the representation r = Φ(b') of
+range; the six-moment bound (``shadow_intensity6-*``, slides, "Prefiltered single
+scattering") gets the six moments Σ w_i z_i^k (k = 1 … 6), biased by the harness with
+BIAS6_FLOAT32 (α = 3e-4, the golden rows' preset) in float32; Algorithm 3 (``shade``) gets the representation r = Φ(b') of
 the biased moments (HPG17 Eq. (5)), and with probability 1/2 the one the 64-bit or the
 32-bit non-linear texel decodes to (pack64/unpack64, pack32/unpack32); the chains
 (``e2e-*``) get the unbiased moments; the texel decoders (``unpack64``, ``unpack32``)
@@ -127,8 +129,8 @@ def _receivers(rng, z, w):
     return zf, kind
 
 
-def _texel_moments(z, w):
-    return moments.power_moments(np.asarray(z, np.float64), np.asarray(w, np.float64)).astype(np.float32)
+def _texel_moments(z, w, n=4):
+    return moments.power_moments(np.asarray(z, np.float64), np.asarray(w, np.float64), n=n).astype(np.float32)
 
 
 def _biased(b, preset):
@@ -152,6 +154,16 @@ def _algorithm1(case, b, zf, fmt):
         # in the engine's frame, :mod:`.profiled`); either way the row starts from the texel's moments.
         return {"b": b, "zf": zf}
     return {"b": _biased(b, moments.BIAS_FLOAT32), "zf": zf}
+
+
+def _algorithm1_six(case, b, zf, fmt):
+    """The six-moment bound (slides, "Prefiltered single scattering"): b(z) with six moments, biased by the harness
+    with BIAS6_FLOAT32 in float32 (the case's golden rows' preset), or unbiased where the profile declares the bias."""
+    if (case.kwargs.get("profile") or {}).get("bias") is not None:
+        return {"b": b, "zf": zf}
+    from ..msm6 import BIAS6_FLOAT32
+
+    return {"b": _biased(b, BIAS6_FLOAT32), "zf": zf}
 
 
 def _shade(case, b, zf, fmt):
@@ -178,6 +190,7 @@ def _pack(case, b, zf, fmt):
 #: Case name prefix -> how a texel and a receiver become the case's inputs.
 SAMPLERS = {
     "shadow_intensity-lower": _algorithm1, "shadow_intensity-upper": _algorithm1,
+    "shadow_intensity6-lower": _algorithm1_six, "shadow_intensity6-upper": _algorithm1_six,
     "shade": _shade, "e2e-nlq64": _chain, "e2e-nlq32": _chain, "e2e-msm64": _chain,
     "unpack64": _unpack64, "unpack32": _unpack32, "pack64": _pack, "pack32": _pack,
 }
@@ -204,7 +217,7 @@ def build_inputs(case, rows, profile=None):
     rows inside the case's contract decided on the papers' inputs with the declared bias
     (:func:`moments_ref.golden.conventions.contract_mask`), None where the conversion changes nothing.
     """
-    b = _texel_moments(rows["z"], rows["w"])
+    b = _texel_moments(rows["z"], rows["w"], 6 if case.width == 6 else 4)
     zf = np.asarray(rows["zf"], np.float64).astype(np.float32)
     inputs = _sampler(case.name)(case, b, zf, np.asarray(rows["fmt"]))
     if profile is not None and (profiled.unit_depth(case) or profiled.harness_bias(case) is not None):
