@@ -157,3 +157,18 @@ def test_ill_conditioned_rows_are_judged_by_their_neighbourhood():
     wrong = {"intensity": np.where(hi[pick] < 0.4, 1.0, 0.0).astype(np.float32)}
     assert wrong_rows(case, sub_bands, ill[pick], wrong).all()
     assert judge.confirm(case, sub, wrong).all()
+
+
+def test_measurement_tables_are_written_between_the_markers(tmp_path):
+    from moments_ref.sweep import measure
+
+    drivers = {"gl": {"flagged": 3, "confirmed": 1, "unconfirmed": 2}}
+    rec = {"language": "glsl", "path": "msm.glsl", "function": "f", "case": CASE, "drivers": drivers, "wall_s": 2.0,
+           "strata": {"one/near": {"ill_conditioned": 5}}, "rows_per_s": {"draw": 1e6}}
+    text = measure.tables([rec], [], 10**6)
+    assert "| glsl/msm.glsl | `f` | " + CASE + " | 3 / 1 / 2 | – | 5 | 2 |" in text
+    doc = tmp_path / "d.md"
+    doc.write_text("head\n<!-- measured:begin -->\nold\n<!-- measured:end -->\ntail\n")
+    measure.write_doc(doc, text)
+    out = doc.read_text()
+    assert out == "head\n<!-- measured:begin -->\n" + text + "<!-- measured:end -->\ntail\n"
