@@ -30,8 +30,8 @@ References
        lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
        moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
        Cited by slide title, e.g. Slides, "Bias the moments".
-.. [2] T. Ogita, S. M. Rump, S. Oishi. 2005. *Accurate sum and dot product*. SIAM J. Sci.
-       Comput. 26(6), 1955–1988 (TwoSum, SumK).
+.. [2] T. Ogita, S. M. Rump, S. Oishi. 2005. *Accurate sum and dot product*. SIAM J. Sci. Comput.
+       26(6), 1955–1988 (TwoSum, SumK).
 """
 
 from __future__ import annotations
