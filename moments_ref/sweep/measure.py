@@ -92,14 +92,15 @@ def _rate(x):
 
 def tables(shipped, mutants, rows, note=""):
     """Markdown of the measurements."""
-    lines = [f"Rows per driver: {rows:.0e}, seed 0, 2 spawned workers; flagged / confirmed wrong / unconfirmed "
-             f"flags per driver (gl = llvmpipe, vulkan = lavapipe). {note}".rstrip(), "",
-             "| port | function | case | gl | vulkan | ill-conditioned (judged) | wall s |", "|---|---|---|---|---|---:|---:|"]
+    lines = [f"Seed 0, 2 spawned workers; flagged / confirmed wrong / unconfirmed flags per driver (gl = llvmpipe, "
+             f"vulkan = lavapipe). {note}".rstrip(), "",
+             "| port | function | case | rows per driver | gl | vulkan | ill-conditioned (judged) | wall s |",
+             "|---|---|---|---:|---|---|---:|---:|"]
     for r in shipped:
         d = r["drivers"]
         cell = lambda k: f"{d[k]['flagged']} / {d[k]['confirmed']} / {d[k]['unconfirmed']}" if k in d else "–"  # noqa: E731
         ill = sum(v["ill_conditioned"] for v in r["strata"].values())
-        lines.append(f"| {r['language']}/{r['path']} | `{r['function']}` | {r['case']} | {cell('gl')} | "
+        lines.append(f"| {r['language']}/{r['path']} | `{r['function']}` | {r['case']} | {r['rows']:.3g} | {cell('gl')} | "
                      f"{cell('vulkan')} | {ill} | {r['wall_s']:.0f} |")
     lines += ["", "Rows/s of each stage (summed over the workers' processes, so one process's rate), the same runs:", "",
               "| port | case | " + " | ".join(STAGES) + " |", "|---|---|" + "---:|" * len(STAGES)]
@@ -143,14 +144,17 @@ def main(argv=None):
     ap.add_argument("--languages", default=",".join(LANGUAGES))
     ap.add_argument("--cases", default=",".join(SHIPPED_CASES))
     ap.add_argument("--corpus", help="tests/sweep_mutants/corpus.py: also sweep its mutants")
-    ap.add_argument("--json", required=True, help="the records (read back with --from-json)")
+    ap.add_argument("--json", required=True, help="the records (read back with --from-json; there, comma-separated "
+                                                  "files are merged)")
     ap.add_argument("--from-json", action="store_true", help="do not sweep: write the tables from --json")
     ap.add_argument("--doc", help="docs/sweep.md: write the tables between its markers")
     ap.add_argument("--note", default="")
     a = ap.parse_args(argv)
     rows = int(float(a.rows))
     if a.from_json:
-        data = json.loads(Path(a.json).read_text())
+        parts = [json.loads(Path(f).read_text()) for f in a.json.split(",")]
+        data = {"rows": parts[0]["rows"], "shipped": [r for p in parts for r in p["shipped"]],
+                "mutants": [m for p in parts for m in p.get("mutants", [])]}
     else:
         import tempfile
 
