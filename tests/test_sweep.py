@@ -173,3 +173,19 @@ def test_measurement_tables_are_written_between_the_markers(tmp_path):
     measure.write_doc(doc, text)
     out = doc.read_text()
     assert out == "head\n<!-- measured:begin -->\n" + text + "<!-- measured:end -->\ntail\n"
+
+
+def test_a_code_on_a_rounding_tie_is_not_confirmed_wrong():
+    """pack64's ξ4 code where 65535·Ψ4(ξ4) = 54700.004 (the exact code 54701, ceil): a GPU whose log is a few ulps
+    off stores 54700, which the goldens' tie rule accepts (TIE_BAND); the sweep's confirmation accepts it too, and
+    still confirms a code two off."""
+    from moments_ref.sweep import judge
+
+    case = golden.CASES["pack64-float32"]
+    r = np.array([[-0.949906051158905, 0.5926446914672852, 0.17064373195171356, 0.00012449920177459717]], np.float32)
+    exact = case.truth(r=r.astype(float))[0]
+    assert exact[0, 3] == 54701
+    codes = np.repeat(exact, 3, axis=0).astype(np.uint16)
+    codes[:, 3] = [54701, 54700, 54699]
+    inputs = {"r": np.repeat(r, 3, axis=0)}
+    assert judge.confirm(case, inputs, {"q": codes}).tolist() == [False, False, True]
