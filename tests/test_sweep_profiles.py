@@ -92,3 +92,15 @@ def test_cli_sweeps_a_unit_profile_instead_of_refusing_it(tmp_path):
     p = subprocess.run([sys.executable, "-m", "moments_ref", "sweep", *args], capture_output=True, text=True)
     assert p.returncode in (0, 1) and "Traceback" not in p.stderr, p.stderr
     assert p.returncode == 0, p.stdout + p.stderr
+
+
+def test_six_moments_convert_to_unit_depth_as_the_goldens_do():
+    profile = Profile(depth="[0,1]")
+    base = golden.CASES["shadow_intensity6-lower-float32"]
+    case = profiled_case(base, profile)
+    params = draw_rows(case, 0, 0, rows=600, profile_key=profile.key)
+    got = build_inputs(case, dict(params), profile)
+    want = golden_convert(base, build_inputs(base, dict(params)), profile)
+    assert got["b"].shape == (600, 6)
+    for k in ("b", "zf"):
+        assert np.array_equal(got[k].view(np.uint32), np.asarray(want[k], np.float32).view(np.uint32)), k
