@@ -90,8 +90,8 @@ def _rate(x):
     return "–" if not x else f"{x:.2g}".replace("e+0", "·10^").replace("e+", "·10^")
 
 
-def tables(shipped, mutants, rows, note=""):
-    """Markdown of the measurements."""
+def tables(shipped, mutants, rows, note="", mutant_rows=None):
+    """Markdown of the measurements (``mutant_rows``: the rows of the mutants' sweeps, default ``rows``)."""
     lines = [f"Seed 0, 2 spawned workers; flagged / confirmed wrong / unconfirmed flags per driver (gl = llvmpipe, "
              f"vulkan = lavapipe). {note}".rstrip(), "",
              "| port | function | case | rows per driver | gl | vulkan | ill-conditioned (judged) | wall s |",
@@ -108,7 +108,9 @@ def tables(shipped, mutants, rows, note=""):
         lines.append(f"| {r['language']}/{r['path']} | {r['case']} | "
                      + " | ".join(_rate(r["rows_per_s"].get(s)) for s in STAGES) + " |")
     if mutants:
-        lines += ["", f"The mutants of `tests/sweep_mutants/corpus.py`, {rows:.0e} rows on llvmpipe:", "",
+        lines += ["", f"The mutants of `tests/sweep_mutants/corpus.py`, {mutant_rows or rows:.0e} rows on llvmpipe "
+                  "(confirmed: at most 64 examined per chunk; goldens: whether every golden case of the function "
+                  "passes it):", "",
                   "| mutant | goldens | confirmed (examined) / flagged | first hit (row) | shrunk row "
                   "(depths; weights; zf; texel) | got → band |", "|---|---|---:|---:|---|---|"]
         for m in mutants:
@@ -154,7 +156,8 @@ def main(argv=None):
     if a.from_json:
         parts = [json.loads(Path(f).read_text()) for f in a.json.split(",")]
         data = {"rows": parts[0]["rows"], "shipped": [r for p in parts for r in p["shipped"]],
-                "mutants": [m for p in parts for m in p.get("mutants", [])]}
+                "mutants": [m for p in parts for m in p.get("mutants", [])],
+                "mutant_rows": next((p["mutant_rows"] for p in parts if "mutant_rows" in p), None)}
     else:
         import tempfile
 
@@ -163,8 +166,9 @@ def main(argv=None):
         if a.corpus:
             with tempfile.TemporaryDirectory() as tmp:
                 data["mutants"] = mutant_runs(a.corpus, int(float(a.mutant_rows)), tmp)
+                data["mutant_rows"] = int(float(a.mutant_rows))
         Path(a.json).write_text(json.dumps(data, indent=1, default=float))
-    text = tables(data["shipped"], data.get("mutants", []), data["rows"], a.note)
+    text = tables(data["shipped"], data.get("mutants", []), data["rows"], a.note, data.get("mutant_rows"))
     if a.doc:
         write_doc(a.doc, text)
     else:
