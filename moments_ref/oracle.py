@@ -271,7 +271,7 @@ def _report(c, name, dtype, arrays, got, verdict):
         worst_expected=np.asarray(arrays[o])[i], per_category=per, passed=verdict.passed)
 
 
-def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True):
+def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True, profile=None):
     """Judge a Python implementation on ``rows`` engine-like rows, as ``moments-ref sweep`` judges a port.
 
     Parameters
@@ -286,6 +286,9 @@ def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True):
         Rows drawn (in chunks of :data:`moments_ref.sweep.CHUNK`) and the draw's seed.
     out : path, optional
         Folder for the checkpoint and one golden folder per shrunk failure.
+    profile : moments_ref.golden.profile.Profile or path, optional
+        The engine's declared conventions (as for :func:`check`): they shape the rows drawn
+        ([0, 1] depths, a bias applied before the call) and the expected values.
 
     Returns
     -------
@@ -301,5 +304,9 @@ def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True):
         raise InputError(f"case: unknown case {case!r}")
     from .sweep.command import make_spec
 
-    spec = make_spec(name, Port(fn=fn, vectorized=vectorized), None, None, seed, int(rows))
+    if profile is not None and not hasattr(profile, "is_default"):
+        from .golden.profile import load_profile
+
+        profile = load_profile(profile)
+    spec = make_spec(name, Port(fn=fn, vectorized=vectorized), None, profile, seed, int(rows))
     return sweep_port(spec, 1, None, out, None, shrink)

@@ -76,7 +76,8 @@ def test_judge_flags_a_wrong_value_and_confirms_it():
 
 
 @pytest.mark.parametrize("argv, text", [
-    (["--rows", "1.5"], "--rows"), (["--case", "nope"], "--case"), (["--case", "kernel-filter-nlq64-float32"], "--case")])
+    (["--rows", "1.5"], "--rows"), (["--case", "nope"], "--case"), (["--case", "kernel-filter-nlq64-float32"], "--case"),
+    (["--case", "engine-lower-float32"], "judge them with conformance")])
 def test_cli_bad_usage_exits_2_with_one_line(argv, text):
     args = ["--glsl", "msm.glsl", "--function", "shadow_intensity_lower", "--case", CASE, "--rows", "10"]
     for k in range(0, len(argv), 2):
@@ -93,7 +94,8 @@ def test_shipped_glsl_passes_and_a_glsl_mutant_the_goldens_miss_is_found(ctx, tm
     spec = SweepSpec("shadow_intensity-upper-float32", Port(str(path), fn, "glsl"), ("gl",), rows=2 * CHUNK)
     res = sweep_port(spec)
     assert res.passed  # flags of today's tolerance model near singular texels stay unconfirmed
-    src = path.read_text().replace("float l = (zf <= z1) ? 0.0", "float l = (zf <= z1 + 1e-4 * (z2 - z1)) ? 0.0")
+    w0 = "float w0 = 1.0 / (1.0 + y2 * y2 / sigma2 + y3 * y3 / xi4);"  # a floor on xi4 in w0 (tests/sweep_mutants)
+    src = path.read_text().replace(w0, w0.replace("y3 * y3 / xi4", "y3 * y3 / max(xi4, 5e-8)"))
     mutant = tmp_path / "msm.glsl"
     mutant.write_text(src)
     assert run_case(mutant, fn, "shadow_intensity-upper-float32", language="glsl", adapter="gl").passed
@@ -110,3 +112,80 @@ def test_dask_local_cluster_equals_local_run():
     local = run_chunks(spec)
     strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa: E731
     assert strip(remote) == strip(local)
+
+
+def test_six_moment_bound_is_swept_the_reference_passes_and_a_mutant_is_found():
+    from moments_ref import msm6
+
+    case = "shadow_intensity6-lower-float32"
+    assert oracle.sweep(lambda b, zf: msm6.shadow_intensity(b, zf, bound="lower"), case, rows=4000).passed
+
+    def acne(b, zf):  # one-change mutant: an absolute acne offset of 1e-3 on zf
+        return msm6.shadow_intensity(b, np.asarray(zf, np.float32) - np.float32(1e-3), bound="lower")
+
+    res = oracle.sweep(acne, case, rows=4000, shrink=False)
+    assert not res.passed
+    # The texel's six moments are those of its depths (float32), biased with BIAS6_FLOAT32.
+    params = draw_rows(golden.CASES[case], 0, 0, rows=50)
+    from moments_ref.sweep.samplers import build_inputs
+    from moments_ref.moments import bias_moments, power_moments
+    from moments_ref.msm6 import BIAS6_FLOAT32
+
+    b = build_inputs(golden.CASES[case], params)["b"]
+    want = bias_moments(power_moments(params["z"], params["w"], n=6).astype(np.float32), BIAS6_FLOAT32)
+    assert b.shape == (50, 6) and np.array_equal(b, want)
+
+
+def test_ill_conditioned_rows_are_judged_by_their_neighbourhood():
+    """The near strata's ill-conditioned rows count as judged: a value outside every neighbour's exact value and every
+    legitimate evaluation is flagged and confirmed; the exact value (mpmath) is not flagged."""
+    from moments_ref.sweep import judge
+    from moments_ref.sweep.runner import wrong_rows
+    from moments_ref.sweep.samplers import draw_chunk
+
+    case = golden.CASES["shadow_intensity-upper-float32"]
+    inputs, params = draw_chunk(case, 0, 0, rows=6000)
+    bands, ill = judge.legitimate_interval(case, inputs)
+    lo, hi = bands["intensity"]
+    # Ill-conditioned rows whose neighbourhood still decides the side of one half (a third of them: docs/sweep.md).
+    pick = np.flatnonzero(ill & ((hi < 0.4) | (lo > 0.6)))[:4]
+    assert pick.size == 4
+    sub = {k: v[pick] for k, v in inputs.items()}
+    exact = case.truth(b=sub["b"].astype(float), zf=sub["zf"].astype(float))[0]
+    sub_bands = {"intensity": (lo[pick], hi[pick])}
+    assert not wrong_rows(case, sub_bands, ill[pick], {"intensity": exact}).any()
+    wrong = {"intensity": np.where(hi[pick] < 0.4, 1.0, 0.0).astype(np.float32)}
+    assert wrong_rows(case, sub_bands, ill[pick], wrong).all()
+    assert judge.confirm(case, sub, wrong).all()
+
+
+def test_measurement_tables_are_written_between_the_markers(tmp_path):
+    from moments_ref.sweep import measure
+
+    drivers = {"gl": {"flagged": 3, "confirmed": 1, "unconfirmed": 2}}
+    rec = {"language": "glsl", "path": "msm.glsl", "function": "f", "case": CASE, "drivers": drivers, "wall_s": 2.0,
+           "rows": 10**6,
+           "strata": {"one/near": {"ill_conditioned": 5}}, "rows_per_s": {"draw": 1e6}}
+    text = measure.tables([rec], [], 10**6)
+    assert "| glsl/msm.glsl | `f` | " + CASE + " | 1e+06 | 3 / 1 / 2 | – | 5 | 2 |" in text
+    doc = tmp_path / "d.md"
+    doc.write_text("head\n<!-- measured:begin -->\nold\n<!-- measured:end -->\ntail\n")
+    measure.write_doc(doc, text)
+    out = doc.read_text()
+    assert out == "head\n<!-- measured:begin -->\n" + text + "<!-- measured:end -->\ntail\n"
+
+
+def test_a_code_on_a_rounding_tie_is_not_confirmed_wrong():
+    """pack64's ξ4 code where 65535·Ψ4(ξ4) = 54700.004 (the exact code 54701, ceil): a GPU whose log is a few ulps
+    off stores 54700, which the goldens' tie rule accepts (TIE_BAND); the sweep's confirmation accepts it too, and
+    still confirms a code two off."""
+    from moments_ref.sweep import judge
+
+    case = golden.CASES["pack64-float32"]
+    r = np.array([[-0.949906051158905, 0.5926446914672852, 0.17064373195171356, 0.00012449920177459717]], np.float32)
+    exact = case.truth(r=r.astype(float))[0]
+    assert exact[0, 3] == 54701
+    codes = np.repeat(exact, 3, axis=0).astype(np.uint16)
+    codes[:, 3] = [54701, 54700, 54699]
+    inputs = {"r": np.repeat(r, 3, axis=0)}
+    assert judge.confirm(case, inputs, {"q": codes}).tolist() == [False, False, True]

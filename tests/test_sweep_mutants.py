@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from sweep_mutants.corpus import CAUGHT_BY_THE_GOLDENS, LEGITIMATE, MUTANTS  # noqa: E402
+from sweep_mutants.corpus import CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS  # noqa: E402
 
 from moments_ref.conformance import PORTS_DIR, run_case  # noqa: E402
 from moments_ref.sweep import CHUNK, Port, SweepSpec, sweep_port  # noqa: E402
@@ -56,3 +56,19 @@ def test_other_legitimate_variants_pass(ctx, tmp_path, entry):
 def test_the_corpus_has_ten_mutants_of_both_algorithms_that_the_goldens_miss():
     missed = [m for m in MUTANTS if m[0] not in CAUGHT_BY_THE_GOLDENS]
     assert len(missed) >= 10 and {m[3] for m in missed} >= {"shadow_intensity-lower-float32", "shade-float32"}
+
+
+@pytest.mark.parametrize("case, prefix, mutant", EDGE_ROWS_CATCH, ids=[f"{e[1]}-{e[2]}" for e in EDGE_ROWS_CATCH])
+def test_each_golden_edge_row_from_the_sweep_catches_a_mutant_and_passes_the_shipped_port(ctx, tmp_path, case, prefix,
+                                                                                         mutant):
+    from moments_ref.golden.conventions import profiled_arrays
+
+    _, arrays = profiled_arrays(case)
+    rows = [i for i, c in enumerate(arrays["comment"]) if str(c).startswith(prefix)]
+    assert len(rows) == 1 and arrays["category"][rows[0]] == "edge"
+    entry = next(m for m in MUTANTS if m[0] == mutant)
+    assert entry[3] == case
+    path, function, _ = _port(tmp_path, entry)
+    assert not run_case(path, function, case, language="glsl", adapter="gl").row_pass[rows[0]]
+    shipped = run_case(PORTS_DIR / "glsl" / entry[1], function, case, language="glsl", adapter="gl")
+    assert shipped.passed and shipped.row_pass[rows[0]]

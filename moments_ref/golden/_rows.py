@@ -163,6 +163,27 @@ def _msm_rows(rng, dtype):
     return Rows.concat(parts)
 
 
+#: Edge rows from the sweep's shrunk failures (docs/sweep.md, "What it finds"): regions of engine-like input that
+#: the rows above missed, each catching one-change porting bugs (tests/sweep_mutants/corpus.py) the other rows pass.
+_ALG1_SWEEP_EDGES = [
+    ((-0.006,), (1.0,), -0.006 + 1e-4,
+     "sweep: one depth -0.006 after BIAS_FLOAT32, zf 1e-4 behind it (a relative acne epsilon 1e-4·(z2 - z1) at z1 "
+     "shadows nothing here)"),
+    ((1.0, -1.0), (0.99, 0.01), 0.0,
+     "sweep: a faint occluder far in front of the mean (weight 0.01 at -1, 0.99 at 1) after BIAS_FLOAT32, zf = 0 "
+     "(a Chebyshev k·sigma early out returns 0 here)"),
+]
+
+
+def _alg1_rows(rng, dtype):
+    """Rows for Algorithm 1: those of :func:`_msm_rows` and the sweep's edge rows (:data:`_ALG1_SWEEP_EDGES`)."""
+    parts = [_msm_rows(rng, dtype)]
+    for zs, ws, zf, why in _ALG1_SWEEP_EDGES:
+        b = bias_moments(power_moments(np.array(zs), np.array(ws)), BIAS_FLOAT32)
+        parts.append(_rows({"b": b[None], "zf": np.array([zf])}, "edge", why))
+    return Rows.concat(parts)
+
+
 def _moment_rows(rng, dtype):
     """Rows of moment vectors b: random, near the boundary, at the range ends."""
     z, w = _random_distributions(rng, 120, 1, 8)

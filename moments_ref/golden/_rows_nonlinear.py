@@ -182,7 +182,29 @@ def _shade_rows(rng, dtype):
         parts.append(Rows({"r": np.repeat(rep[None], len(zf), 0), "zf": zf}, [cat] * len(zf),
                           [f"{what}, {w} = {x:.9g}" for w, x in zip(why, zf)],
                           [fl + (("support_point",) if k < 2 else ()) for k in range(len(zf))]))
-    return Rows.concat(parts)
+    return Rows.concat(parts + _shade_sweep_edges())
+
+
+#: Edge rows from the sweep's shrunk failures (docs/sweep.md): representations Φ of biased two-depth texels.
+_SHADE_SWEEP_EDGES = [
+    ((0.995, -0.998), (0.5, 0.5), 0.9951,
+     "sweep: a nearly two-point texel (depths 0.995, -0.998, equal weights) after BIAS_FLOAT32, zf = 0.9951 "
+     "(xi'4 near 1e-8: a floor on xi'4 above the smallest normal float moves w_l)"),
+    ((-0.997, 0.93), (0.00082, 0.99918), -0.996,
+     "sweep: v2 within 1e-3 of 1 (a faint depth -0.997 in front of 0.93) after BIAS_FLOAT32, zf 1e-3 behind y1 "
+     "(a one-sided early out returns 0 here)"),
+]
+
+
+def _shade_sweep_edges():
+    from ..moments import BIAS_FLOAT32, bias_moments, power_moments
+    from ..nonlinear import phi
+
+    parts = []
+    for zs, ws, zf, why in _SHADE_SWEEP_EDGES:
+        r = phi(bias_moments(power_moments(np.array(zs), np.array(ws)), BIAS_FLOAT32))
+        parts.append(_rows({"r": r[None], "zf": np.array([zf])}, "edge", why))
+    return parts
 
 
 def _psi4_rows(rng, dtype):

@@ -42,7 +42,7 @@ from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
-__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
+__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
            "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
 #: Joint scaling of the float inputs, in ulps of the port's precision.
@@ -247,7 +247,7 @@ def case_noise(case, dt):
     return _NOISE[key][1]
 
 
-def legitimate_interval(case, inputs, port_dtype="float32", noise=None):
+def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract=None):
     """Per row and output, the band a correct port's value lies in, and the ill-conditioned rows.
 
     Parameters
@@ -258,6 +258,9 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None):
     port_dtype : {"float32", "float64"}
     noise : tuple of float, optional
         The case's rounding noise per output (default: measured on the case's golden rows).
+    contract : (n,) bool, optional
+        The rows inside the case's contract, where they were decided elsewhere (under a profile, on the
+        papers' inputs: :func:`moments_ref.golden.conventions.contract_mask`); default: from ``inputs``.
 
     Returns
     -------
@@ -277,7 +280,8 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None):
     expected = [np.asarray(x, np.float64) for x in evaluate_reference(case, inputs, np.float64)]
     noise = case_noise(case, dt) if noise is None else noise
     core, hooks = evaluations(case, inputs, dt)
-    parts = interval_parts(case, dt, expected, _contract(case, inputs, n), noise, core, hooks)
+    contract = _contract(case, inputs, n) if contract is None else np.asarray(contract, bool)
+    parts = interval_parts(case, dt, expected, contract, noise, core, hooks)
     bands, ill = {}, np.zeros(n, bool)
     for o, (lo, hi, wide, _, _) in zip(case.outputs, parts):
         bands[o] = (lo, hi)
@@ -290,10 +294,9 @@ def _derived_bands(case, inputs, dt, n):
     labels = (np.full(n, "random"), [""] * n, [()] * n)
     if case.deriver is not None:
         arrays = case.deriver(case, inputs, *labels)
-    else:  # codes: the truth's and the reference's in float32 and float64 (the goldens' tie rule, unnudged)
+    else:  # codes: the goldens' tie rule (the truth's, the reference's in float32 and float64, nudged)
         inputs = {k: inputs[k] for k in case.inputs}
-        codes = [expected_outputs(case, inputs), evaluate_reference(case, inputs, np.float32),
-                 evaluate_reference(case, inputs, np.float64)]
+        codes = [expected_outputs(case, inputs)] + tie_codes(case, inputs)
         arrays = {"flags": np.full(n, "")}
         for i, o in enumerate(case.outputs):
             arrays[o] = np.asarray(codes[0][i])
@@ -309,6 +312,23 @@ def _derived_bands(case, inputs, dt, n):
             bands[o] = (e - t, e + t)
     flags = np.asarray(arrays["flags"])
     return bands, np.array(["wide_spread" in str(f).split(",") for f in flags], bool)
+
+
+#: The goldens' rounding-tie nudge (:mod:`moments_ref.golden.spread`): inputs scaled by 1 ± 8 float32 eps.
+TIE_NUDGE = 8 * float(np.finfo(np.float32).eps)
+#: A code is on a rounding tie where the exact scaled value lies within this fraction of the code range from a
+#: rounding boundary (the case's ``margin``); there either neighbouring code is legitimate (a GPU's ``log`` or
+#: ``exp`` a few ulps off moves the scaled value by that much). :mod:`moments_ref.golden.spread` uses the same band.
+TIE_BAND = 64 * 2.0**-24
+
+
+def tie_codes(case, inputs):
+    """The codes the goldens' tie rule accepts besides the truth's: the reference in float32 and float64, and in
+    float64 on the inputs scaled by ``1 ± TIE_NUDGE`` (values in [−1, 1] stay inside)."""
+    out = [evaluate_reference(case, inputs, np.float32), evaluate_reference(case, inputs, np.float64)]
+    for f in (1 + TIE_NUDGE, 1 - TIE_NUDGE):
+        out.append(evaluate_reference(case, _scaled(case, inputs, f), np.float64))
+    return out
 
 
 def _exact(case, point):
@@ -393,13 +413,21 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     if not case.integer_output:
         core, hooks = evaluations(case, inputs, dt)
         values += core + [_within_cap(case, h, values[0]) for h in hooks]
+    else:  # and the codes of the goldens' tie rule
+        values += tie_codes(case, inputs)
     wrong = np.zeros(n, bool)
+    near_tie = None
+    if case.integer_output and case.margin is not None:
+        near_tie = np.asarray(case.margin(**inputs), np.float64).reshape(n) <= TIE_BAND
     for i, o in enumerate(case.outputs):
         g = np.asarray(got[o], np.float64)
         if case.integer_output:
             ok = np.zeros(g.shape, bool)
             for v in values:
                 ok |= g == np.asarray(v[i], np.float64)
+            if near_tie is not None:  # on a rounding tie: either code next to the boundary
+                t = near_tie.reshape((n,) + (1,) * (g.ndim - 1))
+                ok |= t & (np.abs(g - np.asarray(values[0][i], np.float64)) <= 1)
         else:
             e = np.asarray(values[0][i], np.float64)
             lo, hi, _ = _span(e, [v[i] for v in values])

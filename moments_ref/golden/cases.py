@@ -36,7 +36,7 @@ from . import contract as _contract_mod
 from . import bilinear, endtoend, engine, kernels, texel_truth
 from .paper import alg1_paper_spread, alg3_paper_spread
 from .variants import alg1_variant, bias_variant, phi_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
-from ._rows import (_hausdorff_rows, _moment6_rows, _moment_rows, _msm6_rows, _msm_rows, _optimized_rows, _phi_rows, _r10_rows,
+from ._rows import (_alg1_rows, _hausdorff_rows, _moment6_rows, _moment_rows, _msm6_rows, _optimized_rows, _phi_rows, _r10_rows,
                    _unorm16_rows)
 from ._rows_nonlinear import (_pack32_input_rows, _pack64_input_rows, _psi4_inverse_rows, _psi4_rows,
                              _reencode_rows, _representation_rows, _shade_rows)
@@ -178,7 +178,7 @@ def _float_cases(dt):
     for bound in ("lower", "upper"):
         cases.append(Case(
             f"shadow_intensity-{bound}-{dt}", "msm.shadow_intensity", dt, ("b", "zf"), ("intensity",),
-            _msm_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity", bound=bound),
+            _alg1_rows, _wrap("msm.shadow_intensity", bound=bound), _precise("shadow_intensity", bound=bound),
             {"bound": bound}, description=f"HPG17 Algorithm 1, {bound} bound; expected values from the mpmath twin",
             value_range=(0, 1), spread_hook=alg1_paper_spread(bound), **_ALG1, **_BOUND,
             variant=alg1_variant(bound), width=4))

@@ -36,6 +36,7 @@ import math
 
 import numpy as np
 
+from .bands import TIE_BAND  # noqa: F401 - one constant with bands.confirm (re-exported)
 from .bands import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, STRUCTURED, equal_inputs, evaluations, interval_parts, noise_of
 from .cases import CASES, case_table, evaluate_reference, expected_outputs
 from .notes import ROBUSTNESS, UNGATED, UNGATED32
@@ -46,9 +47,9 @@ __all__ = ["derive", "golden_arrays", "gated_summary", "robust_rows", "ceil2", "
 
 _NUDGE = 8 * float(np.finfo(np.float32).eps)
 _WIDE = 0.1
-#: Where a float implementation may store the neighbouring code: the exact scaled value
-#: within 64 float32 ulps of the code range (2⁻¹⁸ of it) of a rounding boundary.
-TIE_BAND = 64 * 2.0**-24
+# TIE_BAND (imported above): where a float implementation may store the neighbouring code: the exact scaled
+# value within 64 float32 ulps of the code range (2⁻¹⁸ of it) of a rounding boundary; bands.confirm accepts either
+# code there.
 
 
 class TruthMismatch(AssertionError):

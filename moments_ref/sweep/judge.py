@@ -21,9 +21,10 @@ from ..golden import bands as _bands
 __all__ = ["legitimate_interval", "confirm"]
 
 
-def legitimate_interval(case, inputs, port_dtype="float32"):
-    """``(bands, ill_conditioned)`` of the rows: :func:`moments_ref.golden.bands.legitimate_interval`."""
-    return _bands.legitimate_interval(case, inputs, port_dtype)
+def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
+    """``(bands, ill_conditioned)`` of the rows: :func:`moments_ref.golden.bands.legitimate_interval`
+    (``contract``: the rows inside the case's contract where a profile's conversion decided it)."""
+    return _bands.legitimate_interval(case, inputs, port_dtype, contract=contract)
 
 
 def confirm(case, inputs, got, port_dtype="float32"):

@@ -20,9 +20,13 @@ receivers
 
 Texel formats: the moments b(z) = Σ w_i (z_i, z_i², z_i³, z_i⁴) are computed in float64
 and rounded once to float32 (a 128-bit float texel, HPG17 §2). Per case
-(:data:`SAMPLERS`): Algorithm 1 (``shadow_intensity-*``) gets them biased with the case's
-declared preset (Slides, "Bias the moments": BIAS_FLOAT32, b' = (1 − α) b + α b*, in
-float32 as a shader does); Algorithm 3 (``shade``) gets the representation r = Φ(b') of
+(:data:`SAMPLERS`): Algorithm 1 (``shadow_intensity-*``) gets them biased by the harness
+(Slides, "Bias the moments": BIAS_FLOAT32, b' = (1 − α) b + α b*, in float32 as a shader
+does), or unbiased where the profile declares the bias (inside the port, or applied just
+before the call exactly as for the golden rows, :mod:`.profiled`), in the profile's depth
+range; the six-moment bound (``shadow_intensity6-*``, slides, "Prefiltered single
+scattering") gets the six moments Σ w_i z_i^k (k = 1 … 6), biased by the harness with
+BIAS6_FLOAT32 (α = 3e-4, the golden rows' preset) in float32; Algorithm 3 (``shade``) gets the representation r = Φ(b') of
 the biased moments (HPG17 Eq. (5)), and with probability 1/2 the one the 64-bit or the
 32-bit non-linear texel decodes to (pack64/unpack64, pack32/unpack32); the chains
 (``e2e-*``) get the unbiased moments; the texel decoders (``unpack64``, ``unpack32``)
@@ -51,6 +55,7 @@ import numpy as np
 from .. import moments, nonlinear, packing
 from .._kernels import SWEEP_CHUNK
 from ..golden.contract import XI4_RANGE
+from . import profiled
 
 __all__ = ["CHUNK", "TEXELS", "RECEIVERS", "STRATA", "SAMPLERS", "chunk_rng", "draw_chunk", "draw_rows", "build_inputs", "draw_texels", "sweepable"]
 
@@ -124,8 +129,8 @@ def _receivers(rng, z, w):
     return zf, kind
 
 
-def _texel_moments(z, w):
-    return moments.power_moments(np.asarray(z, np.float64), np.asarray(w, np.float64)).astype(np.float32)
+def _texel_moments(z, w, n=4):
+    return moments.power_moments(np.asarray(z, np.float64), np.asarray(w, np.float64), n=n).astype(np.float32)
 
 
 def _biased(b, preset):
@@ -143,17 +148,22 @@ def _representation(b, fmt):
     return np.choose(np.asarray(fmt)[:, None], [r, r64, r32]).astype(np.float32)
 
 
-def _preset(case):
-    kw = case.kwargs.get("harness_bias")
-    if kw is not None:
-        return moments.BiasPreset(float(kw["alpha"]), tuple(kw["target"]), "declared")
-    return moments.BIAS_FLOAT32
-
-
 def _algorithm1(case, b, zf, fmt):
     if (case.kwargs.get("profile") or {}).get("bias") is not None:
-        return {"b": b, "zf": zf}  # the profile's port biases inside: it gets the texel's moments
-    return {"b": _biased(b, _preset(case)), "zf": zf}
+        # The profile declares the bias: the port biases inside, or the harness just before the call (exactly,
+        # in the engine's frame, :mod:`.profiled`); either way the row starts from the texel's moments.
+        return {"b": b, "zf": zf}
+    return {"b": _biased(b, moments.BIAS_FLOAT32), "zf": zf}
+
+
+def _algorithm1_six(case, b, zf, fmt):
+    """The six-moment bound (slides, "Prefiltered single scattering"): b(z) with six moments, biased by the harness
+    with BIAS6_FLOAT32 in float32 (the case's golden rows' preset), or unbiased where the profile declares the bias."""
+    if (case.kwargs.get("profile") or {}).get("bias") is not None:
+        return {"b": b, "zf": zf}
+    from ..msm6 import BIAS6_FLOAT32
+
+    return {"b": _biased(b, BIAS6_FLOAT32), "zf": zf}
 
 
 def _shade(case, b, zf, fmt):
@@ -180,6 +190,7 @@ def _pack(case, b, zf, fmt):
 #: Case name prefix -> how a texel and a receiver become the case's inputs.
 SAMPLERS = {
     "shadow_intensity-lower": _algorithm1, "shadow_intensity-upper": _algorithm1,
+    "shadow_intensity6-lower": _algorithm1_six, "shadow_intensity6-upper": _algorithm1_six,
     "shade": _shade, "e2e-nlq64": _chain, "e2e-nlq32": _chain, "e2e-msm64": _chain,
     "unpack64": _unpack64, "unpack32": _unpack32, "pack64": _pack, "pack32": _pack,
 }
@@ -197,11 +208,24 @@ def sweepable(name):
     return _sampler(name) is not None
 
 
-def build_inputs(case, rows):
-    """The case's inputs for row parameters ``rows`` (``z``, ``w`` (n, 6), ``zf`` (n,), ``fmt`` (n,))."""
-    b = _texel_moments(rows["z"], rows["w"])
+def build_inputs(case, rows, profile=None):
+    """The case's inputs for row parameters ``rows`` (``z``, ``w`` (n, 6), ``zf`` (n,), ``fmt`` (n,)).
+
+    Under a ``profile`` (:class:`~moments_ref.golden.profile.Profile`; ``case`` profiled by it) the
+    rows are drawn in the papers' frame and converted as the golden rows are (:mod:`.profiled`: a
+    [0, 1] depth range, a bias applied before the call); ``rows`` then also gets ``contract``, the
+    rows inside the case's contract decided on the papers' inputs with the declared bias
+    (:func:`moments_ref.golden.conventions.contract_mask`), None where the conversion changes nothing.
+    """
+    b = _texel_moments(rows["z"], rows["w"], 6 if case.width == 6 else 4)
     zf = np.asarray(rows["zf"], np.float64).astype(np.float32)
     inputs = _sampler(case.name)(case, b, zf, np.asarray(rows["fmt"]))
+    if profile is not None and (profiled.unit_depth(case) or profiled.harness_bias(case) is not None):
+        from ..golden import CASES
+        from ..golden.conventions import contract_mask
+
+        rows["contract"] = contract_mask(CASES[case.name], inputs, profile)
+        inputs = profiled.convert_inputs(case, inputs)
     return {k: np.ascontiguousarray(v) for k, v in inputs.items()}
 
 
@@ -220,7 +244,8 @@ def draw_rows(case, seed, chunk, rows=CHUNK, profile_key="default"):
     return {"z": z[:rows], "w": w[:rows], "zf": zf[:rows], "fmt": fmt[:rows], "stratum": stratum[:rows]}
 
 
-def draw_chunk(case, seed, chunk, rows=CHUNK, profile_key="default"):
-    """The first ``rows`` rows of chunk ``chunk``: ``(inputs, row parameters)`` (:func:`draw_rows`)."""
+def draw_chunk(case, seed, chunk, rows=CHUNK, profile_key="default", profile=None):
+    """The first ``rows`` rows of chunk ``chunk``: ``(inputs, row parameters)`` (:func:`draw_rows`,
+    :func:`build_inputs`)."""
     params = draw_rows(case, seed, chunk, rows, profile_key)
-    return build_inputs(case, params), params
+    return build_inputs(case, params, profile), params

@@ -99,10 +99,10 @@ def shrink(spec, driver, texel):
             break
         params = {"z": np.stack([c[0] for c in cands]), "w": np.stack([c[1] for c in cands]),
                   "zf": np.array([c[2] for c in cands]), "fmt": np.array([c[3] for c in cands])}
-        inputs = build_inputs(case, params)
+        inputs = build_inputs(case, params, spec.shaping)
         got = evaluate(spec, inputs, driver)
         dispatches += 1
-        bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype)
+        bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, params.get("contract"))
         flagged = np.flatnonzero(wrong_rows(case, bands, ill, got))
         step = None
         for i in flagged[:8]:

@@ -9,6 +9,9 @@ _E = "    // Forward substitution L y = (1, zf, zf^2)"
 _Y1 = "if (zf <= y1)\n        return 0.0;"
 _XI = "float xip = max(xi4 / (gap2 * gap2), 1.17549435e-38);"
 _LOWER = ("msm.glsl", "shadow_intensity_lower", "shadow_intensity-lower-float32")
+_UPPER = ("msm.glsl", "shadow_intensity_upper", "shadow_intensity-upper-float32")
+_W0 = "float w0 = 1.0 / (1.0 + y2 * y2 / sigma2 + y3 * y3 / xi4);"
+_RET = "return (zf <= y2) ? wl : 1.0 - wl;"
 _SHADE = ("nonlinear.glsl", "shade", "shade-float32")
 
 MUTANTS = [
@@ -39,12 +42,35 @@ MUTANTS = [
     ("shade-one-sided-early-out", *_SHADE, "    // z'f := (zf - y1)",
      "    if (zf < y1 + 1e-3 * (y2 - y1) && v2 > 0.999) return 0.0;\n    // z'f := (zf - y1)",
      "v2 within 1e-3 of 1, receivers just behind y1"),
+    # Round two: the golden edge rows from the sweep (golden._rows, "sweep:") catch the mutants above; these sit in
+    # the regions those rows leave: fainter occluders, receivers just behind y2, xi4 guards of the upper bound.
+    *[(f"msm-chebyshev-{k}-sigma", *_LOWER, _E,
+       f"    if (zf < b.x - {k}.0 * sqrt(sigma2)) {{ lower = 0.0; upper = 0.0; return; }}\n" + _E,
+       "fainter occluders far in front of the mean") for k in (5, 8, 12)],
+    *[(f"msm-w0-xi4-floor-upper-{c}", *_UPPER, _W0, _W0.replace("y3 * y3 / xi4", f"y3 * y3 / max(xi4, {c})"),
+       "nearly two-point texels, receivers at a depth (upper bound)") for c in ("3e-8", "5e-8")],
+    *[(f"shade-acne-y2-{c}", *_SHADE, _RET, f"return (zf <= y2 + {c} * (y2 - y1)) ? wl : 1.0 - wl;",
+       "receivers just behind y2") for c in ("3e-7", "1e-7", "5e-8", "2e-8")],
 ]
 
-#: Mutants that passed every golden case under the earlier tolerance rule (16 × the widest deviation) and that
-#: the band model (docs/golden.md: the interval of legitimate evaluations plus a margin) now catches on
-#: shade-float32's own rows; the sweep still finds them, and the goldens' catch is asserted.
-CAUGHT_BY_THE_GOLDENS = {"shade-acne-relative", "shade-acne-relative-3e-5", "shade-faint-weight"}
+#: Mutants the goldens catch, asserted (the sweep still finds them): three that passed every golden case under the
+#: earlier tolerance rule (16 × the widest deviation) and that the band model (docs/golden.md) catches on
+#: shade-float32's own rows; and those the goldens' edge rows from the sweep's shrunk failures catch
+#: (:data:`EDGE_ROWS_CATCH`).
+CAUGHT_BY_THE_GOLDENS = {"shade-acne-relative", "shade-acne-relative-3e-5", "shade-faint-weight",
+                         "msm-acne-relative", "msm-acne-relative-3e-4", "msm-acne-relative-upper",
+                         "msm-acne-relative-upper-3e-4", "msm-acne-relative-3e-5", "msm-chebyshev-3-sigma",
+                         "msm-chebyshev-4-sigma", "shade-xi4-floor-3e-8", "shade-one-sided-early-out"}
+
+#: Each golden edge row from the sweep (case, the start of its comment) and a mutant of this corpus that the goldens
+#: missed before that row was added and that fails it (tests/test_sweep_mutants.py).
+EDGE_ROWS_CATCH = [
+    ("shadow_intensity-lower-float32", "sweep: one depth -0.006", "msm-acne-relative-3e-5"),
+    ("shadow_intensity-upper-float32", "sweep: one depth -0.006", "msm-acne-relative-upper"),
+    ("shadow_intensity-lower-float32", "sweep: a faint occluder", "msm-chebyshev-4-sigma"),
+    ("shade-float32", "sweep: a nearly two-point texel", "shade-xi4-floor-3e-8"),
+    ("shade-float32", "sweep: v2 within 1e-3 of 1", "shade-one-sided-early-out"),
+]
 
 LEGITIMATE = [
     ("msm-fma-discriminant", "msm.glsl", "shadow_intensity_lower", "shadow_intensity-lower-float32",
