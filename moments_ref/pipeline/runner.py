@@ -14,6 +14,19 @@ def _intensity(value, kind):
     return 1.0 - value if kind == "visibility" else value
 
 
+def _grouped(plans):
+    """The run's targets, those of techniques sharing their first texture stage next to each other.
+
+    With values released after their last use (``Settings.keep``), a texture stage
+    shared by several techniques (the blurred moments of vsm, msm64 and msm128) then
+    goes before the next technique's stages start, not at the end of the run.
+    """
+    groups = {}
+    for t in plans.values():
+        groups.setdefault(t.texel[0] if t.texel else t.name, []).extend(k for k in (t.shade, t.reference) if k)
+    return list(dict.fromkeys(k for ks in groups.values() for k in ks))
+
+
 def run(scene, outputs=None, settings=None, **old) -> RunResult:
     """Compute the requested techniques' results on a scene's camera view, lazily.
 
@@ -45,8 +58,10 @@ def run(scene, outputs=None, settings=None, **old) -> RunResult:
     plans = rp.techniques
     timed = {k for t in plans.values() for k in (*t.texel, t.shade)}
     repeats = max(int(st.repeats), 1)
-    order, values, times = rp.graph.run(rp.targets, progress=st.progress, desc=scene.name, timed=timed,
-                                        repeats=repeats, clock=clock_named(st.clock), warmup=st.warmup)
+    targets = rp.targets if st.keep is None else _grouped(plans)
+    order, values, times = rp.graph.run(targets, progress=st.progress, desc=scene.name, timed=timed,
+                                        repeats=repeats, clock=clock_named(st.clock), warmup=st.warmup,
+                                        keep=None if st.keep is None else (rp.context.receivers, *st.keep))
     seconds = {k: spread(v)[0] for k, v in times.items()}
     spreads = {n: {"texel": spread(cost(times, t.texel, repeats)),
                    "fragment": spread(cost(times, [t.shade], repeats))} for n, t in plans.items()}

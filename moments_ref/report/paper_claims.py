@@ -76,7 +76,7 @@ from ..scene.gbuffer import z_ndc_lookup
 from . import _claim_crops, _claims_text, scattering_temporal
 from .. import techniques as _techniques
 
-__all__ = ["PAPER_PIXELS", "IMPLEMENTATION_CHOICES", "FIGURE1_LEAKERS", "DIFFERENCE_PAIRS", "scene_measurements",
+__all__ = ["stages_read", "PAPER_PIXELS", "IMPLEMENTATION_CHOICES", "FIGURE1_LEAKERS", "DIFFERENCE_PAIRS", "scene_measurements",
            "pixel_statistic", "ranking_check", "claims", "gather", "crop_pngs"]
 
 #: HPG17 §5: 16 pixels above 3 % out of a 1920×1080 screenshot, none at 10 %.
@@ -93,6 +93,16 @@ IMPLEMENTATION_CHOICES = {
     "hpg17-evsm128-leaks-less": ["depth convention", "blur edge handling"],
     "hpg17-four-moment-leak-three-occluders": ["bias presets and targets", "depth convention", "blur edge handling"],
 }
+
+
+def stages_read(msaa):
+    """The stage values :func:`scene_measurements` reads besides the results and the receivers.
+
+    The shadow map (:func:`_occluder_layers`) and the textures of nlq64 and msm128
+    (:func:`pixel_statistic`); a report run keeps these (``pipeline.Settings.keep``)
+    and releases the other stages' values after their last use.
+    """
+    return ("raster_shadow_map", *(_techniques.get(n).steps(msaa)[-1].name for n in ("nlq64", "msm128")))
 
 
 def _texture(result, name):
