@@ -212,7 +212,7 @@ def _correlate(p, w, out, tmp, axis):
 #: Bytes of one band of rows (moments_ref._kernels' table, with the measurement). Results do not depend on it.
 _BAND_BYTES = FILTER_BAND_BYTES
 #: Bytes of float64 horizontal-pass rows per band of :func:`blur` (its halo of 8 rows is recomputed per band).
-_BLUR_BAND_BYTES = 16 * FILTER_BAND_BYTES
+_BLUR_BAND_BYTES = 4 * FILTER_BAND_BYTES
 
 
 def blur(moments, weights=None):
