@@ -176,7 +176,7 @@ def _full_shadow_leaks(result):
     ``three_or_more``: the pixels whose 9×9 footprint holds three or more distinct
     occluder depths (:func:`_occluder_layers`), ``one_or_two`` the others.
     """
-    out = {}
+    out, counted = {}, {}
     for n in result.techniques:
         if n not in result.reference or n not in result.shadow:
             continue
@@ -184,7 +184,10 @@ def _full_shadow_leaks(result):
         full = ref >= FULL_SHADOW
         rec = {"four_moments": bool(n in _techniques.TECHNIQUES and _techniques.get(n).four_moments),
                "fully_shadowed_pixels": int(full.sum())}
-        layers = _occluder_layers(result, full)
+        key = full.tobytes()  # techniques sharing a reference share its fully shadowed pixels: counted once
+        if key not in counted:
+            counted[key] = _occluder_layers(result, full)
+        layers = counted[key]
         if layers is not None:
             three = np.zeros(ref.shape, bool)
             three[np.flatnonzero(full)[layers >= 3]] = True
