@@ -24,7 +24,7 @@ import numpy as np
 from ._arrays import float_dtype
 
 __all__ = ["CHUNK", "MSM_CHUNK", "SHADE_CHUNK", "PHI_CHUNK", "ENCODE_CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "SWEEP_CHUNK", "WARP_BLOCK",
-           "SHADING_BLOCK", "FILTER_BAND_BYTES", "RESOLVE_BYTES", "PATH_BAND_TEXELS", "RASTER_ROW_BUDGET", "RASTER_SAMPLE_BUDGET", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
+           "SHADING_BLOCK", "FILTER_BAND_BYTES", "ROW_BAND_BYTES", "RESOLVE_BYTES", "PATH_BAND_TEXELS", "RASTER_ROW_BUDGET", "RASTER_SAMPLE_BUDGET", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
 
 #: Texels per chunk of the six-moment kernel (:mod:`moments_ref.msm6`) and the default of
@@ -39,6 +39,11 @@ MSM_CHUNK = 1 << 15
 #: Texels per chunk of :func:`moments_ref.nonlinear.shade` (Algorithm 3; same trade-off as
 #: MSM_CHUNK: measured fastest of 2^13..2^17 at 2048² for its ~50 passes).
 SHADE_CHUNK = 1 << 15
+#: Input bytes per band of rows of a map-sized per-texel step of the pipeline (the resolve of a feature,
+#: a texture's quantization: :func:`moments_ref.techniques._steps.in_row_bands`): their float64
+#: temporaries, several times the map, then exist for one band, not the whole map (issue 41: the
+#: report's peak memory per texel).
+ROW_BAND_BYTES = 1 << 21
 #: Texels per chunk of :func:`moments_ref.nonlinear.phi` (Algorithm 2 and Ψ4): its rows are four
 #: wide in and out, so 8192 texels keep input, output and temporaries in L2.
 PHI_CHUNK = 8192

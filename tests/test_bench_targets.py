@@ -70,7 +70,8 @@ def test_every_target_has_a_ratio_and_a_mark(monkeypatch):
     names = [r["target"] for r in rows]
     for want in ("vs llvmpipe", "NLQ64 global path vs copy", "NLQ32 global path vs copy", "NLQ64 on-chip vs global",
                  "NLQ32 on-chip vs global", "shadow_intensity float32 vs copy", "shade float32 vs copy",
-                 "six moments float32 vs copy", "six moments float32 peak memory", "linear growth: rasterizer"):
+                 "six moments float32 vs copy", "six moments float32 peak memory", "linear growth: rasterizer",
+                 "pipeline peak memory per shadow-map texel"):
         assert any(want in n for n in names), want
     text = _targets.targets_markdown(rows)
     raster = [r for r in rows if "llvmpipe" in r["target"]]

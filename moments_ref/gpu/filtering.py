@@ -211,6 +211,8 @@ def _correlate(p, w, out, tmp, axis):
 
 #: Bytes of one band of rows (moments_ref._kernels' table, with the measurement). Results do not depend on it.
 _BAND_BYTES = FILTER_BAND_BYTES
+#: Bytes of float64 horizontal-pass rows per band of :func:`blur` (its halo of 8 rows is recomputed per band).
+_BLUR_BAND_BYTES = 4 * FILTER_BAND_BYTES
 
 
 def blur(moments, weights=None):
@@ -242,12 +244,28 @@ def blur(moments, weights=None):
     w = gaussian_weights() if weights is None else real_input(weights, "weights").astype(np.float64)
     if w.ndim != 1 or len(w) % 2 == 0:
         raise InputError(f"weights: expected a 1D kernel of odd length, got shape {w.shape}")
+    return _banded_blur(m, w)
+
+
+def _banded_blur(m, w):
+    """:func:`blur` a band of output rows at a time: no whole-map intermediate (only the float64 result).
+
+    Each band's horizontal pass covers its rows and ``(taps − 1)/2`` clamped rows
+    above and below; every output value is the same sum in the same order as with
+    one whole-map horizontal pass (the halo rows are recomputed, not approximated).
+    """
     r = (len(w) - 1) // 2
-    h = m.shape[0]
-    hp = _horizontal_pass(m, w, pad_rows=r)
-    hp[:r] = hp[r]
-    hp[r + h :] = hp[r + h - 1]
-    return _vertical_pass(hp, w)
+    h, wd, c = m.shape
+    out = np.empty((h, wd, c))
+    rows = max(4 * r, _BLUR_BAND_BYTES // (8 * wd * c))
+    hp = np.empty((min(rows, h) + 2 * r, wd, c))
+    tmp = np.empty((min(rows, h), wd, c))
+    for y in range(0, h, rows):
+        k = min(rows, h - y)
+        src = np.clip(np.arange(y - r, y + k + r), 0, h - 1)
+        band = _horizontal_pass(m[src], w, hp=hp[: k + 2 * r])
+        _correlate(band, w, out[y : y + k], tmp[:k], axis=0)
+    return out
 
 
 def _horizontal_pass(m, w, pad_rows=0, hp=None):

@@ -54,16 +54,21 @@ class StageGraph:
         return out
 
     def run(self, targets, progress=False, desc="stages", timed=(), repeats=1, clock=time.perf_counter,
-            warmup=True):
+            warmup=True, keep=None):
         """Compute the stages ``targets`` need; return ``(order, values, times)``.
 
         A stage in ``timed`` runs once as a warm-up (its value is kept) and then
         ``repeats`` times more, each timed; ``times[stage]`` lists those seconds
         (one entry, the single run, for the other stages), read from ``clock``.
         Without ``warmup`` the first run is the first of the ``repeats``.
+        ``keep=None`` returns every stage's value; otherwise a value is released
+        once the last stage that depends on it has run, unless it is a target or
+        named in ``keep`` (``values`` then holds only those): the run's peak memory
+        is its largest live set, not the sum of its stages.
         """
         order = self.order(targets)
         values, times = {}, {}
+        last = None if keep is None else _last_use(self.nodes, order, set(targets) | set(keep))
         bar = _stage_bar(progress, len(order), desc)
         try:
             for name in order:
@@ -77,12 +82,28 @@ class StageGraph:
                 if name in timed:
                     more = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1) - (not warmup))]
                     times[name] = more if warmup else times[name] + more
+                args = None
+                for d in () if last is None else last.get(name, ()):
+                    del values[d]
                 if bar is not None:
                     bar.update(1)
         finally:
             if bar is not None:
                 bar.close()
         return order, values, times
+
+
+def _last_use(nodes, order, kept):
+    """Stage -> the dependencies whose value can go once it has run (their last use; ``kept`` never)."""
+    last = {}
+    for name in order:
+        for d in nodes[name].deps:
+            last[d] = name
+    out = {}
+    for d, name in last.items():
+        if d not in kept:
+            out.setdefault(name, []).append(d)
+    return out
 
 
 def _timed(stage, args, clock):

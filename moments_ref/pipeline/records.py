@@ -65,6 +65,12 @@ class Settings:
         inflated when other processes compete for the cores; the report's choice).
     progress : bool
         A tqdm bar of the stages on stderr.
+    keep : tuple of str, optional
+        None (default): :attr:`RunResult.values` holds every stage's value. A tuple:
+        each value is released after the last stage that needs it, except the
+        techniques' and references' results, the receivers and the stages named here
+        (the report keeps only what its claims read: the run's peak memory is then its
+        largest live set of stages, not their sum).
     """
 
     shadow_map_size: object = None
@@ -81,6 +87,7 @@ class Settings:
     warmup: bool = True
     clock: str = "wall"
     progress: bool = False
+    keep: tuple = None
 
     def replace(self, **changes) -> "Settings":
         """A copy with ``changes``."""

@@ -14,6 +14,24 @@ def _intensity(value, kind):
     return 1.0 - value if kind == "visibility" else value
 
 
+def _grouped(plans, keep):
+    """The run's targets, those of techniques sharing their first texture stage next to each other.
+
+    With values released after their last use (``Settings.keep``), a texture stage
+    shared by several techniques (the blurred moments of vsm, msm64 and msm128) then
+    goes before the next technique's stages start, not at the end of the run. Groups
+    holding a stage of ``keep`` go last (their kept texture does not add to the
+    other groups' live values).
+    """
+    groups, kept = {}, set(keep)
+    for t in plans.values():
+        g = groups.setdefault(t.texel[0] if t.texel else t.name, [False])
+        g[0] = g[0] or bool(kept & set(t.texel))
+        g += [k for k in (t.shade, t.reference) if k]
+    ordered = sorted(groups.values(), key=lambda g: g[0])  # stable: groups with a kept texture last
+    return list(dict.fromkeys(k for g in ordered for k in g[1:]))
+
+
 def run(scene, outputs=None, settings=None, **old) -> RunResult:
     """Compute the requested techniques' results on a scene's camera view, lazily.
 
@@ -45,8 +63,10 @@ def run(scene, outputs=None, settings=None, **old) -> RunResult:
     plans = rp.techniques
     timed = {k for t in plans.values() for k in (*t.texel, t.shade)}
     repeats = max(int(st.repeats), 1)
-    order, values, times = rp.graph.run(rp.targets, progress=st.progress, desc=scene.name, timed=timed,
-                                        repeats=repeats, clock=clock_named(st.clock), warmup=st.warmup)
+    targets = rp.targets if st.keep is None else _grouped(plans, st.keep)
+    order, values, times = rp.graph.run(targets, progress=st.progress, desc=scene.name, timed=timed,
+                                        repeats=repeats, clock=clock_named(st.clock), warmup=st.warmup,
+                                        keep=None if st.keep is None else (rp.context.receivers, *st.keep))
     seconds = {k: spread(v)[0] for k, v in times.items()}
     spreads = {n: {"texel": spread(cost(times, t.texel, repeats)),
                    "fragment": spread(cost(times, [t.shade], repeats))} for n, t in plans.items()}

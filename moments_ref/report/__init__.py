@@ -56,6 +56,7 @@ from ..scene.gbuffer import check_shaded
 from ..techniques._interface import PROJECTION
 from ..techniques import REFERENCES, get_reference
 from ..techniques.area import soft_statements
+from ..techniques.scattering import RAYS
 from ._crops import crop_figures
 from ._jobs import WorkerDied, Workers, usable_cores
 from ._machine import copy_rate, machine, machine_lines
@@ -229,7 +230,8 @@ def _scene_task(sc, names, settings, progress):
     Timed stages are measured in CPU seconds of this process (``settings.clock``, "cpu").
     Everything returned is plain data (picklable); nothing is written.
     """
-    result = pipeline.run(sc, names, settings.replace(progress=progress))
+    keep = (*paper_claims.stages_read(settings.msaa), RAYS)  # every other stage's value goes after its last use
+    result = pipeline.run(sc, names, settings.replace(progress=progress, keep=keep))
     part = {"rows": result.rows(), "stages": result.stage_table(), "references": {}, "images": {}, "pngs": {},
             "measured": None if result.gbuffer is None else paper_claims.scene_measurements(result)}
     # (a scattering-only run shades no receiver pixels: nothing the claims need)

@@ -78,7 +78,7 @@ from ..scene.gbuffer import z_ndc_lookup
 from . import _claim_crops, _claims_text, scattering_temporal
 from .. import techniques as _techniques
 
-__all__ = ["PAPER_PIXELS", "IMPLEMENTATION_CHOICES", "FIGURE1_LEAKERS", "DIFFERENCE_PAIRS", "scene_measurements",
+__all__ = ["stages_read", "PAPER_PIXELS", "IMPLEMENTATION_CHOICES", "FIGURE1_LEAKERS", "DIFFERENCE_PAIRS", "scene_measurements",
            "pixel_statistic", "ranking_check", "claims", "gather", "crop_pngs"]
 
 #: HPG17 §5: 16 pixels above 3 % out of a 1920×1080 screenshot, none at 10 %.
@@ -95,6 +95,16 @@ IMPLEMENTATION_CHOICES = {
     "hpg17-evsm128-leaks-less": ["depth convention", "blur edge handling"],
     "hpg17-four-moment-leak-three-occluders": ["bias presets and targets", "depth convention", "blur edge handling"],
 }
+
+
+def stages_read(msaa):
+    """The stage values :func:`scene_measurements` reads besides the results and the receivers.
+
+    The shadow map (:func:`_occluder_layers`) and the textures of nlq64 and msm128
+    (:func:`pixel_statistic`); a report run keeps these (``pipeline.Settings.keep``)
+    and releases the other stages' values after their last use.
+    """
+    return ("raster_shadow_map", *(_techniques.get(n).steps(msaa)[-1].name for n in ("nlq64", "msm128")))
 
 
 def _texture(result, name):
@@ -168,7 +178,7 @@ def _full_shadow_leaks(result):
     ``three_or_more``: the pixels whose 9×9 footprint holds three or more distinct
     occluder depths (:func:`_occluder_layers`), ``one_or_two`` the others.
     """
-    out = {}
+    out, counted = {}, {}
     for n in result.techniques:
         if n not in result.reference or n not in result.shadow:
             continue
@@ -176,7 +186,10 @@ def _full_shadow_leaks(result):
         full = ref >= FULL_SHADOW
         rec = {"four_moments": bool(n in _techniques.TECHNIQUES and _techniques.get(n).four_moments),
                "fully_shadowed_pixels": int(full.sum())}
-        layers = _occluder_layers(result, full)
+        key = full.tobytes()  # techniques sharing a reference share its fully shadowed pixels: counted once
+        if key not in counted:
+            counted[key] = _occluder_layers(result, full)
+        layers = counted[key]
         if layers is not None:
             three = np.zeros(ref.shape, bool)
             three[np.flatnonzero(full)[layers >= 3]] = True

@@ -22,11 +22,31 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernels import ROW_BAND_BYTES
 from ..gpu.filtering import blur, resolve_moments
 from ..moments import power_moments
 from ._interface import LayeredSamples, Step, is_layered
 
-__all__ = ["resolve_features", "moment_steps", "feature_steps"]
+__all__ = ["in_row_bands", "resolve_features", "moment_steps", "feature_steps"]
+
+
+def in_row_bands(fn, x):
+    """``fn(x)`` of an (H, ...) array computed a band of rows at a time, into one result.
+
+    For a step that works texel by texel (each output row depends only on the same
+    input row), so the bands change no value; its temporaries then exist for one
+    band of ``ROW_BAND_BYTES`` of input (``moments_ref._kernels``), not for the map.
+    """
+    h = x.shape[0]
+    rows = max(1, ROW_BAND_BYTES // max(x[:1].nbytes, 1))
+    if rows >= h:
+        return fn(x)
+    first = fn(x[:rows])
+    out = np.empty((h,) + first.shape[1:], first.dtype)
+    out[:rows] = first
+    for y in range(rows, h, rows):
+        out[y : y + rows] = fn(x[y : y + rows])
+    return out
 
 
 def resolve_features(samples, feature):
@@ -45,8 +65,7 @@ def resolve_features(samples, feature):
         f = feature(samples.depth.astype(np.float64))  # (H, W, S, K, C)
         f = np.einsum("hwskc,hwsk->hwc", f, samples.weight) / samples.depth.shape[2]
         return f
-    z = np.asarray(samples, dtype=np.float64)
-    return feature(z).mean(axis=2)
+    return in_row_bands(lambda band: feature(np.asarray(band, dtype=np.float64)).mean(axis=2), np.asarray(samples))
 
 
 def _moments(samples, params):

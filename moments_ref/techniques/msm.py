@@ -35,13 +35,13 @@ from ..affine import encode_unorm16, from_optimized, unorm_to_float
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ..msm import shadow_intensity
 from ._interface import Step, Technique, bilinear_filtered, register
-from ._steps import moment_steps
+from ._steps import in_row_bands, moment_steps
 
 __all__ = ["msm64_steps", "msm64_lookup", "MSM64", "MSM128"]
 
 
 def _quantize_affine64(b, params):
-    return encode_unorm16(b)
+    return in_row_bands(encode_unorm16, np.asarray(b))
 
 
 def _store_float128(b, params):

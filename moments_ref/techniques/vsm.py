@@ -37,7 +37,7 @@ import numpy as np
 from ..affine import float_to_unorm, unorm_to_float
 from ..scene.depth import z_unit_from_ndc
 from ._interface import Step, Technique, bilinear_filtered, register
-from ._steps import moment_steps
+from ._steps import in_row_bands, moment_steps
 
 __all__ = ["VSM_MIN_VARIANCE", "vsm_from_moments", "cantelli_shadow", "VSM"]
 
@@ -73,7 +73,7 @@ def cantelli_shadow(mean, mean_sq, t, min_variance):
 
 
 def _quantize(b, params):
-    return float_to_unorm(vsm_from_moments(b), bits=16)
+    return in_row_bands(lambda band: float_to_unorm(vsm_from_moments(band), bits=16), np.asarray(b))
 
 
 def _steps(samples, layered):

@@ -37,6 +37,7 @@ from ...nonlinear import phi, shade
 from ...scene.raster import rasterize_depth
 from ..._kernels import CHUNK, MSM_CHUNK, SHADE_CHUNK
 from ._cases import raster_case
+from ._memory import pipeline_peak_bytes
 from ._probes import PASSES, pass_probe
 from ._timing import PAIRS, Ratio, paired
 
@@ -194,6 +195,24 @@ def _kernel_rows(size, repeat):
 
 
 # ---------------------------------------------------------------------------
+# the report pipeline's memory
+
+
+#: Peak resident bytes per shadow-map texel of the report's pipeline at 2048² 4× MSAA (issue 41).
+PIPELINE_BYTES_LIMIT = 100
+
+
+def _memory_row(size):
+    """Peak RSS per texel of the report's pipeline on railing at ``size``² 4× (a count in bytes, not a ratio)."""
+    per, peak, base = pipeline_peak_bytes("railing", size, 4)
+    exact = Ratio(per, per, per, 0.0, 0.0, 0.0, 0.0, 1) if per > 0 else None  # None: within the baseline's noise
+    return _row(f"report pipeline peak memory per shadow-map texel, railing {size}² 4× (bytes, not ×)", exact,
+                PIPELINE_BYTES_LIMIT, ("" if per > 0 else "not measured: no larger than the baseline at this size; ") +
+                f"peak RSS {peak / 2**20:.0f} MiB of a child process, {base / 2**20:.0f} MiB "
+                f"the same run at 64² (interpreter, imports, camera-sized arrays); camera 480×270")
+
+
+# ---------------------------------------------------------------------------
 # linear growth
 
 
@@ -248,6 +267,7 @@ def run_targets(quick=False, repeat=None, raster=True):
     sizes = (64, 128, 256) if quick else (512, 1024, 2048)
     tris = (4096, 16_384, 65_536) if quick else (1 << 18, 1 << 20, 1 << 22)
     rows += _growth_rows(sizes, tris, repeat)
+    rows.append(_memory_row(big))
     for r in rows:
         r["load"] = (load, os.getloadavg())
     return rows
