@@ -204,6 +204,23 @@ def write_text(path, text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
+def write_between(path, markers, block: str) -> Path:
+    """Replace the text between the two ``markers`` of the file ``path`` by ``block`` (atomically).
+
+    The generated blocks of the docs (a table written by the command that measures or lists it)
+    are kept between such markers; a file without exactly one of each, in order, is refused.
+    """
+    from ._arrays import InputError
+
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    begin, end = markers
+    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
+        raise InputError(f"{path}: expected one {begin!r} before one {end!r}")
+    head, rest = text.split(begin, 1)
+    return write_text(path, head + begin + block + end + rest.split(end, 1)[1])
+
+
 def save_npz(path, arrays: dict) -> bytes:
     """Write an uncompressed ``.npz`` atomically and deterministically; return its bytes.
 

@@ -189,3 +189,18 @@ def test_wilson_interval_is_the_set_the_score_test_accepts(k, n):
     p = np.linspace(0, 1, 200001)
     accepted = p[np.abs(p_hat - p) <= z * np.sqrt(p * (1 - p) / n)]
     assert lo == pytest.approx(accepted.min(), abs=2e-5) and hi == pytest.approx(accepted.max(), abs=2e-5)
+
+
+def test_a_generated_block_is_written_between_its_markers_and_refused_without_them(tmp_path):
+    from moments_ref import InputError
+    from moments_ref._io import write_between
+
+    p = tmp_path / "doc.md"
+    p.write_text("intro\n<!-- a -->old<!-- b -->\nend\n", encoding="utf-8")
+    write_between(p, ("<!-- a -->", "<!-- b -->"), "\nnew\n")
+    assert p.read_text(encoding="utf-8") == "intro\n<!-- a -->\nnew\n<!-- b -->\nend\n"
+    for bad in ("no markers\n", "<!-- b --> then <!-- a -->\n", "<!-- a --><!-- a --><!-- b -->\n"):
+        p.write_text(bad, encoding="utf-8")
+        with pytest.raises(InputError, match="expected one"):
+            write_between(p, ("<!-- a -->", "<!-- b -->"), "x")
+        assert p.read_text(encoding="utf-8") == bad  # nothing written

@@ -9,8 +9,6 @@ that page by hand. ``python -m moments_ref.tools.apidoc --cases`` rewrites the b
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from .cases import CASES
 
 __all__ = ["MARKERS", "contracts_markdown", "write_docs"]
@@ -53,10 +51,6 @@ def contracts_markdown():
 
 def write_docs(path):
     """Rewrite the block between :data:`MARKERS` in ``path`` (docs/golden.md); return the path."""
-    from .._io import write_text
+    from .._io import write_between
 
-    path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    head, rest = text.split(MARKERS[0], 1)
-    _, tail = rest.split(MARKERS[1], 1)
-    return write_text(path, head + MARKERS[0] + contracts_markdown() + MARKERS[1] + tail)
+    return write_between(path, MARKERS, contracts_markdown())

@@ -534,10 +534,6 @@ def keys_markdown():
 
 def write_docs(path):
     """Rewrite the key table between :data:`MARKERS` in ``path`` (docs/ports.md); return the path."""
-    from .._io import write_text
+    from .._io import write_between
 
-    path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    head, rest = text.split(MARKERS[0], 1)
-    _, tail = rest.split(MARKERS[1], 1)
-    return write_text(path, head + MARKERS[0] + keys_markdown() + MARKERS[1] + tail)
+    return write_between(path, MARKERS, keys_markdown())

@@ -89,13 +89,7 @@ MARKERS = ("<!-- columns: begin -->\n", "\n<!-- columns: end -->")
 
 def write_docs(path):
     """Rewrite the column table between :data:`MARKERS` in ``path`` (docs/report.md); return the path."""
-    from pathlib import Path
+    from .._io import write_between
 
-    from .._io import write_text
-
-    path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    head, rest = text.split(MARKERS[0], 1)
-    _, tail = rest.split(MARKERS[1], 1)
-    return write_text(path, head + MARKERS[0] + columns_markdown() + MARKERS[1] + tail)
+    return write_between(path, MARKERS, columns_markdown())
 

@@ -20,8 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .._arrays import InputError
-from .._io import write_text
+from .._io import write_between
 from ..msm6 import measure_unorm10_bias
 from .intervals import CONFIDENCE, wilson_interval
 
@@ -48,13 +47,7 @@ def unorm10_block(n=4000, seed=0, alphas=(1e-3, 2e-3, 3e-3, 5e-3)):
 
 def rewrite(path, block, markers=UNORM10_MARKERS):
     """Replace the text between ``markers`` in the file ``path`` by ``block`` (atomically); return the path."""
-    text = Path(path).read_text(encoding="utf-8")
-    begin, end = markers
-    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
-        raise InputError(f"{path}: expected one {begin!r} before one {end!r}")
-    head, rest = text.split(begin, 1)
-    tail = rest.split(end, 1)[1]
-    return write_text(path, f"{head}{begin}\n{block}\n{end}{tail}")
+    return write_between(path, markers, f"\n{block}\n")
 
 
 def main(docs="docs"):
