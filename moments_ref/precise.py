@@ -337,6 +337,20 @@ def _prepare(b, zf, n=4):
 
 
 @fill_doc
+def _bounds_over(bounds_mp, b, zf, dps):
+    """``(lower, upper)`` float64 arrays of ``bounds_mp(b1, b2, b3, b4, zf, tol)`` per row, at ``dps`` digits."""
+    dps = _check_dps(dps)
+    b, zf, shape = _prepare(b, zf)
+    lower = np.empty(shape, dtype=np.float64)
+    upper = np.empty(shape, dtype=np.float64)
+    with mpmath.workdps(dps):
+        tol = _tol(dps)
+        for idx in np.ndindex(shape):
+            lo, up = bounds_mp(*(_mp(v) for v in b[idx]), _mp(zf[idx]), tol)
+            lower[idx], upper[idx] = float(lo), float(up)
+    return lower, upper
+
+
 def shadow_bounds(b, zf, dps=DPS):
     """Both bounds of HPG17 Algorithm 1 at once, in mpmath.
 
@@ -355,17 +369,7 @@ def shadow_bounds(b, zf, dps=DPS):
         upper bound of Z(z ≤ zf) (exact Z of the unique distribution if B(b) is
         singular).
     """
-    dps = _check_dps(dps)
-    b, zf, shape = _prepare(b, zf)
-    lower = np.empty(shape, dtype=np.float64)
-    upper = np.empty(shape, dtype=np.float64)
-    with mpmath.workdps(dps):
-        tol = _tol(dps)
-        for idx in np.ndindex(shape):
-            lo, up = _bounds_mp(*(_mp(v) for v in b[idx]), _mp(zf[idx]), tol)
-            lower[idx] = float(lo)
-            upper[idx] = float(up)
-    return lower, upper
+    return _bounds_over(_bounds_mp, b, zf, dps)
 
 
 def _one_bound(bounds, b, zf, bound, dps):
@@ -465,16 +469,7 @@ def hausdorff_bounds(b, zf, dps=DPS):
     ``b`` moments of depths in [0, 1] and ``zf`` in [0, 1] (the ``unit`` depth space); any
     float dtype, converted exactly. Returns ``(lower, upper)`` as float64 arrays.
     """
-    dps = _check_dps(dps)
-    b, zf, shape = _prepare(b, zf)
-    lower = np.empty(shape, dtype=np.float64)
-    upper = np.empty(shape, dtype=np.float64)
-    with mpmath.workdps(dps):
-        tol = _tol(dps)
-        for idx in np.ndindex(shape):
-            lo, up = _hausdorff_mp(*(_mp(v) for v in b[idx]), _mp(zf[idx]), tol)
-            lower[idx], upper[idx] = float(lo), float(up)
-    return lower, upper
+    return _bounds_over(_hausdorff_mp, b, zf, dps)
 
 
 def hausdorff_intensity(b, zf, bound="lower", dps=DPS):

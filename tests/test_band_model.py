@@ -480,7 +480,7 @@ def test_an_encoders_band_spans_the_truths_and_the_references_codes(name):
     from moments_ref.golden.spread import golden_arrays
 
     case = CASES[name]
-    (key,), (out,) = case.inputs, case.outputs
+    (key,), (_,) = case.inputs, case.outputs  # one input, one output
     x = golden_arrays(case)[key]
     as64 = x.astype(np.float64)
     codes = np.stack([np.asarray(case.truth(**{key: as64})[0], np.float64),

@@ -207,7 +207,6 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
                              f"({manifest.get('profile')}); verify it without --profile or with that one")
         profile = None  # the folder's expected values are already this profile's
     results = load_results(results_path, manifest)
-    from .cases import CASES
     from .profile import ignored_note, refuse_meaningless
 
     if profile is not None and not profile.is_default:  # a key no verified case can use is refused, not dropped
