@@ -19,10 +19,13 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
   strictly inside the moment space (:data:`LEGIT_TARGETS`, and the declared target where it
   lies strictly inside), of the bound of the
   biased moments (float64) from Z, plus the jump of Z where zf sits on a depth of
-  the distribution, times 1.25; plus 16 times the spread of float32 evaluations (this
-  package and the papers' own code, on those biased moments and on the port's own
-  input moved by one ulp: the same safety factor as every golden tolerance); at
-  least 4 float32 ulps of 1.
+  the distribution, times 1.25; plus the spread s of float32 evaluations (this
+  package, the papers' own code, and the bias and Algorithm 1 as a SPIR-V/GLSL compiler
+  contracts them: ``(1 − α) b + α b*`` or ``b + α (b* − b)`` (``mix``/``lerp``), either
+  product fused or none, then the shipped ports' Cholesky evaluation with and without fma;
+  the NLQ chain's stages contracted as in :mod:`moments_ref.golden.gpuspread`; on those
+  biased moments and on the port's own input moved by one ulp); plus the band model's
+  margin (:mod:`moments_ref.golden.bands`), max(3 s, 8 float32 ulps of 1).
 
 Verdicts come from outputs: a bias toward a singular target fails exactly where its
 outputs leave that band (:func:`singular_target_rows` says which rows the target
