@@ -19,10 +19,13 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
   strictly inside the moment space (:data:`LEGIT_TARGETS`, and the declared target where it
   lies strictly inside), of the bound of the
   biased moments (float64) from Z, plus the jump of Z where zf sits on a depth of
-  the distribution, times 1.25; plus 16 times the spread of float32 evaluations (this
-  package and the papers' own code, on those biased moments and on the port's own
-  input moved by one ulp: the same safety factor as every golden tolerance); at
-  least 4 float32 ulps of 1.
+  the distribution, times 1.25; plus the spread s of float32 evaluations (this
+  package, the papers' own code, and the bias and Algorithm 1 as a SPIR-V/GLSL compiler
+  contracts them: ``(1 − α) b + α b*`` or ``b + α (b* − b)`` (``mix``/``lerp``), either
+  product fused or none, then the shipped ports' Cholesky evaluation with and without fma;
+  the NLQ chain's stages contracted as in :mod:`moments_ref.golden.gpuspread`; on those
+  biased moments and on the port's own input moved by one ulp); plus the band model's
+  margin (:mod:`moments_ref.golden.bands`), max(3 s, 8 float32 ulps of 1).
 
 Verdicts come from outputs: a bias toward a singular target fails exactly where its
 outputs leave that band (:func:`singular_target_rows` says which rows the target
@@ -52,7 +55,10 @@ __all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "singular_target_ro
 #: Targets strictly inside the moment space (papers' frame): the presets' and the uniform distribution's.
 LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3, 0.0, 0.2),
                  (0.1, 0.4, 0.05, 0.3))
-_SAFETY, _SPREAD = 1.25, 16.0
+_SAFETY = 1.25
+# The band model's margin, max(3 × the width of the evaluations, 8 ulps): moments_ref.golden.bands' MARGIN_WIDTH and
+# FLOOR_ULPS (bands imports the case table, which imports this module; a test keeps the two equal).
+_MARGIN_WIDTH, _FLOOR_ULPS = 3.0, 8
 _SCENES = ("railing", "three-occluders", "chair")
 
 
@@ -257,6 +263,30 @@ def _chain(ctx, preset, dt):
     return out
 
 
+def _contracted(ctx, preset):
+    """The float32 pipeline with ``preset`` as a SPIR-V/GLSL compiler may contract and reassociate it: the bias as
+    ``(1 − α) b + α b*`` or ``b + α (b* − b)`` (``mix``/``lerp``), either product fused or none
+    (:mod:`moments_ref.gpu.fused32`), then Algorithm 1 by the shipped ports' Cholesky evaluation with and without
+    fma (:func:`moments_ref.golden.paper.cholesky_bound`); the NLQ chain with its stages contracted
+    (:data:`moments_ref.golden.gpuspread.FUSED_STAGES`)."""
+    from .gpuspread import FUSED_STAGES, nlq_chain_fused
+
+    fmt, bound = ctx.get("fmt"), ctx.get("bound", "lower")
+    if fmt is not None:
+        args = (fmt, preset, ctx.get("clamp"), ctx.get("clamp_test") or "stored")
+        chains = [nlq_chain_fused(*args, stages=s, texel=ctx.get("texel")) for s in FUSED_STAGES]
+        return [lambda b, zf, c=c: c(b.astype(np.float32), zf.astype(np.float32))[0] for c in chains]
+    from ..gpu.fused32 import bias_fused, bias_lerp
+    from ..moments import bias_moments
+    from .paper import cholesky_bound
+
+    forms = [lambda b: b] if preset is None else [lambda b: bias_moments(b, preset)] + [
+        lambda b, s=s: bias_fused(b, preset, s) for s in (False, True)] + [
+        lambda b, f=f: bias_lerp(b, preset, f) for f in (False, True)]
+    return [lambda b, zf, g=g, m=m: cholesky_bound(g(b.astype(np.float32)), zf.astype(np.float32), bound, np.float32,
+                                                     fma=m) for g in forms for m in (False, True)]
+
+
 def papers_chain32(arrays, preset, ctx, n):
     """The papers' own formulation (last of :func:`_chain`) in float32 with ``preset``, on the rows'
     unbiased moments: for the diagnosis of a bias target."""
@@ -310,7 +340,8 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
             v64 = np.asarray(_chain(ctx, p, np.float64)[0](unbiased["float64"], zf), np.float64)
             dev = np.fmax(dev, np.abs(v64 - z))
             for d in PORT_DTYPES:
-                for f in _chain(ctx, p, np.dtype(d).type):
+                extra = _contracted(ctx, p) if d == "float32" else []
+                for f in _chain(ctx, p, np.dtype(d).type) + extra:
                     spread[d] = np.fmax(spread[d], np.abs(np.asarray(f(unbiased[d], zf), np.float64) - v64))
         for d in PORT_DTYPES:  # the rounding of the port's own input, as in every golden case
             spread[d] = np.fmax(spread[d], _input_spread(ctx, b, zf, np.dtype(d)))
@@ -320,7 +351,9 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
     expected = 1 - z if ctx.get("visibility") else z
     out = {"b": b, "intensity": expected, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
     for d in PORT_DTYPES:
-        t = ceil2(np.maximum(_SAFETY * (dev + jump) + _SPREAD * spread[d], 4 * ulp(np.ones(n), d)))
+        # The band model's margin (moments_ref.golden.bands): the evaluations' span plus max(3 × its width, 8 ulps).
+        margin = np.maximum(_MARGIN_WIDTH * spread[d], _FLOOR_ULPS * ulp(np.ones(n), d))
+        t = ceil2(_SAFETY * (dev + jump) + spread[d] + margin)
         out[f"intensity_tolerance_{d}"] = np.minimum(t, 1.0)
     out["category"] = np.asarray(category).astype("U6")
     out["comment"] = np.asarray(comment).astype(f"U{max(1, max(len(c) for c in comment))}")

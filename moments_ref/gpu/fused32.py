@@ -11,6 +11,7 @@ samples, the block); this module does it for the rest of the chain, the arithmet
 HPG17 §3.2 and Algorithms 2 and 3 on one texel:
 
 * :func:`bias_fused`: ``b (1 − α) + α b*`` with either product fused (HPG17 §3.2, Slides "Bias the moments");
+* :func:`bias_lerp`: the same bias as an engine's ``lerp``/``mix`` may write it, ``b + α (b* − b)``, fused or not;
 * :func:`phi_fused`: Algorithm 2 with every ``a b ± c`` fused (σ², q1, q0, the
   discriminant, ξ4 of Eq. (3));
 * :func:`shade_fused`: Algorithm 3 with every ``a b ± c`` fused (P, q1/2, the
@@ -50,7 +51,7 @@ from .._arrays import real_input
 from ..moments import bias_preset
 from ..nonlinear import SHADE_TOLERANCE, phi
 
-__all__ = ["fma32", "bias_fused", "phi_fused", "shade_fused", "CONTRACTIONS"]
+__all__ = ["fma32", "bias_fused", "bias_lerp", "phi_fused", "shade_fused", "CONTRACTIONS"]
 
 #: The contraction choices :func:`phi_fused` and :func:`shade_fused` enumerate (their ``swapped``).
 CONTRACTIONS = (False, True)
@@ -74,6 +75,16 @@ def bias_fused(b, preset, swapped=False):
     if swapped:
         return fma32(alpha, target, (_F32(1) - alpha) * b)
     return fma32(b, _F32(1) - alpha, alpha * target)
+
+
+def bias_lerp(b, preset, fused=False):
+    """HPG17 §3.2's bias ``(1 − α) b + α b*`` written as a lerp, ``b + α (b* − b)`` (HLSL ``lerp``, one form of
+    GLSL ``mix``), float32 ``(..., 4)``; ``fused``: ``fma(α, b* − b, b)``, as a compiler may contract it."""
+    p = bias_preset(preset)
+    b = np.asarray(b, _F32)
+    alpha = _F32(p.alpha)
+    d = np.asarray(p.target, _F32) - b
+    return fma32(alpha, d, b) if fused else (b + alpha * d).astype(_F32)
 
 
 def phi_fused(b, swapped=False):
