@@ -168,12 +168,13 @@ def test_intervals_refuse_bad_input():
     assert intervals.quantile_interval([np.inf, 1.0, 2.0], 0.5)[1] == np.inf  # an infinite error is a value
 
 
-def test_msm6_unorm10_shares_are_the_commands():
+@pytest.mark.parametrize("markers, block", [("UNORM10_MARKERS", "unorm10_block"), ("CUBIC_MARKERS", "cubic_block")])
+def test_msm6_random_figures_are_the_commands(markers, block):
     from moments_ref.tools import random_figures
 
     doc = (ROOT / "docs" / "msm6.md").read_text(encoding="utf-8")
-    begin, end = random_figures.UNORM10_MARKERS
-    assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == random_figures.unorm10_block().strip(), \
+    begin, end = getattr(random_figures, markers)
+    assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == getattr(random_figures, block)().strip(), \
         "regenerate: python -m moments_ref.tools.random_figures"
 
 

@@ -1,11 +1,13 @@
 """The docs' figures from random rows that no other command writes, with their sample and interval.
 
-``python -m moments_ref.tools.random_figures`` rewrites the marked block of docs/msm6.md:
+``python -m moments_ref.tools.random_figures`` rewrites the marked blocks of docs/msm6.md:
 the share of 2×R10G10B10A2-quantized six-moment vectors (the Slides' storage) inside the
 moment space after biasing with each α (:func:`moments_ref.msm6.measure_unorm10_bias`), with the
 distribution the vectors are drawn from, their count and each share's 95 % Wilson
-interval (:func:`moments_ref.tools.intervals.wilson_interval`). tests/test_docs.py
-checks that the block in the docs is what this writes.
+interval (:func:`moments_ref.tools.intervals.wilson_interval`); and the largest root error of
+the three cubic solvers against mpmath (:func:`moments_ref.msm6.cubic_solver_benchmark`), with
+the bound on how often a fresh case exceeds it (:func:`moments_ref.tools.intervals.exceedance_bound`).
+tests/test_docs.py checks that each block in the docs is what this writes.
 
 References
 ----------
@@ -21,13 +23,15 @@ import sys
 from pathlib import Path
 
 from .._io import write_between
-from ..msm6 import measure_unorm10_bias
-from .intervals import CONFIDENCE, wilson_interval
+from ..msm6 import cubic_solver_benchmark, measure_unorm10_bias
+from .intervals import CONFIDENCE, exceedance_bound, wilson_interval
 
-__all__ = ["UNORM10_MARKERS", "unorm10_block", "rewrite", "main"]
+__all__ = ["UNORM10_MARKERS", "CUBIC_MARKERS", "unorm10_block", "cubic_block", "rewrite", "main"]
 
 #: The lines between which docs/msm6.md holds the block :func:`unorm10_block` writes.
 UNORM10_MARKERS = ("<!-- unorm10-bias: begin -->", "<!-- unorm10-bias: end -->")
+#: The lines between which docs/msm6.md holds the block :func:`cubic_block` writes.
+CUBIC_MARKERS = ("<!-- cubic-solver: begin -->", "<!-- cubic-solver: end -->")
 
 
 def unorm10_block(n=4000, seed=0, alphas=(1e-3, 2e-3, 3e-3, 5e-3)):
@@ -45,6 +49,25 @@ def unorm10_block(n=4000, seed=0, alphas=(1e-3, 2e-3, 3e-3, 5e-3)):
     return "\n".join(lines)
 
 
+def cubic_block(n=20000, seed=0, reference=200):
+    """Markdown: the largest root error of each cubic solver against mpmath, with its exceedance bound."""
+    m = cubic_solver_benchmark(n=n, seed=seed, reference=reference)
+    k = min(reference, n)
+    lines = [f"Sample (`python -m moments_ref.tools.random_figures`, seed {seed}): n = {n} six-moment vectors of 5 "
+             "depths uniform in [-1, 1] with weights uniform in [0.05, 1] normalised, biased with BIAS6_FLOAT64, "
+             "and a fragment depth zf uniform in [-1, 1]; the kernel's reversed cubic of each, solved in float64. "
+             f"The first {k} are compared with `mpmath.polyroots` (40 digits): the largest error of the three "
+             f"roots relative to the largest |root|. That is the largest of the sample: with {CONFIDENCE:.0%} "
+             f"confidence a fresh case exceeds it with probability at most {exceedance_bound(k):.1%} "
+             "(1 − 0.05^(1/n)).", "",
+             f"| solver | largest relative error ({k} cases) |", "|---|---|"]
+    for key, name in (("closed", "trig-free closed form (two Newton steps)"),
+                      ("trig", "trigonometric method (two Newton steps)"),
+                      ("eig", "`np.linalg.eigvals` of the companion matrix")):
+        lines.append(f"| {name} | {float(m[f'{key}_max_rel_err']):.2g} |")
+    return "\n".join(lines)
+
+
 def rewrite(path, block, markers=UNORM10_MARKERS):
     """Replace the text between ``markers`` in the file ``path`` by ``block`` (atomically); return the path."""
     return write_between(path, markers, f"\n{block}\n")
@@ -52,7 +75,8 @@ def rewrite(path, block, markers=UNORM10_MARKERS):
 
 def main(docs="docs"):
     """Rewrite the generated blocks under ``docs``; return the paths written."""
-    return [rewrite(Path(docs) / "msm6.md", unorm10_block())]
+    path = Path(docs) / "msm6.md"
+    return [rewrite(path, unorm10_block()), rewrite(path, cubic_block(), CUBIC_MARKERS)]
 
 
 if __name__ == "__main__":  # pragma: no cover
