@@ -205,3 +205,19 @@ def test_a_generated_block_is_written_between_its_markers_and_refused_without_th
         with pytest.raises(InputError, match="expected one"):
             write_between(p, ("<!-- a -->", "<!-- b -->"), "x")
         assert p.read_text(encoding="utf-8") == bad  # nothing written
+
+
+def test_conformance_probe_counts_carry_their_wilson_interval():
+    """Every 'k of n' in docs/conformance.md's probe table states the 95 % Wilson interval of k / n."""
+    import re
+
+    from moments_ref.tools.intervals import wilson_interval
+
+    doc = (ROOT / "docs" / "conformance.md").read_text(encoding="utf-8")
+    section = doc.split("## Floating-point behaviour of the drivers (measured)", 1)[1].split("\n## ", 1)[0]
+    counts = re.findall(r"(\d+) of (\d+) \(max \d+ ulp(?:; 95 % interval ([^ ]+) % to ([^ ]+) %)?\)", section)
+    assert len(counts) >= 2, "the probe table lost its division and sqrt columns"
+    for k, n, lo, hi in counts:
+        want = wilson_interval(int(k), int(n))
+        assert (lo, hi) == (f"{100 * want[0]:.2g}", f"{100 * want[1]:.2g}"), \
+            f"{k} of {n}: regenerate with moments-ref conformance --all --out docs/"
