@@ -168,11 +168,13 @@ def test_intervals_refuse_bad_input():
     assert intervals.quantile_interval([np.inf, 1.0, 2.0], 0.5)[1] == np.inf  # an infinite error is a value
 
 
-@pytest.mark.parametrize("markers, block", [("UNORM10_MARKERS", "unorm10_block"), ("CUBIC_MARKERS", "cubic_block")])
-def test_msm6_random_figures_are_the_commands(markers, block):
+@pytest.mark.parametrize("page, markers, block", [("msm6.md", "UNORM10_MARKERS", "unorm10_block"),
+                                                  ("msm6.md", "CUBIC_MARKERS", "cubic_block"),
+                                                  ("ports.md", "MIX_MARKERS", "mix_block")])
+def test_random_figures_are_the_commands(page, markers, block):
     from moments_ref.tools import random_figures
 
-    doc = (ROOT / "docs" / "msm6.md").read_text(encoding="utf-8")
+    doc = (ROOT / "docs" / page).read_text(encoding="utf-8")
     begin, end = getattr(random_figures, markers)
     assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == getattr(random_figures, block)().strip(), \
         "regenerate: python -m moments_ref.tools.random_figures"

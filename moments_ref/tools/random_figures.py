@@ -6,7 +6,9 @@ moment space after biasing with each α (:func:`moments_ref.msm6.measure_unorm10
 distribution the vectors are drawn from, their count and each share's 95 % Wilson
 interval (:func:`moments_ref.tools.intervals.wilson_interval`); and the largest root error of
 the three cubic solvers against mpmath (:func:`moments_ref.msm6.cubic_solver_benchmark`), with
-the bound on how often a fresh case exceeds it (:func:`moments_ref.tools.intervals.exceedance_bound`).
+the bound on how often a fresh case exceeds it (:func:`moments_ref.tools.intervals.exceedance_bound`);
+and in docs/ports.md the share of random float32 inputs on which SPIR-V's ``FMix``,
+``x(1 − a) + ya``, and Mesa's ``x + a(y − x)`` differ, with its Wilson interval.
 tests/test_docs.py checks that each block in the docs is what this writes.
 
 References
@@ -22,16 +24,21 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from .._io import write_between
 from ..msm6 import cubic_solver_benchmark, measure_unorm10_bias
 from .intervals import CONFIDENCE, exceedance_bound, wilson_interval
 
-__all__ = ["UNORM10_MARKERS", "CUBIC_MARKERS", "unorm10_block", "cubic_block", "rewrite", "main"]
+__all__ = ["UNORM10_MARKERS", "CUBIC_MARKERS", "MIX_MARKERS", "unorm10_block", "cubic_block", "mix_block",
+           "rewrite", "main"]
 
 #: The lines between which docs/msm6.md holds the block :func:`unorm10_block` writes.
 UNORM10_MARKERS = ("<!-- unorm10-bias: begin -->", "<!-- unorm10-bias: end -->")
 #: The lines between which docs/msm6.md holds the block :func:`cubic_block` writes.
 CUBIC_MARKERS = ("<!-- cubic-solver: begin -->", "<!-- cubic-solver: end -->")
+#: The lines between which docs/ports.md holds the block :func:`mix_block` writes.
+MIX_MARKERS = ("<!-- mix-share: begin -->", "<!-- mix-share: end -->")
 
 
 def unorm10_block(n=4000, seed=0, alphas=(1e-3, 2e-3, 3e-3, 5e-3)):
@@ -68,6 +75,18 @@ def cubic_block(n=20000, seed=0, reference=200):
     return "\n".join(lines)
 
 
+def mix_block(n=20000, seed=1):
+    """Markdown: how often the two expansions of ``mix(x, y, a)`` differ in float32, with its Wilson interval."""
+    x, y, a, _ = np.random.default_rng(seed).uniform(-2, 2, (n, 4)).astype(np.float32).T
+    fmix = x * (np.float32(1) - a) + y * a  # SPIR-V's FMix, GLSL's definition
+    mesa = x + a * (y - x)  # Mesa's GLSL compiler without `precise`
+    k = int(np.count_nonzero(fmix.view(np.int32) != mesa.view(np.int32)))
+    lo, hi = wilson_interval(k, n)
+    return (f"* In float32, `x(1 − a) + ya` and `x + a(y − x)` differ on {k} of {n} random inputs ({100 * k / n:.1f} %; {CONFIDENCE:.0%} Wilson "
+            f"interval {100 * lo:.1f} % to {100 * hi:.1f} %; `python -m moments_ref.tools.random_figures`, seed {seed}: "
+            "x, y, a uniform in [-2, 2] in float32).")
+
+
 def rewrite(path, block, markers=UNORM10_MARKERS):
     """Replace the text between ``markers`` in the file ``path`` by ``block`` (atomically); return the path."""
     return write_between(path, markers, f"\n{block}\n")
@@ -76,7 +95,8 @@ def rewrite(path, block, markers=UNORM10_MARKERS):
 def main(docs="docs"):
     """Rewrite the generated blocks under ``docs``; return the paths written."""
     path = Path(docs) / "msm6.md"
-    return [rewrite(path, unorm10_block()), rewrite(path, cubic_block(), CUBIC_MARKERS)]
+    return [rewrite(path, unorm10_block()), rewrite(path, cubic_block(), CUBIC_MARKERS),
+            rewrite(Path(docs) / "ports.md", mix_block(), MIX_MARKERS)]
 
 
 if __name__ == "__main__":  # pragma: no cover
