@@ -170,6 +170,7 @@ def test_intervals_refuse_bad_input():
 
 @pytest.mark.parametrize("page, markers, block", [("msm6.md", "UNORM10_MARKERS", "unorm10_block"),
                                                   ("msm6.md", "CUBIC_MARKERS", "cubic_block"),
+                                                  ("msm6.md", "STIFF_MARKERS", "stiff_block"),
                                                   ("ports.md", "MIX_MARKERS", "mix_block")])
 def test_random_figures_are_the_commands(page, markers, block):
     from moments_ref.tools import random_figures
@@ -223,3 +224,33 @@ def test_conformance_probe_counts_carry_their_wilson_interval():
         want = wilson_interval(int(k), int(n))
         assert (lo, hi) == (f"{100 * want[0]:.2g}", f"{100 * want[1]:.2g}"), \
             f"{k} of {n}: regenerate with moments-ref conformance --all --out docs/"
+
+
+def test_stiff_cases_are_drawn_as_stated_and_their_excess_sees_a_too_weak_bias():
+    """The sampler's documented shape, checked by brute force; α = 3e-7 in float32 is known to break the bounds."""
+    import numpy as np
+
+    from moments_ref import msm6
+    from moments_ref.moments import BiasPreset, bias_moments, power_moments
+    from moments_ref.tools import random_figures
+
+    z, w, zf = random_figures.stiff_cases(300, seed=4)
+    used = w > 0
+    assert z.dtype == np.float32 and set(used.sum(axis=1)) == set(range(1, 7))
+    assert np.allclose(w.sum(axis=1), 1) and (w[used] >= 0.05 / 6).all()
+    spread = np.where(used, z, np.nan)
+    assert (np.nanmax(spread, axis=1) - np.nanmin(spread, axis=1) <= 0.2 + 1e-6).all()
+    assert 0.2 < np.mean((np.abs(z[:, 0]) > 0.9)) < 0.6  # about a third clustered at ±1
+    for i in range(6):  # every used depth and its float32 neighbours are fragment depths
+        rows = used[:, i]
+        assert (zf[rows, 3 * i + 1] == z[rows, i]).all()
+        assert (zf[rows, 3 * i] <= z[rows, i]).all() and (zf[rows, 3 * i + 2] >= z[rows, i]).all()
+    # A loop over rows (not the block's broadcasting) for the true Z, and a bias known to be useless in float32.
+    b = bias_moments(power_moments(z.astype(np.float64), w, n=6).astype(np.float32),
+                     BiasPreset(3e-7, msm6.BIAS6_TARGET))
+    worst = 0.0
+    for r in range(len(z)):
+        lower, _ = msm6.shadow_bounds(b[r], zf[r])
+        truth = np.array([w[r][z[r] < f].sum() for f in zf[r]])
+        worst = max(worst, float((lower - truth).max()))
+    assert worst > 0.5
