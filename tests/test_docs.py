@@ -224,6 +224,12 @@ def test_conformance_probe_counts_carry_their_wilson_interval():
         want = wilson_interval(int(k), int(n))
         assert (lo, hi) == (f"{100 * want[0]:.2g}", f"{100 * want[1]:.2g}"), \
             f"{k} of {n}: regenerate with moments-ref conformance --all --out docs/"
+    xi4 = doc.split("## The ξ4 code through `log` (measured)", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"\| (\d+) of (\d+) \([^)]*\) \| ([^ ]+) % to ([^ ]+) % \|", xi4)
+    assert len(rows) >= 2, "the ξ4 table lost its rows"
+    for k, n, lo, hi in rows:
+        want = wilson_interval(int(k), int(n))
+        assert (lo, hi) == (f"{100 * want[0]:.2g}", f"{100 * want[1]:.2g}"), f"ξ4: {k} of {n}"
 
 
 def test_stiff_cases_are_drawn_as_stated_and_their_excess_sees_a_too_weak_bias():

@@ -3,7 +3,9 @@
 Each probe is a one-line function in each language, run through the same harness
 as the ports: is ``fma`` fused, is ``a*b + c`` contracted into a fused
 multiply-add, does ``precise`` stop that, what ``clamp`` makes of NaN, and whether
-division and ``sqrt`` round correctly (against NumPy's float32 on random inputs).
+division and ``sqrt`` round correctly (against NumPy's float32 on random inputs);
+and how often the shipped ports' ``pack64``/``pack32`` ξ4 code, which goes through the
+driver's ``log`` (HPG17 §3.3, Ψ4), differs from ``packing.py``'s.
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import packing, precise
 from .._arrays import InputError
+from ..ports import PORTS_DIR
 from ..tools.intervals import wilson_interval
 from ._gl import ContextError
 from ._run import DRIVERS, LANGUAGES, run_function
@@ -21,7 +25,8 @@ from .languages import TABLE
 from ._toolchain import ToolError
 from .verdict import ulp_distance
 
-__all__ = ["PROBES", "measure", "rules", "spirv_counts", "hlsl_contraction", "probe_markdown"]
+__all__ = ["PROBES", "measure", "rules", "spirv_counts", "hlsl_contraction", "xi4_codes", "xi4_markdown",
+           "probe_markdown"]
 
 _GLSL = """vec4 p_rules(vec4 x) { return vec4(mix(x.x, x.y, x.z), x.x / 3.0, (1.5 * x.x - 2.0 * x.y) + 0.5,
     x.w * x.w * x.w * x.w); }
@@ -144,6 +149,63 @@ def hlsl_contraction():
         return found
 
 
+def _random_representations(n, seed):
+    # y1 <= y2 two sorted uniform draws in [-1, 1], v2 uniform in [0, 1], xi4 = 10^u, u uniform in [-8, log10 0.25].
+    rng = np.random.default_rng(seed)
+    y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
+    return np.column_stack([y, rng.uniform(0, 1, n), 10 ** rng.uniform(-8, np.log10(0.25), n)]).astype(np.float32)
+
+
+def xi4_codes(language, adapter, n=40000):
+    """``{function: (other codes differing, ξ4 codes differing, largest ξ4 difference, farthest from an integer)}``.
+
+    The shipped port's ``pack64`` (rows of seed 7) and ``pack32`` (seed 8) against
+    :mod:`moments_ref.packing` on ``n`` random representations; "farthest" is, over the
+    pack64 rows whose ξ4 code differs, the largest distance of the exact ``65535·Ψ4(ξ4)``
+    (:func:`moments_ref.precise.psi4`) from an integer (``nan`` where none differs or for pack32).
+    """
+    path = PORTS_DIR / language / f"packing.{language}"
+    found = {}
+    for fn, seed, shape, dtype in (("pack64", 7, (n, 4), np.uint16), ("pack32", 8, (n,), np.uint32)):
+        r = _random_representations(n, seed)
+        name = "q" if fn == "pack64" else "p"
+        got = run_function(path, fn, {"r": r}, {name: (dtype, shape)}, language, adapter)[0][name].astype(np.int64)
+        ref = getattr(packing, fn)(r).astype(np.int64)
+        if fn == "pack64":
+            other, d = np.count_nonzero(got[:, :3] != ref[:, :3]), got[:, 3] - ref[:, 3]
+            s = 65535 * precise.psi4(r[d != 0, 3])
+            far = float(np.abs(s - np.round(s)).max()) if s.size else float("nan")
+        else:
+            other, d, far = np.count_nonzero((got ^ ref) & ((1 << 26) - 1)), (got >> 26) - (ref >> 26), float("nan")
+        found[fn] = (int(other), int(np.count_nonzero(d)), int(np.abs(d).max()), far)
+    return found
+
+
+def xi4_markdown(n=40000):
+    """The table of :func:`xi4_codes` for docs/conformance.md."""
+    lines = ["## The ξ4 code through `log` (measured)", "",
+             f"The shipped ports' `pack64` (seed 7) and `pack32` (seed 8) on {n} random representations (y1 ≤ y2",
+             "two sorted draws uniform in [-1, 1], v2 uniform in [0, 1], ξ4 = 10^u with u uniform in",
+             "[-8, log10 0.25], in float32) against `packing.py`: depth and v2 codes differing, ξ4 codes",
+             "differing (they go through the driver's `log`) with the 95 % Wilson interval of their share, the",
+             "largest difference of a ξ4 code, and over the differing pack64 rows the farthest the exact",
+             "65535·Ψ4(ξ4) (mpmath) lies from an integer.", "",
+             "| language | driver | function | other codes differing | ξ4 codes differing | 95 % interval |"
+             " largest ξ4 difference | farthest from an integer |", "|---|---|---|---|---|---|---|---|"]
+    for language in (x for x in LANGUAGES if TABLE[x].probed):
+        for driver in DRIVERS:
+            try:
+                f = xi4_codes(language, driver, n)
+            except (ContextError, ToolError) as exc:
+                lines.append(f"| {language} | {driver} | skipped: {exc} ||||||")
+                continue
+            for fn, (other, k, big, far) in f.items():
+                lo, hi = wilson_interval(k, n)
+                lines.append(f"| {language} | {driver} | {fn} | {other} | {k} of {n} ({100 * k / n:.2g} %) | "
+                             f"{100 * lo:.2g} % to {100 * hi:.2g} % | {big} | {'–' if far != far else f'{far:.2g}'} |")
+    return lines
+
+
 def probe_markdown():
     """The measured table for docs/conformance.md."""
     lines = ["## Floating-point behaviour of the drivers (measured)", "",
@@ -183,4 +245,4 @@ def probe_markdown():
                   "llvmpipe and lavapipe evaluate the `Fma` unfused, a GPU fuses it."]
     except (ToolError, ContextError) as exc:
         lines += ["", f"glslang's contraction of HLSL: not measured ({exc})."]
-    return "\n".join(lines)
+    return "\n".join(lines + [""] + xi4_markdown())
