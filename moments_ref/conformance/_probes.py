@@ -6,6 +6,12 @@ multiply-add, does ``precise`` stop that, what ``clamp`` makes of NaN, and wheth
 division and ``sqrt`` round correctly (against NumPy's float32 on random inputs);
 and how often the shipped ports' ``pack64``/``pack32`` ξ4 code, which goes through the
 driver's ``log`` (HPG17 §3.3, Ψ4), differs from ``packing.py``'s.
+
+References
+----------
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations
