@@ -207,8 +207,9 @@ def xi4_markdown(n=40000):
                 continue
             for fn, (other, k, big, far) in f.items():
                 lo, hi = wilson_interval(k, n)
+                farthest = "–" if np.isnan(far) else f"{far:.2g}"
                 lines.append(f"| {language} | {driver} | {fn} | {other} | {k} of {n} ({100 * k / n:.2g} %) | "
-                             f"{100 * lo:.2g} % to {100 * hi:.2g} % | {big} | {'–' if far != far else f'{far:.2g}'} |")
+                             f"{100 * lo:.2g} % to {100 * hi:.2g} % | {big} | {farthest} |")
     return lines
 
 
@@ -217,8 +218,8 @@ def probe_markdown():
     lines = ["## Floating-point behaviour of the drivers (measured)", "",
              "`fma`: the built-in (HLSL `mad`); `a*b + c`: contracted into one rounding or not; `precise`:",
              "the same expression marked `precise` (WGSL has none); `clamp(NaN, 0, 1)`; division and `sqrt`:",
-             "results differing from correctly rounded float32 on 20 000 random inputs (seed 3: x > 0 and y of random sign,",
-             "magnitudes 10^u, u uniform in [-6, 6]), with the 95 % Wilson interval of the share.", "",
+             "results differing from correctly rounded float32 on 20 000 random inputs (seed 3: x > 0 and y of",
+             "random sign, magnitudes 10^u, u uniform in [-6, 6]), with the 95 % Wilson interval of the share.", "",
              "| language | driver | fma | a*b + c | precise a*b + c | clamp(NaN, 0, 1) | x / y not correctly rounded |"
              " sqrt not correctly rounded |", "|---|---|---|---|---|---|---|---|"]
     for language in (x for x in LANGUAGES if TABLE[x].probed):

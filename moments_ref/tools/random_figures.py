@@ -87,8 +87,9 @@ def mix_block(n=20000, seed=1):
     mesa = x + a * (y - x)  # Mesa's GLSL compiler without `precise`
     k = int(np.count_nonzero(fmix.view(np.int32) != mesa.view(np.int32)))
     lo, hi = wilson_interval(k, n)
-    return (f"* In float32, `x(1 − a) + ya` and `x + a(y − x)` differ on {k} of {n} random inputs ({100 * k / n:.1f} %; {CONFIDENCE:.0%} Wilson "
-            f"interval {100 * lo:.1f} % to {100 * hi:.1f} %; `python -m moments_ref.tools.random_figures`, seed {seed}: "
+    return (f"* In float32, `x(1 − a) + ya` and `x + a(y − x)` differ on {k} of {n} random inputs "
+            f"({100 * k / n:.1f} %; {CONFIDENCE:.0%} Wilson interval {100 * lo:.1f} % to {100 * hi:.1f} %; "
+            f"`python -m moments_ref.tools.random_figures`, seed {seed}: "
             "x, y, a uniform in [-2, 2] in float32).")
 
 
@@ -124,7 +125,8 @@ def stiff_block(n=4000, seed=0, alphas=(3e-7, 1e-5, 1e-4, BIAS6_FLOAT32.alpha, 1
              "(:func:`moments_ref.tools.random_figures.stiff_cases`: 1 to 6 depths, the count uniform, clustered "
              "within 10^u of a centre, u uniform in [-7, -1], the centre uniform in [-1, 1] or at ±1 in a third "
              "of the cases; weights uniform in [0.05, 1] normalised), zf at every depth and at its two float32 "
-             f"neighbours, clamped to [-1, 1] ({zf.shape[1]} per case); moments in float32, biased with α towards BIAS6_TARGET, "
+             f"neighbours, clamped to [-1, 1] ({zf.shape[1]} per case); moments in float32, biased with α towards "
+             "BIAS6_TARGET, "
              "bounds by `msm6.shadow_bounds` in float32. Each figure is the largest over the sample: with "
              f"{CONFIDENCE:.0%} confidence a fresh case's worst exceeds it with probability at most "
              f"{exceedance_bound(n):.2%} (1 − 0.05^(1/n)).", "",
