@@ -357,6 +357,26 @@ def test_llvmpipe_never_fuses_and_clamps_nan_to_zero(drivers, language, driver):
     assert found["p_div"].startswith("0 of") and found["p_sqrt"].startswith("0 of")
 
 
+@pytest.mark.parametrize("language,driver", COMBOS)
+def test_xi4_codes_differ_only_next_to_a_code_boundary(drivers, language, driver):
+    """docs/conformance.md's ξ4 table: only the log-fed code differs, by one, within float32 reach of an integer."""
+    import math
+
+    from moments_ref.conformance import _probes
+
+    n = 4000
+    found = _probes.xi4_codes(language, driver, n)
+    r = _probes._random_representations(n, 7)
+    x = np.clip(r[:, 3].astype(np.float64), 1.2e-7, 0.25)  # Psi4 in float64, apart from precise.psi4
+    c0 = math.log(math.log(1.2))
+    s = 65535 * (np.log(np.log(x * 1e7)) - c0) / (math.log(math.log(0.25e7)) - c0)
+    near = int(np.count_nonzero(np.abs(s - np.round(s)) < 0.01))  # rows a float32 log may round either way
+    other, k, big, far = found["pack64"]
+    assert other == 0 and big <= 1 and k <= near
+    assert k == 0 or far < 0.01
+    assert found["pack32"][0] == 0 and found["pack32"][2] <= 1
+
+
 def test_glslang_contracts_hlsl_unless_precise(drivers):
     from moments_ref.conformance import _probes
 

@@ -168,12 +168,16 @@ def test_intervals_refuse_bad_input():
     assert intervals.quantile_interval([np.inf, 1.0, 2.0], 0.5)[1] == np.inf  # an infinite error is a value
 
 
-def test_msm6_unorm10_shares_are_the_commands():
+@pytest.mark.parametrize("page, markers, block", [("msm6.md", "UNORM10_MARKERS", "unorm10_block"),
+                                                  ("msm6.md", "CUBIC_MARKERS", "cubic_block"),
+                                                  ("msm6.md", "STIFF_MARKERS", "stiff_block"),
+                                                  ("ports.md", "MIX_MARKERS", "mix_block")])
+def test_random_figures_are_the_commands(page, markers, block):
     from moments_ref.tools import random_figures
 
-    doc = (ROOT / "docs" / "msm6.md").read_text(encoding="utf-8")
-    begin, end = random_figures.UNORM10_MARKERS
-    assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == random_figures.unorm10_block().strip(), \
+    doc = (ROOT / "docs" / page).read_text(encoding="utf-8")
+    begin, end = getattr(random_figures, markers)
+    assert doc.split(begin, 1)[1].split(end, 1)[0].strip() == getattr(random_figures, block)().strip(), \
         "regenerate: python -m moments_ref.tools.random_figures"
 
 
@@ -204,3 +208,55 @@ def test_a_generated_block_is_written_between_its_markers_and_refused_without_th
         with pytest.raises(InputError, match="expected one"):
             write_between(p, ("<!-- a -->", "<!-- b -->"), "x")
         assert p.read_text(encoding="utf-8") == bad  # nothing written
+
+
+def test_conformance_probe_counts_carry_their_wilson_interval():
+    """Every 'k of n' in docs/conformance.md's probe table states the 95 % Wilson interval of k / n."""
+    import re
+
+    from moments_ref.tools.intervals import wilson_interval
+
+    doc = (ROOT / "docs" / "conformance.md").read_text(encoding="utf-8")
+    section = doc.split("## Floating-point behaviour of the drivers (measured)", 1)[1].split("\n## ", 1)[0]
+    counts = re.findall(r"(\d+) of (\d+) \(max \d+ ulp(?:; 95 % interval ([^ ]+) % to ([^ ]+) %)?\)", section)
+    assert len(counts) >= 2, "the probe table lost its division and sqrt columns"
+    for k, n, lo, hi in counts:
+        want = wilson_interval(int(k), int(n))
+        assert (lo, hi) == (f"{100 * want[0]:.2g}", f"{100 * want[1]:.2g}"), \
+            f"{k} of {n}: regenerate with moments-ref conformance --all --out docs/"
+    xi4 = doc.split("## The ξ4 code through `log` (measured)", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"\| (\d+) of (\d+) \([^)]*\) \| ([^ ]+) % to ([^ ]+) % \|", xi4)
+    assert len(rows) >= 2, "the ξ4 table lost its rows"
+    for k, n, lo, hi in rows:
+        want = wilson_interval(int(k), int(n))
+        assert (lo, hi) == (f"{100 * want[0]:.2g}", f"{100 * want[1]:.2g}"), f"ξ4: {k} of {n}"
+
+
+def test_stiff_cases_are_drawn_as_stated_and_their_excess_sees_a_too_weak_bias():
+    """The sampler's documented shape, checked by brute force; α = 3e-7 in float32 is known to break the bounds."""
+    import numpy as np
+
+    from moments_ref import msm6
+    from moments_ref.moments import BiasPreset, bias_moments, power_moments
+    from moments_ref.tools import random_figures
+
+    z, w, zf = random_figures.stiff_cases(300, seed=4)
+    used = w > 0
+    assert z.dtype == np.float32 and set(used.sum(axis=1)) == set(range(1, 7))
+    assert np.allclose(w.sum(axis=1), 1) and (w[used] >= 0.05 / 6).all()
+    spread = np.where(used, z, np.nan)
+    assert (np.nanmax(spread, axis=1) - np.nanmin(spread, axis=1) <= 0.2 + 1e-6).all()
+    assert 0.2 < np.mean((np.abs(z[:, 0]) > 0.9)) < 0.6  # about a third clustered at ±1
+    for i in range(6):  # every used depth and its float32 neighbours are fragment depths
+        rows = used[:, i]
+        assert (zf[rows, 3 * i + 1] == z[rows, i]).all()
+        assert (zf[rows, 3 * i] <= z[rows, i]).all() and (zf[rows, 3 * i + 2] >= z[rows, i]).all()
+    # A loop over rows (not the block's broadcasting) for the true Z, and a bias known to be useless in float32.
+    b = bias_moments(power_moments(z.astype(np.float64), w, n=6).astype(np.float32),
+                     BiasPreset(3e-7, msm6.BIAS6_TARGET))
+    worst = 0.0
+    for r in range(len(z)):
+        lower, _ = msm6.shadow_bounds(b[r], zf[r])
+        truth = np.array([w[r][z[r] < f].sum() for f in zf[r]])
+        worst = max(worst, float((lower - truth).max()))
+    assert worst > 0.5

@@ -3,7 +3,15 @@
 Each probe is a one-line function in each language, run through the same harness
 as the ports: is ``fma`` fused, is ``a*b + c`` contracted into a fused
 multiply-add, does ``precise`` stop that, what ``clamp`` makes of NaN, and whether
-division and ``sqrt`` round correctly (against NumPy's float32 on random inputs).
+division and ``sqrt`` round correctly (against NumPy's float32 on random inputs);
+and how often the shipped ports' ``pack64``/``pack32`` ξ4 code, which goes through the
+driver's ``log`` (HPG17 §3.3, Ψ4), differs from ``packing.py``'s.
+
+References
+----------
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations
@@ -13,14 +21,18 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import packing, precise
 from .._arrays import InputError
+from ..ports import PORTS_DIR
+from ..tools.intervals import wilson_interval
 from ._gl import ContextError
 from ._run import DRIVERS, LANGUAGES, run_function
 from .languages import TABLE
 from ._toolchain import ToolError
 from .verdict import ulp_distance
 
-__all__ = ["PROBES", "measure", "rules", "spirv_counts", "hlsl_contraction", "probe_markdown"]
+__all__ = ["PROBES", "measure", "rules", "spirv_counts", "hlsl_contraction", "xi4_codes", "xi4_markdown",
+           "probe_markdown"]
 
 _GLSL = """vec4 p_rules(vec4 x) { return vec4(mix(x.x, x.y, x.z), x.x / 3.0, (1.5 * x.x - 2.0 * x.y) + 0.5,
     x.w * x.w * x.w * x.w); }
@@ -75,7 +87,9 @@ def measure(language, adapter):
         got, _ = run_function(path, "p_ops", {"x": x}, {"y": (np.float32, (len(x), 2))}, language, adapter)
         for k, (fn, ref) in enumerate((("p_div", x[:, 0] / x[:, 1]), ("p_sqrt", np.sqrt(x[:, 0])))):
             u = ulp_distance(got["y"][:, k], ref)
-            found[fn] = f"{int((u > 0).sum())} of {len(x)} (max {int(u.max())} ulp)"
+            k = int((u > 0).sum())
+            lo, hi = wilson_interval(k, len(x))
+            found[fn] = f"{k} of {len(x)} (max {int(u.max())} ulp; 95 % interval {100 * lo:.2g} % to {100 * hi:.2g} %)"
     return found
 
 
@@ -141,12 +155,71 @@ def hlsl_contraction():
         return found
 
 
+def _random_representations(n, seed):
+    # y1 <= y2 two sorted uniform draws in [-1, 1], v2 uniform in [0, 1], xi4 = 10^u, u uniform in [-8, log10 0.25].
+    rng = np.random.default_rng(seed)
+    y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
+    return np.column_stack([y, rng.uniform(0, 1, n), 10 ** rng.uniform(-8, np.log10(0.25), n)]).astype(np.float32)
+
+
+def xi4_codes(language, adapter, n=40000):
+    """``{function: (other codes differing, ξ4 codes differing, largest ξ4 difference, farthest from an integer)}``.
+
+    The shipped port's ``pack64`` (rows of seed 7) and ``pack32`` (seed 8) against
+    :mod:`moments_ref.packing` on ``n`` random representations; "farthest" is, over the
+    pack64 rows whose ξ4 code differs, the largest distance of the exact ``65535·Ψ4(ξ4)``
+    (:func:`moments_ref.precise.psi4`) from an integer (``nan`` where none differs or for pack32).
+    """
+    path = PORTS_DIR / language / f"packing.{language}"
+    found = {}
+    for fn, seed, shape, dtype in (("pack64", 7, (n, 4), np.uint16), ("pack32", 8, (n,), np.uint32)):
+        r = _random_representations(n, seed)
+        name = "q" if fn == "pack64" else "p"
+        got = run_function(path, fn, {"r": r}, {name: (dtype, shape)}, language, adapter)[0][name].astype(np.int64)
+        ref = getattr(packing, fn)(r).astype(np.int64)
+        if fn == "pack64":
+            other, d = np.count_nonzero(got[:, :3] != ref[:, :3]), got[:, 3] - ref[:, 3]
+            s = 65535 * precise.psi4(r[d != 0, 3])
+            far = float(np.abs(s - np.round(s)).max()) if s.size else float("nan")
+        else:
+            other, d, far = np.count_nonzero((got ^ ref) & ((1 << 26) - 1)), (got >> 26) - (ref >> 26), float("nan")
+        found[fn] = (int(other), int(np.count_nonzero(d)), int(np.abs(d).max()), far)
+    return found
+
+
+def xi4_markdown(n=40000):
+    """The table of :func:`xi4_codes` for docs/conformance.md."""
+    lines = ["## The ξ4 code through `log` (measured)", "",
+             f"The shipped ports' `pack64` (seed 7) and `pack32` (seed 8) on {n} random representations (y1 ≤ y2",
+             "two sorted draws uniform in [-1, 1], v2 uniform in [0, 1], ξ4 = 10^u with u uniform in",
+             "[-8, log10 0.25], in float32) against `packing.py`: depth and v2 codes differing, ξ4 codes",
+             "differing (they go through the driver's `log`) with the 95 % Wilson interval of their share, the",
+             "largest difference of a ξ4 code, and over the differing pack64 rows the farthest the exact",
+             "65535·Ψ4(ξ4) (mpmath) lies from an integer.", "",
+             "| language | driver | function | other codes differing | ξ4 codes differing | 95 % interval |"
+             " largest ξ4 difference | farthest from an integer |", "|---|---|---|---|---|---|---|---|"]
+    for language in (x for x in LANGUAGES if TABLE[x].probed):
+        for driver in DRIVERS:
+            try:
+                f = xi4_codes(language, driver, n)
+            except (ContextError, ToolError) as exc:
+                lines.append(f"| {language} | {driver} | skipped: {exc} ||||||")
+                continue
+            for fn, (other, k, big, far) in f.items():
+                lo, hi = wilson_interval(k, n)
+                farthest = "–" if np.isnan(far) else f"{far:.2g}"
+                lines.append(f"| {language} | {driver} | {fn} | {other} | {k} of {n} ({100 * k / n:.2g} %) | "
+                             f"{100 * lo:.2g} % to {100 * hi:.2g} % | {big} | {farthest} |")
+    return lines
+
+
 def probe_markdown():
     """The measured table for docs/conformance.md."""
     lines = ["## Floating-point behaviour of the drivers (measured)", "",
              "`fma`: the built-in (HLSL `mad`); `a*b + c`: contracted into one rounding or not; `precise`:",
              "the same expression marked `precise` (WGSL has none); `clamp(NaN, 0, 1)`; division and `sqrt`:",
-             "results differing from correctly rounded float32 on 20 000 random inputs.", "",
+             "results differing from correctly rounded float32 on 20 000 random inputs (seed 3: x > 0 and y of",
+             "random sign, magnitudes 10^u, u uniform in [-6, 6]), with the 95 % Wilson interval of the share.", "",
              "| language | driver | fma | a*b + c | precise a*b + c | clamp(NaN, 0, 1) | x / y not correctly rounded |"
              " sqrt not correctly rounded |", "|---|---|---|---|---|---|---|---|"]
     for language in (x for x in LANGUAGES if TABLE[x].probed):
@@ -179,4 +252,4 @@ def probe_markdown():
                   "llvmpipe and lavapipe evaluate the `Fma` unfused, a GPU fuses it."]
     except (ToolError, ContextError) as exc:
         lines += ["", f"glslang's contraction of HLSL: not measured ({exc})."]
-    return "\n".join(lines)
+    return "\n".join(lines + [""] + xi4_markdown())
