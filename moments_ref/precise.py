@@ -336,7 +336,6 @@ def _prepare(b, zf, n=4):
     return np.broadcast_to(b, shape + (n,)), np.broadcast_to(zf, shape), shape
 
 
-@fill_doc
 def _bounds_over(bounds_mp, b, zf, dps):
     """``(lower, upper)`` float64 arrays of ``bounds_mp(b1, b2, b3, b4, zf, tol)`` per row, at ``dps`` digits."""
     dps = _check_dps(dps)
@@ -351,6 +350,7 @@ def _bounds_over(bounds_mp, b, zf, dps):
     return lower, upper
 
 
+@fill_doc
 def shadow_bounds(b, zf, dps=DPS):
     """Both bounds of HPG17 Algorithm 1 at once, in mpmath.
 
