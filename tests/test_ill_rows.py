@@ -53,6 +53,10 @@ def test_a_correct_port_passes_the_ill_conditioned_rows_and_they_never_count_as_
     assert v.record["ill_conditioned"]["rows"] == len(ill)
     for r in v.ill:  # the shown interval holds the exact value at the row itself
         assert r["exact"][0] - 1e-7 <= r["got"] <= r["exact"][1] + 1e-7
+    # the band shown stays inside an intensity's range [0, 1], and some ill row's stored band reaches beyond it
+    assert all(0 <= r["band"][0] <= r["band"][1] <= 1 for r in v.ill)
+    e, t = (np.asarray(gc.arrays[k], np.float64)[ill] for k in ("intensity", "intensity_tolerance_float32"))
+    assert ((e - t < 0) | (e + t > 1)).any()
 
 
 def test_a_wrong_answer_on_an_ill_conditioned_row_fails_even_inside_the_symmetric_band(upper):

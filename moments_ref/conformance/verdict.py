@@ -164,6 +164,12 @@ def _components(meta, arrays, got, row_pass):
     return {"ulps": "[" + ", ".join(str(int(x)) if x < 1e6 else f"{x:.3g}" for x in u) + "]"}
 
 
+def _within(case, lo, hi):
+    """The band ``(lo, hi)`` as shown: inside the output's range where it has one (an intensity's [0, 1])."""
+    r = getattr(case, "value_range", None)
+    return (lo, hi) if r is None else (max(lo, r[0]), min(hi, r[1]))
+
+
 def _worst_value(o, arrays, got, i):
     """Index of the row's value (pixel, component) farthest from the expected one, in tolerances."""
     e = np.asarray(arrays[o][i], np.float64).ravel()
@@ -199,7 +205,7 @@ def ill_section(meta, arrays, got, v, case=None, rows=10):
         t = float(np.asarray(arrays[f"{o}_tolerance_{GATE_DTYPE}"][i], np.float64).ravel()[k])
         r = {"index": int(i), "tc_id": int(arrays["tc_id"][i]), "value": k if np.ndim(arrays[o][i]) else None,
              "inputs": {n: arrays[n][i] for n in meta["inputs"]}, "got": float(np.asarray(got[o][i]).ravel()[k]),
-             "band": (e - t, e + t), "passed": bool(v.strict_pass[i])}
+             "band": _within(case, e - t, e + t), "passed": bool(v.strict_pass[i])}
         if exact is not None:
             r["exact"] = tuple(float(np.asarray(x[j], np.float64).ravel()[k]) for x in exact)
         out.append(r)
