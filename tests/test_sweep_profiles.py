@@ -104,3 +104,14 @@ def test_six_moments_convert_to_unit_depth_as_the_goldens_do():
     assert got["b"].shape == (600, 6)
     for k in ("b", "zf"):
         assert np.array_equal(got[k].view(np.uint32), np.asarray(want[k], np.float32).view(np.uint32)), k
+
+
+def test_a_visibility_port_s_failures_are_named_visibility():
+    """Under ``output = "visibility"`` the values the sweep prints are the port's visibilities: so named."""
+    vis = Profile(depth="[0,1]", output="visibility", bias=UNIT_BEFORE.bias)
+    res = oracle.sweep(lambda b, zf: 1 - _acne_unit(b, zf), CASE, rows=CHUNK // 2, profile=vis, shrink=False)
+    assert not res.passed
+    text = res.format()
+    assert "  visibility: got " in text and "  intensity: got " not in text
+    plain = oracle.sweep(_acne_unit, CASE, rows=CHUNK // 2, profile=UNIT_BEFORE, shrink=False)
+    assert "  intensity: got " in plain.format()

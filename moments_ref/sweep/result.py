@@ -77,7 +77,7 @@ def describe(f):
            f"{_FORMATS[t['format']]}, zf = {t['zf']:.9g}"]
     for o, g in f["got"].items():
         lo, hi = np.asarray(f["lo"][o], float), np.asarray(f["hi"][o], float)
-        out.append(f"  {o}: got {g}, expected {((lo + hi) / 2).tolist()}, tolerance {((hi - lo) / 2).tolist()}")
+        out.append(f"  {f.get('labels', {}).get(o, o)}: got {g}, expected {((lo + hi) / 2).tolist()}, tolerance {((hi - lo) / 2).tolist()}")
     out.append(f"  inputs: {f['inputs']}")
     if "dispatches" in f:
         out.append(f"  shrunk in {f['dispatches']} dispatches; rerun: {f.get('row_file', '')}")
@@ -128,6 +128,10 @@ def sweep_port(spec, workers=1, scheduler=None, out=None, progress=None, shrink_
                 continue
             seen.add(row["stratum"])
             failures.append(_shrunk(spec, d, row, out, len(failures)) if shrink_failures else row)
+    profile = getattr(spec, "profile", None)
+    if profile is not None and profile.output == "visibility":  # the values are the port's: name them so
+        for f in failures + unconfirmed:
+            f["labels"] = {"intensity": "visibility"}
     return SweepResult(spec.case.name, spec.rows, spec.seed, strata, drivers, seconds, failures, unconfirmed,
                        time.perf_counter() - t0)
 
