@@ -79,7 +79,10 @@ def test_a_wrong_answer_on_an_ill_conditioned_row_fails_even_inside_the_symmetri
     assert v.compared.ill_tally()["outside"] == 1
     assert [r["index"] for r in v.ill][0] == i and not v.ill[0]["passed"]  # failing rows first
     # without the case (a profiled run) the row is judged by its stored band alone
-    assert compare_case(CASE, gc.meta, gc.arrays, {"intensity": got}).row_pass[i]
+    w = compare_case(CASE, gc.meta, gc.arrays, {"intensity": got})
+    assert w.row_pass[i]
+    # and the band shown is still inside an intensity's range, from the golden file's value_range
+    assert w.ill and all(0 <= r["band"][0] <= r["band"][1] <= 1 for r in w.ill)
 
 
 def test_the_ill_section_is_printed(upper):

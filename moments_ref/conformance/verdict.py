@@ -164,9 +164,10 @@ def _components(meta, arrays, got, row_pass):
     return {"ulps": "[" + ", ".join(str(int(x)) if x < 1e6 else f"{x:.3g}" for x in u) + "]"}
 
 
-def _within(case, lo, hi):
-    """The band ``(lo, hi)`` as shown: inside the output's range where it has one (an intensity's [0, 1])."""
-    r = getattr(case, "value_range", None)
+def _within(meta, lo, hi):
+    """The band ``(lo, hi)`` as shown: inside the output's range where it has one (an intensity's [0, 1]; the
+    golden file's ``value_range``, so also under a profile, where no unprofiled case is at hand)."""
+    r = meta.get("value_range")
     return (lo, hi) if r is None else (max(lo, r[0]), min(hi, r[1]))
 
 
@@ -205,7 +206,7 @@ def ill_section(meta, arrays, got, v, case=None, rows=10):
         t = float(np.asarray(arrays[f"{o}_tolerance_{GATE_DTYPE}"][i], np.float64).ravel()[k])
         r = {"index": int(i), "tc_id": int(arrays["tc_id"][i]), "value": k if np.ndim(arrays[o][i]) else None,
              "inputs": {n: arrays[n][i] for n in meta["inputs"]}, "got": float(np.asarray(got[o][i]).ravel()[k]),
-             "band": _within(case, e - t, e + t), "passed": bool(v.strict_pass[i])}
+             "band": _within(meta, e - t, e + t), "passed": bool(v.strict_pass[i])}
         if exact is not None:
             r["exact"] = tuple(float(np.asarray(x[j], np.float64).ravel()[k]) for x in exact)
         out.append(r)
