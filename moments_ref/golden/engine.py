@@ -50,12 +50,17 @@ from ._rows import Rows
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "singular_target_rows", "target_support", "moments_of_rows",
-           "legit_biases", "papers_chain32"]
+           "legit_biases", "papers_chain32", "engine_interval", "CAP", "NEIGHBOUR_ULPS"]
 
 #: Targets strictly inside the moment space (papers' frame): the presets' and the uniform distribution's.
 LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3, 0.0, 0.2),
                  (0.1, 0.4, 0.05, 0.3))
-_SAFETY = 1.25
+#: The band model's cap (moments_ref.golden.bands.CAP, a test keeps the two equal): no band of an intensity reaches
+#: farther than this from its midpoint; a row whose legitimate values spread wider is ill-conditioned.
+CAP = 0.02
+#: A receiver within this many ulps of a depth of its distribution is judged over its neighbourhood (that many
+#: ulps each way): the biased bound moves steeply there.
+NEIGHBOUR_ULPS = 3
 # The band model's margin, max(3 × the width of the evaluations, 8 ulps): moments_ref.golden.bands' MARGIN_WIDTH and
 # FLOOR_ULPS (bands imports the case table, which imports this module; a test keeps the two equal).
 _MARGIN_WIDTH, _FLOOR_ULPS = 3.0, 8
@@ -125,7 +130,7 @@ def _engine_rows(rng, dtype):
     for z, w, c, what, fl in dists:
         z, w = _points(z, w)
         for x in _receivers(z, rng):
-            zf.append(x), cat.append(c), com.append(f"{what}; zf = {x:.9g}; expected Z(z < zf) of the distribution")
+            zf.append(x), cat.append(c), com.append(f"{what}; zf = {x:.9g}")
             flags.append(fl + (("support_point",) if np.any(z == x) else ()))
             # One row per distribution, padded with points of mass 0 (they change no moment and no Z).
             sup.append(np.pad(z, (0, k - len(z)))), mass.append(np.pad(w, (0, k - len(w))))
@@ -220,19 +225,23 @@ def _preset(alpha, target, unit):
 
 
 def legit_biases(ctx):
-    """The legitimate biases a correct engine may use (engine frame): presets, and the declared α toward
-    each of :data:`LEGIT_TARGETS`."""
-    alphas = {BIAS_FLOAT32.alpha, BIAS_UNORM16.alpha}
-    if ctx.get("alpha"):
-        alphas.add(float(ctx["alpha"]))
-    out = [_preset(a, t, ctx.get("unit", False)) for a in sorted(alphas) for t in LEGIT_TARGETS]
-    # The declared bias itself, when its target lies strictly inside the moment space (engine frame already):
-    # a port that biases toward its own interior target returns the exact bound of its biased moments. A
-    # singular target is no legitimate choice here: it is judged by its outputs (singular_target_rows).
-    target = ctx.get("target")
-    if ctx.get("alpha") and target is not None and len(target) == 4 and target_support(target) is None:
-        out.append(BiasPreset(float(ctx["alpha"]), tuple(float(x) for x in target), "declared"))
-    return out
+    """The legitimate biases of a correct engine (engine frame).
+
+    The declared α and target where the target lies strictly inside the moment space (the port says what it
+    does); the declared α toward each of :data:`LEGIT_TARGETS` where the declared target is singular (such a port
+    is judged by its outputs: :func:`singular_target_rows`); undeclared, the case's default bias that the harness
+    applies before the call (``BIAS_FLOAT32``); with no bias at all (``bias = "none"``), the papers' presets
+    ``BIAS_FLOAT32`` and ``BIAS_UNORM16``.
+    """
+    alpha, target, unit = ctx.get("alpha"), ctx.get("target"), ctx.get("unit", False)
+    if alpha and target is not None and len(target) == 4 and target_support(target) is None:
+        return [BiasPreset(float(alpha), tuple(float(x) for x in target), "declared")]
+    if alpha:
+        return [_preset(alpha, t, unit) for t in LEGIT_TARGETS]
+    if ctx.get("before") is not None:
+        before = ctx["before"]
+        return [BiasPreset(float(before.alpha), tuple(float(x) for x in before.target), "default")]
+    return [_preset(p.alpha, p.target, unit) for p in (BIAS_FLOAT32, BIAS_UNORM16)]
 
 
 def _chain(ctx, preset, dt):
@@ -295,19 +304,95 @@ def papers_chain32(arrays, preset, ctx, n):
         return np.asarray(_chain(ctx, preset, np.float32)[-1](b, np.asarray(arrays["zf"], np.float64)), np.float64)
 
 
-def _input_spread(ctx, b, zf, dt):
-    """How far this package's evaluation in ``dt`` spreads on the port's own input ``b`` (its bias inside,
-    if declared) and on b moved by one ulp per component: the rounding of the input. (The papers' own code
-    is legitimate only on moments a correct bias produces: it is measured with the legitimate biases.)"""
-    inside = ctx.get("inside")
-    b64 = np.asarray(b, np.float64)
-    ref = np.asarray(_chain(ctx, inside, np.float64)[0](b64, zf), np.float64)
-    eps = float(np.finfo(dt).eps)
+def _same_bias(p, q):
+    return (p is None) == (q is None) and (p is None or (np.isclose(p.alpha, q.alpha, rtol=1e-12, atol=0) and np.allclose(
+        p.target, q.target, rtol=1e-12, atol=1e-15)))
+
+
+def _own_pipeline(ctx, legit):
+    """The port's own bias (its caller's, or inside its function; None: it biases nothing), if legitimate."""
+    own = ctx.get("before") if ctx.get("before") is not None else ctx.get("inside")
+    return own is None or any(_same_bias(own, p) for p in legit)
+
+
+def _near_support(sup, mass, zf, dt):
+    """Rows whose receiver lies within :data:`NEIGHBOUR_ULPS` ulps (of ``dt``) of a depth of its distribution."""
+    from .units import ulp
+
+    return np.any((mass > 0) & (np.abs(sup - zf[:, None]) <= NEIGHBOUR_ULPS * ulp(zf, dt)[:, None]), axis=1)
+
+
+def _zf_neighbours(zf, dt):
+    """zf rounded to ``dt`` and moved by 1 … :data:`NEIGHBOUR_ULPS` ulps of ``dt`` each way (float64)."""
+    out, up, down = [], zf.astype(dt), zf.astype(dt)
+    for _ in range(NEIGHBOUR_ULPS):
+        up, down = np.nextafter(up, dt.type(np.inf)), np.nextafter(down, dt.type(-np.inf))
+        out += [up.astype(np.float64), down.astype(np.float64)]
+    return out
+
+
+def _legit_values(ctx, p, unbiased, zf, dt, near):
+    """The pipeline's values with the legitimate bias ``p`` for a port of precision ``dt`` (float64 arrays): the
+    float64 reference; in float32 this package's, the papers' and the contracted evaluations; on the unbiased
+    moments moved by one ulp of ``dt`` per component (alternating signs: the port's input rounding); and, on the
+    ``near`` rows (zf within rounding of a depth), the float64 bound over zf's neighbourhood in ``dt``."""
+    d = np.dtype(dt)
+    ref = _chain(ctx, p, np.float64)[0]
+    u = unbiased[d.name]
+    out = [ref(unbiased["float64"], zf)]
+    if d == np.float32:
+        out += [f(u, zf) for f in _chain(ctx, p, np.float32)[1:] + _contracted(ctx, p)]
     sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
-    out = np.zeros(len(zf))
-    f = _chain(ctx, inside, dt.type)[0]
-    for x in (b64, b64 * (1 + eps * sign), b64 * (1 - eps * sign)):
-        out = np.fmax(out, np.abs(np.asarray(f(x.astype(dt).astype(np.float64), zf), np.float64) - ref))
+    own = _chain(ctx, p, d.type)[0]
+    eps = float(np.finfo(d).eps)
+    out += [own(u, zf)] + [own((u * (1 + s * eps * sign)).astype(d).astype(np.float64), zf) for s in (1, -1)]
+    if near.any():
+        out += [np.where(near, ref(unbiased["float64"], z), np.nan) for z in _zf_neighbours(zf, d)]
+    return [np.asarray(v, np.float64) for v in out]
+
+
+def _own_values(ctx, b, zf, dt):
+    """This package's pipeline as the port runs it (its bias inside, if declared) on the port's input ``b`` rounded
+    to ``dt``, and on it moved by one ulp per component: the rounding of the port's own input."""
+    d = np.dtype(dt)
+    f = _chain(ctx, ctx.get("inside"), d.type)[0]
+    b = np.asarray(b).astype(d).astype(np.float64)
+    sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
+    eps = float(np.finfo(d).eps)
+    return [np.asarray(f(x, zf), np.float64) for x in
+            (b, (b * (1 + eps * sign)).astype(d).astype(np.float64), (b * (1 - eps * sign)).astype(d).astype(np.float64))]
+
+
+def _span(values, n):
+    lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+    for v in values:
+        lo, hi = np.fmin(lo, v), np.fmax(hi, v)
+    return lo, hi
+
+
+def engine_interval(ctx, arrays, b):
+    """``{port dtype: (lo, hi)}``: the least and largest legitimate value of each row (module docstring),
+    before the margin; NaN where no evaluation is finite."""
+    from .units import PORT_DTYPES
+
+    sup, mass = np.asarray(arrays["support"], np.float64), np.asarray(arrays["mass"], np.float64)
+    zf = np.asarray(arrays["zf"], np.float64)
+    n = len(zf)
+    legit = legit_biases(ctx)
+    unbiased = {d: moments_of_rows(sup, mass, np.dtype(d)).astype(np.float64) for d in PORT_DTYPES}
+    values = {}
+    with np.errstate(all="ignore"):
+        for d in ("float64", "float32"):  # a float32 port's values include the float64 port's
+            near = _near_support(sup, mass, zf, np.dtype(d))
+            values[d] = list(values.get("float64", []))
+            for p in legit:
+                values[d] += _legit_values(ctx, p, unbiased, zf, d, near)
+            if _own_pipeline(ctx, legit):
+                values[d] += _own_values(ctx, b, zf, d)
+    out = {}
+    for d in PORT_DTYPES:
+        lo, hi = _span(values[d], n)
+        out[d] = (np.where(lo <= hi, lo, np.nan), np.where(lo <= hi, hi, np.nan))
     return out
 
 
@@ -317,54 +402,55 @@ def _exact_z(arrays, upper):
     return (m * below).sum(axis=1) / m.sum(axis=1)
 
 
+def _bands(intervals, n):
+    """``(expected, {port dtype: half-width}, ill)`` from :func:`engine_interval`'s intervals (module docstring)."""
+    from .units import ceil2, ulp
+
+    lo32, hi32 = intervals["float32"]
+    mid = 0.5 * (lo32 + hi32)
+    ill = hi32 - lo32 > CAP
+    half = {}
+    for d, (lo, hi) in intervals.items():
+        m = np.where(ill, CAP, np.maximum(_MARGIN_WIDTH * (hi - lo), _FLOOR_ULPS * ulp(np.ones(n), d)))
+        t = ceil2(np.fmax(mid - lo, hi - mid) + m)
+        t = np.where(ill, t, np.minimum(t, CAP))
+        half[d] = np.where(np.isfinite(mid), t, np.inf)
+    return np.where(np.isfinite(mid), mid, 0.0), half, ill
+
+
 def derive_engine(case, arrays, category, comment, flags, contract=None):
-    """Arrays of an engine case: the port's input b, expected Z, per-row tolerances (module docstring).
+    """Arrays of an engine case: the port's input b, the band's midpoint, its half-width per port precision, the
+    rows' flags (``wide_spread``: ill-conditioned; module docstring).
 
     ``arrays`` holds the rows' ``zf`` and distributions (``support``, ``mass``: per row,
     padded with points of mass 0) in the engine's depth convention; ``case.engine`` the context (the
-    bias the harness applies before the call, the declared α, the output).
+    bias the harness applies before the call, the declared α and target, the output).
     """
-    from .units import PORT_DTYPES, ceil2, ulp
+    from .units import PORT_DTYPES
 
     ctx = case.engine
     n = len(category)
-    dt = np.dtype(case.dtype)
     sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
-    b = moments_of_rows(sup, mass, dt, bias=ctx.get("before"))
+    b = moments_of_rows(sup, mass, np.dtype(case.dtype), bias=ctx.get("before"))
+    mid, half, ill = _bands(engine_interval(ctx, arrays, b), n)
     z = _exact_z(arrays, ctx.get("bound") == "upper")
-    unbiased = {d: moments_of_rows(sup, mass, np.dtype(d)).astype(np.float64) for d in PORT_DTYPES}
-    zf = np.asarray(arrays["zf"], np.float64)
-    dev, spread = np.zeros(n), {d: np.zeros(n) for d in PORT_DTYPES}
-    with np.errstate(all="ignore"):
-        for p in legit_biases(ctx):
-            v64 = np.asarray(_chain(ctx, p, np.float64)[0](unbiased["float64"], zf), np.float64)
-            dev = np.fmax(dev, np.abs(v64 - z))
-            for d in PORT_DTYPES:
-                extra = _contracted(ctx, p) if d == "float32" else []
-                for f in _chain(ctx, p, np.dtype(d).type) + extra:
-                    spread[d] = np.fmax(spread[d], np.abs(np.asarray(f(unbiased[d], zf), np.float64) - v64))
-        for d in PORT_DTYPES:  # the rounding of the port's own input, as in every golden case
-            spread[d] = np.fmax(spread[d], _input_spread(ctx, b, zf, np.dtype(d)))
-    # At zf on a depth of the distribution Z jumps by that depth's mass; a correct biased bound lands
-    # anywhere across the jump (its support point is within rounding of zf).
-    jump = (mass * (sup == zf[:, None])).sum(axis=1) / mass.sum(axis=1)
-    expected = 1 - z if ctx.get("visibility") else z
-    out = {"b": b, "intensity": expected, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
+    vis = bool(ctx.get("visibility"))
+    out = {"b": b, "intensity": 1 - mid if vis else mid, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
     for d in PORT_DTYPES:
-        # The band model's margin (moments_ref.golden.bands): the evaluations' span plus max(3 × its width, 8 ulps).
-        margin = np.maximum(_MARGIN_WIDTH * spread[d], _FLOOR_ULPS * ulp(np.ones(n), d))
-        t = ceil2(_SAFETY * (dev + jump) + spread[d] + margin)
-        out[f"intensity_tolerance_{d}"] = np.minimum(t, 1.0)
+        out[f"intensity_tolerance_{d}"] = half[d]
     out["category"] = np.asarray(category).astype("U6")
-    out["comment"] = np.asarray(comment).astype(f"U{max(1, max(len(c) for c in comment))}")
-    joined = [",".join(dict.fromkeys(f)) for f in flags]
+    rel = "<=" if ctx.get("bound") == "upper" else "<"
+    exact = [f"{c}; the distribution's {'1 - ' if vis else ''}Z(z {rel} zf) = {1 - x if vis else x:.9g}"
+             for c, x in zip(comment, z)]
+    out["comment"] = np.asarray(exact).astype(f"U{max(1, max(len(c) for c in exact))}")
+    joined = [",".join(dict.fromkeys(tuple(f) + (("wide_spread",) if w else ()))) for f, w in zip(flags, ill)]
     out["flags"] = np.asarray(joined).astype(f"U{max(1, max(len(f) for f in joined))}")
     out["result"] = np.full(n, "valid", dtype="U10")
     if case.dtype == "float32":  # informational: the reference's own float32 pipeline on the port's input
-        inside = ctx.get("inside")
-        f = _chain(ctx, inside, np.float32)[0] if inside is not None else _chain(ctx, None, np.float32)[0]
-        v = np.asarray(f(b.astype(np.float64), zf), np.float32)
-        out["intensity_float32"] = 1 - v if ctx.get("visibility") else v
+        with np.errstate(all="ignore"):
+            v = np.asarray(_chain(ctx, ctx.get("inside"), np.float32)[0](b.astype(np.float64),
+                                                                          np.asarray(arrays["zf"], np.float64)), np.float32)
+        out["intensity_float32"] = 1 - v if vis else v
     return out
 
 
