@@ -58,8 +58,8 @@ LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3
 #: The band model's cap (moments_ref.golden.bands.CAP, a test keeps the two equal): no band of an intensity reaches
 #: farther than this from its midpoint; a row whose legitimate values spread wider is ill-conditioned.
 CAP = 0.02
-#: A receiver within this many ulps of a depth of its distribution is judged over its neighbourhood (that many
-#: ulps each way): the biased bound moves steeply there.
+#: The receiver's neighbourhood: zf moved by up to this many ulps of the port's precision each way (at a depth of
+#: the distribution the biased bound moves steeply).
 NEIGHBOUR_ULPS = 3
 # The band model's margin, max(3 × the width of the evaluations, 8 ulps): moments_ref.golden.bands' MARGIN_WIDTH and
 # FLOOR_ULPS (bands imports the case table, which imports this module; a test keeps the two equal).
@@ -315,13 +315,6 @@ def _own_pipeline(ctx, legit):
     return own is None or any(_same_bias(own, p) for p in legit)
 
 
-def _near_support(sup, mass, zf, dt):
-    """Rows whose receiver lies within :data:`NEIGHBOUR_ULPS` ulps (of ``dt``) of a depth of its distribution."""
-    from .units import ulp
-
-    return np.any((mass > 0) & (np.abs(sup - zf[:, None]) <= NEIGHBOUR_ULPS * ulp(zf, dt)[:, None]), axis=1)
-
-
 def _zf_neighbours(zf, dt):
     """zf rounded to ``dt`` and moved by 1 … :data:`NEIGHBOUR_ULPS` ulps of ``dt`` each way (float64)."""
     out, up, down = [], zf.astype(dt), zf.astype(dt)
@@ -331,11 +324,12 @@ def _zf_neighbours(zf, dt):
     return out
 
 
-def _legit_values(ctx, p, unbiased, zf, dt, near):
+def _legit_values(ctx, p, unbiased, zf, dt):
     """The pipeline's values with the legitimate bias ``p`` for a port of precision ``dt`` (float64 arrays): the
-    float64 reference; in float32 this package's, the papers' and the contracted evaluations; on the unbiased
-    moments moved by one ulp of ``dt`` per component (alternating signs: the port's input rounding); and, on the
-    ``near`` rows (zf within rounding of a depth), the float64 bound over zf's neighbourhood in ``dt``."""
+    float64 reference; in float32 this package's, the papers' and the contracted evaluations; this package's in
+    ``dt`` and in float64 on the unbiased moments moved by one ulp of ``dt`` per component (alternating signs: the
+    port's input rounding); and the float64 bound over zf's neighbourhood in ``dt`` (where zf sits on a depth of
+    the distribution the biased bound moves steeply)."""
     d = np.dtype(dt)
     ref = _chain(ctx, p, np.float64)[0]
     u = unbiased[d.name]
@@ -345,22 +339,27 @@ def _legit_values(ctx, p, unbiased, zf, dt, near):
     sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
     own = _chain(ctx, p, d.type)[0]
     eps = float(np.finfo(d).eps)
-    out += [own(u, zf)] + [own((u * (1 + s * eps * sign)).astype(d).astype(np.float64), zf) for s in (1, -1)]
-    if near.any():
-        out += [np.where(near, ref(unbiased["float64"], z), np.nan) for z in _zf_neighbours(zf, d)]
+    out.append(own(u, zf))
+    for s in (1, -1):
+        moved = (u * (1 + s * eps * sign)).astype(d).astype(np.float64)
+        out += [own(moved, zf), ref(moved, zf)]
+    out += [ref(unbiased["float64"], z) for z in _zf_neighbours(zf, d)]
     return [np.asarray(v, np.float64) for v in out]
 
 
 def _own_values(ctx, b, zf, dt):
     """This package's pipeline as the port runs it (its bias inside, if declared) on the port's input ``b`` rounded
-    to ``dt``, and on it moved by one ulp per component: the rounding of the port's own input."""
+    to ``dt``: in ``dt`` and in float64, on b, on b moved by one ulp of ``dt`` per component (alternating signs) and
+    (float64) over zf's neighbourhood: the rounding of the port's own input."""
     d = np.dtype(dt)
-    f = _chain(ctx, ctx.get("inside"), d.type)[0]
+    f, ref = _chain(ctx, ctx.get("inside"), d.type)[0], _chain(ctx, ctx.get("inside"), np.float64)[0]
     b = np.asarray(b).astype(d).astype(np.float64)
     sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
     eps = float(np.finfo(d).eps)
-    return [np.asarray(f(x, zf), np.float64) for x in
-            (b, (b * (1 + eps * sign)).astype(d).astype(np.float64), (b * (1 - eps * sign)).astype(d).astype(np.float64))]
+    out = [ref(b, z) for z in _zf_neighbours(zf, d)]
+    for x in (b, (b * (1 + eps * sign)).astype(d).astype(np.float64), (b * (1 - eps * sign)).astype(d).astype(np.float64)):
+        out += [f(x, zf), ref(x, zf)]
+    return [np.asarray(v, np.float64) for v in out]
 
 
 def _span(values, n):
@@ -383,10 +382,9 @@ def engine_interval(ctx, arrays, b):
     values = {}
     with np.errstate(all="ignore"):
         for d in ("float64", "float32"):  # a float32 port's values include the float64 port's
-            near = _near_support(sup, mass, zf, np.dtype(d))
             values[d] = list(values.get("float64", []))
             for p in legit:
-                values[d] += _legit_values(ctx, p, unbiased, zf, d, near)
+                values[d] += _legit_values(ctx, p, unbiased, zf, d)
             if _own_pipeline(ctx, legit):
                 values[d] += _own_values(ctx, b, zf, d)
     out = {}
