@@ -63,7 +63,7 @@ CAP = 0.02
 NEIGHBOUR_ULPS = 3
 # The band model's margin, max(3 × the width of the evaluations, 8 ulps): moments_ref.golden.bands' MARGIN_WIDTH and
 # FLOOR_ULPS (bands imports the case table, which imports this module; a test keeps the two equal).
-_MARGIN_WIDTH, _FLOOR_ULPS = 3.0, 8
+_MARGIN_WIDTH, _FLOOR_ULPS, _MARGIN_NOISE = 3.0, 8, 4.0
 _SCENES = ("railing", "three-occluders", "chair")
 
 
@@ -315,6 +315,19 @@ def _own_pipeline(ctx, legit):
     return own is None or any(_same_bias(own, p) for p in legit)
 
 
+def _across_depth(sup, mass, zf, dt):
+    """Z below and at-or-below the receiver's float32 (``dt``) neighbourhood, NaN unless a depth of the distribution
+    lies within :data:`NEIGHBOUR_ULPS` ulps of zf: there the biased canonical representation has a support point
+    within rounding of zf, and a correct evaluation lands anywhere across the jump of Z."""
+    from .units import ulp
+
+    reach = (NEIGHBOUR_ULPS * ulp(zf, dt))[:, None]
+    near = np.any((mass > 0) & (np.abs(sup - zf[:, None]) <= reach), axis=1)
+    total = mass.sum(axis=1)
+    below, upto = (mass * (sup < zf[:, None] - reach)).sum(axis=1), (mass * (sup <= zf[:, None] + reach)).sum(axis=1)
+    return [np.where(near, below / total, np.nan), np.where(near, upto / total, np.nan)]
+
+
 def _zf_neighbours(zf, dt):
     """zf rounded to ``dt`` and moved by 1 … :data:`NEIGHBOUR_ULPS` ulps of ``dt`` each way (float64)."""
     out, up, down = [], zf.astype(dt), zf.astype(dt)
@@ -340,9 +353,10 @@ def _legit_values(ctx, p, unbiased, zf, dt):
     own = _chain(ctx, p, d.type)[0]
     eps = float(np.finfo(d).eps)
     out.append(own(u, zf))
+    others = _chain(ctx, p, np.float32)[1:] if d == np.float32 else []
     for s in (1, -1):
         moved = (u * (1 + s * eps * sign)).astype(d).astype(np.float64)
-        out += [own(moved, zf), ref(moved, zf)]
+        out += [own(moved, zf), ref(moved, zf)] + [f(moved, zf) for f in others]
     out += [ref(unbiased["float64"], z) for z in _zf_neighbours(zf, d)]
     return [np.asarray(v, np.float64) for v in out]
 
@@ -387,6 +401,7 @@ def engine_interval(ctx, arrays, b):
                 values[d] += _legit_values(ctx, p, unbiased, zf, d)
             if _own_pipeline(ctx, legit):
                 values[d] += _own_values(ctx, b, zf, d)
+            values[d] += _across_depth(sup, mass, zf, np.dtype(d))
     out = {}
     for d in PORT_DTYPES:
         lo, hi = _span(values[d], n)
@@ -400,19 +415,23 @@ def _exact_z(arrays, upper):
     return (m * below).sum(axis=1) / m.sum(axis=1)
 
 
-def _bands(intervals, n):
-    """``(expected, {port dtype: half-width}, ill)`` from :func:`engine_interval`'s intervals (module docstring)."""
+def _bands(intervals, random):
+    """``(expected, {port dtype: half-width}, ill)`` from :func:`engine_interval`'s intervals (module docstring);
+    ``random``: the rows whose widths measure the case's rounding noise."""
     from .units import ceil2, ulp
 
     lo32, hi32 = intervals["float32"]
+    n = len(lo32)
     mid = 0.5 * (lo32 + hi32)
     ill = hi32 - lo32 > CAP
     half = {}
     for d, (lo, hi) in intervals.items():
-        m = np.where(ill, CAP, np.maximum(_MARGIN_WIDTH * (hi - lo), _FLOOR_ULPS * ulp(np.ones(n), d)))
-        t = ceil2(np.fmax(mid - lo, hi - mid) + m)
-        t = np.where(ill, t, np.minimum(t, CAP))
-        half[d] = np.where(np.isfinite(mid), t, np.inf)
+        width = hi - lo
+        sample = width[random & ~ill & np.isfinite(width)]
+        noise = float(np.median(sample)) if sample.size else 0.0
+        m = np.maximum.reduce([_MARGIN_WIDTH * width, np.full(n, _MARGIN_NOISE * noise), _FLOOR_ULPS * ulp(np.ones(n), d)])
+        t = ceil2(np.fmax(mid - lo, hi - mid) + np.where(ill, CAP, m))
+        half[d] = np.where(np.isfinite(mid), np.where(ill, t, np.minimum(t, CAP)), np.inf)
     return np.where(np.isfinite(mid), mid, 0.0), half, ill
 
 
@@ -430,7 +449,7 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
     n = len(category)
     sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
     b = moments_of_rows(sup, mass, np.dtype(case.dtype), bias=ctx.get("before"))
-    mid, half, ill = _bands(engine_interval(ctx, arrays, b), n)
+    mid, half, ill = _bands(engine_interval(ctx, arrays, b), np.asarray(category) == "random")
     z = _exact_z(arrays, ctx.get("bound") == "upper")
     vis = bool(ctx.get("visibility"))
     out = {"b": b, "intensity": 1 - mid if vis else mid, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
