@@ -13,19 +13,42 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
   profile declares (inside, or the harness before the call), then its bound
   (``engine-lower``, ``engine-upper``: Algorithm 1) or its NLQ chain
   (``engine-nlq64``, ``engine-nlq32``: the bias precedes Φ, HPG17 §3.2);
-* the expected value is the exact Z(z < zf) (upper: Z(z ≤ zf)) of the distribution;
-  the tolerance is how far a *correct* biased MSM may be from it: the largest
-  deviation, over the paper's presets and the declared α toward a range of targets
-  strictly inside the moment space (:data:`LEGIT_TARGETS`, and the declared target where it
-  lies strictly inside), of the bound of the
-  biased moments (float64) from Z, plus the jump of Z where zf sits on a depth of
-  the distribution, times 1.25; plus the spread s of float32 evaluations (this
-  package, the papers' own code, and the bias and Algorithm 1 as a SPIR-V/GLSL compiler
-  contracts them: ``(1 − α) b + α b*`` or ``b + α (b* − b)`` (``mix``/``lerp``), either
-  product fused or none, then the shipped ports' Cholesky evaluation with and without fma;
-  the NLQ chain's stages contracted as in :mod:`moments_ref.golden.gpuspread`; on those
-  biased moments and on the port's own input moved by one ulp); plus the band model's
-  margin (:mod:`moments_ref.golden.bands`), max(3 s, 8 float32 ulps of 1).
+* the **band** of a row is the interval of the values a correct engine may return
+  (issue 37): ``[lo − m, hi + m]`` with ``lo``, ``hi`` the least and largest of
+
+  - the bound of the moments biased by each **legitimate bias** (:func:`legit_biases`:
+    the declared α and target where the target lies strictly inside the moment space,
+    the port says what it does; the declared α toward each of :data:`LEGIT_TARGETS`
+    where the declared target is singular; undeclared, the default bias the harness
+    applies), in float64; in float32 by this package, the papers' printed
+    formulations and the chain as a SPIR-V/GLSL compiler contracts it (the bias as
+    ``(1 − α) b + α b*`` or ``b + α (b* − b)`` (``mix``/``lerp``), either product fused
+    or none, then the shipped ports' Cholesky evaluation with and without fma; the NLQ
+    chain's stages contracted as in :mod:`moments_ref.golden.gpuspread`);
+  - the same on the port's input rounding: the unbiased moments moved by one ulp per
+    component (alternating signs), in the port's precision and in float64 (the exact
+    value over the neighbourhood), and over zf's neighbourhood (:data:`NEIGHBOUR_ULPS`
+    ulps each way, float64);
+  - this package's pipeline as the port runs it on the port's own input (and on it moved
+    by one ulp), where the port's own bias is legitimate (a singular one is not: it is
+    judged by its outputs, :func:`singular_target_rows` says which rows it explains);
+  - where zf lies within rounding of a depth of the distribution (flag ``support_point``,
+    and receivers between two depths one float32 ulp apart), Z just below and at that
+    depth: the biased canonical representation has a support point within rounding of
+    zf, and a correct float32 evaluation lands anywhere across the jump of Z;
+
+  and ``m`` the band model's margin (:mod:`moments_ref.golden.bands`): max(3 × (hi − lo),
+  4 × the case's rounding noise (the median width over its random rows that are not
+  ill-conditioned), 8 ulps of 1 in the port's precision), the band reaching no farther
+  than ``CAP`` (0.02) from its midpoint. NaN evaluations are no values;
+* the expected value (column ``intensity``) is the band's **midpoint** (for the float32
+  port; for visibility 1 − it), the tolerance ``intensity_tolerance_<dtype>`` its
+  half-width about that midpoint, rounded up to two digits: not the exact Z of the
+  distribution, which a correct biased MSM does not return (each row's comment gives Z);
+* a row whose legitimate values spread wider than ``CAP`` is **ill-conditioned**: flagged
+  ``wide_spread`` (the flag and report section of :mod:`moments_ref.golden.bands`), its
+  band the whole interval widened by ``CAP``, judged by that band (a correct port never
+  fails it), never counted as a pass of the port.
 
 Verdicts come from outputs: a bias toward a singular target fails exactly where its
 outputs leave that band (:func:`singular_target_rows` says which rows the target
@@ -553,9 +576,9 @@ def engine_specs(dt):
             engine=_default_ctx(None, bound), reference=engine_reference(_default_ctx(None, bound)),
             description=f"the engine's pipeline (HPG17 §3.2, Algorithm 1, {bound} bound): depth distributions -> "
                         "unbiased moments in the engine's convention -> the engine's bias (declared in its profile; "
-                        "default BIAS_FLOAT32 applied before the call) -> the bound; expected: the exact "
-                        f"Z(z {'<=' if bound == 'upper' else '<'} zf) of the distribution, tolerance: the deviation of "
-                        "correct biased bounds"))
+                        "default BIAS_FLOAT32 applied before the call) -> the bound; expected: the midpoint of the "
+                        "interval of correct biased bounds (the declared bias; the row's comment gives the exact "
+                        f"Z(z {'<=' if bound == 'upper' else '<'} zf)), tolerance: its half-width"))
     for f in ("64", "32"):
         specs.append(dict(
             **common, name=f"engine-nlq{f}-{dt}", function=f"engine.nlq{f}", kwargs={},
@@ -563,5 +586,6 @@ def engine_specs(dt):
             reference=engine_reference(_default_ctx(f, "lower")),
             description=f"the engine's NLQ pipeline (HPG17 §3.2, Alg. 2, §3.3/§3.5, Alg. 3): depth distributions "
                         f"-> unbiased moments -> the engine's bias -> phi -> pack{f} -> unpack{f} -> shade; expected: "
-                        "the exact Z(z < zf) of the distribution, tolerance: the deviation of correct biased chains"))
+                        "the midpoint of the interval of correct biased chains (the declared bias; the row's comment "
+                        "gives the exact Z(z < zf)), tolerance: its half-width"))
     return specs
