@@ -38,8 +38,9 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
     zf, and a correct float32 evaluation lands anywhere across the jump of Z;
 
   and ``m`` the band model's margin (:mod:`moments_ref.golden.bands`): max(3 × (hi − lo),
-  4 × the case's rounding noise (the median width over its random rows that are not
-  ill-conditioned), 8 ulps of 1 in the port's precision), the band reaching no farther
+  4 × the case's rounding noise (:func:`case_noise`: the median width over its random
+  golden rows that are not ill-conditioned, a constant per case), 8 ulps of 1 in the
+  port's precision), the band reaching no farther
   than ``CAP`` (0.02) from its midpoint. NaN evaluations are no values;
 * the expected value (column ``intensity``) is the band's **midpoint** (for the float32
   port; for visibility 1 − it), the tolerance ``intensity_tolerance_<dtype>`` its
@@ -73,7 +74,7 @@ from ._rows import Rows
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "singular_target_rows", "target_support", "moments_of_rows",
-           "legit_biases", "papers_chain32", "engine_interval", "CAP", "NEIGHBOUR_ULPS"]
+           "legit_biases", "papers_chain32", "engine_interval", "case_noise", "CAP", "NEIGHBOUR_ULPS"]
 
 #: Targets strictly inside the moment space (papers' frame): the presets' and the uniform distribution's.
 LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3, 0.0, 0.2),
@@ -438,9 +439,30 @@ def _exact_z(arrays, upper):
     return (m * below).sum(axis=1) / m.sum(axis=1)
 
 
-def _bands(intervals, random):
-    """``(expected, {port dtype: half-width}, ill)`` from :func:`engine_interval`'s intervals (module docstring);
-    ``random``: the rows whose widths measure the case's rounding noise."""
+_NOISE = {}
+
+
+def case_noise(ctx, dtype):
+    """``{port dtype: noise}``: the rounding noise of an engine case, a constant per case (its NLQ format, bound
+    and precision ``dtype``), measured once on its golden rows with its default engine: the median width of the
+    legitimate interval over the random rows that are not ill-conditioned. A band never depends on the other rows
+    of a call (a sweep's chunk)."""
+    key = (ctx.get("fmt"), ctx.get("bound", "lower"), np.dtype(dtype).name)
+    if key not in _NOISE:
+        default = _default_ctx(*key[:2])
+        rows = _engine_rows(None, key[2])
+        arrays = {k: rows.inputs[k] for k in ("zf", "support", "mass")}
+        b = moments_of_rows(arrays["support"], arrays["mass"], np.dtype(key[2]), bias=default["before"])
+        intervals = engine_interval(default, arrays, b)
+        lo32, hi32 = intervals["float32"]
+        keep = (np.asarray(rows.category) == "random") & (hi32 - lo32 <= CAP)
+        _NOISE[key] = {d: float(np.median((hi - lo)[keep])) for d, (lo, hi) in intervals.items()}
+    return _NOISE[key]
+
+
+def _bands(intervals, noise):
+    """``(expected, {port dtype: half-width}, ill)`` from :func:`engine_interval`'s intervals and the case's
+    rounding ``noise`` (:func:`case_noise`; module docstring)."""
     from .units import ceil2, ulp
 
     lo32, hi32 = intervals["float32"]
@@ -449,10 +471,8 @@ def _bands(intervals, random):
     ill = hi32 - lo32 > CAP
     half = {}
     for d, (lo, hi) in intervals.items():
-        width = hi - lo
-        sample = width[random & ~ill & np.isfinite(width)]
-        noise = float(np.median(sample)) if sample.size else 0.0
-        m = np.maximum.reduce([_MARGIN_WIDTH * width, np.full(n, _MARGIN_NOISE * noise), _FLOOR_ULPS * ulp(np.ones(n), d)])
+        m = np.maximum.reduce([_MARGIN_WIDTH * (hi - lo), np.full(n, _MARGIN_NOISE * noise[d]),
+                               _FLOOR_ULPS * ulp(np.ones(n), d)])
         t = ceil2(np.fmax(mid - lo, hi - mid) + np.where(ill, CAP, m))
         half[d] = np.where(np.isfinite(mid), np.where(ill, t, np.minimum(t, CAP)), np.inf)
     return np.where(np.isfinite(mid), mid, 0.0), half, ill
@@ -472,7 +492,7 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
     n = len(category)
     sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
     b = moments_of_rows(sup, mass, np.dtype(case.dtype), bias=ctx.get("before"))
-    mid, half, ill = _bands(engine_interval(ctx, arrays, b), np.asarray(category) == "random")
+    mid, half, ill = _bands(engine_interval(ctx, arrays, b), case_noise(ctx, case.dtype))
     z = _exact_z(arrays, ctx.get("bound") == "upper")
     vis = bool(ctx.get("visibility"))
     out = {"b": b, "intensity": 1 - mid if vis else mid, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
