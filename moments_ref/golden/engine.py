@@ -329,8 +329,10 @@ def papers_chain32(arrays, preset, ctx, n):
 
 
 def _same_bias(p, q):
-    return (p is None) == (q is None) and (p is None or (np.isclose(p.alpha, q.alpha, rtol=1e-12, atol=0) and np.allclose(
-        p.target, q.target, rtol=1e-12, atol=1e-15)))
+    if p is None or q is None:
+        return p is q
+    return bool(np.isclose(p.alpha, q.alpha, rtol=1e-12, atol=0)
+                and np.allclose(p.target, q.target, rtol=1e-12, atol=1e-15))
 
 
 def _own_pipeline(ctx, legit):
@@ -395,7 +397,7 @@ def _own_values(ctx, b, zf, dt):
     sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
     eps = float(np.finfo(d).eps)
     out = [ref(b, z) for z in _zf_neighbours(zf, d)]
-    for x in (b, (b * (1 + eps * sign)).astype(d).astype(np.float64), (b * (1 - eps * sign)).astype(d).astype(np.float64)):
+    for x in [b] + [(b * (1 + s * eps * sign)).astype(d).astype(np.float64) for s in (1, -1)]:
         out += [f(x, zf), ref(x, zf)]
     return [np.asarray(v, np.float64) for v in out]
 
@@ -507,9 +509,9 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
     out["flags"] = np.asarray(joined).astype(f"U{max(1, max(len(f) for f in joined))}")
     out["result"] = np.full(n, "valid", dtype="U10")
     if case.dtype == "float32":  # informational: the reference's own float32 pipeline on the port's input
+        zf = np.asarray(arrays["zf"], np.float64)
         with np.errstate(all="ignore"):
-            v = np.asarray(_chain(ctx, ctx.get("inside"), np.float32)[0](b.astype(np.float64),
-                                                                          np.asarray(arrays["zf"], np.float64)), np.float32)
+            v = np.asarray(_chain(ctx, ctx.get("inside"), np.float32)[0](b.astype(np.float64), zf), np.float32)
         out["intensity_float32"] = 1 - v if vis else v
     return out
 
