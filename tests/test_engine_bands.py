@@ -97,6 +97,22 @@ def test_a_singular_declared_target_is_judged_against_interior_targets():
     pcase, a = profiled_arrays("engine-lower-float32", prof)
     assert all(engine.target_support(p.target) is None for p in engine.legit_biases(pcase.engine))
     assert {p.alpha for p in engine.legit_biases(pcase.engine)} == {3e-6}
+    singular = BiasPreset(3e-6, (0.5, 0.5, 0.5, 0.5), "singular")
+    kept = engine.singular_target_rows(a, singular)
+    assert kept.sum() >= 5
+    # The papers' own float32 code (no singular branch) with that bias divides by zero where the target keeps the
+    # distribution singular, and leaves the band there; with the papers' interior target it stays inside.
+    from moments_ref.golden.paper import slides_bound
+    from moments_ref.moments import bias_moments
+
+    b32 = engine.moments_of_rows(a["support"], a["mass"], np.dtype(np.float32))
+    zf, e, t = a["zf"].astype(np.float64), a["intensity"], a["intensity_tolerance_float32"]
+    interior = BiasPreset(3e-6, (0.5, 0.34375, 0.265625, 0.2265625), "papers, in [0, 1]")
+    with np.errstate(all="ignore"):
+        own = np.asarray(slides_bound(bias_moments(b32, singular), zf, "lower", np.float32), np.float64)
+        papers = np.asarray(slides_bound(bias_moments(b32, interior), zf, "lower", np.float32), np.float64)
+    assert (~(np.abs(own - e) <= t))[kept].sum() >= 3
+    assert (np.abs(papers - e) <= t).all()
 
 
 def _verdict(name, arrays, got):
