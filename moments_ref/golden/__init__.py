@@ -7,7 +7,7 @@
 :mod:`.cases`                     the cases: function, dtype, inputs in order, kwargs
 ``_rows``, ``_rows_nonlinear``    the labelled rows (category, comment, flags)
 :mod:`.endtoend`                  whole chains compared as shadow intensities
-:mod:`.engine`                    the engine's pipeline from depth distributions (exact Z)
+:mod:`.engine`                    the engine's pipeline from depth distributions (a band of legitimate values)
 :mod:`.truth`                     Algorithm 3 with its clamps in mpmath
 :mod:`.notes`                     the row flags, defined once (manifest ``notes``)
 :mod:`.contract`                  the inputs each published algorithm defines
