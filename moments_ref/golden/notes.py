@@ -120,7 +120,8 @@ NOTES = {
     },
     "printed_hazard": {
         "description": "a printed formulation of the papers (the slides' root -p/2 - sqrt(p^2/4 - q), HPG17's "
-                       "printed Algorithm 1 or 3) cancels here in float32 beyond golden.bands.CAP of the range",
+                       "printed Algorithm 1 or 3, Cholesky from the raw moments without a guard) cancels here in "
+                       "float32 beyond golden.bands.CAP of the range, or has no value (NaN)",
         "effect": "the formula does not widen the band: a port that copied it fails this row",
     },
 }
@@ -148,9 +149,11 @@ CAUSES = {
     "rounding_tie": "an integer code on a rounding tie",
     "wide_spread": "ill-conditioned row: legitimate evaluations differ beyond the band's cap; the port's value "
                    "lies outside all of them",
-    "printed_hazard": "a printed formula (the papers' root -p/2 - sqrt(p^2/4 - q)) cancels here in float32: a port "
-                      "that copied it fails this row; take the root without cancellation (t = -(q1 + sign(q1) "
-                      "sqrt(disc))/2, z = t/q2 and q0/t)",
+    "printed_hazard": "your result matches the papers' printed formulation, which cancels on this row (hazard): "
+                      "in float32 the printed root -p/2 - sqrt(p^2/4 - q) or Algorithm 1's pivot xi4 from the raw "
+                      "moments (below float32's resolution of b4 after BIAS_FLOAT32) loses every digit; take the "
+                      "root without cancellation (t = -(q1 + sign(q1) sqrt(disc))/2, z = t/q2 and q0/t) and give "
+                      "xi4 <= 0 the singular branch (or compute the pivots with fma)",
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",
