@@ -184,7 +184,7 @@ _ALG1_SWEEP_EDGES = [
 #: value is 0.99985 (docs/golden.md, "Printed formulations that cancel").
 _ALG1_SWEEP_STORED = [
     ((-0.9908193349838257, 0.9817230105400085, -0.9727101922035217, 0.9637800455093384), -0.98,
-     "sweep: the float32-stored moments of one depth -0.9908, zf = -0.98 behind it; xi4 after BIAS_FLOAT32 is 0.7 "
+     "the float32-stored moments of one depth -0.9908, zf = -0.98 behind it; xi4 after BIAS_FLOAT32 is 0.7 "
      "float32 ulp of b4 (printed Cholesky without a guard cancels to 0: the demo's Algorithm 1 returns 0 for 0.99985)"),
 ]
 
@@ -200,8 +200,8 @@ def _alg1_rows(rng, dtype):
         b = np.array(stored, np.float32)
         biased = bias_moments(b, BIAS_FLOAT32).astype(np.float64)  # float32 arithmetic, as the shader biases
         parts.append(_rows({"b": np.stack([b.astype(np.float64), biased]), "zf": np.array([zf, zf])}, "edge",
-                           [f"{why}; as stored (a function that biases inside)",
-                            f"{why}; after BIAS_FLOAT32 in float32 (a function whose caller biases)"]))
+                           [f"sweep, as stored (a function that biases inside): {why}",
+                            f"sweep, after BIAS_FLOAT32 in float32 (a function whose caller biases): {why}"]))
     return Rows.concat(parts)
 
 
