@@ -276,7 +276,9 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
     a few failing rows alone (:data:`SAMPLE_ROWS`, a cheap refusal of most candidates), then on
     every row. It is suggested only if every failing row then passes and no passing row fails:
     advice never names a declaration under which a failing row passes for another cause (issue
-    37 item 5).
+    37 item 5). Failing rows flagged ``printed_hazard`` may still fail under the candidate (a
+    copied printed formula fails them under any declaration): those keep their own cause, and
+    the advice names the rows it explains.
     """
     from .._arrays import InputError
     from .cases import CASES
@@ -292,8 +294,13 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
         return []
     got = _narrowed(got, base_arrays)
     declared = profiled_arrays(name, profile, arrays=base_arrays)[1]
+    # Rows flagged printed_hazard keep their own cause (a copied printed formula fails them under any
+    # declaration); a candidate must explain every other failing row, and those rows still fail with it.
+    hazard = np.array(["printed_hazard" in str(f).split(",") for f in np.asarray(declared["flags"])], bool)
+    other = fail & ~hazard
     # rows derive alone unless the case's arrays are whole-case or the feed depends on the row count (slopes)
-    sample = np.flatnonzero(fail)[:SAMPLE_ROWS] if case.row_inputs and not profile.receiver_slope else None
+    sample = (np.flatnonzero(other)[:SAMPLE_ROWS] if other.any() and case.row_inputs and not profile.receiver_slope
+              else None)
     for p, level, what in _candidates(case, profile):
         try:
             if sample is not None and _judge(name, p, sample, base_arrays, declared, got, profile, port_dtype,
@@ -302,8 +309,9 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
             v = _judge(name, p, None, base_arrays, declared, got, profile, port_dtype, verdict.strict)
         except (InputError, TypeError, ValueError, KeyError):  # a choice this version cannot evaluate
             continue
-        if v.failures == 0:
-            return [Group(level, what, [int(i) for i in np.flatnonzero(fail)],
+        explained = fail & v.row_pass
+        if explained.any() and not (~v.row_pass & ~(hazard & fail)).any():  # only failing hazard rows may still fail
+            return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
                           f"the outputs are those of {what}: every failing row passes with it, within its "
                           "unchanged band; a convention, not an arithmetic error: declare it in the profile "
                           "(docs/ports.md)")]
