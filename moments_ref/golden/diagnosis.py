@@ -268,6 +268,55 @@ def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, stric
 
 
 def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
+    """The groups told by the port's outputs: a declaration that explains its failing rows
+    (:func:`_declaration_groups`), and the failing ``printed_hazard`` rows where its output is a
+    printed formulation's (:func:`hazard_groups`)."""
+    found = _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype)
+    taken = {i for g in found for i in g.rows}
+    return found + hazard_groups(name, verdict, base_arrays, got, profile, taken)
+
+
+#: The cause of a failing ``printed_hazard`` row whose output is a printed formulation's value there.
+PRINTED_MATCH = ("your result matches the papers' printed formulation, which cancels on this row (hazard): in "
+                 "float32 the printed root -p/2 - sqrt(p^2/4 - q) or Algorithm 1's pivot xi4 from the raw moments "
+                 "(below float32's resolution of b4 after BIAS_FLOAT32) loses every digit; take the root without "
+                 "cancellation (t = -(q1 + sign(q1) sqrt(disc))/2, z = t/q2 and q0/t) and give xi4 <= 0 the "
+                 "singular branch (or compute the pivots with fma)")
+
+
+def hazard_groups(name, verdict, base_arrays, got, profile, taken=()):
+    """A ``contract`` group of the failing rows flagged ``printed_hazard`` (under ``profile``) on which the
+    port's output is the value of one of the case's printed formulations (its ``spread_hook``, in the
+    port's precision, on the inputs the port was given): within the row's tolerance of it, or, where
+    the formulation has no value (NaN), NaN or an end of the output's range (what ``saturate`` or
+    ``clamp`` make of it). The other failing hazard rows keep the flag's own cause."""
+    from .cases import CASES
+    from .conventions import profiled_arrays
+
+    case = CASES.get(name)
+    if case is None or case.spread_hook is None or len(case.outputs) != 1 or case.integer_output:
+        return []
+    pcase, arrays = profiled_arrays(name, profile, arrays=base_arrays)
+    n, o = len(np.asarray(arrays["category"])), case.outputs[0]
+    rows = [int(i) for i in np.flatnonzero(~verdict.row_pass) if int(i) not in taken
+            and "printed_hazard" in str(np.asarray(arrays["flags"])[i]).split(",")]
+    if not rows or pcase.spread_hook is None or f"{o}_tolerance_{verdict.port_dtype}" not in arrays:
+        return []
+    g = np.asarray(got[o], np.float64).reshape(n, -1)[rows, 0]
+    tol = np.asarray(arrays[f"{o}_tolerance_{verdict.port_dtype}"], np.float64).reshape(n, -1)[rows, 0]
+    ends = np.asarray(case.value_range or (), np.float64)
+    match = np.zeros(len(rows), bool)
+    with np.errstate(invalid="ignore"):
+        for v in pcase.spread_hook({k: np.asarray(arrays[k])[rows] for k in case.inputs}, np.dtype(verdict.port_dtype)):
+            h = np.asarray(v[0], np.float64).reshape(len(rows), -1)[:, 0]
+            none = ~np.isfinite(h)
+            match |= (~none & (np.abs(g - h) <= tol)) | (none & (~np.isfinite(g) | np.isin(g, ends)))
+    if not match.any():
+        return []
+    return [Group("contract", "printed_hazard", [r for r, m in zip(rows, match) if m], PRINTED_MATCH)]
+
+
+def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
     """A ``format`` (texel-format choice) or ``convention`` (clamp, receiver, caller's clamp) group when
     another declaration explains the port's failing rows: told by outputs, and checked.
 

@@ -149,11 +149,9 @@ CAUSES = {
     "rounding_tie": "an integer code on a rounding tie",
     "wide_spread": "ill-conditioned row: legitimate evaluations differ beyond the band's cap; the port's value "
                    "lies outside all of them",
-    "printed_hazard": "your result matches the papers' printed formulation, which cancels on this row (hazard): "
-                      "in float32 the printed root -p/2 - sqrt(p^2/4 - q) or Algorithm 1's pivot xi4 from the raw "
-                      "moments (below float32's resolution of b4 after BIAS_FLOAT32) loses every digit; take the "
-                      "root without cancellation (t = -(q1 + sign(q1) sqrt(disc))/2, z = t/q2 and q0/t) and give "
-                      "xi4 <= 0 the singular branch (or compute the pivots with fma)",
+    "printed_hazard": "a printed formulation of the papers cancels on this row in float32 (hazard), and your "
+                      "result is not its value either: an arithmetic or algorithmic error (where a port copied "
+                      "that formula, the verdict says so)",
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",
