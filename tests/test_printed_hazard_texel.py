@@ -86,3 +86,27 @@ def test_for_a_function_that_biases_inside_the_stored_row_is_the_hazard(bound):
     assert abs(e - exact) < 1e-6 and abs(0.0 - e) > t
     # Biased twice (the harness's row, then the function's own bias) the texel is no hazard: re-derived, not kept.
     assert "printed_hazard" not in str(a["flags"][biased]).split(",")
+
+
+@pytest.mark.parametrize("value, matches", [(0.0, True), (float("nan"), True), (0.5, False)])
+def test_the_verdict_names_the_printed_formulation_only_when_the_output_is_its_value(tmp_path, value, matches):
+    # A port correct everywhere but on the hazard row: 0 (what Algorithm 1 as printed returns there) and NaN
+    # (the slides' code, before saturate) are the printed formulation's; 0.5 is nobody's.
+    from moments_ref import golden
+
+    from _oracles import golden_folder
+
+    name = "shadow_intensity-lower-float32"
+    gdir = golden_folder((name,))
+    with np.load(gdir / f"{name}.npz") as g:
+        expected = g["intensity"].astype(np.float32)
+        (r,) = [i for i, c in enumerate(g["comment"]) if str(c).startswith("sweep, after BIAS_FLOAT32")]
+    got = expected.copy()
+    got[r] = value
+    np.savez(tmp_path / "r.npz", **{f"{name}.intensity": got})
+    case = golden.verify(gdir, tmp_path / "r.npz").cases[0]
+    assert case.status == "fail" and case.verdict.failures == 1
+    (group,) = case.groups
+    assert group.rows == [r] and "printed_hazard" in group.flags
+    assert group.cause.startswith("your result matches the papers' printed formulation, which cancels on this row "
+                                  "(hazard)") == matches, group.cause
