@@ -185,7 +185,8 @@ _ALG1_SWEEP_EDGES = [
 _ALG1_SWEEP_STORED = [
     ((-0.9908193349838257, 0.9817230105400085, -0.9727101922035217, 0.9637800455093384), -0.98,
      "the float32-stored moments of one depth -0.9908, zf = -0.98 behind it; xi4 after BIAS_FLOAT32 is 0.7 "
-     "float32 ulp of b4 (printed Cholesky without a guard cancels to 0: the demo's Algorithm 1 returns 0 for 0.99985)"),
+     "float32 ulp of b4 (printed Cholesky without a guard cancels to 0: the demo's Algorithm 1 returns 0 "
+     "for 0.99985)"),
 ]
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from .notes import ROBUSTNESS, cause
 
 __all__ = ["bound_groups", "Group", "groups", "group_lines", "json_rows", "write_json", "target_groups",
-           "convention_groups",
+           "convention_groups", "hazard_groups", "PRINTED_MATCH",
            "unchanged_band", "OFFSET_CANDIDATES", "SAMPLE_ROWS",
            "CLAMP_CANDIDATES"]
 
@@ -268,9 +268,11 @@ def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, stric
 
 
 def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
-    """The groups told by the port's outputs: a declaration that explains its failing rows
-    (:func:`_declaration_groups`), and the failing ``printed_hazard`` rows where its output is a
-    printed formulation's (:func:`hazard_groups`)."""
+    """Groups told by the port's outputs: an explaining declaration, and printed formulations on hazard rows.
+
+    A declaration that explains the failing rows (:func:`_declaration_groups`), and the failing
+    ``printed_hazard`` rows where the output is a printed formulation's (:func:`hazard_groups`).
+    """
     found = _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype)
     taken = {i for g in found for i in g.rows}
     return found + hazard_groups(name, verdict, base_arrays, got, profile, taken)
@@ -285,7 +287,9 @@ PRINTED_MATCH = ("your result matches the papers' printed formulation, which can
 
 
 def hazard_groups(name, verdict, base_arrays, got, profile, taken=()):
-    """A ``contract`` group of the failing rows flagged ``printed_hazard`` (under ``profile``) on which the
+    """The failing ``printed_hazard`` rows on which the port returns a printed formulation's value, as one group.
+
+    A ``contract`` group of the failing rows flagged ``printed_hazard`` (under ``profile``) on which the
     port's output is the value of one of the case's printed formulations (its ``spread_hook``, in the
     port's precision, on the inputs the port was given): within the row's tolerance of it, or, where
     the formulation has no value (NaN), NaN or an end of the output's range (what ``saturate`` or
