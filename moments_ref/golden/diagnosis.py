@@ -348,7 +348,7 @@ def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="fl
     got = _narrowed(got, base_arrays)
     declared = profiled_arrays(name, profile, arrays=base_arrays)[1]
     # Rows flagged printed_hazard keep their own cause (a copied printed formula fails them under any
-    # declaration); a candidate must explain every other failing row, and those rows still fail with it.
+    # declaration): a candidate must explain every other failing row; those may still fail with it.
     hazard = np.array(["printed_hazard" in str(f).split(",") for f in np.asarray(declared["flags"])], bool)
     other = fail & ~hazard
     # rows derive alone unless the case's arrays are whole-case or the feed depends on the row count (slopes)
@@ -366,8 +366,8 @@ def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="fl
         if explained.any() and not (~v.row_pass & ~(hazard & fail)).any():  # only failing hazard rows may still fail
             return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
                           f"the outputs are those of {what}: every failing row passes with it, within its "
-                          "unchanged band; a convention, not an arithmetic error: declare it in the profile "
-                          "(docs/ports.md)")]
+                          "unchanged band (rows flagged printed_hazard apart); a convention, not an arithmetic "
+                          "error: declare it in the profile (docs/ports.md)")]
     return []
 
 
