@@ -120,11 +120,12 @@ def test_formulations_widen_only_on_contract_rows_within_the_cap_and_flag_a_haza
     lo, hi, ill, hazard, bad = _band(case, e, core, hooks=hook, contract=contract)
     f = 2.0**-20  # no spread: the floor of 8 float32 ulps of max(0.5, scale 1)
     # row 0: the formulation widens (width 0.01, margin 0.03, capped at 0.52); row 1: beyond the cap on a
-    # contract row: a hazard, no widening; row 2: outside the contract: ignored; row 3: no value: ignored;
-    # row 4: beyond the cap below; row 5: infinite: no value, no hazard; row 6: 0.501 (width 0.001, margin 0.003)
+    # contract row: a hazard, no widening; row 2: outside the contract: ignored; row 3: no value (NaN, a pivot
+    # rounded to 0): a hazard, no widening (issue 37); row 4: beyond the cap below; row 5: infinite: no value, a
+    # hazard; row 6: 0.501 (width 0.001, margin 0.003)
     np.testing.assert_allclose(hi, [0.52, 0.5 + f, 0.5 + f, 0.5 + f, 0.5 + f, 0.5 + f, 0.504], rtol=0, atol=1e-15)
     np.testing.assert_allclose(lo, [0.48, 0.5 - f, 0.5 - f, 0.5 - f, 0.5 - f, 0.5 - f, 0.497], rtol=0, atol=1e-15)
-    assert hazard.tolist() == [False, True, False, False, True, False, False]
+    assert hazard.tolist() == [False, True, False, True, True, True, False]
     assert not ill.any() and not bad.any()  # formulations never make a row ill-conditioned
     # an unbounded output: every finite formulation on a contract row widens
     lo, hi, _, hazard, _ = _band(_case(), e, core, hooks=hook, contract=contract)

@@ -78,9 +78,10 @@ def test_the_demo_cancelling_root_fails_its_hazard_rows_and_a_stable_root_passes
     assert haz.any()
     demo = np.asarray(printed_shade(a["r"], a["zf"], np.float32), np.float64)
     e, t = a["intensity"], a["intensity_tolerance_float32"]
-    assert (np.abs(demo[haz] - e[haz]) > t[haz]).all()
+    # Beyond the band, or no value at all (NaN at zf = y2, where q1 = ±inf: also flagged, issue 37).
+    assert (~(np.abs(demo[haz] - e[haz]) <= t[haz])).all() and np.isfinite(demo[haz]).sum() >= 3
     # Confirmed with mpmath over the neighbourhood: the demo's value is no neighbour's exact value.
-    rows = np.flatnonzero(haz)[:3]
+    rows = np.flatnonzero(haz & np.isfinite(demo))[:3]
     inputs = {"r": a["r"][rows], "zf": a["zf"][rows]}
     assert bands.confirm(case, inputs, {"intensity": demo[rows]}).all()
     assert not bands.confirm(case, inputs, {"intensity": e[rows]}).any()

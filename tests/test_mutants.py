@@ -90,6 +90,23 @@ def test_the_behaviours_found_in_the_wild(results):
     # printed_hazard, which name the hazard (issue 37).
     assert by["alg3-author"].killed
     assert all("printed_hazard" in fl for _, _, _, fl in by["alg3-author"].killed_by), by["alg3-author"].killed_by
+    # Algorithm 1 as printed (no branch for a pivot that rounds to 0): killed on exactly the rows flagged
+    # printed_hazard of the Algorithm 1 cases (the sweep's one-depth texel after BIAS_FLOAT32, where its xi4 rounds
+    # to 0: 0 for 0.99985), and told so by the verdict's cause (issue 37).
+    from moments_ref.golden.notes import cause
+    from moments_ref.golden.spread import golden_arrays
+    from moments_ref.golden.cases import CASES
+
+    nos = by["alg1-no-singular"]
+    assert nos.killed and {k[0] for k in nos.killed_by} == {"shadow_intensity-lower-float32",
+                                                          "shadow_intensity-upper-float32"}, nos.killed_by
+    for name, count, ids, fl in nos.killed_by:
+        a = golden_arrays(CASES[name])
+        rows = [int(i) - 1 for i in ids]
+        assert count == len(rows) == 1 and "printed_hazard" in fl.split(","), nos.killed_by
+        assert all("printed_hazard" in str(a["flags"][r]).split(",") for r in rows)
+        assert "one depth -0.9908" in str(a["comment"][rows[0]]) and "after BIAS_FLOAT32" in str(a["comment"][rows[0]])
+        assert "(hazard)" in cause(fl, "edge")  # the verdict's own words: tests/test_verdicts.py (verify), conformance
     # Bugs, each killed on contract rows or engine rows; the singular target on the engine rows.
     for name in ("alg1-singular-target", "alg1-factor-1.03", "alg1-early-exit", "alg1-pivot-floor",
                  "alg1-nan-guard", "alg1-unclamped"):

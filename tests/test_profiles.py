@@ -246,7 +246,7 @@ def test_oracle_check_takes_a_profile_for_golden_and_drawn_rows():
     port = lambda b, zf: ports.alg1(b, zf, engine)  # noqa: E731
     path = str(__import__("pathlib").Path(__file__).parent / "fixtures" / "wild" / "engine01.toml")
     with_profile = oracle.check(port, "shadow_intensity-lower", dtype="float32", n_hypothesis=20, profile=path)
-    assert with_profile.passed and with_profile.rows == 405
+    assert with_profile.passed and with_profile.rows == 407
     assert not oracle.check(port, "shadow_intensity-lower", dtype="float32", n_hypothesis=20).passed
 
 

@@ -175,12 +175,34 @@ _ALG1_SWEEP_EDGES = [
 ]
 
 
+#: Texels from the sweep given as the float32 moments an engine stores (not as depths: the hazard lies in their
+#: rounding). Each gives two edge rows: the stored moments (for a function that biases inside; unbiased, they lie
+#: just outside the moment space, a robustness row for the others) and the same moments after BIAS_FLOAT32 rounded
+#: to float32 (what a function receives whose caller biases). HPG17 Algorithm 1's third pivot ξ4 of the biased
+#: moments is 0.7 float32 ulp of b4 here: Cholesky from the raw moments in float32 without fma rounds it to 0 or
+#: below, and the printed formulations (the slides' code, the printed algorithm) return 0 or NaN where the exact
+#: value is 0.99985 (docs/golden.md, "Printed formulations that cancel").
+_ALG1_SWEEP_STORED = [
+    ((-0.9908193349838257, 0.9817230105400085, -0.9727101922035217, 0.9637800455093384), -0.98,
+     "the float32-stored moments of one depth -0.9908, zf = -0.98 behind it; xi4 after BIAS_FLOAT32 is 0.7 "
+     "float32 ulp of b4 (printed Cholesky without a guard cancels to 0: the demo's Algorithm 1 returns 0 "
+     "for 0.99985)"),
+]
+
+
 def _alg1_rows(rng, dtype):
-    """Rows for Algorithm 1: those of :func:`_msm_rows` and the sweep's edge rows (:data:`_ALG1_SWEEP_EDGES`)."""
+    """Rows for Algorithm 1: those of :func:`_msm_rows` and the sweep's edge rows (:data:`_ALG1_SWEEP_EDGES`,
+    :data:`_ALG1_SWEEP_STORED`)."""
     parts = [_msm_rows(rng, dtype)]
     for zs, ws, zf, why in _ALG1_SWEEP_EDGES:
         b = bias_moments(power_moments(np.array(zs), np.array(ws)), BIAS_FLOAT32)
         parts.append(_rows({"b": b[None], "zf": np.array([zf])}, "edge", why))
+    for stored, zf, why in _ALG1_SWEEP_STORED:
+        b = np.array(stored, np.float32)
+        biased = bias_moments(b, BIAS_FLOAT32).astype(np.float64)  # float32 arithmetic, as the shader biases
+        parts.append(_rows({"b": np.stack([b.astype(np.float64), biased]), "zf": np.array([zf, zf])}, "edge",
+                           [f"sweep, as stored (a function that biases inside): {why}",
+                            f"sweep, after BIAS_FLOAT32 in float32 (a function whose caller biases): {why}"]))
     return Rows.concat(parts)
 
 

@@ -14,9 +14,10 @@ and expected value e (the mpmath twin, else the float64 reference), the
   value moves under 1-ulp changes of the input, the band covers where it moves);
 * the papers' printed formulations and the shipped plain-Cholesky evaluation with and
   without fma (the case's ``spread_hook``), on contract rows, **where their error stays
-  within the cap** below. Where a printed formula cancels beyond the cap it does not
-  widen the band; the row is flagged ``printed_hazard`` (a porter who copied that formula
-  fails there, and is told why).
+  within the cap** below. Where a printed formula cancels beyond the cap, or has no value
+  (NaN: Algorithm 1's pivot ξ4 rounded to 0 in float32 without fma), it does not widen the
+  band; the row is flagged ``printed_hazard`` (a porter who copied that formula fails there,
+  and is told why).
 
 The band is ``[lo − m, hi + m]`` with ``lo``, ``hi`` the least and largest of e and the
 legitimate evaluations, and the **margin** ``m`` a per-case constant, not a multiple of
@@ -191,7 +192,8 @@ def interval_parts(case, dt, expected, contract, noise, core, hooks):
             for v in hooks:
                 h = np.asarray(v[i], np.float64)
                 fine = np.isfinite(h) & c & ((np.abs(h - e) <= cap) | chained)
-                hazard |= np.isfinite(h) & c & ~fine
+                # beyond the cap, or no value at all (NaN: a pivot rounded to 0) where the exact value is finite
+                hazard |= c & ~fine & (np.isfinite(h) | (np.isfinite(e) & (not chained)))
                 lo, hi = np.where(fine, np.minimum(lo, h), lo), np.where(fine, np.maximum(hi, h), hi)
             m = _margin(case, e, dt, noise[i], hi - lo)
             if chained:  # the GPU's own chains (every order and contraction) span beyond the cap: ill

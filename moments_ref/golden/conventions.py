@@ -48,7 +48,7 @@ __all__ = ["profile_arrays", "profiled_arrays", "profiled_case", "convert_inputs
            "unused_keys"]
 
 #: Flags that :func:`~moments_ref.golden.spread.derive` sets; recomputed under a profile.
-_DERIVED_FLAGS = (ROBUSTNESS, "wide_spread", "rounding_tie")
+_DERIVED_FLAGS = (ROBUSTNESS, "wide_spread", "rounding_tie", "printed_hazard")
 _MEMO = {}
 #: [0, 1] depth: z_unit = z_ndc / 2 + 1/2 (scale, offset), and back.
 _TO_UNIT, _TO_NDC = (0.5, 0.5), (2.0, -1.0)

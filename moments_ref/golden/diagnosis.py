@@ -23,7 +23,7 @@ import numpy as np
 from .notes import ROBUSTNESS, cause
 
 __all__ = ["bound_groups", "Group", "groups", "group_lines", "json_rows", "write_json", "target_groups",
-           "convention_groups",
+           "convention_groups", "hazard_groups", "PRINTED_MATCH",
            "unchanged_band", "OFFSET_CANDIDATES", "SAMPLE_ROWS",
            "CLAMP_CANDIDATES"]
 
@@ -268,6 +268,59 @@ def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, stric
 
 
 def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
+    """Groups told by the port's outputs: an explaining declaration, and printed formulations on hazard rows.
+
+    A declaration that explains the failing rows (:func:`_declaration_groups`), and the failing
+    ``printed_hazard`` rows where the output is a printed formulation's (:func:`hazard_groups`).
+    """
+    found = _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype)
+    taken = {i for g in found for i in g.rows}
+    return found + hazard_groups(name, verdict, base_arrays, got, profile, taken)
+
+
+#: The cause of a failing ``printed_hazard`` row whose output is a printed formulation's value there.
+PRINTED_MATCH = ("your result matches the papers' printed formulation, which cancels on this row (hazard): in "
+                 "float32 the printed root -p/2 - sqrt(p^2/4 - q) or Algorithm 1's pivot xi4 from the raw moments "
+                 "(below float32's resolution of b4 after BIAS_FLOAT32) loses every digit; take the root without "
+                 "cancellation (t = -(q1 + sign(q1) sqrt(disc))/2, z = t/q2 and q0/t) and give xi4 <= 0 the "
+                 "singular branch (or compute the pivots with fma)")
+
+
+def hazard_groups(name, verdict, base_arrays, got, profile, taken=()):
+    """The failing ``printed_hazard`` rows on which the port returns a printed formulation's value, as one group.
+
+    A ``contract`` group of the failing rows flagged ``printed_hazard`` (under ``profile``) on which the
+    port's output is the value of one of the case's printed formulations (its ``spread_hook``, in the
+    port's precision, on the inputs the port was given): within the row's tolerance of it, or, where
+    the formulation has no value (NaN), NaN or an end of the output's range (what ``saturate`` or
+    ``clamp`` make of it). The other failing hazard rows keep the flag's own cause."""
+    from .cases import CASES
+    from .conventions import profiled_arrays
+
+    case = CASES.get(name)
+    if case is None or case.spread_hook is None or len(case.outputs) != 1 or case.integer_output:
+        return []
+    pcase, arrays = profiled_arrays(name, profile, arrays=base_arrays)
+    n, o = len(np.asarray(arrays["category"])), case.outputs[0]
+    rows = [int(i) for i in np.flatnonzero(~verdict.row_pass) if int(i) not in taken
+            and "printed_hazard" in str(np.asarray(arrays["flags"])[i]).split(",")]
+    if not rows or pcase.spread_hook is None or f"{o}_tolerance_{verdict.port_dtype}" not in arrays:
+        return []
+    g = np.asarray(got[o], np.float64).reshape(n, -1)[rows, 0]
+    tol = np.asarray(arrays[f"{o}_tolerance_{verdict.port_dtype}"], np.float64).reshape(n, -1)[rows, 0]
+    ends = np.asarray(case.value_range or (), np.float64)
+    match = np.zeros(len(rows), bool)
+    with np.errstate(invalid="ignore"):
+        for v in pcase.spread_hook({k: np.asarray(arrays[k])[rows] for k in case.inputs}, np.dtype(verdict.port_dtype)):
+            h = np.asarray(v[0], np.float64).reshape(len(rows), -1)[:, 0]
+            none = ~np.isfinite(h)
+            match |= (~none & (np.abs(g - h) <= tol)) | (none & (~np.isfinite(g) | np.isin(g, ends)))
+    if not match.any():
+        return []
+    return [Group("contract", "printed_hazard", [r for r, m in zip(rows, match) if m], PRINTED_MATCH)]
+
+
+def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
     """A ``format`` (texel-format choice) or ``convention`` (clamp, receiver, caller's clamp) group when
     another declaration explains the port's failing rows: told by outputs, and checked.
 
@@ -276,7 +329,9 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
     a few failing rows alone (:data:`SAMPLE_ROWS`, a cheap refusal of most candidates), then on
     every row. It is suggested only if every failing row then passes and no passing row fails:
     advice never names a declaration under which a failing row passes for another cause (issue
-    37 item 5).
+    37 item 5). Failing rows flagged ``printed_hazard`` may still fail under the candidate (a
+    copied printed formula fails them under any declaration): those keep their own cause, and
+    the advice names the rows it explains.
     """
     from .._arrays import InputError
     from .cases import CASES
@@ -292,8 +347,13 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
         return []
     got = _narrowed(got, base_arrays)
     declared = profiled_arrays(name, profile, arrays=base_arrays)[1]
+    # Rows flagged printed_hazard keep their own cause (a copied printed formula fails them under any
+    # declaration): a candidate must explain every other failing row; those may still fail with it.
+    hazard = np.array(["printed_hazard" in str(f).split(",") for f in np.asarray(declared["flags"])], bool)
+    other = fail & ~hazard
     # rows derive alone unless the case's arrays are whole-case or the feed depends on the row count (slopes)
-    sample = np.flatnonzero(fail)[:SAMPLE_ROWS] if case.row_inputs and not profile.receiver_slope else None
+    sample = (np.flatnonzero(other)[:SAMPLE_ROWS] if other.any() and case.row_inputs and not profile.receiver_slope
+              else None)
     for p, level, what in _candidates(case, profile):
         try:
             if sample is not None and _judge(name, p, sample, base_arrays, declared, got, profile, port_dtype,
@@ -302,11 +362,12 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
             v = _judge(name, p, None, base_arrays, declared, got, profile, port_dtype, verdict.strict)
         except (InputError, TypeError, ValueError, KeyError):  # a choice this version cannot evaluate
             continue
-        if v.failures == 0:
-            return [Group(level, what, [int(i) for i in np.flatnonzero(fail)],
+        explained = fail & v.row_pass
+        if explained.any() and not (~v.row_pass & ~(hazard & fail)).any():  # only failing hazard rows may still fail
+            return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
                           f"the outputs are those of {what}: every failing row passes with it, within its "
-                          "unchanged band; a convention, not an arithmetic error: declare it in the profile "
-                          "(docs/ports.md)")]
+                          "unchanged band (rows flagged printed_hazard apart); a convention, not an arithmetic "
+                          "error: declare it in the profile (docs/ports.md)")]
     return []
 
 
@@ -316,12 +377,16 @@ def bound_groups(case, verdict, base_arrays, got, profile):
     Checked, not guessed: on the inputs the port received (the profile's conversions), the
     Hausdorff bound (:mod:`moments_ref.hausdorff`, float64) must lie within each row's *own*
     tolerance of the port's output (the band is not widened), on at least half of the failing
-    rows. Rows it does not explain (a NaN at a receiver at depth 0) stay failures.
+    rows. Rows it does not explain (a NaN at a receiver at depth 0) stay failures, and rows flagged
+    ``printed_hazard`` under the profile are left to their own cause (a cancelling printed formula
+    returns 0 there, which the Hausdorff bound can match by coincidence).
     """
     from ..hausdorff import shadow_intensity
-    from .conventions import convert_inputs
+    from .conventions import convert_inputs, profiled_arrays
 
     fail = ~verdict.row_pass
+    flags = profiled_arrays(case.name, profile, arrays=base_arrays)[1]["flags"]
+    fail = fail & ~np.array(["printed_hazard" in str(f).split(",") for f in flags], bool)
     if verdict.tolerance is None or "intensity" not in got:
         return []
     ins = convert_inputs(case, {k: base_arrays[k] for k in case.inputs}, profile)

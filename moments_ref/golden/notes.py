@@ -120,7 +120,8 @@ NOTES = {
     },
     "printed_hazard": {
         "description": "a printed formulation of the papers (the slides' root -p/2 - sqrt(p^2/4 - q), HPG17's "
-                       "printed Algorithm 1 or 3) cancels here in float32 beyond golden.bands.CAP of the range",
+                       "printed Algorithm 1 or 3, Cholesky from the raw moments without a guard) cancels here in "
+                       "float32 beyond golden.bands.CAP of the range, or has no value (NaN)",
         "effect": "the formula does not widen the band: a port that copied it fails this row",
     },
 }
@@ -148,9 +149,9 @@ CAUSES = {
     "rounding_tie": "an integer code on a rounding tie",
     "wide_spread": "ill-conditioned row: legitimate evaluations differ beyond the band's cap; the port's value "
                    "lies outside all of them",
-    "printed_hazard": "a printed formula (the papers' root -p/2 - sqrt(p^2/4 - q)) cancels here in float32: a port "
-                      "that copied it fails this row; take the root without cancellation (t = -(q1 + sign(q1) "
-                      "sqrt(disc))/2, z = t/q2 and q0/t)",
+    "printed_hazard": "a printed formulation of the papers cancels on this row in float32 (hazard), and your "
+                      "result is not its value either: an arithmetic or algorithmic error (where a port copied "
+                      "that formula, the verdict says so)",
     "near_far": "near- and far-plane mixture (depths on the ends of the depth range)",
     "cluster": "a tight cluster of depths: variance below the bias",
     "footprint": "a footprint of a shipped scene: an engine's ordinary input",

@@ -133,9 +133,10 @@ MUTANTS = [
     _m("alg1-recip", "legit", "alg1", {"recip": True}, "p, q by one reciprocal of c2 and two products"),
     _m("alg1-sum-weights", "legit", "alg1", {"sum_weights": True}, "lower bound as w1 + w2 instead of 1 - w0"),
     _m("alg1-swap-bound", "bug", "alg1", {"swap_bound": True}, "upper bound returned for the lower and vice versa"),
-    _m("alg1-no-singular", "robustness", "alg1", {"no_singular": True},
-       "paper-faithful: no singular branch (biased inputs only); divides by zero on unbiased singular B(b), "
-       "outside the contract, where saturate turns NaN into 0"),
+    _m("alg1-no-singular", "bug", "alg1", {"no_singular": True},
+       "paper-faithful: no singular branch (biased inputs only), the printed formulation: its pivot xi4 rounds to "
+       "0 on the sweep's one-depth texel after BIAS_FLOAT32 (0 for 0.99985; issue 37), killed only on the rows "
+       "flagged printed_hazard; also divides by zero on unbiased singular B(b), outside the contract"),
     _m("alg1-literal-root", "legit", "alg1", {"literal_root": True},
        "roots as -p/2 ∓ sqrt(p²/4 - q), as the slides and Peters' demo code (HDRP's HDIMS.hlsl) print them"),
     _m("alg1-swap-roots", "bug", "alg1", {"swap_roots": True}, "z1 and z2 swapped (z1 > z2)"),
