@@ -1,0 +1,132 @@
+"""The engine cases in the sweep: depth distributions drawn per chunk, judged by the engine cases' own derivation.
+
+An ``engine-*`` case (:mod:`moments_ref.golden.engine`) starts from a depth distribution
+(support points z_i and masses w_i) and a receiver zf, in the engine's depth convention. The
+sweep draws the distributions as it draws every texel (:func:`.samplers.draw_texels`: the
+depths and weights, in the papers' frame [−1, 1]) and
+
+* converts them to the engine's frame as the golden rows are converted: z ↦ (z + 1)/2 under a
+  ``[0,1]`` depth profile (:func:`moments_ref.scene.depth.z_unit_from_ndc`, exact in float64),
+  the receiver rounded once to the case's dtype;
+* hands the port b = Σ w_i (z_i, z_i², z_i³, z_i⁴) / Σ w_i rounded once to float32, biased by
+  the harness first (b − α (b − b*), exactly) where the case's context says the bias comes
+  "before" the call (the default, BIAS_FLOAT32), unbiased where the profile puts it inside
+  the port (:func:`moments_ref.golden.engine.moments_of_rows`, the helper the derivation uses;
+  :func:`interval` checks the two agree bit for bit);
+* judges each row by :func:`moments_ref.golden.engine.derive_engine` itself (one model): its
+  expected value and per-row tolerance, read in one place (:func:`band`); rows it flags
+  ``wide_spread`` are ill-conditioned, reported apart and never wrong.
+
+:func:`confirm` decides a flagged row of ``engine-lower``/``engine-upper`` with mpmath: the
+port's output is wrong only where it lies outside [min, max] of the exact bounds
+(:func:`moments_ref.precise.shadow_bounds`, Algorithm 1; Slides, "Bias the moments") of the
+distribution's moments under every legitimate bias
+(:func:`moments_ref.golden.engine.legit_biases`) and of the port's own input (its bias
+inside applied, if declared) over its float32 neighbourhood (inputs scaled by 1 ± k ulps,
+k = 1 … 3), widened by the band model's margin floor (8 float32 ulps of 1). The NLQ chains
+(``engine-nlq64``, ``engine-nlq32``: Φ, a texel, Algorithm 3) have no mpmath twin in
+:mod:`moments_ref.precise`: their flags are *unconfirmable* and are reported as unconfirmed,
+never as the port's fault.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import precise
+from ..golden.engine import derive_engine, legit_biases, moments_of_rows
+
+__all__ = ["is_engine", "confirmable", "engine_inputs", "band", "interval", "confirm", "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
+
+#: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
+MARGIN_ULPS = 8
+#: The port's own input is scaled jointly by 1 ± k ulps, k = 1 … NEIGHBOUR_ULPS (golden.bands.PERTURB_ULPS).
+NEIGHBOUR_ULPS = 3
+
+
+def is_engine(case):
+    """Whether ``case`` is an engine case (judged by :func:`moments_ref.golden.engine.derive_engine`)."""
+    return case.deriver is derive_engine
+
+
+def confirmable(case):
+    """Whether mpmath can confirm a flag of ``case``: Algorithm 1 (engine-lower, -upper), not the NLQ chains."""
+    return is_engine(case) and case.engine.get("fmt") is None
+
+
+def engine_inputs(case, z, w, zf):
+    """The port's inputs and the distribution, in the engine's frame: ``{b, zf, support, mass}``.
+
+    ``z``, ``w``: ``(n, K)`` depths (papers' frame) and weights (0 for padding); ``zf``: ``(n,)``.
+    """
+    ctx = case.engine
+    dt = np.dtype(case.dtype)
+    support = np.asarray(z, np.float64)
+    receiver = np.asarray(zf, np.float64)
+    if ctx.get("unit"):
+        from ..scene.depth import z_unit_from_ndc
+
+        support, receiver = z_unit_from_ndc(support), z_unit_from_ndc(receiver)
+    mass = np.asarray(w, np.float64)
+    b = moments_of_rows(support, mass, dt, bias=ctx.get("before"))
+    return {"b": b, "zf": receiver.astype(dt), "support": support, "mass": mass}
+
+
+def band(arrays, port_dtype):
+    """``(lo, hi)`` of a derivation's rows: expected ± the per-row tolerance (the one place the band is read)."""
+    e = np.asarray(arrays["intensity"], np.float64)
+    t = np.asarray(arrays[f"intensity_tolerance_{port_dtype}"], np.float64)
+    return e - t, e + t
+
+
+def _ill(arrays):
+    return np.array(["wide_spread" in str(f).split(",") for f in np.asarray(arrays["flags"])], bool)
+
+
+def interval(case, inputs, port_dtype="float32"):
+    """``(bands, ill_conditioned)`` of engine rows (``inputs`` from :func:`engine_inputs`), by ``derive_engine``."""
+    n = len(inputs["zf"])
+    arrays = derive_engine(case, {k: np.asarray(v) for k, v in inputs.items()}, np.full(n, "random"), [""] * n,
+                           [()] * n)
+    if not np.array_equal(np.asarray(arrays["b"]).view(np.uint32 if case.dtype == "float32" else np.uint64),
+                          np.asarray(inputs["b"]).view(np.uint32 if case.dtype == "float32" else np.uint64)):
+        raise RuntimeError(f"{case.name}: the sweep's port input b differs from derive_engine's")
+    return {"intensity": band(arrays, str(np.dtype(port_dtype)))}, _ill(arrays)
+
+
+def _exact(b, zf, bound):
+    lower, upper = precise.shadow_bounds(np.asarray(b, np.float64), np.asarray(zf, np.float64))
+    return lower if bound == "lower" else upper
+
+
+def exact_span(case, inputs):
+    """``(lo, hi)`` per row: the least and largest exact bound over the legitimate biases and the port's input's
+    float32 neighbourhood (module docstring), as the port reports it (intensity or visibility)."""
+    ctx = case.engine
+    bound = ctx.get("bound", "lower")
+    sup, mass = np.asarray(inputs["support"], np.float64), np.asarray(inputs["mass"], np.float64)
+    zf = np.asarray(inputs["zf"], np.float64)
+    values = [_exact(moments_of_rows(sup, mass, np.dtype(np.float64), bias=p), zf, bound) for p in legit_biases(ctx)]
+    b = np.asarray(inputs["b"])
+    eps = float(np.finfo(b.dtype).eps)
+    for f in [1.0] + [1 + s * k * eps for k in range(1, NEIGHBOUR_ULPS + 1) for s in (1, -1)]:
+        bk = (b.astype(np.float64) * f).astype(b.dtype).astype(np.float64)
+        zk = (zf * f).astype(b.dtype).astype(np.float64)
+        if ctx.get("inside") is not None:
+            bk = precise.bias_moments(bk, ctx["inside"])
+        values.append(_exact(bk, zk, bound))
+    v = np.stack(values)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return (1 - hi, 1 - lo) if ctx.get("visibility") else (lo, hi)
+
+
+def confirm(case, inputs, got, port_dtype="float32"):
+    """``(n,)`` bool: flagged engine rows mpmath confirms wrong (module docstring); False for the NLQ chains."""
+    n = len(inputs["zf"])
+    if n == 0 or not confirmable(case):
+        return np.zeros(n, bool)
+    lo, hi = exact_span(case, inputs)
+    m = MARGIN_ULPS * float(np.finfo(np.dtype(port_dtype)).eps)
+    g = np.asarray(got["intensity"], np.float64).reshape(n)
+    with np.errstate(invalid="ignore"):
+        return ~((g >= lo - m) & (g <= hi + m))
