@@ -22,7 +22,7 @@ from __future__ import annotations
 from ..golden import bands as _bands
 from . import engine as _engine
 
-__all__ = ["legitimate_interval", "confirm"]
+__all__ = ["legitimate_interval", "confirm", "judges_ill"]
 
 
 def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
@@ -38,3 +38,9 @@ def confirm(case, inputs, got, port_dtype="float32"):
     if _engine.is_engine(case):
         return _engine.confirm(case, inputs, got, port_dtype)
     return _bands.confirm(case, inputs, got, port_dtype)
+
+
+def judges_ill(case):
+    """Whether an ill-conditioned row of ``case`` can count as wrong (judged by its neighbourhood): not for the
+    engine cases, whose rows flagged ``wide_spread`` by their derivation are reported apart and never wrong."""
+    return not _engine.is_engine(case)

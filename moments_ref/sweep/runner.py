@@ -166,7 +166,7 @@ def run_chunk(spec, chunk):
         got = evaluate(spec, inputs, driver)
         t["driver"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        flagged = wrong_rows(case, bands, ill, got)
+        flagged = wrong_rows(case, bands, ill, got) & (judge.judges_ill(case) | ~ill)
         t["compare"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         idx = np.flatnonzero(flagged)
