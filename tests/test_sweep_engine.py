@@ -132,6 +132,7 @@ def test_same_seed_same_result():
     assert c.strata != a.strata
 
 
+@pytest.mark.slow
 def test_shipped_glsl_passes_and_a_one_change_mutant_the_goldens_miss_is_found_and_shrunk(ctx, tmp_path):
     from moments_ref.conformance import PORTS_DIR, run_case
 
