@@ -19,7 +19,7 @@ depths and weights, in the papers' frame [−1, 1]) and
 
 :func:`confirm` decides a flagged row of ``engine-lower``/``engine-upper`` with mpmath: the
 port's output is wrong only where it lies outside [min, max] of the exact bounds
-(:func:`moments_ref.precise.shadow_bounds`, Algorithm 1; Slides, "Bias the moments") of the
+(:func:`moments_ref.precise.shadow_bounds`, HPG17 Algorithm 1; Slides, "Bias the moments") of the
 distribution's moments under every legitimate bias
 (:func:`moments_ref.golden.engine.legit_biases`) and of the port's own input (its bias
 inside applied, if declared) over its float32 neighbourhood (inputs scaled by 1 ± k ulps,
@@ -27,6 +27,16 @@ k = 1 … 3), widened by the band model's margin floor (8 float32 ulps of 1). Th
 (``engine-nlq64``, ``engine-nlq32``: Φ, a texel, Algorithm 3) have no mpmath twin in
 :mod:`moments_ref.precise`: their flags are *unconfirmable* and are reported as unconfirmed,
 never as the port's fault.
+
+References
+----------
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [2] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
 """
 
 from __future__ import annotations
@@ -36,7 +46,7 @@ import numpy as np
 from .. import precise
 from ..golden.engine import derive_engine, legit_biases, moments_of_rows
 
-__all__ = ["is_engine", "confirmable", "engine_inputs", "band", "interval", "confirm", "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
+__all__ = ["is_engine", "confirmable", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
 
 #: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
 MARGIN_ULPS = 8
