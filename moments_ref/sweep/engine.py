@@ -22,8 +22,8 @@ port's output is wrong only where it lies outside [min, max] of the exact bounds
 (:func:`moments_ref.precise.shadow_bounds`, HPG17 Algorithm 1; Slides, "Bias the moments") of the
 distribution's moments under every legitimate bias
 (:func:`moments_ref.golden.engine.legit_biases`) and of the port's own input (its bias
-inside applied, if declared) over its float32 neighbourhood (inputs scaled by 1 ± k ulps,
-k = 1 … 3), widened by the band model's margin floor (8 float32 ulps of 1). The NLQ chains
+inside applied, if declared) over its float32 neighbourhood (b and zf scaled jointly by
+1 ± k ulps, k = 0 … 3), widened by the band model's margin floor (8 float32 ulps of 1). The NLQ chains
 (``engine-nlq64``, ``engine-nlq32``: Φ, a texel, Algorithm 3) have no mpmath twin in
 :mod:`moments_ref.precise`: their flags are *unconfirmable* and are reported as unconfirmed,
 never as the port's fault.
