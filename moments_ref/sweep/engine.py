@@ -46,7 +46,8 @@ import numpy as np
 from .. import precise
 from ..golden.engine import derive_engine, legit_biases, moments_of_rows
 
-__all__ = ["is_engine", "confirmable", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
+__all__ = ["is_engine", "confirmable", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS",
+           "NEIGHBOUR_ULPS"]
 
 #: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
 MARGIN_ULPS = 8
@@ -90,7 +91,9 @@ def band(arrays, port_dtype):
 
 
 def _ill(arrays):
-    return np.array(["wide_spread" in str(f).split(",") for f in np.asarray(arrays["flags"])], bool)
+    """Rows whose derivation flags them ``wide_spread`` (comma-separated flag names), vectorised."""
+    flags = np.char.add(np.char.add(",", np.asarray(arrays["flags"]).astype(str)), ",")
+    return np.char.find(flags, ",wide_spread,") >= 0
 
 
 def interval(case, inputs, port_dtype="float32"):
