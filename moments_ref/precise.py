@@ -74,6 +74,7 @@ __all__ = [
     "canonical_representation6",
     "hausdorff_bounds",
     "hausdorff_intensity",
+    "phi_exact",
 ]
 
 #: Default working precision in significant decimal digits.
@@ -577,6 +578,39 @@ def phi_inverse(r, dps=DPS):
     with mpmath.workdps(dps):
         for idx in np.ndindex(r.shape[:-1]):
             out[idx] = [float(x) for x in _phi_inverse_mp(*(_mp(v) for v in r[idx]))]
+    return out
+
+
+def phi_exact(b, preset=None, dps=DPS):
+    """HPG17 Algorithm 2 on the (biased) moments, unrounded: mpmath numbers for twins that quantize Φ.
+
+    Parameters
+    ----------
+    b : (n, 4) float array
+        Moments b1..b4 as the chain receives them; converted exactly.
+    preset : BiasPreset, name or None
+        The bias applied first, exactly: ``(1 − α) b + α b*`` (Slides, "Bias the moments"; α and b*
+        the float64 numbers of the preset, as :func:`bias_moments`). None: b as given.
+
+    Returns
+    -------
+    r : (n, 4) object array of mpmath.mpf
+        ``(y1, y2, v2, ξ4)`` of :func:`phi`, computed at ``dps`` digits and not rounded to float64, so
+        that a quantizer can compare them with its code boundaries exactly (HPG17 §3.3, §3.5).
+        Evaluate further arithmetic on them inside ``mpmath.workdps(dps)``.
+    """
+    dps = _check_dps(dps)
+    b = _moment_input(b).reshape(-1, 4)
+    p = None if preset is None else (preset if isinstance(preset, BiasPreset) else bias_preset(preset))
+    out = np.empty(b.shape, dtype=object)
+    with mpmath.workdps(dps):
+        tol = _tol(dps)
+        alpha = None if p is None else _mp(p.alpha)
+        for i, row in enumerate(b):
+            m = [_mp(v) for v in row]
+            if p is not None:
+                m = [(1 - alpha) * v + alpha * _mp(t) for v, t in zip(m, p.target)]
+            out[i] = list(_phi_mp(*m, tol))
     return out
 
 

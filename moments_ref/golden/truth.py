@@ -69,3 +69,113 @@ def shade_clamped(r, zf, dps=50, clamp=SHADE_CLAMP, case_test="stored"):
             out[i] = float(_shade_row(*(mpmath.mpf(float(x)) for x in r[i]), mpmath.mpf(float(zf[i])), eps,
                                       case_test == "clamped"))
     return out
+
+
+# ---------------------------------------------------------------------------
+# The NLQ chain: bias -> Φ -> texel codes -> decode -> Algorithm 3, exactly
+
+#: Decode positions of a 32-bit cell (docs/formats.md; a profile's ``format.*_decode``).
+_POSITION = {"lower": mpmath.mpf(0), "centre": mpmath.mpf("0.5"), "upper": mpmath.mpf(1)}
+#: The 32-bit texel's default decode positions: depth and Ψ4 at the upper end, √v2 at the centre (HPG17 §3.5).
+_DECODE32 = {"depth_decode": "upper", "v2_decode": "centre", "xi_decode": "upper"}
+
+
+def _psi4(x):
+    """HPG17 §3.3, Ψ4 with ξ4 clamped to [1.2e-7, 0.25] (Ψ4 in [0, 1]), at the working precision."""
+    c0 = mpmath.log(mpmath.log(mpmath.mpf("1.2")))
+    c1 = mpmath.log(mpmath.log(mpmath.mpf("0.25") * 10**7)) - c0
+    x = min(max(x, mpmath.mpf("1.2e-7")), mpmath.mpf("0.25"))
+    return (mpmath.log(mpmath.log(x * 10**7)) - c0) / c1
+
+
+def _psi4_inverse(u):
+    c0 = mpmath.log(mpmath.log(mpmath.mpf("1.2")))
+    c1 = mpmath.log(mpmath.log(mpmath.mpf("0.25") * 10**7)) - c0
+    return mpmath.exp(mpmath.exp(c0 + u * c1)) / 10**7
+
+
+def _candidates(s, rounding, tie, top):
+    """The codes of the exact scaled value ``s`` (``rounding``: "nearest", "up" or "down"), both neighbours where
+    ``s`` lies within ``tie`` of the rounding's boundary (half-integers for "nearest", integers otherwise)."""
+    if rounding == "nearest":
+        k = int(mpmath.floor(s))
+        near = abs(s - k - mpmath.mpf("0.5")) < tie
+        codes = {k, k + 1} if near else {int(mpmath.nint(s))}
+    else:
+        k = int(mpmath.nint(s))
+        if abs(s - k) < tie:
+            codes = {k, k + 1} if rounding == "up" else {k - 1, k}
+        else:
+            codes = {int(mpmath.ceil(s)) if rounding == "up" else int(mpmath.floor(s))}
+    return sorted({min(max(c, 0), top) for c in codes})
+
+
+def _saturate(y1, y2, v2, xi4):
+    """docs/formats.md, Input: y1, y2 to [−1, 1] (y2 at least y1), v2 to [0, 1], ξ4 ≥ 0."""
+    one = mpmath.mpf(1)
+    y1 = min(max(y1, -one), one)
+    return y1, max(min(max(y2, -one), one), y1), min(max(v2, mpmath.mpf(0)), one), max(xi4, mpmath.mpf(0))
+
+
+def _decoded64(r, texel, tie):
+    """Every decoded (y1, y2, v2, ξ4) the 64-bit texel may hold for the exact r (docs/formats.md, 64 bits)."""
+    y1, y2, v2, xi4 = _saturate(*r)
+    top = 65535
+    xi_rounding = "up" if (texel or {}).get("xi_rounding", "up") == "up" else "nearest"
+    c1 = _candidates(top * (y1 + 1) / 2, "nearest", tie, top)
+    c2 = _candidates(top * (y2 + 1) / 2, "nearest", tie, top)
+    cv = _candidates(top * v2, "nearest", tie, top)
+    cx = _candidates(top * _psi4(xi4), xi_rounding, tie, top)
+    return [(mpmath.mpf(2 * a) / top - 1, mpmath.mpf(2 * b) / top - 1, mpmath.mpf(v) / top,
+             _psi4_inverse(mpmath.mpf(x) / top)) for a in c1 for b in c2 if a <= b for v in cv for x in cx]
+
+
+def _decoded32(r, texel, tie):
+    """Every decoded (y1, y2, v2, ξ4) the 32-bit texel may hold for the exact r (docs/formats.md, 32 bits).
+
+    The cells ⌊511.5 (y + 1)⌋ (0 … 1022), ⌊128 √v2⌋ (≤ 127), ⌊64 Ψ4⌋ (≤ 63), each read at its decode position.
+    HPG17 Figure 5's fold (ỹ1 ≥ 512 -> 1023 − ỹ1, 1022 − ỹ2) is undone by the decoder (a folded pair has
+    ỹ2 < ỹ1, an unfolded one ỹ1 ≤ ỹ2), so the decoded value is that of the unfolded cells.
+    """
+    y1, y2, v2, xi4 = _saturate(*r)
+    pos = {k: _POSITION[v] for k, v in dict(_DECODE32, **{k: v for k, v in (texel or {}).items()
+                                                           if k in _DECODE32}).items()}
+    half = mpmath.mpf(1023) / 2
+    t1 = _candidates(half * (y1 + 1), "down", tie, 1022)
+    t2 = _candidates(half * (y2 + 1), "down", tie, 1022)
+    cv = _candidates(128 * mpmath.sqrt(v2), "down", tie, 127)
+    cx = _candidates(64 * _psi4(xi4), "down", tie, 63)
+    d = pos["depth_decode"]
+    return [((a + d) / half - 1, (b + d) / half - 1, ((v + pos["v2_decode"]) / 128) ** 2,
+             _psi4_inverse((x + pos["xi_decode"]) / 64)) for a in t1 for b in t2 if a <= b for v in cv for x in cx]
+
+
+def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored", texel=None, dps=50):
+    """The exact NLQ chain: ``(lo, hi)`` float64 ``(n,)``, the least and largest intensity its texel allows.
+
+    HPG17's pipeline evaluated exactly: the bias (Slides, "Bias the moments"), Φ (HPG17 Algorithm 2;
+    :func:`moments_ref.precise.phi_exact`), the texel's codes (HPG17 §3.3 Ψ4, §3.5 and docs/formats.md: the
+    64-bit UNORM16 channels round(65535 (y + 1)/2), round(65535 v2), ceil (or round, ``texel["xi_rounding"]``)
+    65535 Ψ4(ξ4); the 32-bit cells), each code decided by comparing the exact value with the code boundaries,
+    the decode (exact, in mpmath) and HPG17 Algorithm 3 with its §3.4 clamps (:func:`shade_clamped`'s row).
+    Where an exact value lies within ``10^-(dps/2)`` of a rounding boundary both codes are taken: ``lo`` and
+    ``hi`` are the least and largest intensity over the candidate texels (equal elsewhere).
+
+    ``b``: ``(n, 4)`` moments as the chain receives them, ``zf``: ``(n,)``; ``bias``: a BiasPreset or None (the
+    caller biased); ``clamp``, ``case_test``: the clamps of Algorithm 3 (:func:`shade_clamped`); ``texel``: the
+    profile's format choices (``xi_rounding``, ``depth_decode``, ``v2_decode``, ``xi_decode``).
+    """
+    from .. import precise
+
+    r = precise.phi_exact(b, bias, dps=dps)
+    zf = np.broadcast_to(np.asarray(zf, np.float64), r.shape[:1])
+    decoded = _decoded64 if str(fmt) == "64" else _decoded32
+    lo, hi = np.empty(len(zf)), np.empty(len(zf))
+    with mpmath.workdps(dps):
+        tie = mpmath.mpf(10) ** -(dps // 2)
+        eps = mpmath.mpf(float(SHADE_CLAMP if clamp is None else clamp))
+        for i in range(len(zf)):
+            z = mpmath.mpf(float(zf[i]))
+            v = [_shade_row(*t, z, eps, case_test == "clamped") for t in decoded(r[i], texel, tie)]
+            lo[i], hi[i] = float(min(v)), float(max(v))
+    return lo, hi
