@@ -332,9 +332,14 @@ def tie_codes(case, inputs):
 
 
 def _exact(case, point):
+    """The exact values at ``point``: a list of output tuples (one; two, lo and hi, from a ``confirm_truth``)."""
+    as64 = {k: (v if k in case.integer_inputs else np.asarray(v, np.float64)) for k, v in point.items()}
+    if case.confirm_truth is not None:
+        pairs = case.confirm_truth(**as64)
+        return [tuple(p[0] for p in pairs), tuple(p[1] for p in pairs)]
     if case.truth is None:
-        return evaluate_reference(case, point, np.float64)
-    return case.truth(**{k: (v if k in case.integer_inputs else np.asarray(v, np.float64)) for k, v in point.items()})
+        return [evaluate_reference(case, point, np.float64)]
+    return [case.truth(**as64)]
 
 
 def _within_cap(case, hook, exact):
@@ -368,7 +373,7 @@ def _exact_values(case, inputs, seed=12345):
     values = []
     for p in pts:
         try:
-            values.append(_exact(case, p))
+            values.extend(_exact(case, p))
         except InputError:  # a neighbour outside the function's domain
             pass
     return values

@@ -17,16 +17,21 @@ depths and weights, in the papers' frame [−1, 1]) and
   expected value and per-row tolerance, read in one place (:func:`band`); rows it flags
   ``wide_spread`` are ill-conditioned, reported apart and never wrong.
 
-:func:`confirm` decides a flagged row of ``engine-lower``/``engine-upper`` with mpmath: the
-port's output is wrong only where it lies outside [min, max] of the exact bounds
-(:func:`moments_ref.precise.shadow_bounds`, HPG17 Algorithm 1; Slides, "Bias the moments") of the
-distribution's moments under every legitimate bias
-(:func:`moments_ref.golden.engine.legit_biases`) and of the port's own input (its bias
-inside applied, if declared) over its float32 neighbourhood (b and zf scaled jointly by
-1 ± k ulps, k = 0 … 3), widened by the band model's margin floor (8 float32 ulps of 1). The NLQ chains
-(``engine-nlq64``, ``engine-nlq32``: Φ, a texel, Algorithm 3) have no mpmath twin in
-:mod:`moments_ref.precise`: their flags are *unconfirmable* and are reported as unconfirmed,
-never as the port's fault.
+:func:`confirm` decides a flagged row with mpmath: the port's output is wrong only where it lies
+outside [min, max] of the exact values of its pipeline under every legitimate bias
+(:func:`moments_ref.golden.engine.legit_biases`, applied to the distribution's moments) and on the
+port's own input (its bias inside applied, if declared) over its float32 neighbourhood (b and zf
+scaled jointly by 1 ± k ulps, k = 0 … 3), widened by the band model's margin floor (8 float32 ulps of 1).
+The exact values are, per case:
+
+* ``engine-lower``/``engine-upper``: the exact bounds (:func:`moments_ref.precise.shadow_bounds`,
+  HPG17 Algorithm 1; Slides, "Bias the moments");
+* ``engine-nlq64``/``engine-nlq32``: the exact NLQ chain (:func:`moments_ref.golden.truth.nlq_chain`:
+  Φ of the exact moments, the texel's codes decided on the exact Φ, both codes where Φ lies on a code
+  boundary, the exact decode and HPG17 Algorithm 3 with its §3.4 clamps, under the profile's clamp and
+  texel choices), and this package's own chain in float32 and float64 on the port's input (legitimate
+  evaluations: a float Φ stores the neighbouring code where the exact Φ lies within its rounding of a
+  boundary).
 
 References
 ----------
@@ -44,9 +49,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import precise
-from ..golden.engine import derive_engine, legit_biases, moments_of_rows
+from ..golden.engine import derive_engine, engine_reference, legit_biases, moments_of_rows
 
-__all__ = ["is_engine", "confirmable", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS",
+__all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS",
            "NEIGHBOUR_ULPS"]
 
 #: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
@@ -58,11 +63,6 @@ NEIGHBOUR_ULPS = 3
 def is_engine(case):
     """Whether ``case`` is an engine case (judged by :func:`moments_ref.golden.engine.derive_engine`)."""
     return case.name.startswith("engine-") and bool(case.engine)
-
-
-def confirmable(case):
-    """Whether mpmath can confirm a flag of ``case``: Algorithm 1 (engine-lower, -upper), not the NLQ chains."""
-    return is_engine(case) and case.engine.get("fmt") is None
 
 
 def engine_inputs(case, z, w, zf):
@@ -107,19 +107,26 @@ def interval(case, inputs, port_dtype="float32"):
     return {"intensity": band(arrays, str(np.dtype(port_dtype)))}, _ill(arrays)
 
 
-def _exact(b, zf, bound):
-    lower, upper = precise.shadow_bounds(np.asarray(b, np.float64), np.asarray(zf, np.float64))
-    return lower if bound == "lower" else upper
+def _exact(ctx, b, zf):
+    """``(lo, hi)`` of the exact intensities of the pipeline on moments ``b`` (float64, biased as given)."""
+    if ctx.get("fmt") is None:
+        lower, upper = precise.shadow_bounds(np.asarray(b, np.float64), np.asarray(zf, np.float64))
+        v = lower if ctx.get("bound", "lower") == "lower" else upper
+        return v, v
+    from ..golden.truth import nlq_chain
+
+    return nlq_chain(b, zf, ctx["fmt"], None, ctx.get("clamp"), ctx.get("clamp_test") or "stored", ctx.get("texel"))
 
 
 def exact_span(case, inputs):
-    """``(lo, hi)`` per row: the least and largest exact bound over the legitimate biases and the port's input's
-    float32 neighbourhood (module docstring), as the port reports it (intensity or visibility)."""
+    """``(lo, hi)`` per row: the least and largest exact value over the legitimate biases and the port's input's
+    float32 neighbourhood (module docstring), as the port reports it (intensity or visibility); for the NLQ chains
+    also this package's chain in float32 and float64 on the port's input."""
     ctx = case.engine
-    bound = ctx.get("bound", "lower")
     sup, mass = np.asarray(inputs["support"], np.float64), np.asarray(inputs["mass"], np.float64)
     zf = np.asarray(inputs["zf"], np.float64)
-    values = [_exact(moments_of_rows(sup, mass, np.dtype(np.float64), bias=p), zf, bound) for p in legit_biases(ctx)]
+    values = [v for p in legit_biases(ctx) for v in _exact(ctx, moments_of_rows(sup, mass, np.dtype(np.float64),
+                                                                                bias=p), zf)]
     b = np.asarray(inputs["b"])
     eps = float(np.finfo(b.dtype).eps)
     for f in [1.0] + [1 + s * k * eps for k in range(1, NEIGHBOUR_ULPS + 1) for s in (1, -1)]:
@@ -127,16 +134,23 @@ def exact_span(case, inputs):
         zk = (zf * f).astype(b.dtype).astype(np.float64)
         if ctx.get("inside") is not None:
             bk = precise.bias_moments(bk, ctx["inside"])
-        values.append(_exact(bk, zk, bound))
+        values.extend(_exact(ctx, bk, zk))
     v = np.stack(values)
     lo, hi = v.min(axis=0), v.max(axis=0)
-    return (1 - hi, 1 - lo) if ctx.get("visibility") else (lo, hi)
+    if ctx.get("visibility"):
+        lo, hi = 1 - hi, 1 - lo
+    if ctx.get("fmt") is not None:  # legitimate float evaluations, already in the port's output convention
+        ref = engine_reference(ctx)
+        own = [np.asarray(ref(b.astype(d), np.asarray(inputs["zf"]).astype(d))[0], np.float64)
+               for d in (b.dtype, np.float64)]
+        lo, hi = np.minimum.reduce([lo] + own), np.maximum.reduce([hi] + own)
+    return lo, hi
 
 
 def confirm(case, inputs, got, port_dtype="float32"):
-    """``(n,)`` bool: flagged engine rows mpmath confirms wrong (module docstring); False for the NLQ chains."""
+    """``(n,)`` bool: flagged engine rows mpmath confirms wrong (module docstring)."""
     n = len(inputs["zf"])
-    if n == 0 or not confirmable(case):
+    if n == 0:
         return np.zeros(n, bool)
     lo, hi = exact_span(case, inputs)
     m = MARGIN_ULPS * float(np.finfo(np.dtype(port_dtype)).eps)

@@ -38,15 +38,6 @@ class SweepResult:
         return sum(d["confirmed"] for d in self.drivers.values())
 
     @property
-    def confirmable(self):
-        """False where mpmath cannot confirm a flag (the engine cases' NLQ chains): flags stay unconfirmed."""
-        from ..golden import CASES
-        from .engine import is_engine, confirmable
-
-        case = CASES.get(self.case)
-        return case is None or not is_engine(case) or confirmable(case)
-
-    @property
     def passed(self):
         return self.confirmed == 0
 
@@ -54,14 +45,12 @@ class SweepResult:
         """JSON-ready dict (``--json``)."""
         rate = {k: (self.rows / v if v > 0 else None) for k, v in self.seconds.items()}
         return {"case": self.case, "rows": self.rows, "seed": self.seed, "passed": self.passed,
-                "confirmable": self.confirmable,
                 "strata": self.strata, "drivers": self.drivers, "seconds": self.seconds, "rows_per_s": rate,
                 "wall_s": self.wall_s, "failures": self.failures, "unconfirmed_examples": self.unconfirmed_examples}
 
     def format(self):
         lines = [f"sweep {self.case}: {self.rows} rows, seed {self.seed}, {self.wall_s:.1f} s"]
-        why = ("unconfirmable flags (no mpmath twin of the NLQ chain: not a verdict on the port)" if not self.confirmable
-               else "unconfirmed flags (a defect of the tolerance model, not of the port)")
+        why = "unconfirmed flags (a defect of the tolerance model, not of the port)"
         for d, c in self.drivers.items():
             lines.append(f"  driver {d}: {c['flagged']} flagged, {c['confirmed']} confirmed wrong (mpmath), "
                          f"{c['unconfirmed']} {why}, "
