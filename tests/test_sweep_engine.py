@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from moments_ref import moments, msm, oracle, precise
-from moments_ref.golden import CASES
+from moments_ref.golden import CASES, truth
 from moments_ref.golden.profile import parse_profile
 from moments_ref.sweep import CHUNK, Port, SweepSpec, engine, judge, sweep_port, sweepable
 from moments_ref.sweep.samplers import draw_chunk
@@ -97,8 +97,34 @@ def test_a_flag_is_confirmed_only_outside_the_exact_bounds_over_the_legitimate_b
     got = {"intensity": np.concatenate([exact, far]).astype(np.float32)}
     both = {k: np.concatenate([v, v]) for k, v in inputs.items()}
     assert judge.confirm(case, both, got).tolist() == [False] * 40 + wrong.tolist() and wrong.sum() >= 10
-    # the NLQ chains have no mpmath twin: their flags are unconfirmable
-    assert not judge.confirm(CASES["engine-nlq64-float32"], both, got).any()
+
+
+@pytest.mark.parametrize("fmt", ["64", "32"])
+def test_an_nlq_flag_is_confirmed_with_the_exact_chain(fmt):
+    case = CASES[f"engine-nlq{fmt}-float32"]
+    inputs, _ = draw_chunk(case, 0, 0, rows=30)
+    lo, hi = engine.exact_span(case, inputs)
+    ref = engine.engine_reference(case.engine)(inputs["b"], inputs["zf"])[0]
+    exact = truth.nlq_chain(inputs["b"].astype(float), inputs["zf"].astype(float), fmt)[0]
+    assert np.all((lo <= ref) & (ref <= hi) & (lo <= exact) & (exact <= hi))
+    far = np.where(lo > 0.5, 0.0, 1.0)
+    wrong = (far < lo - 1e-3) | (far > hi + 1e-3)
+    got = {"intensity": np.concatenate([ref, far]).astype(np.float32)}
+    both = {k: np.concatenate([v, v]) for k, v in inputs.items()}
+    assert judge.confirm(case, both, got).tolist() == [False] * 30 + wrong.tolist() and wrong.sum() >= 10
+
+
+def test_an_nlq_engine_sweep_fails_a_faint_weight_mutant():
+    case = CASES["engine-nlq64-float32"]
+    ref = engine.engine_reference(case.engine)
+
+    def faint(b, zf):  # tests/sweep_mutants' shade-faint-weight: an occluder of weight below 1e-4 dropped
+        v = ref(b, zf)[0]
+        return np.where((v > 0) & (v < 1e-4), np.float32(0), v).astype(np.float32)
+
+    assert oracle.sweep(lambda b, zf: ref(b, zf)[0], case.name, rows=16000, shrink=False).passed
+    res = oracle.sweep(faint, case.name, rows=16000, seed=3, shrink=False)
+    assert not res.passed
 
 
 def test_oracle_sweep_of_the_reference_passes_and_a_mutant_is_found_and_shrunk():
