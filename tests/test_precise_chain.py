@@ -99,3 +99,20 @@ def test_e2e_cases_confirm_with_the_twin_and_keep_the_float64_expected_value():
     vis = profiled_case(case, parse_profile({"output": "visibility"}))
     lo, hi = vis.confirm_truth(b=inputs["b"].astype(float), zf=inputs["zf"].astype(float))[0]
     assert np.allclose(lo, 1 - exact) and np.allclose(hi, 1 - exact)
+
+
+def test_msm64_twin_agrees_with_the_float64_chain_and_takes_both_codes_on_a_tie():
+    from moments_ref.affine import decode_unorm16
+    from moments_ref.golden.endtoend import _msm64
+    from moments_ref.moments import BIAS_UNORM16, bias_moments
+    from moments_ref.msm import shadow_intensity
+
+    b, zf = _random_rows(40, 6)
+    lo, hi = truth.msm64_chain(b, zf, BIAS_UNORM16)
+    assert np.array_equal(lo, hi) and np.abs(lo - _msm64()(b, zf)[0]).max() < 1e-10
+    # one depth at 0: b = 0, the optimized basis' R and B channels are exactly 1/2, 65535/2 a tie (round half up)
+    lo, hi = truth.msm64_chain(np.zeros((1, 4)), np.array([0.1]), BIAS_UNORM16)
+    texels = np.array([[r, 0, bb, 0] for r in (32767, 32768) for bb in (32767, 32768)], np.uint16)
+    v = shadow_intensity(bias_moments(decode_unorm16(texels), BIAS_UNORM16), np.full(4, 0.1))
+    assert (lo[0], hi[0]) == pytest.approx((v.min(), v.max()), abs=1e-9) and v.max() - v.min() > 1e-4
+    assert CASES["e2e-msm64-float32"].confirm_truth is not None

@@ -16,8 +16,9 @@ store different codes), so these cases compare *shadow intensities*:
   above, so a compute-shader port of HPG17 §4.1 is checked as a whole.
 
 The expected value is the same chain evaluated in float64 (the golden files keep it); a
-flagged row of ``e2e-nlq*`` is confirmed with the chain's mpmath twin (:func:`nlq_exact`, the
-case's ``confirm_truth``: the codes of the exact Φ, both where it lies on a code boundary); per-row tolerances come from the spread of the float32 chain and
+flagged row of ``e2e-nlq*`` and ``e2e-msm64`` is confirmed with the chain's mpmath twin (:func:`nlq_exact`,
+:func:`msm64_exact`, the case's ``confirm_truth``: the codes of the exact values, both where one lies on a code
+boundary); per-row tolerances come from the spread of the float32 chain and
 of perturbed inputs (:mod:`moments_ref.golden.spread`), so a row whose code flips
 between legitimate implementations carries the resulting intensity difference.
 
@@ -37,7 +38,7 @@ from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows, _msm_rows
 from .gpuspread import block_spread, chain_spread, msm_spread
 
-__all__ = ["case_specs", "nlq_chain", "nlq_exact", "BLOCK", "GUARD"]
+__all__ = ["case_specs", "nlq_chain", "nlq_exact", "msm64_exact", "BLOCK", "GUARD"]
 
 #: HPG17 §4.1: a thread group filters 32×24 texels from a 40×32 block (guard band 4).
 BLOCK = (32, 40)
@@ -74,6 +75,18 @@ def nlq_exact(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None
         from .truth import nlq_chain as exact_chain
 
         return (exact_chain(b, zf, fmt, bias, clamp, case_test, texel),)
+
+    return exact
+
+
+def msm64_exact(bias=BIAS_UNORM16, *_):
+    """The mpmath twin of the e2e-msm64 chain (:func:`moments_ref.golden.truth.msm64_chain`): ``(b, zf) ->
+    ((lo, hi),)``, the case's ``confirm_truth``."""
+
+    def exact(b, zf):
+        from .truth import msm64_chain
+
+        return (msm64_chain(b, zf, bias),)
 
     return exact
 
@@ -168,7 +181,8 @@ def case_specs(dt):
     specs.append(dict(name=f"e2e-msm64-{dt}", function="endtoend.msm64", dtype=dt, inputs=("b", "zf"),
                       outputs=("intensity",), rows=_msm_rows, reference=_msm64(), truth=None, value_range=(0, 1),
                       **_CHAIN, profile_keys=("bias",), default_bias=("inside", BIAS_UNORM16),
-                      variant=_chain_variant(_msm64, hook=msm_spread), width=4, spread_hook=msm_spread(BIAS_UNORM16),
+                      variant=_chain_variant(_msm64, hook=msm_spread, exact=msm64_exact), width=4,
+                      spread_hook=msm_spread(BIAS_UNORM16), confirm_truth=msm64_exact(),
                       description="filtered moments b -> encode_unorm16 -> decode_unorm16 -> "
                                   "bias_moments(BIAS_UNORM16) -> Algorithm 1; compared as shadow intensities"))
     for f in ("64", "32"):

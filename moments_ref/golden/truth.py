@@ -18,7 +18,7 @@ from __future__ import annotations
 import mpmath
 import numpy as np
 
-__all__ = ["shade_clamped", "SHADE_CLAMP"]
+__all__ = ["shade_clamped", "SHADE_CLAMP", "nlq_chain", "msm64_chain"]
 
 #: HPG17 §3.4: v2 ∈ [1e-6, 1 − 1e-6] and y2 − y1 ≥ 1e-6.
 SHADE_CLAMP = 1e-6
@@ -178,4 +178,43 @@ def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored",
             z = mpmath.mpf(float(zf[i]))
             v = [_shade_row(*t, z, eps, case_test == "clamped") for t in decoded(r[i], texel, tie)]
             lo[i], hi[i] = float(min(v)), float(max(v))
+    return lo, hi
+
+
+def msm64_chain(b, zf, bias=None, dps=50):
+    """The exact 64-bit affine MSM chain: ``(lo, hi)`` float64 ``(n,)`` over the texels the exact codes allow.
+
+    Slides, "Compute moments in resolve": the four UNORM16 codes round_half_up(65535 · clamp(M·b + c, 0, 1)),
+    computed exactly (:func:`moments_ref.golden.texel_truth.encode_unorm16`); where a channel's exact value lies
+    within ``10^-(dps/2)`` code units of a rounding boundary both codes are taken. Each texel is decoded exactly
+    ("Retrieve moments", :func:`~moments_ref.golden.texel_truth.decode_unorm16`, rounded once to float64),
+    biased (``bias``: a BiasPreset or None) and bounded by :func:`moments_ref.precise.shadow_intensity`
+    (HPG17 Algorithm 1, lower bound) in mpmath.
+    """
+    from itertools import product
+
+    from .. import precise
+    from .texel_truth import decode_unorm16, encode_unorm16, to_optimized
+
+    b = np.asarray(b, np.float64).reshape(-1, 4)
+    zf = np.broadcast_to(np.asarray(zf, np.float64), b.shape[:1])
+    codes, margin = encode_unorm16(b, margin=True)
+    tie = 10.0 ** -(dps // 2)
+    values = []
+    near = np.flatnonzero(margin * 65535 < tie)
+    scaled = np.clip(to_optimized(b[near])[0], 0, 1) * 65535 if near.size else np.zeros((0, 4))
+    choices = [[(c,) for c in row] for row in codes.astype(np.int64)]
+    for i, s in zip(near, scaled):  # a tied channel (the float64 scaled value within 1e-9 of a half): both codes
+        choices[i] = [tuple({int(c), int(np.floor(v)), int(np.floor(v)) + 1}) if abs(v - np.floor(v) - 0.5) < 1e-9
+                      else (int(c),) for c, v in zip(codes[i], s)]
+    texels = [list(product(*ch)) for ch in choices]
+    rows = np.repeat(np.arange(len(b)), [len(t) for t in texels])
+    q = np.array([t for ts in texels for t in ts], np.int64).clip(0, 65535).astype(np.uint16)
+    bq = decode_unorm16(q)[0]
+    if bias is not None:
+        bq = precise.bias_moments(bq, bias, dps=dps)
+    v = precise.shadow_intensity(bq, zf[rows], dps=dps)
+    lo, hi = np.full(len(b), np.inf), np.full(len(b), -np.inf)
+    np.minimum.at(lo, rows, v)
+    np.maximum.at(hi, rows, v)
     return lo, hi
