@@ -6,6 +6,13 @@ expected value of a row at v2 = 0 or y1 = y2 is the clamped one. Away from the
 clamps it equals :func:`moments_ref.precise.shade` (Algorithm 1 on Eq. (4)); the
 tests check that.
 
+:func:`nlq_chain` and :func:`msm64_chain` are the chains' twins (the end-to-end and engine
+cases' confirmation): bias, Φ, the texel's codes decided on the exact values, the exact decode
+and Algorithm 3 (or the affine texel and Algorithm 1). Quantization has no single exact value
+where an exact value lies on a code boundary, so they return an interval ``(lo, hi)`` per row.
+They live here, not in :mod:`moments_ref.precise`, because they need the clamped Algorithm 3
+above and the texel tables of :mod:`moments_ref.golden.texel_truth`.
+
 References
 ----------
 .. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
@@ -15,8 +22,13 @@ References
 
 from __future__ import annotations
 
+from itertools import product
+
 import mpmath
 import numpy as np
+
+from .. import precise
+from .texel_truth import decode_unorm16, encode_unorm16, to_optimized
 
 __all__ = ["shade_clamped", "SHADE_CLAMP", "nlq_chain", "msm64_chain"]
 
@@ -165,8 +177,6 @@ def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored",
     caller biased); ``clamp``, ``case_test``: the clamps of Algorithm 3 (:func:`shade_clamped`); ``texel``: the
     profile's format choices (``xi_rounding``, ``depth_decode``, ``v2_decode``, ``xi_decode``).
     """
-    from .. import precise
-
     r = precise.phi_exact(b, bias, dps=dps)
     zf = np.broadcast_to(np.asarray(zf, np.float64), r.shape[:1])
     decoded = _decoded64 if str(fmt) == "64" else _decoded32
@@ -191,11 +201,6 @@ def msm64_chain(b, zf, bias=None, dps=50):
     biased (``bias``: a BiasPreset or None) and bounded by :func:`moments_ref.precise.shadow_intensity`
     (HPG17 Algorithm 1, lower bound) in mpmath.
     """
-    from itertools import product
-
-    from .. import precise
-    from .texel_truth import decode_unorm16, encode_unorm16, to_optimized
-
     b = np.asarray(b, np.float64).reshape(-1, 4)
     zf = np.broadcast_to(np.asarray(zf, np.float64), b.shape[:1])
     codes, margin = encode_unorm16(b, margin=True)
