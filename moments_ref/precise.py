@@ -44,6 +44,10 @@ References
 .. [2] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
        In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
        '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
+.. [3] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
 """
 
 from __future__ import annotations
@@ -604,13 +608,9 @@ def phi_exact(b, preset=None, dps=DPS):
     p = None if preset is None else (preset if isinstance(preset, BiasPreset) else bias_preset(preset))
     out = np.empty(b.shape, dtype=object)
     with mpmath.workdps(dps):
-        tol = _tol(dps)
-        alpha = None if p is None else _mp(p.alpha)
+        a, t = (0, [0] * 4) if p is None else (_mp(p.alpha), [_mp(x) for x in p.target])  # a = 0: b exactly
         for i, row in enumerate(b):
-            m = [_mp(v) for v in row]
-            if p is not None:
-                m = [(1 - alpha) * v + alpha * _mp(t) for v, t in zip(m, p.target)]
-            out[i] = list(_phi_mp(*m, tol))
+            out[i] = list(_phi_mp(*((1 - a) * _mp(v) + a * tk for v, tk in zip(row, t)), _tol(dps)))
     return out
 
 

@@ -18,6 +18,10 @@ References
 .. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
        of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
        1–3, the texel formats and the compute shader of §4.1.
+.. [2] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
 """
 
 from __future__ import annotations
