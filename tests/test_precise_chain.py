@@ -98,7 +98,8 @@ def test_e2e_cases_confirm_with_the_twin_and_keep_the_float64_expected_value():
     # a profile's output convention reaches the twin: visibility flips the interval
     vis = profiled_case(case, parse_profile({"output": "visibility"}))
     lo, hi = vis.confirm_truth(b=inputs["b"].astype(float), zf=inputs["zf"].astype(float))[0]
-    assert np.allclose(lo, 1 - exact) and np.allclose(hi, 1 - exact)
+    e_lo, e_hi = truth.nlq_chain(inputs["b"], inputs["zf"], "64", BIAS_FLOAT32, tie=truth.CHAIN_TIE)
+    assert np.array_equal(lo, 1 - e_hi) and np.array_equal(hi, 1 - e_lo)
 
 
 def test_msm64_twin_agrees_with_the_float64_chain_and_takes_both_codes_on_a_tie():
@@ -116,3 +117,17 @@ def test_msm64_twin_agrees_with_the_float64_chain_and_takes_both_codes_on_a_tie(
     v = shadow_intensity(bias_moments(decode_unorm16(texels), BIAS_UNORM16), np.full(4, 0.1))
     assert (lo[0], hi[0]) == pytest.approx((v.min(), v.max()), abs=1e-9) and v.max() - v.min() > 1e-4
     assert CASES["e2e-msm64-float32"].confirm_truth is not None
+
+
+def test_confirmation_takes_either_code_within_the_goldens_tie_band():
+    from moments_ref.golden import bands
+
+    assert truth.CHAIN_TIE == bands.TIE_BAND
+    # v2 = 1/4 + 2^-24: 128 √v2 = 64 + 2^-17·(1 + …), 1.2e-4 cells (2^-21.4 of the range) above the boundary: one
+    # cell exactly, both within the tie band (a float32 √ lands on either side)
+    b, zf = _b(-0.5, 0.5, 0.25 + 2**-24), np.array([0.0])
+    lo, hi = truth.nlq_chain(b, zf, "32")
+    lo_t, hi_t = truth.nlq_chain(b, zf, "32", tie=truth.CHAIN_TIE)
+    assert lo[0] == hi[0] and lo_t[0] <= lo[0] <= hi_t[0] and hi_t[0] - lo_t[0] > 1e-3
+    lo_t2, hi_t2 = truth.nlq_chain(_b(-0.5, 0.5, 0.25 + 2**-12), zf, "32", tie=truth.CHAIN_TIE)
+    assert lo_t2[0] == hi_t2[0]  # 0.016 cells away: outside the band, one cell

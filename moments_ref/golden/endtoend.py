@@ -67,14 +67,15 @@ def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None
 
 def nlq_exact(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None):
     """The mpmath twin of :func:`nlq_chain` (:func:`moments_ref.golden.truth.nlq_chain`): ``(b, zf) -> ((lo, hi),)``,
-    the least and largest exact intensity over the texels the exact Φ may be stored as. Only
+    the least and largest exact intensity over the texels the exact Φ may be stored as (either code within the goldens'
+    tie band of a rounding boundary, :data:`moments_ref.golden.truth.CHAIN_TIE`). Only
     :func:`moments_ref.golden.bands.confirm` uses it (the case's ``confirm_truth``); the goldens' expected value
     stays the float64 chain."""
 
     def exact(b, zf):
-        from .truth import nlq_chain as exact_chain
+        from .truth import CHAIN_TIE, nlq_chain as exact_chain
 
-        return (exact_chain(b, zf, fmt, bias, clamp, case_test, texel),)
+        return (exact_chain(b, zf, fmt, bias, clamp, case_test, texel, tie=CHAIN_TIE),)
 
     return exact
 
@@ -84,9 +85,9 @@ def msm64_exact(bias=BIAS_UNORM16, *_):
     ((lo, hi),)``, the case's ``confirm_truth``."""
 
     def exact(b, zf):
-        from .truth import msm64_chain
+        from .truth import CHAIN_TIE, msm64_chain
 
-        return (msm64_chain(b, zf, bias),)
+        return (msm64_chain(b, zf, bias, tie=CHAIN_TIE),)
 
     return exact
 

@@ -34,7 +34,7 @@ import numpy as np
 from .. import precise
 from .texel_truth import decode_unorm16, encode_unorm16, to_optimized
 
-__all__ = ["shade_clamped", "SHADE_CLAMP", "nlq_chain", "msm64_chain"]
+__all__ = ["shade_clamped", "SHADE_CLAMP", "CHAIN_TIE", "nlq_chain", "msm64_chain"]
 
 #: HPG17 §3.4: v2 ∈ [1e-6, 1 − 1e-6] and y2 − y1 ≥ 1e-6.
 SHADE_CLAMP = 1e-6
@@ -90,6 +90,10 @@ def shade_clamped(r, zf, dps=50, clamp=SHADE_CLAMP, case_test="stored"):
 # ---------------------------------------------------------------------------
 # The NLQ chain: bias -> Φ -> texel codes -> decode -> Algorithm 3, exactly
 
+#: Confirmation's rounding tie, a fraction of each code's range: the goldens' tie rule (golden.bands.TIE_BAND, 2⁻¹⁸;
+#: bands imports the case table, which imports this module: a test keeps the two equal). A float32 port stores either
+#: code where the exact value lies that close to a rounding boundary.
+CHAIN_TIE = 2.0**-18
 #: Decode positions of a 32-bit cell (docs/formats.md; a profile's ``format.*_decode``).
 _POSITION = {"lower": mpmath.mpf(0), "centre": mpmath.mpf("0.5"), "upper": mpmath.mpf(1)}
 #: The 32-bit texel's default decode positions: depth and Ψ4 at the upper end, √v2 at the centre (HPG17 §3.5).
@@ -134,9 +138,11 @@ def _saturate(y1, y2, v2, xi4):
 
 
 def _decoded64(r, texel, tie):
-    """Every decoded (y1, y2, v2, ξ4) the 64-bit texel may hold for the exact r (docs/formats.md, 64 bits)."""
+    """Every decoded (y1, y2, v2, ξ4) the 64-bit texel may hold for the exact r (docs/formats.md, 64 bits);
+    ``tie``: a fraction of the code range."""
     y1, y2, v2, xi4 = _saturate(*r)
     top = 65535
+    tie = tie * top
     xi_rounding = "up" if (texel or {}).get("xi_rounding", "up") == "up" else "nearest"
     c1 = _candidates(top * (y1 + 1) / 2, "nearest", tie, top)
     c2 = _candidates(top * (y2 + 1) / 2, "nearest", tie, top)
@@ -157,16 +163,16 @@ def _decoded32(r, texel, tie):
     pos = {k: _POSITION[v] for k, v in dict(_DECODE32, **{k: v for k, v in (texel or {}).items()
                                                            if k in _DECODE32}).items()}
     half = mpmath.mpf(1023) / 2
-    t1 = _candidates(half * (y1 + 1), "down", tie, 1022)
-    t2 = _candidates(half * (y2 + 1), "down", tie, 1022)
-    cv = _candidates(128 * mpmath.sqrt(v2), "down", tie, 127)
-    cx = _candidates(64 * _psi4(xi4), "down", tie, 63)
+    t1 = _candidates(half * (y1 + 1), "down", tie * 1023, 1022)
+    t2 = _candidates(half * (y2 + 1), "down", tie * 1023, 1022)
+    cv = _candidates(128 * mpmath.sqrt(v2), "down", tie * 128, 127)
+    cx = _candidates(64 * _psi4(xi4), "down", tie * 64, 63)
     d = pos["depth_decode"]
     return [((a + d) / half - 1, (b + d) / half - 1, ((v + pos["v2_decode"]) / 128) ** 2,
              _psi4_inverse((x + pos["xi_decode"]) / 64)) for a in t1 for b in t2 if a <= b for v in cv for x in cx]
 
 
-def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored", texel=None, dps=50):
+def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored", texel=None, dps=50, tie=None):
     """The exact NLQ chain: ``(lo, hi)`` float64 ``(n,)``, the least and largest intensity its texel allows.
 
     HPG17's pipeline evaluated exactly: the bias (Slides, "Bias the moments"), Φ (HPG17 Algorithm 2;
@@ -174,8 +180,10 @@ def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored",
     64-bit UNORM16 channels round(65535 (y + 1)/2), round(65535 v2), ceil (or round, ``texel["xi_rounding"]``)
     65535 Ψ4(ξ4); the 32-bit cells), each code decided by comparing the exact value with the code boundaries,
     the decode (exact, in mpmath) and HPG17 Algorithm 3 with its §3.4 clamps (:func:`shade_clamped`'s row).
-    Where an exact value lies within ``10^-(dps/2)`` of a rounding boundary both codes are taken: ``lo`` and
-    ``hi`` are the least and largest intensity over the candidate texels (equal elsewhere).
+    Where an exact value lies within ``tie`` (a fraction of the code's range; default ``10^-(dps/2)``, the
+    exact value's own accuracy; confirmation passes :data:`CHAIN_TIE`, the goldens' tie rule) of a rounding
+    boundary both codes are taken: ``lo`` and ``hi`` are the least and largest intensity over the candidate
+    texels (equal elsewhere).
 
     ``b``: ``(n, 4)`` moments as the chain receives them, ``zf``: ``(n,)``; ``bias``: a BiasPreset or None (the
     caller biased); ``clamp``, ``case_test``: the clamps of Algorithm 3 (:func:`shade_clamped`); ``texel``: the
@@ -186,7 +194,7 @@ def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored",
     decoded = _decoded64 if str(fmt) == "64" else _decoded32
     lo, hi = np.empty(len(zf)), np.empty(len(zf))
     with mpmath.workdps(dps):
-        tie = mpmath.mpf(10) ** -(dps // 2)
+        tie = mpmath.mpf(10) ** -(dps // 2) if tie is None else mpmath.mpf(float(tie))
         eps = mpmath.mpf(float(SHADE_CLAMP if clamp is None else clamp))
         for i in range(len(zf)):
             z = mpmath.mpf(float(zf[i]))
@@ -195,12 +203,13 @@ def nlq_chain(b, zf, fmt="64", bias=None, clamp=SHADE_CLAMP, case_test="stored",
     return lo, hi
 
 
-def msm64_chain(b, zf, bias=None, dps=50):
+def msm64_chain(b, zf, bias=None, dps=50, tie=None):
     """The exact 64-bit affine MSM chain: ``(lo, hi)`` float64 ``(n,)`` over the texels the exact codes allow.
 
     Slides, "Compute moments in resolve": the four UNORM16 codes round_half_up(65535 · clamp(M·b + c, 0, 1)),
     computed exactly (:func:`moments_ref.golden.texel_truth.encode_unorm16`); where a channel's exact value lies
-    within ``10^-(dps/2)`` code units of a rounding boundary both codes are taken. Each texel is decoded exactly
+    within ``tie`` (a fraction of the code range, default ``10^-(dps/2)``; see :func:`nlq_chain`) of a rounding
+    boundary both codes are taken. Each texel is decoded exactly
     ("Retrieve moments", :func:`~moments_ref.golden.texel_truth.decode_unorm16`, rounded once to float64),
     biased (``bias``: a BiasPreset or None) and bounded by :func:`moments_ref.precise.shadow_intensity`
     (HPG17 Algorithm 1, lower bound) in mpmath.
@@ -208,13 +217,13 @@ def msm64_chain(b, zf, bias=None, dps=50):
     b = np.asarray(b, np.float64).reshape(-1, 4)
     zf = np.broadcast_to(np.asarray(zf, np.float64), b.shape[:1])
     codes, margin = encode_unorm16(b, margin=True)
-    tie = 10.0 ** -(dps // 2)
-    values = []
-    near = np.flatnonzero(margin * 65535 < tie)
+    tie = 10.0 ** -(dps // 2) if tie is None else float(tie)
+    near = np.flatnonzero(margin < tie)
     scaled = np.clip(to_optimized(b[near])[0], 0, 1) * 65535 if near.size else np.zeros((0, 4))
     choices = [[(c,) for c in row] for row in codes.astype(np.int64)]
-    for i, s in zip(near, scaled):  # a tied channel (the float64 scaled value within 1e-9 of a half): both codes
-        choices[i] = [tuple({int(c), int(np.floor(v)), int(np.floor(v)) + 1}) if abs(v - np.floor(v) - 0.5) < 1e-9
+    band = tie * 65535 + 1e-9  # a tied channel: its float64 scaled value that close to a half, both codes
+    for i, s in zip(near, scaled):
+        choices[i] = [tuple({int(c), int(np.floor(v)), int(np.floor(v)) + 1}) if abs(v - np.floor(v) - 0.5) < band
                       else (int(c),) for c, v in zip(codes[i], s)]
     texels = [list(product(*ch)) for ch in choices]
     rows = np.repeat(np.arange(len(b)), [len(t) for t in texels])

@@ -27,11 +27,11 @@ The exact values are, per case:
 * ``engine-lower``/``engine-upper``: the exact bounds (:func:`moments_ref.precise.shadow_bounds`,
   HPG17 Algorithm 1; Slides, "Bias the moments");
 * ``engine-nlq64``/``engine-nlq32``: the exact NLQ chain (:func:`moments_ref.golden.truth.nlq_chain`:
-  Φ of the exact moments, the texel's codes decided on the exact Φ, both codes where Φ lies on a code
-  boundary, the exact decode and HPG17 Algorithm 3 with its §3.4 clamps, under the profile's clamp and
-  texel choices), and this package's own chain in float32 and float64 on the port's input (legitimate
-  evaluations: a float Φ stores the neighbouring code where the exact Φ lies within its rounding of a
-  boundary).
+  Φ of the exact moments, the texel's codes decided on the exact Φ, both codes where Φ lies within
+  the goldens' tie band of a code boundary (2⁻¹⁸ of the code range,
+  :data:`moments_ref.golden.truth.CHAIN_TIE`), the exact decode and HPG17 Algorithm 3 with its
+  §3.4 clamps, under the profile's clamp and texel choices), and this package's own chain in
+  float32 and float64 on the port's input (legitimate evaluations).
 
 References
 ----------
@@ -113,9 +113,10 @@ def _exact(ctx, b, zf):
         lower, upper = precise.shadow_bounds(np.asarray(b, np.float64), np.asarray(zf, np.float64))
         v = lower if ctx.get("bound", "lower") == "lower" else upper
         return v, v
-    from ..golden.truth import nlq_chain
+    from ..golden.truth import CHAIN_TIE, nlq_chain
 
-    return nlq_chain(b, zf, ctx["fmt"], None, ctx.get("clamp"), ctx.get("clamp_test") or "stored", ctx.get("texel"))
+    return nlq_chain(b, zf, ctx["fmt"], None, ctx.get("clamp"), ctx.get("clamp_test") or "stored", ctx.get("texel"),
+                     tie=CHAIN_TIE)
 
 
 def exact_span(case, inputs):
