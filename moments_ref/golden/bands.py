@@ -343,15 +343,19 @@ def _exact(case, point):
 
 
 def _within_cap(case, hook, exact):
-    """A formulation's outputs, NaN where it errs beyond the cap (a cancelling printed formula explains nothing)."""
+    """A formulation's outputs, NaN where it errs beyond the cap (a cancelling printed formula explains nothing).
+
+    ``exact``: the row's exact output tuples (one; lo and hi from a ``confirm_truth``), the cap measured from the
+    nearest."""
     if case.value_range is None:
         return hook
     cap = CAP * (case.value_range[1] - case.value_range[0])
     out = []
-    for h, e in zip(hook, exact):
+    for i, h in enumerate(hook):
         h = np.asarray(h, np.float64)
         with np.errstate(invalid="ignore"):
-            out.append(np.where(np.abs(h - np.asarray(e, np.float64)) <= cap, h, np.nan))
+            err = np.min([np.abs(h - np.asarray(e[i], np.float64)) for e in exact], axis=0)
+            out.append(np.where(err <= cap, h, np.nan))
     return tuple(out)
 
 
@@ -417,7 +421,8 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     values = _exact_values(case, inputs, seed)
     if not case.integer_output:
         core, hooks = evaluations(case, inputs, dt)
-        values += core + [_within_cap(case, h, values[0]) for h in hooks]
+        row = values[:2] if case.confirm_truth is not None else values[:1]  # the row's own exact values
+        values += core + [_within_cap(case, h, row) for h in hooks]
     else:  # and the codes of the goldens' tie rule
         values += tie_codes(case, inputs)
     wrong = np.zeros(n, bool)
