@@ -44,6 +44,10 @@ References
 .. [2] Peters and Klein 2015: Christoph Peters and Reinhard Klein. 2015. *Moment Shadow Mapping*.
        In Proceedings of the 19th ACM SIGGRAPH Symposium on Interactive 3D Graphics and Games (i3D
        '15). ACM, 7–14. https://doi.org/10.1145/2699276.2699277
+.. [3] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
 """
 
 from __future__ import annotations
@@ -74,6 +78,7 @@ __all__ = [
     "canonical_representation6",
     "hausdorff_bounds",
     "hausdorff_intensity",
+    "phi_exact",
 ]
 
 #: Default working precision in significant decimal digits.
@@ -577,6 +582,35 @@ def phi_inverse(r, dps=DPS):
     with mpmath.workdps(dps):
         for idx in np.ndindex(r.shape[:-1]):
             out[idx] = [float(x) for x in _phi_inverse_mp(*(_mp(v) for v in r[idx]))]
+    return out
+
+
+def phi_exact(b, preset=None, dps=DPS):
+    """HPG17 Algorithm 2 on the (biased) moments, unrounded: mpmath numbers for twins that quantize Φ.
+
+    Parameters
+    ----------
+    b : (n, 4) float array
+        Moments b1..b4 as the chain receives them; converted exactly.
+    preset : BiasPreset, name or None
+        The bias applied first, exactly: ``(1 − α) b + α b*`` (Slides, "Bias the moments"; α and b*
+        the float64 numbers of the preset, as :func:`bias_moments`). None: b as given.
+
+    Returns
+    -------
+    r : (n, 4) object array of mpmath.mpf
+        ``(y1, y2, v2, ξ4)`` of :func:`phi`, computed at ``dps`` digits and not rounded to float64, so
+        that a quantizer can compare them with its code boundaries exactly (HPG17 §3.3, §3.5).
+        Evaluate further arithmetic on them inside ``mpmath.workdps(dps)``.
+    """
+    dps = _check_dps(dps)
+    b = _moment_input(b).reshape(-1, 4)
+    p = None if preset is None else (preset if isinstance(preset, BiasPreset) else bias_preset(preset))
+    out = np.empty(b.shape, dtype=object)
+    with mpmath.workdps(dps):
+        a, t = (0, [0] * 4) if p is None else (_mp(p.alpha), [_mp(x) for x in p.target])  # a = 0: b exactly
+        for i, row in enumerate(b):
+            out[i] = list(_phi_mp(*((1 - a) * _mp(v) + a * tk for v, tk in zip(row, t)), _tol(dps)))
     return out
 
 

@@ -77,7 +77,7 @@ def test_judge_flags_a_wrong_value_and_confirms_it():
 
 @pytest.mark.parametrize("argv, text", [
     (["--rows", "1.5"], "--rows"), (["--case", "nope"], "--case"), (["--case", "kernel-filter-nlq64-float32"], "--case"),
-    (["--case", "engine-lower-float32"], "judge them with conformance")])
+    (["--case", "e2e-block-nlq64-float32"], "judge them with conformance")])
 def test_cli_bad_usage_exits_2_with_one_line(argv, text):
     args = ["--glsl", "msm.glsl", "--function", "shadow_intensity_lower", "--case", CASE, "--rows", "10"]
     for k in range(0, len(argv), 2):

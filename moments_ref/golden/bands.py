@@ -334,21 +334,30 @@ def tie_codes(case, inputs):
 
 
 def _exact(case, point):
+    """The exact values at ``point``: a list of output tuples (one; two, lo and hi, from a ``confirm_truth``)."""
+    as64 = {k: (v if k in case.integer_inputs else np.asarray(v, np.float64)) for k, v in point.items()}
+    if case.confirm_truth is not None:
+        pairs = case.confirm_truth(**as64)
+        return [tuple(p[0] for p in pairs), tuple(p[1] for p in pairs)]
     if case.truth is None:
-        return evaluate_reference(case, point, np.float64)
-    return case.truth(**{k: (v if k in case.integer_inputs else np.asarray(v, np.float64)) for k, v in point.items()})
+        return [evaluate_reference(case, point, np.float64)]
+    return [case.truth(**as64)]
 
 
 def _within_cap(case, hook, exact):
-    """A formulation's outputs, NaN where it errs beyond the cap (a cancelling printed formula explains nothing)."""
+    """A formulation's outputs, NaN where it errs beyond the cap (a cancelling printed formula explains nothing).
+
+    ``exact``: the row's exact output tuples (one; lo and hi from a ``confirm_truth``), the cap measured from the
+    nearest."""
     if case.value_range is None:
         return hook
     cap = CAP * (case.value_range[1] - case.value_range[0])
     out = []
-    for h, e in zip(hook, exact):
+    for i, h in enumerate(hook):
         h = np.asarray(h, np.float64)
         with np.errstate(invalid="ignore"):
-            out.append(np.where(np.abs(h - np.asarray(e, np.float64)) <= cap, h, np.nan))
+            err = np.min([np.abs(h - np.asarray(e[i], np.float64)) for e in exact], axis=0)
+            out.append(np.where(err <= cap, h, np.nan))
     return tuple(out)
 
 
@@ -370,7 +379,7 @@ def _exact_values(case, inputs, seed=12345):
     values = []
     for p in pts:
         try:
-            values.append(_exact(case, p))
+            values.extend(_exact(case, p))
         except InputError:  # a neighbour outside the function's domain
             pass
     return values
@@ -414,7 +423,8 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     values = _exact_values(case, inputs, seed)
     if not case.integer_output:
         core, hooks = evaluations(case, inputs, dt)
-        values += core + [_within_cap(case, h, values[0]) for h in hooks]
+        row = values[:2] if case.confirm_truth is not None else values[:1]  # the row's own exact values
+        values += core + [_within_cap(case, h, row) for h in hooks]
     else:  # and the codes of the goldens' tie rule
         values += tie_codes(case, inputs)
     wrong = np.zeros(n, bool)

@@ -82,6 +82,9 @@ class Case:
     engine: dict = field(default_factory=dict)  # context of an engine case (golden.engine)
     depth: str = "[-1,1]"  # the depth convention the case's inputs are written in (a profile may declare it)
     notes: dict = field(default_factory=dict)  # flags its rows introduce: flag -> (description, effect, cause)
+    # Chains whose expected value stays the float64 reference: an mpmath twin only bands.confirm uses,
+    # (**inputs) -> per output (lo, hi), the least and largest exact value (golden.truth.nlq_chain).
+    confirm_truth: Callable | None = None
 
     @property
     def contract_text(self):

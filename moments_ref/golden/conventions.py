@@ -126,6 +126,13 @@ def _visibility(fn):
     return wrapped
 
 
+def _visibility_pairs(fn):
+    def wrapped(**inputs):
+        return tuple((1 - np.asarray(hi), 1 - np.asarray(lo)) for lo, hi in fn(**inputs))
+
+    return wrapped
+
+
 def profiled_case(case, profile):
     """The :class:`~moments_ref.golden.cases.Case` an engine with ``profile`` is judged by."""
     _check(case, profile)
@@ -141,6 +148,7 @@ def profiled_case(case, profile):
         hook = out.spread_hook
         out = replace(out, reference=_visibility(out.reference),
                       truth=None if out.truth is None else _visibility(out.truth),
+                      confirm_truth=None if out.confirm_truth is None else _visibility_pairs(out.confirm_truth),
                       spread_hook=None if hook is None else
                       (lambda ins, dt: [tuple(1 - np.asarray(x) for x in v) for v in hook(ins, dt)]))
     if profile.receiver_slope and "zf" in case.inputs:  # the port takes the receiver's slope as its last argument

@@ -15,8 +15,10 @@ store different codes), so these cases compare *shadow intensities*:
   b(z) -> 9² Gaussian blur (σ = 2.4) -> crop the guard band -> the NLQ chain
   above, so a compute-shader port of HPG17 §4.1 is checked as a whole.
 
-The expected value is the same chain evaluated in float64 (quantization has no
-exact "truth"); per-row tolerances come from the spread of the float32 chain and
+The expected value is the same chain evaluated in float64 (the golden files keep it); a
+flagged row of ``e2e-nlq*`` and ``e2e-msm64`` is confirmed with the chain's mpmath twin (:func:`nlq_exact`,
+:func:`msm64_exact`, the case's ``confirm_truth``: the codes of the exact values, both where one lies on a code
+boundary); per-row tolerances come from the spread of the float32 chain and
 of perturbed inputs (:mod:`moments_ref.golden.spread`), so a row whose code flips
 between legitimate implementations carries the resulting intensity difference.
 
@@ -36,7 +38,7 @@ from ..moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
 from ._rows import Rows, _msm_rows
 from .gpuspread import block_spread, chain_spread, msm_spread
 
-__all__ = ["case_specs", "nlq_chain", "BLOCK", "GUARD"]
+__all__ = ["case_specs", "nlq_chain", "nlq_exact", "msm64_exact", "BLOCK", "GUARD"]
 
 #: HPG17 §4.1: a thread group filters 32×24 texels from a 40×32 block (guard band 4).
 BLOCK = (32, 40)
@@ -61,6 +63,33 @@ def nlq_chain(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None
         return shade_reference(SHADE_TOLERANCE if clamp is None else clamp, case_test)(r, zf)
 
     return chain
+
+
+def nlq_exact(fmt, bias=BIAS_FLOAT32, clamp=None, case_test="stored", texel=None):
+    """The mpmath twin of :func:`nlq_chain` (:func:`moments_ref.golden.truth.nlq_chain`): ``(b, zf) -> ((lo, hi),)``,
+    the least and largest exact intensity over the texels the exact Φ may be stored as (either code within the goldens'
+    tie band of a rounding boundary, :data:`moments_ref.golden.truth.CHAIN_TIE`). Only
+    :func:`moments_ref.golden.bands.confirm` uses it (the case's ``confirm_truth``); the goldens' expected value
+    stays the float64 chain."""
+
+    def exact(b, zf):
+        from .truth import CHAIN_TIE, nlq_chain as exact_chain
+
+        return (exact_chain(b, zf, fmt, bias, clamp, case_test, texel, tie=CHAIN_TIE),)
+
+    return exact
+
+
+def msm64_exact(bias=BIAS_UNORM16, *_):
+    """The mpmath twin of the e2e-msm64 chain (:func:`moments_ref.golden.truth.msm64_chain`): ``(b, zf) ->
+    ((lo, hi),)``, the case's ``confirm_truth``."""
+
+    def exact(b, zf):
+        from .truth import CHAIN_TIE, msm64_chain
+
+        return (msm64_chain(b, zf, bias, tie=CHAIN_TIE),)
+
+    return exact
 
 
 def _msm64(bias=BIAS_UNORM16, *_):
@@ -94,9 +123,10 @@ def _block_spread(fmt, bias, clamp=None, case_test="stored", texel=None):
     return block_spread(fmt, bias, clamp, case_test, GUARD, nlq_chain, texel)
 
 
-def _chain_variant(make, *args, hook=None):
+def _chain_variant(make, *args, hook=None, exact=None):
     """A profile's bias (inside the chain; None: the caller biased), clamp, case test and texel-format
-    choices for ``make(*args, ...)`` and its GPU spread ``hook(*args, ...)`` (golden.gpuspread)."""
+    choices for ``make(*args, ...)``, its GPU spread ``hook(*args, ...)`` (golden.gpuspread) and its mpmath twin
+    ``exact(*args, ...)`` (the case's ``confirm_truth``)."""
 
     def variant(bias=None, clamp=None, fmt=None, clamp_test=None, **_):
         from .variants import preset_of
@@ -106,6 +136,8 @@ def _chain_variant(make, *args, hook=None):
         out = {"reference": make(*args, p, *extra)}
         if hook is not None:
             out["spread_hook"] = hook(*args, p, *extra)
+        if exact is not None:
+            out["confirm_truth"] = exact(*args, p, *extra)
         return out
 
     return variant
@@ -144,12 +176,14 @@ def case_specs(dt):
     specs = [dict(name=f"e2e-nlq{f}-{dt}", function=f"endtoend.nlq{f}", dtype=dt, inputs=("b", "zf"),
                   outputs=("intensity",), rows=_msm_rows, reference=nlq_chain(f), truth=None,
                   description=chain.format(f), value_range=(0, 1), **_CHAIN, **nlq,
-                  depth_roles={}, variant=_chain_variant(nlq_chain, f, hook=chain_spread), width=4,
-                  spread_hook=chain_spread(f, BIAS_FLOAT32)) for f in ("64", "32")]
+                  depth_roles={}, variant=_chain_variant(nlq_chain, f, hook=chain_spread, exact=nlq_exact), width=4,
+                  spread_hook=chain_spread(f, BIAS_FLOAT32), confirm_truth=nlq_exact(f))
+             for f in ("64", "32")]
     specs.append(dict(name=f"e2e-msm64-{dt}", function="endtoend.msm64", dtype=dt, inputs=("b", "zf"),
                       outputs=("intensity",), rows=_msm_rows, reference=_msm64(), truth=None, value_range=(0, 1),
                       **_CHAIN, profile_keys=("bias",), default_bias=("inside", BIAS_UNORM16),
-                      variant=_chain_variant(_msm64, hook=msm_spread), width=4, spread_hook=msm_spread(BIAS_UNORM16),
+                      variant=_chain_variant(_msm64, hook=msm_spread, exact=msm64_exact), width=4,
+                      spread_hook=msm_spread(BIAS_UNORM16), confirm_truth=msm64_exact(),
                       description="filtered moments b -> encode_unorm16 -> decode_unorm16 -> "
                                   "bias_moments(BIAS_UNORM16) -> Algorithm 1; compared as shadow intensities"))
     for f in ("64", "32"):

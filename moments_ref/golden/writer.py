@@ -207,9 +207,14 @@ def write_rows(out_dir, case, inputs, comments):
 
     out_dir = Path(out_dir)
     n = len(comments)
-    inputs = {k: np.asarray(inputs[k]).astype(case.integer_inputs.get(k, case.dtype)) for k in case.inputs}
+    given = inputs
+    inputs = {k: np.asarray(given[k]).astype(case.integer_inputs.get(k, case.dtype)) for k in case.inputs}
     arrays = dict(inputs)
-    arrays.update(derive(case, inputs, ["edge"] * n, list(comments), [()] * n))
+    if case.deriver is not None:  # an engine case: its distributions (aux, stored as given) derive the row
+        arrays.update({k: np.asarray(given[k]) for k in case.aux})
+        arrays.update(case.deriver(case, dict(arrays), ["edge"] * n, list(comments), [()] * n))
+    else:
+        arrays.update(derive(case, inputs, ["edge"] * n, list(comments), [()] * n))
     manifest = {"schema_version": SCHEMA_VERSION, "schema_history": SCHEMA_HISTORY, "package": "moments_ref",
                 "package_version": __version__, "numpy_version": np.__version__, "notes": NOTES, "results": RESULTS,
                 "cases": {}}

@@ -51,7 +51,7 @@ def make_spec(case_name, port, adapter=None, profile=None, seed=0, rows=10**6):
     if case_name not in CASES:
         raise InputError(f"--case: unknown case {case_name!r}")
     if not sweepable(case_name):
-        raise InputError(f"--case: the sweep has no sampler for {case_name!r} (engine, kernel, bilinear and "
+        raise InputError(f"--case: the sweep has no sampler for {case_name!r} (kernel, bilinear and "
                          "block cases derive their expected values row by row, too slowly for millions of rows: "
                          f"judge them with conformance); it sweeps the float32 cases of {', '.join(SAMPLERS)}")
     key = "default"

@@ -50,9 +50,10 @@ class SweepResult:
 
     def format(self):
         lines = [f"sweep {self.case}: {self.rows} rows, seed {self.seed}, {self.wall_s:.1f} s"]
+        why = "unconfirmed flags (a defect of the tolerance model, not of the port)"
         for d, c in self.drivers.items():
             lines.append(f"  driver {d}: {c['flagged']} flagged, {c['confirmed']} confirmed wrong (mpmath), "
-                         f"{c['unconfirmed']} unconfirmed flags (a defect of the tolerance model, not of the port), "
+                         f"{c['unconfirmed']} {why}, "
                          f"{c['flagged'] - c['examined']} flagged beyond the confirmation cap; first confirmed row "
                          f"{c['first_confirmed']}")
         lines.append("  stratum              rows   ill  ungated " + " ".join(f"{d[:10]:>10}" for d in self.drivers))
@@ -73,8 +74,9 @@ def describe(f):
     t = f["texel"]
     depths = " and ".join(f"{z:.9g}" for z in t["depths"])
     weights = ", ".join(f"{w:.6g}" for w in t["weights"])
+    texel = "the distribution's moments" if "support" in f["inputs"] else _FORMATS[t["format"]]  # an engine case
     out = [f"[{f.get('driver')}] {f.get('stratum', '')}: {len(t['depths'])} depth(s) {depths}, weights {weights}, "
-           f"{_FORMATS[t['format']]}, zf = {t['zf']:.9g}"]
+           f"{texel}, zf = {t['zf']:.9g}"]
     for o, g in f["got"].items():
         lo, hi = np.asarray(f["lo"][o], float), np.asarray(f["hi"][o], float)
         out.append(f"  {f.get('labels', {}).get(o, o)}: got {g}, expected {((lo + hi) / 2).tolist()}, tolerance {((hi - lo) / 2).tolist()}")

@@ -29,8 +29,9 @@ scattering") gets the six moments Σ w_i z_i^k (k = 1 … 6), biased by the harn
 BIAS6_FLOAT32 (α = 3e-4, the golden rows' preset) in float32; Algorithm 3 (``shade``) gets the representation r = Φ(b') of
 the biased moments (HPG17 Eq. (5)), and with probability 1/2 the one the 64-bit or the
 32-bit non-linear texel decodes to (pack64/unpack64, pack32/unpack32); the chains
-(``e2e-*``) get the unbiased moments; the texel decoders (``unpack64``, ``unpack32``)
-get the codes of those texels, the encoders (``pack64``, ``pack32``) the
+(``e2e-*``) get the unbiased moments; the engine cases (``engine-*``) the distribution itself,
+converted to the engine's frame and biased as :func:`moments_ref.golden.engine.derive_engine` does
+(:mod:`.engine`); the texel decoders (``unpack64``, ``unpack32``) get the codes of those texels, the encoders (``pack64``, ``pack32``) the
 representations Φ(b') (not decoded ones: re-encoding is the ``reencode`` cases'). Rows stay inside the case's contract where it has one
 (:mod:`moments_ref.golden.contract`); rows that rounding pushes outside are drawn
 anyway and judged as robustness rows, as in the goldens.
@@ -55,7 +56,7 @@ import numpy as np
 from .. import moments, nonlinear, packing
 from .._kernels import SWEEP_CHUNK
 from ..golden.contract import XI4_RANGE
-from . import profiled
+from . import engine, profiled
 
 __all__ = ["CHUNK", "TEXELS", "RECEIVERS", "STRATA", "SAMPLERS", "chunk_rng", "draw_chunk", "draw_rows", "build_inputs", "draw_texels", "sweepable"]
 
@@ -182,6 +183,11 @@ def _unpack32(case, b, zf, fmt):
     return {"p": packing.pack32(_representation(b, np.zeros_like(fmt)))}
 
 
+def _engine(case, rows):
+    """An engine case takes the distribution itself (:func:`.engine.engine_inputs`: the engine's frame, its bias)."""
+    return engine.engine_inputs(case, rows["z"], rows["w"], rows["zf"])
+
+
 def _pack(case, b, zf, fmt):
     # Fresh Φ output: a decoded texel re-encoded is the reencode cases' business (codes on boundaries).
     return {"r": _representation(b, np.zeros_like(fmt))}
@@ -193,7 +199,9 @@ SAMPLERS = {
     "shadow_intensity6-lower": _algorithm1_six, "shadow_intensity6-upper": _algorithm1_six,
     "shade": _shade, "e2e-nlq64": _chain, "e2e-nlq32": _chain, "e2e-msm64": _chain,
     "unpack64": _unpack64, "unpack32": _unpack32, "pack64": _pack, "pack32": _pack,
+    "engine-lower": _engine, "engine-upper": _engine, "engine-nlq64": _engine, "engine-nlq32": _engine,
 }
+_FROM_DISTRIBUTION = (_engine,)
 
 
 def _sampler(name):
@@ -217,9 +225,12 @@ def build_inputs(case, rows, profile=None):
     rows inside the case's contract decided on the papers' inputs with the declared bias
     (:func:`moments_ref.golden.conventions.contract_mask`), None where the conversion changes nothing.
     """
+    fn = _sampler(case.name)
+    if fn in _FROM_DISTRIBUTION:
+        return {k: np.ascontiguousarray(v) for k, v in fn(case, rows).items()}
     b = _texel_moments(rows["z"], rows["w"], 6 if case.width == 6 else 4)
     zf = np.asarray(rows["zf"], np.float64).astype(np.float32)
-    inputs = _sampler(case.name)(case, b, zf, np.asarray(rows["fmt"]))
+    inputs = fn(case, b, zf, np.asarray(rows["fmt"]))
     if profile is not None and (profiled.unit_depth(case) or profiled.harness_bias(case) is not None):
         from ..golden import CASES
         from ..golden.conventions import contract_mask
@@ -240,6 +251,8 @@ def draw_rows(case, seed, chunk, rows=CHUNK, profile_key="default"):
     z, w, texel = draw_texels(rng, CHUNK)
     zf, receiver = _receivers(rng, z, w)
     fmt = rng.integers(0, 3, CHUNK)
+    if engine.is_engine(case):  # the engine cases take the distribution, not a texel format
+        fmt = np.zeros_like(fmt)
     stratum = (texel * len(RECEIVERS) + receiver).astype(np.int8)
     return {"z": z[:rows], "w": w[:rows], "zf": zf[:rows], "fmt": fmt[:rows], "stratum": stratum[:rows]}
 

@@ -103,7 +103,7 @@ def shrink(spec, driver, texel):
         got = evaluate(spec, inputs, driver)
         dispatches += 1
         bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, params.get("contract"))
-        flagged = np.flatnonzero(wrong_rows(case, bands, ill, got))
+        flagged = np.flatnonzero(wrong_rows(case, bands, ill, got) & (judge.judges_ill(case) | ~ill))
         step = None
         for i in flagged[:8]:
             one = lambda d: {k: np.asarray(v)[i:i + 1] for k, v in d.items()}  # noqa: E731

@@ -1,0 +1,160 @@
+"""The engine cases in the sweep: depth distributions drawn per chunk, judged by the engine cases' own derivation.
+
+An ``engine-*`` case (:mod:`moments_ref.golden.engine`) starts from a depth distribution
+(support points z_i and masses w_i) and a receiver zf, in the engine's depth convention. The
+sweep draws the distributions as it draws every texel (:func:`.samplers.draw_texels`: the
+depths and weights, in the papers' frame [−1, 1]) and
+
+* converts them to the engine's frame as the golden rows are converted: z ↦ (z + 1)/2 under a
+  ``[0,1]`` depth profile (:func:`moments_ref.scene.depth.z_unit_from_ndc`, exact in float64),
+  the receiver rounded once to the case's dtype;
+* hands the port b = Σ w_i (z_i, z_i², z_i³, z_i⁴) / Σ w_i rounded once to float32, biased by
+  the harness first (b − α (b − b*), exactly) where the case's context says the bias comes
+  "before" the call (the default, BIAS_FLOAT32), unbiased where the profile puts it inside
+  the port (:func:`moments_ref.golden.engine.moments_of_rows`, the helper the derivation uses;
+  :func:`interval` checks the two agree bit for bit);
+* judges each row by :func:`moments_ref.golden.engine.derive_engine` itself (one model): its
+  expected value and per-row tolerance, read in one place (:func:`band`); rows it flags
+  ``wide_spread`` are ill-conditioned, reported apart and never wrong.
+
+:func:`confirm` decides a flagged row with mpmath: the port's output is wrong only where it lies
+outside [min, max] of the exact values of its pipeline under every legitimate bias
+(:func:`moments_ref.golden.engine.legit_biases`, applied to the distribution's moments) and on the
+port's own input (its bias inside applied, if declared) over its float32 neighbourhood (b and zf
+scaled jointly by 1 ± k ulps, k = 0 … 3), widened by the band model's margin floor (8 float32 ulps of 1).
+The exact values are, per case:
+
+* ``engine-lower``/``engine-upper``: the exact bounds (:func:`moments_ref.precise.shadow_bounds`,
+  HPG17 Algorithm 1; Slides, "Bias the moments");
+* ``engine-nlq64``/``engine-nlq32``: the exact NLQ chain (:func:`moments_ref.golden.truth.nlq_chain`:
+  Φ of the exact moments, the texel's codes decided on the exact Φ, both codes where Φ lies within
+  the goldens' tie band of a code boundary (2⁻¹⁸ of the code range,
+  :data:`moments_ref.golden.truth.CHAIN_TIE`), the exact decode and HPG17 Algorithm 3 with its
+  §3.4 clamps, under the profile's clamp and texel choices), and this package's own chain in
+  float32 and float64 on the port's input (legitimate evaluations).
+
+References
+----------
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
+.. [2] Slides: Christoph Peters. *Rendering antialiased shadows with moment shadow mapping*,
+       lecture slides (PDF version, with notes) on moment shadow mapping, translucent occluders,
+       moment soft shadow mapping and prefiltered single scattering; http://MomentsInGraphics.de/.
+       Cited by slide title, e.g. Slides, "Bias the moments".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import precise
+from ..golden.engine import derive_engine, engine_reference, legit_biases, moments_of_rows
+
+__all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS",
+           "NEIGHBOUR_ULPS"]
+
+#: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
+MARGIN_ULPS = 8
+#: The port's own input is scaled jointly by 1 ± k ulps, k = 1 … NEIGHBOUR_ULPS (golden.bands.PERTURB_ULPS).
+NEIGHBOUR_ULPS = 3
+
+
+def is_engine(case):
+    """Whether ``case`` is an engine case (judged by :func:`moments_ref.golden.engine.derive_engine`)."""
+    return case.name.startswith("engine-") and bool(case.engine)
+
+
+def engine_inputs(case, z, w, zf):
+    """The port's inputs and the distribution, in the engine's frame: ``{b, zf, support, mass}``.
+
+    ``z``, ``w``: ``(n, K)`` depths (papers' frame) and weights (0 for padding); ``zf``: ``(n,)``.
+    """
+    ctx = case.engine
+    dt = np.dtype(case.dtype)
+    support = np.asarray(z, np.float64)
+    receiver = np.asarray(zf, np.float64)
+    if ctx.get("unit"):
+        from ..scene.depth import z_unit_from_ndc
+
+        support, receiver = z_unit_from_ndc(support), z_unit_from_ndc(receiver)
+    mass = np.asarray(w, np.float64)
+    b = moments_of_rows(support, mass, dt, bias=ctx.get("before"))
+    return {"b": b, "zf": receiver.astype(dt), "support": support, "mass": mass}
+
+
+def band(arrays, port_dtype):
+    """``(lo, hi)`` of a derivation's rows: expected ± the per-row tolerance (the one place the band is read)."""
+    e = np.asarray(arrays["intensity"], np.float64)
+    t = np.asarray(arrays[f"intensity_tolerance_{port_dtype}"], np.float64)
+    return e - t, e + t
+
+
+def _ill(arrays):
+    """Rows whose derivation flags them ``wide_spread`` (comma-separated flag names), vectorised."""
+    flags = np.char.add(np.char.add(",", np.asarray(arrays["flags"]).astype(str)), ",")
+    return np.char.find(flags, ",wide_spread,") >= 0
+
+
+def interval(case, inputs, port_dtype="float32"):
+    """``(bands, ill_conditioned)`` of engine rows (``inputs`` from :func:`engine_inputs`), by ``derive_engine``."""
+    n = len(inputs["zf"])
+    arrays = derive_engine(case, {k: np.asarray(v) for k, v in inputs.items()}, np.full(n, "random"), [""] * n,
+                           [()] * n)
+    if not np.array_equal(np.asarray(arrays["b"]).view(np.uint32 if case.dtype == "float32" else np.uint64),
+                          np.asarray(inputs["b"]).view(np.uint32 if case.dtype == "float32" else np.uint64)):
+        raise RuntimeError(f"{case.name}: the sweep's port input b differs from derive_engine's")
+    return {"intensity": band(arrays, str(np.dtype(port_dtype)))}, _ill(arrays)
+
+
+def _exact(ctx, b, zf):
+    """``(lo, hi)`` of the exact intensities of the pipeline on moments ``b`` (float64, biased as given)."""
+    if ctx.get("fmt") is None:
+        lower, upper = precise.shadow_bounds(np.asarray(b, np.float64), np.asarray(zf, np.float64))
+        v = lower if ctx.get("bound", "lower") == "lower" else upper
+        return v, v
+    from ..golden.truth import CHAIN_TIE, nlq_chain
+
+    return nlq_chain(b, zf, ctx["fmt"], None, ctx.get("clamp"), ctx.get("clamp_test") or "stored", ctx.get("texel"),
+                     tie=CHAIN_TIE)
+
+
+def exact_span(case, inputs):
+    """``(lo, hi)`` per row: the least and largest exact value over the legitimate biases and the port's input's
+    float32 neighbourhood (module docstring), as the port reports it (intensity or visibility); for the NLQ chains
+    also this package's chain in float32 and float64 on the port's input."""
+    ctx = case.engine
+    sup, mass = np.asarray(inputs["support"], np.float64), np.asarray(inputs["mass"], np.float64)
+    zf = np.asarray(inputs["zf"], np.float64)
+    values = [v for p in legit_biases(ctx) for v in _exact(ctx, moments_of_rows(sup, mass, np.dtype(np.float64),
+                                                                                bias=p), zf)]
+    b = np.asarray(inputs["b"])
+    eps = float(np.finfo(b.dtype).eps)
+    for f in [1.0] + [1 + s * k * eps for k in range(1, NEIGHBOUR_ULPS + 1) for s in (1, -1)]:
+        bk = (b.astype(np.float64) * f).astype(b.dtype).astype(np.float64)
+        zk = (zf * f).astype(b.dtype).astype(np.float64)
+        if ctx.get("inside") is not None:
+            bk = precise.bias_moments(bk, ctx["inside"])
+        values.extend(_exact(ctx, bk, zk))
+    v = np.stack(values)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    if ctx.get("visibility"):
+        lo, hi = 1 - hi, 1 - lo
+    if ctx.get("fmt") is not None:  # legitimate float evaluations, already in the port's output convention
+        ref = engine_reference(ctx)
+        own = [np.asarray(ref(b.astype(d), np.asarray(inputs["zf"]).astype(d))[0], np.float64)
+               for d in (b.dtype, np.float64)]
+        lo, hi = np.minimum.reduce([lo] + own), np.maximum.reduce([hi] + own)
+    return lo, hi
+
+
+def confirm(case, inputs, got, port_dtype="float32"):
+    """``(n,)`` bool: flagged engine rows mpmath confirms wrong (module docstring)."""
+    n = len(inputs["zf"])
+    if n == 0:
+        return np.zeros(n, bool)
+    lo, hi = exact_span(case, inputs)
+    m = MARGIN_ULPS * float(np.finfo(np.dtype(port_dtype)).eps)
+    g = np.asarray(got["intensity"], np.float64).reshape(n)
+    with np.errstate(invalid="ignore"):
+        return ~((g >= lo - m) & (g <= hi + m))
