@@ -1,0 +1,80 @@
+"""sweep.shrink.shrink on hand-made failing ports: the simplest row reached, derived by hand from the rules.
+
+The rules (sweep/shrink.py's docstring): each step offers the simpler neighbours of the current
+row, simplest first (the plain float32 texel, one depth fewer, equal weights, depths, weights and
+zf rounded to fewer decimals, the coarsest rounding first, zf at a round offset from the nearest
+depth, the smallest offset first), never a row tried before, runs them in one dispatch and keeps
+the first that still fails and is confirmed; it stops when none does. The ports here are the
+package's float32 Algorithm 1 with a bug on a stated region (an intensity of 2, outside [0, 1]),
+so which rows fail is known without the code under test.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from moments_ref.msm import shadow_intensity
+from moments_ref.sweep.runner import Port, SweepSpec
+from moments_ref.sweep.shrink import shrink
+
+CASE = "shadow_intensity-lower-float32"
+
+
+def _port(bad):
+    """Algorithm 1, but an intensity of 2 where ``bad(b, zf)``."""
+
+    def port(b, zf):
+        v = np.asarray(shadow_intensity(b, zf), np.float32)
+        return np.where(bad(np.asarray(b, np.float64), np.asarray(zf, np.float64)), np.float32(2), v)
+
+    return port
+
+
+def _shrink(bad, texel):
+    return shrink(SweepSpec(CASE, Port(fn=_port(bad))), None, texel)
+
+
+def test_a_port_failing_below_a_receiver_depth_shrinks_to_round_numbers():
+    # fails iff zf < -0.5. By hand: the plain format (1), the first depth dropped twice (2, 3), the last
+    # depth 0.8 rounded to 0 decimals, 1.0 (4), zf -0.7345 rounded to 0 decimals, -1.0 (5); then every
+    # neighbour (zf moved to 1 − 10^e from the depth 1.0) was offered before: no sixth dispatch.
+    texel, row, dispatches = _shrink(lambda b, zf: zf < -0.5, {"depths": [0.3712, -0.2219, 0.8],
+                                                             "weights": [0.2, 0.5, 0.3], "zf": -0.7345, "format": 2})
+    assert texel == {"depths": [1.0], "weights": [1.0], "zf": -1.0, "format": 0}
+    assert dispatches == 5
+    assert row["inputs"]["zf"] == -1.0 and row["got"] == {"intensity": 2.0}
+    # the row's interval holds Algorithm 1's value on the shrunk texel (a depth at 1 lights a receiver at -1)
+    assert row["lo"]["intensity"] <= 0.0 <= row["hi"]["intensity"] < 1e-4
+    assert np.allclose(row["inputs"]["b"], 1.0, atol=1e-6)
+
+
+def test_the_receiver_moves_to_the_smallest_round_offset_that_still_fails():
+    # fails iff zf lies more than 1.5e-3 behind the mean depth b1. By hand: the depth 0.3712 rounds to 0.0;
+    # then zf = 0 + 10^e for e = -8, -7, ...: 1e-8 ... 1e-3 pass (not more than 1.5e-3 behind), 0.01 fails
+    # and is kept (before zf itself would be rounded).
+    texel, row, dispatches = _shrink(lambda b, zf: zf > b[:, 0] + 1.5e-3, {"depths": [0.3712], "weights": [1.0],
+                                                                         "zf": 0.6789, "format": 0})
+    assert texel == {"depths": [0.0], "weights": [1.0], "zf": 0.01, "format": 0}
+    assert row["got"] == {"intensity": 2.0} and row["inputs"]["zf"] == np.float32(0.01)
+
+
+def test_equal_weights_first_then_depths_and_zf_by_the_rules_order():
+    # fails iff there are at least two distinct depths (b2 − b1² > 1e-4): no depth can go, weights become equal
+    def two(b, zf):
+        return b[:, 1] - b[:, 0] ** 2 > 1e-4
+
+    texel, row, dispatches = _shrink(two, {"depths": [0.123, -0.456], "weights": [0.3, 0.7], "zf": 0.9,
+                                           "format": 0})
+    # By hand: no depth can go; equal weights (1); depths to 0 decimals are one depth (0, -0), to 1 decimal
+    # (0.1, -0.5) fail (2); zf at the smallest round offset from the nearest depth 0.1, 0.1 + 1e-8 (3); zf
+    # rounded to 0 decimals, 0.0 (4); from 0.0 the nearest depth 0.1 is above: 0.1 − 1e-8 (5); then every
+    # neighbour was tried (0.0 and 0.1 + 1e-8) or passes: the sixth dispatch finds none.
+    assert texel == {"depths": [0.1, -0.5], "weights": [0.5, 0.5], "zf": 0.1 - 1e-8, "format": 0}
+    assert dispatches == 6 and row["got"] == {"intensity": 2.0}
+    assert row["lo"]["intensity"] < 0.5 < row["hi"]["intensity"]  # a receiver at the depth 0.1 of half the weight
+
+
+def test_a_port_that_never_fails_keeps_its_row_after_one_dispatch():
+    t = {"depths": [0.25, -0.5], "weights": [0.5, 0.5], "zf": 0.3, "format": 0}
+    texel, row, dispatches = _shrink(lambda b, zf: np.zeros(len(zf), bool), t)
+    assert texel == t and row is None and dispatches == 1
