@@ -78,3 +78,64 @@ def test_a_port_that_never_fails_keeps_its_row_after_one_dispatch():
     t = {"depths": [0.25, -0.5], "weights": [0.5, 0.5], "zf": 0.3, "format": 0}
     texel, row, dispatches = _shrink(lambda b, zf: np.zeros(len(zf), bool), t)
     assert texel == t and row is None and dispatches == 1
+
+
+def _rows(texel):
+    """Candidates as plain tuples (depths, weights of the texel's weighted depths, zf, format), exact floats."""
+    from moments_ref.sweep.shrink import candidates
+
+    out = []
+    for z, w, zf, fmt in candidates(texel):
+        keep = w > 0
+        out.append((z[keep].tolist(), w[keep].tolist(), zf, fmt))
+    return out
+
+
+def test_the_receiver_offsets_are_powers_of_ten_from_the_nearest_depth_on_the_receivers_side():
+    # zf below the depth -0.5 + 0.5: 0 is 0.5 above it; offsets 10^e closer than 0.5 (e = -8 ... -1) and the
+    # power of ten nearest 0.5 on a log scale (10^round(log10 0.5) = 1): -0.5 + 1 = 0.5; the plain format first,
+    # the depth rounded to 0 decimals (-0.0: round half to even) next, zf itself is 0 already
+    got = _rows({"depths": [-0.5], "weights": [1.0], "zf": 0.0, "format": 1})
+    assert got[0] == ([-0.5], [1.0], 0.0, 0) and got[1] == ([0.0], [1.0], 0.0, 1)
+    assert [r[2] for r in got[2:]] == [-0.5 + 10.0**e for e in range(-8, 0)] + [0.5]
+    # below the depth: 0.5 − 10^e for 10^e < 0.12 (e = -8 ... -1; 10^round(log10 0.12) = 0.1 as well), then zf
+    # rounded: 0.0 (to 0 decimals; 0.4 to one decimal was offered already)
+    got = _rows({"depths": [0.5], "weights": [1.0], "zf": 0.38, "format": 0})
+    assert got == [([0.0], [1.0], 0.38, 0)] + [([0.5], [1.0], 0.5 - 10.0**e, 0) for e in range(-8, 0)] + [
+        ([0.5], [1.0], 0.0, 0)]
+    # an offset beyond the range is clipped to it: 0.5 + 10^0 -> 1.0, -0.5 - 1 -> -1.0
+    assert _rows({"depths": [0.5, 0.2], "weights": [0.5, 0.5], "zf": 0.9, "format": 0})[-1] == (
+        [0.5, 0.2], [0.5, 0.5], 1.0, 0)
+    assert _rows({"depths": [-0.5, -0.2], "weights": [0.5, 0.5], "zf": -0.9, "format": 0})[-1] == (
+        [-0.5, -0.2], [0.5, 0.5], -1.0, 0)
+
+
+def test_the_row_itself_is_never_offered_and_inputs_stay_in_float64():
+    # zf exactly 0.1 above the depth 0: the offset 10^-1 would give the row itself
+    got = _rows({"depths": [0.0], "weights": [1.0], "zf": 0.1, "format": 0})
+    assert ([0.0], [1.0], 0.1, 0) not in got and got
+    # depths and weights as given (float64, not rounded to float32): 0.3 and 0.7 are not float32 numbers
+    got = _rows({"depths": [0.123, -0.456], "weights": [0.3, 0.7], "zf": 0.25, "format": 1})
+    assert got[0] == ([0.123, -0.456], [0.3, 0.7], 0.25, 0)
+
+
+def test_depths_and_zf_are_rounded_to_0_to_7_decimals_and_weights_to_1_to_5():
+    got = _rows({"depths": [0.123456789], "weights": [1.0], "zf": -0.987654321, "format": 0})
+    depths = [r[0][0] for r in got if r[2] == -0.987654321]
+    assert depths == [round(0.123456789, d) for d in range(8)]  # every one changes the depth
+    zfs = [r[2] for r in got if r[0] == [0.123456789]]
+    # zf: to 0 and 1 decimals both -1.0 (offered once), then 2 ... 7 decimals, after the offsets from the depth
+    assert zfs[-7:] == list(dict.fromkeys(round(-0.987654321, d) for d in range(8)))
+    assert zfs[:-7] == [0.123456789 - 10.0**e for e in range(-8, 1)]
+    # weights of seven decimals: rounded to 1 ... 5 decimals (not 6), and only where every weight stays positive
+    w = [0.1234567, 0.3765433, 0.5]
+    got = _rows({"depths": [0.25, 0.5, 0.75], "weights": w, "zf": 0.0, "format": 0})
+    rounded = [r[1] for r in got if r[0] == [0.25, 0.5, 0.75] and r[2] == 0.0 and r[1] != [1 / 3] * 3]
+    assert rounded == [[round(x, d) / sum(round(y, d) for y in w) for x in w] for d in range(1, 6)]
+    # one weight rounding to 0 at one decimal: that rounding is not offered (nor any with a zero weight)
+    got = _rows({"depths": [0.25, 0.5, 0.75], "weights": [0.04, 0.46, 0.5], "zf": 0.0, "format": 0})
+    assert all(len(r[1]) == len(r[0]) and min(r[1]) > 0 for r in got)
+    assert [r[1] for r in got if r[0] == [0.25, 0.5, 0.75] and r[2] == 0.0] == [[1 / 3] * 3]
+    # weights of which only some change at one decimal are rounded too
+    got = _rows({"depths": [0.25, 0.5, 0.75], "weights": [0.5, 0.25, 0.25], "zf": 0.0, "format": 0})
+    assert [0.5 / 0.9, 0.2 / 0.9, 0.2 / 0.9] in [r[1] for r in got]
