@@ -24,10 +24,15 @@ OCCLUDED = {"vertical edge (left column occluded)": (True, False, True, False),
 EDGE_FRACTIONS = (0.0, 0.5, 1 - 2.0**-16, 2.0**-16, 77 / 256, 77.5 / 256)
 
 
-@pytest.fixture(scope="module")
-def rows():
+def fresh_rows():
+    """The bilinear cases' rows and their inputs in float64."""
     r = bilinear._rows(np.random.default_rng(5), "float32")
     return r, {k: np.asarray(v, np.float64) for k, v in r.inputs.items()}
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return fresh_rows()
 
 
 def test_the_rows_are_the_same_whatever_the_generator_and_in_three_categories(rows):
