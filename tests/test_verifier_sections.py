@@ -11,6 +11,7 @@ verified case can use it, and named where a case ignores it.
 from __future__ import annotations
 
 import json
+import math
 import re
 from fractions import Fraction
 from types import SimpleNamespace
@@ -188,3 +189,59 @@ def test_bad_arguments_and_results_matching_nothing_are_refused(folder, tmp_path
         golden.verify(d, p, port_dtype="float16")
     with pytest.raises(InputError):
         golden.verify(d, _save(tmp_path, {"x": np.zeros(3)}, "none.npz"))
+
+
+def test_a_float64_port_is_judged_in_float64_and_its_ulps_are_float64_ulps(tmp_path):
+    d = tmp_path / "g64"
+    golden.write(d, ["psi4-float64", "psi4_inverse-float64"])
+    with np.load(d / "psi4-float64.npz") as z:
+        e, t = z["u"], z["u_tolerance_float64"]
+    with np.load(d / "psi4_inverse-float64.npz") as z:
+        ei, ti = z["xi4"], z["xi4_tolerance_float64"]
+    i = int(np.flatnonzero((e > 0.1) & (t < 1e-9))[0])
+    got = e.copy()
+    got[i] = e[i] + 5 * t[i]  # a float64 error far below float32's resolution
+    k = int(np.flatnonzero(np.abs(ei) > 1e-3)[0])
+    step = 2.0 ** (math.frexp(abs(float(ei[k])))[1] - 1 - 52)  # a float64 ulp of the expected value
+    inv = ei.copy()
+    inv[k] = ei[k] + 3 * max(1.0, float(ti[k])) * step
+    rep = golden.verify(d, _save(tmp_path, {"psi4-float64.u": got, "psi4_inverse-float64.xi4": inv}),
+                        port_dtype="float64")
+    by = {c.name: {w["index"]: w for w in c.worst} for c in rep.cases}
+    assert by["psi4-float64"][i]["error"] == float(abs(Fraction(float(got[i])) - Fraction(float(e[i]))))
+    want = abs(Fraction(float(inv[k])) - Fraction(float(ei[k]))) / Fraction(step)
+    assert by["psi4_inverse-float64"][k]["error"] == pytest.approx(float(want), rel=1e-9)
+
+
+def test_a_failing_rows_flags_are_its_goldens(folder, tmp_path):
+    d, g = folder
+    a = g[BIL]
+    flagged = np.flatnonzero(np.char.str_len(a["flags"].astype(str)) > 0)
+    got = a["b"].astype(np.float32)
+    got[flagged[:3], 0] += np.float32(0.5)
+    c = {c.name: c for c in golden.verify(d, _save(tmp_path, {f"{BIL}.b": got})).cases}[BIL]
+    assert sorted(w["index"] for w in c.worst) == sorted(flagged[:3].tolist())
+    assert all(w["flags"] == str(a["flags"][w["index"]]) != "" for w in c.worst)
+
+
+def test_a_declared_callers_clamp_is_applied_to_the_ports_output_and_said(tmp_path):
+    d = tmp_path / "shade"
+    golden.write(d, ["shade-float32"])
+    with np.load(d / "shade-float32.npz") as z:
+        e = z["intensity"]
+    got = e.astype(np.float32)
+    zero = np.flatnonzero(e == 0.0)
+    got[zero] = np.float32(-0.5)  # below the range: the caller's clamp makes it 0
+    p = _save(tmp_path, {"shade-float32.intensity": got})
+    assert golden.verify(d, p).cases[0].status == "fail"
+    c = golden.verify(d, p, profile=parse_profile({"output_clamp": True})).cases[0]
+    assert c.status == "pass" and c.message.endswith(f"({len(zero)} values changed)") and len(zero) > 100
+
+
+def test_results_for_no_case_are_refused_and_a_bad_port_dtype_first(folder, tmp_path):
+    d, _ = folder
+    empty = _save(tmp_path, {}, "empty.npz")
+    with pytest.raises(InputError, match="no array matches a golden case output"):
+        golden.verify(d, empty)
+    with pytest.raises(InputError, match="port_dtype: expected float32 or float64, got 'float16'"):
+        golden.verify(d, empty, port_dtype="float16")
