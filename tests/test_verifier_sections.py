@@ -245,3 +245,42 @@ def test_results_for_no_case_are_refused_and_a_bad_port_dtype_first(folder, tmp_
         golden.verify(d, empty)
     with pytest.raises(InputError, match="port_dtype: expected float32 or float64, got 'float16'"):
         golden.verify(d, empty, port_dtype="float16")
+
+
+def _two_outputs(tmp_path):
+    """A hand-edited golden folder: psi4's case with a second compared output ``w`` (u's values, ten times u's
+    tolerances), as a foreign writer may produce: the report's worst rows show the first compared output."""
+    import hashlib
+
+    d = tmp_path / "two"
+    golden.write(d, [PSI])
+    with np.load(d / f"{PSI}.npz") as z:
+        a = {k: z[k] for k in z.files}
+    a["w"] = a["u"].copy()
+    for dt in ("float32", "float64"):
+        a[f"w_tolerance_{dt}"] = 10 * a[f"u_tolerance_{dt}"]
+    np.savez(d / f"{PSI}.npz", **a)
+    m = json.loads((d / "manifest.json").read_text())
+    e = m["cases"][PSI]
+    e["outputs"]["w"] = dict(e["outputs"]["u"])
+    e["compare"] = ["u", "w"]
+    data = (d / f"{PSI}.npz").read_bytes()
+    e["sha256"], e["size"] = hashlib.sha256(data).hexdigest(), len(data)
+    (d / "manifest.json").write_text(json.dumps(m))
+    return d, a
+
+
+def test_with_two_compared_outputs_the_rows_show_the_first_and_both_are_required(tmp_path):
+    d, a = _two_outputs(tmp_path)
+    e, t = a["u"], a["u_tolerance_float32"]
+    u = e.astype(np.float32)
+    u[3] = np.float32(e[3] + 5 * t[3])  # fails u's tolerance, within w's
+    w = e.astype(np.float32)
+    w[3] = np.float32(e[3] + 20 * t[3])  # fails both: the row's error shown is u's
+    c = golden.verify(d, _save(tmp_path, {f"{PSI}.u": u, f"{PSI}.w": w})).cases[0]
+    assert c.status == "fail" and [x["index"] for x in c.worst] == [3]
+    assert c.worst[0]["got"] == u[3] and c.worst[0]["tolerance"] == t[3]
+    assert c.worst[0]["error"] == float(abs(Fraction(float(u[3])) - Fraction(float(e[3]))))
+    # one output without the other is refused (results hold all of a case's compared outputs or none)
+    with pytest.raises(InputError, match="'psi4-float32.w' is missing"):
+        golden.verify(d, _save(tmp_path, {f"{PSI}.u": u}, "u.npz"))
