@@ -104,10 +104,9 @@ def test_the_receiver_offsets_are_powers_of_ten_from_the_nearest_depth_on_the_re
     assert got == [([0.0], [1.0], 0.38, 0)] + [([0.5], [1.0], 0.5 - 10.0**e, 0) for e in range(-8, 0)] + [
         ([0.5], [1.0], 0.0, 0)]
     # an offset beyond the range is clipped to it: 0.5 + 10^0 -> 1.0, -0.5 - 1 -> -1.0
-    assert _rows({"depths": [0.5, 0.2], "weights": [0.5, 0.5], "zf": 0.9, "format": 0})[-1] == (
-        [0.5, 0.2], [0.5, 0.5], 1.0, 0)
-    assert _rows({"depths": [-0.5, -0.2], "weights": [0.5, 0.5], "zf": -0.9, "format": 0})[-1] == (
-        [-0.5, -0.2], [0.5, 0.5], -1.0, 0)
+    for zf in (0.9, -0.9):
+        got = _rows({"depths": [0.5 * np.sign(zf), 0.2 * np.sign(zf)], "weights": [0.5, 0.5], "zf": zf, "format": 0})
+        assert all(-1 <= r[2] <= 1 for r in got) and got[-1][2] == np.sign(zf)
 
 
 def test_the_row_itself_is_never_offered_and_inputs_stay_in_float64():
@@ -132,9 +131,9 @@ def test_depths_and_zf_are_rounded_to_0_to_7_decimals_and_weights_to_1_to_5():
     got = _rows({"depths": [0.25, 0.5, 0.75], "weights": w, "zf": 0.0, "format": 0})
     rounded = [r[1] for r in got if r[0] == [0.25, 0.5, 0.75] and r[2] == 0.0 and r[1] != [1 / 3] * 3]
     assert rounded == [[round(x, d) / sum(round(y, d) for y in w) for x in w] for d in range(1, 6)]
-    # one weight rounding to 0 at one decimal: that rounding is not offered (nor any with a zero weight)
+    # one weight rounding to 0 at one decimal: that rounding (weights 0, 0.5, 0.5) is not offered
     got = _rows({"depths": [0.25, 0.5, 0.75], "weights": [0.04, 0.46, 0.5], "zf": 0.0, "format": 0})
-    assert all(len(r[1]) == len(r[0]) and min(r[1]) > 0 for r in got)
+    assert ([0.5, 0.75], [0.5, 0.5], 0.0, 0) not in got
     assert [r[1] for r in got if r[0] == [0.25, 0.5, 0.75] and r[2] == 0.0] == [[1 / 3] * 3]
     # weights of which only some change at one decimal are rounded too
     got = _rows({"depths": [0.25, 0.5, 0.75], "weights": [0.5, 0.25, 0.25], "zf": 0.0, "format": 0})
@@ -147,3 +146,12 @@ def test_one_depth_fewer_keeps_the_other_depths_weights_in_proportion():
     assert [r[0] for r in fewer] == [[0.2, 0.3], [0.1, 0.3], [0.1, 0.2]]
     for r, w in zip(fewer, ([0.3, 0.5], [0.2, 0.5], [0.2, 0.3])):
         assert np.allclose(r[1], np.array(w) / sum(w), rtol=0, atol=1e-15)
+
+
+def test_rows_are_told_apart_to_17_decimals():
+    # a depth of 1e-18 is 0 to 17 decimals: rounding it to 0 decimals gives the row itself, not offered;
+    # 3e-17 is not: its rounding to 0 is offered
+    def rounded(z):
+        return [r for r in _rows({"depths": [z], "weights": [1.0], "zf": 0.5, "format": 0}) if r[2] == 0.5]
+
+    assert rounded(1e-18) == [] and rounded(3e-17) == [([0.0], [1.0], 0.5, 0)]
