@@ -38,8 +38,9 @@ def test_rows_the_papers_target_misses_too_are_not_the_targets(singular):
     v = compare(entry, arrays, {"intensity": bad}, case=case.name)
     target = set(target_groups(v, arrays, p.bias, case.engine)[0].rows)
     assert target and target == set(np.flatnonzero(~v.row_pass).tolist())
-    # move the expected value of five contract rows the port gets right (tolerance below 0.1) by 0.5 (inside [0, 1]): they fail now, but the
-    # papers' formulation with the papers' target misses them as much: no target explains them
+    # move the expected value of five contract rows the port gets right (tolerance below 0.1) by 0.5 (inside
+    # [0, 1]): they fail now, but the papers' formulation with the papers' target misses them as much: no target
+    # explains them
     moved = dict(arrays)
     e = np.asarray(arrays["intensity"], np.float64).copy()
     tol = np.asarray(arrays["intensity_tolerance_float32"], np.float64)

@@ -137,7 +137,8 @@ def test_depths_and_zf_are_rounded_to_0_to_7_decimals_and_weights_to_1_to_5():
     assert [r[1] for r in got if r[0] == [0.25, 0.5, 0.75] and r[2] == 0.0] == [[1 / 3] * 3]
     # weights of which only some change at one decimal are rounded too
     got = _rows({"depths": [0.25, 0.5, 0.75], "weights": [0.5, 0.25, 0.25], "zf": 0.0, "format": 0})
-    assert any(len(r[1]) == 3 and np.allclose(r[1], [5 / 9, 2 / 9, 2 / 9], rtol=0, atol=1e-15) for r in got)  # (0.5, 0.2, 0.2) / 0.9
+    # (0.5, 0.2, 0.2) / 0.9
+    assert any(len(r[1]) == 3 and np.allclose(r[1], [5 / 9, 2 / 9, 2 / 9], rtol=0, atol=1e-15) for r in got)
 
 
 def test_one_depth_fewer_keeps_the_other_depths_weights_in_proportion():
