@@ -214,3 +214,14 @@ def test_a_receiver_just_behind_a_single_depth_is_a_wide_spread_capped_at_the_ra
     dev = [_float_deviation(r, texels.astype(np.float64), arrays["fraction"].astype(np.float64),
                             float(arrays["zf"][r]), 8) for r in range(3)]
     assert dev[1] > 0.1 / 16 and 16 * dev[2] > 1
+
+
+def test_the_float_deviation_is_the_largest_over_corners_fraction_moves_and_formulations():
+    texels = np.concatenate([EDGE_TEXELS, np.tile(0.3 ** np.arange(1, 5), (3, 4)).astype(np.float32)]).astype(
+        np.float64)
+    fraction = np.concatenate([EDGE_FRACTION, np.full((3, 2), 0.3)])
+    zf = np.concatenate([EDGE_ZF, np.array([0.31, 0.303, 0.301], np.float32)]).astype(np.float64)
+    got = bilinear._float_spread(texels, zf, bilinear._corners(fraction, 8), np.dtype(np.float32))
+    want = [_float_deviation(r, texels, fraction, zf[r], 8) for r in range(6)]
+    assert got.shape == (6,) and np.allclose(got, want, rtol=1e-6, atol=1e-12), (got, want)
+    assert min(want) >= 0 and max(want) > 0.01
