@@ -217,11 +217,14 @@ def test_a_receiver_just_behind_a_single_depth_is_a_wide_spread_capped_at_the_ra
 
 
 def test_the_float_deviation_is_the_largest_over_corners_fraction_moves_and_formulations():
-    texels = np.concatenate([EDGE_TEXELS, np.tile(0.3 ** np.arange(1, 5), (3, 4)).astype(np.float32)]).astype(
-        np.float64)
-    fraction = np.concatenate([EDGE_FRACTION, np.full((3, 2), 0.3)])
-    zf = np.concatenate([EDGE_ZF, np.array([0.31, 0.303, 0.301], np.float32)]).astype(np.float64)
+    # the last row: one depth 0.9 and the receiver at it, where the slides' formulation divides by zero (NaN: left out)
+    single = np.concatenate([np.tile(0.3 ** np.arange(1, 5), (3, 4)), np.tile(0.9 ** np.arange(1, 5), (1, 4))])
+    texels = np.concatenate([EDGE_TEXELS, single.astype(np.float32)]).astype(np.float64)
+    fraction = np.concatenate([EDGE_FRACTION, np.full((4, 2), 0.3)])
+    zf = np.concatenate([EDGE_ZF, np.array([0.31, 0.303, 0.301, 0.9], np.float32)]).astype(np.float64)
     got = bilinear._float_spread(texels, zf, bilinear._corners(fraction, 8), np.dtype(np.float32))
-    want = [_float_deviation(r, texels, fraction, zf[r], 8) for r in range(6)]
-    assert got.shape == (6,) and np.allclose(got, want, rtol=1e-6, atol=1e-12), (got, want)
+    want = [_float_deviation(r, texels, fraction, zf[r], 8) for r in range(7)]
+    assert got.shape == (7,) and np.allclose(got, want, rtol=1e-6, atol=1e-12), (got, want)
+    b = bias_moments(texels[6:, :4].astype(np.float32), BIAS_FLOAT32)
+    assert np.isnan(slides_bound(b, np.array([0.9], np.float32), "lower", np.float32)[0]) and want[6] < 0.5
     assert min(want) >= 0 and max(want) > 0.01
