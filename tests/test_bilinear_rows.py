@@ -55,6 +55,7 @@ def test_fractions_are_exact_and_span_the_texel_the_stiff_ones_half_near_the_mid
     # the first half of the stiff rows within 2048 · 2^-16 of the middle, both ways; the others anywhere
     k = (stiff - 0.5) * 2**16
     assert np.all((k[:64] >= -2048) & (k[:64] < 2048)) and k[:64].min() < -1800 and k[:64].max() > 1800
+    assert np.sum(k[:64, 0] == k[:64, 1]) < 4  # the two coordinates drawn each on its own
     assert np.sum(np.all(np.abs(k[64:]) <= 2048, axis=1)) < 4 and stiff[64:].min() < 0.05 and stiff[64:].max() > 0.95
 
 
