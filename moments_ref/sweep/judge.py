@@ -1,6 +1,6 @@
 """The sweep's verdict on a row: the goldens' band model (:mod:`moments_ref.golden.bands`).
 
-Everything the sweep knows about right and wrong goes through two functions, so that the
+Everything the sweep knows about right and wrong goes through three functions, so that the
 sweep and the goldens judge by one model:
 
 * :func:`legitimate_interval` — per row and output, the interval ``(lo, hi)`` a correct
@@ -8,6 +8,12 @@ sweep and the goldens judge by one model:
   widened by the documented margin, capped for bounded outputs), and the ill-conditioned
   rows, which are reported apart and never counted as wrong. No mpmath: it runs on
   chunks of 10^5–10^6 rows.
+* :func:`flagged_rows` — the gated rows outside their interval, less the codes the goldens'
+  tie rule accepts (:func:`moments_ref.golden.bands.tie_accepted`, the rule :func:`confirm`
+  applies): a code on a rounding tie is not flagged, a wrong code next to it is. The gated
+  rows are those inside the case's contract (:func:`contract_rows`), all rows under
+  ``--strict``: as in the goldens, a robustness row (moments that float32 rounding pushed
+  outside the moment space, B(b) indefinite) is counted and shown, never failed by default.
 * :func:`confirm` — a flagged row counts as wrong only when the port's output lies outside
   every exact value (:mod:`moments_ref.precise`) over the float32 neighbourhood of its
   inputs and every legitimate evaluation. A flag that mpmath does not confirm is a defect
@@ -16,9 +22,11 @@ sweep and the goldens judge by one model:
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..golden import bands as _bands
 
-__all__ = ["legitimate_interval", "confirm"]
+__all__ = ["legitimate_interval", "contract_rows", "wrong_rows", "flagged_rows", "confirm"]
 
 
 def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
@@ -30,3 +38,54 @@ def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
 def confirm(case, inputs, got, port_dtype="float32"):
     """``(n,)`` bool, True where mpmath confirms the row wrong: :func:`moments_ref.golden.bands.confirm`."""
     return _bands.confirm(case, inputs, got, port_dtype)
+
+
+def contract_rows(case, inputs, contract=None):
+    """``(n,)`` bool: the rows inside the case's contract (``contract``, where a profile's conversion decided it,
+    else :func:`moments_ref.golden.bands.contract_rows`)."""
+    return _bands.contract_rows(case, inputs) if contract is None else np.asarray(contract, bool)
+
+
+def wrong_rows(case, bands, ill, got):
+    """``(n,)`` bool: rows with an output outside its interval (NaN counts).
+
+    Ill-conditioned rows are judged too, by their neighbourhood: their band is the uncapped
+    span of the legitimate evaluations (the float32 reference and the float64 values over the
+    float32 neighbourhood of the inputs, :mod:`moments_ref.golden.bands`) widened by the margin,
+    and a row flagged there counts as wrong only when :func:`confirm` finds the port's
+    output outside every neighbour's exact value (mpmath) and every legitimate evaluation.
+    """
+    n = len(ill)
+    bad = np.zeros(n, bool)
+    for o, (lo, hi) in bands.items():
+        g = np.asarray(got[o], np.float64).reshape(lo.shape)
+        with np.errstate(invalid="ignore"):
+            out = ~((g >= lo) & (g <= hi))
+        bad |= (out & np.isfinite(hi - lo)).reshape(n, -1).any(axis=1)
+    return bad
+
+
+def flagged_rows(case, inputs, bands, ill, got, gated=None):
+    """``(n,)`` bool: the rows the sweep flags (then confirms).
+
+    A ``gated`` row (default: every row) is flagged where an output lies outside its interval (:func:`wrong_rows`);
+    for integer outputs a flagged code within one code of its interval is then put to the
+    goldens' tie rule (:func:`moments_ref.golden.bands.tie_accepted`, mpmath on those few rows
+    only), and is not flagged where the rule accepts it.
+    """
+    flagged = wrong_rows(case, bands, ill, got)
+    if gated is not None:
+        flagged &= np.asarray(gated, bool)
+    if not (case.integer_output and flagged.any()):
+        return flagged
+    n = len(flagged)
+    near = np.ones(n, bool)
+    for o, (lo, hi) in bands.items():
+        g = np.asarray(got[o], np.float64).reshape(lo.shape)
+        with np.errstate(invalid="ignore"):
+            near &= ((g >= lo - 1) & (g <= hi + 1)).reshape(n, -1).all(axis=1)
+    look = np.flatnonzero(flagged & near)
+    if look.size:
+        sub = lambda d: {k: np.asarray(v)[look] for k, v in d.items()}  # noqa: E731
+        flagged[look[_bands.tie_accepted(case, sub(inputs), sub(got))]] = False
+    return flagged
