@@ -150,3 +150,19 @@ def test_shipped_msm6_passes_those_rows_and_a_mutant_fails(ctx, tmp_path, langua
     got = evaluate(SweepSpec(case_name, Port(str(mutant), f"shadow_intensity6_{bound}", language), ("gl",)), inputs, "gl")
     flagged = judge.flagged_rows(case, inputs, bands_, ill, got)
     assert flagged[0] and judge.confirm(case, inputs, got)[flagged].all()  # the first row: three nodes below zf
+
+
+def test_robustness_rows_are_counted_ungated_and_failed_only_under_strict():
+    from moments_ref import msm, oracle
+    from moments_ref.golden.contract import moments_inside
+
+    def nan_outside(b, zf):  # the reference, but NaN on moments outside the moment space (B(b) not positive definite)
+        out = msm.shadow_intensity(b, zf, bound="upper")
+        return np.where(moments_inside(b), out, np.float32(np.nan)).astype(np.float32)
+
+    res = oracle.sweep(nan_outside, "shadow_intensity-upper", rows=30000, shrink=False)
+    ungated = sum(s["ungated"] for s in res.record()["strata"].values())
+    assert ungated > 0 and res.passed
+    strict = oracle.sweep(nan_outside, "shadow_intensity-upper", rows=30000, shrink=False, strict=True)
+    assert not strict.passed
+    assert strict.record()["drivers"]["None"]["confirmed"] == ungated
