@@ -42,7 +42,7 @@ from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
-__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes", "contract_rows", "on_tie", "tie_accepted", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
+__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes", "contract_rows", "contract_reach", "on_tie", "tie_accepted", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
            "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
 #: Joint scaling of the float inputs, in ulps of the port's precision.
@@ -174,6 +174,27 @@ def contract_rows(case, inputs, n=None):
     from .contract import rows_inside
 
     return np.asarray(rows_inside(case.contract, inputs), bool)
+
+
+def contract_reach(case, inputs):
+    """``(n,)`` bool: rows inside the case's contract at the row or at a point of its float32 neighbourhood.
+
+    The neighbourhood is that of the legitimate evaluations (:func:`evaluations`: the float inputs
+    scaled jointly by ``1 ± PERTURB_ULPS`` ulps and component-wise by ``1 ± INDEPENDENT_ULPS`` ulp,
+    rounded to float32). A row the contract misses only by the rounding of its inputs (biased
+    moments that float32 storage left just outside the moment space, B(b) indefinite by 10⁻⁸) is an
+    input a port receives from a contract texel: the papers' formulations are legitimate there too.
+    """
+    inputs = {k: inputs[k] for k in case.inputs}
+    n = len(next(iter(inputs.values())))
+    inside = contract_rows(case, inputs, n)
+    if case.contract is None or inside.all():
+        return inside
+    free = ~equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
+    for p in _neighbours(case, inputs, np.float32, free):
+        p32 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.float32)) for k, v in p.items()}
+        inside |= contract_rows(case, p32, n)
+    return inside
 
 
 def interval_parts(case, dt, expected, contract, noise, core, hooks):

@@ -11,9 +11,11 @@ sweep and the goldens judge by one model:
 * :func:`flagged_rows` — the gated rows outside their interval, less the codes the goldens'
   tie rule accepts (:func:`moments_ref.golden.bands.tie_accepted`, the rule :func:`confirm`
   applies): a code on a rounding tie is not flagged, a wrong code next to it is. The gated
-  rows are those inside the case's contract (:func:`contract_rows`), all rows under
-  ``--strict``: as in the goldens, a robustness row (moments that float32 rounding pushed
-  outside the moment space, B(b) indefinite) is counted and shown, never failed by default.
+  rows are those whose float32 neighbourhood reaches the case's contract (:func:`contract_rows`;
+  there the papers' formulations are legitimate, as on contract rows), all rows under
+  ``--strict``: as in the goldens, a robustness row (unbiased singular moments that float32
+  rounding left outside the moment space beyond its neighbourhood) is counted, never failed by
+  default.
 * :func:`confirm` — a flagged row counts as wrong only when the port's output lies outside
   every exact value (:mod:`moments_ref.precise`) over the float32 neighbourhood of its
   inputs and every legitimate evaluation. A flag that mpmath does not confirm is a defect
@@ -41,9 +43,10 @@ def confirm(case, inputs, got, port_dtype="float32"):
 
 
 def contract_rows(case, inputs, contract=None):
-    """``(n,)`` bool: the rows inside the case's contract (``contract``, where a profile's conversion decided it,
-    else :func:`moments_ref.golden.bands.contract_rows`)."""
-    return _bands.contract_rows(case, inputs) if contract is None else np.asarray(contract, bool)
+    """``(n,)`` bool: the rows the sweep judges as contract rows: ``contract``, where a profile's conversion
+    decided it, else the rows whose float32 neighbourhood reaches the case's contract
+    (:func:`moments_ref.golden.bands.contract_reach`)."""
+    return _bands.contract_reach(case, inputs) if contract is None else np.asarray(contract, bool)
 
 
 def wrong_rows(case, bands, ill, got):
