@@ -155,7 +155,8 @@ def test_shipped_msm6_passes_those_rows_and_a_mutant_fails(ctx, tmp_path, langua
     assert old in src
     mutant = tmp_path / "msm6_no_w0.glsl"
     mutant.write_text(src.replace(old, "lower = two_below + w * (odd - two_below);", 1))
-    got = evaluate(SweepSpec(case_name, Port(str(mutant), f"shadow_intensity6_{bound}", language), ("gl",)), inputs, "gl")
+    mutant_spec = SweepSpec(case_name, Port(str(mutant), f"shadow_intensity6_{bound}", language), ("gl",))
+    got = evaluate(mutant_spec, inputs, "gl")
     flagged = judge.flagged_rows(case, inputs, bands_, ill, got)
     assert flagged[0] and judge.confirm(case, inputs, got)[flagged].all()  # the first row: three nodes below zf
 

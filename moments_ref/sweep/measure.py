@@ -103,7 +103,8 @@ def tables(shipped, mutants, rows, note="", mutant_rows=None):
         d = r["drivers"]
         cell = lambda k: f"{d[k]['flagged']} / {d[k]['confirmed']} / {d[k]['unconfirmed']}" if k in d else "–"  # noqa: E731
         ill = sum(v["ill_conditioned"] for v in r["strata"].values())
-        ungated = "gated (--strict)" if r.get("strict") else sum(v.get("ungated", 0) for v in r["strata"].values())
+        strata = r["strata"].values()
+        ungated = "gated (--strict)" if r.get("strict") else sum(v.get("ungated", 0) for v in strata)
         lines.append(f"| {r['language']}/{r['path']} | `{r['function']}` | {r['case']} | {r['rows']:.3g} | {cell('gl')} | "
                      f"{cell('vulkan')} | {ill} | {ungated} | {r['wall_s']:.0f} |")
     lines += ["", "Rows/s of each stage (summed over the workers' processes, so one process's rate), the same runs:", "",
