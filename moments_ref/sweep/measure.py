@@ -113,7 +113,7 @@ def tables(shipped, mutants, rows, note="", mutant_rows=None):
         lines.append(f"| {r['language']}/{r['path']} | {r['case']} | "
                      + " | ".join(_rate(r["rows_per_s"].get(s)) for s in STAGES) + " |")
     if mutants:
-        lines += ["", f"The mutants of `tests/sweep_mutants/corpus.py`, {mutant_rows or rows:.0e} rows on llvmpipe "
+        lines += ["", f"The mutants of `tests/sweep_mutants/corpus.py`, {mutant_rows or rows:.6g} rows on llvmpipe "
                   "(confirmed: at most 64 examined per chunk; goldens: whether every golden case of the function "
                   "passes it):", "",
                   "| mutant | goldens | confirmed (examined) / flagged | first hit (row) | shrunk row "
