@@ -271,7 +271,7 @@ def _report(c, name, dtype, arrays, got, verdict):
         worst_expected=np.asarray(arrays[o])[i], per_category=per, passed=verdict.passed)
 
 
-def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True, profile=None):
+def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True, profile=None, strict=False):
     """Judge a Python implementation on ``rows`` engine-like rows, as ``moments-ref sweep`` judges a port.
 
     Parameters
@@ -289,6 +289,9 @@ def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True, 
     profile : moments_ref.golden.profile.Profile or path, optional
         The engine's declared conventions (as for :func:`check`): they shape the rows drawn
         ([0, 1] depths, a bias applied before the call) and the expected values.
+    strict : bool
+        Also fail rows outside the case's contract (robustness rows: counted as ``ungated`` and
+        never failed by default, as in the goldens).
 
     Returns
     -------
@@ -308,5 +311,5 @@ def sweep(fn, case, rows=10**6, seed=0, vectorized=True, out=None, shrink=True, 
         from .golden.profile import load_profile
 
         profile = load_profile(profile)
-    spec = make_spec(name, Port(fn=fn, vectorized=vectorized), None, profile, seed, int(rows))
+    spec = make_spec(name, Port(fn=fn, vectorized=vectorized), None, profile, seed, int(rows), strict)
     return sweep_port(spec, 1, None, out, None, shrink)

@@ -165,9 +165,9 @@ def test_measurement_tables_are_written_between_the_markers(tmp_path):
     drivers = {"gl": {"flagged": 3, "confirmed": 1, "unconfirmed": 2}}
     rec = {"language": "glsl", "path": "msm.glsl", "function": "f", "case": CASE, "drivers": drivers, "wall_s": 2.0,
            "rows": 10**6,
-           "strata": {"one/near": {"ill_conditioned": 5}}, "rows_per_s": {"draw": 1e6}}
+           "strata": {"one/near": {"ill_conditioned": 5, "ungated": 7}}, "rows_per_s": {"draw": 1e6}}
     text = measure.tables([rec], [], 10**6)
-    assert "| glsl/msm.glsl | `f` | " + CASE + " | 1e+06 | 3 / 1 / 2 | – | 5 | 2 |" in text
+    assert "| glsl/msm.glsl | `f` | " + CASE + " | 1e+06 | 3 / 1 / 2 | – | 5 | 7 | 2 |" in text
     doc = tmp_path / "d.md"
     doc.write_text("head\n<!-- measured:begin -->\nold\n<!-- measured:end -->\ntail\n")
     measure.write_doc(doc, text)

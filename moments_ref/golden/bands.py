@@ -43,8 +43,9 @@ from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
-__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE", "FLOOR_ULPS",
-           "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
+__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes",
+           "contract_rows", "contract_reach", "on_tie", "tie_accepted", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE",
+           "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
 #: Joint scaling of the float inputs, in ulps of the port's precision.
 PERTURB_ULPS = 3
@@ -167,12 +168,35 @@ def _margin(case, e, dt, noise, width):
                               FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)])
 
 
-def _contract(case, inputs, n):
+def contract_rows(case, inputs, n=None):
+    """``(n,)`` bool: the rows inside the case's contract (:mod:`moments_ref.golden.contract`); all True without one."""
+    n = len(next(iter(inputs.values()))) if n is None else n
     if case.contract is None:
         return np.ones(n, bool)
     from .contract import rows_inside
 
     return np.asarray(rows_inside(case.contract, inputs), bool)
+
+
+def contract_reach(case, inputs):
+    """``(n,)`` bool: rows inside the case's contract at the row or at a point of its float32 neighbourhood.
+
+    The neighbourhood is that of the legitimate evaluations (:func:`evaluations`: the float inputs
+    scaled jointly by ``1 ± PERTURB_ULPS`` ulps and component-wise by ``1 ± INDEPENDENT_ULPS`` ulp,
+    rounded to float32). A row the contract misses only by the rounding of its inputs (biased
+    moments that float32 storage left just outside the moment space, B(b) indefinite by 10⁻⁸) is an
+    input a port receives from a contract texel: the papers' formulations are legitimate there too.
+    """
+    inputs = {k: inputs[k] for k in case.inputs}
+    n = len(next(iter(inputs.values())))
+    inside = contract_rows(case, inputs, n)
+    if case.contract is None or inside.all():
+        return inside
+    free = ~equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
+    for p in _neighbours(case, inputs, np.float32, free):
+        p32 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.float32)) for k, v in p.items()}
+        inside |= contract_rows(case, p32, n)
+    return inside
 
 
 def interval_parts(case, dt, expected, contract, noise, core, hooks):
@@ -282,7 +306,7 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract
     expected = [np.asarray(x, np.float64) for x in evaluate_reference(case, inputs, np.float64)]
     noise = case_noise(case, dt) if noise is None else noise
     core, hooks = evaluations(case, inputs, dt)
-    contract = _contract(case, inputs, n) if contract is None else np.asarray(contract, bool)
+    contract = contract_rows(case, inputs, n) if contract is None else np.asarray(contract, bool)
     parts = interval_parts(case, dt, expected, contract, noise, core, hooks)
     bands, ill = {}, np.zeros(n, bool)
     for o, (lo, hi, wide, _, _) in zip(case.outputs, parts):
@@ -331,6 +355,42 @@ def tie_codes(case, inputs):
     for f in (1 + TIE_NUDGE, 1 - TIE_NUDGE):
         out.append(evaluate_reference(case, _scaled(case, inputs, f), np.float64))
     return out
+
+
+def on_tie(case, inputs):
+    """``(n,)`` bool: rows whose exact scaled value lies within :data:`TIE_BAND` of a rounding boundary (the
+    case's ``margin``, :mod:`moments_ref.golden.texel_truth` in mpmath); all False for a case without one."""
+    n = len(next(iter(inputs.values())))
+    if case.margin is None or n == 0:
+        return np.zeros(n, bool)
+    return np.asarray(case.margin(**{k: inputs[k] for k in case.inputs}), np.float64).reshape(n) <= TIE_BAND
+
+
+def tie_accepted(case, inputs, got, codes=None):
+    """``(n,)`` bool: rows whose every integer output the goldens' tie rule accepts.
+
+    A code is accepted where it equals the truth's code or one of :func:`tie_codes`, or, on a rounding
+    tie (:func:`on_tie`), lies within one code of the truth's (either code next to the boundary). One
+    definition for :func:`confirm` and the sweep's flagging (:func:`moments_ref.sweep.judge.flagged_rows`).
+    ``codes``: the truth's codes first, then any others already computed (default: the truth and
+    :func:`tie_codes`).
+    """
+    inputs = {k: inputs[k] for k in case.inputs}
+    n = len(next(iter(inputs.values())))
+    if codes is None:
+        codes = list(_exact(case, inputs))  # one tuple, or lo and hi from a confirm_truth
+    codes = list(codes) + tie_codes(case, inputs)
+    near = on_tie(case, inputs)
+    ok_rows = np.ones(n, bool)
+    for i, o in enumerate(case.outputs):
+        g = np.asarray(got[o], np.float64)
+        ok = np.zeros(g.shape, bool)
+        for v in codes:
+            ok |= g == np.asarray(v[i], np.float64)
+        t = near.reshape((n,) + (1,) * (g.ndim - 1))
+        ok |= t & (np.abs(g - np.asarray(codes[0][i], np.float64)) <= 1)
+        ok_rows &= ok.reshape(n, -1).all(axis=1)
+    return ok_rows
 
 
 def _exact(case, point):
@@ -421,31 +481,19 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     inputs = {k: inputs[k] for k in case.inputs}
     dt = np.dtype(port_dtype)
     values = _exact_values(case, inputs, seed)
-    if not case.integer_output:
-        core, hooks = evaluations(case, inputs, dt)
-        row = values[:2] if case.confirm_truth is not None else values[:1]  # the row's own exact values
-        values += core + [_within_cap(case, h, row) for h in hooks]
-    else:  # and the codes of the goldens' tie rule
-        values += tie_codes(case, inputs)
+    if case.integer_output:  # the codes of the goldens' tie rule, one definition with the sweep's flagging
+        return ~tie_accepted(case, inputs, got, values)
+    core, hooks = evaluations(case, inputs, dt)
+    row = values[:2] if case.confirm_truth is not None else values[:1]  # the row's own exact values
+    values += core + [_within_cap(case, h, row) for h in hooks]
     wrong = np.zeros(n, bool)
-    near_tie = None
-    if case.integer_output and case.margin is not None:
-        near_tie = np.asarray(case.margin(**inputs), np.float64).reshape(n) <= TIE_BAND
     for i, o in enumerate(case.outputs):
         g = np.asarray(got[o], np.float64)
-        if case.integer_output:
-            ok = np.zeros(g.shape, bool)
-            for v in values:
-                ok |= g == np.asarray(v[i], np.float64)
-            if near_tie is not None:  # on a rounding tie: either code next to the boundary
-                t = near_tie.reshape((n,) + (1,) * (g.ndim - 1))
-                ok |= t & (np.abs(g - np.asarray(values[0][i], np.float64)) <= 1)
-        else:
-            e = np.asarray(values[0][i], np.float64)
-            lo, hi, _ = _span(e, [v[i] for v in values])
-            scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
-            f = FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)
-            with np.errstate(invalid="ignore"):
-                ok = (g >= lo - f) & (g <= hi + f)
+        e = np.asarray(values[0][i], np.float64)
+        lo, hi, _ = _span(e, [v[i] for v in values])
+        scale = np.broadcast_to(np.asarray(case.floor_scale, np.float64), e.shape)
+        f = FLOOR_ULPS * ulp(np.maximum(np.abs(e), scale), dt)
+        with np.errstate(invalid="ignore"):
+            ok = (g >= lo - f) & (g <= hi + f)
         wrong |= ~np.asarray(ok).reshape(n, -1).all(axis=1)
     return wrong

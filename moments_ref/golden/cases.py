@@ -144,11 +144,13 @@ _R_SCALE = (1.0, 1.0, 1.0, 0.0)
 
 
 def _six_all_roots(bound):
-    """Six moments the shipped ports' way: all three roots of the cubic, then the weights below zf.
+    """Six moments with all three roots of the cubic, then the weights below zf summed.
 
-    The reference needs one root (msm6, step 3); the ports and the reference before it
+    The reference needs one root (msm6, step 3) and so do the shipped ports; a port may
     solve for all three (two Newton steps each) and sum the weights of the roots below zf,
-    which rounds differently in float32. Evaluated through
+    which rounds differently in float32 (the shipped ports did so with the trigonometric
+    closed form until the sweep confirmed rows 5e-5 outside this band, near a bound of 1,
+    where 1 − w0 − w is exact and a sum of three weights is not). Evaluated through
     :func:`moments_ref.msm6.canonical_representation` on the inputs as given and scaled
     by 1 ± 3 ulps, like the reference's own variants (``golden.spread``).
     """

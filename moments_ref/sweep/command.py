@@ -28,6 +28,8 @@ def add_options(sw, positive_int, folder_arg):
     sw.add_argument("--workers", type=positive_int(1), default=None, metavar="N",
                     help="spawned worker processes, one driver context each (default: 2, 1 below two chunks)")
     sw.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--strict", action="store_true",
+                    help="also fail rows outside the case's contract (robustness rows), as verify --strict does")
     sw.add_argument("--out", type=folder_arg, help="checkpoint (resumed) and one golden folder per shrunk failure")
 
 
@@ -42,7 +44,7 @@ def parse_rows(text):
     return int(value)
 
 
-def make_spec(case_name, port, adapter=None, profile=None, seed=0, rows=10**6):
+def make_spec(case_name, port, adapter=None, profile=None, seed=0, rows=10**6, strict=False):
     """The :class:`~.runner.SweepSpec` of a case (profiled) and a port, after checking both."""
     from ..golden import CASES
     from .runner import SweepSpec
@@ -69,7 +71,7 @@ def make_spec(case_name, port, adapter=None, profile=None, seed=0, rows=10**6):
 
         adapter = DEFAULT_DRIVER.get(port.language)
     drivers = ("gl", "vulkan") if adapter == "both" else (adapter,)
-    spec = SweepSpec(case_name, port, drivers, seed, rows, key, profile=profile)
+    spec = SweepSpec(case_name, port, drivers, seed, rows, key, profile=profile, strict=bool(strict))
     spec.case  # noqa: B018 - a profile the case contradicts is refused now (InputError), before any work
     return spec
 
@@ -112,7 +114,7 @@ def main(args):
     flags = {f[2:].replace("-", "_"): get(f[2:].replace("-", "_")) for f, _, _ in FLAGS}
     profile = profile_from_args(get("profile"), get("function"), **flags)
     port = Port(str(port_path), get("function"), language, source_options(args))
-    spec = make_spec(get("case"), port, get("adapter"), profile, get("seed"), rows)
+    spec = make_spec(get("case"), port, get("adapter"), profile, get("seed"), rows, get("strict"))
     workers = get("workers") or (2 if rows > CHUNK else 1)
     from ..conformance import ContextError, ToolError
 

@@ -1,6 +1,6 @@
 """The sweep's verdict on a row: the goldens' band model (:mod:`moments_ref.golden.bands`).
 
-Everything the sweep knows about right and wrong goes through two functions, so that the
+Everything the sweep knows about right and wrong goes through three functions, so that the
 sweep and the goldens judge by one model:
 
 * :func:`legitimate_interval` — per row and output, the interval ``(lo, hi)`` a correct
@@ -8,6 +8,14 @@ sweep and the goldens judge by one model:
   widened by the documented margin, capped for bounded outputs), and the ill-conditioned
   rows, which are reported apart and never counted as wrong. No mpmath: it runs on
   chunks of 10^5–10^6 rows.
+* :func:`flagged_rows` — the gated rows outside their interval, less the codes the goldens'
+  tie rule accepts (:func:`moments_ref.golden.bands.tie_accepted`, the rule :func:`confirm`
+  applies): a code on a rounding tie is not flagged, a wrong code next to it is. The gated
+  rows are those whose float32 neighbourhood reaches the case's contract (:func:`contract_rows`;
+  there the papers' formulations are legitimate, as on contract rows), all rows under
+  ``--strict``: as in the goldens, a robustness row (unbiased singular moments that float32
+  rounding left outside the moment space beyond its neighbourhood) is counted, never failed by
+  default.
 * :func:`confirm` — a flagged row counts as wrong only when the port's output lies outside
   every exact value (:mod:`moments_ref.precise`) over the float32 neighbourhood of its
   inputs and every legitimate evaluation. A flag that mpmath does not confirm is a defect
@@ -19,10 +27,12 @@ and confirmed with the exact bounds over the legitimate biases (:mod:`.engine`).
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..golden import bands as _bands
 from . import engine as _engine
 
-__all__ = ["legitimate_interval", "confirm", "judges_ill"]
+__all__ = ["legitimate_interval", "contract_rows", "wrong_rows", "flagged_rows", "confirm", "judges_ill"]
 
 
 def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
@@ -44,3 +54,56 @@ def judges_ill(case):
     """Whether an ill-conditioned row of ``case`` can count as wrong (judged by its neighbourhood): not for the
     engine cases, whose rows flagged ``wide_spread`` by their derivation are reported apart and never wrong."""
     return not _engine.is_engine(case)
+
+
+def contract_rows(case, inputs, contract=None):
+    """``(n,)`` bool: the rows the sweep judges as contract rows: ``contract``, where a profile's conversion
+    decided it, else the rows whose float32 neighbourhood reaches the case's contract
+    (:func:`moments_ref.golden.bands.contract_reach`)."""
+    return _bands.contract_reach(case, inputs) if contract is None else np.asarray(contract, bool)
+
+
+def wrong_rows(case, bands, ill, got):
+    """``(n,)`` bool: rows with an output outside its interval (NaN counts).
+
+    Ill-conditioned rows are judged too, by their neighbourhood: their band is the uncapped
+    span of the legitimate evaluations (the float32 reference and the float64 values over the
+    float32 neighbourhood of the inputs, :mod:`moments_ref.golden.bands`) widened by the margin,
+    and a row flagged there counts as wrong only when :func:`confirm` finds the port's
+    output outside every neighbour's exact value (mpmath) and every legitimate evaluation.
+    """
+    n = len(ill)
+    bad = np.zeros(n, bool)
+    for o, (lo, hi) in bands.items():
+        g = np.asarray(got[o], np.float64).reshape(lo.shape)
+        with np.errstate(invalid="ignore"):
+            out = ~((g >= lo) & (g <= hi))
+        bad |= (out & np.isfinite(hi - lo)).reshape(n, -1).any(axis=1)
+    return bad
+
+
+def flagged_rows(case, inputs, bands, ill, got, gated=None):
+    """``(n,)`` bool: the rows the sweep flags (then confirms).
+
+    A ``gated`` row (default: every row) is flagged where an output lies outside its interval (:func:`wrong_rows`),
+    an ill-conditioned one only where the case judges its ill rows (:func:`judges_ill`: not the engine cases);
+    for integer outputs a flagged code within one code of its interval is then put to the
+    goldens' tie rule (:func:`moments_ref.golden.bands.tie_accepted`, mpmath on those few rows
+    only), and is not flagged where the rule accepts it.
+    """
+    flagged = wrong_rows(case, bands, ill, got) & (judges_ill(case) | ~np.asarray(ill, bool))
+    if gated is not None:
+        flagged &= np.asarray(gated, bool)
+    if not (case.integer_output and flagged.any()):
+        return flagged
+    n = len(flagged)
+    near = np.ones(n, bool)
+    for o, (lo, hi) in bands.items():
+        g = np.asarray(got[o], np.float64).reshape(lo.shape)
+        with np.errstate(invalid="ignore"):
+            near &= ((g >= lo - 1) & (g <= hi + 1)).reshape(n, -1).all(axis=1)
+    look = np.flatnonzero(flagged & near)
+    if look.size:
+        sub = lambda d: {k: np.asarray(v)[look] for k, v in d.items()}  # noqa: E731
+        flagged[look[_bands.tie_accepted(case, sub(inputs), sub(got))]] = False
+    return flagged

@@ -28,17 +28,19 @@ LANGUAGES = ("glsl", "hlsl", "wgsl", "slang")
 _BEGIN, _END = "<!-- measured:begin -->", "<!-- measured:end -->"
 
 
-def _run(case, path, function, language, drivers, rows, workers, shrink=True):
+def _run(case, path, function, language, drivers, rows, workers, shrink=True, strict=False):
     t0 = time.perf_counter()
-    res = sweep_port(SweepSpec(case, Port(str(path), function, language), tuple(drivers), rows=rows), workers,
-                     shrink_failures=shrink)
+    res = sweep_port(SweepSpec(case, Port(str(path), function, language), tuple(drivers), rows=rows, strict=strict),
+                     workers, shrink_failures=shrink)
     rec = res.record()
     rec["wall_s"] = time.perf_counter() - t0
     return rec
 
 
-def shipped_runs(rows, drivers=("gl", "vulkan"), workers=2, cases=SHIPPED_CASES, languages=LANGUAGES, log=print):
-    """One record per shipped port and case (:meth:`~.result.SweepResult.record`, plus ``language`` and ``path``)."""
+def shipped_runs(rows, drivers=("gl", "vulkan"), workers=2, cases=SHIPPED_CASES, languages=LANGUAGES, log=print,
+                 strict=False):
+    """One record per shipped port and case (:meth:`~.result.SweepResult.record`, plus ``language``, ``path`` and
+    ``strict``: whether the robustness rows were gated too)."""
     from ..conformance import shipped_port
 
     out = []
@@ -48,8 +50,8 @@ def shipped_runs(rows, drivers=("gl", "vulkan"), workers=2, cases=SHIPPED_CASES,
                 path, function = shipped_port(case, language)
             except Exception:  # noqa: BLE001 - a language that ships no port of the case
                 continue
-            rec = _run(case, path, function, language, drivers, rows, workers)
-            rec.update(language=language, path=Path(path).name, function=function)
+            rec = _run(case, path, function, language, drivers, rows, workers, strict=strict)
+            rec.update(language=language, path=Path(path).name, function=function, strict=strict)
             out.append(rec)
             log(f"{language} {case}: {_counts(rec)} ({rec['wall_s']:.0f} s)")
     return out
@@ -94,21 +96,24 @@ def tables(shipped, mutants, rows, note="", mutant_rows=None):
     """Markdown of the measurements (``mutant_rows``: the rows of the mutants' sweeps, default ``rows``)."""
     lines = [f"Seed 0, 2 spawned workers; flagged / confirmed wrong / unconfirmed flags per driver (gl = llvmpipe, "
              f"vulkan = lavapipe). {note}".rstrip(), "",
-             "| port | function | case | rows per driver | gl | vulkan | ill-conditioned (judged) | wall s |",
-             "|---|---|---|---:|---|---|---:|---:|"]
+             "| port | function | case | rows per driver | gl | vulkan | ill-conditioned (judged) | robustness rows "
+             "(ungated) | wall s |",
+             "|---|---|---|---:|---|---|---:|---:|---:|"]
     for r in shipped:
         d = r["drivers"]
         cell = lambda k: f"{d[k]['flagged']} / {d[k]['confirmed']} / {d[k]['unconfirmed']}" if k in d else "–"  # noqa: E731
         ill = sum(v["ill_conditioned"] for v in r["strata"].values())
+        strata = r["strata"].values()
+        ungated = "gated (--strict)" if r.get("strict") else sum(v.get("ungated", 0) for v in strata)
         lines.append(f"| {r['language']}/{r['path']} | `{r['function']}` | {r['case']} | {r['rows']:.3g} | {cell('gl')} | "
-                     f"{cell('vulkan')} | {ill} | {r['wall_s']:.0f} |")
+                     f"{cell('vulkan')} | {ill} | {ungated} | {r['wall_s']:.0f} |")
     lines += ["", "Rows/s of each stage (summed over the workers' processes, so one process's rate), the same runs:", "",
               "| port | case | " + " | ".join(STAGES) + " |", "|---|---|" + "---:|" * len(STAGES)]
     for r in shipped:
         lines.append(f"| {r['language']}/{r['path']} | {r['case']} | "
                      + " | ".join(_rate(r["rows_per_s"].get(s)) for s in STAGES) + " |")
     if mutants:
-        lines += ["", f"The mutants of `tests/sweep_mutants/corpus.py`, {mutant_rows or rows:.0e} rows on llvmpipe "
+        lines += ["", f"The mutants of `tests/sweep_mutants/corpus.py`, {mutant_rows or rows:.6g} rows on llvmpipe "
                   "(confirmed: at most 64 examined per chunk; goldens: whether every golden case of the function "
                   "passes it):", "",
                   "| mutant | goldens | confirmed (examined) / flagged | first hit (row) | shrunk row "
@@ -145,6 +150,7 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--languages", default=",".join(LANGUAGES))
     ap.add_argument("--cases", default=",".join(SHIPPED_CASES))
+    ap.add_argument("--strict", action="store_true", help="gate the robustness rows too (sweep --strict)")
     ap.add_argument("--corpus", help="tests/sweep_mutants/corpus.py: also sweep its mutants")
     ap.add_argument("--json", required=True, help="the records (read back with --from-json; there, comma-separated "
                                                   "files are merged)")
@@ -162,7 +168,7 @@ def main(argv=None):
         import tempfile
 
         data = {"rows": rows, "shipped": shipped_runs(rows, workers=a.workers, cases=a.cases.split(","),
-                                                      languages=a.languages.split(","))}
+                                                      languages=a.languages.split(","), strict=a.strict)}
         if a.corpus:
             with tempfile.TemporaryDirectory() as tmp:
                 data["mutants"] = mutant_runs(a.corpus, int(float(a.mutant_rows)), tmp)

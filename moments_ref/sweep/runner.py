@@ -21,6 +21,7 @@ import numpy as np
 
 from ..golden.cases import call_implementation
 from . import judge
+from .judge import wrong_rows  # noqa: F401 (its home was here)
 from .samplers import CHUNK, STRATA, draw_chunk
 
 __all__ = ["Port", "SweepSpec", "run_chunk", "run_chunks", "evaluate", "CONFIRM_CAP", "KEEP", "STAGES"]
@@ -58,7 +59,7 @@ class SweepSpec:
     rows: int = 10**6
     profile_key: str = "default"
     port_dtype: str = "float32"
-    strict: bool = False
+    strict: bool = False  # also gate the robustness rows (outside the case's contract), as --strict does for goldens
     profile: object = None  # golden.profile.Profile (picklable, unlike a Case)
     fn_case: object = None  # a Case given directly (in-process runs of oracle.sweep only)
 
@@ -113,25 +114,6 @@ def _out_shape(case, o):
     return {"b": (4,), "r": (4,), "q": (4,), "b_biased": (4,)}.get(o, ())
 
 
-def wrong_rows(case, bands, ill, got):
-    """``(n,)`` bool: rows with an output outside its interval (NaN counts).
-
-    Ill-conditioned rows are judged too, by their neighbourhood: their band is the uncapped
-    span of the legitimate evaluations (the float32 reference and the float64 values over the
-    float32 neighbourhood of the inputs, :mod:`moments_ref.golden.bands`) widened by the margin,
-    and a row flagged there counts as wrong only when :func:`.judge.confirm` finds the port's
-    output outside every neighbour's exact value (mpmath) and every legitimate evaluation.
-    """
-    n = len(ill)
-    bad = np.zeros(n, bool)
-    for o, (lo, hi) in bands.items():
-        g = np.asarray(got[o], np.float64).reshape(lo.shape)
-        with np.errstate(invalid="ignore"):
-            out = ~((g >= lo) & (g <= hi))
-        bad |= (out & np.isfinite(hi - lo)).reshape(n, -1).any(axis=1)
-    return bad
-
-
 def _row(case, params, inputs, got, bands, i):
     """One failing row, JSON-ready: inputs, texel parameters, got and the interval."""
     w = params["w"][i]
@@ -152,10 +134,12 @@ def run_chunk(spec, chunk):
     inputs, params = draw_chunk(case, spec.seed, chunk, spec.chunk_rows(chunk), spec.profile_key, spec.shaping)
     t["draw"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, params.get("contract"))
+    contract = judge.contract_rows(case, inputs, params.get("contract"))
+    bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, contract)
     t["reference"] = time.perf_counter() - t0
     n, strata = len(ill), params["stratum"]
-    ungated = np.zeros(n, bool)
+    gated = np.ones(n, bool) if spec.strict else contract  # robustness rows: shown, failed only under --strict
+    ungated = ~gated
     for lo, hi in bands.values():
         ungated |= ~np.isfinite(hi - lo).reshape(n, -1).all(axis=1)
     out = {"chunk": chunk, "rows": n, "drivers": {}}
@@ -166,7 +150,7 @@ def run_chunk(spec, chunk):
         got = evaluate(spec, inputs, driver)
         t["driver"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        flagged = wrong_rows(case, bands, ill, got) & (judge.judges_ill(case) | ~ill)
+        flagged = judge.flagged_rows(case, inputs, bands, ill, got, gated)
         t["compare"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         idx = np.flatnonzero(flagged)
@@ -252,4 +236,4 @@ def checkpoint_key(spec):
 
         src = hashlib.sha256(Path(port.path).read_bytes()).hexdigest()
     return json.dumps([spec.case.name, str(port.path), port.function, port.language, src, list(map(str, spec.drivers)),
-                       spec.seed, spec.rows, spec.profile_key, CHUNK])
+                       spec.seed, spec.rows, spec.profile_key, CHUNK] + (["strict"] if spec.strict else []))

@@ -138,12 +138,25 @@ def _biased(b, preset):
     return moments.bias_moments(b, preset)  # float32 in, float32 arithmetic (a shader's bias)
 
 
+def _inward32(lo, hi):
+    """The float32 values nearest to ``[lo, hi]`` inside it (a float32 clip to the float64 bounds would round
+    1.2e-7·(1 − 2⁻²²) down to 1.19999967e-7, outside the contract)."""
+    lo32, hi32 = np.float32(lo), np.float32(hi)
+    lo32 = lo32 if float(lo32) >= lo else np.nextafter(lo32, np.float32(np.inf))  # compared in float64
+    hi32 = hi32 if float(hi32) <= hi else np.nextafter(hi32, np.float32(-np.inf))
+    return lo32, hi32
+
+
+#: Algorithm 3's ξ4 range (:data:`~moments_ref.golden.contract.XI4_RANGE`) as float32 bounds inside it.
+_XI4_RANGE32 = _inward32(*XI4_RANGE)
+
+
 def _representation(b, fmt):
     """Φ of the biased moments (``fmt`` 0), or what the 64-bit (1) or 32-bit (2) texel decodes to."""
     r = nonlinear.phi(_biased(b, moments.BIAS_FLOAT32))
     # Kept inside Algorithm 3's contract: float32 rounding can leave ξ4 a few ulps below 0.
     r[:, 2] = np.clip(r[:, 2], 0, 1)
-    r[:, 3] = np.clip(r[:, 3], XI4_RANGE[0], XI4_RANGE[1])
+    r[:, 3] = np.clip(r[:, 3], *_XI4_RANGE32)
     r64 = packing.unpack64(packing.pack64(r)).astype(np.float32)
     r32 = packing.unpack32(packing.pack32(r)).astype(np.float32)
     return np.choose(np.asarray(fmt)[:, None], [r, r64, r32]).astype(np.float32)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import judge
-from .runner import evaluate, wrong_rows
+from .runner import evaluate
 from .samplers import build_inputs
 
 __all__ = ["shrink", "candidates", "MAX_STEPS"]
@@ -102,8 +102,10 @@ def shrink(spec, driver, texel):
         inputs = build_inputs(case, params, spec.shaping)
         got = evaluate(spec, inputs, driver)
         dispatches += 1
-        bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, params.get("contract"))
-        flagged = np.flatnonzero(wrong_rows(case, bands, ill, got) & (judge.judges_ill(case) | ~ill))
+        contract = judge.contract_rows(case, inputs, params.get("contract"))
+        bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, contract)
+        gated = None if spec.strict else contract
+        flagged = np.flatnonzero(judge.flagged_rows(case, inputs, bands, ill, got, gated))
         step = None
         for i in flagged[:8]:
             one = lambda d: {k: np.asarray(v)[i:i + 1] for k, v in d.items()}  # noqa: E731

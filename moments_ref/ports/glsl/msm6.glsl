@@ -13,9 +13,14 @@
 //   (2) solve B q = v(zf), v(z) = (1, z, z^2, z^3)
 //   (3) the roots z_l of q3 z^3 + q2 z^2 + q1 z + q0, found as t_l = 1 / (z_l - zf), the
 //       roots of P(t) = p(zf) t^3 + p'(zf) t^2 + p''(zf)/2 t + q3 (p(zf) = 1/w0 >= 1 never
-//       vanishes; q3 -> 0 sends a root to infinity, which is t = 0 here, harmless)
-//   (4) weights w_l = 1 / (v(z_l)^T B^-1 v(z_l)) (Peters and Klein 2015, Prop. 10)
-//   (5) lower = sum of w_l over z_l < zf (that is t_l < 0); upper = lower + w0.
+//       vanishes; q3 -> 0 sends a root to infinity, which is t = 0 here, harmless). The
+//       roots interlace with the Gauss nodes (roots of the orthogonal polynomial P3), so the
+//       number k of nodes below zf (a Sturm sequence, free) says which roots lie below zf,
+//       and the bounds need one root: the smallest t (k = 1) or the largest (k = 2), from
+//       Blinn's closed form without trigonometric functions
+//   (4) its weight w = 1 / (v(z)^T B^-1 v(z)) (Peters and Klein 2015, Prop. 10)
+//   (5) lower = sum of w_l over z_l < zf: 0, w, 1 - w0 - w or 1 - w0 for k = 0, 1, 2, 3;
+//       upper = lower + w0.
 
 #ifndef MOMENTS_REF_MSM6_GLSL
 #define MOMENTS_REF_MSM6_GLSL
@@ -33,30 +38,65 @@ float msm6_newton(float c0, float c1, float c2, float c3, float t)
     return (abs(step) <= abs(t) + 1.0 && abs(step) <= MSM6_FLT_MAX) ? t - step : t;
 }
 
-// The three real roots of c0 t^3 + c1 t^2 + c2 t + c3 (c0 != 0): the trigonometric
-// solution of Blinn / Peters ("How to solve a cubic equation, revisited") with the
-// Hessian (d0, d1, d2), then two Newton steps per root.
-vec3 msm6_solve_cubic(float c0, float c1, float c2, float c3)
+// cos(arccos(rho) / 3), the largest root of 4c^3 - 3c = rho, without trigonometric
+// functions: with u = sqrt((1 + rho) / 2) it is cos(2/3 arccos u), analytic in u on [0, 1];
+// a degree-6 polynomial in u holds it to 1.6e-7 (Horner; |.|: rho a little below -1 by
+// rounding gives u ~ 0, not NaN).
+float msm6_cos_third(float rho)
 {
-    float B = c1 / (3.0 * c0);
-    float C = c2 / (3.0 * c0);
+    float u = sqrt(abs(rho * 0.5 + 0.5));
+    float c = u * -0.0021434685253637615;
+    c = (c + 0.010623147312699203) * u;
+    c = (c - 0.02653837949755497) * u;
+    c = (c + 0.051548030727594105) * u;
+    c = (c - 0.11082308230793778) * u;
+    c = (c + 0.5773334661660559) * u;
+    return c + 0.5000001629519066;
+}
+
+// Blinn's form of c0 t^3 + c1 t^2 + c2 t + c3 (Blinn, "How to solve a cubic equation";
+// Peters, "How to solve a cubic equation, revisited"): (B, 2m, r) with the roots
+// 2m cos(theta_k) - B, cos(3 theta) = r; B = c1/(3c0), C = c2/(3c0), D = c3/c0, the Hessian's
+// d0 = C - B^2 (<= 0 for three real roots), m = sqrt(-d0), r = -(d1 - 2 B d0) / (2 m^3),
+// d1 = D - B C.
+vec3 msm6_blinn(float c0, float c1, float c2, float c3)
+{
+    float c0_3 = 3.0 * c0;
+    float B = c1 / c0_3;
+    float C = c2 / c0_3;
     float D = c3 / c0;
     float d0 = C - B * B;
-    float d1 = D - B * C;
-    float d2 = B * D - C * C;
-    // Discriminant >= 0 for three real roots (rounding below 0 is clamped).
-    float disc = max(4.0 * d0 * d2 - d1 * d1, 0.0);
-    float dep = d1 - 2.0 * B * d0;
-    float theta = atan(sqrt(disc), -dep) / 3.0;
-    float cs = cos(theta);
-    float sn = sin(theta);
-    float scale = 2.0 * sqrt(max(-d0, 0.0));
-    vec3 r = vec3(cs, -0.5 * cs + 0.8660254 * sn, -0.5 * cs - 0.8660254 * sn) * scale - B;
+    float minus_dep = B * (C + 2.0 * d0) - D;
+    float minus_d0 = abs(d0);  // rounding may leave d0 a little above 0
+    float m2 = sqrt(4.0 * minus_d0);
+    return vec3(B, m2, minus_dep / (m2 * minus_d0));
+}
+
+// The largest (sigma = 1) or smallest (sigma = -1) root of a cubic with three real roots:
+// sigma 2m cos(arccos(sigma r) / 3) - B (no Newton step in float32: the coefficients'
+// rounding dominates).
+float msm6_extreme_root(float c0, float c1, float c2, float c3, float sigma)
+{
+    vec3 bmr = msm6_blinn(c0, c1, c2, c3);
+    return sigma * bmr.y * msm6_cos_third(sigma * bmr.z) - bmr.x;
+}
+
+// The three real roots of c0 t^3 + c1 t^2 + c2 t + c3 (c0 != 0), Blinn's form with
+// cos(theta) = c(r), cos(theta + 2 pi / 3) = -c(-r) and the middle one from their sum 0,
+// then two Newton steps per root.
+vec3 msm6_solve_cubic(float c0, float c1, float c2, float c3)
+{
+    vec3 bmr = msm6_blinn(c0, c1, c2, c3);
+    // r clamped to [-1, 1]; NaN (0/0 at a triple root) counts as 1.
+    float r = (bmr.z < -1.0) ? -1.0 : ((bmr.z <= 1.0) ? bmr.z : 1.0);
+    float hi = msm6_cos_third(r);
+    float lo = -msm6_cos_third(-r);
+    vec3 t = vec3(hi, -hi - lo, lo) * bmr.y - bmr.x;
     for (int k = 0; k < 2; ++k) {
-        r = vec3(msm6_newton(c0, c1, c2, c3, r.x), msm6_newton(c0, c1, c2, c3, r.y),
-                 msm6_newton(c0, c1, c2, c3, r.z));
+        t = vec3(msm6_newton(c0, c1, c2, c3, t.x), msm6_newton(c0, c1, c2, c3, t.y),
+                 msm6_newton(c0, c1, c2, c3, t.z));
     }
-    return r;
+    return t;
 }
 
 // A weight that is not finite or not positive (a root at infinity) is 0.
@@ -65,19 +105,19 @@ float msm6_finite_weight(float w)
     return (w > 0.0 && w <= MSM6_FLT_MAX) ? w : 0.0;
 }
 
-// Weight of the support point z = zf + 1/t from step (4): with g = t^3 v(zf + 1/t), a
-// polynomial in t, w = t^6 / sum_i (L^-1 g)_i^2 / D_i is 0 (not NaN) at t = 0.
+// Weight of the support point z = zf + 1/t from step (4): w = 1 / sum_i (L^-1 v(z))_i^2 / D_i.
+// A root at infinity (t = 0) or so far out that z^3 overflows has weight 0 (its NaN or 1/inf).
 float msm6_weight(float t, float zf, float b1, float b2, float b3, float L21, float L31, float L32,
                   float D1, float D2, float D3)
 {
-    float s = 1.0 + zf * t;
-    float g0 = t * t * t;
-    // Forward substitution L u = g.
-    float u1 = t * t * s - b1 * g0;
-    float u2 = t * s * s - b2 * g0 - L21 * u1;
-    float u3 = s * s * s - b3 * g0 - L31 * u1 - L32 * u2;
-    float k = g0 * g0 + u1 * u1 / D1 + u2 * u2 / D2 + u3 * u3 / D3;
-    return msm6_finite_weight(g0 * g0 / k);
+    float z = zf + 1.0 / t;
+    float z2 = z * z;
+    // Forward substitution L u = v(z).
+    float u1 = z - b1;
+    float u2 = z2 - b2 - L21 * u1;
+    float u3 = z2 * z - b3 - L31 * u1 - L32 * u2;
+    float w = 1.0 / (1.0 + u1 * u1 / D1 + u2 * u2 / D2 + u3 * u3 / D3);
+    return (w > 0.0) ? w : 0.0;
 }
 
 // Singular B(b): the unique distribution with these moments, exact Z(z < zf) (lower) and
@@ -123,13 +163,17 @@ void msm6_singular(float b1, float b2, float b3, float D1, float D2, float D3, f
 void msm6_bounds(float b[6], float zf, out float lower, out float upper)
 {
     float b1 = b[0], b2 = b[1], b3 = b[2], b4 = b[3], b5 = b[4], b6 = b[5];
-    // (1) B = L D L^T (the first column of L is (1, b1, b2, b3)).
+    // (1) B = L D L^T (the first column of L is (1, b1, b2, b3)); each L_ij D_j is kept as
+    // the numerator it is divided from, so that L_ij^2 D_j = L_ij (L_ij D_j).
     float D1 = b2 - b1 * b1;
-    float L21 = (b3 - b1 * b2) / D1;
-    float L31 = (b4 - b1 * b3) / D1;
-    float D2 = b4 - b2 * b2 - L21 * L21 * D1;
-    float L32 = (b5 - b2 * b3 - L21 * L31 * D1) / D2;
-    float D3 = b6 - b3 * b3 - L31 * L31 * D1 - L32 * L32 * D2;
+    float L21D1 = b3 - b1 * b2;
+    float L31D1 = b4 - b1 * b3;
+    float L21 = L21D1 / D1;
+    float L31 = L31D1 / D1;
+    float D2 = b4 - b2 * b2 - L21 * L21D1;
+    float L32D2 = b5 - b2 * b3 - L21 * L31D1;
+    float L32 = L32D2 / D2;
+    float D3 = b6 - b3 * b3 - L31 * L31D1 - L32 * L32D2;
     float w0;
     if (!(D1 > 0.0) || !(D2 > 0.0) || !(D3 > 0.0)) {
         msm6_singular(b1, b2, b3, D1, D2, D3, L21, L31, L32, zf, lower, w0);
@@ -147,19 +191,26 @@ void msm6_bounds(float b[6], float zf, out float lower, out float upper)
         float pz = 1.0 + y1 * c1 + y2 * c2 + y3 * c3;
         w0 = 1.0 / pz;
         // (3) Taylor coefficients of p at zf, reversed: P(t) = p t^3 + p' t^2 + p''/2 t + q3.
-        float p1 = q1 + (2.0 * q2 + 3.0 * q3 * zf) * zf;
         float p2 = q2 + 3.0 * q3 * zf;
-        vec3 t = msm6_solve_cubic(pz, p1, p2, q3);
-        // (4), (5) lower = sum of w_l over t_l < 0.
-        lower = 0.0;
-        for (int l = 0; l < 3; ++l) {
-            float wl = msm6_weight(t[l], zf, b1, b2, b3, L21, L31, L32, D1, D2, D3);
-            lower += (t[l] < 0.0) ? wl : 0.0;
-        }
-        w0 = (abs(w0) <= MSM6_FLT_MAX) ? w0 : 0.0;
+        float p1 = q1 + (q2 + p2) * zf;
+        // How many of the three Gauss nodes (roots of P3) lie below zf: the Sturm sequence
+        // (1, y1, y2, y3) changes sign once per node above zf. Its parity is the sign of y3;
+        // "at least two below" is "the signs never turn back from - to +".
+        bool pos1 = y1 >= 0.0, pos2 = y2 >= 0.0, pos3 = y3 >= 0.0;
+        float two_below = ((pos1 || !pos2) && (pos2 || !pos3)) ? 1.0 : 0.0;
+        float odd = pos3 ? 1.0 : 0.0;
+        // The roots of p interlace with the Gauss nodes: the one root needed is the only root
+        // below zf (one node below: the smallest t, t < 0 is z < zf) or the only one above (two
+        // nodes below: the largest t).
+        float t = msm6_extreme_root(pz, p1, p2, q3, 1.0 - 2.0 * odd);
+        float w = msm6_weight(t, zf, b1, b2, b3, L21, L31, L32, D1, D2, D3);
+        // (4), (5) lower = sum of w_l over z_l < zf: 0 (no node below), w (one), 1 - w0 - w
+        // (two), 1 - w0 (three), so that three nodes below give 1 - w0 exactly.
+        lower = (1.0 - w0) * two_below + w * (odd - two_below);
     }
-    upper = clamp(lower + w0, 0.0, 1.0);
-    lower = clamp(lower, 0.0, 1.0);
+    // Clamped like saturate (a NaN lower counts as 0, a NaN upper as 1).
+    lower = (lower > 0.0) ? min(lower, 1.0) : 0.0;
+    upper = (lower + w0 <= 1.0) ? lower + w0 : 1.0;
 }
 
 // Six-moment lower bound of Z(z < zf): the shadow intensity with six moments.
