@@ -1,0 +1,172 @@
+"""golden.diagnosis: advice on ports whose failing rows have a cause known by construction.
+
+Each port here is written in the test from an independent statement of what it does (the float32
+reference at its own receiver zf − 1e-5; a receiver mapped from [0, 1] inside; a result the caller
+would clamp; Algorithm 3 with the author's 5e-6 clamp; the Hausdorff bound of depths in [0, 1]),
+so the cause of its failures is known before the diagnosis runs. The diagnosis must name exactly
+that cause, on exactly the failing rows, and declaring it must make the port pass (the advice is
+right, not only given). Ports with another bug on many of their failing rows, or an arithmetic
+bug, get no advice. Driver-free and fast: numpy ports, one golden folder per case.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from moments_ref import golden, hausdorff
+from moments_ref.golden.profile import parse_profile
+from mutants import ports
+
+from _oracles import golden_folder
+
+CASE = "shadow_intensity-lower-float32"
+
+
+def _base(name=CASE):
+    gdir = golden_folder((name,))
+    with np.load(gdir / f"{name}.npz") as g:
+        return gdir, {k: g[k] for k in g.files}
+
+
+def _verify(tmp_path, got, profile=None, name=CASE, output="intensity"):
+    gdir, _ = _base(name)
+    np.savez(tmp_path / "r.npz", **{f"{name}.{output}": np.asarray(got)})
+    return golden.verify(gdir, tmp_path / "r.npz", profile=profile).cases[0]
+
+
+def _ref(b, zf):
+    """The float32 reference of Algorithm 1 (the golden's own port of the slides)."""
+    g = golden.CASES[CASE]
+    return golden.evaluate_reference(g, {"b": b, "zf": zf}, g.dtype)[0]
+
+
+def _offset(base):
+    return _ref(base["b"], (base["zf"] - np.float32(1e-5)).astype(np.float32))
+
+
+def _unit_receiver(base):
+    # the port maps a receiver it believes in [0, 1] to the moments' [-1, 1] inside: 2 z - 1
+    return _ref(base["b"], (np.float32(2) * base["zf"] - np.float32(1)).astype(np.float32))
+
+
+def _unclamped(base):
+    # fully shadowed rows overshoot [0, 1] by 0.01: the caller clamps the result on its next line
+    v = _ref(base["b"], base["zf"])
+    return np.where(v >= 1 - 1e-6, v + np.float32(0.01), v).astype(np.float32)
+
+
+#: port, the advice's level and flags, the profile that declares that cause
+ADVICE = {
+    "receiver offset": (_offset, "convention", "receiver_offset = 1e-05", {"receiver_offset": 1e-5}),
+    "receiver in [0, 1]": (_unit_receiver, "convention", "receiver_depth = '[0,1]'", {"receiver_depth": "[0,1]"}),
+    "caller's clamp": (_unclamped, "convention", "output_clamp = true", {"output_clamp": True}),
+}
+
+
+@pytest.mark.parametrize("what", list(ADVICE))
+def test_a_ports_known_convention_is_named_on_every_failing_row_and_declaring_it_passes(tmp_path, what):
+    port, level, flags, declare = ADVICE[what]
+    _, base = _base()
+    got = port(base)
+    case = _verify(tmp_path, got)
+    failing = np.flatnonzero(~case.verdict.row_pass).tolist()
+    assert case.status == "fail" and failing
+    assert (case.groups[0].level, case.groups[0].flags) == (level, flags)
+    assert case.groups[0].rows == failing  # exactly the failing rows, no passing one
+    assert [g for g in case.groups if g.level == level] == [case.groups[0]]
+    # declared, on the goldens written under that profile (the inputs such a port is given): it passes
+    declared = parse_profile(declare)
+    gdir = tmp_path / "declared"
+    golden.write(gdir, [CASE], profile=declared)
+    with np.load(gdir / f"{CASE}.npz") as g:
+        np.savez(tmp_path / "d.npz", **{f"{CASE}.intensity": port({"b": g["b"], "zf": g["zf"]})})
+    assert golden.verify(gdir, tmp_path / "d.npz", profile=declared).cases[0].status == "pass"
+
+
+def test_the_authors_clamp_in_algorithm_3_is_named_a_convention(tmp_path):
+    name = "shade-float32"
+    _, base = _base(name)
+    got = ports.alg3(base["r"], base["zf"], {"clamp": 5e-6, "no_xi_guard": True})
+    case = _verify(tmp_path, got, name=name)
+    assert case.status == "fail" and case.groups[0].level == "convention"
+    assert case.groups[0].flags.startswith("clamp = 5e-06, clamp_test = ")
+    assert case.groups[0].rows == np.flatnonzero(~case.verdict.row_pass).tolist()
+
+
+def test_a_convention_is_found_under_a_declared_slope_whose_feed_depends_on_the_rows(tmp_path):
+    # receiver_slope declared and honoured; the caller's clamp not: the advice names output_clamp
+    from moments_ref.golden.conventions import profiled_arrays
+
+    declared = parse_profile({"receiver_slope": 1e-4})
+    _, base = _base()
+    slope = profiled_arrays(CASE, declared, arrays=base)[1]["slope"]
+    v = _ref(base["b"], (base["zf"] - np.float32(1e-4) * slope).astype(np.float32))
+    assert _verify(tmp_path, v, declared).status == "pass"
+    got = np.where(v >= 1 - 1e-6, v + np.float32(0.01), v).astype(np.float32)
+    case = _verify(tmp_path, got, declared)
+    assert case.status == "fail"
+    assert (case.groups[0].level, case.groups[0].flags) == ("convention", "output_clamp = true")
+    assert case.groups[0].rows == np.flatnonzero(~case.verdict.row_pass).tolist()
+
+
+def test_an_arithmetic_bug_gets_no_convention_or_format_advice(tmp_path):
+    _, base = _base()
+    case = _verify(tmp_path, ports.alg1(base["b"], base["zf"], {"factor": 1.03}))
+    assert case.status == "fail"
+    assert {g.level for g in case.groups} <= {"contract", "robustness"}
+
+
+# ---------------------------------------------------------------------------
+# bound = "hausdorff": Peters and Klein's bound of depths in [0, 1], judged as Algorithm 1
+
+
+UNIT = {"depth": "[0,1]"}
+
+
+def _unit_inputs(base, profile):
+    """What a port under ``profile`` receives: the golden's moments and receivers in [0, 1]."""
+    from moments_ref.golden.conventions import convert_inputs
+
+    ins = convert_inputs(golden.CASES[CASE], {"b": base["b"], "zf": base["zf"]}, profile)
+    return np.asarray(ins["b"], np.float64), np.asarray(ins["zf"], np.float64)
+
+
+def _hausdorff_port(base, profile, bound="lower"):
+    b, zf = _unit_inputs(base, profile)
+    return hausdorff.shadow_intensity(b, zf, bound)
+
+
+@pytest.mark.parametrize("output", ["intensity", "visibility"])
+def test_a_hausdorff_port_is_advised_bound_hausdorff_on_its_failing_rows(tmp_path, output):
+    profile = parse_profile(dict(UNIT, output=output))
+    got = _hausdorff_port(_base()[1], profile)
+    got = 1 - got if output == "visibility" else got
+    case = _verify(tmp_path, got.astype(np.float32), profile)
+    failing = np.flatnonzero(~case.verdict.row_pass).tolist()
+    assert case.status == "fail" and len(failing) > 10
+    advice = [g for g in case.groups if g.flags == 'bound = "hausdorff"']
+    assert len(advice) == 1 and advice[0].level == "convention"
+    assert advice[0].rows == failing  # the exact bound explains every failing row, and only failing rows
+
+
+def test_no_bound_advice_where_another_bug_fails_most_rows(tmp_path):
+    # the exact Hausdorff bound, but 0.25 too low on 100 rows it would pass: 54 of 154 failing rows (35 %)
+    # are Hausdorff's; the rest another bug, below the bound (a check without |.| would take them)
+    profile = parse_profile(UNIT)
+    _, base = _base()
+    got = _hausdorff_port(base, profile)
+    v = _verify(tmp_path, got.astype(np.float32), profile).verdict
+    passing = np.flatnonzero(v.row_pass & ~v.robust)  # contract rows it passes
+    bug = got.copy()
+    bug[passing[:100]] -= 0.25
+    case = _verify(tmp_path, bug.astype(np.float32), profile)
+    assert case.status == "fail" and case.verdict.failures == 154
+    assert not [g for g in case.groups if "hausdorff" in g.flags]
+
+
+def test_no_bound_advice_for_the_upper_hausdorff_bound_on_the_lower_case(tmp_path):
+    profile = parse_profile(UNIT)
+    case = _verify(tmp_path, _hausdorff_port(_base()[1], profile, "upper").astype(np.float32), profile)
+    assert case.status == "fail"
+    assert not [g for g in case.groups if "hausdorff" in g.flags]
