@@ -170,3 +170,70 @@ def test_no_bound_advice_for_the_upper_hausdorff_bound_on_the_lower_case(tmp_pat
     case = _verify(tmp_path, _hausdorff_port(_base()[1], profile, "upper").astype(np.float32), profile)
     assert case.status == "fail"
     assert not [g for g in case.groups if "hausdorff" in g.flags]
+
+
+# ---------------------------------------------------------------------------
+# A singular bias target (engine cases): the rows whose biased moments stay singular, named with the target
+
+
+def _engine(depth, target, output="intensity", alpha=3e-6):
+    """``(verdict, arrays, declared bias, ctx)`` of an Algorithm 1 port without the singular branch, biased
+    inside toward ``target`` as the profile declares."""
+    from moments_ref.golden.compare import compare
+    from moments_ref.golden.conventions import profiled_arrays
+    from moments_ref.golden.writer import manifest_entry
+
+    p = parse_profile({"depth": depth, "output": output,
+                       "bias": {"alpha": alpha, "target": list(target), "applied": "inside"}})
+    case, arrays = profiled_arrays("engine-lower-float32", p)
+    got = ports.alg1(arrays["b"], arrays["zf"], {"literal_root": True, "no_singular": True,
+                                                  "visibility": output == "visibility", "bias": (alpha, target)})
+    v = compare(manifest_entry(case, arrays), arrays, {"intensity": got}, case=case.name)
+    return v, arrays, p.bias, case.engine
+
+
+def _moments(points):
+    return [sum(w * z ** k for z, w in points) for k in range(1, 5)]
+
+
+@pytest.mark.parametrize("depth, points, output, words", [
+    ("[-1,1]", [(0.3, 1.0)], "intensity", "1·δ(0.3), a one-point distribution"),
+    ("[-1,1]", [(-1.0, 0.5), (1.0, 0.5)], "intensity", "0.5·δ(-1) + 0.5·δ(1), a two-point distribution"),
+    ("[0,1]", [(0.0, 0.5), (1.0, 0.5)], "visibility", "0.5·δ(0) + 0.5·δ(1), a two-point distribution"),
+])
+def test_a_singular_target_is_named_on_exactly_the_rows_it_leaves_singular(depth, points, output, words):
+    from moments_ref.golden.diagnosis import target_groups
+
+    target = _moments(points)
+    v, arrays, bias, ctx = _engine(depth, target, output)
+    failing = np.flatnonzero(~v.row_pass).tolist()
+    assert failing
+    gs = target_groups(v, arrays, bias, ctx)
+    assert len(gs) == 1 and gs[0].level == "target" and gs[0].rows == failing
+    assert gs[0].flags == f"bias target {target}" and words in gs[0].cause
+    # independently: each such row's distribution together with the target's support has at most two
+    # points (both in the profile's frame; points within 1e-3, a tight cluster, count once: numerically one),
+    # so the biased 3x3 Hankel matrix stays (nearly) singular
+    for i in failing:
+        z = np.sort([float(z) for z, m in zip(arrays["support"][i], arrays["mass"][i]) if m > 0]
+                    + [z for z, _ in points])
+        assert 1 + np.count_nonzero(np.diff(z) > 1e-3) <= 2, (i, z)
+
+
+def test_no_target_group_without_a_singular_target_or_for_rows_it_does_not_explain():
+    from moments_ref.golden.diagnosis import target_groups
+
+    v, arrays, bias, ctx = _engine("[-1,1]", [0.0, 0.375, 0.0, 0.375])  # the papers' float32 target: interior
+    assert target_groups(v, arrays, None, ctx) == []  # no declaration
+    # the port biased toward the interior target passes; the same verdict with one row failing for another cause
+    assert v.passed
+    v.row_pass[np.flatnonzero(arrays["category"] == "random")[0]] = False
+    assert target_groups(v, arrays, bias, ctx) == []
+    # a singular target declared, but the only failing row is one whose distribution it does not leave singular
+    target = _moments([(-1.0, 0.5), (1.0, 0.5)])
+    v, arrays, bias, ctx = _engine("[-1,1]", target)
+    explained = set(np.flatnonzero(~v.row_pass).tolist())
+    other = next(i for i in range(len(v.row_pass)) if i not in explained and arrays["category"][i] == "random")
+    v.row_pass[:] = True
+    v.row_pass[other] = False
+    assert target_groups(v, arrays, bias, ctx) == []
