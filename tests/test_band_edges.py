@@ -61,3 +61,58 @@ def test_an_unbounded_outputs_band_is_lo_minus_and_hi_plus_the_margin():
     # a formulation widens an unbounded contract row whatever its distance (no cap to exceed)
     lo, hi, *_ = _band(_case(), [1.0], [[1.0]], hooks=[[9.0]])
     assert (lo[0], hi[0]) == (1.0 - 24.0, 9.0 + 24.0)
+
+
+# ---------------------------------------------------------------------------
+# integer outputs: the goldens' tie rule, on a toy code whose every legitimate evaluation is told apart
+
+K = 2.0**20  # code = floor(x K + 1/2): one code every 2^-20, about one float32 nudge (8 · 2^-23) of x = 1
+
+
+def _code_reference(x):
+    """The reference: float32 arithmetic gives the code 10 below, float64 the code 20 above the exact one
+    (a toy whose legitimate evaluations all differ, so each one's presence is visible)."""
+    x = np.asarray(x)
+    q = np.floor(x * x.dtype.type(K) + x.dtype.type(0.5)).astype(np.int64)
+    return (q - 10 if x.dtype == np.float32 else q + 20,)
+
+
+def _code_truth(x):
+    return (np.floor(np.asarray(x, np.float64) * K + 0.5).astype(np.int64),)
+
+
+def _code_case(**kw):
+    return Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("q",), rows=None,
+                reference=_code_reference, truth=_code_truth, metric="exact", **kw)
+
+
+def test_a_codes_band_spans_the_truths_the_references_and_the_nudged_inputs_codes():
+    # x = 1 + 2^-20: x K + 1/2 = 2^20 + 3/2, exact code c = 2^20 + 1 (and on every input within 3 float32 ulps:
+    # they move x K by at most 3/8). float32 reference: c - 10; float64: c + 20; the float64 reference on
+    # x (1 + 8 · 2^-23): x K = 2^20 + 2 + 2^-20, code c + 1, so c + 21; on x (1 - 8 · 2^-23): x K = 2^20 - 2^-20,
+    # code c - 1, so c + 19.
+    x = np.array([1 + 2.0**-20], np.float32)
+    c = 2**20 + 1
+    assert _code_truth(x)[0].tolist() == [c]
+    (lo, hi), = bands.legitimate_interval(_code_case(), {"x": x})[0].values()
+    assert (lo.tolist(), hi.tolist()) == ([c - 10.0], [c + 21.0])
+    legit = {c, c - 10, c + 20, c + 21, c + 19}
+    for q in range(c - 12, c + 24):
+        assert bands.confirm(_code_case(), {"x": x}, {"q": np.array([q])}).tolist() == [q not in legit], q
+
+
+def test_on_a_rounding_tie_either_neighbour_of_the_exact_code_is_explained():
+    # the case's margin (distance to a rounding boundary) at or below TIE_BAND: the codes next to the exact
+    # one are legitimate too (a GPU's log or exp a few ulps off); two away, or above the band, not
+    x = np.array([1 + 2.0**-20] * 3, np.float32)
+    c = 2**20 + 1
+
+    def margin(at):
+        return lambda x: np.full(len(x), at)
+
+    tie = _code_case(margin=margin(bands.TIE_BAND))
+    got = np.array([c - 1, c + 2, c + 1])
+    assert bands.confirm(tie, {"x": x}, {"q": got}).tolist() == [False, True, False]
+    assert bands.confirm(tie, {"x": x}, {"q": np.array([c - 2, c + 3, c + 18])}).tolist() == [True, True, True]
+    above = _code_case(margin=margin(2 * bands.TIE_BAND))
+    assert bands.confirm(above, {"x": x}, {"q": got}).tolist() == [True, True, True]
