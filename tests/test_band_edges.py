@@ -116,3 +116,50 @@ def test_on_a_rounding_tie_either_neighbour_of_the_exact_code_is_explained():
     assert bands.confirm(tie, {"x": x}, {"q": np.array([c - 2, c + 3, c + 18])}).tolist() == [True, True, True]
     above = _code_case(margin=margin(2 * bands.TIE_BAND))
     assert bands.confirm(above, {"x": x}, {"q": got}).tolist() == [True, True, True]
+
+
+# ---------------------------------------------------------------------------
+# confirm's neighbourhood: points within PERTURB_ULPS float32 ulps per component, not only jointly
+
+E24 = 2.0**-24  # the float32 spacing in [0.5, 1)
+
+
+def _difference(x1, x2):
+    return ((np.asarray(x1, np.float64) - np.asarray(x2, np.float64)) * 1e6,)
+
+
+def _difference_case():
+    # y = (x1 - x2) 10^6 at x1 = x2 = 0.75: scaling both jointly leaves y = 0; only inputs rounded apart move it
+    return Case(name="toy", function="toy", dtype="float32", inputs=("x1", "x2"), outputs=("y",), rows=None,
+                reference=_difference, truth=_difference, perturb=True, floor_scale=0.0)
+
+
+def test_confirm_explains_inputs_moved_apart_by_up_to_three_ulps_each_but_not_farther():
+    # 0.75 (1 + j 2^-23) rounds to 0.75 + {2, 3, 4} 2^-24 for j = 1, 2, 3 (ties to even), and below alike: two
+    # inputs moved apart by (3, -2) or (2, -3) ulps differ by 7 · 2^-24, by (3, -3) 8 · 2^-24 (equal inputs have
+    # no component-wise legitimate evaluation: only confirm's random neighbours move them apart). Over 40 rows with 12 random neighbours each,
+    # some row draws such a pair (each draw one in 16: 3 of 49 pairs); 9 · 2^-24 no row explains.
+    n = 40
+    x = np.full(n, 0.75, np.float32)
+    case = _difference_case()
+    wrong7 = bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, 7 * E24 * 1e6)})
+    assert not wrong7.all() and wrong7.any()
+    assert bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, 9 * E24 * 1e6)}).all()
+
+
+def _sqrt_of_distance(x):
+    x = np.asarray(x, np.float64)
+    with np.errstate(invalid="ignore"):
+        return (np.sqrt(0.75 - x),)
+
+
+def test_the_neighbourhood_interval_spans_the_finite_exact_values_around_the_row():
+    # sqrt(0.75 - x) at x = 0.75: NaN above (no value), 0 on the row, and below it the farthest neighbour,
+    # 0.75 (1 - 3 · 2^-23) rounded to float32 (0.75 - 4 · 2^-24, ties to even)
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_sqrt_of_distance, truth=_sqrt_of_distance, floor_scale=0.0)
+    x = np.array([0.75, 0.75, 0.5], np.float32)
+    (lo, hi), = bands.neighbourhood_interval(case, {"x": x}).values()
+    assert lo.tolist()[:2] == [0.0, 0.0] and hi.tolist()[:2] == [np.sqrt(4 * E24)] * 2
+    # at 0.5 (spacing 2^-24 above, 2^-25 below): the exact values at 0.5 (1 ± 3 · 2^-23), i.e. 0.5 ± 3 · 2^-24
+    assert (lo[2], hi[2]) == (np.sqrt(0.25 - 3 * E24), np.sqrt(0.25 + 3 * E24))
