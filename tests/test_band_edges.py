@@ -11,6 +11,7 @@ from that rule, with a range of [0, 50] so that the cap is exactly 1.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from moments_ref.golden import bands
 from moments_ref.golden.cases import Case
@@ -163,3 +164,37 @@ def test_the_neighbourhood_interval_spans_the_finite_exact_values_around_the_row
     assert lo.tolist()[:2] == [0.0, 0.0] and hi.tolist()[:2] == [np.sqrt(4 * E24)] * 2
     # at 0.5 (spacing 2^-24 above, 2^-25 below): the exact values at 0.5 (1 ± 3 · 2^-23), i.e. 0.5 ± 3 · 2^-24
     assert (lo[2], hi[2]) == (np.sqrt(0.25 - 3 * E24), np.sqrt(0.25 + 3 * E24))
+
+
+# ---------------------------------------------------------------------------
+# the case's rounding noise: the 90th percentile over its random rows, each row's neighbourhood as the rule says
+# (component-wise neighbours only on rows without a structured flag and without equal inputs)
+
+U = E24 * 1e6  # one float32 spacing of 0.75 or 0.5 in y = (x1 - x2) 10^6
+
+
+def _noise_case(rows):
+    """A toy case whose random rows are ``rows``: (x1, x2, flags) each."""
+    from types import SimpleNamespace
+
+    def generate(rng, dtype):
+        return SimpleNamespace(inputs={"x1": [r[0] for r in rows], "x2": [r[1] for r in rows]},
+                               category=["random"] * len(rows), comment=[""] * len(rows),
+                               flags=[r[2] for r in rows])
+
+    return Case(name="toy-noise", function="toy", dtype="float32", inputs=("x1", "x2"), outputs=("y",),
+                rows=generate, reference=_difference, truth=_difference, floor_scale=0.0)
+
+
+def test_the_noise_takes_component_wise_neighbours_only_where_the_rule_allows_them():
+    # (0.75, 0.5): jointly scaled by 1 ± 3 · 2^-23 and rounded, 0.75 ± 4 · 2^-24 and 0.5 ± 3 · 2^-24: y moves by
+    # 1 U; one ulp each way with alternating signs, 0.75 ± 2 · 2^-24 (ties to even) and 0.5 ∓ 2^-24: 3 U.
+    # (0.75, 0.75), equal inputs: jointly 0; component-wise it would be 4 U.
+    plain, edge, fold, equal = (0.75, 0.5, ()), (0.75, 0.5, ("shadow_edge",)), (0.75, 0.5, ("fold",)), \
+        (0.75, 0.75, ())
+    # devs 3 U on nine rows flagged with a non-structured flag, 1 U on the structured one, 0 on the equal one
+    assert bands.case_noise(_noise_case([edge] * 9 + [fold, equal]), "float32") == (3 * U,)
+    # nine unflagged rows
+    assert bands.case_noise(_noise_case([plain] * 9 + [fold, equal]), "float32") == (3 * U,)
+    # nine rows of equal inputs and one plain: the 90th percentile of (0 x 9, 3 U), 0.3 U
+    assert bands.case_noise(_noise_case([equal] * 9 + [plain]), "float32") == pytest.approx((0.3 * U,), rel=1e-12)
