@@ -198,3 +198,20 @@ def test_the_noise_takes_component_wise_neighbours_only_where_the_rule_allows_th
     assert bands.case_noise(_noise_case([plain] * 9 + [fold, equal]), "float32") == (3 * U,)
     # nine rows of equal inputs and one plain: the 90th percentile of (0 x 9, 3 U), 0.3 U
     assert bands.case_noise(_noise_case([equal] * 9 + [plain]), "float32") == pytest.approx((0.3 * U,), rel=1e-12)
+
+
+def test_a_formulation_within_the_cap_explains_a_float64_ports_value_to_its_last_bit():
+    # range [-25, 25], cap 1: formulations x + 1/2 + 2^-30 and x - 1 (exactly at the cap in float64 for x = 0.1:
+    # fl(fl(0.1 - 1) - 0.1) = -1). A float64 port returning either value exactly is explained (its floor is 8
+    # float64 ulps of 1); the same value read in float32 would lose the 2^-30, or put 0.1 - 1 beyond the cap.
+    def hook(inputs, dtype):
+        x = np.asarray(inputs["x"], np.float64)
+        return [(x + 0.5 + 2.0**-30,), (x - 1.0,)]
+
+    case = Case(name="toy", function="toy", dtype="float64", inputs=("x",), outputs=("y",), rows=None,
+                reference=_identity, truth=_identity, value_range=(-25, 25), spread_hook=hook)
+    x = np.array([0.25, 0.1])
+    assert abs((0.1 - 1.0) - 0.1) == 1.0 and abs((0.1 - 1.0) - float(np.float32(0.1))) > 1.0
+    got = np.array([0.75 + 2.0**-30, 0.1 - 1.0])
+    assert not bands.confirm(case, {"x": x}, {"y": got}, "float64").any()
+    assert bands.confirm(case, {"x": x}, {"y": got + 2.0**-40}, "float64").tolist() == [True, False]
