@@ -84,6 +84,23 @@ def test_a_ports_known_convention_is_named_on_every_failing_row_and_declaring_it
     assert golden.verify(gdir, tmp_path / "d.npz", profile=declared).cases[0].status == "pass"
 
 
+@pytest.mark.parametrize("what", ["receiver offset", "caller's clamp"])
+def test_no_advice_when_one_failing_row_has_another_cause(tmp_path, what):
+    # the convention explains every failing row but one, which is wrong for another reason (its value mirrored, or
+    # 0): declaring the convention would leave that failure, so it is not advised
+    port, level, flags, declare = ADVICE[what]
+    _, base = _base()
+    got = port(base)
+    failing = np.flatnonzero(~_verify(tmp_path, got).verdict.row_pass)
+    bug = got.copy()
+    i = failing[0]
+    bug[i] = np.float32(1) - bug[i] if abs(bug[i] - 0.5) > 0.1 else np.float32(0)
+    case = _verify(tmp_path, bug)
+    assert case.status == "fail" and case.verdict.failures == len(failing)
+    assert all(g.level != level for g in case.groups)
+    assert _verify(tmp_path, bug, parse_profile(declare)).verdict.failures == 1
+
+
 def test_the_authors_clamp_in_algorithm_3_is_named_a_convention(tmp_path):
     name = "shade-float32"
     _, base = _base(name)
