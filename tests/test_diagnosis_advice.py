@@ -254,3 +254,15 @@ def test_no_target_group_without_a_singular_target_or_for_rows_it_does_not_expla
     v.row_pass[:] = True
     v.row_pass[other] = False
     assert target_groups(v, arrays, bias, ctx) == []
+
+
+@pytest.mark.parametrize("offset", [1e-6, 1e-5, 1e-4, 1e-3])
+def test_each_documented_receiver_offset_is_told_by_its_outputs(tmp_path, offset):
+    # the acne guards engines use (diagnosis.OFFSET_CANDIDATES, docs/ports.md): a port at zf - offset is advised that
+    # offset, not a neighbouring one
+    _, base = _base()
+    got = _ref(base["b"], (base["zf"] - np.float32(offset)).astype(np.float32))
+    case = _verify(tmp_path, got)
+    assert case.status == "fail"
+    assert (case.groups[0].level, case.groups[0].flags) == ("convention", f"receiver_offset = {offset:g}")
+    assert case.groups[0].rows == np.flatnonzero(~case.verdict.row_pass).tolist()
