@@ -73,3 +73,15 @@ def test_a_truncated_file_is_refused_in_one_line(tmp_path, keep):
     with pytest.raises(InputError, match=r"^golden file c\.npz: ") as e:
         _load(tmp_path, blob[:int(len(blob) * keep)])
     assert "\n" not in str(e.value)
+
+
+def test_a_sha256_wrong_in_its_last_digit_only_is_refused(tmp_path):
+    # every one of the 64 digits counts: a manifest whose sha256 differs from the file's in the last digit alone
+    blob = _blob()
+    (tmp_path / "c.npz").write_bytes(blob)
+    good = hashlib.sha256(blob).hexdigest()
+    assert loader.load_case_arrays(tmp_path, "c", dict(META, sha256=good))["y"].tolist() == [0.5, 1.0, 2.0]
+    for k in (63, 32, 16):
+        bad = good[:k] + ("0" if good[k] != "0" else "1") + good[k + 1:]
+        with pytest.raises(InputError, match=r"^golden: c\.npz does not match the sha256 in manifest\.json$"):
+            loader.load_case_arrays(tmp_path, "c", dict(META, sha256=bad))
