@@ -266,3 +266,17 @@ def test_each_documented_receiver_offset_is_told_by_its_outputs(tmp_path, offset
     assert case.status == "fail"
     assert (case.groups[0].level, case.groups[0].flags) == ("convention", f"receiver_offset = {offset:g}")
     assert case.groups[0].rows == np.flatnonzero(~case.verdict.row_pass).tolist()
+
+
+def test_a_passing_port_and_a_case_the_package_does_not_know_get_no_advice(tmp_path):
+    from moments_ref.golden.diagnosis import convention_groups
+    from moments_ref.golden.profile import DEFAULT
+
+    _, base = _base()
+    got = _ref(base["b"], base["zf"])  # the golden's own float32 reference: passes
+    case = _verify(tmp_path, got)
+    assert case.status == "pass" and case.groups == []
+    assert convention_groups(CASE, case.verdict, base, {"intensity": got}, DEFAULT) == []
+    # a failing verdict of a case name outside the package's cases: nothing to try
+    failing = _verify(tmp_path, _offset(base)).verdict
+    assert convention_groups("foreign-case", failing, base, {"intensity": _offset(base)}, DEFAULT) == []
