@@ -119,7 +119,7 @@ EXAMPLES = [
      ("tmp_path", "receiver in [0, 1]")),
     (DIAGNOSIS, "target_groups::len(support) == 1 -> len(support) != 1#0",
      advice.test_a_singular_target_is_named_on_exactly_the_rows_it_leaves_singular,
-     ("[-1,1]", [(0.3, 1.0)], "intensity", "1·δ(0.3), a one-point distribution")),
+     ("[-1,1]", [(0.3, 1.0)], "intensity", "1·δ(0.3), a one-point distribution", 3e-6)),
 ]
 
 
