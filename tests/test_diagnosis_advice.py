@@ -288,3 +288,26 @@ def test_a_passing_port_and_a_case_the_package_does_not_know_get_no_advice(tmp_p
     # a failing verdict of a case name outside the package's cases: nothing to try
     failing = _verify(tmp_path, _offset(base)).verdict
     assert convention_groups("foreign-case", failing, base, {"intensity": _offset(base)}, DEFAULT) == []
+
+
+def test_the_bound_advice_on_a_single_failing_row_needs_that_row_explained(tmp_path):
+    # the expected values themselves (a passing port) with one row replaced: by the Hausdorff bound there (a row
+    # where it differs from Algorithm 1's beyond the band), advised on that row; by another wrong value, not
+    from moments_ref.golden.conventions import profiled_arrays
+
+    profile = parse_profile(UNIT)
+    _, base = _base()
+    expected = np.asarray(profiled_arrays(CASE, profile, arrays=base)[1]["intensity"], np.float64)
+    h = _hausdorff_port(base, profile)
+    i = np.flatnonzero(~_verify(tmp_path, h.astype(np.float32), profile).verdict.row_pass)[0]
+    one = expected.copy()
+    one[i] = h[i]
+    case = _verify(tmp_path, one.astype(np.float32), profile)
+    assert np.flatnonzero(~case.verdict.row_pass).tolist() == [i]
+    advice = [g for g in case.groups if "hausdorff" in g.flags]
+    assert len(advice) == 1 and advice[0].rows == [i]
+    wrong = expected.copy()
+    wrong[i] = h[i] + (0.3 if h[i] < 0.5 else -0.3)
+    case = _verify(tmp_path, wrong.astype(np.float32), profile)
+    assert np.flatnonzero(~case.verdict.row_pass).tolist() == [i]
+    assert not [g for g in case.groups if "hausdorff" in g.flags]
