@@ -215,3 +215,19 @@ def test_a_formulation_within_the_cap_explains_a_float64_ports_value_to_its_last
     got = np.array([0.75 + 2.0**-30, 0.1 - 1.0])
     assert not bands.confirm(case, {"x": x}, {"y": got}, "float64").any()
     assert bands.confirm(case, {"x": x}, {"y": got + 2.0**-40}, "float64").tolist() == [True, False]
+
+
+def _peak(x):
+    # -((x - c) / 2^-24)^2 with c = fl32(0.75 (1 + 2^-23)) = 0.75 + 2 · 2^-24: 0 at c, -4 at 0.75
+    return (-(((np.asarray(x, np.float64) - (0.75 + 2 * E24)) / E24) ** 2),)
+
+
+def test_confirm_takes_the_exact_value_one_ulp_away_on_every_row():
+    # The row x = 0.75: its neighbours 0.75 (1 + k 2^-23) rounded are 0.75 + {2, 3, 4} 2^-24 (k = 1, 2, 3): the peak
+    # (0) is at k = 1 alone; the other points give -1 and -4, below 0.75 - 2, -3, -4 ulps -16, -25, -36. A port
+    # returning 0 is explained on every row (by the k = 1 point, whatever the random neighbours draw); 1/2 not.
+    case = Case(name="toy", function="toy", dtype="float32", inputs=("x",), outputs=("y",), rows=None,
+                reference=_peak, truth=_peak, perturb=False, floor_scale=0.0)
+    x = np.full(40, 0.75, np.float32)
+    assert not bands.confirm(case, {"x": x}, {"y": np.zeros(40)}).any()
+    assert bands.confirm(case, {"x": x}, {"y": np.full(40, 0.5)}).all()
