@@ -311,3 +311,18 @@ def test_the_bound_advice_on_a_single_failing_row_needs_that_row_explained(tmp_p
     case = _verify(tmp_path, wrong.astype(np.float32), profile)
     assert np.flatnonzero(~case.verdict.row_pass).tolist() == [i]
     assert not [g for g in case.groups if "hausdorff" in g.flags]
+
+
+def test_arrays_that_are_not_per_row_stay_whole_when_a_candidate_is_tried_on_a_few_rows(tmp_path):
+    # golden.diagnosis tries a candidate first on a few failing rows (SAMPLE_ROWS), picking those rows of every
+    # per-row array; a whole-case array (a scalar, a table of another length) is kept as it is, and the advice
+    # is the same as without it
+    from moments_ref.golden.diagnosis import convention_groups
+    from moments_ref.golden.profile import DEFAULT
+
+    _, base = _base()
+    got = _offset(base)
+    v = _verify(tmp_path, got).verdict
+    arrays = dict(base, whole=np.array(0.5), table=np.arange(5.0))
+    gs = convention_groups(CASE, v, arrays, {"intensity": got}, DEFAULT)
+    assert [(g.flags, g.rows) for g in gs] == [("receiver_offset = 1e-05", np.flatnonzero(~v.row_pass).tolist())]
