@@ -326,3 +326,19 @@ def test_arrays_that_are_not_per_row_stay_whole_when_a_candidate_is_tried_on_a_f
     arrays = dict(base, whole=np.array(0.5), table=np.arange(5.0))
     gs = convention_groups(CASE, v, arrays, {"intensity": got}, DEFAULT)
     assert [(g.flags, g.rows) for g in gs] == [("receiver_offset = 1e-05", np.flatnonzero(~v.row_pass).tolist())]
+
+
+def test_an_undeclared_offset_is_found_under_a_declared_slope(tmp_path):
+    # receiver_slope declared (zf - 1e-4 slope), and a constant 1e-5 on top undeclared: the advice is the offset,
+    # judged on every row with the slopes the port was given (a few rows derived alone would get other slopes:
+    # receiver.slopes draws them for the row count)
+    from moments_ref.golden.conventions import profiled_arrays
+
+    declared = parse_profile({"receiver_slope": 1e-4})
+    _, base = _base()
+    slope = profiled_arrays(CASE, declared, arrays=base)[1]["slope"]
+    got = _ref(base["b"], (base["zf"] - np.float32(1e-4) * slope - np.float32(1e-5)).astype(np.float32))
+    case = _verify(tmp_path, got, declared)
+    assert case.status == "fail"
+    assert (case.groups[0].level, case.groups[0].flags) == ("convention", "receiver_offset = 1e-05")
+    assert case.groups[0].rows == np.flatnonzero(~case.verdict.row_pass).tolist()
