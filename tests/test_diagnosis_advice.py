@@ -342,3 +342,41 @@ def test_an_undeclared_offset_is_found_under_a_declared_slope(tmp_path):
     assert case.status == "fail"
     assert (case.groups[0].level, case.groups[0].flags) == ("convention", "receiver_offset = 1e-05")
     assert case.groups[0].rows == np.flatnonzero(~case.verdict.row_pass).tolist()
+
+
+def test_a_float64_hausdorff_port_is_advised_within_its_float64_band(tmp_path):
+    # the float64 case: the port's band is a few float64 ulps, so the bound must be computed in float64 on the
+    # inputs the port was given to explain its rows. (Where the bound has no value, NaN on a bias_floor row, the
+    # port returns Algorithm 1's expected value: it passes there.)
+    from moments_ref.golden.conventions import convert_inputs, profiled_arrays
+
+    name = "shadow_intensity-lower-float64"
+    profile = parse_profile(UNIT)
+    _, base = _base(name)
+    ins = convert_inputs(golden.CASES[name], {"b": base["b"], "zf": base["zf"]}, profile)
+    h = hausdorff.shadow_intensity(np.asarray(ins["b"], np.float64), np.asarray(ins["zf"], np.float64), "lower")
+    expected = np.asarray(profiled_arrays(name, profile, arrays=base)[1]["intensity"], np.float64)
+    got = np.where(np.isfinite(h), h, expected)
+    case = _verify(tmp_path, got, profile, name=name)
+    failing = np.flatnonzero(~case.verdict.row_pass).tolist()
+    assert case.verdict.port_dtype == "float64" and len(failing) > 10
+    advice = [g for g in case.groups if g.flags == 'bound = "hausdorff"']
+    assert len(advice) == 1 and advice[0].rows == failing
+
+
+def test_json_rows_give_a_rows_text_and_float_inputs_flat_and_its_integer_codes_as_they_are():
+    # --json rows: float and text values of a row are listed flat (a (2, 2) entry as four values), integer codes
+    # keep their shape (readback words per texel)
+    from types import SimpleNamespace
+
+    from moments_ref.golden.diagnosis import json_rows
+
+    arrays = {"tc_id": np.array([1]), "category": np.array(["random"]), "flags": np.array([""]),
+              "comment": np.array([""]), "t": np.array([[["a", "b"], ["c", "d"]]]),
+              "f": np.array([[[0.5, 1.5], [2.5, 3.5]]]), "q": np.array([[[1, 2], [3, 4]]], np.uint16),
+              "y": np.array([1.0])}
+    v = SimpleNamespace(row_pass=np.array([True]), strict_pass=None, robust=None, level=np.array(["contract"]),
+                        error=np.array([0.0]), tolerance=np.array([1.0]), passed=True, strict=False, failures=0,
+                        robustness_tally=lambda: {})
+    doc = json_rows("toy", {"compare": ["y"], "input_order": ["t", "f", "q"]}, arrays, {"y": np.array([1.0])}, v)
+    assert doc["rows"][0]["inputs"] == {"t": ["a", "b", "c", "d"], "f": [0.5, 1.5, 2.5, 3.5], "q": [[1, 2], [3, 4]]}
