@@ -85,3 +85,31 @@ def test_a_sha256_wrong_in_its_last_digit_only_is_refused(tmp_path):
         bad = good[:k] + ("0" if good[k] != "0" else "1") + good[k + 1:]
         with pytest.raises(InputError, match=r"^golden: c\.npz does not match the sha256 in manifest\.json$"):
             loader.load_case_arrays(tmp_path, "c", dict(META, sha256=bad))
+
+
+def test_a_case_read_alone_is_checked_against_its_manifest_entry_first(tmp_path):
+    # load_case_arrays is public: its entry is checked before the file is opened (a file name outside the folder)
+    (tmp_path / "g").mkdir()
+    (tmp_path / "c.npz").write_bytes(_blob())
+    meta = dict(META, file="../c.npz", sha256=hashlib.sha256(_blob()).hexdigest())
+    with pytest.raises(InputError, match=r"expected a file name inside the golden folder, got '\.\./c\.npz'"):
+        loader.load_case_arrays(tmp_path / "g", "c", meta)
+
+
+def test_a_folder_marked_incomplete_is_refused_before_its_manifest_is_read(tmp_path):
+    from moments_ref._io import INCOMPLETE
+
+    (tmp_path / "manifest.json").write_text("{}")  # would be refused for its content; the marker comes first
+    (tmp_path / INCOMPLETE).write_text("")
+    with pytest.raises(InputError, match=r"^golden_dir: .* is incomplete: its writing was interrupted"):
+        loader.load_manifest(tmp_path)
+
+
+def test_an_archive_member_flagged_encrypted_is_refused_as_such(tmp_path):
+    # zip general-purpose flag bit 0 (encryption) set on the member's local and central headers
+    blob = bytearray(_blob())
+    for sig, at in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):
+        i = blob.index(sig)
+        blob[i + at] |= 0x1
+    with pytest.raises(InputError, match=r"^golden file c\.npz: array '\w+' is encrypted \(zip flag bit 0\)"):
+        _load(tmp_path, bytes(blob))
