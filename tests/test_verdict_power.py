@@ -13,12 +13,15 @@ from contextlib import contextmanager
 
 import pytest
 
+import test_band_edges as edges
 import test_band_model as band
 import test_compare_tallies as tallies
 import test_contract_rows as rows
+import test_diagnosis_advice as advice
 import test_diagnosis_groups as diag
 import test_kernel_judge as judge
 import test_spread_model as spread
+import test_spread_ties as ties
 from moments_ref.tools.mutation import ROOT, mutants_of
 from moments_ref.tools.mutation._operators import mutated_code
 
@@ -98,12 +101,31 @@ EXAMPLES = [
      diag.test_levels_are_ordered_target_format_or_convention_contract_robustness_whatever_their_size, ()),
     (DIAGNOSIS, "_narrowed::g.max() <= np.iinfo(want).max -> g.max() < np.iinfo(want).max#0",
      diag.test_readback_words_are_narrowed_to_the_codes_dtype_only_where_they_fit, ()),
+    # round three: the band's edges, the tie rule, the noise's neighbourhood, the advice on ports of known cause
+    (BANDS, "interval_parts::np.abs(h - e) <= cap -> np.abs(h - e) < cap#0",
+     edges.test_a_formulation_exactly_the_cap_away_widens_the_band_and_one_beyond_is_a_hazard, ()),
+    (BANDS, "_derived_bands::a.max -> a.min#0",
+     edges.test_a_codes_band_spans_the_truths_the_references_and_the_nudged_inputs_codes, ()),
+    (BANDS, "case_noise::any -> all#0",
+     edges.test_the_noise_takes_component_wise_neighbours_only_where_the_rule_allows_them, ()),
+    (BANDS, "_exact_values::-PERTURB_ULPS -> PERTURB_ULPS#0",
+     edges.test_confirm_explains_inputs_moved_apart_by_up_to_three_ulps_each_but_not_farther, ()),
+    (SPREAD, "_ties::np.float32 -> np.float64#0",
+     ties.test_the_acceptable_codes_are_the_truths_the_references_and_the_nudged_inputs_in_float64, ()),
+    (DIAGNOSIS, "bound_groups::1 - want -> 1 + want#0",
+     advice.test_a_hausdorff_port_is_advised_bound_hausdorff_on_its_failing_rows, ("tmp_path", "visibility")),
+    (DIAGNOSIS, "_candidates::'receiver_depth' in usable -> 'receiver_depth' not in usable#0",
+     advice.test_a_ports_known_convention_is_named_on_every_failing_row_and_declaring_it_passes,
+     ("tmp_path", "receiver in [0, 1]")),
+    (DIAGNOSIS, "target_groups::len(support) == 1 -> len(support) != 1#0",
+     advice.test_a_singular_target_is_named_on_exactly_the_rows_it_leaves_singular,
+     ("[-1,1]", [(0.3, 1.0)], "intensity", "1·δ(0.3), a one-point distribution", 3e-6)),
 ]
 
 
 @pytest.mark.parametrize("path, mid, test, args", EXAMPLES, ids=[e[1].split(" ")[0] for e in EXAMPLES])
 def test_each_invariant_fails_under_its_kept_mutant(request, path, mid, test, args):
-    values = [request.getfixturevalue(a) if a == "goldens" else a for a in args]
+    values = [request.getfixturevalue(a) if isinstance(a, str) and a in ("goldens", "tmp_path") else a for a in args]
     test(*values)  # unmutated: holds
     with _mutant(path, mid):
         with pytest.raises(Exception):  # an assertion, or the error the mutant raises

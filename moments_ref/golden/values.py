@@ -1,9 +1,10 @@
 """The value checks of a golden case's arrays, shared by the strict loader and the derived-golden cache.
 
 What the comparator relies on: the arrays a case needs are there, categories and
-results from the known sets, finite expected values, tolerances positive and never
-NaN (``+inf`` marks a row held only to a finite value in range), acceptable codes
-that the output's integer dtype can hold. Anything else raises
+results from the known sets, finite expected values within the case's ``value_range``
+(where the manifest states one), tolerances positive and never NaN (``+inf`` marks a
+row held only to a finite value in range), acceptable codes that the output's integer
+dtype can hold. Anything else raises
 :class:`~moments_ref.InputError` naming the array and the first offending row.
 """
 
@@ -52,6 +53,11 @@ def check_case_values(meta, arrays, what):
         e = arrays[o]
         if not np.isfinite(e).all():
             raise _row_error(what, o, ~np.isfinite(e), "is not finite", arrays)
+        rng = meta.get("value_range")  # the manifest's [lo, hi] (checked by loader.check_entry); a cache entry has none
+        if rng is not None and ((e < rng[0]) | (e > rng[1])).any():
+            out = (e < rng[0]) | (e > rng[1])
+            raise _row_error(what, o, out, f"is {float(e[first_index(out)])!r}, beyond the case's value_range "
+                                           f"{list(rng)},", arrays)
         for dt in ("float32", "float64"):
             t = arrays[f"{o}_tolerance_{dt}"]
             bad = np.isnan(t) | (t <= 0)
