@@ -104,29 +104,72 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy):
     """Yield _row_spans-like batches (row's triangle index first) over all triangles of ``s``.
 
     Boxes of up to _DENSE_ROWS rows go, grouped by their exact row count (a bincount,
-    no sort), to the dense float path; the rest (and any box too far into the guard
-    band for float64 to be exact) to the ragged int64 path.
+    no sort), to the dense float path; taller boxes go there too, cut into pieces of
+    _DENSE_ROWS rows (:func:`_tall_pieces`: the same rows, the same exact edge values).
+    Only boxes too far into the guard band for float64 to be exact (and every box when
+    _DENSE_ROWS is 0) take the ragged int64 path.
     """
     S = sx.shape[0]
     A3, B3, F3 = s["A"], s["B"], s["F0"]
     # Edge functions at the centre of each box's first pixel, exact in int64.
     base3 = F3 + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
     dense = (nr <= _DENSE_ROWS) & safe
-    key = np.where(dense, nr, 0)
+    tall = np.flatnonzero(~dense & safe) if _DENSE_ROWS > 0 else np.zeros(0, np.int64)
+    # The dense boxes, then the tall boxes' pieces: the triangle of each, its box and edge values.
+    tri, c0d, ncd, r0d, nrd, based = _tall_pieces(np.flatnonzero(dense), tall, c0, nc, r0, nr, base3, B3)
+    A3d, B3d = np.take(A3, tri, axis=1), np.take(B3, tri, axis=1)
+    key = nrd
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
         sel = np.flatnonzero(key == k)
         step = max(1, _ROW_BUDGET // (int(k) * S))
         for a in range(0, sel.size, step):
             g = sel[a:a + step]
-            a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
-            j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0[g], nc[g], r0[g], nr[g], int(k), sx, sy)
-            yield g[j], row, samp, col0, cnt
-    rest = np.flatnonzero(~dense)
+            a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3d, B3d, based))
+            j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k), sx, sy)
+            yield tri[g[j]], row, samp, col0, cnt
+    rest = np.flatnonzero(~dense) if _DENSE_ROWS <= 0 else np.flatnonzero(~safe)
     for g0, g1 in _groups(nr[rest] * S, _ROW_BUDGET):
         g = rest[g0:g1]
         a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
         pt, row, samp, col0, cnt = _row_spans(a3, b3, e3, c0[g], nc[g], r0[g], nr[g], sx, sy)
         yield g[pt], row, samp, col0, cnt
+
+
+def _tall_pieces(small, tall, c0, nc, r0, nr, base3, B3):
+    """The boxes ``small`` as they are and the boxes ``tall`` cut into pieces of _DENSE_ROWS rows.
+
+    Returns (triangle, c0, nc, r0, nr, base3) of every box or piece. A piece starting
+    ``d`` rows below its box has the edge values ``base3 + B3 d 256`` at its first
+    pixel (exact in int64), so its rows are those of the whole box.
+    """
+    if tall.size == 0:
+        return small, c0[small], nc[small], r0[small], nr[small], np.take(base3, small, axis=1)
+    pieces = (nr[tall] + _DENSE_ROWS - 1) // _DENSE_ROWS
+    ti = np.repeat(tall, pieces)
+    first = np.repeat(np.cumsum(pieces) - pieces, pieces)
+    drow = (np.arange(ti.size) - first) * _DENSE_ROWS  # rows from the box's top to the piece's
+    tri = np.concatenate([small, ti])
+    based = np.concatenate([np.take(base3, small, axis=1),
+                            np.take(base3, ti, axis=1) + np.take(B3, ti, axis=1) * (drow * _SUB)], axis=1)
+    return (tri, c0[tri], nc[tri], np.concatenate([r0[small], r0[ti] + drow]),
+            np.concatenate([nr[small], np.minimum(nr[ti] - drow, _DENSE_ROWS)]), based)
+
+
+def _depth_inside(s, c0, c1, r0, r1, sx, sy):
+    """Per triangle: is every covered sample's depth provably in [-1, 1] (no depth clip to test)?
+
+    A covered sample lies in the closed snapped triangle, so the exact plane through
+    its vertices gives a depth within [zlo, zhi], the vertices' range. The computed
+    depth ``(z0 + za X) + zb Y`` differs from it by the rounding of za, zb (at most a few
+    ulps of ``za_mag``, ``zb_mag``: the magnitudes of their terms) and of the three
+    operations, a few ulps of ``|za X| + |z0| + |zb Y|``. The bound below allows 2^-40,
+    over a thousand times more, at the box's farthest sample. A triangle not proven
+    inside has its rows checked (exactly, as before); the flag only skips checks that pass.
+    """
+    dx = np.maximum(np.abs(c0 * _SUB + _HALF + sx.min() - s["X"][0]), np.abs(c1 * _SUB + _HALF + sx.max() - s["X"][0]))
+    dy = np.maximum(np.abs(r0 * _SUB + _HALF + sy.min() - s["Y"][0]), np.abs(r1 * _SUB + _HALF + sy.max() - s["Y"][0]))
+    err = (s["za_mag"] * dx + s["zb_mag"] * dy + np.abs(s["z0"]) + 1.0) * 2.0 ** -40
+    return (s["zlo"] - err >= -1.0) & (s["zhi"] + err <= 1.0)
 
 
 def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
@@ -142,15 +185,21 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
     """
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
+    tri_inside = _depth_inside(s, c0, c1, r0, r1, sx, sy)
+    # Offsets of a box's pixel centres from vertex 0, per triangle (integers, exact).
+    cx, cy = _HALF - s["X"][0], _HALF - s["Y"][0]
     for i_row, row, samp, col0, cnt in _row_batches(s, c0, nc, r0, nr, safe, sx, sy):
-        xs0 = col0 * _SUB + _HALF + sx[samp] - s["X"][0, i_row]
-        zbY = s["zb"][i_row] * (row * _SUB + _HALF + sy[samp] - s["Y"][0, i_row])
+        xs0 = col0 * _SUB + sx[samp] + cx[i_row]
+        zbY = s["zb"][i_row] * (row * _SUB + sy[samp] + cy[i_row])
         z0, za = s["z0"][i_row], s["za"][i_row]
         flat0 = (row * w + col0) * S + samp
-        # z is monotone along a row (each rounding step is), so a row whose first and
-        # last sample lie in [-1, 1] needs no depth-clip test per sample.
-        zf, zl = z0 + za * xs0 + zbY, z0 + za * (xs0 + (cnt - 1) * _SUB) + zbY
-        inside = (np.minimum(zf, zl) >= -1.0) & (np.maximum(zf, zl) <= 1.0)
+        if tri_inside[i_row].all():
+            inside = np.ones(cnt.size, bool)
+        else:
+            # z is monotone along a row (each rounding step is), so a row whose first and
+            # last sample lie in [-1, 1] needs no depth-clip test per sample.
+            zf, zl = z0 + za * xs0 + zbY, z0 + za * (xs0 + (cnt - 1) * _SUB) + zbY
+            inside = (np.minimum(zf, zl) >= -1.0) & (np.maximum(zf, zl) <= 1.0)
         for b0, b1 in _groups(cnt, _SAMPLE_BUDGET):
             b = slice(b0, b1)
             c = cnt[b]
@@ -250,8 +299,8 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
         np.maximum(nhi, np.add(m, np.where(pos, -np.inf, 0.0), out=t), out=nhi)
     cnt = np.subtract(1.0, nhi, out=nhi)
     cnt -= lo
-    keep = np.flatnonzero(cnt > 0)
-    rs, j = np.divmod(keep, n)
-    r, samp = np.divmod(rs, S)
-    return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
-            cnt.ravel()[keep].astype(np.int64))
+    # The nonempty rows in (row, sample, triangle) order: np.nonzero of the 3-d mask gives
+    # the three indices without integer divisions.
+    keep = cnt > 0
+    r, samp, j = np.nonzero(keep)
+    return (j, r0[j] + r, samp, c0[j] + lo[keep].astype(np.int64), cnt[keep].astype(np.int64))

@@ -260,8 +260,13 @@ def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
     dz1, dz2 = zv[1] - zv[0], zv[2] - zv[0]
     za = (A[2] * dz1 + A[0] * dz2) / fa
     zb = (B[2] * dz1 + B[0] * dz2) / fa
+    # For the depth clip's bound (_spans._depth_inside): the vertices' depth range and the
+    # magnitudes that bound the rounding of za, zb and of the plane's evaluation.
+    za_mag = np.abs(za) + (np.abs(A[2] * dz1) + np.abs(A[0] * dz2)) / fa
+    zb_mag = np.abs(zb) + (np.abs(B[2] * dz1) + np.abs(B[0] * dz2)) / fa
 
-    s = {"tid": tid, "X": X, "Y": Y, "A": A, "B": B, "F0": F0, "z0": zv[0], "za": za, "zb": zb}
+    s = {"tid": tid, "X": X, "Y": Y, "A": A, "B": B, "F0": F0, "z0": zv[0], "za": za, "zb": zb,
+         "zlo": zv.min(axis=0), "zhi": zv.max(axis=0), "za_mag": za_mag, "zb_mag": zb_mag}
     if want_world:
         s["C"] = C
         s["area2"] = fa
