@@ -172,8 +172,8 @@ def _depth_inside(s, c0, c1, r0, r1, sx, sy):
     return (s["zlo"] - err >= -1.0) & (s["zhi"] + err <= 1.0)
 
 
-def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
-    """Yield (flat sample index, depth float64, all in [-1, 1], (setup index, row, col, sample) or None).
+def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64):
+    """Yield (flat sample index, depth, all in [-1, 1], (setup index, row, col, sample) or None).
 
     Boxes are clamped to the map and nonempty; the flat index is
     ``(row * w + col) * S + sample``, the (setup index, row, col, sample) arrays
@@ -181,7 +181,9 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
     ``z0 + za (X - X0) + zb (Y - Y0)`` in float64 with the integer offsets
     converted exactly, evaluated in this order for every sample (so the values do
     not depend on how samples are batched). The per-row parts are computed once
-    per row and repeated along the row's covered columns.
+    per row and repeated along the row's covered columns. The depth is float64 where
+    some may lie outside [-1, 1] (the caller clips them), else already rounded to
+    ``dtype`` by the last addition (the same value as rounding the float64 sum).
     """
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
@@ -214,14 +216,16 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs):
             z += _ramp(n, _SUB, np.float64)
             z *= rep(za[b])
             z += rep(z0[b])
-            z += rep(zbY[b])
+            ins = bool(inside[b].all())
+            # The last addition rounds straight to dtype when no depth needs a clip test.
+            z = np.add(z, rep(zbY[b]), out=z if not ins or dtype == np.float64 else np.empty(n, dtype))
             flat = rep(flat0[b] - start * S)
             flat += _ramp(n, S)
             # The depth pass needs only flat and z: the rest is built for fragments only.
             rcs = None
             if want_rcs:
                 rcs = (rep(i_row[b]), rep(row[b]), rep(col0[b] - start) + _ramp(n, 1), rep(samp[b]))
-            yield flat, z, bool(inside[b].all()), rcs
+            yield flat, z, ins, rcs
 
 
 def _repeater(c, n):
