@@ -55,9 +55,13 @@ the triangle's pixel box the covered columns form one interval, solved from the
 three edge functions exactly (a division per edge, no test per sample), and the
 covered samples are written out from the intervals. Boxes of up to 32 rows are
 evaluated together on a dense (rows, samples, triangles) layout in float64
-(exact: the edge values are integers below 2^53), taller ones row by row in
-int64. So the cost is the triangle setup plus the covered samples, never the
-empty part of a bounding box. The depth resolve is ``np.minimum.at`` (NumPy ≥
+(exact: the edge values are integers below 2^53); taller boxes (mid-size and long
+thin triangles) are cut into pieces of 32 rows that take the same path, and only
+triangles reaching far into the guard band go row by row in int64. A triangle
+whose depths are proven to lie in [−1, 1] from its vertices (with a bound on the
+rounding) skips the depth-clip test of its rows. So the cost is the triangle
+setup plus the covered samples, never the empty part of a bounding box. The
+depth resolve is ``np.minimum.at`` (NumPy ≥
 1.25 made ``ufunc.at`` fast; on NumPy 2.4 it beats a lexsort + reduceat resolve
 by two orders of magnitude, see :func:`bench_raster`). Python loops run over
 chunks only; results do not depend on the chunk size.
