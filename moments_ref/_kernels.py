@@ -83,9 +83,11 @@ PATH_BAND_TEXELS = 1 << 17
 #: (:mod:`moments_ref.scene.raster`), and covered samples per yielded batch: 512 KiB per float64
 #: array, so that a batch's temporaries stay in L2 (the in-place span expansion is bandwidth-bound:
 #: railing 2048² 4×, 10.4 M samples, CPU time against main, min of 5: 2^19 samples 0.94, 2^16 0.67,
-#: 2^14 0.73).
+#: 2^14 0.73). Samples per batch 2^18 since issue 41 (the expansion has fewer passes and the batch's
+#: fixed costs weigh more): 3 interleaved pairs against 2^16, load about 10: railing 0.84–0.90 of the
+#: time, the mid-size case 0.89–0.93, 1 M small triangles 1× and 4× 0.98–1.03.
 RASTER_ROW_BUDGET = 1 << 16
-RASTER_SAMPLE_BUDGET = 1 << 16
+RASTER_SAMPLE_BUDGET = 1 << 18
 
 #: Multiple of the dtype's machine epsilon below which B(b) counts as singular
 #: (relative to b2 for σ², to max(b4, σ²) for ξ4); see :mod:`moments_ref.msm`.

@@ -135,3 +135,15 @@ def test_a_floor_probe_does_the_kernels_data_movement():
     zf = rng.uniform(-1, 1, 1000).astype(np.float32)
     assert np.array_equal(pass_probe(b, zf, 0, 64)(), zf)
     assert np.array_equal(pass_probe(b, zf, 6, 64)(), b[:, 1] * b[:, 2])  # pass 5 multiplies columns 1 and 2
+
+
+def test_the_scatter_min_floor_probe_is_the_rasterizers_depth_test():
+    # The probe scatters exactly the covered samples with their depths: its map is the rasterizer's.
+    from moments_ref.scene.raster import rasterize_depth, small_triangles
+    from moments_ref.tools.bench._probes import scatter_probe
+
+    v, t = small_triangles(300, 64, 12.0, np.random.default_rng(2))
+    probe, covered = scatter_probe(v, t, np.eye(4), 64, 4)
+    want, stats = rasterize_depth(v, t, np.eye(4), 64, samples=4)
+    assert covered == stats.samples_covered > 0
+    np.testing.assert_array_equal(probe().reshape(64, 64, 4), want)

@@ -733,7 +733,7 @@ def test_span_rows_are_flagged_inside_exactly_when_their_depths_are_in_range(see
     sx, sy = pat[:, 0], pat[:, 1]
     c0, c1, r0, r1, safe = _boxes(X, Y, h, w, sx, sy)
     sel = np.flatnonzero((c0 <= c1) & (r0 <= r1))
-    kept = {k: np.take(s[k], sel, axis=-1) for k in ("A", "B", "F0", "X", "Y", "z0", "za", "zb")}
+    kept = {k: np.take(s[k], sel, axis=-1) for k in ("A", "B", "F0", "X", "Y", "z0", "za", "zb", "inside")}
     old = _spans._SAMPLE_BUDGET
     try:
         for budget in (1, 40, old):

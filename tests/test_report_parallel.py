@@ -181,3 +181,21 @@ def test_tasks_are_ordered_longest_first_by_their_measured_costs(full, monkeypat
     assert keys.index("artifacts") < keys.index("translucent") == len(keys) - 1
     serial = [key[-1] for key, _, _ in _tasks(plans, full, jobs=1, progress=False)]
     assert serial[:len(plans)] == [sc.name for sc, _ in plans]  # one job: the scenes in the order given
+
+
+def _openmp_threads(_):
+    return os.environ.get("OMP_NUM_THREADS")
+
+
+@pytest.mark.parametrize("preset", [None, "3"])
+def test_workers_get_their_share_of_the_cores_for_openmp(preset, monkeypatch):
+    # Two workers on the usable cores: each its share for OpenMP code loaded later (ꟻLIP's
+    # libgomp reads it then), unless the user set OMP_NUM_THREADS; the parent is left alone.
+    if preset is None:
+        monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("OMP_NUM_THREADS", preset)
+    done = _run([(("a",), _openmp_threads, (0,)), (("b",), _openmp_threads, (0,))], jobs=2)
+    want = preset or str(max(1, _jobs.usable_cores() // 2))
+    assert list(done.values()) == [want, want]
+    assert os.environ.get("OMP_NUM_THREADS") == preset

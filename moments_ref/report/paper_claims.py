@@ -164,9 +164,11 @@ def _occluder_layers(result, full, gap=0.01):
     off = np.arange(-4, 5)
     rows = np.clip(c[:, 1, None, None] + off[None, :, None], 0, h - 1)
     cols = np.clip(c[:, 0, None, None] + off[None, None, :], 0, w - 1)
-    z = maps[rows, cols].reshape(c.shape[0], 81 * maps.shape[2]).astype(np.float64)  # (P, 81 S)
-    z = np.where(z < z_ndc_lookup(gb, True)[full, None] - 1e-3, z, np.inf)  # occluders only (the reference's test)
-    z = np.sort(z, axis=1)
+    z = maps[rows, cols].reshape(c.shape[0], 81 * maps.shape[2])  # (P, 81 S), the map's dtype
+    # Occluders only (the reference's test, compared in float64); sorted in the map's own dtype (a
+    # float32 sort is three times quicker than one of the same values in float64, and the same order).
+    z = np.where(z < z_ndc_lookup(gb, True)[full, None] - 1e-3, z, np.inf)
+    z = np.sort(z, axis=1).astype(np.float64)
     with np.errstate(invalid="ignore"):
         step = np.diff(z, axis=1)
     return np.isfinite(z[:, 0]) + np.sum(np.isfinite(z[:, 1:]) & (step > gap), axis=1)

@@ -55,9 +55,13 @@ the triangle's pixel box the covered columns form one interval, solved from the
 three edge functions exactly (a division per edge, no test per sample), and the
 covered samples are written out from the intervals. Boxes of up to 32 rows are
 evaluated together on a dense (rows, samples, triangles) layout in float64
-(exact: the edge values are integers below 2^53), taller ones row by row in
-int64. So the cost is the triangle setup plus the covered samples, never the
-empty part of a bounding box. The depth resolve is ``np.minimum.at`` (NumPy ≥
+(exact: the edge values are integers below 2^53); taller boxes (mid-size and long
+thin triangles) are cut into pieces of 32 rows that take the same path, and only
+triangles reaching far into the guard band go row by row in int64. A triangle
+whose depths are proven to lie in [−1, 1] from its vertices (with a bound on the
+rounding) skips the depth-clip test of its rows. So the cost is the triangle
+setup plus the covered samples, never the empty part of a bounding box. The
+depth resolve is ``np.minimum.at`` (NumPy ≥
 1.25 made ``ufunc.at`` fast; on NumPy 2.4 it beats a lexsort + reduceat resolve
 by two orders of magnitude, see :func:`bench_raster`). Python loops run over
 chunks only; results do not depend on the chunk size.
@@ -229,11 +233,12 @@ def _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype):
     return v, t, m, h, w, S, pat[:, 0] * 16, pat[:, 1] * 16, dt
 
 
-def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world):
+def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.float64):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
     Yields ``(s, flat, z, rcs)``: the chunk's setup ``s``, the flat sample index
-    ``(row * w + col) * S + sample``, the depth, and (only when ``want_world``,
+    ``(row * w + col) * S + sample``, the depth (float64 or ``dtype``: the same value
+    once rounded to ``dtype``), and (only when ``want_world``,
     else None) the (triangle index into ``s``, row, col, sample) arrays; samples
     clipped by depth are counted in ``stats`` and left out. Shared by
     :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
@@ -244,7 +249,7 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world):
         s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world)
         if s is None:
             continue
-        for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world):
+        for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world, dtype):
             ok = None if inside else (z >= -1.0) & (z <= 1.0)
             if ok is not None and not ok.all():
                 stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
@@ -313,9 +318,9 @@ def rasterize_depth(vertices, triangles, clip_from_world, size, samples=1, cull=
     v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype)
     stats = RasterStats(triangles=int(t.shape[0]))
     depth = np.ones(h * w * S, dtype=dt)
-    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False):
+    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt):
         # Depth test: keep the nearest.
-        np.minimum.at(depth, flat, z.astype(dt))
+        np.minimum.at(depth, flat, z.astype(dt, copy=False))
     return depth.reshape(h, w, S), stats
 
 

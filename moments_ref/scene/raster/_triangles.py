@@ -261,10 +261,32 @@ def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
     za = (A[2] * dz1 + A[0] * dz2) / fa
     zb = (B[2] * dz1 + B[0] * dz2) / fa
 
-    s = {"tid": tid, "X": X, "Y": Y, "A": A, "B": B, "F0": F0, "z0": zv[0], "za": za, "zb": zb}
+    s = {"tid": tid, "X": X, "Y": Y, "A": A, "B": B, "F0": F0, "z0": zv[0], "za": za, "zb": zb,
+         "inside": _depth_inside(zv, za, zb, dx, dy, A, B, dz1, dz2, fa)}
     if want_world:
         s["C"] = C
         s["area2"] = fa
         s["q"] = 1.0 / attr[3]  # 1/w for perspective-correct interpolation
         s["world"] = attr[4:7]  # (3 coords, 3 vertices, n)
     return s
+
+
+def _depth_inside(zv, za, zb, dx, dy, A, B, dz1, dz2, fa):
+    """Per triangle: is the computed depth of every sample it covers provably in [-1, 1] (no clip test)?
+
+    A covered sample lies in the closed snapped triangle, so the exact plane through its
+    vertices gives a depth within the vertices' range [min zv, max zv], and its offsets
+    from vertex 0 are at most those of the other vertices (``dx``, ``dy`` of the edges
+    from and to vertex 0) plus half a pixel. The computed depth ``(z0 + za X) + zb Y``
+    differs from the exact one by the rounding of za and zb (a few ulps of the magnitudes
+    of their terms, ``ma``, ``mb``) and of the three operations (a few ulps of
+    ``|za X| + |z0| + |zb Y|``); the bound allows 2^-40, over a thousand times more. A
+    triangle not proven inside has its rows checked exactly (:func:`._spans._iter_spans`);
+    the flag only skips checks that would pass.
+    """
+    ma = np.abs(za) + (np.abs(A[2] * dz1) + np.abs(A[0] * dz2)) / fa
+    mb = np.abs(zb) + (np.abs(B[2] * dz1) + np.abs(B[0] * dz2)) / fa
+    xm = np.maximum(np.abs(dx[0]), np.abs(dx[2])) + _SUB
+    ym = np.maximum(np.abs(dy[0]), np.abs(dy[2])) + _SUB
+    err = (ma * xm + mb * ym + np.abs(zv[0]) + 1.0) * 2.0 ** -40
+    return (zv.min(axis=0) - err >= -1.0) & (zv.max(axis=0) + err <= 1.0)

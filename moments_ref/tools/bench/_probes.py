@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pass_probe", "PASSES"]
+__all__ = ["pass_probe", "scatter_probe", "PASSES"]
 
 #: Ufunc passes per chunk of each kernel's common path, counted in its code (float and
 #: boolean passes alike; the rare singular or out-of-domain texels are handed elsewhere).
@@ -52,3 +52,29 @@ def pass_probe(b, zf, passes, chunk):
         return out
 
     return run
+
+
+def scatter_probe(vertices, triangles, clip_from_world, size, samples):
+    """The rasterizer's floor on a scene: a fresh cleared depth map and the scatter-min of its covered samples.
+
+    Any rasterizer that writes each covered sample's depth through ``np.minimum.at`` (the
+    depth test of :func:`moments_ref.scene.raster.rasterize_depth`) pays at least this: the
+    first touch of the ``size² samples`` map and one scatter-min per covered sample, with
+    the flat sample indices and float32 depths already computed (here from
+    :func:`~moments_ref.scene.raster.rasterize_fragments`, outside the timing). Returns
+    ``(probe, covered)``: a callable returning the map, and the count of covered samples.
+    """
+    from ...scene.raster import rasterize_fragments
+
+    f, _ = rasterize_fragments(vertices, triangles, clip_from_world, size, samples=samples)
+    flat = f.texel * samples + f.sample
+    z = f.depth.astype(np.float32)
+    n_map = size * size * samples
+    del f
+
+    def probe():
+        depth = np.ones(n_map, np.float32)
+        np.minimum.at(depth, flat, z)
+        return depth
+
+    return probe, int(flat.size)

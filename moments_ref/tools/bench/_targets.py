@@ -38,7 +38,7 @@ from ...scene.raster import rasterize_depth
 from ..._kernels import CHUNK, MSM_CHUNK, SHADE_CHUNK
 from ._cases import raster_case
 from ._memory import pipeline_peak_bytes
-from ._probes import PASSES, pass_probe
+from ._probes import PASSES, pass_probe, scatter_probe
 from ._timing import PAIRS, Ratio, paired
 
 __all__ = ["raster_case", "copier", "run_targets", "targets_markdown", "agreement_markdown", "GROWTH_LIMIT", "AGREEMENT"]
@@ -88,6 +88,12 @@ def _raster_rows(cases, repeat):
             rows.append(_row(f"rasterizer {label} vs llvmpipe", r, limit,
                              f"CPU {r.kernel:.3f} s vs {r.baseline:.3f} s (wall {r.kernel_wall:.3f} / "
                              f"{r.baseline_wall:.3f} s); {lp.renderer}, LP_NUM_THREADS=0", r.kernel))
+            probe, covered = scatter_probe(v, t, vp, size, samples)
+            p = paired(probe, lp.time, repeat)
+            del probe
+            rows.append(_row("  floor probe: fresh map + scatter-min of the covered samples", p, limit,
+                             f"CPU {p.kernel:.3f} s: np.ones of {size}² × {samples} and np.minimum.at of "
+                             f"{covered / 1e6:.2f} M samples (indices and depths given)", p.kernel))
     return rows
 
 
