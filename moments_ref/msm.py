@@ -18,9 +18,10 @@ line):
   (Peters and Klein 2015, Prop. 10), evaluated as ``Σ (L⁻¹v)_i² / D_i``: it
   needs no Vandermonde solve, is exactly 0 for a root at infinity and is
   positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The bounds alone
-  (:func:`shadow_intensity`) take the slides' shorter route where it is as accurate:
-  only the weight that step (5) needs, w1 as the slides' quotient (Lagrange weight)
-  and ``1 − w0`` beyond z2, with the texels where that has no finite value handed to
+  (:func:`shadow_intensity`) take a shorter route that is as accurate: the quadratic
+  of step (3) written about zf (its roots as distances ``zf − z``, cancellation-free),
+  only the weight that step (5) needs (w1 from the first two moments about zf,
+  ``1 − w0`` beyond z2), with the texels where that has no finite value handed to
   the full kernel (:func:`_bound_rows`). The mpmath twin
   in :mod:`moments_ref.precise` solves the Vandermonde system literally and
   serves as the independent check.
@@ -312,29 +313,14 @@ def _kernel(b, zf, want, c, dest, refuse):
     return out
 
 
-def _bound_rows(b, zf, bound, c, dest):
-    """One bound of Algorithm 1 on the regular texels of a chunk, in the fewest passes; or None.
+def _roots_about_zf(b, zf, c):
+    """Steps (1)–(3) of :func:`_bound_rows`: ``(t_a, t_b, y2, 1/w0, 1/w0 − 1, regular)``, rows of ``c["ws"]``.
 
-    Steps (1)–(2) as :func:`_cholesky` (L32² σ² as L32·(b3 − b1 b2), one pass fewer) and
-    :func:`_solve` up to the scaling: ``c2 = y2/σ²``, ``q2 = y3/ξ4`` and
-    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) in the distances
-    ``t = zf − z`` of the roots from zf (the quadratic of step (3) written about zf): the
-    roots ``t_a = zf − z1 ≥ t_b = zf − z2`` of ``q2 t² − 2k t + 1/w0`` with ``k = q2 zf + q1/2``
-    (the quadratic of step (3) about zf, whose value there is ``1/w0``), without cancellation:
-    ``m = k + sign(k)·√(k² − q2/w0)``, the roots ``m/q2`` and ``(1/w0)/m``. Their product
-    ``1/(w0 q2)`` is never 0, so zf is never a root, and between the roots (q2 < 0) the
-    discriminant is a sum of positive terms. Step (4) only for what step (5) needs: below zf
-    both roots (t_b > 0) the bound is ``1 − w0``, written ``(1/w0 − 1)·w0`` (no cancellation);
-    between them it is w1, from the first two moments of the canonical representation about zf,
-    ``w1 + w2 = 1 − w0`` and ``w1 t_a + w2 t_b = zf − b1``: ``w1 = (y2 − (1 − w0) t_b)/(t_a − t_b)``.
-    About 51 float and 8 boolean passes instead of the 63 of the previous formulation and the ~75
-    of :func:`_kernel`. Where B(b) is singular (module docstring) or the result is not finite (a
-    root at infinity, a discriminant rounded below 0, a non-finite input), the texels are handed to
-    :func:`_kernel`, which has the limits of all; their indices are returned (None when there are none).
+    ``regular``: :func:`_pivots_positive`'s mask, or None where every pivot clears the threshold.
     """
     ws, (b1, b2, b3, b4) = c["ws"], b
     s2, cm1, l32, xi, y2, y3, t, a, k = ws
-    # Cholesky, B(b) = L D Lᵀ: σ² = b2 − b1², L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32 (b3 − b1 b2).
+    # Cholesky, B(b) = L D Lᵀ: L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32·(b3 − b1 b2).
     np.multiply(b1, b1, out=s2)
     np.subtract(b2, s2, out=s2)
     np.multiply(b1, b2, out=t)
@@ -380,8 +366,34 @@ def _bound_rows(b, zf, bound, c, dest):
     ta, tb = k, a
     np.maximum(t, xi, out=ta)
     np.minimum(t, xi, out=tb)
+    return ta, tb, y2, inv_w0, cm1, regular
+
+
+def _bound_rows(b, zf, bound, c, dest):
+    """One bound of Algorithm 1 on the regular texels of a chunk, in the fewest passes; or None.
+
+    Steps (1)–(2) as :func:`_cholesky` (L32² σ² as L32·(b3 − b1 b2), one pass fewer) and
+    :func:`_solve` up to the scaling: ``c2 = y2/σ²``, ``q2 = y3/ξ4`` and
+    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) in the distances
+    ``t = zf − z`` of the roots from zf (:func:`_roots_about_zf`): the roots
+    ``t_a = zf − z1 ≥ t_b = zf − z2`` of ``q2 t² − 2k t + 1/w0`` with ``k = q2 zf + q1/2``
+    (the quadratic of step (3) written about zf, whose value there is ``1/w0``), without cancellation:
+    ``m = k + sign(k)·√(k² − q2/w0)``, the roots ``m/q2`` and ``(1/w0)/m``. Their product
+    ``1/(w0 q2)`` is never 0, so zf is never a root, and between the roots (q2 < 0) the
+    discriminant is a sum of positive terms. Step (4) only for what step (5) needs: below zf
+    both roots (t_b > 0) the bound is ``1 − w0``, written ``(1/w0 − 1)·w0`` (no cancellation);
+    between them it is w1, from the first two moments of the canonical representation about zf,
+    ``w1 + w2 = 1 − w0`` and ``w1 t_a + w2 t_b = zf − b1``: ``w1 = (y2 − (1 − w0) t_b)/(t_a − t_b)``.
+    49 ufunc passes and three reductions over a float32 chunk for the lower bound (the upper
+    bound 2 more, float64's relative thresholds 6 more), instead of the 63 of the slides'
+    quotient formulation used before and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
+    history"). Where B(b) is singular (module docstring) or the result is not finite (a
+    root at infinity, a discriminant rounded below 0, a non-finite input), the texels are handed to
+    :func:`_kernel`, which has the limits of all; their indices are returned (None when there are none).
+    """
+    ta, tb, y2, inv_w0, cm1, regular = _roots_about_zf(b, zf, c)
+    w0, r0, w1, t = c["ws"][2], cm1, c["ws"][5], c["ws"][6]
     # Step (4): w0, 1 − w0 = (1/w0 − 1)·w0, and w1 = (y2 − (1 − w0) t_b)/(t_a − t_b).
-    w0, r0, w1 = l32, cm1, y3
     np.divide(1, inv_w0, out=w0)
     np.multiply(cm1, w0, out=r0)  # NaN for 1/w0 = ∞ (a non-finite zf)
     np.multiply(r0, tb, out=t)
@@ -413,7 +425,7 @@ def _bound_rows(b, zf, bound, c, dest):
 
 
 def _pivots_positive(b, sigma2, xi4, t, c):
-    """The mask (``c["mask"][1]``) of the texels whose pivots clear the singular threshold (module docstring), or None for all.
+    """The mask (``c["mask"][1]``) of the texels whose pivots clear the singular threshold, or None for all.
 
     float32: ``min(σ², ξ4) > 0`` (two reductions, and a mask only for a chunk that has such
     texels; a NaN fails the comparison); float64: ``σ² > τ b2`` and ``ξ4 > τ max(b4, σ²)``.
