@@ -427,16 +427,20 @@ def _bound_rows(b, zf, bound, c, dest):
 def _pivots_positive(b, sigma2, xi4, t, c):
     """The mask (``c["mask"][1]``) of the texels whose pivots clear the singular threshold, or None for all.
 
-    float32: ``min(σ², ξ4) > 0`` (two reductions, and a mask only for a chunk that has such
-    texels; a NaN fails the comparison); float64: ``σ² > τ b2`` and ``ξ4 > τ max(b4, σ²)``.
-    ``t`` is a free row.
+    float32: ``min(σ², ξ4) > 0``; float64: ``σ² > τ b2`` and ``ξ4 > τ max(b4, σ²)``. A chunk
+    whose extremes clear them (``min σ² > τ max b2``, ``min ξ4 > τ max(max b4, max σ²)``: two
+    or five reductions; a NaN fails every comparison) needs no mask; the others get the exact
+    one. ``t`` is a free row.
     """
-    regular = c["mask"][1]
-    if c["rtol"] == 0:
+    regular, rtol, (_, b2, _, b4) = c["mask"][1], c["rtol"], b
+    if rtol == 0:
         if np.minimum.reduce(sigma2) > 0 and np.minimum.reduce(xi4) > 0:
             return None
         np.minimum(sigma2, xi4, out=t)
         return np.greater(t, c["zero"], out=regular)
+    if (np.minimum.reduce(sigma2) > rtol * np.maximum.reduce(b2)
+            and np.minimum.reduce(xi4) > rtol * max(np.maximum.reduce(b4), np.maximum.reduce(sigma2))):
+        return None
     above = c["mask"][0]
     np.multiply(b[1], c["rtol"], out=t)
     np.greater(sigma2, t, out=regular)
