@@ -516,3 +516,34 @@ def test_bounds_agree_with_the_canonical_representation(dt, tol):
         got = shadow_intensity(b, zf, bound)
         assert got.dtype == dt and np.isfinite(got).all() and (0 <= got).all() and (got <= 1).all()
         np.testing.assert_allclose(got[clear], want[clear], rtol=0, atol=tol)
+
+
+def test_threads_share_no_workspace():
+    # msm and nonlinear keep a chunk's constants and workspace between calls, one set per
+    # thread (msm._chunk_constants): calls running at the same time in several threads give
+    # the results of the same calls made one after another. Shared rows would mix the threads'
+    # intermediate values (seen with one module-level set: wrong results in most runs).
+    from concurrent.futures import ThreadPoolExecutor
+
+    from moments_ref.msm import CHUNK
+    from moments_ref.nonlinear import phi, shade
+
+    rng = np.random.default_rng(11)
+    jobs = []
+    for i in range(8):
+        n = int(rng.integers(1, 3 * CHUNK))
+        dt = (np.float32, np.float64)[i % 2]
+        b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4))), BIAS_FLOAT32).astype(dt)
+        zf = rng.uniform(-1, 1, n).astype(dt)
+        jobs.append((b, zf, phi(b)))
+
+    def run(job):
+        b, zf, r = job
+        return [shadow_intensity(b, zf, bound) for bound in ("lower", "upper")] + [shade(r, zf)]
+
+    serial = [run(j) for j in jobs]
+    for _ in range(3):
+        with ThreadPoolExecutor(4) as pool:
+            for got, want in zip(pool.map(run, jobs), serial):
+                for g, w in zip(got, want):
+                    assert g.dtype == w.dtype and np.array_equal(g, w)
