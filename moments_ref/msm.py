@@ -407,7 +407,7 @@ def _bound_rows(b, zf, bound, c, dest):
     between them it is w1, from the first two moments of the canonical representation about zf,
     ``w1 + w2 = 1 − w0`` and ``w1 t_a + w2 t_b = zf − b1``: ``w1 = (y2 − (1 − w0) t_b)/(t_a − t_b)``.
     49 ufunc passes and three reductions over a float32 chunk for the lower bound (the upper
-    bound 2 more, float64's relative thresholds 6 more), instead of the 63 of the slides'
+    bound 2 more; float64 checks its relative thresholds by six reductions), instead of the 63 of the slides'
     quotient formulation used before and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
     history"). Where B(b) is singular (module docstring) or the result is not finite (a
     root at infinity, a discriminant rounded below 0, a non-finite input), the texels are handed to

@@ -623,7 +623,8 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     # --- Case zf > y2: z_l := z'f (the weight w_0 of the fragment depth). ---
     above = np.greater(zf, y2, out=c["mask"])
     # zl := where(above, zp, zl), by bits: zl may be ±inf here (no arithmetic
-    # blend), and np.where's loop costs 7–15 passes (measured), these three about 4.
+    # blend), and np.where's loop costs 7–15 passes (measured), these three about 4
+    # (an integer row times a boolean row costs two).
     np.bitwise_xor(zp.view(it), zl.view(it), out=bits)
     np.multiply(bits, above, out=bits)
     np.bitwise_xor(zl.view(it), bits, out=zl.view(it))
@@ -723,7 +724,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
     chunk; finiteness and the domain are checked on the loaded chunk by eight
     min/max reductions (the full checks run only to raise); about 50 in-place
-    ufunc passes, the z_l selection as a four-pass bit blend (``np.where`` cost
+    ufunc passes, the z_l selection as a three-pass bit blend (``np.where`` cost
     as much as 15 passes at this chunk size). The result does not depend on the
     chunk size; the measurements are in docs/bench.md ("Kernel history").
 
