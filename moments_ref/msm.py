@@ -18,9 +18,10 @@ line):
   (Peters and Klein 2015, Prop. 10), evaluated as ``Σ (L⁻¹v)_i² / D_i``: it
   needs no Vandermonde solve, is exactly 0 for a root at infinity and is
   positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The bounds alone
-  (:func:`shadow_intensity`) take the slides' shorter route where it is as accurate:
-  only the weight that step (5) needs, w1 as the slides' quotient (Lagrange weight)
-  and ``1 − w0`` beyond z2, with the texels where that has no finite value handed to
+  (:func:`shadow_intensity`) take a shorter route that is as accurate: the quadratic
+  of step (3) written about zf (its roots as distances ``zf − z``, cancellation-free),
+  only the weight that step (5) needs (w1 from the first two moments about zf,
+  ``1 − w0`` beyond z2), with the texels where that has no finite value handed to
   the full kernel (:func:`_bound_rows`). The mpmath twin
   in :mod:`moments_ref.precise` solves the Vandermonde system literally and
   serves as the independent check.
@@ -74,6 +75,8 @@ References
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ._arrays import InputError, lookup_inputs, real_input, refuse_lookup
@@ -117,6 +120,26 @@ def _constants(dtype, n):
 
 #: Float rows of the kernel's workspace (:func:`_constants`).
 _ROWS = 9
+
+#: Per thread, the constants and workspace of a whole chunk per dtype (:func:`_chunk_constants`).
+_LOCAL = threading.local()
+
+
+def _chunk_constants(dtype, n):
+    """:func:`_constants` for ``n ≤ CHUNK`` texels: views of one set per thread and dtype, kept between calls.
+
+    Fresh chunk-sized arrays are faulted in from the OS on every call (measured: a call of one
+    chunk of float32 took 4.5 times the per-texel time of a call of 2^20 texels); kept, they cost
+    1.7 MB (float32) or 3.4 MB (float64) per thread that called. Per thread, so that concurrent
+    calls never share a workspace.
+    """
+    cache, key = _LOCAL.__dict__.setdefault("consts", {}), (np.dtype(dtype).name, CHUNK)
+    if key not in cache:
+        if len(cache) >= 4:  # float32 and float64 (the key's chunk size only guards a changed CHUNK)
+            cache.clear()
+        cache[key] = _constants(dtype, CHUNK)
+    full = cache[key]
+    return full if n == CHUNK else {k: v[..., :n] if np.ndim(v) else v for k, v in full.items()}
 
 
 def _cholesky(b, ws):
@@ -312,72 +335,147 @@ def _kernel(b, zf, want, c, dest, refuse):
     return out
 
 
-def _bound_rows(b, zf, bound, c, dest):
-    """One bound of Algorithm 1 on the regular texels of a chunk, in the slides' formulation; or None.
+def _roots_about_zf(b, zf, c):
+    """Steps (1)–(3) of :func:`_bound_rows`: ``(t_a, t_b, y2, 1/w0, 1/w0 − 1, regular)``, rows of ``c["ws"]``.
 
-    Steps (1)–(2) as :func:`_cholesky` and :func:`_solve`; step (3) by the cancellation-free
-    roots of :func:`_roots` (the slides' textbook roots ``−p/2 ∓ √(p²/4 − q)`` of the monic
-    quadratic save five passes but lose up to 6e-8 in float64 for zf 1e-9 below a support
-    point, where this form keeps 1e-12); step (4) only for the weight that step (5) needs: in the
-    slides' quotient form, ``w1 = ((zf − b1)(z2 − b1) + σ²) / ((z2 − z1)(zf − z1))`` (the
-    Lagrange weight of z1, its numerator ``zf z2 − b1 (zf + z2) + b2`` rewritten with
-    ``b2 = σ² + b1²``), and ``1 − w0`` beyond z2. About 60 passes over the chunk instead
-    of the ~75 of :func:`_kernel`. Where B(b) is singular (module docstring) or the result is
-    not finite (zf at a support point sends q2 → 0 and a root to ±∞, the quotient to ∞/∞;
-    a discriminant rounded below 0), the texels are handed to :func:`_kernel`, which has the
-    limits of both; their indices are returned (None when there are none).
+    ``regular``: :func:`_pivots_positive`'s mask, or None where every pivot clears the threshold.
     """
-    ws, b1 = c["ws"], b[0]
-    sigma2, l32, xi4 = _cholesky(b, ws)
-    q0, q1, q2, w0 = _solve(b, zf, sigma2, l32, xi4, ws)
-    y2, h, r = ws[7], ws[8], q1
-    # Step (3) without cancellation (as _roots, q2 → 0 makes the texel irregular):
-    # s = h + sign(h)·√(h² − q2 q0) with h = −q1/2; the roots are s/q2 and q0/s (Vieta).
-    np.multiply(q1, -0.5, out=h)
-    np.multiply(h, h, out=r)
-    np.multiply(q2, q0, out=l32)  # L32 is used up
-    np.subtract(r, l32, out=r)
-    np.sqrt(r, out=r)  # NaN for a negative discriminant: the texel goes to _kernel
+    ws, (b1, b2, b3, b4) = c["ws"], b
+    s2, cm1, l32, xi, y2, y3, t, a, k = ws
+    # Cholesky, B(b) = L D Lᵀ: L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32·(b3 − b1 b2).
+    np.multiply(b1, b1, out=s2)
+    np.subtract(b2, s2, out=s2)
+    np.multiply(b1, b2, out=t)
+    np.subtract(b3, t, out=t)
+    np.divide(t, s2, out=l32)
+    np.multiply(l32, t, out=xi)
+    np.multiply(b2, b2, out=t)
+    np.add(xi, t, out=xi)
+    np.subtract(b4, xi, out=xi)
+    # Forward substitution to solve L y = (1, zf, zf²): y2 = zf − b1, y3 = zf² − b2 − L32 y2.
+    np.subtract(zf, b1, out=y2)
+    np.multiply(zf, zf, out=y3)
+    np.subtract(y3, b2, out=y3)
+    np.multiply(l32, y2, out=t)
+    np.subtract(y3, t, out=y3)
+    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (in cm1).
+    c2 = k
+    np.divide(y2, s2, out=c2)
+    np.divide(y3, xi, out=a)
+    np.multiply(y2, c2, out=cm1)
+    np.multiply(y3, a, out=t)
+    np.add(cm1, t, out=cm1)
+    regular = _pivots_positive(b, s2, xi, t, c)  # σ², ξ4 are used up: their rows are free
+    inv_w0 = s2
+    np.add(cm1, 1, out=inv_w0)
+    # Back substitution, q1 = c2 − L32 q2, and k = q2 zf + q1/2 (the quadratic about zf).
+    np.multiply(l32, a, out=t)
+    np.subtract(c2, t, out=t)
+    np.multiply(t, 0.5, out=t)
+    np.multiply(a, zf, out=k)
+    np.add(k, t, out=k)
+    # Step (3): m = k + sign(k)·√(k² − q2/w0) (bit-level copysign, the root ≥ 0); t_a ≥ t_b of m/q2, (1/w0)/m.
+    np.multiply(k, k, out=t)
+    np.multiply(a, inv_w0, out=xi)
+    np.subtract(t, xi, out=t)
+    np.sqrt(t, out=t)  # NaN for a discriminant below 0: the texel goes to _kernel
     sign, bits = c["sign"], c["bits"]
-    np.bitwise_and(h.view(sign.dtype), sign, out=bits)
-    np.bitwise_or(r.view(sign.dtype), bits, out=r.view(sign.dtype))
-    np.add(h, r, out=h)
-    np.divide(h, q2, out=r)
-    np.divide(q0, h, out=h)
-    z1, z2 = q0, q2
-    np.minimum(r, h, out=z1)
-    np.maximum(r, h, out=z2)
-    # Step (4), the weight of z1: w1 = ((zf − b1)(z2 − b1) + σ²) / ((z2 − z1)(zf − z1)).
-    w1 = h
-    np.subtract(z2, b1, out=w1)
-    np.multiply(w1, y2, out=w1)
-    np.add(w1, sigma2, out=w1)
-    np.subtract(z2, z1, out=r)
-    np.subtract(zf, z1, out=y2)
-    np.multiply(r, y2, out=r)
-    np.divide(w1, r, out=w1)
-    # Step (5): lower = [zf > z1]·(w1 + [zf > z2]·(1 − w0 − w1)) (z1 ≤ z2; beyond z2 it is 1 − w0).
-    lower = dest[bound] if bound == "lower" else l32
+    np.bitwise_and(k.view(sign.dtype), sign, out=bits)
+    np.bitwise_or(t.view(sign.dtype), bits, out=t.view(sign.dtype))
+    np.add(k, t, out=k)
+    np.divide(k, a, out=t)
+    np.divide(inv_w0, k, out=xi)
+    ta, tb = k, a
+    np.maximum(t, xi, out=ta)
+    np.minimum(t, xi, out=tb)
+    return ta, tb, y2, inv_w0, cm1, regular
+
+
+def _bound_rows(b, zf, bound, c, dest):
+    """One bound of Algorithm 1 on the regular texels of a chunk, in the fewest passes; or None.
+
+    Steps (1)–(2) as :func:`_cholesky` (L32² σ² as L32·(b3 − b1 b2), one pass fewer) and
+    :func:`_solve` up to the scaling: ``c2 = y2/σ²``, ``q2 = y3/ξ4`` and
+    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) in the distances
+    ``t = zf − z`` of the roots from zf (:func:`_roots_about_zf`): the roots
+    ``t_a = zf − z1 ≥ t_b = zf − z2`` of ``q2 t² − 2k t + 1/w0`` with ``k = q2 zf + q1/2``
+    (the quadratic of step (3) written about zf, whose value there is ``1/w0``), without cancellation:
+    ``m = k + sign(k)·√(k² − q2/w0)``, the roots ``m/q2`` and ``(1/w0)/m``. Their product
+    ``1/(w0 q2)`` is never 0, so zf is never a root, and between the roots (q2 < 0) the
+    discriminant is a sum of positive terms. Step (4) only for what step (5) needs: below zf
+    both roots (t_b > 0) the bound is ``1 − w0``, written ``(1/w0 − 1)·w0`` (no cancellation);
+    between them it is w1, from the first two moments of the canonical representation about zf,
+    ``w1 + w2 = 1 − w0`` and ``w1 t_a + w2 t_b = zf − b1``: ``w1 = (y2 − (1 − w0) t_b)/(t_a − t_b)``.
+    49 ufunc passes and three reductions over a float32 chunk for the lower bound (the upper
+    bound 2 more; float64 checks its relative thresholds by six reductions), instead of the 63 of the slides'
+    quotient formulation used before and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
+    history"). Where B(b) is singular (module docstring) or the result is not finite (a
+    root at infinity, a discriminant rounded below 0, a non-finite input), the texels are handed to
+    :func:`_kernel`, which has the limits of all; their indices are returned (None when there are none).
+    """
+    ta, tb, y2, inv_w0, cm1, regular = _roots_about_zf(b, zf, c)
+    w0, r0, w1, t = c["ws"][2], cm1, c["ws"][5], c["ws"][6]
+    # Step (4): w0, 1 − w0 = (1/w0 − 1)·w0, and w1 = (y2 − (1 − w0) t_b)/(t_a − t_b).
+    np.divide(1, inv_w0, out=w0)
+    np.multiply(cm1, w0, out=r0)  # NaN for 1/w0 = ∞ (a non-finite zf)
+    np.multiply(r0, tb, out=t)
+    np.subtract(y2, t, out=t)
+    np.subtract(ta, tb, out=w1)
+    np.divide(t, w1, out=w1)
+    # Step (5): lower = [t_a > 0]·(w1 + [t_b > 0]·(1 − w0 − w1)) (zf above z1, above z2). Float rows
+    # times boolean rows: a masked copy (np.copyto where=) of a random mask costs 30 passes.
+    lower = dest[bound] if bound == "lower" else y2
     above = c["mask"][0]
-    np.subtract(1, w0, out=lower)
-    np.subtract(lower, w1, out=lower)
-    np.greater(zf, z2, out=above)
+    np.subtract(r0, w1, out=lower)
+    np.greater(tb, c["zero"], out=above)
     np.multiply(lower, above, out=lower)
     np.add(lower, w1, out=lower)
-    np.greater(zf, z1, out=above)
+    np.greater(ta, c["zero"], out=above)
     np.multiply(lower, above, out=lower)
-    np.maximum(lower, c["zero"], out=lower)  # a rounded w1 < 0 (NaN stays NaN)
-    np.isfinite(lower, out=above)
-    irregular = _singular_rows(b, sigma2, xi4, above, c)
+    np.clip(lower, 0, 1, out=lower)  # saturate, and a rounded w1 < 0 (NaN stays NaN)
+    # Irregular: a pivot below the threshold, or a result that is not finite (the sum of a chunk
+    # of values in [0, 1] is finite unless one of them is not: one reduction instead of a mask).
+    irregular = None
+    if regular is not None or not np.isfinite(np.add.reduce(lower)):
+        finite = np.isfinite(lower, out=above)
+        regular = finite if regular is None else np.logical_and(regular, finite, out=regular)
+        irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
         np.add(lower, w0, out=dest["upper"])
-        lower = dest["upper"]
-    np.minimum(lower, c["one"], out=lower)  # saturate: every term is ≥ 0, w0 + w1 may round above 1
-    return np.flatnonzero(irregular) if irregular.any() else None
+        np.minimum(dest["upper"], c["one"], out=dest["upper"])
+    return irregular if irregular is not None and irregular.size else None
+
+
+def _pivots_positive(b, sigma2, xi4, t, c):
+    """The mask (``c["mask"][1]``) of the texels whose pivots clear the singular threshold, or None for all.
+
+    float32: ``min(σ², ξ4) > 0``; float64: ``σ² > τ b2`` and ``ξ4 > τ max(b4, σ²)``. A chunk
+    whose extremes clear them (``min σ² > τ max b2``, ``min ξ4 > τ max(max b4, max σ²)``: two
+    or five reductions; a NaN fails every comparison) needs no mask; the others get the exact
+    one. ``t`` is a free row.
+    """
+    regular, rtol, (_, b2, _, b4) = c["mask"][1], c["rtol"], b
+    if rtol == 0:
+        if np.minimum.reduce(sigma2) > 0 and np.minimum.reduce(xi4) > 0:
+            return None
+        np.minimum(sigma2, xi4, out=t)
+        return np.greater(t, c["zero"], out=regular)
+    if (np.minimum.reduce(sigma2) > rtol * np.maximum.reduce(b2)
+            and np.minimum.reduce(xi4) > rtol * max(np.maximum.reduce(b4), np.maximum.reduce(sigma2))):
+        return None
+    above = c["mask"][0]
+    np.multiply(b[1], c["rtol"], out=t)
+    np.greater(sigma2, t, out=regular)
+    np.maximum(b[3], sigma2, out=t)
+    np.multiply(t, c["rtol"], out=t)
+    regular &= np.greater(xi4, t, out=above)
+    return regular
 
 
 def _bound(b, zf, bound, c, dest, refuse):
     """``dest[bound]`` := the bound of Algorithm 1 on a chunk: :func:`_bound_rows`, and :func:`_kernel` on the rest."""
+    if not b[3].max() < np.inf:  # b4 = +inf is the one non-finite input that can leave the result finite
+        refuse()
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         rest = _bound_rows(b, zf, bound, c, dest)
     if rest is not None:
@@ -418,7 +516,7 @@ def _run(b, zf, shape, want, keys):
     """
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("depths", "weights") else (n,), dtype=b.dtype) for k in keys}
-    consts = _constants(b.dtype, min(CHUNK, max(n, 1)))
+    consts = _chunk_constants(b.dtype, min(CHUNK, max(n, 1)))
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
         m = stop - start

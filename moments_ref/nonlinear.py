@@ -48,13 +48,14 @@ References
 from __future__ import annotations
 
 import math
+import threading
 from functools import lru_cache
 
 import numpy as np
 
 from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_exact, copysign_inplace
+from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_exact
 
 __all__ = [
     "PSI4_C0",
@@ -522,7 +523,36 @@ def _kernel_constants(dtype, n, clamp=SHADE_TOLERANCE):
         "one": full(1),
         "zero": full(0),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
+        # The kernel's rows, reused by every chunk: fresh temporaries of a chunk's size are
+        # faulted in from the OS again and again (measured: 1.4 ms instead of 0.3 ms a chunk).
+        "ws": np.empty((_SHADE_ROWS, n), dtype=dtype),
+        "bits": np.empty(n, dtype=it),
+        "mask": np.empty(n, dtype=bool),
     }
+
+
+#: Float rows of :func:`_shade_kernel`'s workspace: seven for the kernel, one for the gap.
+_SHADE_ROWS = 8
+
+#: Per thread, the constants and workspace of a whole chunk per dtype and clamp (:func:`_chunk_constants`).
+_LOCAL = threading.local()
+
+
+def _chunk_constants(dtype, n, clamp):
+    """:func:`_kernel_constants` for ``n ≤ CHUNK`` texels, and the chunk's rows: views of one set per thread.
+
+    Kept between calls (fresh chunk-sized arrays are faulted in from the OS on every call: a
+    call of one chunk took 4.5 times the per-texel time of a call of 2^20 texels), per thread
+    so that concurrent calls never share them; 2.6 MB (float32) or 5.2 MB (float64) per clamp a thread used.
+    """
+    cache = _LOCAL.__dict__.setdefault("consts", {})
+    key = (np.dtype(dtype).name, clamp, CHUNK)
+    if key not in cache:
+        if len(cache) >= 4:  # a few clamps at most in practice; never grow without bound
+            cache.clear()
+        cache[key] = (_kernel_constants(dtype, CHUNK, clamp), np.empty((4, CHUNK), dtype=dtype))
+    full, rows = cache[key]
+    return (full, rows) if n == CHUNK else ({k: v[..., :n] for k, v in full.items()}, rows[:, :n])
 
 
 def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
@@ -539,36 +569,38 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     lane's formula NaN-free).
     """
     dt = y1.dtype.type
+    ws, it = c["ws"], c["sign"].dtype
+    v1, zp, xip, p, den, h, k = ws[:7]
     # Clamps of §3.4 (they also remove rounding noise): v2 ∈ [1e-6, 1 − 1e-6]
     # and y2 − y1 ≥ 1e-6, i.e. the y2 used below is max(y2, y1 + 1e-6).
     np.maximum(v2, c["lo"], out=v2)
     np.minimum(v2, c["hi"], out=v2)
-    v1 = 1 - v2
-    gap = y2 - y1 if gap is None else gap
+    np.subtract(1, v2, out=v1)
+    gap = np.subtract(y2, y1) if gap is None else gap
     np.maximum(gap, c["lo"], out=gap)
     # Affine change to y1 = 0, y2 = 1 (HPG17 §3.4, proofs/lemma_4):
     # z'f := (zf − y1)/(y2 − y1) and ξ'4 := ξ4/(y2 − y1)⁴. The early return for zf ≤ y1
     # is z'f clamped at 0: the formulas below give w_l = 1/∞ = 0 there (the limit
     # z'f → 0⁺: P = ∞ sends z_l to −∞), without a mask and a NaN guard.
-    zp = zf - y1
+    np.subtract(zf, y1, out=zp)
     np.maximum(zp, c["zero"], out=zp)
     zp /= gap
     gap *= gap
     gap *= gap
-    xip = xi4 / gap
+    np.divide(xi4, gap, out=xip)
     # ξ'4 ≤ 0 (an exact two-point distribution, or negative rounding noise) would
     # make the ξ'4⁻¹ term 0/0; the smallest normal number gives the limit ξ'4 → 0⁺.
     np.maximum(xip, c["tiny"], out=xip)
 
     # --- Case y1 < zf ≤ y2: z_l is the smaller root of z² + q1 z + q0. ---
     # P := −q0 = ξ'4 / ((1 − v2) z'f) > 0, capped below +inf (z'f → 0).
-    p = v1 * zp
+    np.multiply(v1, zp, out=p)
     np.divide(xip, p, out=p)
     np.minimum(p, c["huge"], out=p)
     # h := q1/2 with q1 := −q0 (v2 − z'f)/(v2 − v2 z'f) − 1 (±inf at z'f = 1 is fine).
-    den = v2 * zp
+    np.multiply(v2, zp, out=den)
     np.subtract(v2, den, out=den)
-    h = v2 - zp
+    np.subtract(v2, zp, out=h)
     h /= den
     h *= p
     h -= 1
@@ -577,30 +609,34 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     # s := h + sign(h)·√(h² + P) has none, and the roots are −s and P/s (Vieta:
     # their product is q0 = −P). They have opposite signs, so z_l = min(−s, P/s).
     # (The literal formula loses z_l when h < 0 and P is small, i.e. ξ'4 ≪ 1.)
-    s = h * h
+    s = den
+    np.multiply(h, h, out=s)
     s += p
     np.sqrt(s, out=s)
-    copysign_inplace(s, h, c["sign"])
+    bits = c["bits"]  # s takes h's sign bit (s ≥ 0): copysign in two integer passes
+    np.bitwise_and(h.view(it), c["sign"], out=bits)
+    np.bitwise_or(s.view(it), bits, out=s.view(it))
     s += h
     np.divide(p, s, out=p)
     np.negative(s, out=s)
     zl = np.minimum(s, p, out=s)
     # --- Case zf > y2: z_l := z'f (the weight w_0 of the fragment depth). ---
-    above = zf > y2
+    above = np.greater(zf, y2, out=c["mask"])
     # zl := where(above, zp, zl), by bits: zl may be ±inf here (no arithmetic
-    # blend), and np.where's loop costs 7–15 passes (measured), these four about 4.
-    it = c["sign"].dtype
-    x = np.bitwise_xor(zp.view(it), zl.view(it))
-    x *= above.astype(it)
-    np.bitwise_xor(zl.view(it), x, out=zl.view(it))
+    # blend), and np.where's loop costs 7–15 passes (measured), these three about 4
+    # (an integer row times a boolean row costs two).
+    np.bitwise_xor(zp.view(it), zl.view(it), out=bits)
+    np.multiply(bits, above, out=bits)
+    np.bitwise_xor(zl.view(it), bits, out=zl.view(it))
 
     # w_l := 1 / ((1 − v2)⁻¹ (1 − z_l)² + v2⁻¹ z_l² + ξ'4⁻¹ (1 − z_l)² z_l²)
     # (Peters and Klein 2015, Prop. 10 with B = V diag(1 − v2, v2, ξ'4) Vᵀ of
     # HPG17 Eq. (5); proofs/lemma_6).
-    a = 1 - zl
+    a = h
+    np.subtract(1, zl, out=a)
     a *= a
     zl *= zl
-    k = a / v1
+    np.divide(a, v1, out=k)
     a *= zl
     a /= xip
     k += a
@@ -610,7 +646,8 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     np.divide(1, k, out=k)
     np.minimum(k, c["one"], out=k)
     # Return w_l if zf ≤ y2 and 1 − w_l otherwise: w + [zf > y2]·(1 − 2w).
-    t = k * dt(-2)
+    t = a
+    np.multiply(k, dt(-2), out=t)
     t += 1
     t *= above
     np.add(k, t, out=out)
@@ -687,7 +724,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
     chunk; finiteness and the domain are checked on the loaded chunk by eight
     min/max reductions (the full checks run only to raise); about 50 in-place
-    ufunc passes, the z_l selection as a four-pass bit blend (``np.where`` cost
+    ufunc passes, the z_l selection as a three-pass bit blend (``np.where`` cost
     as much as 15 passes at this chunk size). The result does not depend on the
     chunk size; the measurements are in docs/bench.md ("Kernel history").
 
@@ -704,8 +741,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     tol = r.dtype.type(rounding_tolerance(r.dtype))
     chunk = CHUNK
     clamp = _clamp_offset(clamp)
-    consts = _kernel_constants(r.dtype, min(chunk, n), clamp)
-    rows = np.empty((4, min(chunk, n)), dtype=r.dtype)
+    consts, rows = _chunk_constants(r.dtype, min(chunk, n), clamp)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         for start in range(0, n, chunk):
             stop = min(start + chunk, n)
@@ -714,10 +750,11 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
             cols = rows[:, : stop - start]
             np.copyto(cols, rflat[start:stop].T)
             zc = np.ascontiguousarray(zflat[start:stop])
-            gap = np.subtract(cols[1], cols[0])
+            m = stop - start
+            c = consts if m == len(consts["one"]) else {k: v[..., :m] for k, v in consts.items()}
+            gap = np.subtract(cols[1], cols[0], out=c["ws"][7])
             if not _chunk_ok(cols, zc, gap, tol):
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
-            c = consts if stop - start == len(consts["one"]) else {k: v[: stop - start] for k, v in consts.items()}
             _shade_kernel(*cols, zc, out[start:stop], c, gap)
     return out.reshape(shape)
 

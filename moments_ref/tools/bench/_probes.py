@@ -22,7 +22,9 @@ __all__ = ["pass_probe", "scatter_probe", "PASSES"]
 #: Ufunc passes per chunk of each kernel's common path, counted in its code (float and
 #: boolean passes alike; the rare singular or out-of-domain texels are handed elsewhere).
 PASSES = {
-    "shadow_intensity float32": 63,  # msm._bound_rows: 10 Cholesky, 18 solve and w0, 12 roots, 7 w1, 16 step (5) and checks
+    # msm._bound_rows: 9 Cholesky, 11 solve and 1/w0, 5 the quadratic about zf, 11 roots, 6 w0 and w1,
+    # 7 step (5); its three reductions (pivots, finiteness) are not counted
+    "shadow_intensity float32": 49,
     "shade float32": 49,  # nonlinear._shade_kernel (and 8 min/max reductions, docs/bench.md)
     "shadow_intensity six moments float32": 140,  # msm6's kernel, counted by the earlier __array_ufunc__ probe
 }
