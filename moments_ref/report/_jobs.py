@@ -25,6 +25,13 @@ killed by SIGTERM or SIGKILL leaves no worker computing for nobody. Workers
 ignore SIGINT: Ctrl-C reaches the parent, which stops them. Warnings a task
 raises come back with its result and are raised again in the parent, so that
 none is printed by a worker before the parent's one-line refusal.
+
+References
+----------
+.. [1] FLIP: Pontus Andersson, Jim Nilsson, Tomas Akenine-Möller, Magnus Oskarsson, Kalle Åström
+       and Mark D. Fairchild. 2020. *ꟻLIP: A Difference Evaluator for Alternating Images*.
+       Proceedings of the ACM on Computer Graphics and Interactive Techniques (HPG 2020) 3, 2. Used
+       through the package ``flip-evaluator``.
 """
 
 from __future__ import annotations
