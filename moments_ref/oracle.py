@@ -228,8 +228,10 @@ def check(candidate, case, dtype="float32", n_hypothesis=200, seed=0, vectorized
         from .golden.profile import refuse_meaningless
 
         refuse_meaningless([c], profile)  # the one case checked: a key it cannot use is refused, not dropped
+        from .golden.conventions import neighbourhood_case
+
+        plain = neighbourhood_case(c, profile)  # the profiled case's exact values, where they carry the profile
         c, arrays = profile_arrays(c, arrays, profile)
-        plain = None
     got = call_implementation(candidate, c, arrays, vectorized, argument="candidate")
     if profile is not None and profile.output_clamp:  # the caller's clamp, declared (golden.receiver)
         from .golden.receiver import clamp_outputs

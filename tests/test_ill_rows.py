@@ -123,3 +123,43 @@ def test_adapter_both_says_which_differing_rows_the_band_explains(upper):
     text = cmp.format()
     assert "1 of them with both values in the band" in text
     assert f"outside the band: row {b}: gl" in text and f"outside the band: row {a}:" not in text
+
+
+def test_under_a_profile_the_ill_rows_are_judged_by_the_profiled_cases_neighbourhood(upper):
+    """Item 2 under a profile (visibility output): a wrong answer inside the stored band fails, judged by the
+    exact values of the case as the engine sees it (golden.conventions.neighbourhood_case); a correct one (the
+    mpmath value at the row) passes. The Hausdorff bound keeps the stored band alone; a receiver offset moves
+    the exact values to the port's own receiver."""
+    from moments_ref.golden.compare import compare
+    from moments_ref.golden.conventions import neighbourhood_case, profiled_arrays
+    from moments_ref.golden.profile import parse_profile
+    from moments_ref.golden.writer import manifest_entry
+
+    gc, ill = upper
+    profile = parse_profile({"output": "visibility"})
+    pcase, arrays = profiled_arrays(CASE, profile)
+    entry = manifest_entry(pcase, arrays)
+    exact = neighbourhood_interval(CASES[CASE], {k: np.asarray(gc.arrays[k])[ill] for k in CASES[CASE].inputs})
+    lo, hi = exact["intensity"]
+    e = np.asarray(gc.arrays["intensity"], np.float64)[ill]
+    tol = np.asarray(gc.arrays["intensity_tolerance_float32"], np.float64)[ill]
+    cand = np.minimum(e + tol, 1.0)
+    pick = np.flatnonzero(cand > hi + 0.2)
+    assert pick.size
+    i = int(ill[pick[0]])
+    right = 1 - np.asarray(gc.arrays["intensity"], np.float64)
+    right[ill] = 1 - _exact(gc, ill)
+    wrong = right.copy()
+    wrong[i] = 1 - (cand[pick[0]] - 1e-3)  # the intensity no neighbour comes near, as a visibility
+    judge = neighbourhood_case(CASES[CASE], profile)
+    assert judge is not None
+    assert compare(entry, arrays, {"intensity": right.astype(np.float32)}, "float32", neighbourhood=judge).row_pass.all()
+    v = compare(entry, arrays, {"intensity": wrong.astype(np.float32)}, "float32", neighbourhood=judge)
+    assert not v.row_pass[i] and v.row_pass.sum() == len(right) - 1
+    assert compare(entry, arrays, {"intensity": wrong.astype(np.float32)}, "float32").row_pass[i]  # stored band alone
+    # the Hausdorff bound is judged by its own cases: its rows keep their stored band alone
+    assert neighbourhood_case(CASES[CASE], parse_profile({"bound": "hausdorff"})) is None
+    # with a receiver offset the exact values are taken at the port's own receiver, zf - offset
+    at = neighbourhood_case(CASES[CASE], parse_profile({"receiver_offset": 1e-3}))
+    b, zf = np.array([[0.0, 0.5, 0.0, 0.5]]), np.array([0.2])
+    assert at.truth(b=b, zf=zf)[0][0] == CASES[CASE].truth(b=b, zf=zf - 1e-3)[0][0] != CASES[CASE].truth(b=b, zf=zf)[0][0]

@@ -76,7 +76,12 @@ def test_without_its_profile_a_legitimate_port_is_told_apart(drivers, driver):
 @pytest.mark.parametrize("language", ["hlsl", "glsl", "wgsl"])
 def test_a_singular_bias_target_fails_the_engine_rows_and_the_report_names_it(drivers, language, driver):
     moments = _run("singular_target", language, SINGULAR[language], "shadow_intensity-lower-float32", driver)
-    assert moments.passed  # the moment rows cannot see the engine's bias ...
+    # the moment rows cannot see the engine's bias, except where the slides' formula it copies cancels: rows
+    # flagged printed_hazard, ill-conditioned ones judged by the profiled case's neighbourhood (a cluster within
+    # 1e-4 of the far plane, zf = 1: it returns lit) ...
+    failing = [g for g in moments.groups if g.level != "robustness"]  # robustness rows are not gated
+    assert all(g.level == "contract" and "printed_hazard" in g.flags.split(",") for g in failing), failing
+    assert moments.failures == sum(len(g.rows) for g in failing) <= 3
     report = _run("singular_target", language, SINGULAR[language], "engine-lower-float32", driver)
     assert not report.passed  # ... the engine rows can
     assert report.groups[0].level == "target" and report.groups[0].count == report.failures

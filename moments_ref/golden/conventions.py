@@ -44,8 +44,12 @@ from .contract import rows_inside
 from .notes import ROBUSTNESS
 from .profile import DEFAULT, Bias, ignored_keys
 
-__all__ = ["profile_arrays", "profiled_arrays", "profiled_case", "convert_inputs", "contract_mask", "cache_dir",
-           "unused_keys"]
+__all__ = ["profile_arrays", "profiled_arrays", "profiled_case", "neighbourhood_case", "convert_inputs", "contract_mask",
+           "cache_dir", "unused_keys"]
+
+#: Receiver keys: the port computes its own receiver from what it is fed (golden.receiver.judged), and the exact
+#: values that judge its ill-conditioned rows are taken there.
+_RECEIVER_KEYS = ("receiver_offset", "receiver_slope", "receiver_depth")
 
 #: Flags that :func:`~moments_ref.golden.spread.derive` sets; recomputed under a profile.
 _DERIVED_FLAGS = (ROBUSTNESS, "wide_spread", "rounding_tie", "printed_hazard")
@@ -159,6 +163,47 @@ def profiled_case(case, profile):
         if before is not None:
             kwargs["harness_bias"] = {"alpha": before.alpha, "target": list(before.target)}
     return replace(out, kwargs=kwargs)
+
+
+def neighbourhood_case(case, profile):
+    """The case whose exact values judge a golden's ill-conditioned rows by their neighbourhood, or None.
+
+    Without a profile, ``case`` itself; under one, :func:`profiled_case` (its exact values take the
+    inputs as the engine receives them: a [0, 1] depth range, a bias inside or before, the output),
+    as the sweep judges and confirms profiled rows; with a receiver key, its exact values, reference
+    and formulations are taken at the receiver the port computes from what it is fed
+    (:func:`moments_ref.golden.receiver.judged`), so the neighbourhood of the fed receiver maps to
+    the port's own. None for the Hausdorff bound (judged by its own cases): those rows keep their
+    stored band alone. (The caller's clamp changes the port's outputs, which are clamped before
+    they are judged, not the exact values.)
+    """
+    if profile is None or profile.is_default:
+        return case
+    if profile.bound == "hausdorff":
+        return None
+    out = profiled_case(case, profile)
+    if "zf" in case.inputs and any(getattr(profile, k) for k in _RECEIVER_KEYS):
+        out = _at_judged_receiver(out, profile)
+    return out
+
+
+def _at_judged_receiver(case, profile):
+    """``case`` with its exact values, reference and formulations evaluated at the port's own receiver."""
+    from .receiver import judged
+
+    def mapped(ins):
+        ins = dict(ins)
+        ins.update(judged(case, {k: ins[k] for k in ("zf", "slope") if k in ins}, profile))
+        ins.pop("slope", None)
+        return ins
+
+    def wrap(f):
+        return None if f is None else (lambda **ins: f(**mapped(ins)))
+
+    hook = case.spread_hook
+    return replace(case, truth=wrap(case.truth), confirm_truth=wrap(case.confirm_truth),
+                   reference=wrap(case.reference),
+                   spread_hook=None if hook is None else (lambda ins, dt: hook(mapped(ins), dt)))
 
 
 def convert_inputs(case, inputs, profile):

@@ -253,7 +253,10 @@ def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, stric
     from .receiver import clamp_outputs
     from .writer import manifest_entry
 
+    from .conventions import neighbourhood_case
+
     case = CASES[name]
+    judge = neighbourhood_case(case, p)  # the ill-conditioned rows judged as the verdict judged them
     if rows is None:
         pcase, arrays = profiled_arrays(name, p, arrays=base_arrays, disk=False, fed=profile)
     else:
@@ -264,7 +267,9 @@ def _judge(name, p, rows, base_arrays, declared, got, profile, port_dtype, stric
         declared, got = pick(declared), pick(got)
     arrays = unchanged_band(arrays, declared, port_dtype)
     seen, _ = clamp_outputs(case, p, got)
-    return compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name, strict=strict)
+    v = compare(manifest_entry(pcase, arrays), arrays, seen, port_dtype, case=name, strict=strict, neighbourhood=judge)
+    v.ill_judged = judge is not None
+    return v
 
 
 def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="float32"):
@@ -362,8 +367,16 @@ def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="fl
             v = _judge(name, p, None, base_arrays, declared, got, profile, port_dtype, verdict.strict)
         except (InputError, TypeError, ValueError, KeyError):  # a choice this version cannot evaluate
             continue
+        keep = hazard & fail  # failing rows that keep their own cause and may still fail under the candidate
+        if not v.ill_judged and verdict.ill is not None:
+            # a key the exact values do not carry (a receiver convention) leaves the ill-conditioned rows their
+            # stored band alone: a row failing by its neighbourhood is not explained by the declaration (it keeps
+            # its cause), though the stored band would hold it
+            unjudged = fail & np.asarray(verdict.ill, bool)
+            v.row_pass = v.row_pass & ~unjudged
+            keep = keep | unjudged
         explained = fail & v.row_pass
-        if explained.any() and not (~v.row_pass & ~(hazard & fail)).any():  # only failing hazard rows may still fail
+        if explained.any() and not (~v.row_pass & ~keep).any():  # only failing hazard (or unjudged ill) rows may fail
             return [Group(level, what, [int(i) for i in np.flatnonzero(explained)],
                           f"the outputs are those of {what}: every failing row passes with it, within its "
                           "unchanged band (rows flagged printed_hazard apart); a convention, not an arithmetic "

@@ -228,8 +228,15 @@ def verify(golden_dir, results_path, port_dtype=None, worst_rows=None, strict=Fa
             from .receiver import clamp_outputs
 
             got, said = clamp_outputs(CASES[name], declared, got)
-        # no profile (the folder's or the call's): ill-conditioned rows are judged by their neighbourhood
-        plain = CASES.get(name) if target is None and manifest.get("profile_key") is None else None
+        # ill-conditioned rows are judged by their neighbourhood: the exact values of the shipped case, or of the
+        # profiled case the rows were converted for (none for a folder written under a profile not given here)
+        plain = None
+        if name in CASES and target is not None:
+            from .conventions import neighbourhood_case
+
+            plain = neighbourhood_case(CASES[name], profile)
+        elif name in CASES and manifest.get("profile_key") is None:
+            plain = CASES[name]
         result = _case_result(name, meta, gold, got, port_dtype, worst_rows, strict,
                               _causes(name, base, got, profile, target, port_dtype or meta["dtype"]), plain)
         if profile is not None and name in CASES:  # the declared keys this case ignores, and why
