@@ -59,21 +59,26 @@ def test_a_correct_port_passes_the_ill_conditioned_rows_and_they_never_count_as_
     assert ((e - t < 0) | (e + t > 1)).any()
 
 
+def _wrong_inside_the_band(gc, ill):
+    """``(row, intensity)``: a value inside an ill row's stored band and within [0, 1], at least 0.2 from every
+    neighbour's exact value (mpmath over the neighbourhood)."""
+    exact = neighbourhood_interval(CASES[CASE], {k: np.asarray(gc.arrays[k])[ill] for k in CASES[CASE].inputs})
+    _, hi = exact["intensity"]
+    e = np.asarray(gc.arrays["intensity"], np.float64)[ill]
+    tol = np.asarray(gc.arrays["intensity_tolerance_float32"], np.float64)[ill]
+    cand = np.minimum(e + tol, 1.0)
+    pick = np.flatnonzero(cand > hi + 0.2)
+    assert pick.size, "some ill row's symmetric band reaches 0.2 beyond its neighbourhood"
+    return int(ill[pick[0]]), float(cand[pick[0]] - 1e-3)
+
+
 def test_a_wrong_answer_on_an_ill_conditioned_row_fails_even_inside_the_symmetric_band(upper):
     """Item 2: an answer outside every neighbour's exact value and every legitimate evaluation fails, although
     the stored symmetric tolerance would hold it."""
     gc, ill = upper
     got = np.asarray(gc.arrays["intensity"], np.float64).astype(np.float32)
-    exact = neighbourhood_interval(CASES[CASE], {k: np.asarray(gc.arrays[k])[ill] for k in CASES[CASE].inputs})
-    lo, hi = exact["intensity"]
-    e = np.asarray(gc.arrays["intensity"], np.float64)[ill]
-    tol = np.asarray(gc.arrays["intensity_tolerance_float32"], np.float64)[ill]
-    # a value inside the stored band and within [0, 1], at least 0.2 from every neighbour's exact value
-    cand = np.minimum(e + tol, 1.0)
-    pick = np.flatnonzero(cand > hi + 0.2)
-    assert pick.size, "some ill row's symmetric band reaches 0.2 beyond its neighbourhood"
-    i = int(ill[pick[0]])
-    got[i] = np.float32(cand[pick[0]] - 1e-3)
+    i, value = _wrong_inside_the_band(gc, ill)
+    got[i] = np.float32(value)
     v = compare_case(CASE, gc.meta, gc.arrays, {"intensity": got}, case=CASES[CASE])
     assert not v.row_pass[i] and v.row_pass.sum() == len(got) - 1
     assert v.compared.ill_tally()["outside"] == 1
@@ -139,18 +144,11 @@ def test_under_a_profile_the_ill_rows_are_judged_by_the_profiled_cases_neighbour
     profile = parse_profile({"output": "visibility"})
     pcase, arrays = profiled_arrays(CASE, profile)
     entry = manifest_entry(pcase, arrays)
-    exact = neighbourhood_interval(CASES[CASE], {k: np.asarray(gc.arrays[k])[ill] for k in CASES[CASE].inputs})
-    lo, hi = exact["intensity"]
-    e = np.asarray(gc.arrays["intensity"], np.float64)[ill]
-    tol = np.asarray(gc.arrays["intensity_tolerance_float32"], np.float64)[ill]
-    cand = np.minimum(e + tol, 1.0)
-    pick = np.flatnonzero(cand > hi + 0.2)
-    assert pick.size
-    i = int(ill[pick[0]])
+    i, value = _wrong_inside_the_band(gc, ill)
     right = 1 - np.asarray(gc.arrays["intensity"], np.float64)
     right[ill] = 1 - _exact(gc, ill)
     wrong = right.copy()
-    wrong[i] = 1 - (cand[pick[0]] - 1e-3)  # the intensity no neighbour comes near, as a visibility
+    wrong[i] = 1 - value  # the intensity no neighbour comes near, as a visibility
     judge = neighbourhood_case(CASES[CASE], profile)
     assert judge is not None
     assert compare(entry, arrays, {"intensity": right.astype(np.float32)}, "float32", neighbourhood=judge).row_pass.all()

@@ -8,9 +8,6 @@ equivalents file's do in tests/test_mutation_tool.py).
 
 from __future__ import annotations
 
-import importlib
-from contextlib import contextmanager
-
 import pytest
 
 import test_band_edges as edges
@@ -22,28 +19,7 @@ import test_diagnosis_groups as diag
 import test_kernel_judge as judge
 import test_spread_model as spread
 import test_spread_ties as ties
-from moments_ref.tools.mutation import ROOT, mutants_of
-from moments_ref.tools.mutation._operators import mutated_code
-
-
-@contextmanager
-def _mutant(path, mid):
-    """The function ``mid`` changes, with the mutant's code while the block runs."""
-    source = (ROOT / path).read_text()
-    found = [m for m in mutants_of(source, path) if m.id == f"{path}::{mid}"]
-    assert found, f"no mutant {mid} in {path} any more: choose another one for this invariant"
-    m = found[0]
-    module = importlib.import_module(path.removesuffix(".py").replace("/", "."))
-    obj = module
-    for part in m.top.split("."):
-        obj = getattr(obj, part)
-    fn = getattr(obj, "fget", obj)
-    saved = fn.__code__
-    fn.__code__ = mutated_code(source, path, m)
-    try:
-        yield
-    finally:
-        fn.__code__ = saved
+from _mutants import kept_mutant
 
 
 CONTRACT = "moments_ref/golden/contract.py"
@@ -127,7 +103,7 @@ EXAMPLES = [
 def test_each_invariant_fails_under_its_kept_mutant(request, path, mid, test, args):
     values = [request.getfixturevalue(a) if isinstance(a, str) and a in ("goldens", "tmp_path") else a for a in args]
     test(*values)  # unmutated: holds
-    with _mutant(path, mid):
+    with kept_mutant(path, mid):
         with pytest.raises(Exception):  # an assertion, or the error the mutant raises
             test(*values)
 

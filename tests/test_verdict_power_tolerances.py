@@ -5,9 +5,6 @@ its test fails. As in tests/test_verdict_power.py, a mutant is found again by it
 
 from __future__ import annotations
 
-import importlib
-from contextlib import contextmanager
-
 import pytest
 
 import test_bilinear_rows as bil_rows
@@ -15,27 +12,7 @@ import test_bilinear_tolerances as bil
 import test_diagnosis_target as target
 import test_shrink_steps as shrink
 import test_verifier_sections as ver
-from moments_ref.tools.mutation import ROOT, mutants_of
-from moments_ref.tools.mutation._operators import mutated_code
-
-
-@contextmanager
-def _mutant(path, mid):
-    source = (ROOT / path).read_text()
-    found = [m for m in mutants_of(source, path) if m.id == f"{path}::{mid}"]
-    assert found, f"no mutant {mid} in {path} any more: choose another one for this invariant"
-    m = found[0]
-    obj = importlib.import_module(path.removesuffix(".py").replace("/", "."))
-    for part in m.top.split("."):
-        obj = getattr(obj, part)
-    fn = getattr(obj, "fget", obj)
-    saved = fn.__code__
-    fn.__code__ = mutated_code(source, path, m)
-    try:
-        yield
-    finally:
-        fn.__code__ = saved
-
+from _mutants import kept_mutant
 
 BILINEAR = "moments_ref/golden/bilinear.py"
 VERIFIER = "moments_ref/golden/verifier.py"
@@ -78,7 +55,7 @@ EXAMPLES = [
 def test_each_invariant_fails_under_its_kept_mutant(request, path, mid, test, fixtures, args):
     values = [request.getfixturevalue(f) for f in fixtures] + list(args)
     test(*values)  # unmutated: holds
-    with _mutant(path, mid):
+    with kept_mutant(path, mid):
         with pytest.raises((Exception, pytest.fail.Exception)):  # an assertion, the error it raises, a pytest.raises
             test(*values)
 
