@@ -74,7 +74,8 @@ from ._rows import Rows
 from .contract import PD_MIN, hankel_lambda_min
 
 __all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "singular_target_rows", "target_support", "moments_of_rows",
-           "legit_biases", "papers_chain32", "engine_interval", "case_noise", "CAP", "NEIGHBOUR_ULPS"]
+           "legit_biases", "papers_chain32", "engine_interval", "case_noise", "port_input_evaluations", "CAP",
+           "NEIGHBOUR_ULPS"]
 
 #: Targets strictly inside the moment space (papers' frame): the presets' and the uniform distribution's.
 LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3, 0.0, 0.2),
@@ -402,6 +403,34 @@ def _own_values(ctx, b, zf, dt):
     return [np.asarray(v, np.float64) for v in out]
 
 
+def port_input_evaluations(ctx, b, zf):
+    """The shipped ports' float32 evaluation on the port's own input: Algorithm 1 by the plain Cholesky of Peters
+    and Klein 2015, Prop. 10, with and without fma (:func:`moments_ref.golden.paper.cholesky_bound`), after the
+    port's bias inside if declared, on ``b`` rounded to float32 (a list of float64 arrays, NaN where the evaluation
+    errs beyond :data:`CAP` from the float64 bound of that input: a cancelling formula explains nothing), as
+    intensities (the interval's frame; a visibility port's band is turned afterwards). As for the
+    moment cases (:mod:`moments_ref.golden.bands`: the shipped plain-Cholesky evaluation is legitimate); empty for
+    the NLQ chains, whose contracted stages :func:`_contracted` covers."""
+    from ..moments import bias_moments
+    from .paper import cholesky_bound
+
+    if ctx.get("fmt") is not None:
+        return []
+    bound, inside = ctx.get("bound", "lower"), ctx.get("inside")
+    b32 = np.asarray(b).astype(np.float32)
+    z32 = np.asarray(zf).astype(np.float32)
+    if inside is not None:
+        b32 = bias_moments(b32, inside)
+    ref = np.asarray(_chain(ctx, inside, np.float64)[0](np.asarray(b).astype(np.float32).astype(np.float64),
+                                                          np.asarray(zf, np.float64)), np.float64)
+    out = []
+    with np.errstate(all="ignore"):
+        for m in (False, True):
+            v = np.asarray(cholesky_bound(b32, z32, bound, np.float32, fma=m), np.float64)
+            out.append(np.where(np.abs(v - ref) <= CAP, v, np.nan))
+    return out
+
+
 def _span(values, n):
     lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
     for v in values:
@@ -427,6 +456,8 @@ def engine_interval(ctx, arrays, b):
                 values[d] += _legit_values(ctx, p, unbiased, zf, d)
             if _own_pipeline(ctx, legit):
                 values[d] += _own_values(ctx, b, zf, d)
+                if d == "float32":
+                    values[d] += port_input_evaluations(ctx, b, zf)
             values[d] += _across_depth(sup, mass, zf, np.dtype(d))
     out = {}
     for d in PORT_DTYPES:
