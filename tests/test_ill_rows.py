@@ -155,8 +155,13 @@ def test_under_a_profile_the_ill_rows_are_judged_by_the_profiled_cases_neighbour
     v = compare(entry, arrays, {"intensity": wrong.astype(np.float32)}, "float32", neighbourhood=judge)
     assert not v.row_pass[i] and v.row_pass.sum() == len(right) - 1
     assert compare(entry, arrays, {"intensity": wrong.astype(np.float32)}, "float32").row_pass[i]  # stored band alone
-    # the Hausdorff bound is judged by its own cases: its rows keep their stored band alone
-    assert neighbourhood_case(CASES[CASE], parse_profile({"bound": "hausdorff"})) is None
+    # under the Hausdorff declaration an Algorithm 1 case's exact values are not the port's; the Hausdorff
+    # cases' are (their ill rows are judged by their own neighbourhood)
+    hausdorff = parse_profile({"bound": "hausdorff"})
+    assert neighbourhood_case(CASES[CASE], hausdorff) is None
+    h = neighbourhood_case(CASES["hausdorff-upper-float32"], hausdorff)
+    assert h is not None and h.truth(b=np.array([[0.5, 0.3, 0.2, 0.15]]), zf=np.array([0.4]))[0][0] == \
+        CASES["hausdorff-upper-float32"].truth(b=np.array([[0.5, 0.3, 0.2, 0.15]]), zf=np.array([0.4]))[0][0]
     # with a receiver offset the exact values are taken at the port's own receiver, zf - offset
     at = neighbourhood_case(CASES[CASE], parse_profile({"receiver_offset": 1e-3}))
     b, zf = np.array([[0.0, 0.5, 0.0, 0.5]]), np.array([0.2])

@@ -173,14 +173,15 @@ def neighbourhood_case(case, profile):
     as the sweep judges and confirms profiled rows; with a receiver key, its exact values, reference
     and formulations are taken at the receiver the port computes from what it is fed
     (:func:`moments_ref.golden.receiver.judged`), so the neighbourhood of the fed receiver maps to
-    the port's own. None for the Hausdorff bound (judged by its own cases): those rows keep their
-    stored band alone. (The caller's clamp changes the port's outputs, which are clamped before
+    the port's own. None for an Algorithm 1 case under ``bound = "hausdorff"`` (a Hausdorff port is
+    judged by the hausdorff-* cases, whose exact values are its own): those rows keep their stored
+    band alone. (The caller's clamp changes the port's outputs, which are clamped before
     they are judged, not the exact values.)
     """
     if profile is None or profile.is_default:
         return case
-    if profile.bound == "hausdorff":
-        return None
+    if profile.bound == "hausdorff" and case.contract != "hausdorff":
+        return None  # an Algorithm 1 case under the Hausdorff declaration: its exact values are not the port's
     out = profiled_case(case, profile)
     if "zf" in case.inputs and any(getattr(profile, k) for k in _RECEIVER_KEYS):
         out = _at_judged_receiver(out, profile)
