@@ -140,7 +140,7 @@ def test_ill_conditioned_rows_are_judged_by_their_neighbourhood():
     """The near strata's ill-conditioned rows count as judged: a value outside every neighbour's exact value and every
     legitimate evaluation is flagged and confirmed; the exact value (mpmath) is not flagged."""
     from moments_ref.sweep import judge
-    from moments_ref.sweep.runner import wrong_rows
+    from moments_ref.sweep.judge import wrong_rows
     from moments_ref.sweep.samplers import draw_chunk
 
     case = golden.CASES["shadow_intensity-upper-float32"]

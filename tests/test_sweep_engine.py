@@ -180,3 +180,22 @@ def test_shipped_glsl_passes_and_a_one_change_mutant_the_goldens_miss_is_found_a
     rerun = run_case(mutant, fn, CASE, language="glsl", adapter="gl", golden_dir=tmp_path / "out" / "failure-0")
     assert not rerun.passed  # the shrunk row file reruns the failure
     assert run_case(path, fn, CASE, language="glsl", adapter="gl", golden_dir=tmp_path / "out" / "failure-0").passed
+
+
+def test_the_shipped_upper_bounds_float32_value_on_a_one_depth_texel_is_legitimate():
+    # A row of the 10^6-row engine-upper sweep: one depth at -0.9298, the receiver 9.6e-4 behind it, the harness's
+    # BIAS_FLOAT32. 0.9999141693 is what the shipped msm.glsl upper bound returned on llvmpipe and lavapipe (recorded
+    # from the drivers: the ports' plain float32 Cholesky). Before the engine band took that evaluation on the port's
+    # own input it was confirmed "wrong" (the band held 0.9999963 +- 2.7e-5); a value 1e-3 lower still is.
+    case = CASES["engine-upper-float32"]
+    z = np.full((1, 6), -0.9298073219944447)
+    w = np.array([[1.0, 0, 0, 0, 0, 0]])
+    inputs = engine.engine_inputs(case, z, w, np.array([-0.928851842880249]))
+    assert inputs["b"][0].tolist() == np.float32([-0.9298070669174194, 0.8645415306091309, -0.8038569092750549,
+                                                  0.7474321722984314]).tolist()
+    bands, ill = judge.legitimate_interval(case, inputs)
+    lo, hi = bands["intensity"]
+    driver = np.float32(0.9999141693115234)
+    assert lo[0] <= driver <= hi[0]
+    assert not engine.confirm(case, inputs, {"intensity": np.array([driver])})[0]
+    assert engine.confirm(case, inputs, {"intensity": np.array([driver - np.float32(1e-3)])})[0]

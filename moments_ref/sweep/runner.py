@@ -21,7 +21,6 @@ import numpy as np
 
 from ..golden.cases import call_implementation
 from . import judge
-from .judge import wrong_rows  # noqa: F401 (its home was here)
 from .samplers import CHUNK, STRATA, draw_chunk
 
 __all__ = ["Port", "SweepSpec", "run_chunk", "run_chunks", "evaluate", "CONFIRM_CAP", "KEEP", "STAGES"]
