@@ -390,16 +390,24 @@ def _legit_values(ctx, p, unbiased, zf, dt):
 
 def _own_values(ctx, b, zf, dt):
     """This package's pipeline as the port runs it (its bias inside, if declared) on the port's input ``b`` rounded
-    to ``dt``: in ``dt`` and in float64, on b, on b moved by one ulp of ``dt`` per component (alternating signs) and
-    (float64) over zf's neighbourhood: the rounding of the port's own input."""
+    to ``dt``: in ``dt`` and in float64, on b, on b moved by one ulp of ``dt`` per component (alternating signs),
+    (float64) over zf's neighbourhood, and (float64, the exact value's stand-in) on b and zf scaled jointly by
+    1 ± k ulps of ``dt``, k = 1 … :data:`NEIGHBOUR_ULPS`, rounded to ``dt``: the rounding of the port's own input,
+    the points the sweep's confirmation values exactly (:func:`moments_ref.sweep.engine.exact_span`), so that a row
+    whose exact values spread beyond :data:`CAP` over them is ill-conditioned here too."""
     d = np.dtype(dt)
     f, ref = _chain(ctx, ctx.get("inside"), d.type)[0], _chain(ctx, ctx.get("inside"), np.float64)[0]
-    b = np.asarray(b).astype(d).astype(np.float64)
+    b64, zf = np.asarray(b, np.float64), np.asarray(zf, np.float64)
+    b = b64.astype(d).astype(np.float64)
     sign = np.where(np.arange(4) % 2 == 0, 1.0, -1.0)
     eps = float(np.finfo(d).eps)
     out = [ref(b, z) for z in _zf_neighbours(zf, d)]
     for x in [b] + [(b * (1 + s * eps * sign)).astype(d).astype(np.float64) for s in (1, -1)]:
         out += [f(x, zf), ref(x, zf)]
+    for k in range(1, NEIGHBOUR_ULPS + 1):
+        for s in (1, -1):
+            j = 1 + s * k * eps
+            out.append(ref((b * j).astype(d).astype(np.float64), (zf * j).astype(d).astype(np.float64)))
     return [np.asarray(v, np.float64) for v in out]
 
 
