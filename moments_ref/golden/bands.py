@@ -43,7 +43,7 @@ from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
-__all__ = ["legitimate_interval", "confirm", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes",
+__all__ = ["legitimate_interval", "confirm", "confirm_points", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes",
            "contract_rows", "contract_reach", "on_tie", "tie_accepted", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE",
            "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
@@ -122,16 +122,23 @@ def _neighbours(case, inputs, dt, free):
     return pts
 
 
-def evaluations(case, inputs, dt, free=None):
+def evaluations(case, inputs, dt, free=None, full=False):
     """Legitimate evaluations of the rows: ``(core, formulations)``, lists of output tuples.
 
-    ``core``: the reference in ``dt`` and float64 on the rows and their neighbourhood.
-    ``formulations``: the case's other formulations (``spread_hook``) in ``dt``.
+    ``core``: the reference in ``dt`` and float64 on the rows and their neighbourhood; with ``full``, also
+    the float64 reference on every point :func:`confirm` values exactly (:func:`confirm_points`), the exact
+    value's stand-in there. ``formulations``: the case's other formulations (``spread_hook``) in ``dt``.
     """
     n = len(next(iter(inputs.values())))
     if free is None:
         free = ~equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
     core = [evaluate_reference(case, inputs, dt), evaluate_reference(case, inputs, np.float64)]
+    if full and case.perturb:
+        for p in confirm_points(case, inputs)[1:]:
+            try:
+                core.append(evaluate_reference(case, p, np.float64))
+            except InputError:  # a neighbour outside the function's domain: none
+                pass
     for p in _neighbours(case, inputs, dt, free):
         # The exact value over the neighbourhood: float64 on the neighbour's float32 values.
         p32 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(dt)) for k, v in p.items()}
@@ -273,7 +280,7 @@ def case_noise(case, dt):
     return _NOISE[key][1]
 
 
-def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract=None):
+def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract=None, full=False):
     """Per row and output, the band a correct port's value lies in, and the ill-conditioned rows.
 
     Parameters
@@ -287,6 +294,14 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract
     contract : (n,) bool, optional
         The rows inside the case's contract, where they were decided elsewhere (under a profile, on the
         papers' inputs: :func:`moments_ref.golden.conventions.contract_mask`); default: from ``inputs``.
+    full : bool
+        Also the float64 reference on every point of the float32 neighbourhood :func:`confirm` values
+        exactly (:func:`confirm_points`: the joint ``1 ± k`` ulp scalings and the :data:`NEIGHBOURS`
+        component-wise points), so that a row whose exact values spread beyond the cap over them is
+        ill-conditioned and its band holds them. A band only widens with ``full`` (its points are a
+        superset), so the sweep computes it on the rows the default band flags
+        (:func:`moments_ref.sweep.judge.flagged_rows`): the same verdicts as on every row, at the
+        speed of the default.
 
     Returns
     -------
@@ -305,7 +320,7 @@ def legitimate_interval(case, inputs, port_dtype="float32", noise=None, contract
     # wherever the float64 reference is within the margin of it, which the goldens check row by row.
     expected = [np.asarray(x, np.float64) for x in evaluate_reference(case, inputs, np.float64)]
     noise = case_noise(case, dt) if noise is None else noise
-    core, hooks = evaluations(case, inputs, dt)
+    core, hooks = evaluations(case, inputs, dt, full=full)
     contract = contract_rows(case, inputs, n) if contract is None else np.asarray(contract, bool)
     parts = interval_parts(case, dt, expected, contract, noise, core, hooks)
     bands, ill = {}, np.zeros(n, bool)
@@ -421,8 +436,15 @@ def _within_cap(case, hook, exact):
     return tuple(out)
 
 
-def _exact_values(case, inputs, seed=12345):
-    """The exact values (:func:`_exact`) on the rows and on their float32 neighbourhood (:func:`confirm`'s points)."""
+def confirm_points(case, inputs, seed=12345):
+    """The float32 neighbourhood :func:`confirm` values exactly: a list of input dicts, the rows first.
+
+    The rows; their float inputs scaled jointly by ``1 ± k`` float32 ulps (k = 1 … PERTURB_ULPS); and
+    :data:`NEIGHBOURS` points whose float inputs are scaled per component by ``1 + j·ulp``, j drawn once
+    from {−PERTURB_ULPS … PERTURB_ULPS} per point and component (``seed``) and the same for every row, so a
+    row's neighbourhood does not depend on the other rows of a call; each rounded to the inputs' dtype (a
+    neighbour is an input the port could have received).
+    """
     rng = np.random.default_rng(seed)
     eps = float(np.finfo(np.float32).eps)
 
@@ -434,10 +456,15 @@ def _exact_values(case, inputs, seed=12345):
                       for s in (1, -1)]
     for _ in range(NEIGHBOURS):
         pts.append(rounded(_scaled(case, inputs, {
-            k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k]))
+            k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k])[1:])[None]
             for k in _float_keys(case, inputs)})))
+    return pts
+
+
+def _exact_values(case, inputs, seed=12345):
+    """The exact values (:func:`_exact`) on the rows and on their float32 neighbourhood (:func:`confirm_points`)."""
     values = []
-    for p in pts:
+    for p in confirm_points(case, inputs, seed):
         try:
             values.extend(_exact(case, p))
         except InputError:  # a neighbour outside the function's domain

@@ -82,18 +82,30 @@ def wrong_rows(case, bands, ill, got):
     return bad
 
 
-def flagged_rows(case, inputs, bands, ill, got, gated=None):
+def flagged_rows(case, inputs, bands, ill, got, gated=None, port_dtype="float32", contract=None):
     """``(n,)`` bool: the rows the sweep flags (then confirms).
 
     A ``gated`` row (default: every row) is flagged where an output lies outside its interval (:func:`wrong_rows`),
-    an ill-conditioned one only where the case judges its ill rows (:func:`judges_ill`: not the engine cases);
-    for integer outputs a flagged code within one code of its interval is then put to the
+    an ill-conditioned one only where the case judges its ill rows (:func:`judges_ill`: not the engine cases).
+    A flagged row of a case with a band model of its own evaluations (not the codes, engine or bilinear cases)
+    is judged again by its band over the whole neighbourhood :func:`confirm` values exactly
+    (:func:`moments_ref.golden.bands.legitimate_interval` with ``full``, ``contract`` as for the chunk): a row
+    whose exact values spread beyond the cap there is ill-conditioned and judged by that wider band, so a flag
+    that the confirmation's own neighbourhood explains is no flag. The full band only widens the default one,
+    so computing it on the flagged rows gives the verdicts of computing it on every row.
+    For integer outputs a flagged code within one code of its interval is then put to the
     goldens' tie rule (:func:`moments_ref.golden.bands.tie_accepted`, mpmath on those few rows
     only), and is not flagged where the rule accepts it.
     """
     flagged = wrong_rows(case, bands, ill, got) & (judges_ill(case) | ~np.asarray(ill, bool))
     if gated is not None:
         flagged &= np.asarray(gated, bool)
+    sub = lambda d, rows: {k: np.asarray(v)[rows] for k, v in d.items()}  # noqa: E731
+    if flagged.any() and not (case.integer_output or case.deriver is not None or _engine.is_engine(case)):
+        look = np.flatnonzero(flagged)
+        c = None if contract is None else np.asarray(contract, bool)[look]
+        full, full_ill = _bands.legitimate_interval(case, sub(inputs, look), port_dtype, contract=c, full=True)
+        flagged[look] = wrong_rows(case, full, full_ill, sub(got, look))
     if not (case.integer_output and flagged.any()):
         return flagged
     n = len(flagged)
@@ -104,6 +116,5 @@ def flagged_rows(case, inputs, bands, ill, got, gated=None):
             near &= ((g >= lo - 1) & (g <= hi + 1)).reshape(n, -1).all(axis=1)
     look = np.flatnonzero(flagged & near)
     if look.size:
-        sub = lambda d: {k: np.asarray(v)[look] for k, v in d.items()}  # noqa: E731
-        flagged[look[_bands.tie_accepted(case, sub(inputs), sub(got))]] = False
+        flagged[look[_bands.tie_accepted(case, sub(inputs, look), sub(got, look))]] = False
     return flagged

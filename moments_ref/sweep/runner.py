@@ -149,7 +149,7 @@ def run_chunk(spec, chunk):
         got = evaluate(spec, inputs, driver)
         t["driver"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        flagged = judge.flagged_rows(case, inputs, bands, ill, got, gated)
+        flagged = judge.flagged_rows(case, inputs, bands, ill, got, gated, spec.port_dtype, contract)
         t["compare"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         idx = np.flatnonzero(flagged)

@@ -105,7 +105,7 @@ def shrink(spec, driver, texel):
         contract = judge.contract_rows(case, inputs, params.get("contract"))
         bands, ill = judge.legitimate_interval(case, inputs, spec.port_dtype, contract)
         gated = None if spec.strict else contract
-        flagged = np.flatnonzero(judge.flagged_rows(case, inputs, bands, ill, got, gated))
+        flagged = np.flatnonzero(judge.flagged_rows(case, inputs, bands, ill, got, gated, spec.port_dtype, contract))
         step = None
         for i in flagged[:8]:
             one = lambda d: {k: np.asarray(v)[i:i + 1] for k, v in d.items()}  # noqa: E731
