@@ -127,7 +127,9 @@ def evaluations(case, inputs, dt, free=None, full=False):
 
     ``core``: the reference in ``dt`` and float64 on the rows and their neighbourhood; with ``full``, also
     the float64 reference on every point :func:`confirm` values exactly (:func:`confirm_points`), the exact
-    value's stand-in there. ``formulations``: the case's other formulations (``spread_hook``) in ``dt``.
+    value's stand-in there. ``formulations``: the case's other formulations (``spread_hook``) in ``dt``; with
+    ``full``, also its ``full`` attribute's where it has one (``e2e-msm64``: the chain on every texel the row's
+    code ties admit, :func:`moments_ref.golden.gpuspread.msm_spread`).
     """
     n = len(next(iter(inputs.values())))
     if free is None:
@@ -148,6 +150,8 @@ def evaluations(case, inputs, dt, free=None, full=False):
             except InputError:  # a neighbour outside the function's domain (y1 > y2 after rounding): none
                 pass
     hooks = list(case.spread_hook(inputs, np.dtype(dt))) if case.spread_hook is not None else []
+    if full and getattr(case.spread_hook, "full", None) is not None:  # the hook's own neighbourhood (tie texels)
+        hooks += list(case.spread_hook.full(inputs, np.dtype(dt)))
     return core, hooks
 
 
@@ -510,7 +514,7 @@ def confirm(case, inputs, got, port_dtype="float32", seed=12345):
     values = _exact_values(case, inputs, seed)
     if case.integer_output:  # the codes of the goldens' tie rule, one definition with the sweep's flagging
         return ~tie_accepted(case, inputs, got, values)
-    core, hooks = evaluations(case, inputs, dt)
+    core, hooks = evaluations(case, inputs, dt, full=True)  # every evaluation a band may hold (its full one)
     row = values[:2] if case.confirm_truth is not None else values[:1]  # the row's own exact values
     values += core + [_within_cap(case, h, row) for h in hooks]
     wrong = np.zeros(n, bool)

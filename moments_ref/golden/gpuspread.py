@@ -36,7 +36,7 @@ import numpy as np
 
 from ..moments import bias_moments
 
-__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "TRANSCENDENTAL_ULPS", "FUSED_STAGES",
+__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "tied_codes", "TIE_FLIPS", "TRANSCENDENTAL_ULPS", "FUSED_STAGES",
            "block_spread", "chain_spread", "msm_spread"]
 
 #: How far a GPU's log and exp may be off (GLSL 4.30 §4.7.1: 3 ulp outside [0.5, 2]).
@@ -125,25 +125,67 @@ def nlq_chain_fused(fmt, bias, clamp=None, case_test="stored", stages=(False, Fa
     return chain
 
 
-def msm_chain_fused(bias, fma):
+def msm_chain_fused(bias, fma, flip=()):
     """``e2e-msm64``'s chain (decode_unorm16 of encode_unorm16, the bias, Algorithm 1) by the plain Cholesky
-    evaluation the shipped ports run, with (``fma``) or without every ``a·b + c`` contracted, float32."""
+    evaluation the shipped ports run, with (``fma``) or without every ``a·b + c`` contracted, float32.
+
+    ``flip``: channels whose code is replaced by the other code of its rounding tie (:func:`tied_codes`); the
+    chain is NaN on rows where one of them is not on a tie (that texel is the row's own, evaluated without it).
+    ``fma=None``: that texel decoded, biased and bounded in float64 (:func:`moments_ref.msm.shadow_intensity`), the
+    exact value's stand-in."""
 
     def chain(b, zf):
-        from ..affine import decode_unorm16, encode_unorm16
-        from ..gpu.fused32 import bias_fused
+        from ..affine import decode_unorm16
+        from ..msm import shadow_intensity
         from .paper import cholesky_bound
 
-        bq = decode_unorm16(encode_unorm16(np.asarray(b, np.float32)), dtype=np.float32)
+        codes, alt, tied = tied_codes(b)
+        keep = np.ones(len(codes), bool)
+        for c in flip:
+            codes[:, c], keep = alt[:, c], keep & tied[:, c]
+        dt = np.float64 if fma is None else np.float32
+        bq = decode_unorm16(codes, dtype=dt)
         if bias is not None:
             bq = bias_fused(bq, bias) if fma else bias_moments(bq, bias)
-        return (cholesky_bound(bq, zf, "lower", np.float32, fma=fma),)
+        z = np.asarray(zf, dt)
+        v = shadow_intensity(bq, z) if fma is None else cholesky_bound(bq, z, "lower", np.float32, fma=fma)
+        return (np.where(keep, v, np.nan).astype(dt),)
+
+    from ..gpu.fused32 import bias_fused
 
     return chain
 
 
+def tied_codes(b):
+    """``(codes, alt, tied)`` of the 64-bit affine texel of ``b`` (``(n, 4)``): the float32 encoder's UNORM16 codes
+    (:func:`moments_ref.affine.encode_unorm16`), and per channel whether its scaled value
+    65535 · clamp(M·b + c, 0, 1) (float64) lies within the goldens' tie band of a rounding boundary
+    (:data:`moments_ref.golden.truth.CHAIN_TIE`, 2⁻¹⁸ of the range, a hair wider for float64's rounding) and the
+    other code of that tie: the texels the exact chain :func:`moments_ref.golden.truth.msm64_chain` takes, any of
+    which a float32 encoder (a GPU's ``to_optimized`` a few ulps off) may store."""
+    from ..affine import encode_unorm16, to_optimized
+    from .truth import CHAIN_TIE
+
+    b = np.asarray(b).reshape(-1, 4)
+    codes = encode_unorm16(b.astype(np.float32)).astype(np.int64)
+    v = np.clip(to_optimized(b.astype(np.float64)), 0, 1) * 65535
+    low = np.floor(v).astype(np.int64)
+    tied = (np.abs(v - low - 0.5) <= CHAIN_TIE * 65535 + 1e-6) & ((codes == low) | (codes == low + 1))
+    alt = np.where(tied, 2 * low + 1 - codes, codes)
+    return codes.astype(np.uint16), alt.clip(0, 65535).astype(np.uint16), tied
+
+
+#: The non-empty sets of channels of a 64-bit affine texel whose codes a tie may flip (up to 4 at once).
+TIE_FLIPS = tuple(tuple(c for c in range(4) if m >> c & 1) for m in range(1, 16))
+
+
 def msm_spread(bias, *_):
-    """A ``spread_hook`` for ``e2e-msm64``: :func:`msm_chain_fused` without and with fma."""
+    """A ``spread_hook`` for ``e2e-msm64``: :func:`msm_chain_fused` without and with fma on the row's own texel.
+
+    Its attribute ``full`` is the hook of the whole neighbourhood (:func:`moments_ref.golden.bands.evaluations`
+    with ``full``, the points the confirmation values exactly): the same chain, with and without fma and in float64,
+    on each texel the row's rounding ties admit (:data:`TIE_FLIPS`, :func:`tied_codes`; the exact chain
+    :func:`moments_ref.golden.truth.msm64_chain` takes every one), NaN on rows without that tie."""
 
     def hook(inputs, dt):
         if dt != np.float32:
@@ -151,6 +193,21 @@ def msm_spread(bias, *_):
         b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
         return [msm_chain_fused(bias, f)(b, zf) for f in (False, True)]
 
+    def full(inputs, dt):
+        if dt != np.float32:
+            return []
+        b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
+        tied, out = tied_codes(b)[2], []
+        for flip in TIE_FLIPS:
+            rows = np.flatnonzero(tied[:, list(flip)].all(axis=1))
+            if rows.size:  # only the rows this flip changes (about 2^-|flip| of them)
+                for f in (False, True, None):
+                    v = np.full(len(b), np.nan)
+                    v[rows] = msm_chain_fused(bias, f, flip)(b[rows], zf[rows])[0]
+                    out.append((v,))
+        return out
+
+    hook.full = full
     return hook
 
 
