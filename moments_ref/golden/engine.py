@@ -30,7 +30,9 @@ what an engine's bias does. The ``engine-*`` cases start from depth distribution
     value over the neighbourhood), and over zf's neighbourhood (:data:`NEIGHBOUR_ULPS`
     ulps each way, float64);
   - this package's pipeline as the port runs it on the port's own input (and on it moved
-    by one ulp), where the port's own bias is legitimate (a singular one is not: it is
+    by one ulp; in float64 on b and zf scaled jointly by 1 ± 1–3 ulps, the points the sweep's
+    confirmation values exactly, so that one neighbourhood decides the band, the ill rows and
+    the confirmation), where the port's own bias is legitimate (a singular one is not: it is
     judged by its outputs, :func:`singular_target_rows` says which rows it explains);
   - where zf lies within rounding of a depth of the distribution (flag ``support_point``,
     and receivers between two depths one float32 ulp apart), Z just below and at that
