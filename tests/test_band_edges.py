@@ -137,16 +137,17 @@ def _difference_case():
 
 def test_confirm_explains_inputs_moved_apart_by_up_to_three_ulps_each_but_not_farther():
     # 0.75 (1 + j 2^-23) rounds to 0.75 + {2, 3, 4} 2^-24 for j = 1, 2, 3 (ties to even), and below alike: two
-    # inputs moved apart by (3, -2) or (2, -3) ulps differ by 7 · 2^-24, by (3, -3) 8 · 2^-24 (equal inputs have
-    # no component-wise legitimate evaluation: only confirm's random neighbours move them apart). Over 40 rows
-    # with 12 random neighbours each, some row draws such a pair (each draw one in 16: 3 of 49 pairs), not every
-    # row; 9 · 2^-24 no row explains.
+    # inputs moved apart by (3, -3) ulps differ by 8 · 2^-24, by (3, -2) or (2, -3) 7 · 2^-24 (equal inputs have
+    # no component-wise legitimate evaluation: only confirm's component-wise neighbours move them apart). The
+    # neighbourhood holds the two alternating ±3-ulp points, the same for every row: every row explains
+    # 8 · 2^-24 either way; 9 · 2^-24 no row explains.
     n = 40
     x = np.full(n, 0.75, np.float32)
     case = _difference_case()
-    wrong7 = bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, 7 * E24 * 1e6)})
-    assert not wrong7.all() and wrong7.any()
-    assert bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, 9 * E24 * 1e6)}).all()
+    for k in (7, 8, -8):
+        assert not bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, k * E24 * 1e6)}).any()
+    for k in (9, -9):
+        assert bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, k * E24 * 1e6)}).all()
 
 
 def _sqrt_of_distance(x):
