@@ -57,6 +57,36 @@ def test_engine_row_a_is_ill_over_the_confirmations_neighbourhood():
     assert judge.confirm(case, inputs, {"intensity": np.array([0.9], np.float32)}).all()
 
 
+#: (b) shadow_intensity-lower-float32, 10^8 rows, seed 0, llvmpipe (cluster/near): three depths -0.88408, -0.88513
+#: and 0.42923 (weights 0.528, 0.468, 0.0043), the receiver on the first; the driver returns GOT_B, the shipped
+#: plain-Cholesky evaluation without fma, which the band (capped at 0.02 about 0.41987) missed.
+B_B = np.array([[-0.878868579864502, 0.7798765897750854, -0.6888092160224915, 0.6097564697265625]], np.float32)
+B_ZF = np.array([-0.8840803503990173], np.float32)
+GOT_B = 0.4405953586101532
+
+
+def test_moment_row_b_is_ill_over_the_confirmations_neighbourhood():
+    from moments_ref.golden.paper import cholesky_bound
+
+    case = CASES["shadow_intensity-lower-float32"]
+    inputs = {"b": B_B, "zf": B_ZF}
+    assert cholesky_bound(B_B, B_ZF, "lower", np.float32)[0] == np.float32(GOT_B)
+    # mpmath: the exact lower bound on the row and on it scaled jointly by k float32 ulps (the confirmation's points)
+    row = float(precise.shadow_bounds(B_B.astype(np.float64), B_ZF.astype(np.float64))[0][0])
+    exact = {k: float(precise.shadow_bounds(_joint(B_B, k), _joint(B_ZF, k))[0][0]) for k in (-3, -2, -1, 1, 2, 3)}
+    assert exact[2] > row + CAP  # 0.4464: one neighbour beyond the cap, so the row is ill-conditioned
+    assert min(exact.values()) < GOT_B < max(exact.values())
+    contract = judge.contract_rows(case, inputs)
+    bands_, ill = judge.legitimate_interval(case, inputs, "float32", contract)
+    got = {"intensity": np.array([GOT_B], np.float32)}
+    assert judge.wrong_rows(case, bands_, ill, got).all() and not ill.any()  # the default band: the old flag
+    full, full_ill = bands.legitimate_interval(case, inputs, "float32", contract=contract, full=True)
+    assert full_ill.all() and full["intensity"][1][0] >= max(exact.values())
+    assert not judge.flagged_rows(case, inputs, bands_, ill, got, contract, "float32", contract).any()
+    assert not judge.confirm(case, inputs, got).any()
+    assert judge.confirm(case, inputs, {"intensity": np.array([0.9], np.float32)}).all()
+
+
 def test_a_rows_confirmation_points_do_not_depend_on_the_other_rows():
     case = CASES["shadow_intensity-lower-float32"]
     rng = np.random.default_rng(3)
