@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from moments_ref.golden import bands
-from moments_ref.golden.cases import Case
+from moments_ref.golden.cases import CASES, Case
 
 
 def _identity(x):
@@ -148,6 +148,25 @@ def test_confirm_explains_inputs_moved_apart_by_up_to_three_ulps_each_but_not_fa
         assert not bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, k * E24 * 1e6)}).any()
     for k in (9, -9):
         assert bands.confirm(case, {"x1": x, "x2": x}, {"y": np.full(n, k * E24 * 1e6)}).all()
+
+
+def test_the_component_wise_points_move_each_component_both_ways_independently():
+    # confirm_points: after the row and the six joint scalings, the two alternating ±3-ulp points, then the random
+    # ones: each component moved by j ulps, j from -3 … 3 drawn per point and component (the same for every row)
+    case = CASES["shadow_intensity-lower-float32"]
+    b = np.full((2, 4), 0.75, np.float32)
+    zf = np.full(2, 0.75, np.float32)
+    pts = bands.confirm_points(case, {"b": b, "zf": zf})
+    assert len(pts) == 1 + 2 * bands.PERTURB_ULPS + bands.NEIGHBOURS
+    # offsets in units of 2^-24 at 0.75 (j = 1, 2, 3 ulps of 2^-23 round to 2, 3, 4): per point, b's 4 and zf
+    moved = np.array([np.append(p["b"][0], p["zf"][0]) for p in pts[1 + 2 * bands.PERTURB_ULPS:]], np.float64)
+    units = np.rint((moved - 0.75) / E24)
+    assert units[0].tolist() == [4, -4, 4, -4, 4] and units[1].tolist() == [-4, 4, -4, 4, -4]
+    rand = units[2:]
+    assert (rand > 0).any(axis=0).all() and (rand < 0).any(axis=0).all()  # each component both ways
+    assert (np.ptp(rand, axis=1) > 0).sum() >= len(rand) - 1  # not joint scalings
+    for p in pts:  # the same points for both rows
+        assert np.array_equal(p["b"][0], p["b"][1]) and p["zf"][0] == p["zf"][1]
 
 
 def _sqrt_of_distance(x):

@@ -465,7 +465,9 @@ def confirm_points(case, inputs, seed=12345):
         offset += m
     pts = [inputs] + [rounded(_scaled(case, inputs, 1 + s * k * eps)) for k in range(1, PERTURB_ULPS + 1)
                       for s in (1, -1)]
-    pts += [rounded(_scaled(case, inputs, {k: 1 + s * PERTURB_ULPS * eps * sign[k] for k in keys})) for s in (1, -1)]
+    if offset > 1:  # (with one float component these are the joint ±PERTURB_ULPS points)
+        pts += [rounded(_scaled(case, inputs, {k: 1 + s * PERTURB_ULPS * eps * sign[k] for k in keys}))
+                for s in (1, -1)]
     for _ in range(NEIGHBOURS - 2):
         pts.append(rounded(_scaled(case, inputs, {
             k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k])[1:])[None] for k in keys})))
