@@ -143,9 +143,12 @@ def test_ill_conditioned_rows_are_judged_by_their_neighbourhood():
     from moments_ref.sweep.judge import wrong_rows
     from moments_ref.sweep.samplers import draw_chunk
 
+    from moments_ref.golden.bands import legitimate_interval
+
     case = golden.CASES["shadow_intensity-upper-float32"]
     inputs, params = draw_chunk(case, 0, 0, rows=6000)
-    bands, ill = judge.legitimate_interval(case, inputs)
+    # the full band: over the whole neighbourhood the confirmation values (what a flagged row is judged by)
+    bands, ill = legitimate_interval(case, inputs, full=True)
     lo, hi = bands["intensity"]
     # Ill-conditioned rows whose neighbourhood still decides the side of one half (a third of them: docs/sweep.md).
     pick = np.flatnonzero(ill & ((hi < 0.4) | (lo > 0.6)))[:4]
