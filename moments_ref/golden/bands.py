@@ -444,11 +444,10 @@ def confirm_points(case, inputs, seed=12345):
     """The float32 neighbourhood :func:`confirm` values exactly: a list of input dicts, the rows first.
 
     The rows; their float inputs scaled jointly by ``1 ± k`` float32 ulps (k = 1 … PERTURB_ULPS); and
-    :data:`NEIGHBOURS` points whose float inputs are scaled per component by ``1 + j·ulp``: two with
-    j = ±PERTURB_ULPS of alternating signs (inputs moved farthest apart), the others with j drawn once from
-    {−PERTURB_ULPS … PERTURB_ULPS} per point and component (``seed``). The points are the same for every
-    row, so a row's neighbourhood does not depend on the other rows of a call. Each is rounded to the inputs'
-    dtype (a neighbour is an input the port could have received).
+    :data:`NEIGHBOURS` points whose float inputs are scaled per component by ``1 + j·ulp``, j drawn once from
+    {−PERTURB_ULPS … PERTURB_ULPS} per point and component (``seed``): the same points for every row, so a
+    row's neighbourhood does not depend on the other rows of a call. Each is rounded to the inputs' dtype (a
+    neighbour is an input the port could have received).
     """
     rng = np.random.default_rng(seed)
     eps = float(np.finfo(np.float32).eps)
@@ -457,20 +456,12 @@ def confirm_points(case, inputs, seed=12345):
         return {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.asarray(inputs[k]).dtype))
                 for k, v in p.items()}
 
-    keys, sign, offset = _float_keys(case, inputs), {}, 0
-    for k in keys:  # alternating signs over the components of all float inputs, in order
-        shape = np.shape(inputs[k])[1:]
-        m = int(np.prod(shape, dtype=np.int64))
-        sign[k] = np.where((np.arange(m) + offset) % 2 == 0, 1, -1).reshape(shape)[None]
-        offset += m
     pts = [inputs] + [rounded(_scaled(case, inputs, 1 + s * k * eps)) for k in range(1, PERTURB_ULPS + 1)
                       for s in (1, -1)]
-    if offset > 1:  # (with one float component these are the joint ±PERTURB_ULPS points)
-        pts += [rounded(_scaled(case, inputs, {k: 1 + s * PERTURB_ULPS * eps * sign[k] for k in keys}))
-                for s in (1, -1)]
-    for _ in range(NEIGHBOURS - 2):
+    for _ in range(NEIGHBOURS):
         pts.append(rounded(_scaled(case, inputs, {
-            k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k])[1:])[None] for k in keys})))
+            k: 1 + eps * rng.integers(-PERTURB_ULPS, PERTURB_ULPS + 1, np.shape(inputs[k])[1:])[None]
+            for k in _float_keys(case, inputs)})))
     return pts
 
 
