@@ -43,8 +43,8 @@ from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
 from .units import ulp
 
-__all__ = ["legitimate_interval", "confirm", "confirm_points", "neighbourhood_interval", "evaluations", "case_noise", "tie_codes",
-           "contract_rows", "contract_reach", "on_tie", "tie_accepted", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE",
+__all__ = ["legitimate_interval", "confirm", "confirm_points", "neighbourhood_interval", "evaluations", "case_noise",
+           "tie_codes", "contract_rows", "contract_reach", "on_tie", "tie_accepted", "TIE_NUDGE", "TIE_BAND", "CAP", "MARGIN_NOISE",
            "FLOOR_ULPS", "PERTURB_ULPS", "INDEPENDENT_ULPS", "NEIGHBOURS", "STRUCTURED"]
 
 #: Joint scaling of the float inputs, in ulps of the port's precision.

@@ -36,8 +36,8 @@ import numpy as np
 
 from ..moments import bias_moments
 
-__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "tied_codes", "TIE_FLIPS", "TRANSCENDENTAL_ULPS", "FUSED_STAGES",
-           "block_spread", "chain_spread", "msm_spread"]
+__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "tied_codes", "TIE_FLIPS",
+           "TRANSCENDENTAL_ULPS", "FUSED_STAGES", "block_spread", "chain_spread", "msm_spread"]
 
 #: How far a GPU's log and exp may be off (GLSL 4.30 §4.7.1: 3 ulp outside [0.5, 2]).
 TRANSCENDENTAL_ULPS = 3
@@ -136,6 +136,7 @@ def msm_chain_fused(bias, fma, flip=()):
 
     def chain(b, zf):
         from ..affine import decode_unorm16
+        from ..gpu.fused32 import bias_fused
         from ..msm import shadow_intensity
         from .paper import cholesky_bound
 
@@ -150,8 +151,6 @@ def msm_chain_fused(bias, fma, flip=()):
         z = np.asarray(zf, dt)
         v = shadow_intensity(bq, z) if fma is None else cholesky_bound(bq, z, "lower", np.float32, fma=fma)
         return (np.where(keep, v, np.nan).astype(dt),)
-
-    from ..gpu.fused32 import bias_fused
 
     return chain
 
