@@ -18,7 +18,7 @@ from moments_ref.sweep import engine, judge
 EPS32 = float(np.finfo(np.float32).eps)
 CAP = bands.CAP
 
-#: (a) engine-lower-float32, 10^6 rows, seed 0 (chunk 2, cluster/end): two depths -1 and 0.634, the receiver
+#: (a) engine-lower-float32, 10^6 rows, seed 0 (cluster/end): two depths -1 and 0.634, the receiver
 #: 4.4e-5 behind the near plane. llvmpipe and lavapipe return GOT_A; the band, capped at 0.02 about 0.0205,
 #: missed it, and the derivation (b moved by one ulp per component, zf alone) did not flag the row ill.
 A_SUPPORT = np.array([[-1.0, 0.6340605324376034]])
