@@ -57,9 +57,10 @@ def test_engine_row_a_is_ill_over_the_confirmations_neighbourhood():
     assert judge.confirm(case, inputs, {"intensity": np.array([0.9], np.float32)}).all()
 
 
-#: (b) shadow_intensity-lower-float32, 10^8 rows, seed 0, llvmpipe (chunk 276, row 18232, cluster/near): three depths -0.88408, -0.88513
-#: and 0.42923 (weights 0.528, 0.468, 0.0043), the receiver on the first; the driver returns GOT_B, the shipped
-#: plain-Cholesky evaluation without fma, which the band (capped at 0.02 about 0.41987) missed.
+#: (b) shadow_intensity-lower-float32, 10^8 rows, seed 0, llvmpipe (chunk 276, row 18232, cluster/near): three
+#: depths -0.88408, -0.88513 and 0.42923 (weights 0.528, 0.468, 0.0043), the receiver on the first; the driver
+#: returns GOT_B, the shipped plain-Cholesky evaluation without fma, which the band (capped at 0.02 about 0.41987)
+#: missed.
 B_B = np.array([[-0.878868579864502, 0.7798765897750854, -0.6888092160224915, 0.6097564697265625]], np.float32)
 B_ZF = np.array([-0.8840803503990173], np.float32)
 GOT_B = 0.4405953586101532
