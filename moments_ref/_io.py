@@ -255,7 +255,7 @@ def _without_placeholder_layout(fig):
     ``PlaceHolderLayoutEngine``, which does nothing; but ``savefig`` sees a layout
     engine and draws the whole figure a first time (with rendering disabled)
     before drawing it into the file. Without the placeholder the file's bytes are
-    the same (tested) and saving takes about two thirds of the time. A figure with
+    the same (tested) and saving takes two thirds to four fifths of the time. A figure with
     a working engine (``constrained_layout=True``) keeps it.
     """
     from matplotlib import layout_engine
