@@ -147,3 +147,30 @@ def test_the_scatter_min_floor_probe_is_the_rasterizers_depth_test():
     want, stats = rasterize_depth(v, t, np.eye(4), 64, samples=4)
     assert covered == stats.samples_covered > 0
     np.testing.assert_array_equal(probe().reshape(64, 64, 4), want)
+
+
+def test_target_groups_pick_their_rows_only(monkeypatch):
+    # each group is measured by its own function: stub them, and --only targets-GROUP must call exactly that one
+    calls = []
+    for fn in ("_raster_rows", "_nlq_rows", "_kernel_rows", "_growth_rows", "_memory_row"):
+        monkeypatch.setattr(_targets, fn, lambda *a, _fn=fn: calls.append(_fn) or ({} if _fn == "_memory_row" else []))
+    expected = {"raster": "_raster_rows", "nlq": "_nlq_rows", "algorithms": "_kernel_rows",
+                "growth": "_growth_rows", "memory": "_memory_row"}
+    assert set(expected) == set(_targets.TARGET_GROUPS)
+    for group, fn in expected.items():
+        calls.clear()
+        _targets.run_targets(quick=True, groups=(group,))
+        assert calls == [fn], group
+    calls.clear()
+    _targets.run_targets(quick=True)
+    assert sorted(calls) == sorted(expected.values())
+    with pytest.raises(ValueError, match="no target group 'kernel'"):
+        _targets.run_targets(quick=True, groups=("kernel",))
+
+
+def test_bench_only_names_a_target_group_or_exits_2(capsys):
+    from moments_ref.cli import main
+
+    assert main(["bench", "--only", "targets-nothing"]) == 2
+    err = capsys.readouterr().err
+    assert "targets-raster" in err and len(err.strip().splitlines()) == 1

@@ -30,11 +30,11 @@ import numpy as np
 from ...gpu import filtering
 from ...gpu import onchip as _onchip
 from ...techniques.vwss import warp
-from ._targets import agreement_markdown, copier, run_targets, targets_markdown
+from ._targets import TARGET_GROUPS, agreement_markdown, copier, run_targets, targets_markdown
 from ._timing import PAIRS, paired
 
 __all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "bench_filtering",
-           "bench_onchip", "bench_entries", "run_targets", "targets_markdown", "agreement_markdown",
+           "bench_onchip", "bench_entries", "run_targets", "TARGET_GROUPS", "targets_markdown", "agreement_markdown",
            "kernels_markdown", "keep_history", "HISTORY_HEADING"]
 
 

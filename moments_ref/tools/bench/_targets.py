@@ -41,7 +41,7 @@ from ._memory import pipeline_peak_bytes
 from ._probes import PASSES, pass_probe, scatter_probe
 from ._timing import PAIRS, Ratio, paired
 
-__all__ = ["raster_case", "copier", "run_targets", "targets_markdown", "agreement_markdown", "GROWTH_LIMIT", "AGREEMENT"]
+__all__ = ["raster_case", "copier", "run_targets", "TARGET_GROUPS", "targets_markdown", "agreement_markdown", "GROWTH_LIMIT", "AGREEMENT"]
 
 #: Largest accepted growth of the per-element cost from the smallest to the largest size.
 GROWTH_LIMIT = 1.2
@@ -251,13 +251,20 @@ def _count(n):
     return f"{n // 2**20} M" if n >= 2**20 else f"{n // 2**10} k"
 
 
-def run_targets(quick=False, repeat=None, raster=True):
-    """Measure every target; one dict per target (``ratio`` None where it could not be measured).
+#: The target groups ``moments-ref bench --only targets-GROUP`` picks (``--only targets``: all of them).
+TARGET_GROUPS = ("raster", "nlq", "algorithms", "growth", "memory")
 
-    ``repeat``: pairs per ratio (default :data:`._timing.PAIRS`, 3 with ``quick``).
 
-    ``quick`` shrinks every size (a smoke run whose numbers mean little).
+def run_targets(quick=False, repeat=None, raster=True, groups=TARGET_GROUPS):
+    """Measure every target of ``groups`` (:data:`TARGET_GROUPS`); one dict per target.
+
+    ``ratio`` is None where a target could not be measured. ``repeat``: pairs per ratio
+    (default :data:`._timing.PAIRS`, 3 with ``quick``). ``quick`` shrinks every size (a smoke
+    run whose numbers mean little). ``raster=False`` leaves out the llvmpipe comparisons.
     """
+    unknown = [g for g in groups if g not in TARGET_GROUPS]
+    if unknown:
+        raise ValueError(f"groups: no target group {unknown[0]!r}; groups: {', '.join(TARGET_GROUPS)}")
     big = 256 if quick else 2048
     n_small = 16_384 if quick else 1 << 20
     cases = [(f"small-{n_small}-1x", f"{_count(n_small)} small triangles 1×", 1.25),
@@ -268,12 +275,15 @@ def run_targets(quick=False, repeat=None, raster=True):
         cases = cases[:1]
     repeat = repeat or (3 if quick else PAIRS)
     load = os.getloadavg()
-    rows = _raster_rows(cases, repeat) if raster else []
-    rows += _nlq_rows(big, repeat) + _kernel_rows(big, repeat)
-    sizes = (64, 128, 256) if quick else (512, 1024, 2048)
-    tris = (4096, 16_384, 65_536) if quick else (1 << 18, 1 << 20, 1 << 22)
-    rows += _growth_rows(sizes, tris, repeat)
-    rows.append(_memory_row(big))
+    rows = _raster_rows(cases, repeat) if raster and "raster" in groups else []
+    rows += _nlq_rows(big, repeat) if "nlq" in groups else []
+    rows += _kernel_rows(big, repeat) if "algorithms" in groups else []
+    if "growth" in groups:
+        sizes = (64, 128, 256) if quick else (512, 1024, 2048)
+        tris = (4096, 16_384, 65_536) if quick else (1 << 18, 1 << 20, 1 << 22)
+        rows += _growth_rows(sizes, tris, repeat)
+    if "memory" in groups:
+        rows.append(_memory_row(big))
     for r in rows:
         r["load"] = (load, os.getloadavg())
     return rows
