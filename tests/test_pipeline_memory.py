@@ -71,3 +71,15 @@ def test_memory_probe_runs():
 
     per, peak, base = pipeline_peak_bytes("railing", 256, 4, resolution=(40, 24), baseline_size=64)
     assert peak >= base > 0 and np.isfinite(per)
+
+
+@pytest.mark.slow
+def test_memory_probe_measures_the_child_not_its_parent():
+    # ru_maxrss survives fork and exec: a child started by a process that once held 600 MiB reported 600 MiB
+    # at every map size, so the bench's per-texel figure read "no larger than the baseline"
+    from moments_ref.tools.bench._memory import _child_peak
+
+    held = np.ones(600 * 2**20 // 8)  # touched: resident in this (the parent) process
+    child = _child_peak("railing", 64, 4, (40, 24))
+    assert held.sum() > 0
+    assert child < 400 * 2**20, child / 2**20
