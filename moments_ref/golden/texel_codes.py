@@ -31,7 +31,7 @@ import numpy as np
 
 from . import texel_truth
 
-__all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "TIE_BAND", "SCALED_ERROR"]
+__all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "pack64_neighbours", "pack32_neighbours", "TIE_BAND", "SCALED_ERROR"]
 
 #: A code is on a rounding tie where the exact scaled value lies within this fraction of the code range from a
 #: rounding boundary; there either neighbouring code is legitimate (a GPU's ``log`` or ``exp`` a few ulps off moves
@@ -156,3 +156,23 @@ def pack32(r, margin=False):
     cells, margins, _ = pack32_ties(r)
     words = texel_truth.fold32(cells)
     return (words, margins.min(axis=1)) if margin else (words,)
+
+
+def pack64_neighbours(r, xi_rounding="up"):
+    """The per-component tie rule's other codes: one output tuple, the exact codes with every component on a tie
+    (margin ≤ :data:`TIE_BAND`) taken across its boundary. Compared per component (as the goldens compare codes),
+    each component may hold its exact code or, on its own tie, this one."""
+    _, _, across = pack64_ties(r, xi_rounding)
+    return [(across.astype(np.uint16),)]
+
+
+def pack32_neighbours(r):
+    """The per-component tie rule's other words: the exact cells with each non-empty subset of the components on a
+    tie taken across their boundary, folded (:func:`moments_ref.golden.texel_truth.fold32`): 15 output tuples (a
+    word holds all four fields, so a field's neighbour is a whole word)."""
+    cells, _, across = pack32_ties(r)
+    out = []
+    for mask in range(1, 16):
+        pick = np.array([(mask >> i) & 1 for i in range(4)], bool)
+        out.append((texel_truth.fold32(np.where(pick, across, cells)),))
+    return out

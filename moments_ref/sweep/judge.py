@@ -10,7 +10,7 @@ sweep and the goldens judge by one model:
   chunks of 10^5–10^6 rows.
 * :func:`flagged_rows` — the gated rows outside their interval, less the codes the goldens'
   tie rule accepts (:func:`moments_ref.golden.bands.tie_accepted`, the rule :func:`confirm`
-  applies): a code on a rounding tie is not flagged, a wrong code next to it is. The gated
+  applies): a code on a rounding tie of its own component is not flagged, a wrong code next to it is. The gated
   rows are those whose float32 neighbourhood reaches the case's contract (:func:`contract_rows`;
   there the papers' formulations are legitimate, as on contract rows), all rows under
   ``--strict``: as in the goldens, a robustness row (unbiased singular moments that float32
@@ -86,23 +86,26 @@ def flagged_rows(case, inputs, bands, ill, got, gated=None):
     """``(n,)`` bool: the rows the sweep flags (then confirms).
 
     A ``gated`` row (default: every row) is flagged where an output lies outside its interval (:func:`wrong_rows`),
-    an ill-conditioned one only where the case judges its ill rows (:func:`judges_ill`: not the engine cases);
-    for integer outputs a flagged code within one code of its interval is then put to the
-    goldens' tie rule (:func:`moments_ref.golden.bands.tie_accepted`, mpmath on those few rows
-    only), and is not flagged where the rule accepts it.
+    an ill-conditioned one only where the case judges its ill rows (:func:`judges_ill`: not the engine cases).
+    Integer outputs: a row whose codes are not its band's single codes is flagged unless the goldens' tie rule
+    (:func:`moments_ref.golden.bands.tie_accepted`, per component for the encoders) accepts every code; the
+    same function :func:`confirm` applies.
     """
-    flagged = wrong_rows(case, bands, ill, got) & (judges_ill(case) | ~np.asarray(ill, bool))
+    judged = judges_ill(case) | ~np.asarray(ill, bool)
     if gated is not None:
-        flagged &= np.asarray(gated, bool)
-    if not (case.integer_output and flagged.any()):
-        return flagged
-    n = len(flagged)
-    near = np.ones(n, bool)
+        judged &= np.asarray(gated, bool)
+    if not case.integer_output:
+        return wrong_rows(case, bands, ill, got) & judged
+    # Codes: every row whose code is not the band's single code goes to the tie rule (vectorised: the exact codes
+    # in float64, mpmath only near a boundary), which accepts a code only where it is one of the acceptable codes of
+    # that component; the band's interval alone would pass a word between two acceptable words.
+    n = len(judged)
+    settled = np.ones(n, bool)
     for o, (lo, hi) in bands.items():
         g = np.asarray(got[o], np.float64).reshape(lo.shape)
-        with np.errstate(invalid="ignore"):
-            near &= ((g >= lo - 1) & (g <= hi + 1)).reshape(n, -1).all(axis=1)
-    look = np.flatnonzero(flagged & near)
+        settled &= ((g == lo) & (g == hi)).reshape(n, -1).all(axis=1)
+    flagged = judged & ~settled
+    look = np.flatnonzero(flagged)
     if look.size:
         sub = lambda d: {k: np.asarray(v)[look] for k, v in d.items()}  # noqa: E731
         flagged[look[_bands.tie_accepted(case, sub(inputs), sub(got))]] = False
