@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from moments_ref import affine, packing
-from moments_ref.golden import cases as gcases, texel_truth as T
+from moments_ref.golden import cases as gcases, texel_codes, texel_truth as T
 from moments_ref.golden.spread import TIE_BAND, TruthMismatch, derive
 
 SOURCE = Path(T.__file__)
@@ -57,7 +57,10 @@ def test_the_affine_and_texel_cases_use_the_truth():
     for dt in ("float32", "float64"):
         for n in names:
             c = gcases.CASES[f"{n}-{dt}"]
-            assert c.truth is not None and c.truth.__module__ == T.__name__, c.name
+            # the encoders of the non-linear texels take texel_truth's codes vectorised (golden.texel_codes, equal to
+            # texel_truth's: tests/test_texel_codes.py)
+            assert c.truth is not None and c.truth.__module__ in (T.__name__, texel_codes.__name__), c.name
+            assert (c.tie_neighbours is not None) == (c.truth.__module__ == texel_codes.__name__), c.name
             assert (c.margin is not None) == c.integer_output, c.name
 
 
