@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from sweep_mutants.corpus import CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS  # noqa: E402
+from sweep_mutants.corpus import CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS, TIE_RULE  # noqa: E402
 
 from moments_ref.conformance import PORTS_DIR, run_case  # noqa: E402
 from moments_ref.sweep import CHUNK, Port, SweepSpec, sweep_port  # noqa: E402
@@ -23,7 +23,7 @@ def _port(tmp_path, entry):
     name, file, function, case, old, new, _ = entry
     src = (PORTS_DIR / "glsl" / file).read_text()
     assert old in src, f"{name}: the shipped port changed; update the corpus"
-    path = tmp_path / f"{name}.glsl"
+    path = tmp_path / f"{name.replace('/', '_')}.glsl"
     path.write_text(src.replace(old, new, 1))
     return path, function, case
 
@@ -72,3 +72,32 @@ def test_each_golden_edge_row_from_the_sweep_catches_a_mutant_and_passes_the_shi
     assert not run_case(path, function, case, language="glsl", adapter="gl").row_pass[rows[0]]
     shipped = run_case(PORTS_DIR / "glsl" / entry[1], function, case, language="glsl", adapter="gl")
     assert shipped.passed and shipped.row_pass[rows[0]]
+
+
+@pytest.mark.parametrize("mutant", TIE_RULE)
+def test_the_per_component_tie_rule_catches_what_the_per_row_rule_let_through(ctx, tmp_path, mutant):
+    """One chunk of the mutant on llvmpipe, judged by the per-component rule and by the former per-row rule (the
+    case without its ``tie_neighbours``): the per-row rule lets nearly all its wrong rows through."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from moments_ref.golden import CASES
+    from moments_ref.sweep import judge, runner
+    from moments_ref.sweep.samplers import draw_chunk
+
+    entry = next(m for m in MUTANTS if m[0] == mutant)
+    path, function, case_name = _port(tmp_path, entry)
+    case = CASES[case_name]
+    spec = SweepSpec(case_name, Port(str(path), function, "glsl"), ("gl",), rows=ROWS)
+    inputs, _ = draw_chunk(case, 0, 0)
+    got = runner.evaluate(spec, inputs, "gl")
+    flagged = {}
+    for rule, c in (("component", case), ("row", replace(case, tie_neighbours=None))):
+        b, ill = judge.legitimate_interval(c, inputs)
+        flagged[rule] = judge.flagged_rows(c, inputs, b, ill, got)
+    n_comp, n_row = int(flagged["component"].sum()), int(flagged["row"].sum())
+    assert n_comp >= 1000 and n_comp >= 20 * n_row, (n_comp, n_row)
+    assert not (flagged["row"] & ~flagged["component"]).any()
+    first = np.flatnonzero(flagged["component"])[:8]
+    assert judge.confirm(case, {k: v[first] for k, v in inputs.items()}, {k: v[first] for k, v in got.items()}).all()
