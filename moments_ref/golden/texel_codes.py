@@ -22,6 +22,12 @@ Per component, besides the code: its margin (the distance of its exact scaled va
 boundary, in units of the code range) and the code on the other side of that boundary, the **per-component tie
 rule** (:func:`moments_ref.golden.bands.tie_accepted`): a component within :data:`TIE_BAND` of its boundary may
 hold either code; the others hold their exact code.
+
+References
+----------
+.. [1] HPG17: Christoph Peters. 2017. *Non-Linearly Quantized Moment Shadow Maps*. In Proceedings
+       of High Performance Graphics (HPG '17). ACM. The non-linear quantization Φ, Ψ4, Algorithms
+       1–3, the texel formats and the compute shader of §4.1.
 """
 
 from __future__ import annotations
@@ -31,7 +37,8 @@ import numpy as np
 
 from . import texel_truth
 
-__all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "pack64_neighbours", "pack32_neighbours", "TIE_BAND", "SCALED_ERROR"]
+__all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "pack64_neighbours", "pack32_neighbours", "TIE_BAND",
+           "SCALED_ERROR"]
 
 #: A code is on a rounding tie where the exact scaled value lies within this fraction of the code range from a
 #: rounding boundary; there either neighbouring code is legitimate (a GPU's ``log`` or ``exp`` a few ulps off moves

@@ -124,11 +124,11 @@ def _mpq(q):
     return mpmath.mpf(q.numerator) / q.denominator
 
 
-def _across(code, boundary, step, top):
-    """The code on the other side of ``boundary`` from ``code`` (codes ``step`` apart there), within [0, top]."""
-    lo = int(mpmath.floor(boundary)) if step == 1 else int(mpmath.floor(boundary - mpmath.mpf("0.5")))
-    other = 2 * lo + 1 - code
-    return min(max(other, 0), top)
+def _across(code, boundary, integer, top):
+    """The code on the other side of ``boundary`` from ``code``, within [0, top]: the codes either side of a ceil
+    boundary k (``integer``) are k and k + 1, of a round-to-nearest boundary h + 1/2 they are h and h + 1."""
+    lo = int(mpmath.floor(boundary)) if integer else int(mpmath.floor(boundary - mpmath.mpf("0.5")))
+    return min(max(2 * lo + 1 - code, 0), top)
 
 
 def _pack64_row(row, xi_rounding):
@@ -141,7 +141,7 @@ def _pack64_row(row, xi_rounding):
     dist = [_to_half(x) for x in s] + [_to_integer(u) if up else _to_half(u)]
     # the boundary nearest each scaled value: a half-integer (round) or an integer (ceil)
     bounds = [math.floor(x) + Fraction(1, 2) for x in s] + [mpmath.nint(u) if up else mpmath.floor(u) + mpmath.mpf("0.5")]
-    across = [_across(c, _mpq(b) if isinstance(b, Fraction) else b, 1 if (i == 3 and up) else 0, 65535)
+    across = [_across(c, _mpq(b) if isinstance(b, Fraction) else b, i == 3 and up, 65535)
               for i, (c, b) in enumerate(zip(codes, bounds))]
     return codes, [float(d) / 65535 for d in dist], across
 
