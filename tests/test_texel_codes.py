@@ -158,19 +158,43 @@ def test_a_word_between_two_acceptable_words_is_flagged():
 
 
 @pytest.mark.parametrize("name", ["pack64-float32", "pack64-float64", "reencode64-float32", "pack32-float32",
-                                  "reencode32-float32"])
+                                  "reencode32-float32", "encode_unorm16-float32", "encode_r10g10b10a2-float32"])
 def test_the_goldens_acceptable_codes_follow_the_per_component_rule(name):
     """The golden compare accepts per component the codes stored for a row; the writer stores a code other than the
     truth's only in a component on its own tie, so the goldens need no change and no regeneration."""
     from moments_ref.golden.conventions import profiled_arrays
 
     case, arrays = profiled_arrays(name)
-    o = case.outputs[0]
-    r, expected = np.asarray(arrays["r"]), np.asarray(arrays[o]).astype(np.int64)
+    o, key = case.outputs[0], case.inputs[0]
+    r, expected = np.asarray(arrays[key]), np.asarray(arrays[o]).astype(np.int64)
     acceptable = np.asarray(arrays[f"{o}_acceptable"]).astype(np.int64).reshape(len(r), -1, *expected.shape[1:])
-    allowed = [expected] + [np.asarray(t[0]).astype(np.int64) for t in case.tie_neighbours(r=r)]
+    allowed = [expected] + [np.asarray(t[0]).astype(np.int64) for t in case.tie_neighbours(**{key: r})]
     inside = np.zeros(acceptable.shape, bool)
     for a in allowed:
         inside |= acceptable == a[:, None]
     assert inside.all()
     assert (acceptable != expected[:, None]).any()  # the stored codes hold ties: the test is not vacuous
+
+
+@pytest.mark.parametrize("name", ["encode_unorm16-float32", "encode_r10g10b10a2-float32"])
+def test_the_affine_encoders_take_the_per_component_rule_too(name):
+    # on the golden rows with a tie in exactly one code: that code across its boundary is accepted, a code of
+    # another component one off is confirmed wrong
+    from moments_ref.golden.conventions import profiled_arrays
+
+    case, arrays = profiled_arrays(name)
+    b = np.asarray(arrays["b"])
+    fn = getattr(texel_truth, name.split("-")[0])
+    codes, margins, across = fn(b, components=True)
+    top = 65535 if "unorm16" in name else 1023
+    one = np.flatnonzero(((margins <= texel_codes.TIE_BAND).sum(axis=1) == 1) & (codes < top).all(axis=1))[:3]
+    assert one.size
+    words = (lambda c: c.astype(np.uint16)) if "unorm16" in name else texel_truth.words_r10
+    for i in one:
+        k = int(np.flatnonzero(margins[i] <= texel_codes.TIE_BAND)[0])
+        other = (k + 1) % codes.shape[1]
+        tie, off = codes[i:i + 1].copy(), codes[i:i + 1].copy()
+        tie[0, k], off[0, other] = across[i, k], off[0, other] + 1
+        o = case.outputs[0]
+        assert not bands.confirm(case, {"b": b[i:i + 1]}, {o: words(tie)}).any()
+        assert bands.confirm(case, {"b": b[i:i + 1]}, {o: words(off)}).all()

@@ -37,8 +37,8 @@ import numpy as np
 
 from . import texel_truth
 
-__all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "pack64_neighbours", "pack32_neighbours", "TIE_BAND",
-           "SCALED_ERROR"]
+__all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "pack64_neighbours", "pack32_neighbours",
+           "encode_unorm16_neighbours", "encode_r10g10b10a2_neighbours", "TIE_BAND", "SCALED_ERROR"]
 
 #: A code is on a rounding tie where the exact scaled value lies within this fraction of the code range from a
 #: rounding boundary; there either neighbouring code is legitimate (a GPU's ``log`` or ``exp`` a few ulps off moves
@@ -182,4 +182,27 @@ def pack32_neighbours(r):
     for mask in range(1, 16):
         pick = np.array([(mask >> i) & 1 for i in range(4)], bool)
         out.append((texel_truth.fold32(np.where(pick, across, cells)),))
+    return out
+
+
+def _on_tie(codes, margins, across):
+    return np.where(margins <= TIE_BAND, across, codes)
+
+
+def encode_unorm16_neighbours(b):
+    """The per-component tie rule for the 64-bit affine texel (four UNORM16 codes), as :func:`pack64_neighbours`;
+    from :func:`moments_ref.golden.texel_truth.encode_unorm16`'s mpmath codes (its cases hold a few hundred rows
+    and are not swept)."""
+    return [(_on_tie(*texel_truth.encode_unorm16(b, components=True)).astype(np.uint16),)]
+
+
+def encode_r10g10b10a2_neighbours(b):
+    """The per-component tie rule for the six-moment texel (two R10G10B10A2 words of three fields each): the 7
+    combinations of a word's fields on a tie taken across, as :func:`pack32_neighbours`; mpmath codes."""
+    codes, margins, across = texel_truth.encode_r10g10b10a2(b, components=True)
+    across = _on_tie(codes, margins, across)
+    out = []
+    for mask in range(1, 8):
+        pick = np.array([(mask >> i) & 1 for i in range(3)] * 2, bool)
+        out.append((texel_truth.words_r10(np.where(pick, across, codes)),))
     return out

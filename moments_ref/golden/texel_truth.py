@@ -43,7 +43,7 @@ import numpy as np
 
 __all__ = ["LAYOUT32", "CELLS32", "DECODE_OFFSETS32", "pack64", "unpack64", "pack32", "unpack32",
            "fold32", "to_optimized", "from_optimized", "encode_unorm16", "decode_unorm16", "to_optimized6",
-           "encode_r10g10b10a2", "decode_r10g10b10a2"]
+           "encode_r10g10b10a2", "decode_r10g10b10a2", "words_r10"]
 
 _DPS = 50
 
@@ -277,21 +277,29 @@ def _unorm(x, top):
     return int(mpmath.floor(min(max(x, mpmath.mpf(0)), mpmath.mpf(1)) * top + mpmath.mpf("0.5")))
 
 
-def _unorm_margin(values, top):
-    """Distance of the clamped, scaled values to the nearest rounding boundary, / top."""
-    return min(float(_to_half(min(max(t, mpmath.mpf(0)), mpmath.mpf(1)) * top)) for t in values) / top
+def _unorm_ties(values, top):
+    """Per value: its code, the distance of the clamped, scaled value to its nearest rounding boundary h + 1/2
+    (/ top), and the code across that boundary (h or h + 1, within [0, top])."""
+    out = []
+    for x in values:
+        t = min(max(x, mpmath.mpf(0)), mpmath.mpf(1)) * top
+        c, lo = _unorm(x, top), int(mpmath.floor(t))
+        out.append((c, float(_to_half(t)) / top, min(max(2 * lo + 1 - c, 0), top)))
+    return [list(v) for v in zip(*out)]
 
 
-def encode_unorm16(b, margin=False):
-    """Four UNORM16 codes of the optimized basis (``margin``: see pack64)."""
+def encode_unorm16(b, margin=False, components=False):
+    """Four UNORM16 codes of the optimized basis (``margin``, ``components``: see pack64)."""
     b = np.asarray(b, np.float64).reshape(-1, 4)
-    out, mg = np.empty(b.shape, np.uint16), np.empty(len(b))
+    out, mg, a = np.empty(b.shape, np.uint16), np.empty(b.shape), np.empty(b.shape, np.int64)
     with mpmath.workdps(_DPS):
         m, c = _optimized()
         for i, row in enumerate(b):
             v = m * mpmath.matrix([mpmath.mpf(float(t)) for t in row]) + c
-            out[i], mg[i] = [_unorm(t, 65535) for t in v], _unorm_margin(v, 65535)
-    return (out, mg) if margin else (out,)
+            out[i], mg[i], a[i] = _unorm_ties(v, 65535)
+    if components:
+        return out, mg, a
+    return (out, mg.min(axis=1)) if margin else (out,)
 
 
 def decode_unorm16(u):
@@ -327,17 +335,24 @@ def to_optimized6(b):
         return (np.array([[float(t) for t in _to6(row)] for row in b]),)
 
 
-def encode_r10g10b10a2(b, margin=False):
-    """Two R10G10B10A2_UNORM words: 10-bit codes of (R0, G0, B0) and (R1, G1, B1), alpha 0."""
+def words_r10(fields):
+    """The two R10G10B10A2_UNORM words of ``(n, 6)`` 10-bit codes (R0, G0, B0, R1, G1, B1), alpha 0."""
+    f = np.asarray(fields, np.int64).reshape(-1, 6)
+    return np.stack([sum(f[:, k + j] << s for j, s in enumerate(_R10_SHIFTS)) for k in (0, 3)], axis=1).astype(np.uint32)
+
+
+def encode_r10g10b10a2(b, margin=False, components=False):
+    """Two R10G10B10A2_UNORM words: 10-bit codes of (R0, G0, B0) and (R1, G1, B1), alpha 0 (``margin``: see pack64;
+    ``components``: ``(codes, margins, across)``, each ``(n, 6)``, :func:`words_r10` makes the words)."""
     b = np.asarray(b, np.float64).reshape(-1, 6)
-    out, mg = np.empty((len(b), 2), np.uint32), np.empty(len(b))
+    codes, mg, a = np.empty((len(b), 6), np.int64), np.empty((len(b), 6)), np.empty((len(b), 6), np.int64)
     with mpmath.workdps(_DPS):
         for i, row in enumerate(b):
-            q = _to6(row)
-            codes = [_unorm(t, 1023) for t in q]
-            out[i] = [sum(c << s for c, s in zip(codes[k:k + 3], _R10_SHIFTS)) for k in (0, 3)]
-            mg[i] = _unorm_margin(q, 1023)
-    return (out, mg) if margin else (out,)
+            codes[i], mg[i], a[i] = _unorm_ties(_to6(row), 1023)
+    if components:
+        return codes, mg, a
+    out = words_r10(codes)
+    return (out, mg.min(axis=1)) if margin else (out,)
 
 
 def decode_r10g10b10a2(p):
