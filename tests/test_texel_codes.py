@@ -49,21 +49,23 @@ def _rows(n, seed):
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_vectorised_codes_equal_the_exact_ones(dtype):
     r = _rows(240, 3).astype(dtype)
-    for fast, exact in ((lambda x: texel_codes.pack64_ties(x), lambda x: texel_truth.pack64(x, components=True)),
-                        (lambda x: texel_codes.pack64_ties(x, "nearest"),
-                         lambda x: texel_truth.pack64(x, "nearest", components=True)),
-                        (texel_codes.pack32_ties, lambda x: texel_truth.pack32(x, components=True))):
+    band64, band32 = texel_codes.pack64_tie_band(r), texel_codes.pack32_tie_band(r)
+    for fast, exact, band in ((lambda x: texel_codes.pack64_ties(x), lambda x: texel_truth.pack64(x, components=True),
+                               band64),
+                              (lambda x: texel_codes.pack64_ties(x, "nearest"),
+                               lambda x: texel_truth.pack64(x, "nearest", components=True), band64),
+                              (texel_codes.pack32_ties, lambda x: texel_truth.pack32(x, components=True), band32)):
         codes, margins, across = fast(r)
         e_codes, e_margins, e_across = exact(r)
-        tie = e_margins <= texel_codes.TIE_BAND
+        tie = e_margins <= band
         assert np.array_equal(codes, e_codes)
-        assert np.array_equal(margins <= texel_codes.TIE_BAND, tie)
+        assert np.array_equal(margins <= band, tie)
         np.testing.assert_allclose(margins, e_margins, rtol=0, atol=1e-12)
         assert np.array_equal(across, np.where(tie, e_across, e_codes))
         assert tie.any(axis=0).all()  # every component is on a tie somewhere: the test reaches each boundary
     assert np.array_equal(texel_codes.pack32(r)[0], texel_truth.pack32(r)[0])
     fast, exact = texel_codes.pack64(r, margin=True)[1], texel_truth.pack64(r, margin=True)[1]
-    assert np.array_equal(fast <= texel_codes.TIE_BAND, exact <= texel_codes.TIE_BAND)
+    np.testing.assert_allclose(fast, exact, rtol=0, atol=1e-12)
 
 
 def _scaled_y(y):
@@ -76,7 +78,7 @@ def _tie_row():
     y1 = np.float32(2 * 20000.5 / 65535 - 1)
     r = np.array([[y1, 0.3, 0.4, 0.01]], np.float32)
     s = _scaled_y(r[0, 0])
-    assert abs(s - (20000 + Fraction(1, 2))) <= Fraction(texel_codes.TIE_BAND) * 65535
+    assert abs(s - (20000 + Fraction(1, 2))) <= Fraction(float(texel_codes.pack64_tie_band(r)[0, 0])) * 65535
     for x in (_scaled_y(r[0, 1]), 65535 * Fraction(float(r[0, 2]))):
         assert abs(x - int(x) - Fraction(1, 2)) > Fraction(1, 8)
     with mpmath.workdps(50):
@@ -133,7 +135,8 @@ def test_pack32_field_across_its_own_boundary_only():
     xi = np.float32(_psi4_inverse(Fraction(20, 64)))  # Ψ4 on a cell boundary of the 6-bit code
     r = np.array([[-0.25, 0.5, 0.3, xi]], np.float32)
     cells, margins, across = texel_codes.pack32_ties(r)
-    assert margins[0, 3] <= texel_codes.TIE_BAND and (margins[0, :3] > texel_codes.TIE_BAND).all()
+    band = texel_codes.pack32_tie_band(r)
+    assert margins[0, 3] <= band[0, 3] and (margins[0, :3] > band[0, :3]).all()
     assert across[0, 3] != cells[0, 3]
     other = cells.copy()
     other[0, 3] = across[0, 3]
