@@ -68,12 +68,15 @@ from . import texel_truth
 
 __all__ = ["pack64", "pack32", "pack64_ties", "pack32_ties", "pack64_neighbours", "pack32_neighbours",
            "pack64_tie_band", "pack32_tie_band", "encode_unorm16_neighbours", "encode_r10g10b10a2_neighbours",
-           "TIE_BAND", "SCALED_ERROR", "INPUT_ULPS", "OPS", "SQRT_ULPS", "SAFETY"]
+           "TIE_BAND", "SCALED_ERROR", "INPUT_ULPS", "OPS", "SQRT_ULPS", "SAFETY", "DERIVED_BAND"]
 
 #: The tie band of the cases without a derived one (the affine encoders, the exact chains' confirmation), a fraction
 #: of the code range: 2⁻¹⁸, a quarter code of a 16-bit code. The non-linear texels' encoders use
 #: :func:`pack64_tie_band` and :func:`pack32_tie_band` (module docstring).
 TIE_BAND = 64 * 2.0**-24
+#: The functions whose tie band is derived from the formula (their cases' goldens store the per-component rule's
+#: codes, golden.spread); the affine encoders keep :data:`TIE_BAND` and the nudged codes.
+DERIVED_BAND = frozenset({"packing.pack64", "packing.pack32"})
 #: The float32 neighbourhood of the encoder's input, in ulps (``golden.bands.PERTURB_ULPS``; a test keeps them equal).
 INPUT_ULPS = 3
 #: float32 roundings of the scaled value's formula a legitimate encoder may take (module docstring).
