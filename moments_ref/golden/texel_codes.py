@@ -219,9 +219,10 @@ def _fill(codes, margins, across, rows, exact, band):
     return codes, margins, np.where(margins <= band, across, codes)
 
 
-def pack64_ties(r, xi_rounding="up"):
+def pack64_ties(r, xi_rounding="up", band=None):
     """``(codes, margins, across)``, each ``(n, 4)``: :func:`moments_ref.golden.texel_truth.pack64` with
-    ``components=True``, vectorised (module docstring)."""
+    ``components=True``, vectorised (module docstring). ``band``: a tie band (a fraction of the range, broadcast to
+    ``(n, 4)``) other than :func:`pack64_tie_band`, e.g. :data:`TIE_BAND` to compare with the former rule."""
     r = np.asarray(r, np.float64).reshape(-1, 4)
     y1, y2, v2, xi = _saturated(r)
     u, unsure_xi = _psi4(xi)
@@ -229,15 +230,16 @@ def pack64_ties(r, xi_rounding="up"):
     parts.append(_decide(65535 * v2, False, 65535, False))
     parts.append(_decide(65535 * u, xi_rounding == "up", 65535, False))
     codes, dist, across = (np.stack([p[i] for p in parts], axis=1) for i in range(3))
-    band = _bands64(xi)
+    band = _bands64(xi) if band is None else np.broadcast_to(np.asarray(band, np.float64) * 65535, (len(r), 4))
     rows = np.flatnonzero(_unsure(_doubtful(dist, y1, y2, v2, xi), band, unsure_xi | ~np.isfinite(r).all(axis=1)))
     codes, margins, across = codes.astype(np.int64), dist / 65535, across.astype(np.int64)
     return _fill(codes, margins, across, rows, texel_truth.pack64(r[rows], xi_rounding, components=True), band / 65535)
 
 
-def pack32_ties(r):
+def pack32_ties(r, band=None):
     """``(cells, margins, across)``, each ``(n, 4)`` in the order y1, y2, √v2, Ψ4 (before the fold):
-    :func:`moments_ref.golden.texel_truth.pack32` with ``components=True``, vectorised (module docstring)."""
+    :func:`moments_ref.golden.texel_truth.pack32` with ``components=True``, vectorised (module docstring);
+    ``band`` as in :func:`pack64_ties`."""
     r = np.asarray(r, np.float64).reshape(-1, 4)
     y1, y2, v2, xi = _saturated(r)
     u, unsure_xi = _psi4(xi)
@@ -251,7 +253,7 @@ def pack32_ties(r):
     k = np.floor(np.sqrt(m))
     k = k - (k * k > m) + ((k + 1) * (k + 1) <= m)
     cells[:, 2] = np.minimum(k, 127)
-    band = _bands32(xi)
+    band = _bands32(xi) if band is None else np.broadcast_to(np.asarray(band, np.float64) * _UNIT32, (len(r), 4))
     doubtful = _doubtful(dist, y1, y2, v2, xi)
     doubtful[(16384 * v2 == m) & (k * k == m), 2] = 1.0  # 128 √v2 an integer: exact
     rows = np.flatnonzero(_unsure(doubtful, band, unsure_xi | ~np.isfinite(r).all(axis=1)))
