@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from sweep_mutants.corpus import CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS, TIE_RULE  # noqa: E402
+from sweep_mutants.corpus import (CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS, TIE_BAND_MUTANTS,  # noqa: E402
+                                  TIE_RULE)
 
 from moments_ref.conformance import PORTS_DIR, run_case  # noqa: E402
 from moments_ref.sweep import CHUNK, Port, SweepSpec, sweep_port  # noqa: E402
@@ -100,4 +101,35 @@ def test_the_per_component_tie_rule_catches_what_the_per_row_rule_let_through(ct
     assert n_comp >= 1000 and n_comp >= 20 * n_row, (n_comp, n_row)
     assert not (flagged["row"] & ~flagged["component"]).any()
     first = np.flatnonzero(flagged["component"])[:8]
+    assert judge.confirm(case, {k: v[first] for k, v in inputs.items()}, {k: v[first] for k, v in got.items()}).all()
+
+
+@pytest.mark.parametrize("mutant", TIE_BAND_MUTANTS)
+def test_the_derived_tie_band_catches_what_the_quarter_code_let_through(ctx, tmp_path, mutant):
+    """One chunk of the mutant (y1 rounded with a biased offset, at most 0.1 code off its boundary) on llvmpipe,
+    judged with the tie band derived from the formula and with the former quarter code (golden.texel_codes.TIE_BAND
+    for every component): the quarter code accepts every row, the derived band flags the rows beyond it, and
+    mpmath confirms them."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from moments_ref.golden import CASES, texel_codes
+    from moments_ref.sweep import judge, runner
+    from moments_ref.sweep.samplers import draw_chunk
+
+    entry = next(m for m in MUTANTS if m[0] == mutant)
+    path, function, case_name = _port(tmp_path, entry)
+    case = CASES[case_name]
+    quarter = replace(case, tie_neighbours=lambda r: [(texel_codes.pack64_ties(r, band=texel_codes.TIE_BAND)[2]
+                                                       .astype(np.uint16),)])
+    inputs, _ = draw_chunk(case, 0, 0)
+    got = runner.evaluate(SweepSpec(case_name, Port(str(path), function, "glsl"), ("gl",), rows=ROWS), inputs, "gl")
+    flagged = {}
+    for rule, c in (("derived", case), ("quarter", quarter)):
+        b, ill = judge.legitimate_interval(c, inputs)
+        flagged[rule] = judge.flagged_rows(c, inputs, b, ill, got)
+    n = int(flagged["derived"].sum())
+    assert n >= 1000 and not flagged["quarter"].any(), (n, int(flagged["quarter"].sum()))
+    first = np.flatnonzero(flagged["derived"])[:8]
     assert judge.confirm(case, {k: v[first] for k, v in inputs.items()}, {k: v[first] for k, v in got.items()}).all()

@@ -56,7 +56,18 @@ MUTANTS = [
     # (96 % of the sweep's pack64 rows); the per-component rule (golden.texel_codes) catches it (:data:`TIE_RULE`).
     ("pack64-v2-clamp-1/65535", "packing.glsl", "pack64", "pack64-float32", "clamp(r.z, 0.0, 1.0)",
      "clamp(r.z, 1.0 / 65535.0, 1.0 - 1.0 / 65535.0)", "v2 within 1/65535 of 0 or 1 (one code off)"),
+    # Round five: y1 rounded with a biased offset, one code off where frac(65535 (y1 + 1)/2) lies in [0.5, 0.6)
+    # (+ 0.4) or [0.4, 0.5) (+ 0.6), at most 0.1 code from the boundary: the former tie band (a quarter code)
+    # accepted every such code; the band derived from the formula (golden.texel_codes.pack64_tie_band, 0.055 code
+    # for y) catches them where they lie beyond it (:data:`TIE_BAND_MUTANTS`).
+    *[(f"pack64-y1-round-bias-{c}", "packing.glsl", "pack64", "pack64-float32", "uint(roundEven(s0))",
+       f"uint(floor(s0 + {c}))", "y1 within 0.1 code of a rounding boundary") for c in ("0.4", "0.6")],
 ]
+
+#: Encoder mutants within a quarter code of their boundaries: the former tie band (TIE_BAND, 2⁻¹⁸ of the range)
+#: accepts every row of them, the derived band (golden.texel_codes) catches them; tests/test_sweep_mutants.py judges
+#: one chunk under both.
+TIE_BAND_MUTANTS = ["pack64-y1-round-bias-0.4", "pack64-y1-round-bias-0.6"]
 
 #: Mutants of the encoders whose one-code-off rows sit mostly on rows another component's tie made acceptable under
 #: the former per-row tie rule: tests/test_sweep_mutants.py sweeps them under both rules.
@@ -91,4 +102,12 @@ LEGITIMATE = [
      "fma"),
     ("shade-fma-root", "nonlinear.glsl", "shade", "shade-float32",
      "sqrt(h * h + p)", "sqrt(fma(h, h, p))", "fma"),
+    # The encoders' legitimate formulations, within the derived tie band (golden.texel_codes): y1 scaled by one fma,
+    # y·0.5 + 0.5 (the [0, 1] value an UNORM16 target receives) then scaled, and round half up for roundEven.
+    ("pack64-fma-y1", "packing.glsl", "pack64", "pack64-float32", "precise float s0 = (r.x + 1.0) * 0.5 * 65535.0;",
+     "float s0 = fma(r.x, 32767.5, 32767.5);", "fma"),
+    ("pack64-unorm-y1", "packing.glsl", "pack64", "pack64-float32", "precise float s0 = (r.x + 1.0) * 0.5 * 65535.0;",
+     "float s0 = (r.x * 0.5 + 0.5) * 65535.0;", "y·0.5 + 0.5 in [0, 1], then scaled"),
+    ("pack64-round-half-up-v2", "packing.glsl", "pack64", "pack64-float32", "uint(roundEven(s2))",
+     "uint(floor(s2 + 0.5))", "round half up"),
 ]
