@@ -38,7 +38,9 @@ def test_mutant_passes_the_goldens_and_the_sweep_finds_and_shrinks_it(ctx, tmp_p
         "the goldens catch it now: list it in CAUGHT_BY_THE_GOLDENS" if not caught else "the goldens miss it again"
     res = sweep_port(SweepSpec(case, Port(str(path), function, "glsl"), ("gl",), rows=ROWS))
     assert not res.passed
-    assert len(res.failures[0]["texel"]["depths"]) <= 2
+    # a y1 code wrong only within 0.045 code of a tie (TIE_BAND_MUTANTS): the shrinker keeps the texel's four
+    # depths where removing one moves y1 out of that window (measured: docs/sweep.md)
+    assert len(res.failures[0]["texel"]["depths"]) <= (4 if entry[0] in TIE_BAND_MUTANTS else 2)
 
 
 @pytest.mark.parametrize("entry", LEGITIMATE[:1], ids=[m[0] for m in LEGITIMATE[:1]])
