@@ -369,7 +369,9 @@ def tie_accepted(case, inputs, got, codes=None):
     A code is accepted where it equals the truth's code or one of :func:`tie_codes`, compared per component (as the
     goldens compare codes), or lies on a rounding tie. The rule is **per component** where the case gives its
     ``tie_neighbours`` (the encoders, :mod:`moments_ref.golden.texel_codes`): a component may hold the code across
-    its boundary only where *its own* exact scaled value lies within :data:`TIE_BAND` of it; a component one code
+    its boundary only where *its own* exact scaled value lies within its tie band of it (derived from the formula
+    for the non-linear texels, :func:`moments_ref.golden.texel_codes.pack64_tie_band`; :data:`TIE_BAND` for the
+    affine encoders); a component one code
     off on a row where another component is on a tie is wrong. A case without them keeps the per-row rule: on a row
     whose nearest component is on a tie (:func:`on_tie`) every code may be one off. One definition for
     :func:`confirm` and the sweep's flagging (:func:`moments_ref.sweep.judge.flagged_rows`). ``codes``: the truth's
