@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from sweep_mutants.corpus import (CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS, TIE_BAND_MUTANTS,  # noqa: E402
-                                  TIE_RULE)
+from sweep_mutants.corpus import (CAUGHT_BY_THE_GOLDENS, EDGE_ROWS_CATCH, LEGITIMATE, MUTANTS,  # noqa: E402
+                                  TIE_BAND_MUTANTS, TIE_RULE)
 
 from moments_ref.conformance import PORTS_DIR, run_case  # noqa: E402
 from moments_ref.sweep import CHUNK, Port, SweepSpec, sweep_port  # noqa: E402

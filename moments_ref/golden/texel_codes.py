@@ -36,7 +36,7 @@ roundoff; one ulp of x is at most 2u|x|), the scaled value moves by at most, in 
   ``2·INPUT_ULPS·u·a + OPS·u·2¹⁶`` with a = 32767.5 (y) or 65535 (v2) the factor on the input: 0.027 code (y),
   0.039 code (v2).
 * y (32 bits, the cells ⌊511.5 (y + 1)⌋ of docs/formats.md): the same with a = 511.5 and 2¹⁰: 4.3·10⁻⁴ code.
-* √v2 (32 bits, ⌊128 √v2⌋): ``128 u (INPUT_ULPS + 2·SQRT_ULPS + OPS)``: 1.2·10⁻⁴ code.
+* √v2 (32 bits, ⌊128 √v2⌋): ``128 u (INPUT_ULPS + 2·SQRT_ULPS + OPS)``: 1.3·10⁻⁴ code.
 * Ψ4 (HPG17 §3.3: s = S (ln L − c0)/c1, L = ln(10⁷ ξ4) ∈ [0.182, 14.8], S = 65535 or 64), per row, from L: the
   product 10⁷ ξ4 is (2·INPUT_ULPS + 1) u relative off, so L is that plus the inner log's error
   max(6uL, 2⁻²¹) absolutely; ln L is off by that over L plus the outer log's max(6u|ln L|, 2⁻²¹); subtracting c0
@@ -44,13 +44,14 @@ roundoff; one ulp of x is at most 2u|x|), the scaled value moves by at most, in 
   (docs/formats.md: one code up where Ψ4⁻¹ of the code lies below ξ4) moves the ceil boundary as far as the two
   exponentials are off: ξ4 relative 2u((3 + 2L) + L(3 + 2|ln L|)), that is 1/(L c1) of it in Ψ4; the two add.
   S times the sum plus OPS·u·S: 0.14 code at the lower clamp (L = 0.182, where the inner log's absolute error
-  2⁻²¹ over L dominates), 0.06–0.07 code for ξ4 from 10⁻⁴ to the upper clamp (S = 65535).
+  2⁻²¹ over L dominates), 0.05–0.07 code for ξ4 from 10⁻⁶ to the upper clamp (S = 65535).
 
 The linearisation (ln(L + δ) = ln L + δ/L) is off by (δ/L)², below 10⁻¹⁰ relative here. The band is
 :data:`SAFETY` = 2 times the bound: room for a formulation with twice the roundings counted, and for the
-terms' first-order treatment; it is a per-kind constant for y, v2 and √v2 (their bounds vary by less than that
-factor over the domain) and per row for Ψ4, whose bound varies threefold with L. Before round five the band was
-a quarter code (2⁻¹⁸ of every range) everywhere, which accepted ``floor(s + 0.4)`` and ``floor(s + 0.6)``.
+terms' first-order treatment; it is a per-kind constant for y, v2 and √v2 (the largest bound over the domain:
+the roundings' term is constant, so the bound varies at most 2.5-fold, near x = 0) and per row for Ψ4, whose
+bound varies threefold with L. Until issue 36 the band was a quarter code (2⁻¹⁸ of every range) everywhere, which
+accepted ``floor(s + 0.4)`` and ``floor(s + 0.6)`` for ``roundEven(s)`` (tests/sweep_mutants/corpus.py).
 
 References
 ----------
@@ -277,8 +278,8 @@ def pack32(r, margin=False):
 
 def pack64_neighbours(r, xi_rounding="up"):
     """The per-component tie rule's other codes: one output tuple, the exact codes with every component on a tie
-    (margin ≤ its :func:`pack64_tie_band`) taken across its boundary. Compared per component (as the goldens compare codes),
-    each component may hold its exact code or, on its own tie, this one."""
+    (margin ≤ its :func:`pack64_tie_band`) taken across its boundary. Compared per component (as the goldens
+    compare codes), each component may hold its exact code or, on its own tie, this one."""
     _, _, across = pack64_ties(r, xi_rounding)
     return [(across.astype(np.uint16),)]
 
