@@ -91,3 +91,32 @@ def test_the_psi4_band_bounds_a_gpu_log_off_by_the_most_allowed():
     dev = np.max(devs, axis=0)
     assert np.all(dev <= bound)
     assert dev.max() >= 0.3 * bound.max()
+
+
+def test_the_sweeps_extra_tie_codes_lie_within_the_derived_band():
+    """``bands.tie_accepted`` also accepts the reference's codes in float32, float64 and on inputs nudged by 8 eps
+    (``bands.tie_codes``); the goldens of these cases store only the rule's codes. Both accept one set: every such
+    code is, per component, the exact code or the one across that component's own tie."""
+    from moments_ref.golden.cases import CASES
+
+    rng = np.random.default_rng(9)
+    r = np.c_[np.sort(rng.uniform(-1, 1, (4000, 2)), axis=1), rng.uniform(0, 1, 4000), 10 ** rng.uniform(-7, -0.6, 4000)]
+    for name, ties in (("pack64-float32", texel_codes.pack64_ties), ("pack32-float32", texel_codes.pack32_ties)):
+        case = CASES[name]
+        extra = bands.tie_codes(case, {"r": r.astype(F32)})
+        codes, _, across = ties(r.astype(F32))
+        if name.startswith("pack32"):
+            from moments_ref.golden.texel_truth import fold32
+
+            allowed = [fold32(np.where([[(m >> i) & 1 for i in range(4)]], across, codes)) for m in range(16)]
+        else:
+            allowed = [codes, across]
+        differs = False
+        for t in extra:
+            got = np.asarray(t[0]).astype(np.int64).reshape(len(r), -1)
+            ok = np.zeros(got.shape, bool)
+            for a in allowed:
+                ok |= got == np.asarray(a, np.int64).reshape(len(r), -1)
+            assert ok.all(), name
+            differs |= bool((got != np.asarray(allowed[0], np.int64).reshape(len(r), -1)).any())
+        assert differs, name  # the extra codes hold ties: the test is not vacuous
