@@ -41,6 +41,7 @@ import numpy as np
 
 from .._arrays import InputError
 from .cases import case_table, evaluate_reference, expected_outputs
+from .texel_codes import TIE_BAND  # noqa: F401 - one constant (re-exported): the codes' tie band
 from .units import ulp
 
 __all__ = ["legitimate_interval", "confirm", "confirm_points", "neighbourhood_interval", "evaluations", "case_noise",
@@ -361,10 +362,6 @@ def _derived_bands(case, inputs, dt, n):
 
 #: The goldens' rounding-tie nudge (:mod:`moments_ref.golden.spread`): inputs scaled by 1 ± 8 float32 eps.
 TIE_NUDGE = 8 * float(np.finfo(np.float32).eps)
-#: A code is on a rounding tie where the exact scaled value lies within this fraction of the code range from a
-#: rounding boundary (the case's ``margin``); there either neighbouring code is legitimate (a GPU's ``log`` or
-#: ``exp`` a few ulps off moves the scaled value by that much). :mod:`moments_ref.golden.spread` uses the same band.
-TIE_BAND = 64 * 2.0**-24
 
 
 def tie_codes(case, inputs):
@@ -388,18 +385,26 @@ def on_tie(case, inputs):
 def tie_accepted(case, inputs, got, codes=None):
     """``(n,)`` bool: rows whose every integer output the goldens' tie rule accepts.
 
-    A code is accepted where it equals the truth's code or one of :func:`tie_codes`, or, on a rounding
-    tie (:func:`on_tie`), lies within one code of the truth's (either code next to the boundary). One
-    definition for :func:`confirm` and the sweep's flagging (:func:`moments_ref.sweep.judge.flagged_rows`).
-    ``codes``: the truth's codes first, then any others already computed (default: the truth and
-    :func:`tie_codes`).
+    A code is accepted where it equals the truth's code or one of :func:`tie_codes`, compared per component (as the
+    goldens compare codes), or lies on a rounding tie. The rule is **per component** where the case gives its
+    ``tie_neighbours`` (the encoders, :mod:`moments_ref.golden.texel_codes`): a component may hold the code across
+    its boundary only where *its own* exact scaled value lies within its tie band of it (derived from the formula
+    for the non-linear texels, :func:`moments_ref.golden.texel_codes.pack64_tie_band`; :data:`TIE_BAND` for the
+    affine encoders); a component one code
+    off on a row where another component is on a tie is wrong. A case without them keeps the per-row rule: on a row
+    whose nearest component is on a tie (:func:`on_tie`) every code may be one off. One definition for
+    :func:`confirm` and the sweep's flagging (:func:`moments_ref.sweep.judge.flagged_rows`). ``codes``: the truth's
+    codes first, then any others already computed (default: the truth and :func:`tie_codes`).
     """
     inputs = {k: inputs[k] for k in case.inputs}
     n = len(next(iter(inputs.values())))
     if codes is None:
         codes = list(_exact(case, inputs))  # one tuple, or lo and hi from a confirm_truth
     codes = list(codes) + tie_codes(case, inputs)
-    near = on_tie(case, inputs)
+    per_component = case.tie_neighbours is not None
+    if per_component:
+        codes += list(case.tie_neighbours(**inputs))
+    near = np.zeros(n, bool) if per_component else on_tie(case, inputs)
     ok_rows = np.ones(n, bool)
     for i, o in enumerate(case.outputs):
         g = np.asarray(got[o], np.float64)

@@ -33,7 +33,7 @@ from .. import precise
 from .._arrays import InputError
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16
 from . import contract as _contract_mod
-from . import bilinear, endtoend, engine, kernels, texel_truth
+from . import bilinear, endtoend, engine, kernels, texel_codes, texel_truth
 from .paper import alg1_paper_spread, alg3_paper_spread
 from .variants import alg1_variant, bias_variant, phi_variant, pack64_variant, shade_variant, unpack32_variant, xi_decode_spread
 from ._rows import (_alg1_rows, _hausdorff_rows, _moment6_rows, _moment_rows, _msm6_rows, _optimized_rows, _phi_rows, _r10_rows,
@@ -67,6 +67,9 @@ class Case:
     floor_scale: tuple | float = 1.0  # tolerance floors are ulps of max(|value|, scale), per component
     spread_hook: Callable | None = None  # (inputs, dtype) -> extra legitimate outputs (decoders' constants)
     margin: Callable | None = None  # integer outputs: (**inputs) -> per row, distance to a rounding boundary
+    # Integer outputs, the per-component tie rule (golden.bands.tie_accepted): (**inputs) -> list of output tuples, the
+    # exact codes with components on their own rounding tie taken across it (golden.texel_codes); None: the per-row rule
+    tie_neighbours: Callable | None = None
     extra: Callable | None = None  # (inputs) -> more arrays for the golden file (a kernel's expected codes)
     row_inputs: bool = True  # False: inputs are whole-case arrays (points, views), not one entry per row
     contract: str | None = None  # kind of contract (golden.contract.TEXT): rows outside are robustness rows
@@ -125,10 +128,17 @@ def _texel(name):
     return getattr(texel_truth, name)
 
 
-def _margin(name):
+def _margin(name, module=texel_truth):
     """Per row, how far the exact scaled values lie from a rounding boundary (texel_truth, ``margin=True``)."""
-    fn = getattr(texel_truth, name)
+    fn = getattr(module, name)
     return lambda **inputs: fn(**inputs, margin=True)[1]
+
+
+def _fast(name):
+    """The exact codes of an encoder, vectorised (``moments_ref.golden.texel_codes.<name>``, equal to texel_truth's):
+    ``(truth, margin, tie_neighbours)`` keyword arguments of its cases."""
+    return {"truth": getattr(texel_codes, name), "margin": _margin(name, texel_codes),
+            "tie_neighbours": getattr(texel_codes, f"{name}_neighbours")}
 
 
 def _shade_truth(r, zf):
@@ -204,7 +214,7 @@ def _float_cases(dt):
              description="Slides, 'Retrieve moments'; expected from the inverse of the slide's matrix in mpmath"),
         Case(f"encode_unorm16-{dt}", "affine.encode_unorm16", dt, ("b",), ("u",), _moment_rows,
              _wrap("affine.encode_unorm16"), _texel("encode_unorm16"), metric="exact",
-             margin=_margin("encode_unorm16"),
+             margin=_margin("encode_unorm16"), tie_neighbours=texel_codes.encode_unorm16_neighbours,
              description="64-bit affine texel: four UNORM16 of the optimized basis; expected codes exact"),
         Case(f"decode_unorm16-{dt}", "affine.decode_unorm16", dt, ("u",), ("b",), _unorm16_rows,
              _wrap("affine.decode_unorm16"), _texel("decode_unorm16"), integer_inputs=_U16,
@@ -214,7 +224,7 @@ def _float_cases(dt):
              description="Slides, six-moment 'Quantization transform'; expected from the printed matrices"),
         Case(f"encode_r10g10b10a2-{dt}", "affine.encode_r10g10b10a2", dt, ("b",), ("p",), _moment6_rows,
              _wrap("affine.encode_r10g10b10a2"), _texel("encode_r10g10b10a2"), metric="exact",
-             margin=_margin("encode_r10g10b10a2"),
+             margin=_margin("encode_r10g10b10a2"), tie_neighbours=texel_codes.encode_r10g10b10a2_neighbours,
              description="six moments in 2×R10G10B10A2_UNORM; expected codes exact"),
         Case(f"decode_r10g10b10a2-{dt}", "affine.decode_r10g10b10a2", dt, ("p",), ("b",), _r10_rows,
              _wrap("affine.decode_r10g10b10a2"), _texel("decode_r10g10b10a2"), integer_inputs=_U32,
@@ -270,11 +280,11 @@ def _nonlinear_cases(dt):
              description="HPG17 Algorithm 3 with its §3.4 clamps (v2 in [1e-6, 1 - 1e-6], y2 - y1 >= 1e-6); "
                          "expected: Algorithm 3 with the clamps in mpmath"),
         Case(f"pack64-{dt}", "packing.pack64", dt, ("r",), ("q",), _representation_rows,
-             _wrap("packing.pack64"), _texel("pack64"), metric="exact", margin=_margin("pack64"),
+             _wrap("packing.pack64"), metric="exact", **_fast("pack64"),
              variant=pack64_variant(), profile_keys=("format",),
              description="64-bit texel, docs/formats.md; expected codes exact"),
         Case(f"reencode64-{dt}", "packing.pack64", dt, ("r",), ("q",), _reencode_rows,
-             _wrap("packing.pack64"), _texel("pack64"), metric="exact", margin=_margin("pack64"),
+             _wrap("packing.pack64"), metric="exact", **_fast("pack64"),
              variant=pack64_variant(), profile_keys=("format",),
              description="64-bit texel of representations whose ξ4 is a decoded code, or one ulp above one "
                          "(the encoder's decode check of docs/formats.md)"),
@@ -283,10 +293,10 @@ def _nonlinear_cases(dt):
              spread_hook=xi_decode_spread("64"),
              description="64-bit texel decode, docs/formats.md; expected from the layout in mpmath"),
         Case(f"pack32-{dt}", "packing.pack32", dt, ("r",), ("p",), _representation_rows,
-             _wrap("packing.pack32"), _texel("pack32"), metric="exact", margin=_margin("pack32"),
+             _wrap("packing.pack32"), metric="exact", **_fast("pack32"),
              description="32-bit texel with the triangle fold, docs/formats.md; expected codes exact"),
         Case(f"reencode32-{dt}", "packing.pack32", dt, ("r",), ("p",), _reencode_rows,
-             _wrap("packing.pack32"), _texel("pack32"), metric="exact", margin=_margin("pack32"),
+             _wrap("packing.pack32"), metric="exact", **_fast("pack32"),
              description="32-bit texel of decoded representations and of ξ4 on 6-bit Ψ4 cell boundaries"),
         Case(f"unpack32-{dt}", "packing.unpack32", dt, ("p",), ("r",), _pack32_input_rows,
              _wrap("packing.unpack32"), _texel("unpack32"), integer_inputs={"p": "uint32"}, floor_scale=_R_SCALE,

@@ -27,6 +27,9 @@ tie: the codes seen are stored as the row's acceptable set, the row is
 the exact scaled value lies within :data:`TIE_BAND` of the code range from a
 rounding boundary (the case's ``margin``); a reference that disagrees with the
 ground truth anywhere else is a bug, and :func:`derive` refuses to write the row.
+The non-linear texels' encoders (``pack64``, ``pack32``) store instead the per-component tie rule's codes
+(:mod:`moments_ref.golden.texel_codes`: a component within its tie band, derived from the formula, of its boundary
+may hold the code across it), the rule the sweep and ``confirm`` apply; their reference must hold no other code.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ import numpy as np
 from .bands import TIE_BAND  # noqa: F401 - one constant with bands.confirm (re-exported)
 from .bands import FLOOR_ULPS, INDEPENDENT_ULPS, PERTURB_ULPS, STRUCTURED, equal_inputs, evaluations, interval_parts, noise_of
 from .cases import CASES, case_table, evaluate_reference, expected_outputs
+from .texel_codes import DERIVED_BAND
 from .notes import ROBUSTNESS, UNGATED, UNGATED32
 from .units import PORT_DTYPES, ceil2, ulp
 
@@ -93,15 +97,25 @@ def _float_tolerances(case, inputs, expected, n, flags, category):
 
 
 def _ties(case, inputs, expected, n, category, comment, flags):
-    """Acceptable code sets of integer outputs: ``{output: (n, K, ...) array}``."""
+    """Acceptable code sets of integer outputs: ``{output: (n, K, ...) array}``.
+
+    The non-linear texels' encoders (:data:`moments_ref.golden.texel_codes.DERIVED_BAND`) store the per-component
+    tie rule's codes, the ones the sweep and ``confirm`` accept (their tie band is derived from the formula); the
+    other integer cases the codes of the reference in float32, float64 and on inputs nudged by ``8 eps``."""
     variants = [evaluate_reference(case, inputs, np.float64), evaluate_reference(case, inputs, np.float32)]
-    for f in (1 + _NUDGE, 1 - _NUDGE):
-        nudged = {}
-        for k, v in inputs.items():
-            v = np.asarray(v, np.float64)
-            # Values stay in [-1, 1] if they were (every input domain here is inside it).
-            nudged[k] = np.where((np.abs(v * f) > 1) & (np.abs(v) <= 1), v, v * f)
-        variants.append(evaluate_reference(case, nudged, np.float64))
+    derived = case.tie_neighbours is not None and case.function in DERIVED_BAND
+    if derived:
+        neighbours = list(case.tie_neighbours(**{k: inputs[k] for k in case.inputs}))
+        _check_neighbours(case, inputs, expected, variants, neighbours)
+        variants += neighbours
+    else:
+        for f in (1 + _NUDGE, 1 - _NUDGE):
+            nudged = {}
+            for k, v in inputs.items():
+                v = np.asarray(v, np.float64)
+                # Values stay in [-1, 1] if they were (every input domain here is inside it).
+                nudged[k] = np.where((np.abs(v * f) > 1) & (np.abs(v) <= 1), v, v * f)
+            variants.append(evaluate_reference(case, nudged, np.float64))
     acceptable = {}
     tie = np.zeros(n, bool)
     for i, o in enumerate(case.outputs):
@@ -110,7 +124,7 @@ def _ties(case, inputs, expected, n, category, comment, flags):
         stack = np.stack(alts, axis=1)  # (n, K, ...)
         tie |= np.any((stack != e[:, None]).reshape(n, -1), axis=1)
         acceptable[o] = stack
-    if case.margin is not None:
+    if case.margin is not None and not derived:
         _check_truth(case, inputs, tie)
     for r in np.flatnonzero(tie):
         flags[r] = tuple(flags[r]) + ("rounding_tie",)
@@ -118,6 +132,26 @@ def _ties(case, inputs, expected, n, category, comment, flags):
             category[r] = "stiff"
             comment[r] = comment[r] + " [on a rounding boundary: the code changes within float32 rounding of the inputs]"
     return acceptable, tie
+
+
+def _check_neighbours(case, inputs, expected, refs, neighbours):
+    """Raise :class:`TruthMismatch` where the reference (float32, float64) holds, in some component, a code that is
+    neither the truth's nor the one across that component's own tie (the per-component rule)."""
+    for i, o in enumerate(case.outputs):
+        e = np.asarray(expected[i])
+        allowed = [e] + [np.asarray(v[i]).astype(e.dtype) for v in neighbours]
+        for ref in refs:
+            g = np.asarray(ref[i]).astype(e.dtype)
+            ok = np.zeros(g.shape, bool)
+            for a in allowed:
+                ok |= g == a
+            bad = np.flatnonzero(~ok.reshape(len(g), -1).all(axis=1))
+            if bad.size:
+                j = int(bad[0])
+                raise TruthMismatch(
+                    f"{case.name}: the reference holds a code outside the per-component tie rule on {bad.size} rows; "
+                    f"first row {j}: inputs {[np.asarray(v)[j].tolist() for v in inputs.values()]}, reference "
+                    f"{g[j].tolist()}, truth {e[j].tolist()}")
 
 
 def robust_rows(arrays, n=None):

@@ -42,8 +42,8 @@ import mpmath
 import numpy as np
 
 __all__ = ["LAYOUT32", "CELLS32", "DECODE_OFFSETS32", "pack64", "unpack64", "pack32", "unpack32",
-           "to_optimized", "from_optimized", "encode_unorm16", "decode_unorm16", "to_optimized6",
-           "encode_r10g10b10a2", "decode_r10g10b10a2"]
+           "fold32", "to_optimized", "from_optimized", "encode_unorm16", "decode_unorm16", "to_optimized6",
+           "encode_r10g10b10a2", "decode_r10g10b10a2", "words_r10"]
 
 _DPS = 50
 
@@ -124,28 +124,46 @@ def _mpq(q):
     return mpmath.mpf(q.numerator) / q.denominator
 
 
+def _across(code, boundary, integer, top):
+    """The code on the other side of ``boundary`` from ``code``, within [0, top]: the codes either side of a ceil
+    boundary k (``integer``) are k and k + 1, of a round-to-nearest boundary h + 1/2 they are h and h + 1."""
+    lo = int(mpmath.floor(boundary)) if integer else int(mpmath.floor(boundary - mpmath.mpf("0.5")))
+    return min(max(2 * lo + 1 - code, 0), top)
+
+
 def _pack64_row(row, xi_rounding):
+    """Codes, per-component margins (distance / 65535) and the code across each component's nearest boundary."""
     y1, y2, v2, xi = _saturated(row)
     s = [65535 * (y1 + 1) / 2, 65535 * (y2 + 1) / 2, 65535 * v2]
     u = _psi4(_mpq(xi)) * 65535
-    code = int(mpmath.ceil(u)) if xi_rounding == "up" else int(mpmath.nint(u))
-    margin = min(min(float(_to_half(x)) for x in s), float(_to_integer(u) if xi_rounding == "up" else _to_half(u)))
-    return [_round_half_even(x) for x in s] + [code], margin / 65535
+    up = xi_rounding == "up"
+    codes = [_round_half_even(x) for x in s] + [int(mpmath.ceil(u)) if up else int(mpmath.nint(u))]
+    dist = [_to_half(x) for x in s] + [_to_integer(u) if up else _to_half(u)]
+    # the boundary nearest each scaled value: a half-integer (round) or an integer (ceil)
+    bounds = [math.floor(x) + Fraction(1, 2) for x in s] + [mpmath.nint(u) if up else mpmath.floor(u) + mpmath.mpf("0.5")]
+    across = [_across(c, _mpq(b) if isinstance(b, Fraction) else b, i == 3 and up, 65535)
+              for i, (c, b) in enumerate(zip(codes, bounds))]
+    return codes, [float(d) / 65535 for d in dist], across
 
 
-def pack64(r, xi_rounding="up", margin=False):
+def pack64(r, xi_rounding="up", margin=False, components=False):
     """docs/formats.md, 64 bits: round(65535 (y + 1)/2), round(65535 v2), ceil (or round) 65535 Ψ4(ξ4).
 
     ``margin``: also return, per row, the distance of the exact scaled values to the
     nearest rounding boundary, in units of the code range (where a float
     implementation may legitimately store the neighbouring code).
+    ``components``: return ``(codes, margins, across)`` instead, each ``(n, 4)``: per component its distance to its
+    nearest rounding boundary (units of the code range) and the code on the other side of that boundary (the
+    per-component tie rule, :mod:`moments_ref.golden.texel_codes`).
     """
     r = np.asarray(r, np.float64).reshape(-1, 4)
-    out, m = np.empty((len(r), 4), np.uint16), np.empty(len(r))
+    out, m, a = np.empty((len(r), 4), np.uint16), np.empty((len(r), 4)), np.empty((len(r), 4), np.int64)
     with mpmath.workdps(_DPS):
         for i, row in enumerate(r):
-            out[i], m[i] = _pack64_row(row, xi_rounding)
-    return (out, m) if margin else (out,)
+            out[i], m[i], a[i] = _pack64_row(row, xi_rounding)
+    if components:
+        return out, m, a
+    return (out, m.min(axis=1)) if margin else (out,)
 
 
 def unpack64(q):
@@ -160,31 +178,48 @@ def unpack64(q):
 
 
 def _codes32(row):
-    """The four cell indices of a row and the margin (distance to a cell boundary / cells)."""
+    """The four cells (y1, y2, √v2, Ψ4) before the fold, their margins (distance to a cell boundary / cells) and the
+    cells across each one's nearest boundary."""
     y1, y2, v2, xi = _saturated(row)
     s = [CELLS32["depth"] * (y + 1) for y in (y1, y2)]
-    t1, t2 = (min(max(math.floor(x), 0), 1022) for x in s)
-    if t1 >= 512:  # HPG17 Figure 5: the upper half of the triangle is rotated
-        t1, t2 = 1023 - t1, 1022 - t2
+    t = [min(max(math.floor(x), 0), 1022) for x in s]
     # ⌊128 √v2⌋ = isqrt(⌊16384 v2⌋), exactly
     v = min(math.isqrt(math.floor(CELLS32["v"] ** 2 * v2)), CELLS32["v"] - 1)
     sv = mpmath.sqrt(_mpq(v2)) * CELLS32["v"]
     u = _psi4(_mpq(xi)) * CELLS32["xi"]
     x = min(int(mpmath.floor(u)), CELLS32["xi"] - 1)
-    margin = min(min(float(_to_integer(t)) / 1023 for t in s), float(_to_integer(sv)) / CELLS32["v"],
-                 float(_to_integer(u)) / CELLS32["xi"])
-    return {"y2": t2, "y1": t1, "v": v, "xi": x}, margin
+    cells, tops = t + [v, x], (1022, 1022, CELLS32["v"] - 1, CELLS32["xi"] - 1)
+    scaled = [_mpq(q) for q in s] + [sv, u]
+    margins = [float(_to_integer(q)) / 1023 for q in s] + [float(_to_integer(sv)) / CELLS32["v"],
+                                                          float(_to_integer(u)) / CELLS32["xi"]]
+    # floor cells: the cells either side of the nearest integer k are k - 1 and k
+    across = [min(max(2 * int(mpmath.nint(q)) - 1 - c, 0), top) for q, c, top in zip(scaled, cells, tops)]
+    return cells, margins, across
 
 
-def pack32(r, margin=False):
-    """docs/formats.md, 32 bits: the four cell indices at the bits of :data:`LAYOUT32` (``margin``: see pack64)."""
+def fold32(cells):
+    """The 32-bit words of ``(n, 4)`` cells (y1, y2, √v2, Ψ4) before the fold: HPG17 Figure 5, the upper half of the
+    triangle rotated (t1 ≥ 512: t1 → 1023 − t1, t2 → 1022 − t2), the fields at the bits of :data:`LAYOUT32`."""
+    c = np.asarray(cells, np.int64).reshape(-1, 4)
+    fold = c[:, 0] >= 512
+    t1, t2 = np.where(fold, 1023 - c[:, 0], c[:, 0]), np.where(fold, 1022 - c[:, 1], c[:, 1])
+    fields = {"y1": t1, "y2": t2, "v": c[:, 2], "xi": c[:, 3]}
+    return sum(f.astype(np.uint64) << np.uint64(LAYOUT32[k][0]) for k, f in fields.items()).astype(np.uint32)
+
+
+def pack32(r, margin=False, components=False):
+    """docs/formats.md, 32 bits: the four cell indices at the bits of :data:`LAYOUT32` (``margin``: see pack64;
+    ``components``: ``(cells, margins, across)``, each ``(n, 4)`` in the order y1, y2, √v2, Ψ4, the cells before the
+    fold: :func:`fold32` makes the word)."""
     r = np.asarray(r, np.float64).reshape(-1, 4)
-    out, m = np.empty(len(r), np.uint32), np.empty(len(r))
+    cells, m, a = (np.empty((len(r), 4), np.int64), np.empty((len(r), 4)), np.empty((len(r), 4), np.int64))
     with mpmath.workdps(_DPS):
         for i, row in enumerate(r):
-            codes, m[i] = _codes32(row)
-            out[i] = sum(c << LAYOUT32[k][0] for k, c in codes.items())
-    return (out, m) if margin else (out,)
+            cells[i], m[i], a[i] = _codes32(row)
+    if components:
+        return cells, m, a
+    out = fold32(cells)
+    return (out, m.min(axis=1)) if margin else (out,)
 
 
 def unpack32(p, offsets=None):
@@ -242,21 +277,29 @@ def _unorm(x, top):
     return int(mpmath.floor(min(max(x, mpmath.mpf(0)), mpmath.mpf(1)) * top + mpmath.mpf("0.5")))
 
 
-def _unorm_margin(values, top):
-    """Distance of the clamped, scaled values to the nearest rounding boundary, / top."""
-    return min(float(_to_half(min(max(t, mpmath.mpf(0)), mpmath.mpf(1)) * top)) for t in values) / top
+def _unorm_ties(values, top):
+    """Per value: its code, the distance of the clamped, scaled value to its nearest rounding boundary h + 1/2
+    (/ top), and the code across that boundary (h or h + 1, within [0, top])."""
+    out = []
+    for x in values:
+        t = min(max(x, mpmath.mpf(0)), mpmath.mpf(1)) * top
+        c, lo = _unorm(x, top), int(mpmath.floor(t))
+        out.append((c, float(_to_half(t)) / top, min(max(2 * lo + 1 - c, 0), top)))
+    return [list(v) for v in zip(*out)]
 
 
-def encode_unorm16(b, margin=False):
-    """Four UNORM16 codes of the optimized basis (``margin``: see pack64)."""
+def encode_unorm16(b, margin=False, components=False):
+    """Four UNORM16 codes of the optimized basis (``margin``, ``components``: see pack64)."""
     b = np.asarray(b, np.float64).reshape(-1, 4)
-    out, mg = np.empty(b.shape, np.uint16), np.empty(len(b))
+    out, mg, a = np.empty(b.shape, np.uint16), np.empty(b.shape), np.empty(b.shape, np.int64)
     with mpmath.workdps(_DPS):
         m, c = _optimized()
         for i, row in enumerate(b):
             v = m * mpmath.matrix([mpmath.mpf(float(t)) for t in row]) + c
-            out[i], mg[i] = [_unorm(t, 65535) for t in v], _unorm_margin(v, 65535)
-    return (out, mg) if margin else (out,)
+            out[i], mg[i], a[i] = _unorm_ties(v, 65535)
+    if components:
+        return out, mg, a
+    return (out, mg.min(axis=1)) if margin else (out,)
 
 
 def decode_unorm16(u):
@@ -292,17 +335,24 @@ def to_optimized6(b):
         return (np.array([[float(t) for t in _to6(row)] for row in b]),)
 
 
-def encode_r10g10b10a2(b, margin=False):
-    """Two R10G10B10A2_UNORM words: 10-bit codes of (R0, G0, B0) and (R1, G1, B1), alpha 0."""
+def words_r10(fields):
+    """The two R10G10B10A2_UNORM words of ``(n, 6)`` 10-bit codes (R0, G0, B0, R1, G1, B1), alpha 0."""
+    f = np.asarray(fields, np.int64).reshape(-1, 6)
+    return np.stack([sum(f[:, k + j] << s for j, s in enumerate(_R10_SHIFTS)) for k in (0, 3)], axis=1).astype(np.uint32)
+
+
+def encode_r10g10b10a2(b, margin=False, components=False):
+    """Two R10G10B10A2_UNORM words: 10-bit codes of (R0, G0, B0) and (R1, G1, B1), alpha 0 (``margin``: see pack64;
+    ``components``: ``(codes, margins, across)``, each ``(n, 6)``, :func:`words_r10` makes the words)."""
     b = np.asarray(b, np.float64).reshape(-1, 6)
-    out, mg = np.empty((len(b), 2), np.uint32), np.empty(len(b))
+    codes, mg, a = np.empty((len(b), 6), np.int64), np.empty((len(b), 6)), np.empty((len(b), 6), np.int64)
     with mpmath.workdps(_DPS):
         for i, row in enumerate(b):
-            q = _to6(row)
-            codes = [_unorm(t, 1023) for t in q]
-            out[i] = [sum(c << s for c, s in zip(codes[k:k + 3], _R10_SHIFTS)) for k in (0, 3)]
-            mg[i] = _unorm_margin(q, 1023)
-    return (out, mg) if margin else (out,)
+            codes[i], mg[i], a[i] = _unorm_ties(_to6(row), 1023)
+    if components:
+        return codes, mg, a
+    out = words_r10(codes)
+    return (out, mg.min(axis=1)) if margin else (out,)
 
 
 def decode_r10g10b10a2(p):

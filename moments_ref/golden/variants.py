@@ -180,11 +180,12 @@ def pack64_variant():
         if not kw:
             return {}
         from ..packing import pack64
-        from . import texel_truth
+        from . import texel_codes
 
         rounding = kw["xi_rounding"]
-        return {"reference": lambda r: (pack64(r, **kw),), "truth": lambda r: texel_truth.pack64(r, rounding),
-                "margin": lambda r: texel_truth.pack64(r, rounding, margin=True)[1]}
+        return {"reference": lambda r: (pack64(r, **kw),), "truth": lambda r: texel_codes.pack64(r, rounding),
+                "margin": lambda r: texel_codes.pack64(r, rounding, margin=True)[1],
+                "tie_neighbours": lambda r: texel_codes.pack64_neighbours(r, rounding)}
 
     return variant
 

@@ -10,7 +10,7 @@ sweep and the goldens judge by one model:
   chunks of 10^5–10^6 rows.
 * :func:`flagged_rows` — the gated rows outside their interval, less the codes the goldens'
   tie rule accepts (:func:`moments_ref.golden.bands.tie_accepted`, the rule :func:`confirm`
-  applies): a code on a rounding tie is not flagged, a wrong code next to it is. The gated
+  applies): a code on a rounding tie of its own component is not flagged, a wrong code next to it is. The gated
   rows are those whose float32 neighbourhood reaches the case's contract (:func:`contract_rows`;
   there the papers' formulations are legitimate, as on contract rows), all rows under
   ``--strict``: as in the goldens, a robustness row (unbiased singular moments that float32
@@ -93,28 +93,32 @@ def flagged_rows(case, inputs, bands, ill, got, gated=None, port_dtype="float32"
     whose exact values spread beyond the cap there is ill-conditioned and judged by that wider band, so a flag
     that the confirmation's own neighbourhood explains is no flag. The full band only widens the default one,
     so computing it on the flagged rows gives the verdicts of computing it on every row.
-    For integer outputs a flagged code within one code of its interval is then put to the
-    goldens' tie rule (:func:`moments_ref.golden.bands.tie_accepted`, mpmath on those few rows
-    only), and is not flagged where the rule accepts it.
+    Integer outputs: a row whose codes are not its band's single codes is flagged unless the goldens' tie rule
+    (:func:`moments_ref.golden.bands.tie_accepted`, per component for the encoders) accepts every code; the
+    same function :func:`confirm` applies.
     """
-    flagged = wrong_rows(case, bands, ill, got) & (judges_ill(case) | ~np.asarray(ill, bool))
+    judged = judges_ill(case) | ~np.asarray(ill, bool)
     if gated is not None:
-        flagged &= np.asarray(gated, bool)
+        judged &= np.asarray(gated, bool)
     sub = lambda d, rows: {k: np.asarray(v)[rows] for k, v in d.items()}  # noqa: E731
-    if flagged.any() and not (case.integer_output or case.deriver is not None or _engine.is_engine(case)):
-        look = np.flatnonzero(flagged)
-        c = None if contract is None else np.asarray(contract, bool)[look]
-        full, full_ill = _bands.legitimate_interval(case, sub(inputs, look), port_dtype, contract=c, full=True)
-        flagged[look] = wrong_rows(case, full, full_ill, sub(got, look))
-    if not (case.integer_output and flagged.any()):
+    if not case.integer_output:
+        flagged = wrong_rows(case, bands, ill, got) & judged
+        if flagged.any() and not (case.deriver is not None or _engine.is_engine(case)):
+            look = np.flatnonzero(flagged)
+            c = None if contract is None else np.asarray(contract, bool)[look]
+            full, full_ill = _bands.legitimate_interval(case, sub(inputs, look), port_dtype, contract=c, full=True)
+            flagged[look] = wrong_rows(case, full, full_ill, sub(got, look))
         return flagged
-    n = len(flagged)
-    near = np.ones(n, bool)
+    # Codes: every row whose code is not the band's single code goes to the tie rule (vectorised: the exact codes
+    # in float64, mpmath only near a boundary), which accepts a code only where it is one of the acceptable codes of
+    # that component; the band's interval alone would pass a word between two acceptable words.
+    n = len(judged)
+    settled = np.ones(n, bool)
     for o, (lo, hi) in bands.items():
         g = np.asarray(got[o], np.float64).reshape(lo.shape)
-        with np.errstate(invalid="ignore"):
-            near &= ((g >= lo - 1) & (g <= hi + 1)).reshape(n, -1).all(axis=1)
-    look = np.flatnonzero(flagged & near)
+        settled &= ((g == lo) & (g == hi)).reshape(n, -1).all(axis=1)
+    flagged = judged & ~settled
+    look = np.flatnonzero(flagged)
     if look.size:
         flagged[look[_bands.tie_accepted(case, sub(inputs, look), sub(got, look))]] = False
     return flagged
