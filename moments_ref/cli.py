@@ -157,12 +157,9 @@ def _cmd_mutants(args):
 def _cmd_bench(args):
     from .tools import bench
 
-    if args.only:
-        names = [b.name for b in bench.bench_entries()] + ["end_to_end", "targets", "conformance", "kernels", "sweep"] \
-            + [f"targets-{g}" for g in bench.TARGET_GROUPS]
-        unknown = [o for o in args.only if not any(o in n for n in names)]
-        if unknown:
-            raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(names)}")
+    unknown = [o for o in args.only or () if not any(o in n for n in bench.only_names())]
+    if unknown:
+        raise InputError(f"--only: no benchmark name contains {unknown[0]!r}; names: {', '.join(bench.only_names())}")
     if args.out:  # a FIFO or a link to /dev/zero named bench.md: refused before any work, never read
         from ._io import check_own
 
@@ -177,9 +174,7 @@ def _cmd_bench(args):
         size = min(args.size, 512) if args.quick else args.size
         text += "\n" + bench.end_to_end_markdown(bench.end_to_end(size, 4), size, 4)
     if not args.only or any("targets" in o for o in args.only):
-        # --only targets runs every group; --only targets-raster (or another group) only that one
-        groups = [g for g in bench.TARGET_GROUPS if any(o in f"targets-{g}" for o in args.only or ["targets"])]
-        runs = [bench.run_targets(quick=args.quick, groups=groups) for _ in range(args.runs)]
+        runs = [bench.run_targets(quick=args.quick, groups=bench.target_groups(args.only)) for _ in range(args.runs)]
         text += "\n" + bench.targets_markdown(runs[-1])
         if len(runs) > 1:
             text += "\n" + bench.agreement_markdown(runs)
@@ -397,8 +392,7 @@ def _add_measurements(sub):
     b.add_argument("--size", type=_int_in(1, 16384), default=2048, help="square input side, 1..16384 (default 2048)")
     b.add_argument("--quick", action="store_true", help="one repetition, small sizes")
     b.add_argument("--only", action="append",
-                   help="only benchmarks whose name contains this (repeatable); targets: the speed targets, "
-                        "targets-raster|nlq|algorithms|growth|memory: one group of them")
+                   help="only benchmarks whose name contains this (targets-raster: one group of the targets)")
     b.add_argument("--runs", type=_int_in(1, 10), default=1,
                    help="measure the speed targets this many times in a row and say whether they agree (default 1)")
     b.set_defaults(func=_cmd_bench)

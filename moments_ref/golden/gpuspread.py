@@ -36,7 +36,7 @@ import numpy as np
 
 from ..moments import bias_moments
 
-__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "tied_codes", "TIE_FLIPS",
+__all__ = ["float32_filters", "nlq_chain_gpu", "nlq_chain_fused", "msm_chain_fused", "tied_codes", "TIE_SUBSETS",
            "TRANSCENDENTAL_ULPS", "FUSED_STAGES", "block_spread", "chain_spread", "msm_spread"]
 
 #: How far a GPU's log and exp may be off (GLSL 4.30 §4.7.1: 3 ulp outside [0.5, 2]).
@@ -175,7 +175,7 @@ def tied_codes(b):
 
 
 #: The non-empty sets of channels of a 64-bit affine texel whose codes a tie may flip (up to 4 at once).
-TIE_FLIPS = tuple(tuple(c for c in range(4) if m >> c & 1) for m in range(1, 16))
+TIE_SUBSETS = tuple(tuple(c for c in range(4) if m >> c & 1) for m in range(1, 16))
 
 
 def msm_spread(bias, *_):
@@ -183,7 +183,7 @@ def msm_spread(bias, *_):
 
     Its attribute ``full`` is the hook of the whole neighbourhood (:func:`moments_ref.golden.bands.evaluations`
     with ``full``, the points the confirmation values exactly): the same chain, with and without fma and in float64,
-    on each texel the row's rounding ties admit (:data:`TIE_FLIPS`, :func:`tied_codes`; the exact chain
+    on each texel the row's rounding ties admit (:data:`TIE_SUBSETS`, :func:`tied_codes`; the exact chain
     :func:`moments_ref.golden.truth.msm64_chain` takes every one), NaN on rows without that tie."""
 
     def hook(inputs, dt):
@@ -197,7 +197,7 @@ def msm_spread(bias, *_):
             return []
         b, zf = np.asarray(inputs["b"], dt), np.asarray(inputs["zf"], dt)
         tied, out = tied_codes(b)[2], []
-        for flip in TIE_FLIPS:
+        for flip in TIE_SUBSETS:
             rows = np.flatnonzero(tied[:, list(flip)].all(axis=1))
             if rows.size:  # only the rows this flip changes (about 2^-|flip| of them)
                 for f in (False, True, None):

@@ -34,7 +34,7 @@ from ._targets import TARGET_GROUPS, agreement_markdown, copier, run_targets, ta
 from ._timing import PAIRS, paired
 
 __all__ = ["Benchmark", "BENCHMARKS", "run", "markdown", "bench_filtering",
-           "bench_onchip", "bench_entries", "run_targets", "TARGET_GROUPS", "targets_markdown", "agreement_markdown",
+           "bench_onchip", "bench_entries", "run_targets", "TARGET_GROUPS", "only_names", "target_groups", "targets_markdown", "agreement_markdown",
            "kernels_markdown", "keep_history", "HISTORY_HEADING"]
 
 
@@ -366,6 +366,17 @@ def _extra_benchmarks():
 
 
 BENCHMARKS = _core_benchmarks()
+
+
+def only_names():
+    """The names ``moments-ref bench --only`` matches: the benchmarks, the sections and the target groups."""
+    return [b.name for b in bench_entries()] + ["end_to_end", "targets", "conformance", "kernels", "sweep"] \
+        + [f"targets-{g}" for g in TARGET_GROUPS]
+
+
+def target_groups(only=None):
+    """The target groups ``--only`` names: all for ``targets`` (or none given), else those ``targets-GROUP`` names."""
+    return [g for g in TARGET_GROUPS if any(o in f"targets-{g}" for o in only or ["targets"])]
 
 
 def run(size=2048, quick=False, only=None, progress=None, repeat=None):
