@@ -115,7 +115,6 @@ References
 
 from __future__ import annotations
 
-import threading
 import time
 
 import numpy as np
@@ -124,6 +123,8 @@ from ._arrays import InputError, brief, check_broadcast, first_index, lookup_inp
 from ._docs import fill_doc
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
+from ._msm6_rows import BOUNDS_CHUNK, COS_THIRD_POLY as _COS_THIRD_POLY
+from ._msm6_rows import ldl_rows, regular_chunk, root_rows, solve_rows, weight_rows, workspace
 from ._kernels import two_point as _two_point
 
 __all__ = [
@@ -151,10 +152,6 @@ BIAS6_FLOAT32 = BiasPreset(3e-4, BIAS6_TARGET, "float32x6")
 #: Six moments in 2×R10G10B10A2_UNORM (Slides, "6 moments"), α by :func:`measure_unorm10_bias`.
 BIAS6_UNORM10 = BiasPreset(1e-3, BIAS6_TARGET, "unorm10x6")
 
-#: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
-#: 4001 Chebyshev points of [0, 1], largest error 1.6e-7 (2.2e-7 evaluated in float32).
-_COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
-                  -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
 
 #: Newton steps of the closed form in the kernels, per dtype: on ``4c³ − 3c = r`` after the fit
 #: of cos(arccos(r)/3), then on the cubic (module docstring, "Cubic solver").
@@ -426,281 +423,24 @@ def _weights(t, zf, b1, b2, b3, ldl, zero):
     return np.fmax(w, zero, out=w)  # an array, not 0: NumPy's array-scalar fmax is 4x slower
 
 
-#: Float rows of the bounds kernel's workspace (:func:`_workspace`), named by what they first hold.
-_ROWS = ("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t", "y1", "y2", "y3", "c1", "c2", "c3", "e", "f", "g")
-
-#: Per thread, the bounds kernel's workspace of a whole chunk per dtype (:func:`_workspace`).
-_LOCAL = threading.local()
-
-
-def _workspace(dtype, n):
-    """The bounds kernel's rows for ``n ≤ CHUNK`` texels: views of one set per thread and dtype, kept between calls.
-
-    Float rows (:data:`_ROWS`), three boolean rows, an integer row for sign bits and the
-    constant rows 0, 1 and the sign bit (array–array loops are the fast ones). Every step
-    writes into them (``out=``): a chunk allocates nothing and its rows stay in cache;
-    kept between calls because fresh chunk-sized arrays are faulted in from the OS on
-    every call (as :mod:`moments_ref.msm` measured). 1.3 MB in float32, 2.5 MB in float64
-    per thread that called; per thread, so that concurrent calls never share one.
-    """
-    cache = _LOCAL.__dict__.setdefault("ws", {})
-    key = (np.dtype(dtype).name, CHUNK)
-    if key not in cache:
-        if len(cache) >= 4:  # float32 and float64 (the chunk size only guards a changed CHUNK)
-            cache.clear()
-        it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
-        cache[key] = {"rows": np.empty((len(_ROWS), CHUNK), dtype=dtype), "mask": np.empty((3, CHUNK), dtype=bool),
-                      "bits": np.empty(CHUNK, dtype=it), "sign": np.full(CHUNK, np.iinfo(it).min, dtype=it),
-                      "zero": np.zeros(CHUNK, dtype=dtype), "one": np.ones(CHUNK, dtype=dtype)}
-    full = cache[key]
-    ws = {k: v[..., :n] for k, v in full.items()}
-    ws.update(zip(_ROWS, ws.pop("rows")))
-    return ws
-
-
-def _ldl_rows(b, w):
-    """Step 1 into the workspace ``w``: :func:`_ldl`'s arithmetic, operation for operation (23 passes)."""
-    b1, b2, b3, b4, b5, b6 = b
-    d1, d2, d3, l21, l31, l32, a, c, t = (w[k] for k in ("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t"))
-    np.multiply(b1, b1, out=d1)  # D1 = b2 − b1²
-    np.subtract(b2, d1, out=d1)
-    np.multiply(b1, b2, out=a)  # L21 D1 = b3 − b1 b2
-    np.subtract(b3, a, out=a)
-    np.multiply(b1, b3, out=c)  # L31 D1 = b4 − b1 b3
-    np.subtract(b4, c, out=c)
-    np.divide(a, d1, out=l21)
-    np.divide(c, d1, out=l31)
-    np.multiply(b2, b2, out=d2)  # D2 = b4 − b2² − L21·(L21 D1)
-    np.subtract(b4, d2, out=d2)
-    np.multiply(l21, a, out=t)
-    np.subtract(d2, t, out=d2)
-    np.multiply(b2, b3, out=a)  # L32 D2 = b5 − b2 b3 − L21·(L31 D1)
-    np.subtract(b5, a, out=a)
-    np.multiply(l21, c, out=t)
-    np.subtract(a, t, out=a)
-    np.divide(a, d2, out=l32)
-    np.multiply(b3, b3, out=d3)  # D3 = b6 − b3² − L31·(L31 D1) − L32·(L32 D2)
-    np.subtract(b6, d3, out=d3)
-    np.multiply(l31, c, out=t)
-    np.subtract(d3, t, out=d3)
-    np.multiply(l32, a, out=t)
-    np.subtract(d3, t, out=d3)
-    return d1, d2, d3, l21, l31, l32
-
-
-def _regular_chunk(b, zf, ldl, w):
-    """True when every texel of the chunk is regular and finite, decided by reductions (no pass).
-
-    :func:`_regular` holds for every texel when the extremes clear it: float32
-    ``min D_i > 0``, float64 ``min D1 > τ max b2``, ``min D2 > τ max(max b4, max D1)``,
-    ``min D3 > τ max(max b6, max D2)`` (a NaN fails every comparison). ``max D3 < ∞``
-    catches b6 = +∞ and a finite sum of zf a NaN or ∞ in zf (the one thing the pivots do
-    not see); a sum overflowing on finite zf only costs the exact check.
-    """
-    d1, d2, d3 = ldl[:3]
-    mn, mx = np.minimum.reduce, np.maximum.reduce
-    rtol = b.dtype.type(singular_thresholds(b.dtype))
-    if rtol == 0:
-        ok = mn(d1) > 0 and mn(d2) > 0 and mn(d3) > 0
-    else:
-        ok = (mn(d1) > rtol * mx(b[1]) and mn(d2) > rtol * max(mx(b[3]), mx(d1))
-              and mn(d3) > rtol * max(mx(b[5]), mx(d2)))
-    return bool(ok and mx(d3) < np.inf and np.isfinite(np.add.reduce(zf)))
-
-
-def _solve_rows(b, zf, ldl, w):
-    """Steps 2–3 into the workspace: the Sturm signs and ``(p(zf), p'(zf), p''(zf)/2, q3, w0)``.
-
-    :func:`_reversed_cubic`'s arithmetic operation for operation (32 passes, and 6 boolean
-    ones for the signs): forward substitution ``L y = v(zf)``, scaling ``c = D⁻¹ y``, back
-    substitution (q2, q1; q3 = c3), ``p(zf) = 1 + Σ y_i c_i`` and the Taylor coefficients
-    at zf. The boolean rows ``mask[0]``, ``mask[2]`` get "at least two Gauss nodes below
-    zf" and "an odd number below" (:func:`_bounds_kernel`).
-    """
-    b1, b2, b3 = b[:3]
-    d1, d2, d3, l21, l31, l32 = ldl
-    zf2, p1, t, y1, y2, y3, c1, c2, c3, q2, q1, pz = (w[k] for k in ("a", "b", "t", "y1", "y2", "y3",
-                                                                     "c1", "c2", "c3", "e", "f", "g"))
-    # Forward substitution to solve L y = (1, zf, zf², zf³).
-    np.multiply(zf, zf, out=zf2)
-    np.subtract(zf, b1, out=y1)
-    np.subtract(zf2, b2, out=y2)
-    np.multiply(l21, y1, out=t)
-    np.subtract(y2, t, out=y2)
-    np.multiply(zf2, zf, out=y3)
-    np.subtract(y3, b3, out=y3)
-    np.multiply(l31, y1, out=t)
-    np.subtract(y3, t, out=y3)
-    np.multiply(l32, y2, out=t)
-    np.subtract(y3, t, out=y3)
-    # The Sturm sequence (1, y1, y2, y3): two nodes below is "the signs never turn back from − to +".
-    pos1, pos2, pos3 = w["mask"]
-    np.greater_equal(y1, w["zero"], out=pos1)
-    np.greater_equal(y2, w["zero"], out=pos2)
-    np.greater_equal(y3, w["zero"], out=pos3)
-    np.less_equal(pos2, pos1, out=pos1)
-    np.less_equal(pos3, pos2, out=pos2)
-    np.logical_and(pos1, pos2, out=pos1)
-    # Scaling to solve D c = y; back substitution Lᵀ q = c (q3 = c3).
-    np.divide(y1, d1, out=c1)
-    np.divide(y2, d2, out=c2)
-    np.divide(y3, d3, out=c3)
-    np.multiply(l32, c3, out=t)
-    np.subtract(c2, t, out=q2)
-    np.multiply(l21, q2, out=t)
-    np.subtract(c1, t, out=q1)
-    np.multiply(l31, c3, out=t)
-    np.subtract(q1, t, out=q1)
-    # p(zf) = 1 + Σ y_i c_i (= 1/w0, a sum of squares over pivots).
-    np.multiply(y1, c1, out=pz)
-    np.add(pz, 1, out=pz)
-    np.multiply(y2, c2, out=t)
-    np.add(pz, t, out=pz)
-    np.multiply(y3, c3, out=t)
-    np.add(pz, t, out=pz)
-    # p''(zf)/2 = q2 + 3 q3 zf (into zf²'s row), p'(zf) = q1 + (q2 + p''/2) zf.
-    p2 = zf2
-    np.multiply(c3, 3, out=t)
-    np.multiply(t, zf, out=t)
-    np.add(q2, t, out=p2)
-    np.add(q2, p2, out=t)
-    np.multiply(t, zf, out=t)
-    np.add(q1, t, out=p1)
-    w0 = y1
-    np.divide(1, pz, out=w0)
-    return pz, p1, p2, c3, w0
-
-
-def _root_rows(cubic, steps, w):
-    """The one root ``t`` of P(t) the bound needs (:func:`_extreme_root`'s arithmetic, operation for operation).
-
-    ``cubic = (p(zf), p'(zf), p''(zf)/2, q3)``; σ = −1 where an odd number of Gauss nodes
-    lies below zf (``mask[2]``), applied as a flip of the sign bit of r and 2m (exactly
-    the product by ±1). 36 passes in float32 (Blinn's form 15, the sign 3, cos(arccos(r)/3)
-    16, the root 2); float64 adds its Newton steps. Returns the row holding t.
-    """
-    c0, c1, c2, c3 = cubic
-    t, bb, cc, dd, d0, dep, m2, c = (w[k] for k in ("t", "e", "f", "y2", "y3", "c1", "c2", "c1"))
-    # Blinn's form (_blinn): B = c1/(3c0), C = c2/(3c0), D = c3/c0, Δ0 = C − B², 2m = √(4|Δ0|), r.
-    np.multiply(c0, 3, out=t)
-    np.divide(c1, t, out=bb)
-    np.divide(c2, t, out=cc)
-    np.divide(c3, c0, out=dd)
-    np.multiply(bb, bb, out=d0)
-    np.subtract(cc, d0, out=d0)
-    np.multiply(d0, 2, out=dep)  # −(Δ1 − 2BΔ0) = B (C + 2Δ0) − D
-    np.add(cc, dep, out=dep)
-    np.multiply(bb, dep, out=dep)
-    np.subtract(dep, dd, out=dep)
-    np.abs(d0, out=d0)
-    np.multiply(d0, 4, out=m2)
-    np.sqrt(m2, out=m2)
-    np.multiply(m2, d0, out=t)
-    np.divide(dep, t, out=t)  # r
-    # σ r and σ 2m: the sign bit flipped where σ = −1.
-    bits, it = w["bits"], w["bits"].dtype
-    np.multiply(w["mask"][2], w["sign"], out=bits)
-    np.bitwise_xor(t.view(it), bits, out=t.view(it))
-    np.bitwise_xor(m2.view(it), bits, out=m2.view(it))
-    # cos(arccos(σr)/3) (_cos_third): Horner in u = √|σr/2 + 1/2|, then the Newton refinement.
-    np.multiply(t, 0.5, out=t)
-    np.add(t, 0.5, out=t)
-    np.abs(t, out=t)
-    np.sqrt(t, out=t)
-    np.multiply(t, _COS_THIRD_POLY[-1], out=c)
-    for a in _COS_THIRD_POLY[-2:0:-1]:
-        np.add(c, a, out=c)
-        np.multiply(c, t, out=c)
-    np.add(c, _COS_THIRD_POLY[0], out=c)
-    if steps[0]:
-        su, s, x = dd, cc, d0
-        np.multiply(t, np.sqrt(2.0), out=su)
-        for _ in range(steps[0]):  # c −= ((2c − 1)√(c + 1) − √2 u) / (2√(c + 1) + (2c − 1)/(2√(c + 1)))
-            np.add(c, 1, out=s)
-            np.sqrt(s, out=s)
-            np.multiply(c, 2, out=x)
-            np.subtract(x, 1, out=x)
-            np.multiply(x, s, out=t)
-            np.subtract(t, su, out=t)
-            np.multiply(s, 2, out=s)
-            np.divide(x, s, out=x)
-            np.add(s, x, out=s)
-            np.divide(t, s, out=t)
-            np.subtract(c, t, out=c)
-    # t = σ 2m c − B, and the Newton steps on P(t) (_newton).
-    root = c
-    np.multiply(m2, c, out=root)
-    np.subtract(root, bb, out=root)
-    f, fp, u = w["e"], w["f"], w["y2"]
-    for _ in range(steps[1]):
-        np.multiply(c0, root, out=f)
-        np.add(f, c1, out=f)
-        np.multiply(f, root, out=f)
-        np.add(f, c2, out=f)
-        np.multiply(f, root, out=f)
-        np.add(f, c3, out=f)
-        np.multiply(c0, 3, out=fp)
-        np.multiply(fp, root, out=fp)
-        np.multiply(c1, 2, out=u)
-        np.add(fp, u, out=fp)
-        np.multiply(fp, root, out=fp)
-        np.add(fp, c2, out=fp)
-        np.divide(f, fp, out=f)
-        np.subtract(root, f, out=root)
-    return root
-
-
-def _weight_rows(root, b, zf, ldl, w):
-    """Step 4 at ``z = zf + 1/t`` (:func:`_weights`' arithmetic, operation for operation; 24 passes): the row of w."""
-    b1, b2, b3 = b[:3]
-    d1, d2, d3, l21, l31, l32 = ldl
-    z, z2, u1, u2, t = (w[k] for k in ("e", "f", "y2", "y3", "t"))
-    u3 = z2
-    np.divide(1, root, out=z)
-    np.add(zf, z, out=z)
-    np.multiply(z, z, out=z2)
-    np.subtract(z, b1, out=u1)  # forward substitution L u = v(z)
-    np.subtract(z2, b2, out=u2)
-    np.multiply(l21, u1, out=t)
-    np.subtract(u2, t, out=u2)
-    np.multiply(z2, z, out=u3)
-    np.subtract(u3, b3, out=u3)
-    np.multiply(l31, u1, out=t)
-    np.subtract(u3, t, out=u3)
-    np.multiply(l32, u2, out=t)
-    np.subtract(u3, t, out=u3)
-    # w = 1 / (1 + u1²/D1 + u2²/D2 + u3²/D3), and 0 where that is not a positive number.
-    np.multiply(u1, u1, out=u1)
-    np.divide(u1, d1, out=u1)
-    np.add(u1, 1, out=u1)
-    np.multiply(u2, u2, out=u2)
-    np.divide(u2, d2, out=u2)
-    np.add(u1, u2, out=u1)
-    np.multiply(u3, u3, out=u3)
-    np.divide(u3, d3, out=u3)
-    np.add(u1, u3, out=u1)
-    np.divide(1, u1, out=u1)
-    return np.fmax(u1, w["zero"], out=u1)
-
-
 def _bounds_kernel(b, zf, steps, dest, refuse):
     """The bounds named in ``dest`` (rows of the output) on flat chunks: b (6, n) rows, zf (n,).
 
     Module docstring, steps 1–5, in the workspace of :func:`_workspace`: every operation
     writes into a reused row (``out=``) and the bounds go straight into ``dest``; the same
     arithmetic in the same order as the expressions of :func:`_ldl`, :func:`_reversed_cubic`,
-    :func:`_extreme_root` and :func:`_weights` (bit for bit). 129 passes over a float32
+    :func:`_extreme_root` and :func:`_weights` (bit for bit). 128 passes over a float32
     chunk for the lower bound (the upper 2 more), and the checks as reductions
     (:func:`_regular_chunk`): a chunk needs the exact mask of :func:`_regular` only where
     a texel is singular or not finite. ``steps`` is the dtype's entry of
     :data:`_NEWTON_STEPS`; ``refuse()`` raises the error of a NaN or inf in the input.
     """
-    w = _workspace(b.dtype, zf.shape[0])
+    w = workspace(b.dtype, zf.shape[0])
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        ldl = _ldl_rows(b, w)
-        pz, p1, p2, q3, w0 = _solve_rows(b, zf, ldl, w)
-        root = _root_rows((pz, p1, p2, q3), steps, w)
-        wt = _weight_rows(root, b, zf, ldl, w)
+        ldl = ldl_rows(b, w)
+        pz, p1, p2, q3, w0 = solve_rows(b, zf, ldl, w)
+        root = root_rows((pz, p1, p2, q3), steps, w)
+        wt = weight_rows(root, b, zf, ldl, w)
         # (5) lower = Σ_{z_l < zf} w_l = (1 − w0)·[two below] + w·([odd] − [two below]): 0, w,
         # 1 − w0 − w, 1 − w0 for 0..3 Gauss nodes below zf (1 − w0 exactly for three).
         two_below, odd = w["mask"][0], w["mask"][2]
@@ -711,16 +451,18 @@ def _bounds_kernel(b, zf, steps, dest, refuse):
         np.subtract(odd, two_below, out=sel, dtype=b.dtype)
         np.multiply(wt, sel, out=sel)
         np.add(r0, sel, out=lower)
-    if not _regular_chunk(b, zf, ldl, w):
+    if not regular_chunk(b, zf, ldl, w):
         regular = _regular(b, ldl)
         if not (regular & np.isfinite(ldl[2] + zf)).all():
             if not (np.isfinite(b).all() and np.isfinite(zf).all()):
                 refuse()
             s = ~regular
             lower[s], w0[s] = _singular(b[:, s], zf[s])[:2]
-    # Clamped like saturate (rounding: 1 − w0 − w < 0, a sum of Christoffel numbers above 1);
-    # fmax/fmin also turn a NaN from overflow into 0 and 1.
-    np.fmin(np.fmax(lower, w["zero"], out=lower), w["one"], out=lower)
+            np.fmax(lower, w["zero"], out=lower)
+            np.fmin(lower, w["one"], out=lower)  # a sum of the unique distribution's weights above 1
+    # Clamped like saturate (rounding: 1 − w0 − w < 0); fmax also turns a NaN from overflow into 0.
+    # Above 1 only on singular rows: 0 ≤ w ≤ 1 and 1 − w0 ∈ [0, 1) (w0 = 1/p(zf), p(zf) ≥ 1).
+    np.fmax(lower, w["zero"], out=lower)
     if "upper" in dest:
         np.add(lower, w0, out=dest["upper"])
         np.fmin(dest["upper"], w["one"], out=dest["upper"])
@@ -802,7 +544,7 @@ def _run(b, zf, want):
     steps = _NEWTON_STEPS[b.dtype.name]
     zeros, ones = (np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)) if "z" in want else (None, None)
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
-    for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK if "z" in want else BOUNDS_CHUNK):
         if "z" not in want:  # the bounds are written into the output
             _bounds_kernel(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
             continue

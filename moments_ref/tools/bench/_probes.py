@@ -26,7 +26,10 @@ PASSES = {
     # 7 step (5); its three reductions (pivots, finiteness) are not counted
     "shadow_intensity float32": 49,
     "shade float32": 49,  # nonlinear._shade_kernel (and 8 min/max reductions, docs/bench.md)
-    "shadow_intensity six moments float32": 140,  # msm6's kernel, counted by the earlier __array_ufunc__ probe
+    # msm6._bounds_kernel: 23 Cholesky, 11 forward substitution, 6 Sturm signs, 21 scaling, back
+    # substitution, p(zf) and the Taylor coefficients, 1 w0, 15 Blinn's form, 3 the sign σ,
+    # 16 cos(arccos(r)/3), 2 the root, 24 its weight, 6 step (5) and saturate; 5 reductions
+    "shadow_intensity six moments float32": 128,
 }
 
 
