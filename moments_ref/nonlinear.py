@@ -55,7 +55,7 @@ import numpy as np
 
 from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_exact
+from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_inplace
 
 __all__ = [
     "PSI4_C0",
@@ -243,7 +243,7 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         d -= t
         np.maximum(d, c["zero"], out=d)
         np.sqrt(d, out=d)
-        copysign_exact(d, q1, c["sign"])
+        copysign_inplace(d, q1, c["sign"])  # d ≥ 0 (a NaN d gives NaN roots either way: _phi_degenerate's)
         d += q1
         d *= -0.5
         np.divide(d, q2, out=t)
@@ -253,6 +253,7 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         # (5) v2 = (b1 − y1) / (y2 − y1).
         np.subtract(b1, y1, out=v2)
         np.subtract(y2, y1, out=t)
+        ordered = np.minimum.reduce(t) > 0  # y2 > y1 everywhere (a NaN fails it): for _phi_degenerate
         v2 /= t
         # (6)-(7) L21 = (b3 − b1 b2)/σ² = −q1/σ², ξ4 = (b4 − b2²) − L21² σ².
         np.divide(q1, sigma2, out=t)
@@ -261,12 +262,21 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         np.multiply(b2, b2, out=xi4)
         np.subtract(b4, xi4, out=xi4)
         xi4 -= t
-    _phi_degenerate(b1, b4, sigma2, out)
+    _phi_degenerate(b1, b4, sigma2, out, ordered)
 
 
-def _phi_degenerate(b1, b4, sigma2, out):
-    """Where Algorithm 2 fails (see :func:`phi`, Notes): one depth at b1, ξ4 by Eq. (1)."""
+def _phi_degenerate(b1, b4, sigma2, out, ordered=False):
+    """Where Algorithm 2 fails (see :func:`phi`, Notes): one depth at b1, ξ4 by Eq. (1).
+
+    ``ordered``: y2 > y1 was seen on every texel. Then a chunk with ``min σ² > 0`` and finite
+    sums of ξ4, v2, y1 and y2 (a NaN or inf makes a sum non-finite; so may overflow, which only
+    costs the exact masks) has no failing texel: decided by reductions instead of the masks.
+    """
     y1, y2, v2, xi4 = out
+    red = np.add.reduce
+    if (ordered and np.minimum.reduce(sigma2) > 0 and np.isfinite(red(xi4)) and np.isfinite(red(v2))
+            and np.isfinite(red(y1)) and np.isfinite(red(y2))):
+        return
     single = sigma2 > 0
     single &= np.isfinite(xi4)
     np.logical_not(single, out=single)
@@ -379,8 +389,13 @@ def psi4_clamped(x, zero=0, one=1):
     # (u is never NaN here, and a zero's sign does not survive the encoders' rounding).
     np.maximum(u, zero, out=u)
     np.minimum(u, one, out=u)
-    u[x >= dt(PSI4_XI_MAX)] = 1
-    u[x <= dt(PSI4_XI_MIN)] = 0
+    # u = 1 at ξ4 ≥ XI_MAX, 0 at ξ4 ≤ XI_MIN, as psi4's np.where: only where a chunk's extremes
+    # reach them (reductions), the lower end as a product by the 0/1 mask (a masked store on a
+    # scattered mask costs several passes; u·1 = u, u·0 = ±0).
+    if np.maximum.reduce(x) >= dt(PSI4_XI_MAX):
+        u[x >= dt(PSI4_XI_MAX)] = 1
+    if np.minimum.reduce(x) <= dt(PSI4_XI_MIN):
+        u *= x > dt(PSI4_XI_MIN)
     return u
 
 
