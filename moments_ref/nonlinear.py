@@ -198,7 +198,7 @@ _PHI_CHUNK = PHI_CHUNK  # the value and its reason: moments_ref._kernels
 
 
 def phi_rows(rows, out):
-    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ 8192) into the rows (y1, y2, v2, ξ4) of ``out``."""
+    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ PHI_CHUNK) into the rows (y1, y2, v2, ξ4) of ``out``."""
     m = rows.shape[1]
     full = _phi_constants(rows.dtype)
     c = full if m == _PHI_CHUNK else {k: v[:m] for k, v in full.items()}
