@@ -570,11 +570,13 @@ def _chunk_constants(dtype, n, clamp):
     return (full, rows) if n == CHUNK else ({k: v[..., :n] for k, v in full.items()}, rows[:, :n])
 
 
-def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
+def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
     """HPG17 Algorithm 3 on flat, contiguous 1-D chunks; writes the result to ``out``.
 
     ``c`` holds the constant arrays of :func:`_kernel_constants` (same length);
-    ``gap`` is ``y2 − y1`` when already computed (it is overwritten).
+    ``gap`` is ``y2 − y1`` when already computed (it is overwritten). ``ext``, when
+    given, are the chunk's extremes of :func:`_chunk_ok`: a clamp that they prove
+    changes no value is skipped (:func:`_clamps_needed`), bit for bit the same result.
     The inputs are already checked against the domain (up to rounding); ``v2`` is
     modified in place. Every case is computed for every element and the result is
     selected at the end (no per-element branching); temporaries are reused
@@ -588,11 +590,15 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     v1, zp, xip, p, den, h, k = ws[:7]
     # Clamps of §3.4 (they also remove rounding noise): v2 ∈ [1e-6, 1 − 1e-6]
     # and y2 − y1 ≥ 1e-6, i.e. the y2 used below is max(y2, y1 + 1e-6).
-    np.maximum(v2, c["lo"], out=v2)
-    np.minimum(v2, c["hi"], out=v2)
+    need = _clamps_needed(ext, c)
+    if need["v2 lo"]:
+        np.maximum(v2, c["lo"], out=v2)
+    if need["v2 hi"]:
+        np.minimum(v2, c["hi"], out=v2)
     np.subtract(1, v2, out=v1)
     gap = np.subtract(y2, y1) if gap is None else gap
-    np.maximum(gap, c["lo"], out=gap)
+    if need["gap"]:
+        np.maximum(gap, c["lo"], out=gap)
     # Affine change to y1 = 0, y2 = 1 (HPG17 §3.4, proofs/lemma_4):
     # z'f := (zf − y1)/(y2 − y1) and ξ'4 := ξ4/(y2 − y1)⁴. The early return for zf ≤ y1
     # is z'f clamped at 0: the formulas below give w_l = 1/∞ = 0 there (the limit
@@ -605,7 +611,8 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     np.divide(xi4, gap, out=xip)
     # ξ'4 ≤ 0 (an exact two-point distribution, or negative rounding noise) would
     # make the ξ'4⁻¹ term 0/0; the smallest normal number gives the limit ξ'4 → 0⁺.
-    np.maximum(xip, c["tiny"], out=xip)
+    if need["xi'4"]:
+        np.maximum(xip, c["tiny"], out=xip)
 
     # --- Case y1 < zf ≤ y2: z_l is the smaller root of z² + q1 z + q0. ---
     # P := −q0 = ξ'4 / ((1 − v2) z'f) > 0, capped below +inf (z'f → 0).
@@ -768,27 +775,50 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
             m = stop - start
             c = consts if m == len(consts["one"]) else {k: v[..., :m] for k, v in consts.items()}
             gap = np.subtract(cols[1], cols[0], out=c["ws"][7])
-            if not _chunk_ok(cols, zc, gap, tol):
+            ext = _chunk_ok(cols, zc, gap, tol)
+            if ext is None:
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
-            _shade_kernel(*cols, zc, out[start:stop], c, gap)
+            _shade_kernel(*cols, zc, out[start:stop], c, gap, ext)
     return out.reshape(shape)
 
 
+def _clamps_needed(ext, c):
+    """Which of :func:`_shade_kernel`'s clamps can change a value of a chunk with extremes ``ext`` (constants ``c``).
+
+    ``ext`` = (min, max) of the gap y2 − y1, of v2, of ξ4 and of zf (:func:`_chunk_ok`),
+    or None (every clamp runs). ``max(v2, lo)`` is v2 where v2 ≥ lo, and so on; ξ'4 =
+    ξ4 / max(gap, lo)⁴ is at least ``min ξ4 / max(gap, lo)⁴`` up to three roundings of
+    the power and one of the quotient (a relative 2^-21 in float32), so a margin of 2
+    proves ``ξ'4 ≥ tiny`` without computing it, where the power cannot overflow. In practice a chunk of filtered moments
+    has none of the §3.4 cases and skips the four passes.
+    """
+    if not ext:
+        return dict.fromkeys(("v2 lo", "v2 hi", "gap", "xi'4"), True)
+    gmin, gmax, vmin, vmax, xmin = (float(e) for e in ext[:5])
+    lo, hi, tiny, huge = (float(c[k][0]) for k in ("lo", "hi", "tiny", "huge"))
+    g4 = max(gmax, lo) ** 4
+    return {"v2 lo": vmin < lo, "v2 hi": vmax > hi, "gap": gmin < lo,
+            "xi'4": not (g4 <= huge / 2 and xmin / g4 >= 2 * tiny)}  # 2·tiny·g4 may underflow to 0
+
+
 def _chunk_ok(cols, zc, gap, tol):
-    """True if a chunk of ``shade`` is finite and in the domain (eight reductions on the loaded chunk).
+    """The chunk's extremes if a chunk of ``shade`` is finite and in the domain, else None (eight reductions).
 
     ``gap = y2 − y1``. Minima and maxima are finite exactly when every value is
     (NaN propagates through them); those of the gap cover y1 and y2 (an infinite
     or NaN depth makes the gap infinite or NaN), and ``y1 − y2 = −gap`` exactly,
     so ``max(y1 − y2) > tol`` is ``min(gap) < −tol``. A finite gap that overflows
-    only sends the chunk to the full checks. False sends the call to
-    :func:`_refuse`, which raises the error of the full checks.
+    only sends the chunk to the full checks. None sends the call to
+    :func:`_refuse`, which raises the error of the full checks. The extremes
+    (min and max of the gap, v2, ξ4, zf; empty for an empty chunk) tell
+    :func:`_shade_kernel` which clamps it can skip.
     """
     if cols.shape[1] == 0:
-        return True
+        return []
     ext = [gap.min(), gap.max(), cols[2].min(), cols[2].max(), cols[3].min(), cols[3].max(), zc.min(), zc.max()]
-    return bool(np.isfinite(ext).all() and ext[0] >= -tol and ext[2] >= -tol and ext[3] <= 1 + tol
-                and ext[4] >= -tol)
+    ok = (np.isfinite(ext).all() and ext[0] >= -tol and ext[2] >= -tol and ext[3] <= 1 + tol
+          and ext[4] >= -tol)
+    return ext if ok else None
 
 
 def _refuse(r, zf, cols=None, start=0, shape=()):
