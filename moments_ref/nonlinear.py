@@ -591,14 +591,9 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
     # Clamps of §3.4 (they also remove rounding noise): v2 ∈ [1e-6, 1 − 1e-6]
     # and y2 − y1 ≥ 1e-6, i.e. the y2 used below is max(y2, y1 + 1e-6).
     need = _clamps_needed(ext, c)
-    if need["v2 lo"]:
-        np.maximum(v2, c["lo"], out=v2)
-    if need["v2 hi"]:
-        np.minimum(v2, c["hi"], out=v2)
-    np.subtract(1, v2, out=v1)
     gap = np.subtract(y2, y1) if gap is None else gap
-    if need["gap"]:
-        np.maximum(gap, c["lo"], out=gap)
+    _clamp_v2_and_gap(v2, gap, need, c)
+    np.subtract(1, v2, out=v1)
     # Affine change to y1 = 0, y2 = 1 (HPG17 §3.4, proofs/lemma_4):
     # z'f := (zf − y1)/(y2 − y1) and ξ'4 := ξ4/(y2 − y1)⁴. The early return for zf ≤ y1
     # is z'f clamped at 0: the formulas below give w_l = 1/∞ = 0 there (the limit
@@ -780,6 +775,16 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
             _shade_kernel(*cols, zc, out[start:stop], c, gap, ext)
     return out.reshape(shape)
+
+
+def _clamp_v2_and_gap(v2, gap, need, c):
+    """In place, HPG17 §3.4: v2 into [lo, 1 − lo] and the gap y2 − y1 to at least lo, each where ``need`` says it can act."""
+    if need["v2 lo"]:
+        np.maximum(v2, c["lo"], out=v2)
+    if need["v2 hi"]:
+        np.minimum(v2, c["hi"], out=v2)
+    if need["gap"]:
+        np.maximum(gap, c["lo"], out=gap)
 
 
 def _clamps_needed(ext, c):
