@@ -778,7 +778,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
 
 
 def _clamp_v2_and_gap(v2, gap, need, c):
-    """In place, HPG17 §3.4: v2 into [lo, 1 − lo] and the gap y2 − y1 to at least lo, each where ``need`` says it can act."""
+    """In place, HPG17 §3.4: v2 into [lo, 1 − lo], the gap y2 − y1 to ≥ lo, each where ``need`` says it acts."""
     if need["v2 lo"]:
         np.maximum(v2, c["lo"], out=v2)
     if need["v2 hi"]:
@@ -788,14 +788,15 @@ def _clamp_v2_and_gap(v2, gap, need, c):
 
 
 def _clamps_needed(ext, c):
-    """Which of :func:`_shade_kernel`'s clamps can change a value of a chunk with extremes ``ext`` (constants ``c``).
+    """Which of :func:`_shade_kernel`'s clamps can change a value of a chunk with extremes ``ext``.
 
     ``ext`` = (min, max) of the gap y2 − y1, of v2, of ξ4 and of zf (:func:`_chunk_ok`),
     or None (every clamp runs). ``max(v2, lo)`` is v2 where v2 ≥ lo, and so on; ξ'4 =
     ξ4 / max(gap, lo)⁴ is at least ``min ξ4 / max(gap, lo)⁴`` up to three roundings of
     the power and one of the quotient (a relative 2^-21 in float32), so a margin of 2
-    proves ``ξ'4 ≥ tiny`` without computing it, where the power cannot overflow. In practice a chunk of filtered moments
-    has none of the §3.4 cases and skips the four passes.
+    proves ``ξ'4 ≥ tiny`` without computing it, where the power cannot overflow. ``c``: the
+    kernel's constants. In practice a chunk of filtered moments has none of the §3.4 cases
+    and skips the four passes.
     """
     if not ext:
         return dict.fromkeys(("v2 lo", "v2 hi", "gap", "xi'4"), True)

@@ -215,7 +215,7 @@ def _symmetric(w):
 
 
 def _correlate_symmetric(p, w, out, tmp, axis, final=None):
-    """``out = w[r]·p_r + Σ_{j=0}^{r−1} w[j]·(p_j + p_{2r−j})`` (windows ``p_t`` as in :func:`_correlate`), j ascending.
+    """``out = w[r]·p_r + Σ_{j=0}^{r−1} w[j]·(p_j + p_{2r−j})``, j ascending (windows as in :func:`_correlate`).
 
     A symmetric kernel (``w[j] = w[2r − j]``) folded: 1 + 3r passes instead of 4r + 1.
     The terms and their order are those of ``scipy.ndimage.correlate1d`` for a
