@@ -44,12 +44,13 @@ SHADE_CHUNK = 1 << 15
 #: temporaries, several times the map, then exist for one band, not the whole map (issue 41: the
 #: report's peak memory per texel).
 ROW_BAND_BYTES = 1 << 21
-#: Texels per chunk of :func:`moments_ref.nonlinear.phi` (Algorithm 2 and Ψ4): its rows are four
-#: wide in and out, so 8192 texels keep input, output and temporaries in L2.
-PHI_CHUNK = 8192
-#: Texels per chunk of the texel encoders of :mod:`moments_ref.packing` (four float rows and
-#: their integer codes stay in L2).
-ENCODE_CHUNK = 8192
+#: Texels per chunk of :func:`moments_ref.nonlinear.phi` (Algorithm 2 and Ψ4) and of the texel
+#: encoders of :mod:`moments_ref.packing` (four float rows in and out): each of the ~100 ufunc
+#: calls of a chunk costs about 0.65 µs besides its elements, a third of the time at 8192.
+#: Interleaved A/B of 2^15 against 8192 at 2048² (load 9): quantize_nlq 0.752 (nlq64) and
+#: 0.735 (nlq32) of the time, the global NLQ path 0.918 and 0.902; bit for bit.
+PHI_CHUNK = 1 << 15
+ENCODE_CHUNK = 1 << 15
 #: Queries per chunk of :func:`moments_ref.gpu.sat.interpolated_mean` (each gathers 16 texels × C).
 SAT_QUERY_CHUNK = 1 << 15
 #: Fragments per chunk of :func:`moments_ref.techniques.pcf.pcf_filtered` (each gathers 10 × 10 texels × S × K).

@@ -95,9 +95,22 @@ __all__ = [
 # Algorithm 2), shared with msm6 and nonlinear; re-exported here (public names).
 _two_point = two_point
 
-#: Texels per chunk of :func:`shadow_intensity` (the value and its reason:
-#: :data:`moments_ref._kernels.MSM_CHUNK`).
+#: :data:`moments_ref._kernels.MSM_CHUNK` (2^15 texels): the chunk of float64, a quarter of float32's
+#: (:func:`chunk_texels`).
 CHUNK = MSM_CHUNK
+
+def chunk_texels(dtype):
+    """Texels per chunk of the kernel for ``dtype``: float32 ``4·CHUNK`` (2^17), float64 ``CHUNK`` (2^15).
+
+    Each of the kernel's ~55 ufunc calls per chunk costs about 0.65 µs besides its
+    elements (measured: 2048² float32 from chunks of 2^12 to 2^17, 17.8, 13.4, 11.0, 10.0,
+    9.5, 9.4 ns a texel, load 10.6), which weighs most in float32, whose passes are the
+    cheapest. Interleaved A/B at 2048² against 2^15 (two runs, load 11-12): float32 2^17
+    0.927 (quartiles 0.909–0.937) and 0.941 (0.914–0.960) of the time; float64 2^16 0.968
+    and 1.000, 2^17 1.044 (nine rows of 1 MiB), so float64 keeps 2^15. docs/bench.md,
+    "Where Algorithm 1's time goes".
+    """
+    return 4 * CHUNK if np.dtype(dtype) == np.float32 else CHUNK
 
 
 def _constants(dtype, n):
@@ -126,20 +139,21 @@ _LOCAL = threading.local()
 
 
 def _chunk_constants(dtype, n):
-    """:func:`_constants` for ``n ≤ CHUNK`` texels: views of one set per thread and dtype, kept between calls.
+    """:func:`_constants` for ``n ≤ chunk_texels(dtype)`` texels: views of one set per thread and dtype, kept.
 
     Fresh chunk-sized arrays are faulted in from the OS on every call (measured: a call of one
     chunk of float32 took 4.5 times the per-texel time of a call of 2^20 texels); kept, they cost
-    1.7 MB (float32) or 3.4 MB (float64) per thread that called. Per thread, so that concurrent
-    calls never share a workspace.
+    6.8 MB (float32) or 3.4 MB (float64) per thread that called. Per
+    thread, so that concurrent calls never share a workspace.
     """
-    cache, key = _LOCAL.__dict__.setdefault("consts", {}), (np.dtype(dtype).name, CHUNK)
+    chunk = chunk_texels(dtype)
+    cache, key = _LOCAL.__dict__.setdefault("consts", {}), (np.dtype(dtype).name, chunk)
     if key not in cache:
         if len(cache) >= 4:  # float32 and float64 (the key's chunk size only guards a changed CHUNK)
             cache.clear()
-        cache[key] = _constants(dtype, CHUNK)
+        cache[key] = _constants(dtype, chunk)
     full = cache[key]
-    return full if n == CHUNK else {k: v[..., :n] if np.ndim(v) else v for k, v in full.items()}
+    return full if n == chunk else {k: v[..., :n] if np.ndim(v) else v for k, v in full.items()}
 
 
 def _cholesky(b, ws):
@@ -516,11 +530,12 @@ def _run(b, zf, shape, want, keys):
     """
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("depths", "weights") else (n,), dtype=b.dtype) for k in keys}
-    consts = _chunk_constants(b.dtype, min(CHUNK, max(n, 1)))
+    chunk = chunk_texels(b.dtype)
+    consts = _chunk_constants(b.dtype, min(chunk, max(n, 1)))
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
-    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, chunk):
         m = stop - start
-        c = consts if m == CHUNK or n <= CHUNK else {k: v[..., :m] if np.ndim(v) else v for k, v in consts.items()}
+        c = consts if m == chunk or n <= chunk else {k: v[..., :m] if np.ndim(v) else v for k, v in consts.items()}
         dest = {k: outs[k][start:stop] for k in keys if k in ("lower", "upper")}
         if want <= {"lower", "upper"}:
             _bound(bc, zc, keys[0], c, dest, refuse)

@@ -123,6 +123,8 @@ from ._arrays import InputError, brief, check_broadcast, first_index, lookup_inp
 from ._docs import fill_doc
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
+from ._msm6_rows import BOUNDS_CHUNK, COS_THIRD_POLY as _COS_THIRD_POLY
+from ._msm6_rows import ldl_rows, regular_chunk, root_rows, solve_rows, weight_rows, workspace
 from ._kernels import two_point as _two_point
 
 __all__ = [
@@ -150,10 +152,6 @@ BIAS6_FLOAT32 = BiasPreset(3e-4, BIAS6_TARGET, "float32x6")
 #: Six moments in 2×R10G10B10A2_UNORM (Slides, "6 moments"), α by :func:`measure_unorm10_bias`.
 BIAS6_UNORM10 = BiasPreset(1e-3, BIAS6_TARGET, "unorm10x6")
 
-#: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
-#: 4001 Chebyshev points of [0, 1], largest error 1.6e-7 (2.2e-7 evaluated in float32).
-_COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
-                  -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
 
 #: Newton steps of the closed form in the kernels, per dtype: on ``4c³ − 3c = r`` after the fit
 #: of cos(arccos(r)/3), then on the cubic (module docstring, "Cubic solver").
@@ -425,48 +423,49 @@ def _weights(t, zf, b1, b2, b3, ldl, zero):
     return np.fmax(w, zero, out=w)  # an array, not 0: NumPy's array-scalar fmax is 4x slower
 
 
-def _bounds_kernel(b, zf, steps, zero, one, refuse):
-    """Lower and upper bound on flat chunks: b (6, n) rows, zf (n,) (module docstring, steps 1–5).
+def _bounds_kernel(b, zf, steps, dest, refuse):
+    """The bounds named in ``dest`` (rows of the output) on flat chunks: b (6, n) rows, zf (n,).
 
-    ``steps`` is the dtype's entry of :data:`_NEWTON_STEPS`; ``zero`` and ``one`` are
-    constant arrays like zf (array-array loops are the fast ones); ``refuse()`` raises
-    the error of a NaN or inf in the input.
+    Module docstring, steps 1–5, in the workspace of :func:`_workspace`: every operation
+    writes into a reused row (``out=``) and the bounds go straight into ``dest``; the same
+    arithmetic in the same order as the expressions of :func:`_ldl`, :func:`_reversed_cubic`,
+    :func:`_extreme_root` and :func:`_weights` (bit for bit). 128 passes over a float32
+    chunk for the lower bound (the upper 2 more), and the checks as reductions
+    (:func:`_regular_chunk`): a chunk needs the exact mask of :func:`_regular` only where
+    a texel is singular or not finite. ``steps`` is the dtype's entry of
+    :data:`_NEWTON_STEPS`; ``refuse()`` raises the error of a NaN or inf in the input.
     """
-    dt = b.dtype.type
-    b1, b2, b3 = b[:3]
+    w = workspace(b.dtype, zf.shape[0])
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        ldl, (y1, y2, y3), (pz, p1, p2, q3) = _reversed_cubic(b, zf)
+        ldl = ldl_rows(b, w)
+        pz, p1, p2, q3, w0 = solve_rows(b, zf, ldl, w)
+        root = root_rows((pz, p1, p2, q3), steps, w)
+        wt = weight_rows(root, b, zf, ldl, w)
+        # (5) lower = Σ_{z_l < zf} w_l = (1 − w0)·[two below] + w·([odd] − [two below]): 0, w,
+        # 1 − w0 − w, 1 − w0 for 0..3 Gauss nodes below zf (1 − w0 exactly for three).
+        two_below, odd = w["mask"][0], w["mask"][2]
+        lower = dest.get("lower", w["c2"])
+        r0, sel = w["e"], w["f"]
+        np.subtract(1, w0, out=r0)
+        np.multiply(r0, two_below, out=r0)
+        np.subtract(odd, two_below, out=sel, dtype=b.dtype)
+        np.multiply(wt, sel, out=sel)
+        np.add(r0, sel, out=lower)
+    if not regular_chunk(b, zf, ldl, w):
         regular = _regular(b, ldl)
-        # A NaN or inf in b1..b6 leaves a pivot NaN or ±inf (not regular) but for b6 = +inf,
-        # which makes D3 = +inf; zf's own show in D3 + zf (finite D3 ≤ b6, so only a |zf|
-        # near the largest float overflows besides: then the full check finds nothing).
-        suspect = ~(regular & np.isfinite(ldl[2] + zf))
-        w0 = 1 / pz
-        # How many of the three Gauss nodes (roots of P3) lie below zf: the Sturm sequence
-        # (P0, .., P3)(zf) = (1, y1, y2, y3) changes sign once per node above zf. Its parity is
-        # the sign of y3 = P3(zf); "at least two below" is "at most one change": the signs
-        # never turn back from − to +.
-        pos1, pos2, pos3 = y1 >= 0, y2 >= 0, y3 >= 0
-        two_below = ((pos2 <= pos1) & (pos3 <= pos2)).astype(dt)
-        # The roots of p interlace with the Gauss nodes, so the one root needed is the only
-        # root of p below zf (one node below: smallest t, since t < 0 is z < zf) or the only
-        # one above (two nodes below: largest t); y3 ≥ 0 is one (or three) below.
-        odd = pos3.astype(dt)
-        sigma = 1 - 2 * odd
-        t = _extreme_root(pz, p1, p2, q3, sigma, newton=steps[1], refine=steps[0])
-        w = _weights(t, zf, b1, b2, b3, ldl, zero)
-        # (5) lower = Σ_{z_l < zf} w_l: 0 (no node below), w (one), 1 − w0 − w (two), 1 − w0
-        # (three), written so that three nodes below give 1 − w0 exactly (never above 1).
-        lower = (1 - w0) * two_below + w * (odd - two_below)
-    if suspect.any():
-        if not (np.isfinite(b).all() and np.isfinite(zf).all()):
-            refuse()
-        s = ~regular
-        lower[s], w0[s] = _singular(b[:, s], zf[s])[:2]
-    # Clamped like saturate (rounding: 1 − w0 − w < 0, a sum of Christoffel numbers above 1);
-    # fmax/fmin also turn a NaN from overflow into 0 and 1.
-    lower = np.fmin(np.fmax(lower, zero, out=lower), one, out=lower)
-    return lower, np.fmin(lower + w0, one)
+        if not (regular & np.isfinite(ldl[2] + zf)).all():
+            if not (np.isfinite(b).all() and np.isfinite(zf).all()):
+                refuse()
+            s = ~regular
+            lower[s], w0[s] = _singular(b[:, s], zf[s])[:2]
+            np.fmax(lower, w["zero"], out=lower)
+            np.fmin(lower, w["one"], out=lower)  # a sum of the unique distribution's weights above 1
+    # Clamped like saturate (rounding: 1 − w0 − w < 0); fmax also turns a NaN from overflow into 0.
+    # Above 1 only on singular rows: 0 ≤ w ≤ 1 and 1 − w0 ∈ [0, 1) (w0 = 1/p(zf), p(zf) ≥ 1).
+    np.fmax(lower, w["zero"], out=lower)
+    if "upper" in dest:
+        np.add(lower, w0, out=dest["upper"])
+        np.fmin(dest["upper"], w["one"], out=dest["upper"])
 
 
 def _canonical_kernel(b, zf, zero, one):
@@ -543,18 +542,16 @@ def _run(b, zf, want):
     n = int(np.prod(shape, dtype=np.int64))
     outs = {k: np.empty((n, 3) if k in ("z", "w") else n, dtype=b.dtype) for k in want}
     steps = _NEWTON_STEPS[b.dtype.name]
-    zeros, ones = np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)
+    zeros, ones = (np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)) if "z" in want else (None, None)
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
-    for start, stop, bc, zc in broadcast_chunks(b, zf, shape):
-        zero, one = zeros[: stop - start], ones[: stop - start]
-        if "z" in want:
-            if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
-                refuse()
-            w0, z, w = _canonical_kernel(bc, zc, zero, one)
-            res = {"w0": w0, "z": z.T, "w": w.T}
-        else:
-            lower, upper = _bounds_kernel(bc, zc, steps, zero, one, refuse)
-            res = {"lower": lower, "upper": upper}
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK if "z" in want else BOUNDS_CHUNK):
+        if "z" not in want:  # the bounds are written into the output
+            _bounds_kernel(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
+            continue
+        if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
+            refuse()
+        w0, z, w = _canonical_kernel(bc, zc, zeros[: stop - start], ones[: stop - start])
+        res = {"w0": w0, "z": z.T, "w": w.T}
         for k in want:
             outs[k][start:stop] = res[k]
     return outs, zf, shape

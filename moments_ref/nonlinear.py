@@ -55,7 +55,7 @@ import numpy as np
 
 from ._arrays import InputError, first_index, float_dtype, lookup_inputs, real_input, refuse_lookup
 from ._docs import fill_doc
-from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_exact
+from ._kernels import PHI_CHUNK, SHADE_CHUNK, copysign_inplace
 
 __all__ = [
     "PSI4_C0",
@@ -198,7 +198,7 @@ _PHI_CHUNK = PHI_CHUNK  # the value and its reason: moments_ref._kernels
 
 
 def phi_rows(rows, out):
-    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ 8192) into the rows (y1, y2, v2, ξ4) of ``out``."""
+    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ PHI_CHUNK) into the rows (y1, y2, v2, ξ4) of ``out``."""
     m = rows.shape[1]
     full = _phi_constants(rows.dtype)
     c = full if m == _PHI_CHUNK else {k: v[:m] for k, v in full.items()}
@@ -243,7 +243,7 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         d -= t
         np.maximum(d, c["zero"], out=d)
         np.sqrt(d, out=d)
-        copysign_exact(d, q1, c["sign"])
+        copysign_inplace(d, q1, c["sign"])  # d ≥ 0 (a NaN d gives NaN roots either way: _phi_degenerate's)
         d += q1
         d *= -0.5
         np.divide(d, q2, out=t)
@@ -253,6 +253,7 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         # (5) v2 = (b1 − y1) / (y2 − y1).
         np.subtract(b1, y1, out=v2)
         np.subtract(y2, y1, out=t)
+        ordered = np.minimum.reduce(t) > 0  # y2 > y1 everywhere (a NaN fails it): for _phi_degenerate
         v2 /= t
         # (6)-(7) L21 = (b3 − b1 b2)/σ² = −q1/σ², ξ4 = (b4 − b2²) − L21² σ².
         np.divide(q1, sigma2, out=t)
@@ -261,12 +262,21 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         np.multiply(b2, b2, out=xi4)
         np.subtract(b4, xi4, out=xi4)
         xi4 -= t
-    _phi_degenerate(b1, b4, sigma2, out)
+    _phi_degenerate(b1, b4, sigma2, out, ordered)
 
 
-def _phi_degenerate(b1, b4, sigma2, out):
-    """Where Algorithm 2 fails (see :func:`phi`, Notes): one depth at b1, ξ4 by Eq. (1)."""
+def _phi_degenerate(b1, b4, sigma2, out, ordered=False):
+    """Where Algorithm 2 fails (see :func:`phi`, Notes): one depth at b1, ξ4 by Eq. (1).
+
+    ``ordered``: y2 > y1 was seen on every texel. Then a chunk with ``min σ² > 0`` and finite
+    sums of ξ4, v2, y1 and y2 (a NaN or inf makes a sum non-finite; so may overflow, which only
+    costs the exact masks) has no failing texel: decided by reductions instead of the masks.
+    """
     y1, y2, v2, xi4 = out
+    red = np.add.reduce
+    if (ordered and np.minimum.reduce(sigma2) > 0 and np.isfinite(red(xi4)) and np.isfinite(red(v2))
+            and np.isfinite(red(y1)) and np.isfinite(red(y2))):
+        return
     single = sigma2 > 0
     single &= np.isfinite(xi4)
     np.logical_not(single, out=single)
@@ -379,8 +389,13 @@ def psi4_clamped(x, zero=0, one=1):
     # (u is never NaN here, and a zero's sign does not survive the encoders' rounding).
     np.maximum(u, zero, out=u)
     np.minimum(u, one, out=u)
-    u[x >= dt(PSI4_XI_MAX)] = 1
-    u[x <= dt(PSI4_XI_MIN)] = 0
+    # u = 1 at ξ4 ≥ XI_MAX, 0 at ξ4 ≤ XI_MIN, as psi4's np.where: only where a chunk's extremes
+    # reach them (reductions), the lower end as a product by the 0/1 mask (a masked store on a
+    # scattered mask costs several passes; u·1 = u, u·0 = ±0).
+    if np.maximum.reduce(x) >= dt(PSI4_XI_MAX):
+        u[x >= dt(PSI4_XI_MAX)] = 1
+    if np.minimum.reduce(x) <= dt(PSI4_XI_MIN):
+        u *= x > dt(PSI4_XI_MIN)
     return u
 
 
@@ -555,11 +570,13 @@ def _chunk_constants(dtype, n, clamp):
     return (full, rows) if n == CHUNK else ({k: v[..., :n] for k, v in full.items()}, rows[:, :n])
 
 
-def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
+def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
     """HPG17 Algorithm 3 on flat, contiguous 1-D chunks; writes the result to ``out``.
 
     ``c`` holds the constant arrays of :func:`_kernel_constants` (same length);
-    ``gap`` is ``y2 − y1`` when already computed (it is overwritten).
+    ``gap`` is ``y2 − y1`` when already computed (it is overwritten). ``ext``, when
+    given, are the chunk's extremes of :func:`_chunk_ok`: a clamp that they prove
+    changes no value is skipped (:func:`_clamps_needed`), bit for bit the same result.
     The inputs are already checked against the domain (up to rounding); ``v2`` is
     modified in place. Every case is computed for every element and the result is
     selected at the end (no per-element branching); temporaries are reused
@@ -573,11 +590,10 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     v1, zp, xip, p, den, h, k = ws[:7]
     # Clamps of §3.4 (they also remove rounding noise): v2 ∈ [1e-6, 1 − 1e-6]
     # and y2 − y1 ≥ 1e-6, i.e. the y2 used below is max(y2, y1 + 1e-6).
-    np.maximum(v2, c["lo"], out=v2)
-    np.minimum(v2, c["hi"], out=v2)
-    np.subtract(1, v2, out=v1)
+    need = _clamps_needed(ext, c)
     gap = np.subtract(y2, y1) if gap is None else gap
-    np.maximum(gap, c["lo"], out=gap)
+    _clamp_v2_and_gap(v2, gap, need, c)
+    np.subtract(1, v2, out=v1)
     # Affine change to y1 = 0, y2 = 1 (HPG17 §3.4, proofs/lemma_4):
     # z'f := (zf − y1)/(y2 − y1) and ξ'4 := ξ4/(y2 − y1)⁴. The early return for zf ≤ y1
     # is z'f clamped at 0: the formulas below give w_l = 1/∞ = 0 there (the limit
@@ -590,7 +606,8 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     np.divide(xi4, gap, out=xip)
     # ξ'4 ≤ 0 (an exact two-point distribution, or negative rounding noise) would
     # make the ξ'4⁻¹ term 0/0; the smallest normal number gives the limit ξ'4 → 0⁺.
-    np.maximum(xip, c["tiny"], out=xip)
+    if need["xi'4"]:
+        np.maximum(xip, c["tiny"], out=xip)
 
     # --- Case y1 < zf ≤ y2: z_l is the smaller root of z² + q1 z + q0. ---
     # P := −q0 = ξ'4 / ((1 − v2) z'f) > 0, capped below +inf (z'f → 0).
@@ -645,12 +662,10 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None):
     # 1/K ≤ 1 exactly (K ≥ 1 by Cauchy–Schwarz); min() removes rounding above 1.
     np.divide(1, k, out=k)
     np.minimum(k, c["one"], out=k)
-    # Return w_l if zf ≤ y2 and 1 − w_l otherwise: w + [zf > y2]·(1 − 2w).
-    t = a
-    np.multiply(k, dt(-2), out=t)
-    t += 1
-    t *= above
-    np.add(k, t, out=out)
+    # Return w_l if zf ≤ y2 and 1 − w_l otherwise: |[zf > y2] − w| (0 ≤ w ≤ 1), one
+    # rounding (of 1 − w) and two calls instead of w + [zf > y2]·(1 − 2w) in four.
+    np.subtract(above, k, out=out)
+    np.absolute(out, out=out)
 
 
 @fill_doc
@@ -679,9 +694,9 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     Notes
     -----
     HPG17 Algorithm 3, vectorized: every case is computed for every element and
-    the result is selected afterwards (a bit blend for z_l, multiplication by the
-    0/1 mask ``[zf > y2]`` for the returned value; the early return is z'f clamped
-    at 0, where the formulas give exactly 0); no per-element branching:
+    the result is selected afterwards (a bit blend for z_l, ``|[zf > y2] − w_l|``
+    for the returned value; the early return is z'f clamped at 0, where the
+    formulas give exactly 0); no per-element branching:
 
     * if ``zf ≤ y1``: 0;
     * ``z'f = (zf − y1)/(y2 − y1)``, ``ξ'4 = ξ4/(y2 − y1)⁴``, ``z_l = z'f``;
@@ -723,9 +738,10 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
 
     Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
     chunk; finiteness and the domain are checked on the loaded chunk by eight
-    min/max reductions (the full checks run only to raise); about 50 in-place
-    ufunc passes, the z_l selection as a three-pass bit blend (``np.where`` cost
-    as much as 15 passes at this chunk size). The result does not depend on the
+    min/max reductions (the full checks run only to raise), which also tell which
+    §3.4 clamps can act in the chunk (none on filtered moments: 43 in-place ufunc
+    passes, 47 with every clamp); the z_l selection as a three-pass bit blend
+    (``np.where`` cost as much as 15 passes at this chunk size). The result does not depend on the
     chunk size; the measurements are in docs/bench.md ("Kernel history").
 
     Examples
@@ -753,27 +769,61 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
             m = stop - start
             c = consts if m == len(consts["one"]) else {k: v[..., :m] for k, v in consts.items()}
             gap = np.subtract(cols[1], cols[0], out=c["ws"][7])
-            if not _chunk_ok(cols, zc, gap, tol):
+            ext = _chunk_ok(cols, zc, gap, tol)
+            if ext is None:
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
-            _shade_kernel(*cols, zc, out[start:stop], c, gap)
+            _shade_kernel(*cols, zc, out[start:stop], c, gap, ext)
     return out.reshape(shape)
 
 
+def _clamp_v2_and_gap(v2, gap, need, c):
+    """In place, HPG17 §3.4: v2 into [lo, 1 − lo], the gap y2 − y1 to ≥ lo, each where ``need`` says it acts."""
+    if need["v2 lo"]:
+        np.maximum(v2, c["lo"], out=v2)
+    if need["v2 hi"]:
+        np.minimum(v2, c["hi"], out=v2)
+    if need["gap"]:
+        np.maximum(gap, c["lo"], out=gap)
+
+
+def _clamps_needed(ext, c):
+    """Which of :func:`_shade_kernel`'s clamps can change a value of a chunk with extremes ``ext``.
+
+    ``ext`` = (min, max) of the gap y2 − y1, of v2, of ξ4 and of zf (:func:`_chunk_ok`),
+    or None (every clamp runs). ``max(v2, lo)`` is v2 where v2 ≥ lo, and so on; ξ'4 =
+    ξ4 / max(gap, lo)⁴ is at least ``min ξ4 / max(gap, lo)⁴`` up to three roundings of
+    the power and one of the quotient (a relative 2^-21 in float32), so a margin of 2
+    proves ``ξ'4 ≥ tiny`` without computing it, where the power cannot overflow. ``c``: the
+    kernel's constants. In practice a chunk of filtered moments has none of the §3.4 cases
+    and skips the four passes.
+    """
+    if not ext:
+        return dict.fromkeys(("v2 lo", "v2 hi", "gap", "xi'4"), True)
+    gmin, gmax, vmin, vmax, xmin = (float(e) for e in ext[:5])
+    lo, hi, tiny, huge = (float(c[k][0]) for k in ("lo", "hi", "tiny", "huge"))
+    g4 = max(gmax, lo) ** 4
+    return {"v2 lo": vmin < lo, "v2 hi": vmax > hi, "gap": gmin < lo,
+            "xi'4": not (g4 <= huge / 2 and xmin / g4 >= 2 * tiny)}  # 2·tiny·g4 may underflow to 0
+
+
 def _chunk_ok(cols, zc, gap, tol):
-    """True if a chunk of ``shade`` is finite and in the domain (eight reductions on the loaded chunk).
+    """The chunk's extremes if a chunk of ``shade`` is finite and in the domain, else None (eight reductions).
 
     ``gap = y2 − y1``. Minima and maxima are finite exactly when every value is
     (NaN propagates through them); those of the gap cover y1 and y2 (an infinite
     or NaN depth makes the gap infinite or NaN), and ``y1 − y2 = −gap`` exactly,
     so ``max(y1 − y2) > tol`` is ``min(gap) < −tol``. A finite gap that overflows
-    only sends the chunk to the full checks. False sends the call to
-    :func:`_refuse`, which raises the error of the full checks.
+    only sends the chunk to the full checks. None sends the call to
+    :func:`_refuse`, which raises the error of the full checks. The extremes
+    (min and max of the gap, v2, ξ4, zf; empty for an empty chunk) tell
+    :func:`_shade_kernel` which clamps it can skip.
     """
     if cols.shape[1] == 0:
-        return True
+        return []
     ext = [gap.min(), gap.max(), cols[2].min(), cols[2].max(), cols[3].min(), cols[3].max(), zc.min(), zc.max()]
-    return bool(np.isfinite(ext).all() and ext[0] >= -tol and ext[2] >= -tol and ext[3] <= 1 + tol
-                and ext[4] >= -tol)
+    ok = (np.isfinite(ext).all() and ext[0] >= -tol and ext[2] >= -tol and ext[3] <= 1 + tol
+          and ext[4] >= -tol)
+    return ext if ok else None
 
 
 def _refuse(r, zf, cols=None, start=0, shape=()):

@@ -237,18 +237,29 @@ def _all_finite(rows):
     return bool(np.isfinite(np.add.reduce(rows, axis=None))) or bool(np.isfinite(rows).all())
 
 
-def _saturated(rows, c, tol):
-    """Saturate the rows ``(y1, y2, v2, ξ4)`` in place as :func:`_encoder_input` does; False (rows untouched) if they fail its checks."""
+def _saturated(rows, c, tol, ordered=False):
+    """Saturate the rows ``(y1, y2, v2, ξ4)`` in place as :func:`_encoder_input` does; False (rows untouched) if they fail its checks.
+
+    ``ordered``: y1 ≤ y2 holds on every texel (Φ's output: ``fmin``/``fmax`` of the same
+    two roots), so the order check and ``y2 = max(y2, y1)`` (which clamping both keeps)
+    are skipped. A clamp runs only where a chunk's extremes leave its range (reductions
+    instead of passes; a skipped clamp would have returned every value unchanged).
+    """
     y1, y2, v2, xi4 = rows
-    if not _all_finite(rows) or (y1 > y2 + tol).any():
+    if not _all_finite(rows) or (not ordered and (y1 > y2 + tol).any()):
         return False
+    mn, mx = np.minimum.reduce, np.maximum.reduce
     for y in (y1, y2):
-        np.maximum(y, c["-1"], out=y)
-        np.minimum(y, c["1"], out=y)
-    np.maximum(y2, y1, out=y2)
-    np.maximum(v2, c["0"], out=v2)
-    np.minimum(v2, c["1"], out=v2)
-    np.maximum(xi4, c["0"], out=xi4)
+        if not (mn(y) >= -1 and mx(y) <= 1):
+            np.maximum(y, c["-1"], out=y)
+            np.minimum(y, c["1"], out=y)
+    if not ordered:
+        np.maximum(y2, y1, out=y2)
+    if not (mn(v2) >= 0 and mx(v2) <= 1):
+        np.maximum(v2, c["0"], out=v2)
+        np.minimum(v2, c["1"], out=v2)
+    if not mn(xi4) >= 0:
+        np.maximum(xi4, c["0"], out=xi4)
     return True
 
 
@@ -282,13 +293,18 @@ def _xi_codes(xi4, scale, rounding, table, c):
     np.minimum(x, c["xi_max"], out=x)
     u = psi4_clamped(x, c["0"], c["1"])
     u *= scale
-    code = rounding(u, out=u).astype(np.intp)
+    rounding(u, out=u)
     if table is None:
-        return code
+        return u.astype(np.intp)
+    # The codes are small integers, exact in u's dtype: the clamp to the largest code where a
+    # chunk reaches it (Ψ4 ≤ 1, so ceil(65535 Ψ4) never does; ⌊64 Ψ4⌋ at Ψ4 = 1 does), then int32.
     cmax = len(table) - 1
-    np.minimum(code, cmax, out=code)
-    low = table[code] < x
-    low &= code < cmax
+    if np.maximum.reduce(u) > cmax:
+        np.minimum(u, cmax, out=u)
+    code = u.astype(np.int32)
+    # The bump: the largest code decodes to Ψ4⁻¹(1) ≥ XI_MAX ≥ x (tests/test_packing.py), so
+    # "table[code] < x" already implies "code < cmax".
+    low = np.take(table, code) < x
     code += low
     return code
 
@@ -627,7 +643,7 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
         for k in range(4):
             rows[k] += shift[k]
         phi_rows(rows, res[:, :m])
-        if not _saturated(res[:, :m], c, tol):
+        if not _saturated(res[:, :m], c, tol, ordered=True):
             return _nlq_separately(b, fmt, xi_rounding)
         encode(res[:, :m], c, oflat[lo : lo + m])
     return out

@@ -273,3 +273,47 @@ def test_global_path_refuses_what_its_passes_refuse():
         filtering.global_path_nlq(np.array([[[0.0]], [[1.5]]]))
     with pytest.raises(InputError, match="fmt"):
         filtering.global_path_nlq(np.zeros((2, 2, 1)), "nlq16")
+
+
+# ---------------------------------------------------------------------------
+# the folded sums of the symmetric 9-tap kernel (scipy.ndimage's order)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_blur_sums_as_scipy_ndimage_bit_for_bit(dtype):
+    # An exactly symmetric kernel is summed folded, centre first and then the pairs
+    # from the outermost in, in both passes: the horizontal pass is ndimage's C loop,
+    # the vertical pass NumPy ufuncs in the same order, so ndimage along axis 0 is an
+    # independent evaluation of it. The term-by-term sums (the code before the
+    # folding) differ from it in about half of the float64 values: this test fails on them.
+    m = np.random.default_rng(6).uniform(-1, 1, (150, 131, 4)).astype(dtype)
+    w = gaussian_weights()
+    h = ndimage.correlate1d(m, w, axis=1, mode="nearest", output=np.float64)
+    want = ndimage.correlate1d(h, w, axis=0, mode="nearest")
+    assert blur(m).tobytes() == want.tobytes()
+
+
+def test_blur_is_within_a_forward_error_bound_of_the_exact_2d_sum():
+    # HPG17 §4.1's filter as a 2D sum Σ_{s,t} w_s w_t m[clip(y+s), clip(x+t)] in long
+    # double (64-bit significand on x86; else the float64 brute force, a weaker check),
+    # with cancelling inputs: each pass rounds at most 2r + 2 times per output.
+    rng = np.random.default_rng(7)
+    m = rng.uniform(-1, 1, (40, 37, 4)) * rng.choice([1e-3, 1.0, 1e3], (40, 37, 1))
+    w = gaussian_weights()
+    exact = brute_blur(m.astype(np.longdouble), w.astype(np.longdouble))
+    scale = brute_blur(np.abs(m), w)
+    err = np.abs(blur(m).astype(np.longdouble) - exact).astype(np.float64)
+    assert np.all(err <= 2 * (len(w) + 3) * 2.0**-53 * scale)
+
+
+def test_vertical_pass_rounds_once_into_float32_for_any_kernel():
+    # _vertical_pass(final=...) of the global path: the float64 sums rounded once on
+    # store, for the folded (symmetric) and the term-by-term (asymmetric) kernels.
+    from moments_ref.gpu import filtering
+
+    hp = np.random.default_rng(8).uniform(-1, 1, (29, 11, 4))
+    for w in (gaussian_weights(), np.array([0.1, 0.2, 0.3, 0.25, 0.15])):
+        f32 = np.empty((29 - len(w) + 1, 11, 4), np.float32)
+        want = filtering._vertical_pass(hp, w).astype(np.float32)
+        assert filtering._vertical_pass(hp, w, final=f32) is f32
+        assert f32.tobytes() == want.tobytes()

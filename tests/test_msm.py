@@ -459,8 +459,9 @@ def test_every_nonfinite_input_is_refused(dt, bad, neighbour):
     # The kernel finds NaN and inf through the singular texels they make (msm._roots): every
     # component, every sign, in a chunk of regular (biased) texels, alone or next to a
     # singular texel. Without the d + b4 of msm._roots, b4 = +inf alone slips through.
-    from moments_ref.msm import CHUNK
+    from moments_ref.msm import chunk_texels
 
+    CHUNK = chunk_texels(dt)
     rng = np.random.default_rng(5)
     n = CHUNK + 100  # the bad value goes into the second chunk
     b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 3))), BIAS_FLOAT32).astype(dt)
@@ -525,13 +526,13 @@ def test_threads_share_no_workspace():
     # intermediate values (seen with one module-level set: wrong results in most runs).
     from concurrent.futures import ThreadPoolExecutor
 
-    from moments_ref.msm import CHUNK
+    from moments_ref.msm import chunk_texels
     from moments_ref.nonlinear import phi, shade
 
     rng = np.random.default_rng(11)
     jobs = []
     for i in range(8):
-        n = int(rng.integers(1, 3 * CHUNK))
+        n = int(rng.integers(1, 3 * chunk_texels(np.float32)))
         dt = (np.float32, np.float64)[i % 2]
         b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4))), BIAS_FLOAT32).astype(dt)
         zf = rng.uniform(-1, 1, n).astype(dt)

@@ -211,18 +211,23 @@ def test_sturm_count_has_power():
     # Mutant: the root of the wrong side (sigma flipped) breaks the bracket of the bounds.
     z, w = np.array([-0.8, -0.3, 0.1, 0.5, 0.9]), np.array([0.2, 0.2, 0.2, 0.2, 0.2])
     zf = zf_candidates(z, 0.3)
-    real = msm6._extreme_root
+    real = msm6.root_rows
 
-    def flipped(c0, c1, c2, c3, sigma, newton=2, refine=2):
-        return real(c0, c1, c2, c3, -sigma, newton, refine)
+    def flipped(cubic, steps, ws):  # sigma flipped for the root alone (step 5 keeps the true count)
+        odd = ws["mask"][2]
+        np.logical_not(odd, out=odd)
+        try:
+            return real(cubic, steps, ws)
+        finally:
+            np.logical_not(odd, out=odd)
 
     _check(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
-    msm6._extreme_root = flipped
+    msm6.root_rows = flipped
     try:
         with pytest.raises(AssertionError):
             _check(msm6.shadow_bounds, z, w, zf, np.float64, ALPHA)
     finally:
-        msm6._extreme_root = real
+        msm6.root_rows = real
 
 
 @pytest.mark.parametrize("dt, tol", [(np.float32, 5e-6), (np.float64, 1e-11)])
@@ -443,3 +448,66 @@ def test_every_nonfinite_input_is_refused(dt, bad, neighbour):
     huge = np.full(3, np.finfo(dt).max / 2, dtype=dt) * np.array([1, -1, 1], dtype=dt)
     lo, up = msm6.shadow_bounds(b[:3], huge)
     assert np.isfinite(lo).all() and np.isfinite(up).all()
+
+
+def _bounds_by_expressions(b, zf):
+    # The bounds kernel written as NumPy expressions (the module's _reversed_cubic, _extreme_root
+    # and _weights, step 5 as a sum of 0/1 masks): what moments_ref._msm6_rows does in place.
+    dt = b.dtype.type
+    bt = np.ascontiguousarray(np.moveaxis(b, -1, 0))
+    steps = msm6._NEWTON_STEPS[b.dtype.name]
+    with np.errstate(all="ignore"):
+        ldl, (y1, y2, y3), (pz, p1, p2, q3) = msm6._reversed_cubic(bt, zf)
+        w0 = 1 / pz
+        pos1, pos2, pos3 = y1 >= 0, y2 >= 0, y3 >= 0
+        two = ((pos2 <= pos1) & (pos3 <= pos2)).astype(dt)
+        odd = pos3.astype(dt)
+        t = msm6._extreme_root(pz, p1, p2, q3, 1 - 2 * odd, newton=steps[1], refine=steps[0])
+        w = msm6._weights(t, zf, bt[0], bt[1], bt[2], ldl, np.zeros_like(zf))
+        lower = np.fmin(np.fmax((1 - w0) * two + w * (odd - two), 0), 1).astype(b.dtype)
+    return lower, np.fmin(lower + w0, 1).astype(b.dtype), msm6._regular(bt, ldl)
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+def test_bounds_rows_are_the_expressions_bit_for_bit(dt):
+    # The in-place kernel (reused rows, out=, sign flips by bits, checks by reductions) claims the
+    # arithmetic of the expressions above operation for operation: equal bits on regular rows of
+    # several chunks (biased and unbiased, zf at and next to support points, a partial chunk).
+    rng = np.random.default_rng(7)
+    n = 2 * msm6.BOUNDS_CHUNK + 1234
+    k = rng.integers(4, 7, n)
+    z = rng.uniform(-1, 1, (n, 6))
+    b = power_moments(z, rng.uniform(0.05, 1, (n, 6)) * (np.arange(6) < k[:, None]), n=6)
+    biased = rng.random(n) < 0.5
+    b[biased] = bias_moments(b[biased], msm6.BIAS6_FLOAT32 if dt == np.float32 else msm6.BIAS6_FLOAT64)
+    zf = rng.uniform(-1.1, 1.1, n)
+    near = rng.random(n) < 0.3
+    zf[near] = z[near, 0] + rng.choice([0, 1e-6, -1e-6], near.sum())
+    b, zf = b.astype(dt), zf.astype(dt)
+    lower, upper, regular = _bounds_by_expressions(b, zf)
+    assert regular.mean() > 0.9
+    got = msm6.shadow_bounds(b, zf)
+    for g, want in zip(got, (lower, upper)):
+        assert g.dtype == dt and np.array_equal(g[regular].view(np.uint8), want[regular].view(np.uint8))
+
+
+def test_bounds_threads_share_no_workspace():
+    # The bounds kernel's workspace is kept per thread (_msm6_rows.workspace): calls running at
+    # the same time give the serial results.
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(12)
+    jobs = []
+    for i in range(6):
+        n = int(rng.integers(1, 2 * msm6.BOUNDS_CHUNK))
+        dt = (np.float32, np.float64)[i % 2]
+        b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 5)), n=6), msm6.BIAS6_FLOAT32).astype(dt)
+        jobs.append((b, rng.uniform(-1, 1, n).astype(dt)))
+
+    def run(job):
+        return msm6.shadow_bounds(*job)
+
+    serial = [run(j) for j in jobs]
+    with ThreadPoolExecutor(3) as pool:
+        for got, want in zip(pool.map(run, jobs), serial):
+            assert all(np.array_equal(g, w) for g, w in zip(got, want))

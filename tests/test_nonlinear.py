@@ -434,3 +434,38 @@ def test_shade_upper_v2_clamp_is_one_minus_1e6():
         assert float(nl.shade(r, zf)) == pytest.approx(clamped, rel=1e-9)
         # The clamp constant matters here: 1 - 2e-6 gives an intensity 10 times larger.
         assert precise.shade([-0.5, 0.5, 1 - 2e-6, 1e-5], zf) > 5 * clamped
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_shade_skips_only_the_clamps_that_change_nothing(dtype):
+    # shade skips a §3.4 clamp (v2 ≥ 1e-6, v2 ≤ 1 − 1e-6, gap ≥ 1e-6, ξ'4 ≥ tiny) in a
+    # chunk whose extremes prove it a no-op. Against the kernel with every clamp run
+    # (ext=None), bit for bit, on chunks of filtered moments (no clamp needed) with one
+    # row that needs each clamp, ξ4 around the proven threshold 2·tiny·max(gap)⁴, and a
+    # gap whose fourth power overflows, and ξ4 = 0 with gaps of 1e-6 (where the threshold
+    # computed as 2·tiny·gap⁴ underflowed to 0: seen failing). Each clamp's skip forced
+    # on a chunk that needs it fails this test.
+    rng = np.random.default_rng(12)
+    n = 1000
+    b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4))), BIAS_FLOAT32).astype(dtype)
+    base, zf = nl.phi(b), rng.uniform(-1, 1, n).astype(dtype)
+    tiny = float(np.finfo(dtype).tiny)
+    g = float(base[:, 1].max() - base[:, 0].min())
+    edits = [(2, 0.0), (2, 1.0), (2, 5e-7), (1, None), (3, 0.0), (3, 3 * tiny), (3, tiny * g**4 * 0.5),
+             (3, tiny * g**4 * 1.99), (3, tiny * g**4 * 2.01), (3, 1e-35)]
+    chunks = [base.copy()] + [base.copy() for _ in edits] + [base.copy()]
+    for ch, (col, v) in zip(chunks[1:], edits):
+        ch[7, col] = ch[7, 0] if v is None else v
+    chunks[-1][3, :2] = (-1e10, 1e10)  # the gap's fourth power overflows float32, ξ'4 underflows
+    chunks[-1][3, 3] = 1e3
+    tight = np.tile(np.array([0.0, 1e-6, 0.7734375, 0.0], dtype), (n, 1))  # 2·tiny·gap⁴ underflows
+    chunks.append(tight)
+    consts, _ = nl._chunk_constants(dtype, n, nl._clamp_offset(nl.SHADE_TOLERANCE))
+    for ch in chunks:
+        want = np.empty(n, dtype)
+        cols = np.ascontiguousarray(ch.T)
+        with np.errstate(all="ignore"):
+            nl._shade_kernel(*cols, zf.copy(), want, consts)
+        assert nl.shade(ch, zf).tobytes() == want.tobytes()
+    ext = nl._chunk_ok(np.ascontiguousarray(base.T), zf, base[:, 1] - base[:, 0], 1e-6)
+    assert not any(nl._clamps_needed(ext, consts).values())  # filtered moments skip all four

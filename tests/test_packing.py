@@ -591,3 +591,15 @@ def test_fold_refuses_codes_outside_its_range_in_any_element():
     assert [x.tolist() for x in pk.unfold(np.array([511, 0]), np.array([1023, 0]))] == [[511, 0], [1023, 0]]
     f1, f2 = pk.fold(np.array([0, 1022]), np.array([1022, 1022]))  # the top code is allowed
     assert f1.tolist() == [0, 1] and f2.tolist() == [1022, 0]
+
+
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+def test_largest_xi_code_decodes_at_or_above_the_clamp(dt):
+    # packing._xi_codes drops "code < largest" from its bump test because the largest code of
+    # each format decodes to Ψ4⁻¹(1) ≥ XI_MAX ≥ any clamped ξ4 (so "decodes below ξ4" is false
+    # there). Decoded through the public decoders, not the tables the encoder uses.
+    from moments_ref.nonlinear import PSI4_XI_MAX
+
+    top64 = pk.unpack64(np.array([0, 0, 0, 65535], np.uint16), dtype=dt)[3]
+    top32 = pk.unpack32(np.array([np.uint32(0xFFFFFFFF)]), dtype=dt)[0, 3]
+    assert top64 >= dt(PSI4_XI_MAX) and top32 >= dt(PSI4_XI_MAX)

@@ -25,8 +25,14 @@ PASSES = {
     # msm._bound_rows: 9 Cholesky, 11 solve and 1/w0, 5 the quadratic about zf, 11 roots, 6 w0 and w1,
     # 7 step (5); its three reductions (pivots, finiteness) are not counted
     "shadow_intensity float32": 49,
-    "shade float32": 49,  # nonlinear._shade_kernel (and 8 min/max reductions, docs/bench.md)
-    "shadow_intensity six moments float32": 140,  # msm6's kernel, counted by the earlier __array_ufunc__ probe
+    # nonlinear._shade_kernel: 7 setup, 3 P, 7 h, 9 roots, 4 the z_l blend, 11 w_l, 2 the
+    # returned value; 4 more for the §3.4 clamps, which a chunk whose 8 min/max reductions
+    # prove no-ops skips (every chunk of filtered moments, docs/bench.md)
+    "shade float32": 43,
+    # msm6._bounds_kernel: 23 Cholesky, 11 forward substitution, 6 Sturm signs, 21 scaling, back
+    # substitution, p(zf) and the Taylor coefficients, 1 w0, 15 Blinn's form, 3 the sign σ,
+    # 16 cos(arccos(r)/3), 2 the root, 24 its weight, 6 step (5) and saturate; 5 reductions
+    "shadow_intensity six moments float32": 128,
 }
 
 

@@ -31,11 +31,11 @@ import numpy as np
 
 from ...gpu import filtering, onchip
 from ...moments import BIAS_FLOAT32, bias_moments, power_moments
-from ...msm import shadow_intensity
-from ...msm6 import BIAS6_FLOAT32
+from ...msm import chunk_texels, shadow_intensity
+from ...msm6 import BIAS6_FLOAT32, BOUNDS_CHUNK
 from ...nonlinear import phi, shade
 from ...scene.raster import rasterize_depth
-from ..._kernels import CHUNK, MSM_CHUNK, SHADE_CHUNK
+from ..._kernels import SHADE_CHUNK
 from ._cases import raster_case
 from ._memory import pipeline_peak_bytes
 from ._probes import PASSES, pass_probe, scatter_probe
@@ -162,8 +162,9 @@ def peak_memory(fn, *args):
 #: The issue's targets, in copies of the kernel's traffic.
 KERNEL_LIMITS = {"shadow_intensity float32": 8, "shadow_intensity float64": 9, "shade float32": 7,
                  "shadow_intensity six moments float32": 12}
-_CHUNKS = {"shadow_intensity float32": MSM_CHUNK, "shadow_intensity float64": MSM_CHUNK, "shade float32": SHADE_CHUNK,
-           "shadow_intensity six moments float32": CHUNK}
+_CHUNKS = {"shadow_intensity float32": chunk_texels(np.float32), "shadow_intensity float64": chunk_texels(np.float64),
+           "shade float32": SHADE_CHUNK,
+           "shadow_intensity six moments float32": BOUNDS_CHUNK}
 
 
 def _probe_rows(name, args, copy, repeat):
