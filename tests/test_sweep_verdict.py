@@ -47,6 +47,17 @@ def test_a_row_is_wrong_exactly_where_an_output_leaves_its_closed_band():
     # float32 output, as a port writes it: the same verdict
     got32 = got.astype(np.float32)
     assert np.array_equal(judge.wrong_rows(PSI, {"u": _unit_band(n)}, np.zeros(n, bool), {"u": got32}), want)
+    # a float64 output is judged in float64: 2^-40 above the band is outside (float32 would round it onto 1)
+    edge = np.array([1 + 2.0**-40, -(2.0**-60), 1.0])
+    assert judge.wrong_rows(PSI, {"u": _unit_band(3)}, np.zeros(3, bool), {"u": edge}).tolist() == [True, True, False]
+
+
+def test_a_row_without_a_band_is_never_wrong():
+    """golden.bands: a row where no legitimate evaluation is finite gets the band (−inf, inf): nothing is wrong
+    there, NaN included (a row of a finite band next to it still is)."""
+    lo, hi = np.array([-np.inf, 0.0, -np.inf]), np.array([np.inf, 1.0, np.inf])
+    got = np.array([np.nan, np.nan, 1e300])
+    assert judge.wrong_rows(PSI, {"u": (lo, hi)}, np.zeros(3, bool), {"u": got}).tolist() == [False, True, False]
 
 
 def test_one_component_or_one_output_out_of_band_makes_the_row_wrong():
