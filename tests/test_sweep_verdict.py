@@ -202,3 +202,50 @@ def test_the_engine_cases_are_judged_and_confirmed_by_the_exact_bound():
     xi4 = np.array([0.01, 0.1])
     u = np.asarray(PSI.truth(xi4=xi4)[0], np.float64)
     assert judge.confirm(PSI, {"xi4": xi4}, {"u": u + 1e-3}, "float64").all()
+
+
+def test_a_float_output_outside_its_band_is_flagged_even_at_the_exact_value():
+    """The tie rule is for integer codes only: a float row outside its band stays flagged (here the band is built
+    to exclude the exact Ψ4, and the port returns exactly that)."""
+    xi4 = np.array([0.01, 0.1, 0.2])
+    exact = np.asarray(PSI.truth(xi4=xi4)[0], np.float64)
+    bands = {"u": (exact + 0.25, exact + 0.5)}  # within one unit of the exact value, as a code's neighbour would be
+    assert judge.flagged_rows(PSI, {"xi4": xi4}, bands, np.zeros(3, bool), {"u": exact}).all()
+
+
+@pytest.mark.parametrize("shift", [2, -2])
+def test_a_code_two_from_its_band_is_flagged_without_the_tie_rule(shift):
+    """Only a code within one code of its interval is put to the tie rule: the truth's own code, two codes from a
+    (hand-built) band in one channel, is flagged."""
+    r, _ = _tie_rows()
+    truth = _truth(r)
+    lo = truth.copy()
+    lo[:, 0] += shift  # the y1 channel's band two codes off
+    got = truth.astype(np.uint16)
+    flagged = judge.flagged_rows(PACK, {"r": r}, {"q": (lo, lo.copy())}, np.zeros(len(r), bool), {"q": got})
+    assert flagged.all()
+    lo[:, 0] -= np.sign(shift)  # one code off: the tie rule accepts the truth's code
+    assert not judge.flagged_rows(PACK, {"r": r}, {"q": (lo, lo.copy())}, np.zeros(len(r), bool), {"q": got}).any()
+
+
+def test_a_32_bit_word_is_compared_exactly_on_a_tie_of_its_low_field():
+    """pack32: ỹ2 (bits 0-9) on a cell boundary, ξ4's field high (a word above 2^31, beyond float32's exact
+    integers): the word with the other ỹ2 cell is accepted, one with a ỹ2 two cells off is flagged."""
+    case = CASES["pack32-float32"]
+    m = np.array([300, 301, 450])  # 511.5 (y2 + 1) = m: a floor boundary; y1's cell 100, far from its boundaries
+    r = np.column_stack([np.full(3, 100.5 / 511.5 - 1), m / 511.5 - 1, np.full(3, (40.5 / 128) ** 2),
+                         np.full(3, 0.2)])
+    for y2 in r[:, 1]:
+        s = Fraction(float(y2) + 1) * Fraction(1023, 2)
+        assert abs(s - round(s)) < Fraction(1, 10**12)
+    from moments_ref.golden.texel_truth import pack32
+
+    (word,) = pack32(r)
+    word = word.astype(np.int64)
+    assert (word >= 2**31).all() and ((word & 1023) - (m - 1) <= 1).all()
+    other = np.where((word & 1023) == m, word - 1, word + 1)  # the other cell next to the boundary
+    bands = {"p": (word.astype(np.float64), word.astype(np.float64))}
+    ill = np.zeros(3, bool)
+    assert not judge.flagged_rows(case, {"r": r}, bands, ill, {"p": other.astype(np.uint32)}).any()
+    far = np.where((word & 1023) == m, word + 2, word - 2)
+    assert judge.flagged_rows(case, {"r": r}, bands, ill, {"p": far.astype(np.uint32)}).all()
