@@ -249,3 +249,17 @@ def test_a_32_bit_word_is_compared_exactly_on_a_tie_of_its_low_field():
     assert not judge.flagged_rows(case, {"r": r}, bands, ill, {"p": other.astype(np.uint32)}).any()
     far = np.where((word & 1023) == m, word + 2, word - 2)
     assert judge.flagged_rows(case, {"r": r}, bands, ill, {"p": far.astype(np.uint32)}).all()
+
+
+def test_the_judge_confirms_an_engine_row_by_the_engine_cases_route():
+    """judge.confirm sends an engine row to the engine cases' confirmation (the exact bounds over the legitimate
+    biases and the shipped ports' float32 evaluation on the port's input): 0.9999141693 is what the shipped
+    msm.glsl upper bound returned on llvmpipe and lavapipe for this one-depth texel (tests/test_sweep_engine.py),
+    legitimate there; the goldens' route alone would confirm it wrong."""
+    case = CASES["engine-upper-float32"]
+    z = np.full((1, 6), -0.9298073219944447)
+    w = np.array([[1.0, 0, 0, 0, 0, 0]])
+    inputs = engine.engine_inputs(case, z, w, np.array([-0.928851842880249]))
+    driver = np.float32(0.9999141693115234)
+    assert not judge.confirm(case, inputs, {"intensity": np.array([driver])})[0]
+    assert judge.confirm(case, inputs, {"intensity": np.array([driver - np.float32(1e-3)])})[0]
