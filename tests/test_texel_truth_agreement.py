@@ -26,7 +26,7 @@ CLEAR = 1e-9
 
 
 def _texels(n, seed):
-    """(n, 4) rows (y1, y2, v2, ξ4): most inside the format's domain, some beyond each saturation."""
+    """(n, 4) rows (y1, y2, v2, ξ4): most inside the format's domain, some beyond each end of each saturation."""
     rng = np.random.default_rng(seed)
     y = np.sort(rng.uniform(-1, 1, (n, 2)), axis=1)
     r = np.column_stack([y, rng.uniform(0, 1, n), 10.0 ** rng.uniform(-7, -0.6, n)])
@@ -37,6 +37,9 @@ def _texels(n, seed):
     r[3 * k:4 * k, 2] += 1.0  # v2 > 1
     r[4 * k:4 * k + k // 2, 3] = -r[4 * k:4 * k + k // 2, 3]  # ξ4 < 0
     r[4 * k + k // 2:5 * k, 3] = 0.5 + r[4 * k + k // 2:5 * k, 3]  # ξ4 above the Ψ4 range (0.25)
+    r[5 * k:5 * k + 3, 2] = -0.3  # v2 < 0
+    r[5 * k + 3:5 * k + 6, :2] = [1.2, 1.4]  # both depths above 1
+    r[5 * k + 6:5 * k + 9, :2] = [-1.4, -1.2]  # both below -1
     return r
 
 
@@ -64,10 +67,13 @@ def test_pack64_codes_and_margin_are_the_float64_encoders_off_the_boundaries(xi_
     u = 65535 * np.asarray(nonlinear.psi4(np.clip(s[:, 3], 1.2e-7, 0.25)), np.float64)
     xi_dist = _to_integer(u) if xi_rounding == "up" else _to_half(u)
     mine = np.minimum(_to_half(scaled).min(axis=1), xi_dist) / 65535
-    np.testing.assert_allclose(margin, mine, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(margin, mine, rtol=0, atol=1e-13)
     clear = margin > CLEAR  # saturated rows sit on a boundary (y = ±1, ξ4 at Ψ4's ends under "up")
     assert clear.sum() > 110
     theirs = packing.pack64(s, xi_rounding=xi_rounding)  # the truth saturates by itself
+    k = 160 // 8
+    ends = np.arange(5 * k, 5 * k + 9)  # v2 < 0, both depths above 1, both below -1: exact at the ends
+    np.testing.assert_array_equal(codes[ends, :3], theirs[ends, :3])
     assert codes.dtype == np.uint16 and codes.shape == (160, 4)
     np.testing.assert_array_equal(codes[clear], theirs[clear])
     # without margin=True: the codes only, the same
@@ -83,13 +89,16 @@ def test_pack32_codes_and_margin_are_the_float64_encoder_off_the_boundaries():
     sv = 128 * np.sqrt(s[:, 2])
     u = 64 * np.asarray(nonlinear.psi4(np.clip(s[:, 3], 1.2e-7, 0.25)), np.float64)
     mine = np.minimum.reduce([_to_integer(depth).min(axis=1) / 1023, _to_integer(sv) / 128, _to_integer(u) / 64])
-    np.testing.assert_allclose(margin, mine, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(margin, mine, rtol=0, atol=1e-13)
     clear = margin > CLEAR
     assert clear.sum() > 90
     folded = (np.floor(depth[:, 0]) >= 512) & clear
     assert folded.sum() > 10 and (clear & ~folded).sum() > 10  # both halves of HPG17 Figure 5's triangle
     assert codes.dtype == np.uint32
     np.testing.assert_array_equal(codes[clear], packing.pack32(s)[clear])
+    k = 160 // 8
+    ends = np.arange(5 * k + 3, 5 * k + 9)  # both depths above 1 or below -1: the end cells, exactly
+    np.testing.assert_array_equal(codes[ends] & 0x7FFFF, packing.pack32(s)[ends] & 0x7FFFF)
     (alone,) = T.pack32(r)
     np.testing.assert_array_equal(alone, codes)
 
@@ -121,15 +130,21 @@ def _moments(n, seed, k=6):
 
 def test_the_affine_basis_codes_and_values_are_the_float64_ones():
     b = _moments(150, 5, 4)
-    b[:5] *= 1.3  # outside [0, 1] after the basis change for some: clamped codes
+    b[:5] *= 1.3
+    b[5:10] *= 4.0  # beyond [0, 1] after the basis change, above and below: clamped codes
+    b[10:15] *= -4.0
     np.testing.assert_allclose(T.to_optimized(b)[0], affine.to_optimized(b), rtol=0, atol=2e-15)
+    # any leading shape: (3, 50, 4) rows as the (150, 4) ones
+    np.testing.assert_array_equal(T.to_optimized(b.reshape(3, 50, 4))[0].reshape(150, 4), T.to_optimized(b)[0])
+    np.testing.assert_array_equal(T.from_optimized(b.reshape(3, 50, 4))[0].reshape(150, 4), T.from_optimized(b)[0])
     q = affine.to_optimized(b)
     np.testing.assert_allclose(T.from_optimized(q)[0], affine.from_optimized(q), rtol=0, atol=2e-14)
     codes, margin = T.encode_unorm16(b, margin=True)
     scaled = 65535 * np.clip(affine.to_optimized(b), 0, 1)
-    np.testing.assert_allclose(margin, _to_half(scaled).min(axis=1) / 65535, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(margin, _to_half(scaled).min(axis=1) / 65535, rtol=0, atol=1e-13)
+    assert ((scaled == 0) | (scaled == 65535)).any(axis=1)[5:15].all()
     clear = margin > CLEAR
-    assert clear.sum() > 130 and codes.dtype == np.uint16
+    assert clear.sum() > 120 and codes.dtype == np.uint16
     np.testing.assert_array_equal(codes[clear], affine.encode_unorm16(b)[clear])
     np.testing.assert_array_equal(T.encode_unorm16(b)[0], codes)
     np.testing.assert_allclose(T.decode_unorm16(codes)[0], affine.decode_unorm16(codes), rtol=0, atol=2e-14)
@@ -140,7 +155,7 @@ def test_the_six_moment_words_are_the_float64_ones():
     np.testing.assert_allclose(T.to_optimized6(b)[0], affine.to_optimized6(b), rtol=0, atol=2e-15)
     words, margin = T.encode_r10g10b10a2(b, margin=True)
     scaled = 1023 * np.clip(affine.to_optimized6(b), 0, 1)
-    np.testing.assert_allclose(margin, _to_half(scaled).min(axis=1) / 1023, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(margin, _to_half(scaled).min(axis=1) / 1023, rtol=0, atol=1e-13)
     clear = margin > CLEAR
     assert clear.sum() > 130 and words.dtype == np.uint32 and words.shape == (150, 2)
     np.testing.assert_array_equal(words[clear], affine.encode_r10g10b10a2(b)[clear])
