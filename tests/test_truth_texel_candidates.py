@@ -101,3 +101,22 @@ def test_kept_mutant_the_last_depth_cell_one_too_far_is_seen():
     with kept_mutant("moments_ref/golden/truth.py", "_decoded32::1022 -> 1023#1"):
         got = _decoded(truth._decoded32, ((100 + 0.25) / 511.5 - 1, 1.0, 1.0, 0.3), 1e-12)
     assert any(t[1] > 1 for t in got)
+
+
+@pytest.mark.parametrize("field, cells", [("y1", 1023), ("y2", 1023), ("v", 128), ("xi", 64)])
+def test_32_bit_tie_is_a_fraction_of_each_fields_code_range(field, cells):
+    """The tie is a fraction of the code range: 10^-6 of it is 10^-6 · cells cells; a boundary 10^-7 cells away is
+    within it for every field (and would not be within 10^-6 / cells cells)."""
+    y1, y2, sv, u = (300 + 0.5) / 511.5 - 1, (700 + 0.5) / 511.5 - 1, 40.5 / 128, 20.5 / 64
+    d = 1e-7  # cells above a boundary
+    if field == "y1":
+        y1 = (300 + d) / 511.5 - 1
+    elif field == "y2":
+        y2 = (700 + d) / 511.5 - 1
+    elif field == "v":
+        sv = (40 + d) / 128
+    else:
+        u = (20 + d) / 64
+    r = (y1, y2, sv * sv, float(precise.psi4_inverse(np.array([u]))[0]))
+    assert len(_decoded(truth._decoded32, r, 1e-6)) == 2
+    assert len(_decoded(truth._decoded32, r, 1e-6 / cells**2)) == 1
