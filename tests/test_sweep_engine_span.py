@@ -79,6 +79,9 @@ def test_a_value_is_confirmed_wrong_only_beyond_eight_float32_ulps_of_the_span(b
         k = len(got) // n
         both = {key: np.concatenate([v] * k) for key, v in inputs.items()}
         assert (engine.confirm(case, both, {"intensity": got}) == want).all()
+    # the ends of the widened span are inside it (closed)
+    ends = {key: np.concatenate([v] * 2) for key, v in inputs.items()}
+    assert not engine.confirm(case, ends, {"intensity": np.concatenate([lo - m, hi + m])}).any()
     # float64 ports: the margin is 8 float64 ulps, so 0.9 float32 margins beyond the span is wrong
     assert engine.confirm(case, inputs, {"intensity": hi + 0.9 * m}, "float64").all()
     empty = {k: v[:0] for k, v in inputs.items()}
