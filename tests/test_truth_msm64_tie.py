@@ -1,7 +1,7 @@
 """golden/truth.py's msm64_chain on a hand-built texel: which codes a rounding tie admits, and no others.
 
 The optimized-basis values (Slides, "Compute moments in resolve") of a three-depth distribution are moved so
-that channel 0 lies exactly on a half code (a rounding tie) and channel 1 0.3 codes beside one (0.8 above a
+that channel 0 lies 10^-4 codes beside a half code (within the tie band: a rounding tie) and channel 1 0.3 codes beside one (0.8 above a
 code: it rounds up, with no tie); the moments are taken back exactly. The chain's (lo, hi) must be the least and
 largest lower bound (precise, mpmath) over the two texels of channel 0's two codes, decoded here by the
 package's float64 decoder and biased by the formula.
@@ -22,7 +22,7 @@ def test_a_tied_channel_takes_both_codes_and_a_channel_beside_a_half_takes_its_o
     b0 = np.array([(w * z**j).sum() for j in range(1, 5)])
     s = texel_truth.to_optimized(b0[None])[0][0] * 65535
     k = np.floor(s).astype(int)
-    s[0], s[1] = k[0] + 0.5, k[1] + 0.8
+    s[0], s[1] = k[0] + 0.5 + 1e-4, k[1] + 0.8  # 10^-4 codes from the half: inside the tie band (1/4 code)
     b = texel_truth.from_optimized((s / 65535)[None])[0]
     assert np.abs(texel_truth.to_optimized(b)[0][0] * 65535 - s).max() < 1e-6  # the positions survive the round trip
     zf = np.array([0.2])
