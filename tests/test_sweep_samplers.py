@@ -26,8 +26,9 @@ from _mutants import kept_mutant
 N = CHUNK  # one whole chunk: 131072 rows, ~8700 per stratum
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def rows():
+    """One chunk, drawn inside each test (not cached: the mutation tool's coverage then sees the draw in the test)."""
     return draw_rows(CASES["shade-float32"], 11, 2)
 
 
