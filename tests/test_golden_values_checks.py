@@ -79,6 +79,7 @@ def test_unknown_categories_and_results_name_the_first_row(key, value):
                                             (-(2.0**-60), "beyond the case's value_range")])
 def test_expected_values_finite_and_in_range(value, problem):
     meta, arrays = _float_case()
+    arrays["intensity"][0] = 1.0  # the range's upper end, before the bad row: not named
     arrays["intensity"][1] = value
     arrays["intensity"][4] = value
     _bad(meta, arrays, rf"case x: intensity (is [^ ]+, )?{problem}.* at row 1 \(tc_id 11\)")
@@ -121,3 +122,19 @@ def test_an_exact_case_needs_no_tolerances_and_skips_the_float_checks():
     arrays["q"] = arrays["q"].astype(np.float64)
     arrays["q"][0, 0] = np.nan  # not a float output: its finiteness is not this check's
     assert check_case_values(meta, arrays, "t") is None
+
+
+def test_a_vector_outputs_bad_row_is_named_by_its_row_not_its_column():
+    meta, arrays = _float_case()
+    arrays["intensity"] = np.full((N, 4), 0.5)
+    arrays["intensity"][3, 1] = np.nan
+    _bad(meta, arrays, r"case x: intensity is not finite at row 3 \(tc_id 13\)")
+
+
+def test_a_scalar_exact_outputs_acceptable_codes_are_rows_by_k():
+    meta, arrays = _exact_case()
+    arrays["q"] = np.zeros(N, np.uint16)
+    arrays["q_acceptable"] = np.zeros((N, 2), np.int64)
+    assert check_case_values(meta, arrays, "t") is None
+    arrays["q_acceptable"] = np.zeros(N, np.int64)  # one code per row: not (rows, K)
+    _bad(meta, arrays, r"q_acceptable must hold uint16 codes of shape \(rows, K\) \+ \(\)")
