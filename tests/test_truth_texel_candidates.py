@@ -120,3 +120,22 @@ def test_32_bit_tie_is_a_fraction_of_each_fields_code_range(field, cells):
     r = (y1, y2, sv * sv, float(precise.psi4_inverse(np.array([u]))[0]))
     assert len(_decoded(truth._decoded32, r, 1e-6)) == 2
     assert len(_decoded(truth._decoded32, r, 1e-6 / cells**2)) == 1
+
+
+@pytest.mark.parametrize("field, cells", [("y1", 1023), ("y2", 1023), ("v", 128), ("xi", 64)])
+def test_32_bit_tie_edge_is_exactly_the_fraction_times_the_cells(field, cells):
+    """A boundary (c − 1/2)·tie cells away is inside the tie and (c + 1/2)·tie cells away is not, c the field's
+    cells per unit: the tie is exactly that fraction of the code range (not of c − 1 or c + 1 cells)."""
+    tie = 1e-6
+    for d, two in ((tie * (cells - 0.5), True), (tie * (cells + 0.5), False)):
+        y1, y2, sv, u = (300 + 0.5) / 511.5 - 1, (700 + 0.5) / 511.5 - 1, 40.5 / 128, 20.5 / 64
+        if field == "y1":
+            y1 = (300 + d) / 511.5 - 1
+        elif field == "y2":
+            y2 = (700 + d) / 511.5 - 1
+        elif field == "v":
+            sv = (40 + d) / 128
+        else:
+            u = (20 + d) / 64
+        r = (y1, y2, sv * sv, float(precise.psi4_inverse(np.array([u]))[0]))
+        assert len(_decoded(truth._decoded32, r, tie)) == (2 if two else 1), (field, d)
