@@ -298,3 +298,44 @@ def test_the_docs_table_is_the_tools_arithmetic():
         n, k, t, e, s = map(int, (n, k, t, e, s))
         assert k + t + e + s == n, row
         assert re.fullmatch(r"(≥ )?\d+%", score) and int(score.strip("≥ %")) == round(100 * (k + t) / (n - e)), row
+
+
+def _golden_imports(path):
+    """The golden modules ``path`` imports, at the top or inside a function (``from .x import``, ``from . import x``,
+    ``from ..golden.x import``, ``from ..golden import x``)."""
+    import ast
+
+    out = set()
+    for node in ast.walk(ast.parse((ROOT / path).read_text())):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        here = path.startswith("moments_ref/golden/")
+        mod = node.module or ""
+        if node.level == 1 and here:
+            names = [mod] if mod else [a.name for a in node.names]
+        elif node.level == 2 and mod.startswith("golden"):
+            names = [mod.removeprefix("golden").lstrip(".")] if mod != "golden" else [a.name for a in node.names]
+        else:
+            continue
+        out |= {f"moments_ref/golden/{n.split('.')[0]}.py" for n in names
+                if n and (ROOT / "moments_ref" / "golden" / f"{n.split('.')[0]}.py").is_file()}
+    return out
+
+
+def test_the_golden_truth_a_verdict_depends_on_is_measured():
+    """Every one of the truth modules (the mpmath chains, the exact texel codes, the files' values, the legitimate GPU
+    and paper evaluations) is reached by imports from the verdict's modules (bands, compare, verifier, the sweep's
+    judge) and is in VERDICT_MODULES, so that the tool measures it by default."""
+    from moments_ref.tools.mutation import VERDICT_MODULES
+
+    seen, todo = set(), ["moments_ref/golden/bands.py", "moments_ref/golden/compare.py",
+                         "moments_ref/golden/verifier.py", "moments_ref/sweep/judge.py", "moments_ref/sweep/engine.py"]
+    while todo:
+        p = todo.pop()
+        if p not in seen:
+            seen.add(p)
+            todo += sorted(_golden_imports(p))
+    for need in ("truth", "texel_truth", "values", "gpuspread", "paper"):
+        assert f"moments_ref/golden/{need}.py" in seen, need
+        assert f"moments_ref/golden/{need}.py" in VERDICT_MODULES and f"moments_ref/golden/{need}.py" in TARGETS
+    assert "moments_ref/golden/writer.py" in seen and "moments_ref/golden/casedoc.py" not in seen  # the walk's reach

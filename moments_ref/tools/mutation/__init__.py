@@ -39,6 +39,11 @@ VERDICT_MODULES = (
     "moments_ref/golden/loader.py", "moments_ref/golden/engine.py", "moments_ref/golden/profile.py",
     "moments_ref/golden/contract.py", "moments_ref/golden/conventions.py", "moments_ref/golden/bilinear.py",
     "moments_ref/golden/diagnosis.py", "moments_ref/golden/verifier.py",
+    # the truth a verdict is measured against: the mpmath chains and confirm_truth (truth), the exact texel codes
+    # (texel_truth), the golden files' values (values, through loader), the legitimate GPU evaluations (gpuspread)
+    # and the papers' formulations as legitimate variants (paper), each reached from bands, compare or verifier
+    "moments_ref/golden/truth.py", "moments_ref/golden/texel_truth.py", "moments_ref/golden/values.py",
+    "moments_ref/golden/gpuspread.py", "moments_ref/golden/paper.py",
     "moments_ref/conformance/verdict.py", "moments_ref/conformance/kernel/verdict.py",
     "moments_ref/conformance/kernel/contract.py",
 )
