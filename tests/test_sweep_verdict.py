@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from moments_ref import precise
+from moments_ref.golden import bands as golden_bands
 from moments_ref.golden.cases import CASES
 from moments_ref.sweep import engine, judge
 
@@ -37,6 +38,21 @@ ROWS = [(0.5, False), (0.0, False), (1.0, False), (-TINY, True), (1 + TINY, True
 def _unit_band(n, width=None):
     lo, hi = np.zeros(n), np.ones(n)
     return (lo, hi) if width is None else (np.zeros((n, width)), np.ones((n, width)))
+
+
+def _hand_full_band(monkeypatch, bands, ill):
+    """Inputs that make the hand-built ``bands`` the full band too.
+
+    flagged_rows judges a flagged float row again by its band over the confirmation's whole neighbourhood
+    (golden.bands.legitimate_interval with ``full``). These rows are hand-built bands, not inputs, so that
+    band is the hand-built one: the returned inputs carry each row's index to it.
+    """
+    def full(case, inputs, port_dtype="float32", contract=None, full=False, **_):
+        rows = np.asarray(inputs["row"])
+        return {o: (lo[rows], hi[rows]) for o, (lo, hi) in bands.items()}, np.asarray(ill, bool)[rows]
+
+    monkeypatch.setattr(golden_bands, "legitimate_interval", full)
+    return {"row": np.arange(len(ill))}
 
 
 def test_a_row_is_wrong_exactly_where_an_output_leaves_its_closed_band():
@@ -75,21 +91,34 @@ def test_one_component_or_one_output_out_of_band_makes_the_row_wrong():
 
 
 @pytest.mark.parametrize("case, judged", [(PSI, True), (ENGINE, False)], ids=["golden", "engine"])
-def test_ill_rows_are_judged_except_in_the_engine_cases(case, judged):
+def test_ill_rows_are_judged_except_in_the_engine_cases(case, judged, monkeypatch):
     out = case.outputs[0]
     got = np.array([0.5, 3.0, 3.0, 0.5])  # rows 1 and 2 outside [0, 1]
     ill = np.array([False, False, True, True])
-    flagged = judge.flagged_rows(case, {}, {out: _unit_band(4)}, ill, {out: got})
+    inputs = _hand_full_band(monkeypatch, {out: _unit_band(4)}, ill)
+    flagged = judge.flagged_rows(case, inputs, {out: _unit_band(4)}, ill, {out: got})
     assert flagged.tolist() == [False, True, judged, False]
 
 
-def test_an_ungated_row_is_never_flagged_and_no_gate_gates_every_row():
+def test_an_ungated_row_is_never_flagged_and_no_gate_gates_every_row(monkeypatch):
     got = np.array([3.0, 3.0, np.nan, 0.5])
     ill = np.zeros(4, bool)
     bands = {"u": _unit_band(4)}
-    assert judge.flagged_rows(PSI, {}, bands, ill, {"u": got}).tolist() == [True, True, True, False]
+    inputs = _hand_full_band(monkeypatch, bands, ill)
+    assert judge.flagged_rows(PSI, inputs, bands, ill, {"u": got}).tolist() == [True, True, True, False]
     gated = np.array([1, 0, 0, 1])  # ints: read as bool
-    assert judge.flagged_rows(PSI, {}, bands, ill, {"u": got}, gated=gated).tolist() == [True, False, False, False]
+    assert judge.flagged_rows(PSI, inputs, bands, ill, {"u": got}, gated=gated).tolist() == \
+        [True, False, False, False]
+
+
+def test_a_float_flag_is_judged_again_by_the_full_band(monkeypatch):
+    """A float row outside its default band but inside its band over the confirmation's whole neighbourhood is no
+    flag; one outside both is (the full band is asked only about the flagged rows)."""
+    got = np.array([0.5, 1.5, 3.0])
+    ill = np.zeros(3, bool)
+    wide = {"u": (np.zeros(3), np.full(3, 2.0))}
+    inputs = _hand_full_band(monkeypatch, wide, ill)
+    assert judge.flagged_rows(PSI, inputs, {"u": _unit_band(3)}, ill, {"u": got}).tolist() == [False, False, True]
 
 
 def _scaled_v2(v2):
@@ -169,7 +198,7 @@ def test_kept_mutant_a_tie_code_flagged_when_the_tie_rule_is_skipped():
     got[:4, 2] = np.where(truth[:4, 2] == k[:4], k[:4] + 1, k[:4])  # the other code next to each tie
     args = (PACK, {"r": r}, {"q": (truth, truth.copy())}, np.zeros(len(r), bool), {"q": got.astype(np.uint16)})
     assert not judge.flagged_rows(*args).any()
-    with kept_mutant(JUDGE, "flagged_rows::not (case.integer_output and flagged.any()) -> True#0"):
+    with kept_mutant(JUDGE, "flagged_rows::look.size -> not look.size#0"):
         assert judge.flagged_rows(*args)[:4].all()
 
 
@@ -204,28 +233,31 @@ def test_the_engine_cases_are_judged_and_confirmed_by_the_exact_bound():
     assert judge.confirm(PSI, {"xi4": xi4}, {"u": u + 1e-3}, "float64").all()
 
 
-def test_a_float_output_outside_its_band_is_flagged_even_at_the_exact_value():
-    """The tie rule is for integer codes only: a float row outside its band stays flagged (here the band is built
-    to exclude the exact Ψ4, and the port returns exactly that)."""
+def test_a_float_output_outside_its_band_is_flagged_even_at_the_exact_value(monkeypatch):
+    """The tie rule is for integer codes only: a float row outside its band stays flagged (here the band, the full
+    one too, is built to exclude the exact Ψ4, and the port returns exactly that)."""
     xi4 = np.array([0.01, 0.1, 0.2])
     exact = np.asarray(PSI.truth(xi4=xi4)[0], np.float64)
     bands = {"u": (exact + 0.25, exact + 0.5)}  # within one unit of the exact value, as a code's neighbour would be
-    assert judge.flagged_rows(PSI, {"xi4": xi4}, bands, np.zeros(3, bool), {"u": exact}).all()
+    inputs = {"xi4": xi4, **_hand_full_band(monkeypatch, bands, np.zeros(3, bool))}
+    assert judge.flagged_rows(PSI, inputs, bands, np.zeros(3, bool), {"u": exact}).all()
 
 
 @pytest.mark.parametrize("shift", [2, -2])
-def test_a_code_two_from_its_band_is_flagged_without_the_tie_rule(shift):
-    """Only a code within one code of its interval is put to the tie rule: the truth's own code, two codes from a
-    (hand-built) band in one channel, is flagged."""
+def test_a_code_two_from_the_exact_code_is_flagged_whatever_the_band(shift):
+    """The tie rule's set (the exact codes and each component's own tie neighbour) is the definitive one: a code
+    two from the exact one is flagged even inside a (hand-built) band that holds it, and the exact code is
+    accepted even where a band two codes off says otherwise."""
     r, _ = _tie_rows()
     truth = _truth(r)
-    lo = truth.copy()
-    lo[:, 0] += shift  # the y1 channel's band two codes off
-    got = truth.astype(np.uint16)
-    flagged = judge.flagged_rows(PACK, {"r": r}, {"q": (lo, lo.copy())}, np.zeros(len(r), bool), {"q": got})
+    off = truth.copy()
+    off[:, 0] += shift  # the y1 channel two codes off
+    flagged = judge.flagged_rows(PACK, {"r": r}, {"q": (np.minimum(off, truth) - 2, np.maximum(off, truth) + 2)},
+                                 np.zeros(len(r), bool), {"q": off.astype(np.uint16)})
     assert flagged.all()
-    lo[:, 0] -= np.sign(shift)  # one code off: the tie rule accepts the truth's code
-    assert not judge.flagged_rows(PACK, {"r": r}, {"q": (lo, lo.copy())}, np.zeros(len(r), bool), {"q": got}).any()
+    exact = judge.flagged_rows(PACK, {"r": r}, {"q": (off, off.copy())}, np.zeros(len(r), bool),
+                               {"q": truth.astype(np.uint16)})
+    assert not exact.any()
 
 
 def test_a_32_bit_word_is_compared_exactly_on_a_tie_of_its_low_field():
