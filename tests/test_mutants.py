@@ -32,9 +32,10 @@ def test_docs_print_the_score(results):
     # docs/golden.md's mutation-score table: per kind, the mutants and how many each level judges right.
     text = (Path(__file__).parents[1] / "docs" / "golden.md").read_text()
     got = {m.group(1): tuple(int(x) for x in m.groups()[1:]) for m in re.finditer(
-        r"^\| (bug|legitimate variant|robustness|equivalent) \(.*\) \| (\d+) \| (\d+) \w+.*? \| (\d+) \w+.*?\|$",
+        r"^\| (bug|legitimate variant|robustness|equivalent|within the band) \(.*\) \| (\d+) \| (\d+) \w+.*? \| (\d+) \w+.*?\|$",
         text, re.M)}
-    kinds = {"bug": "bug", "legitimate variant": "legit", "robustness": "robustness", "equivalent": "equivalent"}
+    kinds = {"bug": "bug", "legitimate variant": "legit", "robustness": "robustness", "equivalent": "equivalent",
+             "within the band": "within_band"}
     want = {}
     for label, kind in kinds.items():
         rs = [r for r in results if r.kind == kind]
@@ -52,6 +53,14 @@ def test_every_bug_is_killed(results):
 def test_no_false_alarm(results):
     alarms = [(r.name, r.killed_by, r.error) for r in results if r.kind != "bug" and r.killed]
     assert not alarms, alarms
+
+
+@pytest.mark.parametrize("name", [m.name for m in corpus.MUTANTS if m.kind == "within_band"])
+def test_within_band_mutants_differ_only_inside_the_band(name):
+    # a real change (some codes differ from the unchanged port's), every one on its component's own tie
+    mutant = next(m for m in corpus.MUTANTS if m.name == name)
+    differ, outside = corpus.fuzz_within_band(mutant)
+    assert differ > 0 and outside == 0, (differ, outside)
 
 
 @pytest.mark.parametrize("name", [m.name for m in corpus.MUTANTS if m.kind == "equivalent"])

@@ -32,6 +32,10 @@ KINDS = {
     "robustness": "legitimate on the algorithm's contract, different beyond it (e.g. no singular branch): "
                   "passes the verdict, killed with --strict",
     "equivalent": "cannot alter any output (shown by a fuzzed bitwise comparison): passes at both levels",
+    "within_band": "differs from the prescribed output only inside the band of a conformant GPU's legitimate "
+                   "outputs (a texel code on its own rounding tie), where a correct port may return the same: no "
+                   "verdict can tell it from a correct port (shown by a fuzzed comparison against the band): "
+                   "passes at both levels",
 }
 
 
@@ -53,7 +57,7 @@ class MutantResult:
             return self.killed
         if self.kind == "robustness":
             return not self.killed and self.killed_strict
-        if self.kind == "equivalent":
+        if self.kind in ("equivalent", "within_band"):
             return not self.killed and not self.killed_strict
         return not self.killed
 
@@ -151,6 +155,8 @@ def score(results):
         "robustness_right": count("robustness", lambda r: not r.killed and r.killed_strict),
         "equivalent": count("equivalent", lambda r: True),
         "equivalent_passing": count("equivalent", lambda r: not r.killed and not r.killed_strict),
+        "within_band": count("within_band", lambda r: True),
+        "within_band_passing": count("within_band", lambda r: not r.killed and not r.killed_strict),
     }
 
 
@@ -174,7 +180,8 @@ def format_table(results):
     lines.append(f"contract level: bugs killed {s['bugs_killed']}/{s['bugs']}, legitimate variants passing "
                  f"{s['legit_passing']}/{s['legit']}, robustness variants passing "
                  f"{sum(1 for r in results if r.kind == 'robustness' and not r.killed)}/{s['robustness']}, "
-                 f"equivalent mutants passing {s['equivalent_passing']}/{s['equivalent']}")
+                 f"equivalent mutants passing {s['equivalent_passing']}/{s['equivalent']}, "
+                 f"within-band mutants passing {s['within_band_passing']}/{s['within_band']}")
     lines.append(f"strict level: robustness variants killed "
                  f"{sum(1 for r in results if r.kind == 'robustness' and r.killed_strict)}/{s['robustness']}, "
                  f"bugs killed {sum(1 for r in results if r.kind == 'bug' and r.killed_strict)}/{s['bugs']}, "
