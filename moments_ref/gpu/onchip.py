@@ -179,16 +179,17 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     y0 = _OUT_H * by - _G
 
     # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
-    # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments.
+    # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments. The
+    # 5 rounds × 4 moments write disjoint words, so their loads and stores are done
+    # as one gather from the moment rows and one scatter through the word addresses.
     t0 = time.perf_counter()
     res = pattern["resolve"]
-    for r in range(res.j.shape[0]):
-        tx, ty = res.texel_x[r, 0], res.texel_y[r, 0]  # (warp, lane), same for every j
-        X = np.clip(x0 + tx[..., None], 0, W - 1)
-        Y = np.clip(y0 + ty[..., None], 0, H - 1)
-        texel = Y * W + X  # (warp, lane, blocks)
-        for j in range(4):
-            shared[addr["resolve"][r, j]] = mom[j].take(texel)
+    tx, ty = res.texel_x[:, 0], res.texel_y[:, 0]  # (round, warp, lane), same for every j
+    X = np.clip(x0 + tx[..., None], 0, W - 1)
+    Y = np.clip(y0 + ty[..., None], 0, H - 1)
+    texel = Y * W + X  # (round, warp, lane, blocks)
+    plane = np.arange(4).reshape(4, 1, 1, 1, 1) * (H * W)  # row of moment j in mom
+    shared[addr["resolve"].swapaxes(0, 1)] = mom.ravel().take(plane + texel)  # (j, round, warp, lane, blocks)
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
@@ -202,23 +203,21 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     t3 = time.perf_counter()
 
     # Readout: each thread reads three complete vectors; out-of-map texels are skipped.
+    # The stores of all rows and moments are one scatter into the (4, H·W) rows; every
+    # texel is written once, so the order of stores is immaterial.
     ro = pattern["readout"]
     v = shared[addr["readout"]]  # (row i, j, warp, lane, blocks)
-    tx, ty = ro.texel_x[:, 0], ro.texel_y[:, 0]  # (row i, warp, lane)
+    tx, ty = ro.texel_x[:, :1], ro.texel_y[:, :1]  # (row i, 1, warp, lane)
     X = tx[..., None] + _OUT_W * bx
     Y = ty[..., None] + _OUT_H * by
     inside = (X < W) & (Y < H)
-    texel = Y * W + X
-    # Stores by fancy assignment of a contiguous copy (several times faster than
-    # ndarray.put); every texel is written once, so the order of stores is immaterial.
+    dest = (Y * W + X) + np.arange(4).reshape(4, 1, 1, 1) * (H * W)  # (row i, j, warp, lane, blocks)
+    flat = out.reshape(-1)
     if inside.all():  # interior blocks: no mask to apply (same stores, no boolean gathers)
-        texel = texel.ravel()
-        for j in range(4):
-            out[j][texel] = np.ascontiguousarray(v[:, j]).ravel()
-        return _record(timings, (t0, t1, t2, t3, time.perf_counter()))
-    texel = texel[inside]
-    for j in range(4):
-        out[j][texel] = v[:, j][inside]
+        flat[dest] = v
+    else:
+        inside = np.broadcast_to(inside, dest.shape)
+        flat[dest[inside]] = v[inside]
     _record(timings, (t0, t1, t2, t3, time.perf_counter()))
 
 
