@@ -185,11 +185,11 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     t0 = time.perf_counter()
     res = pattern["resolve"]
     tx, ty = res.texel_x[:, 0], res.texel_y[:, 0]  # (round, warp, lane), same for every j
-    X = np.clip(x0 + tx[..., None], 0, W - 1)
-    Y = np.clip(y0 + ty[..., None], 0, H - 1)
-    texel = Y * W + X  # (round, warp, lane, blocks)
-    plane = np.arange(4).reshape(4, 1, 1, 1, 1) * (H * W)  # row of moment j in mom
-    shared[addr["resolve"].swapaxes(0, 1)] = mom.ravel().take(plane + texel)  # (j, round, warp, lane, blocks)
+    # The clamped coordinates are separable: a row offset per input row, a column per column.
+    col = np.clip(x0 + np.arange(_IN_W)[:, None], 0, W - 1)  # (input column, blocks)
+    row = np.clip(y0 + np.arange(_IN_H)[:, None], 0, H - 1) * W  # (input row, blocks)
+    texel = row[ty] + col[tx]  # (round, warp, lane, blocks)
+    shared[addr["resolve"].swapaxes(0, 1)] = mom.take(texel, axis=1)  # (j, round, warp, lane, blocks)
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
@@ -208,15 +208,15 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     ro = pattern["readout"]
     v = shared[addr["readout"]]  # (row i, j, warp, lane, blocks)
     tx, ty = ro.texel_x[:, :1], ro.texel_y[:, :1]  # (row i, 1, warp, lane)
-    X = tx[..., None] + _OUT_W * bx
-    Y = ty[..., None] + _OUT_H * by
-    inside = (X < W) & (Y < H)
-    dest = (Y * W + X) + np.arange(4).reshape(4, 1, 1, 1) * (H * W)  # (row i, j, warp, lane, blocks)
+    offset = ty * W + tx + np.arange(4).reshape(4, 1, 1) * (H * W)  # (row i, j, warp, lane) in the rows
+    dest = offset[..., None] + (_OUT_H * W * by + _OUT_W * bx)  # (row i, j, warp, lane, blocks)
     flat = out.reshape(-1)
-    if inside.all():  # interior blocks: no mask to apply (same stores, no boolean gathers)
-        flat[dest] = v
+    if _OUT_W * bx.max() + _OUT_W <= W and _OUT_H * by.max() + _OUT_H <= H:
+        flat[dest] = v  # interior blocks: every texel is inside the map (no boolean gathers)
     else:
-        inside = np.broadcast_to(inside, dest.shape)
+        X = tx[..., None] + _OUT_W * bx
+        Y = ty[..., None] + _OUT_H * by
+        inside = np.broadcast_to((X < W) & (Y < H), dest.shape)
         flat[dest[inside]] = v[inside]
     _record(timings, (t0, t1, t2, t3, time.perf_counter()))
 
