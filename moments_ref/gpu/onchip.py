@@ -132,26 +132,30 @@ def _convolve(values, w, n_out, axis):
 _RESOLVE_CHUNK = RESOLVE_CHUNK
 
 
-def _thread_moments(zt):
+def _thread_moments(z):
     """The 4 moments every resolving thread computes, for each texel of the map: ``(4, H·W)`` float32.
 
-    A thread of the resolve loads the S samples of its texel and accumulates, in
-    float32 and in sample order, ``z``, ``z²``, ``z²·z`` and ``z²·z²`` from 0, then
-    divides by S. Texels of a guard band are resolved by every block that loads
-    them, always to the same values, so each texel is computed here once, an L2
-    chunk of rows at a time (the same operations per texel), and the threads'
-    loads become gathers of these rows.
+    ``z`` is the ``(H·W, S)`` float32 samples. A thread of the resolve loads the S
+    samples of its texel and accumulates, in float32 and in sample order, ``z``,
+    ``z²``, ``z²·z`` and ``z²·z²`` from 0, then divides by S. Texels of a guard band
+    are resolved by every block that loads them, always to the same values, so each
+    texel is computed here once, an L2 chunk of texels at a time (the same
+    operations per texel; the chunk's samples are transposed into one contiguous
+    row per sample first), and the threads' loads become gathers of these rows.
     """
-    S, n = zt.shape
+    n, S = z.shape
     inv = np.float32(S)
     mom = np.empty((4, n), dtype=np.float32)
-    z2, tmp = np.empty((2, min(n, _RESOLVE_CHUNK)), dtype=np.float32)
+    m = min(n, _RESOLVE_CHUNK)
+    z2, tmp = np.empty((2, m), dtype=np.float32)
+    zt = np.empty((S, m), dtype=np.float32)
     for lo in range(0, n, _RESOLVE_CHUNK):
         hi = min(lo + _RESOLVE_CHUNK, n)
-        acc, q, t = mom[:, lo:hi], z2[: hi - lo], tmp[: hi - lo]
+        acc, q, t, zc = mom[:, lo:hi], z2[: hi - lo], tmp[: hi - lo], zt[:, : hi - lo]
+        np.copyto(zc, z[lo:hi].T)
         acc[...] = 0
         for s in range(S):
-            zs = zt[s, lo:hi]
+            zs = zc[s]
             np.multiply(zs, zs, out=q)
             acc[0] += zs
             acc[1] += q
@@ -277,7 +281,7 @@ def _filter_rows(depth_samples, *, blocks_per_batch=64, layout="paper", timings=
     rows, cols = block_grid(H, W)
     out = np.empty((4, H * W), dtype=np.float32)
     t0 = time.perf_counter()
-    mom = _thread_moments(np.ascontiguousarray(z.reshape(H * W, -1).T))
+    mom = _thread_moments(z.reshape(H * W, -1))
     if timings is not None:
         timings["resolve"] = timings.get("resolve", 0.0) + time.perf_counter() - t0
     ids = np.arange(rows * cols)
