@@ -82,6 +82,18 @@ def test_one_texel_influences_exactly_its_9x9_window(y, x):
     assert np.array_equal(diff, (np.abs(yy - y) <= 4) & (np.abs(xx - x) <= 4))
 
 
+@pytest.mark.parametrize("layout", ["paper", "row-major"])
+def test_resolve_and_readout_touch_each_word_once(layout):
+    """The premise of the emulation's single gather and scatter per phase: the resolve's
+    5 rounds × 4 moments write distinct words, and the readout's 3 rows × 4 moments of
+    all threads read distinct words (each texel's moment is stored once)."""
+    pattern = banks.access_pattern()
+    for phase in ("resolve", "readout"):
+        p = pattern[phase]
+        words = banks.shared_index(p.j, p.x, p.y, layout)
+        assert np.unique(words).size == words.size == 4 * len(np.unique(p.texel_y * banks.BLOCK_IN[0] + p.texel_x))
+
+
 def test_block_grid():
     assert block_grid(50, 77) == (3, 3)
     assert block_grid(48, 64) == (2, 2)

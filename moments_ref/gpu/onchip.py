@@ -132,26 +132,30 @@ def _convolve(values, w, n_out, axis):
 _RESOLVE_CHUNK = RESOLVE_CHUNK
 
 
-def _thread_moments(zt):
+def _thread_moments(z):
     """The 4 moments every resolving thread computes, for each texel of the map: ``(4, H·W)`` float32.
 
-    A thread of the resolve loads the S samples of its texel and accumulates, in
-    float32 and in sample order, ``z``, ``z²``, ``z²·z`` and ``z²·z²`` from 0, then
-    divides by S. Texels of a guard band are resolved by every block that loads
-    them, always to the same values, so each texel is computed here once, an L2
-    chunk of rows at a time (the same operations per texel), and the threads'
-    loads become gathers of these rows.
+    ``z`` is the ``(H·W, S)`` float32 samples. A thread of the resolve loads the S
+    samples of its texel and accumulates, in float32 and in sample order, ``z``,
+    ``z²``, ``z²·z`` and ``z²·z²`` from 0, then divides by S. Texels of a guard band
+    are resolved by every block that loads them, always to the same values, so each
+    texel is computed here once, an L2 chunk of texels at a time (the same
+    operations per texel; the chunk's samples are transposed into one contiguous
+    row per sample first), and the threads' loads become gathers of these rows.
     """
-    S, n = zt.shape
+    n, S = z.shape
     inv = np.float32(S)
     mom = np.empty((4, n), dtype=np.float32)
-    z2, tmp = np.empty((2, min(n, _RESOLVE_CHUNK)), dtype=np.float32)
+    m = min(n, _RESOLVE_CHUNK)
+    z2, tmp = np.empty((2, m), dtype=np.float32)
+    zt = np.empty((S, m), dtype=np.float32)
     for lo in range(0, n, _RESOLVE_CHUNK):
         hi = min(lo + _RESOLVE_CHUNK, n)
-        acc, q, t = mom[:, lo:hi], z2[: hi - lo], tmp[: hi - lo]
+        acc, q, t, zc = mom[:, lo:hi], z2[: hi - lo], tmp[: hi - lo], zt[:, : hi - lo]
+        np.copyto(zc, z[lo:hi].T)
         acc[...] = 0
         for s in range(S):
-            zs = zt[s, lo:hi]
+            zs = zc[s]
             np.multiply(zs, zs, out=q)
             acc[0] += zs
             acc[1] += q
@@ -179,16 +183,17 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     y0 = _OUT_H * by - _G
 
     # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
-    # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments.
+    # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments. The
+    # 5 rounds × 4 moments write disjoint words, so their loads and stores are done
+    # as one gather from the moment rows and one scatter through the word addresses.
     t0 = time.perf_counter()
     res = pattern["resolve"]
-    for r in range(res.j.shape[0]):
-        tx, ty = res.texel_x[r, 0], res.texel_y[r, 0]  # (warp, lane), same for every j
-        X = np.clip(x0 + tx[..., None], 0, W - 1)
-        Y = np.clip(y0 + ty[..., None], 0, H - 1)
-        texel = Y * W + X  # (warp, lane, blocks)
-        for j in range(4):
-            shared[addr["resolve"][r, j]] = mom[j].take(texel)
+    tx, ty = res.texel_x[:, 0], res.texel_y[:, 0]  # (round, warp, lane), same for every j
+    # The clamped coordinates are separable: a row offset per input row, a column per column.
+    col = np.clip(x0 + np.arange(_IN_W)[:, None], 0, W - 1)  # (input column, blocks)
+    row = np.clip(y0 + np.arange(_IN_H)[:, None], 0, H - 1) * W  # (input row, blocks)
+    texel = row[ty] + col[tx]  # (round, warp, lane, blocks)
+    shared[addr["resolve"].swapaxes(0, 1)] = mom.take(texel, axis=1)  # (j, round, warp, lane, blocks)
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
@@ -202,23 +207,21 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     t3 = time.perf_counter()
 
     # Readout: each thread reads three complete vectors; out-of-map texels are skipped.
+    # The stores of all rows and moments are one scatter into the (4, H·W) rows; every
+    # texel is written once, so the order of stores is immaterial.
     ro = pattern["readout"]
     v = shared[addr["readout"]]  # (row i, j, warp, lane, blocks)
-    tx, ty = ro.texel_x[:, 0], ro.texel_y[:, 0]  # (row i, warp, lane)
-    X = tx[..., None] + _OUT_W * bx
-    Y = ty[..., None] + _OUT_H * by
-    inside = (X < W) & (Y < H)
-    texel = Y * W + X
-    # Stores by fancy assignment of a contiguous copy (several times faster than
-    # ndarray.put); every texel is written once, so the order of stores is immaterial.
-    if inside.all():  # interior blocks: no mask to apply (same stores, no boolean gathers)
-        texel = texel.ravel()
-        for j in range(4):
-            out[j][texel] = np.ascontiguousarray(v[:, j]).ravel()
-        return _record(timings, (t0, t1, t2, t3, time.perf_counter()))
-    texel = texel[inside]
-    for j in range(4):
-        out[j][texel] = v[:, j][inside]
+    tx, ty = ro.texel_x[:, :1], ro.texel_y[:, :1]  # (row i, 1, warp, lane)
+    offset = ty * W + tx + np.arange(4).reshape(4, 1, 1) * (H * W)  # (row i, j, warp, lane) in the rows
+    dest = offset[..., None] + (_OUT_H * W * by + _OUT_W * bx)  # (row i, j, warp, lane, blocks)
+    flat = out.reshape(-1)
+    if _OUT_W * bx.max() + _OUT_W <= W and _OUT_H * by.max() + _OUT_H <= H:
+        flat[dest] = v  # interior blocks: every texel is inside the map (no boolean gathers)
+    else:
+        X = tx[..., None] + _OUT_W * bx
+        Y = ty[..., None] + _OUT_H * by
+        inside = np.broadcast_to((X < W) & (Y < H), dest.shape)
+        flat[dest[inside]] = v[inside]
     _record(timings, (t0, t1, t2, t3, time.perf_counter()))
 
 
@@ -278,7 +281,7 @@ def _filter_rows(depth_samples, *, blocks_per_batch=64, layout="paper", timings=
     rows, cols = block_grid(H, W)
     out = np.empty((4, H * W), dtype=np.float32)
     t0 = time.perf_counter()
-    mom = _thread_moments(np.ascontiguousarray(z.reshape(H * W, -1).T))
+    mom = _thread_moments(z.reshape(H * W, -1))
     if timings is not None:
         timings["resolve"] = timings.get("resolve", 0.0) + time.perf_counter() - t0
     ids = np.arange(rows * cols)
