@@ -94,3 +94,13 @@ def test_each_rows_moments_are_its_distributions_rounded_once(rows):
         want = [float(np.float32(float(sum(mi * zi**k for mi, zi in zip(m, z)) / total))) for k in range(1, 5)]
         got = a["b"][r].tolist()
         assert all(abs(g - x) <= abs(x) * 2.0**-23 for g, x in zip(got, want)), (r, got, want)
+
+
+def test_the_engine_goldens_number_their_rows_from_one():
+    case = engine.engine_specs("float32")[0]["name"]
+    from moments_ref.golden.cases import CASES
+
+    rows = engine._engine_rows(None, "float32")
+    out = engine.derive_engine(CASES[case], {k: rows.inputs[k] for k in ("zf", "support", "mass")}, rows.category,
+                               rows.comment, rows.flags)
+    assert out["tc_id"].dtype == np.int32 and out["tc_id"].tolist() == list(range(1, 198))
