@@ -113,3 +113,46 @@ def test_stiff_rows_are_the_shadow_edges_their_comments_name(rows):
     k = np.arange(128) % 4
     want = np.choose(k, [np.full(128, 0.03), np.full(128, 0.015), np.full(128, -0.015), 0.5 * (z_o - z_r)])
     assert np.all(np.abs(off - want) <= np.where(k == 3, 1.1e-3, 6e-4))
+
+
+def _moments32(z, w):
+    """b1..b4 of depths ``z`` with weights ``w`` (normalized here), rounded once to float32: (n, 4)."""
+    w = w / w.sum(axis=1, keepdims=True)
+    return np.stack([np.sum(w * z**k, axis=1) for k in range(1, 5)], axis=1).astype(np.float32).astype(np.float64)
+
+
+def _recipe():
+    """The rows' draws restated from docs/golden.md ("Bilinear cases"), with NumPy alone."""
+    rng = np.random.default_rng(20170724)
+    # 1. the random rows' texels: 512 distributions of 3 to 8 depths on [-1, 1], weights in [0.05, 1)
+    z, w = rng.uniform(-1, 1, (512, 8)), rng.uniform(0.05, 1, (512, 8))
+    w[np.arange(8)[None] >= rng.integers(3, 9, 512)[:, None]] = 0
+    t_random = _moments32(z, w).reshape(128, 16)
+    f_random = rng.integers(0, 2**16, (128, 2)) / 2**16
+    # 2. the shadow edges: per row z_o, z_r, then the four texels t00, t10, t01, t11 in turn, each 2 to 4 depths
+    # within 0.01 of its surface, weights in [0.2, 1)
+    t_stiff, zf_stiff = [], []
+    for k in range(128):
+        z_o, z_r = rng.uniform(-0.9, -0.1), rng.uniform(0.2, 0.9)
+        for occluded in list(OCCLUDED.values())[k % 4]:
+            z = np.clip((z_o if occluded else z_r) + rng.uniform(-0.01, 0.01, (1, 4)), -1, 1)
+            w = rng.uniform(0.2, 1, (1, 4)) * (np.arange(4)[None] < rng.integers(2, 5, 1)[:, None])
+            t_stiff.append(_moments32(z, w)[0])
+        zf_stiff.append(z_r + (0.03, 0.015, -0.015, 0.5 * (z_o - z_r))[k % 4])
+    f_stiff = rng.integers(0, 2**16, (128, 2)) / 2**16
+    f_stiff[:64] = 0.5 + rng.integers(-2048, 2048, (64, 2)) / 2**16
+    # 3. the random rows' receivers, drawn last
+    zf_random = rng.uniform(-1, 1, 128)
+    return t_random, f_random, np.reshape(t_stiff, (128, 16)), np.array(zf_stiff), f_stiff, zf_random
+
+
+def test_the_rows_are_the_draws_docs_golden_states(rows):
+    # The goldens' rows are published: a port's verdicts are reproducible only if the same version draws the same
+    # rows. Restated from docs/golden.md's recipe (seed, order and ranges of every draw), independently of _rows.
+    _, a = rows
+    t_random, f_random, t_stiff, zf_stiff, f_stiff, zf_random = _recipe()
+    # the moments summed here in another order than power_moments: the float32 roundings may differ by an ulp
+    np.testing.assert_allclose(a["texels"][:128], t_random, rtol=2.5e-7, atol=1e-12)
+    np.testing.assert_allclose(a["texels"][128:256], t_stiff, rtol=2.5e-7, atol=1e-12)
+    assert np.array_equal(a["fraction"][:128], f_random) and np.array_equal(a["fraction"][128:256], f_stiff)
+    assert np.array_equal(a["zf"][:128], zf_random) and np.array_equal(a["zf"][128:256], zf_stiff)

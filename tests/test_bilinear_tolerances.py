@@ -228,3 +228,17 @@ def test_the_float_deviation_is_the_largest_over_corners_fraction_moves_and_form
     b = bias_moments(texels[6:, :4].astype(np.float32), BIAS_FLOAT32)
     assert np.isnan(slides_bound(b, np.array([0.9], np.float32), "lower", np.float32)[0]) and want[6] < 0.5
     assert min(want) >= 0 and max(want) > 0.01
+
+
+def test_a_float64_ports_tolerance_on_the_weight_grid_is_float64_sized():
+    # On the 8-bit grid the weights are exact (the rectangle is the fraction), so the float64 column holds only
+    # float64 roundings: the exact hull's evaluations and the float64 formulations' deviation, each a few float64
+    # ulps on these well-conditioned shadow-edge rows (16 times: still below 2^-30), while the float32 column
+    # holds float32 ones (at least 4 float32 ulps of 1). Intensities strictly inside (0, 1): a value rounded to
+    # float32 would move.
+    fraction = np.array([[128, 80], [200, 40], [64, 192]]) / 256.0
+    out, wide = bilinear._intensity_arrays(EDGE_TEXELS[[0, 1, 0]], fraction, np.array([0.55, 0.55, 0.55]), 8)
+    assert not wide.any() and np.all((out["intensity"] > 0.05) & (out["intensity"] < 0.95)), out["intensity"]
+    t64, t32 = out["intensity_tolerance_float64"], out["intensity_tolerance_float32"]
+    assert np.all((4 * 2.0**-52 <= t64) & (t64 < 2.0**-30)), t64
+    assert np.all(t32 >= 4 * 2.0**-23)

@@ -12,6 +12,7 @@ so which rows fail is known without the code under test.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from moments_ref.msm import shadow_intensity
 from moments_ref.sweep.runner import Port, SweepSpec
@@ -156,3 +157,68 @@ def test_rows_are_told_apart_to_17_decimals():
         return [r for r in _rows({"depths": [z], "weights": [1.0], "zf": 0.5, "format": 0}) if r[2] == 0.5]
 
     assert rounded(1e-18) == [] and rounded(3e-17) == [([0.0], [1.0], 0.5, 0)]
+
+
+def test_a_texel_of_another_format_shrinks_to_the_plain_float32_texel_first():
+    # Algorithm 3 (shade) reads the texel's format: 0 is Φ of the float32 moments, 1 and 2 what the 64- and 32-bit
+    # texels decode to. A port wrong everywhere (2, outside [0, 1]) is shrunk first to the plain format, whose
+    # input r is Φ itself (computed here from the texel's biased moments), then to round numbers.
+    from moments_ref.moments import BIAS_FLOAT32, bias_moments, power_moments
+    from moments_ref.nonlinear import phi
+
+    spec = SweepSpec("shade-float32", Port(fn=lambda r, zf: np.full(len(zf), np.float32(2))))
+    texel, row, dispatches = shrink(spec, None, {"depths": [0.3712], "weights": [1.0], "zf": 0.6137, "format": 2})
+    assert texel["format"] == 0 and texel["depths"] == [0.0] and texel["zf"] in (-1.0, 0.0, 1.0), texel
+    b = bias_moments(power_moments(np.array([texel["depths"]], np.float32).astype(np.float64)).astype(np.float32),
+                     BIAS_FLOAT32)
+    np.testing.assert_allclose(row["inputs"]["r"], phi(b)[0], rtol=0, atol=2e-6)
+
+
+def test_weights_are_told_apart_to_17_decimals_too():
+    # a row tried before is not offered again; weights that agree to 17 decimals are the same row, weights that
+    # differ in the 17th are not (rounded half to even at the 17th decimal here: 1e-17 steps)
+    from moments_ref.sweep.shrink import candidates
+
+    def offered_after(w_seen, w_now):
+        seen = set()
+        candidates({"depths": [0.25, 0.75], "weights": [w_seen, 1 - w_seen], "zf": 0.5, "format": 0}, seen)
+        return candidates({"depths": [0.25, 0.75], "weights": [w_now, 1 - w_now], "zf": 0.5, "format": 0}, seen)
+
+    w = 0.012345678901234561  # the float64 number nearest; 1 - w and 1 - (w + 3e-18) are the same float64
+    assert 1 - w == 1 - (w + 3e-18) and np.round(w, 17) == np.round(w + 3e-18, 17) and w != w + 3e-18
+    assert offered_after(w, w + 3e-18) == []  # within the 17th decimal: every candidate was tried
+    assert np.round(w, 16) == np.round(w + 3e-17, 16) and np.round(w, 17) != np.round(w + 3e-17, 17)
+    assert offered_after(w, w + 3e-17) != []  # apart in the 17th decimal: a new row, its neighbours are new
+
+
+def _confirm_only_call(monkeypatch, k):
+    """judge.confirm made to confirm only its k-th call (1-based) of the whole shrink: ``calls`` counts them."""
+    from moments_ref.sweep import judge
+
+    calls = []
+
+    def confirm(case, inputs, got, port_dtype="float32"):
+        calls.append(len(next(iter(inputs.values()))))
+        return np.array([len(calls) == k])
+
+    monkeypatch.setattr(judge, "confirm", confirm)
+    return calls
+
+
+@pytest.mark.parametrize("k", [8, 9])
+def test_a_step_confirms_the_first_eight_flagged_candidates_one_row_each(monkeypatch, k):
+    # sweep/shrink.py's docstring: of a step's flagged candidates, the first 8 (simplest first) are confirmed in
+    # turn, each alone, and the first confirmed one is kept. A port wrong everywhere flags every candidate: the
+    # 8th confirmed is kept (the 8th candidate, then a second step), the 9th is never asked (no step is taken).
+    from moments_ref.sweep.shrink import candidates
+
+    t = {"depths": [0.123, -0.456], "weights": [0.3, 0.7], "zf": 0.9, "format": 0}
+    calls = _confirm_only_call(monkeypatch, k)
+    texel, row, dispatches = _shrink(lambda b, zf: np.ones(len(zf), bool), t)
+    assert calls[:8] == [1] * 8 and len(candidates(t)) > 9
+    if k == 8:
+        z, w, zf, fmt = candidates(t)[7]
+        assert texel == {"depths": z[w > 0].tolist(), "weights": w[w > 0].tolist(), "zf": zf, "format": fmt}
+        assert dispatches == 2 and row is not None
+    else:
+        assert len(calls) == 8 and texel == t and row is None and dispatches == 1

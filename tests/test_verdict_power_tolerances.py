@@ -1,4 +1,4 @@
-"""The power of the tests of golden/bilinear.py, golden/verifier.py, sweep/shrink.py and the diagnosis'
+"""The power of the tests of golden/bilinear.py, golden/verifier.py, sweep/shrink.py, golden/engine.py and the diagnosis'
 target group, kept: for each invariant, one mutant (written by moments_ref.tools.mutation) under which
 its test fails. As in tests/test_verdict_power.py, a mutant is found again by its id: a stale id fails.
 """
@@ -10,6 +10,8 @@ import pytest
 import test_bilinear_rows as bil_rows
 import test_bilinear_tolerances as bil
 import test_diagnosis_target as target
+import test_engine_precision as eng_precision
+import test_engine_rows as eng_rows
 import test_shrink_steps as shrink
 import test_verifier_sections as ver
 from _mutants import kept_mutant
@@ -18,6 +20,7 @@ BILINEAR = "moments_ref/golden/bilinear.py"
 VERIFIER = "moments_ref/golden/verifier.py"
 SHRINK = "moments_ref/sweep/shrink.py"
 DIAGNOSIS = "moments_ref/golden/diagnosis.py"
+ENGINE = "moments_ref/golden/engine.py"
 
 # (module, mutant, the test that must fail under it, its fixtures by name, its other arguments)
 EXAMPLES = [
@@ -45,6 +48,19 @@ EXAMPLES = [
      shrink.test_a_port_failing_below_a_receiver_depth_shrinks_to_round_numbers, (), ()),
     (SHRINK, "candidates::8 -> 7#0",
      shrink.test_depths_and_zf_are_rounded_to_0_to_7_decimals_and_weights_to_1_to_5, (), ()),
+    (BILINEAR, "_rows::20170724 -> 20170725#0",
+     lambda: bil_rows.test_the_rows_are_the_draws_docs_golden_states(bil_rows.fresh_rows()), (), ()),
+    (BILINEAR, "_intensity_arrays::np.float64 -> np.float32#2",
+     bil.test_a_float64_ports_tolerance_on_the_weight_grid_is_float64_sized, (), ()),
+    (SHRINK, "shrink::3 -> 2#0", shrink.test_a_texel_of_another_format_shrinks_to_the_plain_float32_texel_first, (), ()),
+    (SHRINK, "_key::np.round(w[w > 0], 17) -> w[w > 0]#0", shrink.test_weights_are_told_apart_to_17_decimals_too, (), ()),
+    (SHRINK, "shrink::8 -> 9#0", shrink.test_a_step_confirms_the_first_eight_flagged_candidates_one_row_each,
+     ("monkeypatch",), (9,)),
+    (ENGINE, "_legit_values::np.float32 -> np.float64#0",
+     eng_precision.test_a_float64_port_computing_in_float32_fails_the_float64_engine_case, (), ("engine-lower-float64",)),
+    (ENGINE, "_footprints::0 -> 1#2",
+     lambda: eng_rows.test_the_engine_rows_are_the_recipes_distributions_and_receivers(eng_rows.engine._engine_rows(
+         None, "float32")), (), ()),
     (DIAGNOSIS, "target_groups::~legit -> legit#0",
      target.test_rows_the_papers_target_misses_too_are_not_the_targets, ("singular",), ()),
 ]

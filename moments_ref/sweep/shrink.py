@@ -5,8 +5,11 @@ builds every simpler neighbour of the current row (:func:`candidates`, simplest 
 the plain float32 texel instead of a non-linear one, one depth fewer, equal weights,
 depths, weights and zf rounded to fewer decimals, zf at a round offset from a depth),
 runs them all in **one dispatch**, judges them with :func:`.judge.legitimate_interval`,
-and keeps the first that is still wrong and confirmed by :func:`.judge.confirm`. It stops
-when no neighbour fails (or after :data:`MAX_STEPS` steps).
+and keeps the first that is still wrong and confirmed by :func:`.judge.confirm`: of the
+flagged neighbours the first 8 are confirmed in turn (mpmath is costly), each alone, so that
+its confirmation depends on that row only (as when its row file is rerun). It stops when no
+neighbour fails (or after :data:`MAX_STEPS` steps). Rows are the same when their depths and
+weights (where the weight is positive) agree to 17 decimals, their zf and format exactly.
 """
 
 from __future__ import annotations
