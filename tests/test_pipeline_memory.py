@@ -1,5 +1,7 @@
 """Issue 41, memory: values released after their last use, banded steps that change no value."""
 
+import weakref
+
 import numpy as np
 import pytest
 
@@ -38,6 +40,35 @@ def test_release_follows_the_last_use():
     assert order == ["a", "b", "c", "d"] and set(values) == {"d"}
     order, values, _ = g.run(["d"], keep=("b",))
     assert set(values) == {"b", "d"}
+
+
+class _Texture:
+    """A stage's value that can be watched (weakref) for being freed."""
+
+
+@pytest.mark.parametrize("keep", [(), None])
+def test_a_timed_run_replaces_the_previous_value_when_values_are_released(keep):
+    # keep given (the report): each timed repeat's value replaces the previous run's, which is freed
+    # before the run (no second texture beside the first at the peak); keep=None: as before, the
+    # warm-up's value stays and the repeats' values are dropped
+    refs, alive_at_run = [], []
+
+    def make():
+        alive_at_run.append([r() is not None for r in refs])  # the earlier runs' values still held
+        value = _Texture()
+        refs.append(weakref.ref(value))
+        return value
+
+    g = StageGraph()
+    g.add(Stage("t", make, ()))
+    _, values, times = g.run(["t"], timed=("t",), repeats=3, keep=keep)
+    assert len(refs) == 4 and len(times["t"]) == 3
+    if keep is None:
+        assert alive_at_run[1:] == [[True], [True, False], [True, False, False]]
+        assert values["t"] is refs[0]()
+    else:
+        assert alive_at_run[1:] == [[False], [False, False], [False, False, False]]
+        assert values["t"] is refs[-1]()
 
 
 @pytest.mark.parametrize("shape", [(37, 50, 2), (5, 9, 4), (1, 1, 4), (70, 13, 4)])

@@ -80,7 +80,8 @@ class StageGraph:
                 values[name] = stage(*args)
                 times[name] = [clock() - t0]
                 if name in timed:
-                    more = [_timed(stage, args, clock) for _ in range(max(int(repeats), 1) - (not warmup))]
+                    more = [_timed(stage, args, clock, values, name, keep is not None)
+                            for _ in range(max(int(repeats), 1) - (not warmup))]
                     times[name] = more if warmup else times[name] + more
                 args = None
                 for d in () if last is None else last.get(name, ()):
@@ -106,10 +107,23 @@ def _last_use(nodes, order, kept):
     return out
 
 
-def _timed(stage, args, clock):
+def _timed(stage, args, clock, values, name, replace):
+    """Seconds of one more run of ``stage``; with ``replace`` its value takes the place of the previous run's.
+
+    Replacing (when values are released after their last use, ``keep``) frees the
+    previous run's value before the timed run instead of holding both: the stages
+    are deterministic, so the value is the same, and a texture stage's timed run no
+    longer doubles its output at the run's peak (docs/bench.md, "The report
+    pipeline's memory"). The freeing happens outside the clock.
+    """
+    if replace:
+        values[name] = None
     t0 = clock()
-    stage(*args)
-    return clock() - t0
+    value = stage(*args)
+    elapsed = clock() - t0
+    if replace:
+        values[name] = value
+    return elapsed
 
 
 def _stage_bar(progress, total, desc):
