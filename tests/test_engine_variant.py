@@ -15,7 +15,6 @@ Kept mutant (tests/_mutants.py): the visibility flag read as "any profile", show
 
 from __future__ import annotations
 
-from dataclasses import replace
 from math import comb
 
 import numpy as np
@@ -23,7 +22,7 @@ import pytest
 from mpmath import mp, mpf
 
 from moments_ref import precise
-from moments_ref.golden.cases import CASES
+from moments_ref.golden.cases import CASES, Case
 from moments_ref.golden.conventions import profiled_case
 from moments_ref.golden.engine import LEGIT_TARGETS, engine_specs, legit_biases
 from moments_ref.golden.profile import parse_profile
@@ -39,9 +38,37 @@ B = precise.bias_moments(np.stack([(_W * _Z**k).sum(1) for k in range(1, 5)], 1)
 INTERIOR = (0.05, 0.4, 0.02, 0.3)
 
 
+def _fresh(name):
+    """The case ``name`` built now from engine_specs (the case table's closures are built at import, before a
+    mutant's code is swapped in by the mutation tool or tests/_mutants.py)."""
+    dt = name.rsplit("-", 1)[1]
+    (spec,) = [s for s in engine_specs(dt) if s["name"] == name]
+    return Case(**spec)
+
+
 def _reference(profile, dt=np.float64):
-    case = profiled_case(CASES[f"engine-lower-{np.dtype(dt).name}"], parse_profile(profile))
+    case = profiled_case(_fresh(f"engine-lower-{np.dtype(dt).name}"), parse_profile(profile))
     return case, np.asarray(case.reference(B.astype(dt), ZF.astype(dt))[0], np.float64)
+
+
+@pytest.mark.parametrize("name, keys", [("engine-lower-float32", ("bias",)), ("engine-upper-float64", ("bias",)),
+                                        ("engine-nlq64-float32", ("bias", "clamp", "format")),
+                                        ("engine-nlq32-float64", ("bias", "clamp", "format"))])
+def test_each_engine_case_states_what_docs_golden_says(name, keys):
+    """An intensity in [0, 1] from four moments b1..b4 and zf; BIAS_FLOAT32 applied by the harness before the call
+    unless the profile declares another (the cases' descriptions, HPG17 §3.2); the NLQ cases also take the clamp and the
+    texel format."""
+    case = _fresh(name)
+    assert (case.inputs, case.outputs, case.value_range, case.width) == (("b", "zf"), ("intensity",), (0, 1), 4)
+    assert case.default_bias == ("before", BIAS_FLOAT32) and case.bias_before is True
+    assert tuple(case.profile_keys) == keys
+
+
+def test_the_fresh_cases_are_the_case_tables():
+    for name in ("engine-lower-float64", "engine-upper-float32", "engine-nlq64-float32", "engine-nlq32-float64"):
+        fresh, table = _fresh(name), CASES[name]
+        assert (fresh.function, fresh.kwargs, fresh.profile_keys, fresh.engine) == \
+            (table.function, table.kwargs, table.profile_keys, table.engine)
 
 
 def test_a_visibility_port_is_referenced_by_one_minus_the_bound():
@@ -90,8 +117,6 @@ def test_a_singular_target_is_judged_against_the_interior_targets_in_the_ports_f
 def test_kept_mutant_visibility_for_any_profile_is_seen():
     mid = ("_variant.variant::profile is not None and profile.output == 'visibility' -> "
            "profile is not None or profile.output == 'visibility'#0")
-    with kept_mutant("moments_ref/golden/engine.py", mid):  # the case table's closures predate the mutant: a fresh one
-        (spec,) = [s for s in engine_specs("float64") if s["name"] == "engine-lower-float64"]
-    case = profiled_case(replace(CASES["engine-lower-float64"], variant=spec["variant"]), parse_profile({"depth": "[0,1]"}))
-    ref = np.asarray(case.reference(B, ZF)[0], np.float64)
+    with kept_mutant("moments_ref/golden/engine.py", mid):
+        _, ref = _reference({"depth": "[0,1]"})
     assert abs(ref - precise.shadow_intensity(B, ZF)).max() > 0.1
