@@ -93,3 +93,24 @@ def test_the_span_holds_every_neighbour_of_the_ports_input():
         v = precise.shadow_intensity((b * f).astype(np.float32).astype(np.float64),
                                      (r * f).astype(np.float32).astype(np.float64))
         assert (lo <= v).all() and (v <= hi).all(), k
+
+
+def _nlq_rows(name):
+    rng = np.random.default_rng(7)
+    n = 40
+    z, w = rng.uniform(-1, 1, (n, 3)), rng.uniform(0.05, 1, (n, 3))
+    zf = np.clip(z.mean(1) + rng.normal(0, 0.1, n), -1, 1)
+    case = CASES[name]
+    return case, engine.engine_inputs(case, z, w, zf)
+
+
+@pytest.mark.parametrize("name, least", [("engine-nlq32-float32", 20), ("engine-nlq64-float32", 1)])
+def test_an_nlq_port_that_skips_the_quantization_is_confirmed_wrong(name, least):
+    """HPG17 §3.3/§3.5: the chain shades the moments after pack/unpack; Algorithm 1's exact bound on the unquantized
+    moments (mpmath) misses it by more than the margin on most 32-bit rows and on some 64-bit rows."""
+    from moments_ref import precise
+
+    case, inputs = _nlq_rows(name)
+    skipped = precise.shadow_intensity(inputs["b"].astype(np.float64), inputs["zf"].astype(np.float64))
+    assert engine.confirm(case, inputs, {"intensity": skipped}).sum() >= least
+
