@@ -72,9 +72,10 @@ def _round32(q):
     return float(best)
 
 
-def test_the_span_holds_every_neighbour_of_the_ports_input():
-    """Module docstring: the exact bound on b and zf scaled jointly by 1 ± k float32 ulps, k = 1, 2, 3, each one
-    (mpmath here); receivers just behind a depth, where the bound is steep and the neighbours' values not monotone in k."""
+@pytest.mark.parametrize("name", ["engine-lower-float32", "engine-upper-float64"])
+def test_the_span_holds_every_neighbour_of_the_ports_input(name):
+    """Module docstring: the exact bound on b and zf scaled jointly by 1 ± k ulps of the port's dtype, k = 0 … 3,
+    each one (mpmath here); receivers just behind a depth, where the bound is steep and the neighbours' values not monotone in k."""
     from moments_ref import precise
 
     rng = np.random.default_rng(381)
@@ -83,15 +84,16 @@ def test_the_span_holds_every_neighbour_of_the_ports_input():
     w = rng.uniform(0, 1, (n, 3)) * (rng.uniform(size=(n, 3)) < 0.7)
     w[:, 0] += 0.05
     zf = np.clip(z[:, 0] + rng.normal(0, 0.02, n), -1, 1)
-    case = CASES["engine-lower-float32"]
+    case = CASES[name]
+    bound = case.kwargs["bound"]
     inputs = engine.engine_inputs(case, z, w, zf)
     lo, hi = engine.exact_span(case, inputs)
     b, r = inputs["b"].astype(np.float64), inputs["zf"].astype(np.float64)
-    eps = float(np.finfo(np.float32).eps)
-    for k in (-3, -2, -1, 1, 2, 3):
+    dt = inputs["b"].dtype
+    eps = float(np.finfo(dt).eps)
+    for k in range(-3, 4):
         f = 1 + k * eps
-        v = precise.shadow_intensity((b * f).astype(np.float32).astype(np.float64),
-                                     (r * f).astype(np.float32).astype(np.float64))
+        v = precise.shadow_intensity((b * f).astype(dt).astype(np.float64), (r * f).astype(dt).astype(np.float64), bound)
         assert (lo <= v).all() and (v <= hi).all(), k
 
 
