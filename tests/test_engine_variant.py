@@ -120,3 +120,17 @@ def test_kept_mutant_visibility_for_any_profile_is_seen():
     with kept_mutant("moments_ref/golden/engine.py", mid):
         _, ref = _reference({"depth": "[0,1]"})
     assert abs(ref - precise.shadow_intensity(B, ZF)).max() > 0.1
+
+
+def test_a_declared_depth_decode_reaches_the_nlq32_reference():
+    """docs/formats.md (decode positions): 32-bit depths decode at the upper end of their cell, (ỹ + 1)/511.5 − 1, by
+    default; a port declaring `[format] depth_decode = "centre"` or `"lower"` reads every depth lower, so every
+    occluder moves toward the light and the shadow grows: intensities lower < centre < upper = default, on each row."""
+    ref = {}
+    for key, profile in (("default", {}), ("upper", {"format": {"depth_decode": "upper"}}),
+                         ("centre", {"format": {"depth_decode": "centre"}}),
+                         ("lower", {"format": {"depth_decode": "lower"}})):
+        case = profiled_case(_fresh("engine-nlq32-float64"), parse_profile(profile))
+        ref[key] = np.asarray(case.reference(B, ZF)[0], np.float64)
+    np.testing.assert_array_equal(ref["upper"], ref["default"])
+    assert (ref["lower"] > ref["centre"]).all() and (ref["centre"] > ref["upper"]).all()
