@@ -125,7 +125,8 @@ def test_kept_mutant_visibility_for_any_profile_is_seen():
 def test_a_declared_depth_decode_reaches_the_nlq32_reference():
     """docs/formats.md (decode positions): 32-bit depths decode at the upper end of their cell, (ỹ + 1)/511.5 − 1, by
     default; a port declaring `[format] depth_decode = "centre"` or `"lower"` reads every depth lower, so every
-    occluder moves toward the light and the shadow grows: intensities lower < centre < upper = default, on each row."""
+    occluder moves toward the light and the shadow grows: intensity(lower) > intensity(centre) > intensity(upper) =
+    intensity(default), on each row."""
     ref = {}
     for key, profile in (("default", {}), ("upper", {"format": {"depth_decode": "upper"}}),
                          ("centre", {"format": {"depth_decode": "centre"}}),
