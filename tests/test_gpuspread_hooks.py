@@ -1,0 +1,107 @@
+"""golden/gpuspread.py's hooks, second part: each evaluation is the one its docstring names, checked against the
+reference chain (golden/endtoend.py), the float64 filter (gpu/filtering.py) and Algorithm 1 (msm.py).
+
+* float32_filters: float32 arrays; the last is the filter with exact sums (float64) rounded once to float32.
+* block_spread: for each filter, the case's chain on that filter's moments cropped by the guard, then the two
+  nudged chains and the eight contracted ones; float32 ports only.
+* chain_spread: the chain with ξ4 nudged up and with it nudged down (two different evaluations, neither the plain
+  chain's everywhere).
+* nlq_chain_fused with no stage contracted is the reference chain bit for bit (the bias applied, float32 kept).
+* msm_spread: the Cholesky evaluation without and with fma (two different evaluations); msm_chain_fused(fma=None)
+  is the texel decoded, biased and bounded in float64 by Algorithm 1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from moments_ref import golden
+from moments_ref.affine import decode_unorm16, encode_unorm16
+from moments_ref.golden import gpuspread
+from moments_ref.golden.endtoend import nlq_chain
+from moments_ref.gpu.filtering import blur, resolve_moments
+from moments_ref.moments import BIAS_FLOAT32, BIAS_UNORM16, bias_moments
+from moments_ref.msm import shadow_intensity
+
+from _mutants import kept_mutant
+
+
+def _rows(n, seed):
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(-0.9, 0.9, (n, 3))
+    w = rng.dirichlet(np.ones(3), n)
+    b = np.stack([(w * z**j).sum(axis=1) for j in range(1, 5)], axis=1).astype(np.float32)
+    zf = np.clip(z[:, rng.integers(0, 3)] + rng.choice([-1, 1], n) * 10.0 ** rng.uniform(-4, -1, n), -1, 1)
+    return b, zf.astype(np.float32)
+
+
+def test_the_float32_filters_end_with_the_exact_filter_rounded_once():
+    depth = golden.golden_arrays(golden.CASES["e2e-block-nlq64-float32"])["depth"][0]
+    fs = gpuspread.float32_filters(depth.astype(np.float64))
+    assert len(fs) >= 2 and all(f.dtype == np.float32 and f.shape == depth.shape[:2] + (4,) for f in fs)
+    exact = blur(resolve_moments(depth.astype(np.float64)))
+    assert exact.dtype == np.float64
+    np.testing.assert_array_equal(fs[-1], exact.astype(np.float32))
+    assert not np.array_equal(fs[0], fs[-1])  # a float32 kernel's sums are not the exact ones
+
+
+@pytest.mark.parametrize("fmt", ["64", "32"])
+def test_the_block_hook_is_each_filter_then_each_chain_on_the_guarded_interior(fmt):
+    a = golden.golden_arrays(golden.CASES[f"e2e-block-nlq{fmt}-float32"])
+    depth, zf = a["depth"][:2], a["zf"][:2]
+    guard = (depth.shape[1] - zf.shape[1]) // 2
+    hook = gpuspread.block_spread(fmt, BIAS_FLOAT32, None, "stored", guard, nlq_chain)
+    assert hook({"depth": depth, "zf": zf}, np.float64) == []
+    outs = hook({"depth": depth, "zf": zf}, np.float32)
+    chains = 1 + 2 + len(gpuspread.FUSED_STAGES)
+    nf = len(gpuspread.float32_filters(depth[0]))
+    assert len(outs) == nf * chains
+    assert all(len(o) == 1 and o[0].dtype == np.float32 and o[0].shape == zf.shape for o in outs)
+    plain = nlq_chain(fmt, BIAS_FLOAT32)
+    for i in range(2):  # the exact filter (the last), cropped by the guard, then the case's chain
+        b = blur(resolve_moments(depth[i].astype(np.float64))).astype(np.float32)[guard:-guard, guard:-guard]
+        np.testing.assert_array_equal(outs[(nf - 1) * chains][0][i], plain(b, zf[i])[0])
+    ref = outs[(nf - 1) * chains][0]
+    for (v,) in outs:  # every evaluation near the exact filter's chain; not one repeated
+        assert np.abs(v.astype(np.float64) - ref).max() <= 0.05
+    assert len({o[0].tobytes() for o in outs}) > chains
+
+
+@pytest.mark.parametrize("fmt", ["64", "32"])
+def test_the_chain_hook_nudges_xi4_both_ways(fmt):
+    b, zf = _rows(3000, 7)
+    outs = gpuspread.chain_spread(fmt, BIAS_FLOAT32)({"b": b, "zf": zf}, np.float32)
+    plain = nlq_chain(fmt, BIAS_FLOAT32)(b, zf)[0]
+    up, down = outs[0][0], outs[1][0]
+    assert (up != plain).any() and (down != plain).any() and (up != down).any()
+
+
+@pytest.mark.parametrize("fmt", ["64", "32"])
+@pytest.mark.parametrize("bias", [BIAS_FLOAT32, None])
+def test_the_fused_chain_without_a_contracted_stage_is_the_reference_chain(fmt, bias):
+    b, zf = _rows(3000, 8)
+    v = gpuspread.nlq_chain_fused(fmt, bias, stages=(None, None, None))(b.astype(np.float64), zf)[0]
+    want = nlq_chain(fmt, bias)(b, zf)[0]
+    assert v.dtype == np.float32
+    np.testing.assert_array_equal(v, want)
+
+
+def test_the_msm_hook_has_two_evaluations_and_the_float64_stand_in_is_algorithm1():
+    b, zf = _rows(3000, 9)
+    outs = gpuspread.msm_spread(BIAS_UNORM16)({"b": b, "zf": zf}, np.float32)
+    assert len(outs) == 2 and (outs[0][0] != outs[1][0]).any()
+    assert all(o[0].dtype == np.float32 for o in outs)
+    v = gpuspread.msm_chain_fused(BIAS_UNORM16, None)(b, zf)[0]
+    bq = bias_moments(decode_unorm16(encode_unorm16(b), dtype=np.float64), BIAS_UNORM16)
+    want = shadow_intensity(bq, zf.astype(np.float64))
+    assert v.dtype == np.float64
+    np.testing.assert_array_equal(v, want)
+
+
+def test_kept_mutant_a_fused_chain_that_forgets_the_bias_is_seen():
+    b, zf = _rows(3000, 8)
+    want = nlq_chain("64", BIAS_FLOAT32)(b, zf)[0]
+    with kept_mutant("moments_ref/golden/gpuspread.py", "nlq_chain_fused.chain::bias is not None -> bias is None#0"):
+        v = gpuspread.nlq_chain_fused("64", BIAS_FLOAT32, stages=(None, None, None))(b, zf)[0]
+    assert (v != want).any()
