@@ -1,7 +1,7 @@
 """golden/gpuspread.py's hooks, second part: each evaluation is the one its docstring names, checked against the
 reference chain (golden/endtoend.py), the float64 filter (gpu/filtering.py) and Algorithm 1 (msm.py).
 
-* float32_filters: float32 arrays; the last is the filter with exact sums (float64) rounded once to float32.
+* float32_filters: float32 arrays of the depths read in float32; the last is the filter with exact sums (float64) rounded once to float32.
 * block_spread: for each filter, the case's chain on that filter's moments cropped by the guard, then the two
   nudged chains and the eight contracted ones; float32 ports only.
 * chain_spread: the chain with ξ4 nudged up and with it nudged down (two different evaluations, neither the plain
@@ -44,6 +44,11 @@ def test_the_float32_filters_end_with_the_exact_filter_rounded_once():
     assert exact.dtype == np.float64
     np.testing.assert_array_equal(fs[-1], exact.astype(np.float32))
     assert not np.array_equal(fs[0], fs[-1])  # a float32 kernel's sums are not the exact ones
+    # a GPU reads the depth buffer in float32: depths not representable in float32 are rounded first
+    d64 = depth.astype(np.float64) + np.random.default_rng(0).uniform(-1, 1, depth.shape) * 2.0**-30
+    assert not np.array_equal(d64, d64.astype(np.float32))
+    for f, g in zip(gpuspread.float32_filters(d64), gpuspread.float32_filters(d64.astype(np.float32))):
+        np.testing.assert_array_equal(f, g)
 
 
 @pytest.mark.parametrize("fmt", ["64", "32"])
