@@ -68,6 +68,8 @@ def test_the_block_hook_is_each_filter_then_each_chain_on_the_guarded_interior(f
         b = blur(resolve_moments(depth[i].astype(np.float64))).astype(np.float32)[guard:-guard, guard:-guard]
         np.testing.assert_array_equal(outs[(nf - 1) * chains][0][i], plain(b, zf[i])[0])
     ref = outs[(nf - 1) * chains][0]
+    up, down = outs[(nf - 1) * chains + 1][0], outs[(nf - 1) * chains + 2][0]  # the GPU's log and exp, up and down
+    assert (up != ref).any() and (down != ref).any() and (up != down).any()
     for (v,) in outs:  # every evaluation near the exact filter's chain; not one repeated
         assert np.abs(v.astype(np.float64) - ref).max() <= 0.05
     assert len({o[0].tobytes() for o in outs}) > chains
