@@ -11,15 +11,18 @@ standard deviations (or a bound of the same size), on a fixed seed:
   probability ¼: 10^U(−4, 0); else g₁/Σ₂⁶gᵢ is Beta-prime(1, 5));
 * a texel whose weights all vanish (Gamma(1, 1) can round to 0) is one depth of weight 1, never NaN;
 * ``near`` receivers: K uniform over the texel's depths, the offset's sign ± with probability ½;
-* the generator: the seed's 32 bits all count.
+* the generator: the seed's 32 bits all count;
+* Algorithm 3's ξ4 range as float32 bounds: the nearest float32 values inside it (exact rationals).
 """
 
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import mpmath
 import numpy as np
+import pytest
 
 from moments_ref.golden.cases import CASES
 from moments_ref.sweep import samplers
@@ -161,3 +164,13 @@ def test_kept_mutant_near_receivers_at_unused_slots_are_seen():
         z, zf = _near_rows(_chunks(0), 1)
     pick = np.argmin(np.abs(z - zf[:, None]), axis=1)
     assert not _sigma_ok((pick == 0).sum(), len(z), 0.5)
+
+
+@pytest.mark.parametrize("lo, hi", [(1.2e-7 * (1 - 2**-22), 0.25 + 1e-12), (0.5, 0.75), (-0.1, 0.1), (1.2e-7, 0.3)])
+def test_the_float32_bounds_are_the_nearest_inside(lo, hi):
+    """_inward32: the least float32 ≥ lo and the largest ≤ hi, compared in exact rationals."""
+    lo32, hi32 = samplers._inward32(lo, hi)
+    assert lo32.dtype == hi32.dtype == np.float32
+    f = Fraction
+    assert f(float(lo32)) >= f(lo) and f(float(np.nextafter(lo32, np.float32(-1)))) < f(lo)
+    assert f(float(hi32)) <= f(hi) and f(float(np.nextafter(hi32, np.float32(1)))) > f(hi)
