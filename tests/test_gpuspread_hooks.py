@@ -70,6 +70,9 @@ def test_the_block_hook_is_each_filter_then_each_chain_on_the_guarded_interior(f
     ref = outs[(nf - 1) * chains][0]
     up, down = outs[(nf - 1) * chains + 1][0], outs[(nf - 1) * chains + 2][0]  # the GPU's log and exp, up and down
     assert (up != ref).any() and (down != ref).any() and (up != down).any()
+    b = blur(resolve_moments(depth[0].astype(np.float64))).astype(np.float32)[guard:-guard, guard:-guard]
+    for v, s in ((up, 1), (down, -1)):
+        np.testing.assert_array_equal(v[0], gpuspread.nlq_chain_gpu(fmt, BIAS_FLOAT32, sign=s)(b, zf[0])[0])
     for (v,) in outs:  # every evaluation near the exact filter's chain; not one repeated
         assert np.abs(v.astype(np.float64) - ref).max() <= 0.05
     assert len({o[0].tobytes() for o in outs}) > chains
@@ -82,6 +85,9 @@ def test_the_chain_hook_nudges_xi4_both_ways(fmt):
     plain = nlq_chain(fmt, BIAS_FLOAT32)(b, zf)[0]
     up, down = outs[0][0], outs[1][0]
     assert (up != plain).any() and (down != plain).any() and (up != down).any()
+    # the two are the GPU chain of TRANSCENDENTAL_ULPS ulps up and down (its nudge checked in mpmath: test_gpuspread.py)
+    for v, s in ((up, 1), (down, -1)):
+        np.testing.assert_array_equal(v, gpuspread.nlq_chain_gpu(fmt, BIAS_FLOAT32, sign=s)(b, zf)[0])
 
 
 @pytest.mark.parametrize("fmt", ["64", "32"])
