@@ -174,3 +174,10 @@ def test_the_float32_bounds_are_the_nearest_inside(lo, hi):
     f = Fraction
     assert f(float(lo32)) >= f(lo) and f(float(np.nextafter(lo32, np.float32(-1)))) < f(lo)
     assert f(float(hi32)) <= f(hi) and f(float(np.nextafter(hi32, np.float32(1)))) > f(hi)
+
+
+def test_the_sweepable_cases_are_the_float32_cases_of_the_samplers():
+    assert samplers.sweepable("shade-float32") and samplers.sweepable("e2e-msm64-float32")
+    assert samplers.sweepable("shadow_intensity6-lower-float32")
+    assert not samplers.sweepable("shade-float64") and not samplers.sweepable("no-such-case-float32")
+    assert not samplers.sweepable("shade")  # a prefix alone is no case
