@@ -181,3 +181,21 @@ def test_the_sweepable_cases_are_the_float32_cases_of_the_samplers():
     assert samplers.sweepable("shadow_intensity6-lower-float32")
     assert not samplers.sweepable("shade-float64") and not samplers.sweepable("no-such-case-float32")
     assert not samplers.sweepable("shade")  # a prefix alone is no case
+
+
+def test_the_engine_cases_take_the_distribution_and_a_plain_profile_changes_nothing():
+    from moments_ref.golden.profile import Profile
+    from moments_ref.sweep import engine
+
+    case = CASES["engine-lower-float32"]
+    r = draw_rows(case, 3, 0, rows=500)
+    got = samplers.build_inputs(case, dict(r))
+    want = engine.engine_inputs(case, r["z"], r["w"], r["zf"])  # docs/sweep.md: the distribution, the engine's frame
+    assert set(got) == set(want) and all(np.array_equal(got[k], want[k]) for k in want)
+    # a profile that declares nothing converts nothing: the same inputs, and no contract rows recorded
+    shade = CASES["shade-float32"]
+    r = draw_rows(shade, 3, 0, rows=500)
+    plain = samplers.build_inputs(shade, dict(r))
+    params = dict(r)
+    under = samplers.build_inputs(shade, params, Profile())
+    assert "contract" not in params and all(np.array_equal(plain[k], under[k]) for k in plain)
