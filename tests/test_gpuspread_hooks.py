@@ -118,3 +118,53 @@ def test_kept_mutant_a_fused_chain_that_forgets_the_bias_is_seen():
     with kept_mutant("moments_ref/golden/gpuspread.py", "nlq_chain_fused.chain::bias is not None -> bias is None#0"):
         v = gpuspread.nlq_chain_fused("64", BIAS_FLOAT32, stages=(None, None, None))(b, zf)[0]
     assert (v != want).any()
+
+
+def test_tied_codes_are_the_channels_within_the_tie_band_of_a_rounding_boundary():
+    """tied_codes on texels built from chosen scaled values v = 65535·q (q = M·b + c, HPG17 Eq. (3)'s affine basis):
+    a channel is tied exactly when frac(v) is within CHAIN_TIE·65535 of ½, and its other code is the other end of
+    that rounding; the codes are the float32 encoder's (affine.encode_unorm16)."""
+    from moments_ref.affine import from_optimized
+    from moments_ref.golden.truth import CHAIN_TIE
+
+    rng = np.random.default_rng(12)
+    k = rng.integers(0, 65535, (4000, 4)).astype(np.float64)
+    frac = rng.uniform(0, 1, (4000, 4))
+    band = CHAIN_TIE * 65535
+    frac = np.where(np.abs(np.abs(frac - 0.5) - band) < 1e-3, 0.5, frac)  # keep clear of the band's edges
+    v = k + frac
+    b = from_optimized(v / 65535)
+    codes, alt, tied = gpuspread.tied_codes(b)
+    np.testing.assert_array_equal(codes, encode_unorm16(b.astype(np.float32)))
+    assert codes.dtype == alt.dtype == np.uint16 and tied.dtype == bool and tied.shape == (4000, 4)
+    want = np.abs(frac - 0.5) <= band
+    assert 0.3 < want.mean() < 0.7
+    np.testing.assert_array_equal(tied, want & ((codes == k) | (codes == k + 1)))
+    assert (tied == want).mean() > 0.999  # the float32 encoder rounds to an end of its rounding
+    got = np.sort(np.stack([codes, alt], -1).astype(np.int64), axis=-1)
+    np.testing.assert_array_equal(got[tied], np.stack([k, k + 1], -1)[tied])  # the two ends of the tie
+    np.testing.assert_array_equal(alt[~tied], codes[~tied])  # no tie: no other code
+    assert gpuspread.TIE_SUBSETS[0] == (0,) and len(gpuspread.TIE_SUBSETS) == 15 and gpuspread.TIE_SUBSETS[-1] == (0, 1, 2, 3)
+
+
+def test_the_msm_full_hook_evaluates_each_tie_subset_on_its_rows_only():
+    from moments_ref.affine import from_optimized
+
+    rng = np.random.default_rng(13)
+    v = rng.integers(0, 65535, (300, 4)) + np.where(rng.random((300, 4)) < 0.6, 0.5, 0.1)  # ties on 60 % of channels
+    b = from_optimized(v / 65535).astype(np.float32)
+    zf = rng.uniform(-1, 1, 300).astype(np.float32)
+    full = gpuspread.msm_spread(BIAS_UNORM16).full
+    assert full({"b": b, "zf": zf}, np.float64) == []
+    outs = full({"b": b, "zf": zf}, np.float32)
+    tied = gpuspread.tied_codes(b)[2]
+    subsets = [f for f in gpuspread.TIE_SUBSETS if tied[:, list(f)].all(axis=1).any()]
+    assert len(subsets) == 15 and len(outs) == 3 * len(subsets)  # without fma, with fma, float64
+    for i, f in enumerate(subsets):
+        rows = tied[:, list(f)].all(axis=1)
+        for j in range(3):
+            (x,) = outs[3 * i + j]
+            assert np.isnan(x[~rows]).all() and not np.isnan(x[rows]).all()
+        np.testing.assert_array_equal(outs[3 * i + 2][0][rows],
+                                      gpuspread.msm_chain_fused(BIAS_UNORM16, None, f)(b[rows], zf[rows])[0])
+        assert (outs[3 * i][0][rows] != outs[3 * i + 2][0][rows]).any()  # float32 and float64 evaluations
