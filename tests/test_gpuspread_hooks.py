@@ -168,3 +168,35 @@ def test_the_msm_full_hook_evaluates_each_tie_subset_on_its_rows_only():
         np.testing.assert_array_equal(outs[3 * i + 2][0][rows],
                                       gpuspread.msm_chain_fused(BIAS_UNORM16, None, f)(b[rows], zf[rows])[0])
         assert (outs[3 * i][0][rows] != outs[3 * i + 2][0][rows]).any()  # float32 and float64 evaluations
+
+
+def test_the_tie_band_edges_and_the_codes_ends():
+    """At the band's edge (CHAIN_TIE·65535 from ½, a hair of 1e-6 code wider for float64's rounding): tied just inside,
+    not just outside; a tie at the range's ends keeps both codes in 0 … 65535; beyond the range nothing is tied."""
+    from moments_ref.affine import from_optimized
+    from moments_ref.golden.truth import CHAIN_TIE
+
+    band = CHAIN_TIE * 65535
+    v = np.array([[1000.5 + band + 0.7e-6, 2000.5 - band - 0.7e-6, 3000.5 + band + 1.7e-6, 4000.5 - band - 1.7e-6],
+                  [0.5, 65534.5, 65535.5, 1.5]])
+    codes, alt, tied = gpuspread.tied_codes(from_optimized(v / 65535))
+    np.testing.assert_array_equal(tied, [[True, True, False, False], [True, True, False, True]])
+    assert {int(codes[1, 0]), int(alt[1, 0])} == {0, 1} and {int(codes[1, 1]), int(alt[1, 1])} == {65534, 65535}
+    assert codes[1, 2] == alt[1, 2] == 65535
+
+
+def test_a_flipped_chain_is_nan_exactly_off_its_ties():
+    from moments_ref.affine import from_optimized
+
+    rng = np.random.default_rng(14)
+    v = rng.integers(0, 65535, (400, 4)) + np.where(rng.random((400, 4)) < 0.5, 0.5, 0.1)
+    b = from_optimized(v / 65535).astype(np.float32)
+    zf = rng.uniform(-1, 1, 400).astype(np.float32)
+    tied = gpuspread.tied_codes(b)[2]
+    for flip in ((0,), (1, 3)):
+        for fma in (False, True, None):
+            x = gpuspread.msm_chain_fused(BIAS_UNORM16, fma, flip)(b, zf)[0]
+            rows = tied[:, list(flip)].all(axis=1)
+            assert np.isnan(x[~rows]).all() and np.isfinite(x[rows]).any()  # random codes: not all valid moments
+    full = gpuspread.msm_spread(BIAS_UNORM16).full({"b": b, "zf": zf}, np.float32)
+    assert any((full[i][0] != full[i + 1][0])[~np.isnan(full[i][0])].any() for i in range(0, len(full), 3))  # fma
