@@ -178,11 +178,11 @@ def test_the_tie_band_edges_and_the_codes_ends():
 
     band = CHAIN_TIE * 65535
     v = np.array([[1000.5 + band + 0.7e-6, 2000.5 - band - 0.7e-6, 3000.5 + band + 1.7e-6, 4000.5 - band - 1.7e-6],
-                  [0.5, 65534.5, 65535.5, 1.5]])
+                  [0.5, 65534.5, 65535.5, -0.5]])
     codes, alt, tied = gpuspread.tied_codes(from_optimized(v / 65535))
-    np.testing.assert_array_equal(tied, [[True, True, False, False], [True, True, False, True]])
+    np.testing.assert_array_equal(tied, [[True, True, False, False], [True, True, False, False]])
     assert {int(codes[1, 0]), int(alt[1, 0])} == {0, 1} and {int(codes[1, 1]), int(alt[1, 1])} == {65534, 65535}
-    assert codes[1, 2] == alt[1, 2] == 65535
+    assert codes[1, 2] == alt[1, 2] == 65535 and codes[1, 3] == alt[1, 3] == 0  # clamped: one code, no tie
 
 
 def test_a_flipped_chain_is_nan_exactly_off_its_ties():
