@@ -200,3 +200,19 @@ def test_a_flipped_chain_is_nan_exactly_off_its_ties():
             assert np.isnan(x[~rows]).all() and np.isfinite(x[rows]).any()  # random codes: not all valid moments
     full = gpuspread.msm_spread(BIAS_UNORM16).full({"b": b, "zf": zf}, np.float32)
     assert any((full[i][0] != full[i + 1][0])[~np.isnan(full[i][0])].any() for i in range(0, len(full), 3))  # fma
+
+
+@pytest.mark.parametrize("fmt", ["64", "32"])
+def test_the_gpu_chain_nudges_as_the_logs_before_encoding_and_as_the_exps_after_decoding(fmt):
+    """Ψ4's logs act when the texel is encoded, Ψ4⁻¹'s exps when it is decoded (HPG17 Eq. (5) and its inverse): the
+    GPU chain is the reference chain with those two nudges (each checked in mpmath in tests/test_gpuspread.py)."""
+    from moments_ref.golden.variants import shade_reference
+    from moments_ref.nonlinear import SHADE_TOLERANCE, phi
+    from moments_ref.packing import pack32, pack64, unpack32, unpack64
+
+    b, zf = _rows(3000, 15)
+    for s in (1, -1):
+        r = gpuspread._nudge_xi(phi(bias_moments(b, BIAS_FLOAT32)), s, decoded=False)
+        r = unpack64(pack64(r), dtype=np.float32) if fmt == "64" else unpack32(pack32(r), dtype=np.float32)
+        want = shade_reference(SHADE_TOLERANCE, "stored")(gpuspread._nudge_xi(r, s, decoded=True), zf)[0]
+        np.testing.assert_array_equal(gpuspread.nlq_chain_gpu(fmt, BIAS_FLOAT32, sign=s)(b, zf)[0], want)
