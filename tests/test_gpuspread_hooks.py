@@ -216,3 +216,13 @@ def test_the_gpu_chain_nudges_as_the_logs_before_encoding_and_as_the_exps_after_
         r = unpack64(pack64(r), dtype=np.float32) if fmt == "64" else unpack32(pack32(r), dtype=np.float32)
         want = shade_reference(SHADE_TOLERANCE, "stored")(gpuspread._nudge_xi(r, s, decoded=True), zf)[0]
         np.testing.assert_array_equal(gpuspread.nlq_chain_gpu(fmt, BIAS_FLOAT32, sign=s)(b, zf)[0], want)
+
+
+def test_kept_mutant_a_tie_band_around_a_quarter_is_seen():
+    """tied_codes measuring the distance to k + ¼ instead of k + ½ ties other channels than the band's."""
+    from moments_ref.affine import from_optimized
+
+    v = np.array([[10.5, 20.5, 30.25, 40.1]])
+    with kept_mutant("moments_ref/golden/gpuspread.py", "tied_codes::0.5 -> 0.25#0"):
+        tied = gpuspread.tied_codes(from_optimized(v / 65535))[2]
+    assert not np.array_equal(tied, [[True, True, False, False]])  # the band's own ties (test above)

@@ -199,3 +199,24 @@ def test_the_engine_cases_take_the_distribution_and_a_plain_profile_changes_noth
     params = dict(r)
     under = samplers.build_inputs(shade, params, Profile())
     assert "contract" not in params and all(np.array_equal(plain[k], under[k]) for k in plain)
+
+
+def _spread_stat(r):
+    pair = _cluster_gaps(r)[1]
+    return np.log10(pair).mean(), -3.5 + (math.log(2) - 1.5) / math.log(10)
+
+
+def _dirichlet_stat(r):
+    texel, _ = _kinds(r)
+    w = r["w"][texel == 2]
+    return ((w[:, 1] / (w[:, 1] + w[:, 2]) - 0.5)**2).mean()
+
+
+def test_kept_mutants_a_wider_cluster_spread_and_a_gamma_of_shape_half_are_seen():
+    """s = 10^U(−7, −1) shifts E log10 |z1 − z2| by −½; Gamma(½, 1) weights make w₂/(w₂ + w₃) Beta(½, ½) (E (x − ½)² = 1/8)."""
+    with kept_mutant("moments_ref/sweep/samplers.py", "draw_texels::6 -> 7#0"):
+        got, want = _spread_stat(_chunks(0))
+    assert abs(got - want - (-0.5)) < 0.15
+    with kept_mutant("moments_ref/sweep/samplers.py", "draw_texels::1.0 -> 0.5#0"):
+        d = _dirichlet_stat(_chunks(0))
+    assert abs(d - 1 / 8) < 0.01
