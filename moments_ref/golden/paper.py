@@ -80,8 +80,8 @@ def slides_bound(b, zf, bound="lower", dtype=np.float32):
 def printed_bound(b, zf, bound="lower", dtype=np.float32):
     """HPG17 Algorithm 1 as printed, operation by operation in ``dtype``: B(b) q = (1, zf, zf²) through
     B = L D Lᵀ, the roots of q2 z² + q1 z + q0 by the textbook formula, the weights of the Vandermonde
-    system (step 4) in closed form, the sum of the weights of z_l < zf (upper: ≤). NaN where it divides
-    by zero; nothing is saturated."""
+    system (step 4) in closed form, the sum of the weights of z_l < zf (upper: ≤), clipped to [0, 1] (the
+    algorithm's bound is a probability). NaN where it divides by zero: a NaN is kept, never clipped."""
     t = np.dtype(dtype).type
     b = np.asarray(b).astype(dtype)
     z0 = np.asarray(zf).astype(dtype)
