@@ -196,6 +196,16 @@ def _singular_rows(b, sigma2, xi4, finite, c):
     return np.logical_not(regular, out=regular)
 
 
+def _forward(zf, b1, b2, l32, y2, y3, t):
+    """Forward substitution L y = (1, zf, zf²) of HPG17 Algorithm 1, step 2, into ``y2``, ``y3`` (``t`` scratch):
+    y2 = zf − b1, y3 = zf² − b2 − L32 y2 (y1 = 1)."""
+    np.subtract(zf, b1, out=y2)
+    np.multiply(zf, zf, out=y3)
+    np.subtract(y3, b2, out=y3)
+    np.multiply(l32, y2, out=t)
+    np.subtract(y3, t, out=y3)
+
+
 def _solve(b, zf, sigma2, l32, xi4, ws):
     """Step (2): ``B(b) q = (1, zf, zf²)``, and ``w0 = 1 / ((1, zf, zf²) B⁻¹ (1, zf, zf²)ᵀ)``.
 
@@ -207,11 +217,7 @@ def _solve(b, zf, sigma2, l32, xi4, ws):
     q0, q1, q2, w0, y2, t = ws[3], ws[4], ws[5], ws[6], ws[7], ws[8]
     # Forward substitution to solve L y = (1, zf, zf²): y1 = 1 (y3 lives in q0 until q2 is known).
     y3 = q0
-    np.subtract(zf, b1, out=y2)
-    np.multiply(zf, zf, out=y3)
-    np.subtract(y3, b2, out=y3)
-    np.multiply(l32, y2, out=t)
-    np.subtract(y3, t, out=y3)
+    _forward(zf, b1, b2, l32, y2, y3, t)
     # Scaling to solve D c = y: c1 = 1, c2 = y2/σ² (in q1 until the back substitution), c3 = q2.
     c2 = q1
     np.divide(y2, sigma2, out=c2)
@@ -367,11 +373,7 @@ def _roots_about_zf(b, zf, c):
     np.add(xi, t, out=xi)
     np.subtract(b4, xi, out=xi)
     # Forward substitution to solve L y = (1, zf, zf²): y2 = zf − b1, y3 = zf² − b2 − L32 y2.
-    np.subtract(zf, b1, out=y2)
-    np.multiply(zf, zf, out=y3)
-    np.subtract(y3, b2, out=y3)
-    np.multiply(l32, y2, out=t)
-    np.subtract(y3, t, out=y3)
+    _forward(zf, b1, b2, l32, y2, y3, t)
     # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (in cm1).
     c2 = k
     np.divide(y2, s2, out=c2)
