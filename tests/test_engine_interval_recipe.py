@@ -74,7 +74,19 @@ _ERRING = ([[-0.8789022976393828, 0, 0, 0], [0.025824136491511718, -0.6332313249
            [[0.54697707448205, 0, 0, 0], [0.5962321401305076, 1.6654894413910988, 0, 0],
             [1.9300070960562692, 0.1697104643694864, 0, 0], [1.420258089452696, 1.7728397097218662, 0, 0]],
            [-0.8791359700123125, -0.6330159478494031, -0.7512969822113511, -0.7678955343005982])
-ROWS = {"hand": _rows(), "random": _random_rows(), "erring": tuple(np.array(x, np.float64) for x in _ERRING)}
+def _tie_rows():
+    """Distributions whose moments have a float32 mantissa of 1.5 (0.75 = 1.5 · 2^-1): there b (1 ± ε) lies exactly
+    half-way between two float32 numbers, and b / (1 ∓ ε) does not, so the moved inputs are exactly the recipe's."""
+    dists = [([0.75], [1.0]), ([-0.375], [2.0]), ([0.75, -0.5], [1.0, 1.0]), ([-0.75, 0.25], [3.0, 1.0])]
+    sup, mass, zf = [], [], []
+    for z, w in dists:
+        for d in z:
+            for r in (d - 1e-3, d - 2e-7, d - 6e-8, d, d + 6e-8, d + 2e-7, d + 1e-3):
+                sup.append(np.pad(z, (0, 4 - len(z)))), mass.append(np.pad(w, (0, 4 - len(w)))), zf.append(r)
+    return np.array(sup, np.float64), np.array(mass, np.float64), np.array(zf, np.float64)
+
+
+ROWS = {"hand": _rows(), "ties": _tie_rows(), "random": _random_rows(), "erring": tuple(np.array(x, np.float64) for x in _ERRING)}
 SUP, MASS, ZF = (np.concatenate([r[i] for r in ROWS.values()]) for i in range(3))
 SIGN = np.array([1.0, -1.0, 1.0, -1.0])
 
@@ -205,7 +217,7 @@ def _check(ctx, b, legit, own_legit):
             assert not bad.any(), (d, "lo" if end == 0 else "hi", np.flatnonzero(bad)[:5], g[bad][:3], w[bad][:3])
 
 
-def _port_input(before, dt=np.float32):
+def _port_input(before, dt=np.float32):  # the harness's b: float32 unless a float64 port
     return engine.moments_of_rows(SUP, MASS, np.dtype(dt), bias=before)
 
 
@@ -213,10 +225,10 @@ def _preset(alpha, target):
     return BiasPreset(alpha, tuple(target), "t")
 
 
-@pytest.mark.parametrize("bound", ["lower", "upper"])
-def test_undeclared_the_harness_bias_alone_and_the_ports_pipeline_on_its_input(bound):
+@pytest.mark.parametrize("bound, dt", [("lower", np.float32), ("upper", np.float32), ("lower", np.float64)])
+def test_undeclared_the_harness_bias_alone_and_the_ports_pipeline_on_its_input(bound, dt):
     ctx = _ctx(before=BIAS_FLOAT32, bound=bound)
-    _check(ctx, _port_input(BIAS_FLOAT32), [BIAS_FLOAT32], True)
+    _check(ctx, _port_input(BIAS_FLOAT32, dt), [BIAS_FLOAT32], True)
 
 
 @pytest.mark.parametrize("fmt, clamp_test", [("64", None), ("32", None), ("64", "clamped")])
@@ -238,8 +250,9 @@ def test_a_declared_bias_applied_before_the_call():
     _check(ctx, _port_input(p), [p], True)
 
 
-def test_no_bias_at_all_admits_both_presets_and_the_unbiased_pipeline():
-    _check(_ctx(), _port_input(None), [BIAS_FLOAT32, BIAS_UNORM16], True)
+@pytest.mark.parametrize("dt", [np.float32, np.float64])
+def test_no_bias_at_all_admits_both_presets_and_the_unbiased_pipeline(dt):
+    _check(_ctx(), _port_input(None, dt), [BIAS_FLOAT32, BIAS_UNORM16], True)
 
 
 def test_an_own_bias_equal_to_one_of_several_legitimate_ones_is_legitimate():
