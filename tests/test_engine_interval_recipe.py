@@ -86,13 +86,27 @@ def _tie_rows():
     return np.array(sup, np.float64), np.array(mass, np.float64), np.array(zf, np.float64)
 
 
-ROWS = {"hand": _rows(), "ties": _tie_rows(), "random": _random_rows(), "erring": tuple(np.array(x, np.float64) for x in _ERRING)}
+def _cluster_rows(n=300):
+    """Tight clusters of 1, 2 or 4 depths (spread 1e-7 to 1) with a receiver 1e-7 to 0.1 away: unbiased, their
+    moments are (nearly) singular, Φ's y2 lies within the clamp of y1 and the bound moves steeply."""
+    rng = np.random.default_rng(3802)
+    k = np.repeat([1, 2, 4], n // 3)
+    c = rng.uniform(-1, 1, (len(k), 1))
+    spread = rng.uniform(-1, 1, (len(k), 4)) * 10 ** rng.uniform(-7, 0, (len(k), 1))
+    sup = np.where(np.arange(4) < k[:, None], np.clip(c + spread, -1, 1), 0.0)
+    mass = np.where(np.arange(4) < k[:, None], rng.uniform(0.05, 2, (len(k), 4)), 0.0)
+    zf = np.clip(c[:, 0] + rng.uniform(-1, 1, len(k)) * 10 ** rng.uniform(-7, -1, len(k)), -1, 1)
+    return sup, mass, zf
+
+
+ROWS = {"hand": _rows(), "ties": _tie_rows(), "clusters": _cluster_rows(), "random": _random_rows(), "erring": tuple(np.array(x, np.float64) for x in _ERRING)}
 SUP, MASS, ZF = (np.concatenate([r[i] for r in ROWS.values()]) for i in range(3))
 SIGN = np.array([1.0, -1.0, 1.0, -1.0])
 
 
-def _ctx(before=None, inside=None, alpha=None, target=None, fmt=None, bound="lower", unit=False, clamp_test=None):
-    return {"fmt": fmt, "bound": bound, "clamp": None, "clamp_test": clamp_test, "texel": {}, "unit": unit,
+def _ctx(before=None, inside=None, alpha=None, target=None, fmt=None, bound="lower", unit=False, clamp_test=None,
+         clamp=None):
+    return {"fmt": fmt, "bound": bound, "clamp": clamp, "clamp_test": clamp_test, "texel": {}, "unit": unit,
             "visibility": False, "before": before, "inside": inside, "alpha": alpha, "target": target}
 
 
@@ -107,7 +121,7 @@ def _f64(v):
 def _bound(ctx, p, d):
     """Algorithm 1 (or the NLQ chain) biased by ``p`` in precision ``d``, as (b, zf) -> float64."""
     if ctx["fmt"] is not None:
-        c = nlq_chain(ctx["fmt"], p, None, ctx["clamp_test"] or "stored", {})
+        c = nlq_chain(ctx["fmt"], p, ctx["clamp"], ctx["clamp_test"] or "stored", {})
         return lambda b, zf: _f64(c(b.astype(d), zf.astype(d))[0])
     return lambda b, zf: _f64(shadow_intensity(b.astype(d) if p is None else bias_moments(b.astype(d), p),
                                                zf.astype(d), bound=ctx["bound"]))
@@ -117,7 +131,7 @@ def _others32(ctx, p):
     """The float32 formulations besides this package's: the papers' printed ones, or the NLQ chain with a GPU's
     log and exp (each way)."""
     if ctx["fmt"] is not None:
-        cs = [nlq_chain_gpu(ctx["fmt"], p, None, ctx["clamp_test"] or "stored", sign=s, texel={}) for s in (1, -1)]
+        cs = [nlq_chain_gpu(ctx["fmt"], p, ctx["clamp"], ctx["clamp_test"] or "stored", sign=s, texel={}) for s in (1, -1)]
         return [lambda b, zf, c=c: _f64(c(b.astype(np.float32), zf.astype(np.float32))[0]) for c in cs]
     g = (lambda b: b.astype(np.float32)) if p is None else (lambda b: bias_moments(b.astype(np.float32), p))
     return [lambda b, zf, h=h: _f64(h(g(b), zf, ctx["bound"], np.float32)) for h in (printed_bound, slides_bound)]
@@ -127,7 +141,7 @@ def _contracted32(ctx, p):
     """The float32 chain as a compiler contracts it: the bias plain, fused either way, as ``mix`` either way,
     then the shipped Cholesky with and without fma; for NLQ, every contracted stage triple."""
     if ctx["fmt"] is not None:
-        cs = [nlq_chain_fused(ctx["fmt"], p, None, ctx["clamp_test"] or "stored", stages=s,
+        cs = [nlq_chain_fused(ctx["fmt"], p, ctx["clamp"], ctx["clamp_test"] or "stored", stages=s,
                               texel={}) for s in FUSED_STAGES]
         return [lambda b, zf, c=c: _f64(c(b.astype(np.float32), zf.astype(np.float32))[0]) for c in cs]
     forms = [lambda b: b] if p is None else [
@@ -231,11 +245,19 @@ def test_undeclared_the_harness_bias_alone_and_the_ports_pipeline_on_its_input(b
     _check(ctx, _port_input(BIAS_FLOAT32, dt), [BIAS_FLOAT32], True)
 
 
-@pytest.mark.parametrize("fmt, clamp_test", [("64", None), ("32", None), ("64", "clamped")])
-def test_the_nlq_chains_interval_is_the_listed_chains_and_no_other(fmt, clamp_test):
-    # the profile's clamp test ("clamped": y2 raised to y1 + clamp first, golden.variants) in every chain
-    ctx = _ctx(before=BIAS_FLOAT32, fmt=fmt, clamp_test=clamp_test)
-    _check(ctx, _port_input(BIAS_FLOAT32), [BIAS_FLOAT32], True)
+@pytest.mark.parametrize("fmt, clamp, clamp_test", [("64", None, None), ("32", None, None), ("64", 1 / 65535, "clamped")])
+def test_the_nlq_chains_interval_is_the_listed_chains_and_no_other(fmt, clamp, clamp_test):
+    # the profile's clamp and clamp test ("clamped": y2 raised to y1 + clamp first, golden.variants) in every chain
+    if clamp_test is None:
+        ctx = _ctx(before=BIAS_FLOAT32, fmt=fmt, clamp=clamp)
+        _check(ctx, _port_input(BIAS_FLOAT32), [BIAS_FLOAT32], True)
+        return
+    # a port that biases nothing: its own chain on the unbiased moments, where the case tests differ
+    ctx = _ctx(fmt=fmt, clamp=clamp, clamp_test=clamp_test)
+    legit = [BIAS_FLOAT32, BIAS_UNORM16]
+    plain, clamped = (_expected(c, _port_input(None), legit, True) for c in (dict(ctx, clamp_test=None), ctx))
+    assert not all(np.array_equal(plain[d][e], clamped[d][e], equal_nan=True) for d in plain for e in (0, 1))
+    _check(ctx, _port_input(None), legit, True)
 
 
 def test_a_declared_interior_bias_inside_is_the_one_legitimate_bias():
