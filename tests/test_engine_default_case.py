@@ -61,3 +61,11 @@ def test_the_default_case_keeps_the_papers_depth_frame(name):
     assert np.array_equal(arrays["support"], z) and np.array_equal(arrays["zf"], zf.astype(case.dtype))
     b = bias_moments((w[:, :, None] * z[:, :, None] ** np.arange(1, 5)).sum(1) / w.sum(1)[:, None], BIAS_FLOAT32)
     assert np.allclose(arrays["b"], b, rtol=1e-6, atol=1e-7)
+
+
+def test_kept_mutant_a_default_case_returning_visibility_is_seen():
+    from _mutants import kept_mutant
+
+    with kept_mutant("moments_ref/golden/engine.py", "_default_ctx::False -> True#1"):
+        with pytest.raises(AssertionError):
+            test_the_default_reference_is_algorithm_1_on_the_harness_biased_input_as_an_intensity("engine-lower-float32")

@@ -332,3 +332,23 @@ def test_each_rows_comment_gives_the_distributions_exact_z():
                                ["random"] * 3, ["r"] * 3, [()] * 3)
     got = [float(str(c).rsplit("= ", 1)[1]) for c in out["comment"]]
     assert got == pytest.approx(want, rel=1e-8), got
+
+
+@pytest.mark.parametrize("mid, test", [
+    # the port's own input moved by 2 ulps instead of one
+    ("_own_values::1.0 -> 2.0#0", lambda: test_a_declared_interior_bias_inside_is_the_one_legitimate_bias()),
+    # the unbiased moments' sign pattern paired (+, +, −, −)
+    ("_legit_values::np.arange(4) % 2 -> np.arange(4) // 2#0",
+     lambda: test_undeclared_the_harness_bias_alone_and_the_ports_pipeline_on_its_input("lower", np.float32)),
+    # a declared bias matched within 2e-12 instead of 1e-12
+    ("_same_bias::1e-12 -> 2e-12#0", lambda: test_a_declared_bias_is_the_legitimate_one_only_within_a_relative_1e_12(
+        1.5e-12, False)),
+    # the NLQ chain's GPU log and exp one way only
+    ("_chain::-1 -> 1#0", lambda: test_the_nlq_chains_interval_is_the_listed_chains_and_no_other("64", None, None)),
+])
+def test_kept_mutants_of_the_interval_are_seen(mid, test):
+    from _mutants import kept_mutant
+
+    with kept_mutant("moments_ref/golden/engine.py", mid):
+        with pytest.raises(AssertionError):
+            test()
