@@ -107,3 +107,11 @@ def test_the_sampled_refusal_agrees_with_the_judge_on_every_row(tmp_path, base, 
         judge(name, p, rows, *a) if rows is None else type("Nothing", (), {"failures": 0})()))
     without = [(g.level, g.flags, g.rows) for g in _verify(tmp_path, gdir, got, profile).groups]
     assert with_sample == without
+
+
+def test_kept_mutant_ill_rows_in_the_sample_refuse_the_right_declaration(tmp_path, base):
+    from _mutants import kept_mutant
+
+    with kept_mutant("moments_ref/golden/diagnosis.py", "_declaration_groups::~ill -> ill#0"):
+        with pytest.raises(AssertionError):
+            test_a_right_declaration_is_not_refused_by_an_unjudged_ill_row_in_the_sample(tmp_path, base)
