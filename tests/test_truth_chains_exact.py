@@ -270,7 +270,7 @@ def _cells32(y):
 
 @pytest.mark.parametrize("y1, y2, zf", [
     ("0.9985", "0.9995", 0.999),  # y1 and y2 in the last cell, 1022: decoded at its upper end, 1; zf below: 0
-    ("1.000001", "1.000002", 0.5),  # beyond the range: saturated to 1, the last cell (not a 1023rd)
+    ("1.001", "1.01", 0.5),  # beyond the range: saturated to 1, the last cell (not a 1023rd)
 ])
 def test_nlq_chain_32_bits_at_the_last_depth_cell(y1, y2, zf):
     b = _eq4(mpmath.mpf(y1), mpmath.mpf(y2), mpmath.mpf("0.4"), mpmath.mpf("1e-3"))
