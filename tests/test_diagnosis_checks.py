@@ -137,3 +137,24 @@ def test_kept_mutant_the_papers_target_in_the_unit_frame_at_the_wrong_scale_is_s
     with kept_mutant("moments_ref/golden/diagnosis.py", "target_groups::0.5 -> 0.25#0"):
         with pytest.raises(AssertionError):
             test_a_singular_target_with_a_large_alpha_in_the_unit_frame_is_named_on_every_failing_row()
+
+
+def test_under_a_declared_slope_a_wrong_hazard_row_keeps_its_cause_beside_the_advice(tmp_path):
+    # receiver_slope declared, a constant 1e-5 on top undeclared (tests/test_diagnosis_advice.py), and one row
+    # flagged printed_hazard made wrong: every row is judged at once there (no sample: the slopes depend on the row
+    # count), and the hazard row, failing under any declaration, keeps its own cause while the offset is advised
+    from moments_ref.golden.conventions import profiled_arrays
+    from test_diagnosis_advice import _ref
+
+    declared = parse_profile({"receiver_slope": 1e-4})
+    _, base = _base()
+    arrays = profiled_arrays(CASE, declared, arrays=base)[1]
+    got = _ref(base["b"], (base["zf"] - np.float32(1e-4) * arrays["slope"] - np.float32(1e-5)).astype(np.float32))
+    hazard = np.flatnonzero(np.char.find(arrays["flags"].astype(str), "printed_hazard") >= 0)
+    i = int(hazard[0])
+    got[i] = np.float32(0) if got[i] > 0.5 else np.float32(1)
+    case = _verify(tmp_path, got, declared)
+    failing = np.flatnonzero(~case.verdict.row_pass).tolist()
+    assert i in failing
+    advice = [g for g in case.groups if g.level == "convention"]
+    assert [(g.flags, g.rows) for g in advice] == [("receiver_offset = 1e-05", [r for r in failing if r != i])]
