@@ -50,6 +50,16 @@ def _singular():
     return b, np.array([0.75, 0.1])
 
 
+def _dyadic():
+    """Unbiased moments of three dyadic depths with the receiver at the lowest one: every step of the slides' code is
+    exact in float32, so the larger root lands exactly on 0 or 1 where no Switch applies (zf below both roots)."""
+    def moments(z, w):
+        return [sum(wi * zi**k for zi, wi in zip(z, w)) for k in range(1, 5)]
+
+    b = np.array([moments([-0.75, -0.5, 0.0], [0.25, 0.25, 0.5]), moments([-0.75, -0.5, 1.0], [0.25, 0.25, 0.5])])
+    return b, np.array([-0.75, -0.75])
+
+
 def _t(dt):
     return np.dtype(dt).type
 
@@ -181,8 +191,9 @@ def test_each_algorithm_1_formulation_in_float64_is_the_bound(name, bound):
 def test_each_algorithm_1_formulation_is_the_printed_formula_bit_for_bit(name, bound, dt):
     code, formula = FORMULAS[name]
     b, zf, _ = _rows()
+    db, dz = _dyadic()
     sb, sz = _singular()
-    b, zf = np.concatenate([b, sb]), np.concatenate([zf, sz])
+    b, zf = np.concatenate([b, db, sb]), np.concatenate([zf, dz, sz])
     got = code(b, zf, bound, dt)
     assert got.dtype == dt
     np.testing.assert_array_equal(got, formula(b, zf, bound, dt))
