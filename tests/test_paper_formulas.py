@@ -59,8 +59,11 @@ def _dyadic():
     b = np.array([moments([-0.75, -0.5, 0.0], [0.25, 0.25, 0.5]), moments([-0.75, -0.5, 1.0], [0.25, 0.25, 0.5]),
                   # biased moments of two depths, the receiver near one: HPG17's printed weights reach −∞ in
                   # float32 (a root on zf), which the clip makes 0 (found by a search over 200 000 such rows)
-                  [-0.170774815152704, 0.5377617177384723, 0.010871267717502502, 0.3099287335480629]])
-    return b, np.array([-0.75, -0.75, 0.8641511797904968])
+                  [-0.170774815152704, 0.5377617177384723, 0.010871267717502502, 0.3099287335480629],
+                  # and two where the Cholesky evaluation's discriminant is below 1 (float32 and float64)
+                  [-0.3298645417663087, 0.724223817219766, -0.22394141441809362, 0.5248636318309452],
+                  [0.6659768579158193, 0.8963402369860792, 0.6033290836735886, 0.803516065112089]])
+    return b, np.array([-0.75, -0.75, 0.8641511797904968, -0.8436462879180908, 0.9488574266433716])
 
 
 def _t(dt):
