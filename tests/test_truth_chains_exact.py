@@ -299,3 +299,12 @@ def test_kept_mutant_a_default_tie_of_ten_to_minus_dps_is_seen():
     with kept_mutant("moments_ref/golden/truth.py", "msm64_chain::dps // 2 -> dps * 2#0"):
         with pytest.raises(AssertionError):
             test_msm64_chains_default_tie_is_ten_to_minus_half_its_digits()
+
+
+def test_kept_mutants_the_tie_band_and_the_last_32_bit_cell_are_seen():
+    with kept_mutant("moments_ref/golden/truth.py", "msm64_chain::65535 -> 65534#1"):
+        with pytest.raises(AssertionError):
+            test_msm64_chain_takes_both_codes_of_each_channel_within_the_tie_and_no_other((1e-4, 0.249994, 0.4, 0.4))
+    with kept_mutant("moments_ref/golden/truth.py", "_decoded32::1022 -> 1021#0"):
+        with pytest.raises(AssertionError):
+            test_nlq_chain_32_bits_at_the_last_depth_cell("0.9985", "0.9995", 0.999)
