@@ -158,3 +158,24 @@ def test_under_a_declared_slope_a_wrong_hazard_row_keeps_its_cause_beside_the_ad
     assert i in failing
     advice = [g for g in case.groups if g.level == "convention"]
     assert [(g.flags, g.rows) for g in advice] == [("receiver_offset = 1e-05", [r for r in failing if r != i])]
+
+
+def test_a_port_that_is_the_printed_algorithm_3_is_told_so_on_each_failing_row(tmp_path):
+    # HPG17's Algorithm 3 as printed, in float32 (golden.paper.printed_shade, checked against the formula in
+    # tests/test_paper_formulas.py): it fails only rows flagged printed_hazard (its root cancels there, or has no value
+    # at zf = y2), some with a finite value of its own; each failing row is named as the printed formulation's
+    from moments_ref.golden import paper
+    from moments_ref.golden.diagnosis import PRINTED_MATCH
+
+    name = "shade-float32"
+    _, base = _base(name)
+    got = paper.printed_shade(base["r"], base["zf"], np.float32)
+    case = _verify(tmp_path, got, name=name)
+    failing = np.flatnonzero(~case.verdict.row_pass).tolist()
+    assert failing and all("printed_hazard" in str(base["flags"][i]).split(",") for i in failing)
+    assert (np.isfinite(got[failing]) & (got[failing] != 0)).any()  # not only NaN and 0: values of its own
+    # (rows where it has no value, NaN at zf = y2, are explained first by the caller's clamp, a declaration)
+    taken = {i for g in case.groups if g.level == "convention" for i in g.rows}
+    assert all(np.isnan(got[i]) for i in taken)
+    printed = [g for g in case.groups if g.cause == PRINTED_MATCH]
+    assert [g.rows for g in printed] == [[i for i in failing if i not in taken]] and len(printed[0].rows) > 10
