@@ -178,4 +178,12 @@ def test_a_port_that_is_the_printed_algorithm_3_is_told_so_on_each_failing_row(t
     taken = {i for g in case.groups if g.level == "convention" for i in g.rows}
     assert all(np.isnan(got[i]) for i in taken)
     printed = [g for g in case.groups if g.cause == PRINTED_MATCH]
-    assert [g.rows for g in printed] == [[i for i in failing if i not in taken]] and len(printed[0].rows) > 10
+    named = [i for i in failing if i not in taken]
+    assert [g.rows for g in printed] == [named] and len(named) > 10
+    # one of them given a value that is no formulation's: the others are still named, it keeps the flag's cause
+    j = named[0]
+    got[j] = np.float32(0.123)
+    case = _verify(tmp_path, got, name=name)
+    printed = [g for g in case.groups if g.cause == PRINTED_MATCH]
+    assert [g.rows for g in printed] == [named[1:]]
+    assert any(j in g.rows and g.cause != PRINTED_MATCH for g in case.groups)
