@@ -17,6 +17,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from moments_ref.golden.diagnosis import bound_groups, target_groups
 from moments_ref.golden.engine import papers_chain32
@@ -91,6 +92,12 @@ def test_a_chain_value_exactly_one_tolerance_away_passes():
     v.row_pass[i] = False
     gs = target_groups(v, arrays, bias, ctx)
     assert [g.rows for g in gs] == [[i]]
+    # one and a half tolerances away (2^-30, below float32's resolution of the value): that chain misses, the row
+    # is not the target's
+    arrays["intensity_tolerance_float32"][i] = 2.0**-30
+    arrays["intensity"][i] = legit[i] + 1.5 * 2.0**-30 if legit[i] < 0.5 else legit[i] - 1.5 * 2.0**-30
+    assert abs(arrays["intensity"][i] - legit[i]) > 2.0**-30
+    assert target_groups(v, arrays, bias, ctx) == []
 
 
 def test_the_hausdorff_advice_needs_half_of_the_failing_rows_explained_not_all(tmp_path):
@@ -160,16 +167,16 @@ def test_under_a_declared_slope_a_wrong_hazard_row_keeps_its_cause_beside_the_ad
     assert [(g.flags, g.rows) for g in advice] == [("receiver_offset = 1e-05", [r for r in failing if r != i])]
 
 
-def test_a_port_that_is_the_printed_algorithm_3_is_told_so_on_each_failing_row(tmp_path):
+@pytest.mark.parametrize("name, dt", [("shade-float32", np.float32), ("shade-float64", np.float64)])
+def test_a_port_that_is_the_printed_algorithm_3_is_told_so_on_each_failing_row(tmp_path, name, dt):
     # HPG17's Algorithm 3 as printed, in float32 (golden.paper.printed_shade, checked against the formula in
     # tests/test_paper_formulas.py): it fails only rows flagged printed_hazard (its root cancels there, or has no value
     # at zf = y2), some with a finite value of its own; each failing row is named as the printed formulation's
     from moments_ref.golden import paper
     from moments_ref.golden.diagnosis import PRINTED_MATCH
 
-    name = "shade-float32"
     _, base = _base(name)
-    got = paper.printed_shade(base["r"], base["zf"], np.float32)
+    got = paper.printed_shade(base["r"], base["zf"], dt)
     case = _verify(tmp_path, got, name=name)
     failing = np.flatnonzero(~case.verdict.row_pass).tolist()
     assert failing and all("printed_hazard" in str(base["flags"][i]).split(",") for i in failing)
@@ -182,8 +189,9 @@ def test_a_port_that_is_the_printed_algorithm_3_is_told_so_on_each_failing_row(t
     assert [g.rows for g in printed] == [named] and len(named) > 10
     # one of them given a value that is no formulation's: the others are still named, it keeps the flag's cause
     j = named[0]
-    got[j] = np.float32(0.123)
+    got[j] = dt(0.123)
     case = _verify(tmp_path, got, name=name)
     printed = [g for g in case.groups if g.cause == PRINTED_MATCH]
     assert [g.rows for g in printed] == [named[1:]]
     assert any(j in g.rows and g.cause != PRINTED_MATCH for g in case.groups)
+
