@@ -301,6 +301,22 @@ def test_kept_mutant_a_default_tie_of_ten_to_minus_dps_is_seen():
             test_msm64_chains_default_tie_is_ten_to_minus_half_its_digits()
 
 
+def test_nlq_chain_32_bits_reads_each_cell_at_its_decode_position():
+    # docs/formats.md, 32 bits: depth cells read at their upper end, √v2 at its centre, Ψ4 at its upper end; a texel
+    # inside the range, a receiver between its depths (every channel moves the bound)
+    b = _eq4(mpmath.mpf("-0.3"), mpmath.mpf("0.4"), mpmath.mpf("0.3"), mpmath.mpf("1e-3"))
+    r = _phi(b)
+    zf = 0.1
+    lo, hi = nlq_chain(b[None], np.array([zf]), fmt="32", tie=0.0)
+    with mpmath.workdps(DPS):
+        half = mpmath.mpf(1023) / 2
+        dec = [(_cells32(r[0]) + 1) / half - 1, (_cells32(r[1]) + 1) / half - 1,
+               ((int(mpmath.floor(128 * mpmath.sqrt(r[2]))) + mpmath.mpf(1) / 2) / 128) ** 2,
+               _psi4_inverse((int(mpmath.floor(64 * _psi4(r[3]))) + 1) / mpmath.mpf(64))]
+        want = float(shade_clamped(np.array([[float(x) for x in dec]]), zf)[0])
+    assert lo[0] == hi[0] == want and 0.05 < want < 0.95
+
+
 def test_kept_mutants_the_tie_band_and_the_last_32_bit_cell_are_seen():
     with kept_mutant("moments_ref/golden/truth.py", "msm64_chain::65535 -> 65534#1"):
         with pytest.raises(AssertionError):
