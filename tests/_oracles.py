@@ -66,8 +66,21 @@ def lp_grid(n):
 RUN_FOLDER = "MOMENTS_REF_TEST_RUN"
 
 
-@functools.lru_cache(maxsize=None)
 def golden_folder(cases=None):
+    """Goldens of ``cases`` (a tuple of names; None: every case), written once per test run.
+
+    Several pytest sessions in one process (the mutation tool's runs) each remove their run folder at
+    their end: a folder cached by an earlier session is written again.
+    """
+    d = _golden_folder(cases)
+    if not (d.parent / f"{d.name}.done").exists():
+        _golden_folder.cache_clear()
+        d = _golden_folder(cases)
+    return d
+
+
+@functools.lru_cache(maxsize=None)
+def _golden_folder(cases=None):
     """Goldens of ``cases`` (a tuple of names; None: every case), written once per test run.
 
     The first process of the run that asks writes them, under a lock, into the run's shared

@@ -331,8 +331,8 @@ def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="fl
 
     Each candidate (:func:`_candidates`) is judged on the inputs the port was given, with the
     candidate's expected values and each row's unchanged band (:func:`unchanged_band`): first on
-    a few failing rows alone (:data:`SAMPLE_ROWS`, a cheap refusal of most candidates), then on
-    every row. It is suggested only if every failing row then passes and no passing row fails:
+    a few failing rows alone (:data:`SAMPLE_ROWS`, a cheap refusal of most candidates; never of one the judge
+    on every row accepts: rows that may keep their own cause are not sampled), then on every row. It is suggested only if every failing row then passes and no passing row fails:
     advice never names a declaration under which a failing row passes for another cause (issue
     37 item 5). Failing rows flagged ``printed_hazard`` may still fail under the candidate (a
     copied printed formula fails them under any declaration): those keep their own cause, and
@@ -356,9 +356,13 @@ def _declaration_groups(name, verdict, base_arrays, got, profile, port_dtype="fl
     # declaration): a candidate must explain every other failing row; those may still fail with it.
     hazard = np.array(["printed_hazard" in str(f).split(",") for f in np.asarray(declared["flags"])], bool)
     other = fail & ~hazard
-    # rows derive alone unless the case's arrays are whole-case or the feed depends on the row count (slopes)
-    sample = (np.flatnonzero(other)[:SAMPLE_ROWS] if other.any() and case.row_inputs and not profile.receiver_slope
-              else None)
+    # The sample holds only failing rows the judge on every row cannot leave to their own cause: not the hazard
+    # rows, nor the ill-conditioned ones (a candidate that leaves them unjudged keeps them failing), so a
+    # sampled refusal is one the judge on every row would make too. Rows derive alone unless the case's arrays
+    # are whole-case or the feed depends on the row count (slopes).
+    ill = np.zeros_like(fail) if verdict.ill is None else np.asarray(verdict.ill, bool)
+    sampled = np.flatnonzero(other & ~ill)[:SAMPLE_ROWS]
+    sample = sampled if sampled.size and case.row_inputs and not profile.receiver_slope else None
     for p, level, what in _candidates(case, profile):
         try:
             if sample is not None and _judge(name, p, sample, base_arrays, declared, got, profile, port_dtype,
