@@ -203,3 +203,27 @@ def test_the_interval_refuses_a_port_input_that_is_not_the_derivations():
     moved["b"][2, 1] = np.nextafter(moved["b"][2, 1], np.float32(1))
     with pytest.raises(RuntimeError, match="port input b differs"):
         engine.interval(case, moved)
+
+
+def test_a_declared_clamped_case_test_is_the_one_the_exact_chain_takes():
+    """Profile ``clamp_test = "clamped"`` (Algorithm 3's case test zf ≤ max(y2, y1 + clamp), the author's demo code):
+    on an unbiased two-point texel whose 32-bit texel decodes to y1 = y2, with the receiver half a clamp behind
+    them, the stored and the clamped test part (0.0257 against 0 in mpmath). A port that declares the clamped test
+    but compares with the stored y2 is confirmed wrong; one that compares with the clamped y2 is not."""
+    from moments_ref.golden.conventions import profiled_case
+    from moments_ref.golden.profile import parse_profile
+
+    clamp = 1 / 65535
+    case = profiled_case(CASES["engine-nlq32-float32"],
+                         parse_profile({"bias": "none", "clamp": clamp, "clamp_test": "clamped"}))
+    z = np.array([[0.006032540505304215, 0.006136900117190373]])
+    w = np.array([[0.3961969167816973, 0.6038030832183028]])
+    inputs = engine.engine_inputs(case, z, w, np.array([0.006850249256793894]))
+    b, r = inputs["b"].astype(np.float64), inputs["zf"].astype(np.float64)
+    stored = nlq_chain(b, r, "32", None, clamp, "stored", {}, tie=CHAIN_TIE)
+    clamped = nlq_chain(b, r, "32", None, clamp, "clamped", {}, tie=CHAIN_TIE)
+    assert stored[0] > 0.02 and clamped[1] < 1e-30
+    assert engine.confirm(case, inputs, {"intensity": stored[0]}).all()
+    assert not engine.confirm(case, inputs, {"intensity": clamped[0]}).any()
+    with kept_mutant(PATH, "_exact::ctx.get('clamp_test') or 'stored' -> ctx.get('clamp_test') and 'stored'#0"):
+        assert not engine.confirm(case, inputs, {"intensity": stored[0]}).any()
