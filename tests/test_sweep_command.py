@@ -195,3 +195,13 @@ def test_a_failure_of_the_harness_exits_2_with_one_line(recorder, error, text, c
     if isinstance(error, RuntimeError):
         assert "not a verdict on the port" in err
     assert not (tmp_path / "s.json").exists()
+
+
+def test_an_out_folder_holding_something_else_as_its_checkpoint_is_refused(tmp_path, capsys):
+    """docs/sweep.md: a checkpoint.json that is not a checkpoint is refused before any work (exit 2), never
+    overwritten."""
+    path, function = _port()
+    (tmp_path / "checkpoint.json").write_text("my notes")
+    assert cli.main(_argv(path, function, "--out", str(tmp_path))) == 2
+    assert "is not a sweep checkpoint" in _one_line(capsys)
+    assert (tmp_path / "checkpoint.json").read_text() == "my notes"
