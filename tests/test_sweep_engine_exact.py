@@ -227,3 +227,15 @@ def test_a_declared_clamped_case_test_is_the_one_the_exact_chain_takes():
     assert not engine.confirm(case, inputs, {"intensity": clamped[0]}).any()
     with kept_mutant(PATH, "_exact::ctx.get('clamp_test') or 'stored' -> ctx.get('clamp_test') and 'stored'#0"):
         assert not engine.confirm(case, inputs, {"intensity": stored[0]}).any()
+
+
+@pytest.mark.parametrize("name", ["engine-lower-float32", "engine-upper-float64"])
+def test_the_span_defaults_to_a_port_of_the_cases_precision(name):
+    case = CASES[name]
+    z, w, zf = _rows(16, 3808)
+    inputs = engine.engine_inputs(case, z, w, zf)
+    plain = engine.exact_span(case, inputs)
+    own = engine.exact_span(case, inputs, case.dtype)
+    other = engine.exact_span(case, inputs, "float64" if case.dtype == "float32" else "float32")
+    assert all(np.array_equal(a, b) for a, b in zip(plain, own))
+    assert not all(np.array_equal(a, b) for a, b in zip(plain, other))
