@@ -138,3 +138,17 @@ def test_spawned_workers_give_the_in_process_result():
     assert CALLS == [CHUNK, 3]
     assert _strip(pooled) == _strip(here)
     assert pooled[1]["rows"] == 3 and pooled[1]["drivers"]["None"]["first_confirmed"] == CHUNK
+
+
+def test_kept_mutant_the_layout_check_skipped_lets_a_bad_checkpoint_through(small, tmp_path):
+    """Without the layout check, a checkpoint with a chunk named "first" is no refusal (exit 2, one line) but a
+    ValueError deep in the resumption (a harness failure)."""
+    from _mutants import kept_mutant
+
+    ck = tmp_path / "checkpoint.json"
+    ck.write_text('{"key": "k", "chunks": {"first": {}}}')
+    mid = ("_read_checkpoint::not (isinstance(saved, dict) and 'key' in saved and isinstance(saved.get('chunks'), "
+           "dict) and all((str(k).isdigit() for k in saved['chunks']))) -> False#0")
+    with kept_mutant("moments_ref/sweep/runner.py", mid), pytest.raises(ValueError) as err:
+        run_chunks(small, checkpoint=ck)
+    assert not isinstance(err.value, InputError)

@@ -206,3 +206,29 @@ def test_a_passing_sweep_passes():
     res = sweep_port(_spec(_reference), shrink_failures=False)
     assert res.passed and res.confirmed == 0 and res.failures == []
     assert res.drivers["None"]["first_confirmed"] is None
+
+
+@pytest.mark.parametrize("path, mid", [
+    ("moments_ref/sweep/runner.py", "run_chunk::int(confirmed[0]) + chunk * CHUNK -> int(confirmed[0]) - chunk * CHUNK#0"),
+    ("moments_ref/sweep/result.py", "_merge::m['first_confirmed'] is None -> m['first_confirmed'] is not None#0"),
+    ("moments_ref/sweep/runner.py", "SweepSpec.chunk_rows::self.rows - i * CHUNK -> self.rows + i * CHUNK#0")])
+def test_kept_mutant_the_first_confirmed_row_or_the_partial_chunk_moved(path, mid):
+    """The first confirmed row's global index (80 + 6, in the partial chunk only) is lost when the chunk's offset is
+    subtracted, when the merge keeps the first chunk's None, or when the last chunk is not truncated."""
+    from _mutants import kept_mutant
+
+    with kept_mutant(path, mid):
+        try:
+            d = sweep_port(_spec(port_at([6], sizes={20})), shrink_failures=False).drivers["None"]
+        except Exception:  # noqa: BLE001 - a mutant may also break the run: seen all the same
+            return
+    assert (d["confirmed"], d["first_confirmed"]) != (1, 86)
+
+
+def test_kept_mutant_one_more_row_confirmed_than_the_cap(monkeypatch):
+    from _mutants import kept_mutant
+
+    monkeypatch.setattr(runner, "CONFIRM_CAP", 5)
+    with kept_mutant("moments_ref/sweep/runner.py", "run_chunk:::CONFIRM_CAP -> :CONFIRM_CAP + 1#0"):
+        (r, *_) = run_chunks(_spec(port_at([0, 2, 3, 4, 5, 6, 7])))
+    assert r["drivers"]["None"]["examined"] == 6
