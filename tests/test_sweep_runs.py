@@ -146,7 +146,7 @@ def test_kept_mutant_the_layout_check_skipped_lets_a_bad_checkpoint_through(smal
     from _mutants import kept_mutant
 
     ck = tmp_path / "checkpoint.json"
-    ck.write_text('{"key": "k", "chunks": {"first": {}}}')
+    ck.write_text(json.dumps({"key": checkpoint_key(small), "chunks": {"first": {}}}))
     mid = ("_read_checkpoint::not (isinstance(saved, dict) and 'key' in saved and isinstance(saved.get('chunks'), "
            "dict) and all((str(k).isdigit() for k in saved['chunks']))) -> False#0")
     with kept_mutant("moments_ref/sweep/runner.py", mid), pytest.raises(ValueError) as err:
