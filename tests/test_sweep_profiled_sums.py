@@ -55,17 +55,28 @@ def _off_midpoint(rng, n):
     f = rng.uniform(0.01, 1, n).astype(np.float32)
     mid = (f.astype(np.float64) + np.nextafter(f, np.float32(2)).astype(np.float64)) / 2  # exact in float64
     tiny = rng.choice([-1.0, 0.0, 1.0], n) * mid * 2.0**-60
-    big = _signed(rng, n, 0, 30)
-    return [mid + big, tiny / 2, -big, tiny / 4, tiny / 4]
+    big = _signed(rng, n, 0, 30)  # cancelled exactly: the terms' exact sum is mid + tiny
+    return [big, mid, tiny / 2, -big, tiny / 4, tiny / 4]
 
 
-@pytest.mark.parametrize("make", [_cancelling, _off_midpoint])
+def _two_term_midpoint(rng, n):
+    """mid + tiny in two terms: the residual is the second term itself."""
+    f = rng.uniform(0.01, 1, n).astype(np.float32)
+    mid = (f.astype(np.float64) + np.nextafter(f, np.float32(2)).astype(np.float64)) / 2
+    return [mid, rng.choice([-1.0, 0.0, 1.0], n) * mid * 2.0**-60]
+
+
+@pytest.mark.parametrize("make", [_cancelling, _off_midpoint, _two_term_midpoint])
 def test_the_sum_is_the_exact_sum_rounded_once(make):
     rng = np.random.default_rng(3804)
     terms = make(rng, 3000)
     got = profiled._sum_rounded(terms)
     assert got.dtype == np.float32
-    np.testing.assert_array_equal(got.view(np.uint32), _expected(terms).view(np.uint32))
+    want = _expected(terms)
+    np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    if make is not _cancelling:  # the residual decides: rounding the float64 sum alone (ties to even) would not do
+        mid = terms[0] if make is _two_term_midpoint else terms[1]
+        assert (mid.astype(np.float32) != want).sum() > len(mid) // 8
 
 
 def test_random_sums_of_mixed_magnitudes_and_one_term_sums():
