@@ -83,7 +83,8 @@ def test_a_checkpoint_of_another_sweep_is_ignored_and_replaced(small, tmp_path):
 
 
 @pytest.mark.parametrize("text", ["{not json", "[1, 2]", '{"chunks": {}}', '{"key": "k"}',
-                                  '{"key": "k", "chunks": {"first": {}}}', '{"key": "k", "chunks": []}'])
+                                  '{"key": "k", "chunks": {"first": {}}}', '{"key": "k", "chunks": {"0": {}, "x": {}}}',
+                                  '{"key": "k", "chunks": []}'])
 def test_a_file_that_is_not_a_checkpoint_is_refused_and_kept(small, tmp_path, text):
     ck = tmp_path / "checkpoint.json"
     ck.write_text(text)
