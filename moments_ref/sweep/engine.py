@@ -119,10 +119,12 @@ def _exact(ctx, b, zf):
                      tie=CHAIN_TIE)
 
 
-def exact_span(case, inputs):
+def exact_span(case, inputs, port_dtype=None):
     """``(lo, hi)`` per row: the least and largest exact value over the legitimate biases and the port's input's
     float32 neighbourhood (module docstring), as the port reports it (intensity or visibility); for the NLQ chains
-    also this package's chain in float32 and float64 on the port's input."""
+    also this package's chain in float32 and float64 on the port's input; for a float32 port (``port_dtype``,
+    default the case's dtype) of Algorithm 1 also the shipped ports' float32 evaluations, as the goldens' engine
+    interval takes them for a float32 port only (:func:`moments_ref.golden.engine.engine_interval`)."""
     ctx = case.engine
     sup, mass = np.asarray(inputs["support"], np.float64), np.asarray(inputs["mass"], np.float64)
     zf = np.asarray(inputs["zf"], np.float64)
@@ -147,7 +149,8 @@ def exact_span(case, inputs):
         lo, hi = np.minimum.reduce([lo] + own), np.maximum.reduce([hi] + own)
     # the shipped ports' float32 evaluation on the port's input, as the goldens' confirm takes the legitimate
     # evaluations (within the cap of the exact value: golden.engine.port_input_evaluations)
-    for v in port_input_evaluations(ctx, b, inputs["zf"]):
+    float32_port = np.dtype(case.dtype if port_dtype is None else port_dtype) == np.float32
+    for v in port_input_evaluations(ctx, b, inputs["zf"]) if float32_port else ():
         v = 1 - v if ctx.get("visibility") else v
         lo, hi = np.fmin(lo, v), np.fmax(hi, v)
     return lo, hi
@@ -158,7 +161,7 @@ def confirm(case, inputs, got, port_dtype="float32"):
     n = len(inputs["zf"])
     if n == 0:
         return np.zeros(n, bool)
-    lo, hi = exact_span(case, inputs)
+    lo, hi = exact_span(case, inputs, port_dtype)
     m = MARGIN_ULPS * float(np.finfo(np.dtype(port_dtype)).eps)
     g = np.asarray(got["intensity"], np.float64).reshape(n)
     with np.errstate(invalid="ignore"):

@@ -202,8 +202,8 @@ def run_chunks(spec, workers=1, scheduler=None, checkpoint=None, progress=None):
     results = {}
     key = checkpoint_key(spec)
     if checkpoint is not None and Path(checkpoint).is_file():
-        saved = json.loads(Path(checkpoint).read_text())
-        if saved.get("key") == key:
+        saved = _read_checkpoint(checkpoint)
+        if saved["key"] == key:
             results = {int(k): v for k, v in saved["chunks"].items()}
     todo = [i for i in range(spec.chunks) if i not in results]
 
@@ -224,6 +224,21 @@ def run_chunks(spec, workers=1, scheduler=None, checkpoint=None, progress=None):
     else:
         _local(spec, todo, workers, done)
     return [results[i] for i in range(spec.chunks)]
+
+
+def _read_checkpoint(path):
+    """A checkpoint's ``{key, chunks}``; anything else (not JSON, another layout) is refused, never resumed or
+    overwritten."""
+    from .._arrays import InputError
+
+    try:
+        saved = json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"--out: {path} is not a sweep checkpoint ({type(exc).__name__}); move it away") from None
+    if not (isinstance(saved, dict) and "key" in saved and isinstance(saved.get("chunks"), dict)
+            and all(str(k).isdigit() for k in saved["chunks"])):
+        raise InputError(f"--out: {path} is not a sweep checkpoint (no key and numbered chunks); move it away")
+    return saved
 
 
 def checkpoint_key(spec):
