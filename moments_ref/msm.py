@@ -124,6 +124,7 @@ def _constants(dtype, n):
         "zero": np.zeros(n, dtype=dtype),
         "one": np.ones(n, dtype=dtype),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
+        "four": np.dtype(dtype).type(4),
         "rtol": np.dtype(dtype).type(singular_thresholds(dtype)),
         "ws": np.empty((_ROWS, n), dtype=dtype),
         "bits": np.empty(n, dtype=it),
@@ -355,13 +356,14 @@ def _kernel(b, zf, want, c, dest, refuse):
     return out
 
 
-def _roots_about_zf(b, zf, c):
-    """Steps (1)–(3) of :func:`_bound_rows`: ``(t_a, t_b, y2, 1/w0, 1/w0 − 1, regular)``, rows of ``c["ws"]``.
+def _quadratic_about_zf(b, zf, c):
+    """Steps (1)–(3) of :func:`_bound_rows`: ``(k2, q2m, 1/w0, 1/w0 − 1, y2, regular)``, rows of ``c["ws"]``.
 
-    ``regular``: :func:`_pivots_positive`'s mask, or None where every pivot clears the threshold.
+    ``k2 = p'(zf)``, ``q2m = min(q2, 0)``; ``regular``: :func:`_pivots_positive`'s mask, or None
+    where every pivot clears the threshold. 21 passes.
     """
     ws, (b1, b2, b3, b4) = c["ws"], b
-    s2, cm1, l32, xi, y2, y3, t, a, k = ws
+    s2, t, l32, xi, y2, y3, c2, q2, cm1 = ws
     # Cholesky, B(b) = L D Lᵀ: L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32·(b3 − b1 b2).
     np.multiply(b1, b1, out=s2)
     np.subtract(b2, s2, out=s2)
@@ -369,42 +371,29 @@ def _roots_about_zf(b, zf, c):
     np.subtract(b3, t, out=t)
     np.divide(t, s2, out=l32)
     np.multiply(l32, t, out=xi)
-    np.multiply(b2, b2, out=t)
-    np.add(xi, t, out=xi)
+    np.multiply(b2, b2, out=y3)
+    np.add(xi, y3, out=xi)
     np.subtract(b4, xi, out=xi)
+    regular = _pivots_positive(b, s2, xi, t, c)
     # Forward substitution to solve L y = (1, zf, zf²): y2 = zf − b1, y3 = zf² − b2 − L32 y2.
     _forward(zf, b1, b2, l32, y2, y3, t)
-    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (in cm1).
-    c2 = k
+    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (Prop. 10).
     np.divide(y2, s2, out=c2)
-    np.divide(y3, xi, out=a)
+    np.divide(y3, xi, out=q2)
     np.multiply(y2, c2, out=cm1)
-    np.multiply(y3, a, out=t)
+    np.multiply(y3, q2, out=t)
     np.add(cm1, t, out=cm1)
-    regular = _pivots_positive(b, s2, xi, t, c)  # σ², ξ4 are used up: their rows are free
-    inv_w0 = s2
-    np.add(cm1, 1, out=inv_w0)
-    # Back substitution, q1 = c2 − L32 q2, and k = q2 zf + q1/2 (the quadratic about zf).
-    np.multiply(l32, a, out=t)
-    np.subtract(c2, t, out=t)
-    np.multiply(t, 0.5, out=t)
-    np.multiply(a, zf, out=k)
-    np.add(k, t, out=k)
-    # Step (3): m = k + sign(k)·√(k² − q2/w0) (bit-level copysign, the root ≥ 0); t_a ≥ t_b of m/q2, (1/w0)/m.
-    np.multiply(k, k, out=t)
-    np.multiply(a, inv_w0, out=xi)
-    np.subtract(t, xi, out=t)
-    np.sqrt(t, out=t)  # NaN for a discriminant below 0: the texel goes to _kernel
-    sign, bits = c["sign"], c["bits"]
-    np.bitwise_and(k.view(sign.dtype), sign, out=bits)
-    np.bitwise_or(t.view(sign.dtype), bits, out=t.view(sign.dtype))
-    np.add(k, t, out=k)
-    np.divide(k, a, out=t)
-    np.divide(inv_w0, k, out=xi)
-    ta, tb = k, a
-    np.maximum(t, xi, out=ta)
-    np.minimum(t, xi, out=tb)
-    return ta, tb, y2, inv_w0, cm1, regular
+    # p(z) = 1 + c2 (z − b1) + q2 (z² − b2 − L32 (z − b1)) (back substitution folded in), so
+    # k2 = p'(zf) = c2 + q2 (2 zf − L32).
+    k2 = y3
+    np.subtract(zf, l32, out=k2)
+    np.add(k2, zf, out=k2)
+    np.multiply(k2, q2, out=k2)
+    np.add(k2, c2, out=k2)
+    inv_w0, q2m = s2, q2
+    np.add(cm1, c["one"], out=inv_w0)
+    np.minimum(q2, c["zero"], out=q2m)
+    return k2, q2m, inv_w0, cm1, y2, regular
 
 
 def _bound_rows(b, zf, bound, c, dest):
@@ -412,51 +401,54 @@ def _bound_rows(b, zf, bound, c, dest):
 
     Steps (1)–(2) as :func:`_cholesky` (L32² σ² as L32·(b3 − b1 b2), one pass fewer) and
     :func:`_solve` up to the scaling: ``c2 = y2/σ²``, ``q2 = y3/ξ4`` and
-    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) in the distances
-    ``t = zf − z`` of the roots from zf (:func:`_roots_about_zf`): the roots
-    ``t_a = zf − z1 ≥ t_b = zf − z2`` of ``q2 t² − 2k t + 1/w0`` with ``k = q2 zf + q1/2``
-    (the quadratic of step (3) written about zf, whose value there is ``1/w0``), without cancellation:
-    ``m = k + sign(k)·√(k² − q2/w0)``, the roots ``m/q2`` and ``(1/w0)/m``. Their product
-    ``1/(w0 q2)`` is never 0, so zf is never a root, and between the roots (q2 < 0) the
-    discriminant is a sum of positive terms. Step (4) only for what step (5) needs: below zf
-    both roots (t_b > 0) the bound is ``1 − w0``, written ``(1/w0 − 1)·w0`` (no cancellation);
-    between them it is w1, from the first two moments of the canonical representation about zf,
-    ``w1 + w2 = 1 − w0`` and ``w1 t_a + w2 t_b = zf − b1``: ``w1 = (y2 − (1 − w0) t_b)/(t_a − t_b)``.
-    49 ufunc passes and three reductions over a float32 chunk for the lower bound (the upper
-    bound 2 more; float64 checks its relative thresholds by six reductions), instead of the 63 of the slides'
-    quotient formulation used before and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
-    history"). Where B(b) is singular (module docstring) or the result is not finite (a
-    root at infinity, a discriminant rounded below 0, a non-finite input), the texels are handed to
-    :func:`_kernel`, which has the limits of all; their indices are returned (None when there are none).
+    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) about zf: with
+    ``t = zf − z`` the quadratic of step (3) is ``q2 t² − k2 t + 1/w0`` (``k2 = p'(zf)``, its
+    value at zf is ``1/w0``), whose roots ``t_a ≥ t_b`` have the product ``1/(w0 q2)``: for
+    ``q2 > 0`` both lie on the side of zf that the sign of k2 gives, and the bound is ``1 − w0``
+    (k2 > 0, zf above both) or 0; for ``q2 < 0`` zf lies between them and the bound is w1. Step
+    (4) only for w1, from the first two moments about zf (``w1 + w2 = 1 − w0``,
+    ``w1 t_a + w2 t_b = zf − b1 = y2``) and the roots ``(k2 ± S)/(2 q2)``,
+    ``S = √(k2² − 4 q2/w0)``: ``w1 = ((1 − w0)/2·(S + k2) − y2 q2)/S``. Written with
+    ``q2m = min(q2, 0)`` in place of q2 the same expression is the bound in all three cases
+    (for ``q2 ≥ 0``, ``S = |k2|`` exactly, and ``(S + k2)/S`` is 2 or exactly 0), so step (5)
+    needs no comparison and no mask. 36 ufunc passes and three reductions over a float32 chunk
+    for the lower bound (the upper bound 3 more; float64 checks its relative thresholds by six
+    reductions), instead of the 49 of the roots as distances from zf used before, the 63 of
+    the slides' quotient formulation and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
+    history"). Where B(b) is singular (module docstring) or the result is not finite (a root at
+    infinity, k2 = 0 with q2 ≥ 0, an overflow, a non-finite input), the texels are handed to
+    :func:`_kernel`, which has the limits of all; their indices are returned (None when there
+    are none).
     """
-    ta, tb, y2, inv_w0, cm1, regular = _roots_about_zf(b, zf, c)
-    w0, r0, w1, t = c["ws"][2], cm1, c["ws"][5], c["ws"][6]
-    # Step (4): w0, 1 − w0 = (1/w0 − 1)·w0, and w1 = (y2 − (1 − w0) t_b)/(t_a − t_b).
-    np.divide(1, inv_w0, out=w0)
-    np.multiply(cm1, w0, out=r0)  # NaN for 1/w0 = ∞ (a non-finite zf)
-    np.multiply(r0, tb, out=t)
-    np.subtract(y2, t, out=t)
-    np.subtract(ta, tb, out=w1)
-    np.divide(t, w1, out=w1)
-    # Step (5): lower = [t_a > 0]·(w1 + [t_b > 0]·(1 − w0 − w1)) (zf above z1, above z2). Float rows
-    # times boolean rows: a masked copy (np.copyto where=) of a random mask costs 30 passes.
-    lower = dest[bound] if bound == "lower" else y2
-    above = c["mask"][0]
-    np.subtract(r0, w1, out=lower)
-    np.greater(tb, c["zero"], out=above)
-    np.multiply(lower, above, out=lower)
-    np.add(lower, w1, out=lower)
-    np.greater(ta, c["zero"], out=above)
-    np.multiply(lower, above, out=lower)
+    k2, q2m, inv_w0, cm1, y2, regular = _quadratic_about_zf(b, zf, c)
+    ws = c["ws"]
+    v, s, h, num = ws[1], ws[2], ws[3], ws[6]
+    # S = √(k2² − 4 q2m/w0): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for q2 ≥ 0.
+    np.multiply(q2m, inv_w0, out=v)
+    np.multiply(v, c["four"], out=v)
+    np.multiply(k2, k2, out=s)
+    np.subtract(s, v, out=s)
+    np.sqrt(s, out=s)  # NaN or inf for an overflow: the texel goes to _kernel
+    # (1 − w0)/2 = (1/w0 − 1)/(2/w0); then lower = ((1 − w0)/2·(S + k2) − y2 q2m)/S.
+    np.add(inv_w0, inv_w0, out=h)
+    np.divide(cm1, h, out=h)
+    np.add(s, k2, out=num)
+    np.multiply(num, h, out=num)
+    np.multiply(y2, q2m, out=v)
+    np.subtract(num, v, out=num)
+    lower = dest[bound] if bound == "lower" else num
+    np.divide(num, s, out=lower)
     np.clip(lower, 0, 1, out=lower)  # saturate, and a rounded w1 < 0 (NaN stays NaN)
-    # Irregular: a pivot below the threshold, or a result that is not finite (the sum of a chunk
-    # of values in [0, 1] is finite unless one of them is not: one reduction instead of a mask).
+    # Irregular: a pivot below the threshold, or a result that is not finite (the largest of a
+    # chunk of values in [0, 1] is a NaN if one of them is: one reduction instead of a mask).
     irregular = None
-    if regular is not None or not np.isfinite(np.add.reduce(lower)):
-        finite = np.isfinite(lower, out=above)
+    if regular is not None or not np.maximum.reduce(lower) <= 1:
+        finite = np.isfinite(lower, out=c["mask"][0])
         regular = finite if regular is None else np.logical_and(regular, finite, out=regular)
         irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
+        w0 = v
+        np.divide(c["one"], inv_w0, out=w0)
         np.add(lower, w0, out=dest["upper"])
         np.minimum(dest["upper"], c["one"], out=dest["upper"])
     return irregular if irregular is not None and irregular.size else None
