@@ -360,7 +360,8 @@ def _quadratic_about_zf(b, zf, c):
     """Steps (1)–(3) of :func:`_bound_rows`: ``(k2, q2m, 1/w0, 1/w0 − 1, y2, regular)``, rows of ``c["ws"]``.
 
     ``k2 = p'(zf)``, ``q2m = min(q2, 0)``; ``regular``: :func:`_pivots_positive`'s mask, or None
-    where every pivot clears the threshold. 21 passes.
+    where every pivot clears the threshold. 25 passes (9 Cholesky, 5 forward substitution, 5
+    scaling and 1/w0 − 1, 4 k2, 1/w0 and q2m).
     """
     ws, (b1, b2, b3, b4) = c["ws"], b
     s2, t, l32, xi, y2, y3, c2, q2, cm1 = ws
@@ -411,9 +412,9 @@ def _bound_rows(b, zf, bound, c, dest):
     ``S = √(k2² − 4 q2/w0)``: ``w1 = ((1 − w0)/2·(S + k2) − y2 q2)/S``. Written with
     ``q2m = min(q2, 0)`` in place of q2 the same expression is the bound in all three cases
     (for ``q2 ≥ 0``, ``S = |k2|`` exactly, and ``(S + k2)/S`` is 2 or exactly 0), so step (5)
-    needs no comparison and no mask. 36 ufunc passes and three reductions over a float32 chunk
-    for the lower bound (the upper bound 3 more; float64 checks its relative thresholds by six
-    reductions), instead of the 49 of the roots as distances from zf used before, the 63 of
+    needs no comparison and no mask. 38 ufunc passes and four reductions over a float32 chunk
+    for the lower bound (the upper bound 3 more; float64 checks its relative thresholds by five
+    reductions instead of two), instead of the 49 of the roots as distances from zf used before, the 63 of
     the slides' quotient formulation and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
     history"). Where B(b) is singular (module docstring) or the result is not finite (a root at
     infinity, k2 = 0 with q2 ≥ 0, an overflow, a non-finite input), the texels are handed to
