@@ -95,22 +95,24 @@ __all__ = [
 # Algorithm 2), shared with msm6 and nonlinear; re-exported here (public names).
 _two_point = two_point
 
-#: :data:`moments_ref._kernels.MSM_CHUNK` (2^15 texels): the chunk of float64, a quarter of float32's
+#: :data:`moments_ref._kernels.MSM_CHUNK` (2^15 texels): half the kernel's chunk in both dtypes
 #: (:func:`chunk_texels`).
 CHUNK = MSM_CHUNK
 
 def chunk_texels(dtype):
-    """Texels per chunk of the kernel for ``dtype``: float32 ``4·CHUNK`` (2^17), float64 ``CHUNK`` (2^15).
+    """Texels per chunk of the kernel for ``dtype``: ``2·CHUNK`` (2^16) in float32 and float64.
 
-    Each of the kernel's ~55 ufunc calls per chunk costs about 0.65 µs besides its
-    elements (measured: 2048² float32 from chunks of 2^12 to 2^17, 17.8, 13.4, 11.0, 10.0,
-    9.5, 9.4 ns a texel, load 10.6), which weighs most in float32, whose passes are the
-    cheapest. Interleaved A/B at 2048² against 2^15 (two runs, load 11-12): float32 2^17
-    0.927 (quartiles 0.909–0.937) and 0.941 (0.914–0.960) of the time; float64 2^16 0.968
-    and 1.000, 2^17 1.044 (nine rows of 1 MiB), so float64 keeps 2^15. docs/bench.md,
-    "Where Algorithm 1's time goes".
+    Each ufunc call per chunk costs about 0.65 µs besides its elements (measured: 2048² float32
+    from chunks of 2^12 to 2^17, 17.8, 13.4, 11.0, 10.0, 9.5, 9.4 ns a texel, load 10.6), and a
+    pass over rows that stay in the 1 MiB L2 of a core is no cheaper per element than one over
+    rows in L3 (0.13–0.16 ns a float32 element from 2^13 to 2^17): the largest chunk whose
+    rows keep the kernel's working set near L2 wins. For the 38-pass bounds (issue 41, round
+    six), interleaved A/B at 2048², 15 pairs, CPU time, load 12–14: float32 2^16 0.91
+    (quartiles 0.86–0.93) of the time of 2^17 and 2^15 1.03 (1.01–1.05) of 2^16; float64 2^16
+    0.91 (0.88–0.92) of 2^15. The results do not depend on the chunk. docs/bench.md, "Where
+    Algorithm 1's time goes".
     """
-    return 4 * CHUNK if np.dtype(dtype) == np.float32 else CHUNK
+    return 2 * CHUNK
 
 
 def _constants(dtype, n):
@@ -144,7 +146,7 @@ def _chunk_constants(dtype, n):
 
     Fresh chunk-sized arrays are faulted in from the OS on every call (measured: a call of one
     chunk of float32 took 4.5 times the per-texel time of a call of 2^20 texels); kept, they cost
-    6.8 MB (float32) or 3.4 MB (float64) per thread that called. Per
+    3.5 MB (float32) or 6.9 MB (float64) per thread that called. Per
     thread, so that concurrent calls never share a workspace.
     """
     chunk = chunk_texels(dtype)
