@@ -394,7 +394,7 @@ def _quadratic_about_zf(b, zf, c):
     np.multiply(k2, q2, out=k2)
     np.add(k2, c2, out=k2)
     inv_w0, q2m = s2, q2
-    np.add(cm1, c["one"], out=inv_w0)
+    np.add(cm1, 1, out=inv_w0)  # an array–scalar add reads one row, not two
     np.minimum(q2, c["zero"], out=q2m)
     return k2, q2m, inv_w0, cm1, y2, regular
 
@@ -451,7 +451,7 @@ def _bound_rows(b, zf, bound, c, dest):
         irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
         w0 = v
-        np.divide(c["one"], inv_w0, out=w0)
+        np.divide(1, inv_w0, out=w0)
         np.add(lower, w0, out=dest["upper"])
         np.minimum(dest["upper"], c["one"], out=dest["upper"])
     return irregular if irregular is not None and irregular.size else None

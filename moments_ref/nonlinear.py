@@ -682,7 +682,7 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     comparisons or masks. A texel whose result is not finite (ξ4 = 0, an overflow) is left
     to :func:`_shade_kernel`: its flat indices in the chunk are returned.
     """
-    ws, one = c["ws"], c["one"]
+    ws = c["ws"]
     x, q2, v1, c2, y2n, e, g = ws[:7]
     np.subtract(zf, y1, out=x)
     np.divide(x, gap, out=x)
@@ -690,9 +690,9 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     np.multiply(q2, q2, out=q2)
     np.divide(xi4, q2, out=q2)  # ξ'4 (q2's row until q2 is known)
     # Forward substitution in the unit coordinates: y2 = x − v2, y3 = x (x − 1) (in g).
-    np.subtract(one, v2, out=v1)
+    np.subtract(1, v2, out=v1)  # array–scalar: one row read, not two
     np.subtract(x, v2, out=y2n)
-    np.subtract(x, one, out=e)
+    np.subtract(x, 1, out=e)
     np.multiply(x, e, out=g)
     np.add(x, e, out=e)  # 2x − 1 = p'(x)'s factor of q2
     # Scaling: c2 = y2/(v1 v2), q2 = y3/ξ'4, 1/w0 − 1 = y2 c2 + y3 q2 (in v1's row), k2 = c2 + q2 (2x − 1).
@@ -707,7 +707,7 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     np.multiply(e, q2, out=k2)
     np.add(k2, c2, out=k2)
     inv_w0, q2m, v, s = c2, q2, x, g
-    np.add(cm1, one, out=inv_w0)
+    np.add(cm1, 1, out=inv_w0)
     np.minimum(q2, c["zero"], out=q2m)
     # Step (3)–(5) as msm._bound_rows: S = √(k2² − 4 q2m/w0), ((1 − w0)/2·(S + k2) − y2 q2m)/S.
     np.multiply(q2m, inv_w0, out=v)
