@@ -19,10 +19,11 @@ line):
   needs no Vandermonde solve, is exactly 0 for a root at infinity and is
   positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The bounds alone
   (:func:`shadow_intensity`) take a shorter route that is as accurate: the quadratic
-  of step (3) written about zf (its roots as distances ``zf − z``, cancellation-free),
-  only the weight that step (5) needs (w1 from the first two moments about zf,
-  ``1 − w0`` beyond z2), with the texels where that has no finite value handed to
-  the full kernel (:func:`_bound_rows`). The mpmath twin
+  of step (3) written about zf, ``q2 t² − p'(zf) t + 1/w0`` in ``t = zf − z``, whose root
+  weight ``w1 = ((1 − w0)/2·(S + p'(zf)) − (zf − b1) q2)/S`` (S the square root of its
+  discriminant; w1 from the first two moments about zf) is, with q2 replaced by
+  ``min(q2, 0)``, the bound of step (5) in all its cases, with the texels where that
+  has no finite value handed to the full kernel (:func:`_bound_rows`). The mpmath twin
   in :mod:`moments_ref.precise` solves the Vandermonde system literally and
   serves as the independent check.
 
