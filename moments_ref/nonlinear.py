@@ -669,7 +669,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
 
 
 def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
-    """Algorithm 3's bound on a chunk where no §3.4 clamp acts, in 33 passes (34 with the gap); the texels it leaves, or None.
+    """Algorithm 3's bound where no §3.4 clamp acts, in 33 passes (34 with the gap); the texels it leaves, or None.
 
     In the coordinates of HPG17 §3.4 (y1 → 0, y2 → 1: ``x = z'f``, ``ξ'4 = ξ4/(y2 − y1)⁴``)
     the moments are those of Algorithm 1 with ``σ² = v1 v2`` (v1 = 1 − v2), ``L32 = 1``, so
@@ -695,7 +695,7 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     np.subtract(x, 1, out=e)
     np.multiply(x, e, out=g)
     np.add(x, e, out=e)  # 2x − 1 = p'(x)'s factor of q2
-    # Scaling: c2 = y2/(v1 v2), q2 = y3/ξ'4, 1/w0 − 1 = y2 c2 + y3 q2 (in v1's row), k2 = c2 + q2 (2x − 1).
+    # Scaling: c2 = y2/(v1 v2), q2 = y3/ξ'4, 1/w0 − 1 = y2 c2 + y3 q2 (v1's row), k2 = c2 + q2 (2x − 1).
     np.multiply(v1, v2, out=c2)
     np.divide(y2n, c2, out=c2)
     np.divide(g, q2, out=q2)
