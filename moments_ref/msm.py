@@ -19,10 +19,11 @@ line):
   needs no Vandermonde solve, is exactly 0 for a root at infinity and is
   positive by construction. ``w2 = 1 − w0 − w1`` because b0 = 1. The bounds alone
   (:func:`shadow_intensity`) take a shorter route that is as accurate: the quadratic
-  of step (3) written about zf (its roots as distances ``zf − z``, cancellation-free),
-  only the weight that step (5) needs (w1 from the first two moments about zf,
-  ``1 − w0`` beyond z2), with the texels where that has no finite value handed to
-  the full kernel (:func:`_bound_rows`). The mpmath twin
+  of step (3) written about zf, ``q2 t² − p'(zf) t + 1/w0`` in ``t = zf − z``, whose root
+  weight ``w1 = ((1 − w0)/2·(S + p'(zf)) − (zf − b1) q2)/S`` (S the square root of its
+  discriminant; w1 from the first two moments about zf) is, with q2 replaced by
+  ``min(q2, 0)``, the bound of step (5) in all its cases, with the texels where that
+  has no finite value handed to the full kernel (:func:`_bound_rows`). The mpmath twin
   in :mod:`moments_ref.precise` solves the Vandermonde system literally and
   serves as the independent check.
 
@@ -95,22 +96,24 @@ __all__ = [
 # Algorithm 2), shared with msm6 and nonlinear; re-exported here (public names).
 _two_point = two_point
 
-#: :data:`moments_ref._kernels.MSM_CHUNK` (2^15 texels): the chunk of float64, a quarter of float32's
+#: :data:`moments_ref._kernels.MSM_CHUNK` (2^15 texels): half the kernel's chunk in both dtypes
 #: (:func:`chunk_texels`).
 CHUNK = MSM_CHUNK
 
 def chunk_texels(dtype):
-    """Texels per chunk of the kernel for ``dtype``: float32 ``4·CHUNK`` (2^17), float64 ``CHUNK`` (2^15).
+    """Texels per chunk of the kernel for ``dtype``: ``2·CHUNK`` (2^16) in float32 and float64.
 
-    Each of the kernel's ~55 ufunc calls per chunk costs about 0.65 µs besides its
-    elements (measured: 2048² float32 from chunks of 2^12 to 2^17, 17.8, 13.4, 11.0, 10.0,
-    9.5, 9.4 ns a texel, load 10.6), which weighs most in float32, whose passes are the
-    cheapest. Interleaved A/B at 2048² against 2^15 (two runs, load 11-12): float32 2^17
-    0.927 (quartiles 0.909–0.937) and 0.941 (0.914–0.960) of the time; float64 2^16 0.968
-    and 1.000, 2^17 1.044 (nine rows of 1 MiB), so float64 keeps 2^15. docs/bench.md,
-    "Where Algorithm 1's time goes".
+    Each ufunc call per chunk costs about 0.65 µs besides its elements (measured: 2048² float32
+    from chunks of 2^12 to 2^17, 17.8, 13.4, 11.0, 10.0, 9.5, 9.4 ns a texel, load 10.6), and a
+    pass over rows that stay in the 1 MiB L2 of a core is no cheaper per element than one over
+    rows in L3 (0.13–0.16 ns a float32 element from 2^13 to 2^17): the largest chunk whose
+    rows keep the kernel's working set near L2 wins. For the 38-pass bounds (issue 41, round
+    six), interleaved A/B at 2048², 15 pairs, CPU time, load 12–14: float32 2^16 0.91
+    (quartiles 0.86–0.93) of the time of 2^17 and 2^15 1.03 (1.01–1.05) of 2^16; float64 2^16
+    0.91 (0.88–0.92) of 2^15. The results do not depend on the chunk. docs/bench.md, "Where
+    Algorithm 1's time goes".
     """
-    return 4 * CHUNK if np.dtype(dtype) == np.float32 else CHUNK
+    return 2 * CHUNK
 
 
 def _constants(dtype, n):
@@ -124,6 +127,7 @@ def _constants(dtype, n):
         "zero": np.zeros(n, dtype=dtype),
         "one": np.ones(n, dtype=dtype),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
+        "four": np.dtype(dtype).type(4),
         "rtol": np.dtype(dtype).type(singular_thresholds(dtype)),
         "ws": np.empty((_ROWS, n), dtype=dtype),
         "bits": np.empty(n, dtype=it),
@@ -143,7 +147,7 @@ def _chunk_constants(dtype, n):
 
     Fresh chunk-sized arrays are faulted in from the OS on every call (measured: a call of one
     chunk of float32 took 4.5 times the per-texel time of a call of 2^20 texels); kept, they cost
-    6.8 MB (float32) or 3.4 MB (float64) per thread that called. Per
+    3.5 MB (float32) or 6.9 MB (float64) per thread that called. Per
     thread, so that concurrent calls never share a workspace.
     """
     chunk = chunk_texels(dtype)
@@ -355,13 +359,15 @@ def _kernel(b, zf, want, c, dest, refuse):
     return out
 
 
-def _roots_about_zf(b, zf, c):
-    """Steps (1)–(3) of :func:`_bound_rows`: ``(t_a, t_b, y2, 1/w0, 1/w0 − 1, regular)``, rows of ``c["ws"]``.
+def _quadratic_about_zf(b, zf, c):
+    """Steps (1)–(3) of :func:`_bound_rows`: ``(k2, q2m, 1/w0, 1/w0 − 1, y2, regular)``, rows of ``c["ws"]``.
 
-    ``regular``: :func:`_pivots_positive`'s mask, or None where every pivot clears the threshold.
+    ``k2 = p'(zf)``, ``q2m = min(q2, 0)``; ``regular``: :func:`_pivots_positive`'s mask, or None
+    where every pivot clears the threshold. 25 passes (9 Cholesky, 5 forward substitution, 5
+    scaling and 1/w0 − 1, 4 k2, 1/w0 and q2m).
     """
     ws, (b1, b2, b3, b4) = c["ws"], b
-    s2, cm1, l32, xi, y2, y3, t, a, k = ws
+    s2, t, l32, xi, y2, y3, c2, q2, cm1 = ws
     # Cholesky, B(b) = L D Lᵀ: L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32·(b3 − b1 b2).
     np.multiply(b1, b1, out=s2)
     np.subtract(b2, s2, out=s2)
@@ -369,42 +375,29 @@ def _roots_about_zf(b, zf, c):
     np.subtract(b3, t, out=t)
     np.divide(t, s2, out=l32)
     np.multiply(l32, t, out=xi)
-    np.multiply(b2, b2, out=t)
-    np.add(xi, t, out=xi)
+    np.multiply(b2, b2, out=y3)
+    np.add(xi, y3, out=xi)
     np.subtract(b4, xi, out=xi)
+    regular = _pivots_positive(b, s2, xi, t, c)
     # Forward substitution to solve L y = (1, zf, zf²): y2 = zf − b1, y3 = zf² − b2 − L32 y2.
     _forward(zf, b1, b2, l32, y2, y3, t)
-    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (in cm1).
-    c2 = k
+    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (Prop. 10).
     np.divide(y2, s2, out=c2)
-    np.divide(y3, xi, out=a)
+    np.divide(y3, xi, out=q2)
     np.multiply(y2, c2, out=cm1)
-    np.multiply(y3, a, out=t)
+    np.multiply(y3, q2, out=t)
     np.add(cm1, t, out=cm1)
-    regular = _pivots_positive(b, s2, xi, t, c)  # σ², ξ4 are used up: their rows are free
-    inv_w0 = s2
-    np.add(cm1, 1, out=inv_w0)
-    # Back substitution, q1 = c2 − L32 q2, and k = q2 zf + q1/2 (the quadratic about zf).
-    np.multiply(l32, a, out=t)
-    np.subtract(c2, t, out=t)
-    np.multiply(t, 0.5, out=t)
-    np.multiply(a, zf, out=k)
-    np.add(k, t, out=k)
-    # Step (3): m = k + sign(k)·√(k² − q2/w0) (bit-level copysign, the root ≥ 0); t_a ≥ t_b of m/q2, (1/w0)/m.
-    np.multiply(k, k, out=t)
-    np.multiply(a, inv_w0, out=xi)
-    np.subtract(t, xi, out=t)
-    np.sqrt(t, out=t)  # NaN for a discriminant below 0: the texel goes to _kernel
-    sign, bits = c["sign"], c["bits"]
-    np.bitwise_and(k.view(sign.dtype), sign, out=bits)
-    np.bitwise_or(t.view(sign.dtype), bits, out=t.view(sign.dtype))
-    np.add(k, t, out=k)
-    np.divide(k, a, out=t)
-    np.divide(inv_w0, k, out=xi)
-    ta, tb = k, a
-    np.maximum(t, xi, out=ta)
-    np.minimum(t, xi, out=tb)
-    return ta, tb, y2, inv_w0, cm1, regular
+    # p(z) = 1 + c2 (z − b1) + q2 (z² − b2 − L32 (z − b1)) (back substitution folded in), so
+    # k2 = p'(zf) = c2 + q2 (2 zf − L32).
+    k2 = y3
+    np.subtract(zf, l32, out=k2)
+    np.add(k2, zf, out=k2)
+    np.multiply(k2, q2, out=k2)
+    np.add(k2, c2, out=k2)
+    inv_w0, q2m = s2, q2
+    np.add(cm1, 1, out=inv_w0)  # an array–scalar add reads one row, not two
+    np.minimum(q2, c["zero"], out=q2m)
+    return k2, q2m, inv_w0, cm1, y2, regular
 
 
 def _bound_rows(b, zf, bound, c, dest):
@@ -412,51 +405,54 @@ def _bound_rows(b, zf, bound, c, dest):
 
     Steps (1)–(2) as :func:`_cholesky` (L32² σ² as L32·(b3 − b1 b2), one pass fewer) and
     :func:`_solve` up to the scaling: ``c2 = y2/σ²``, ``q2 = y3/ξ4`` and
-    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) in the distances
-    ``t = zf − z`` of the roots from zf (:func:`_roots_about_zf`): the roots
-    ``t_a = zf − z1 ≥ t_b = zf − z2`` of ``q2 t² − 2k t + 1/w0`` with ``k = q2 zf + q1/2``
-    (the quadratic of step (3) written about zf, whose value there is ``1/w0``), without cancellation:
-    ``m = k + sign(k)·√(k² − q2/w0)``, the roots ``m/q2`` and ``(1/w0)/m``. Their product
-    ``1/(w0 q2)`` is never 0, so zf is never a root, and between the roots (q2 < 0) the
-    discriminant is a sum of positive terms. Step (4) only for what step (5) needs: below zf
-    both roots (t_b > 0) the bound is ``1 − w0``, written ``(1/w0 − 1)·w0`` (no cancellation);
-    between them it is w1, from the first two moments of the canonical representation about zf,
-    ``w1 + w2 = 1 − w0`` and ``w1 t_a + w2 t_b = zf − b1``: ``w1 = (y2 − (1 − w0) t_b)/(t_a − t_b)``.
-    49 ufunc passes and three reductions over a float32 chunk for the lower bound (the upper
-    bound 2 more; float64 checks its relative thresholds by six reductions), instead of the 63 of the slides'
-    quotient formulation used before and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
-    history"). Where B(b) is singular (module docstring) or the result is not finite (a
-    root at infinity, a discriminant rounded below 0, a non-finite input), the texels are handed to
-    :func:`_kernel`, which has the limits of all; their indices are returned (None when there are none).
+    ``1/w0 = 1 + y2 c2 + y3 q2`` (Peters and Klein 2015, Prop. 10). Step (3) about zf: with
+    ``t = zf − z`` the quadratic of step (3) is ``q2 t² − k2 t + 1/w0`` (``k2 = p'(zf)``, its
+    value at zf is ``1/w0``), whose roots ``t_a ≥ t_b`` have the product ``1/(w0 q2)``: for
+    ``q2 > 0`` both lie on the side of zf that the sign of k2 gives, and the bound is ``1 − w0``
+    (k2 > 0, zf above both) or 0; for ``q2 < 0`` zf lies between them and the bound is w1. Step
+    (4) only for w1, from the first two moments about zf (``w1 + w2 = 1 − w0``,
+    ``w1 t_a + w2 t_b = zf − b1 = y2``) and the roots ``(k2 ± S)/(2 q2)``,
+    ``S = √(k2² − 4 q2/w0)``: ``w1 = ((1 − w0)/2·(S + k2) − y2 q2)/S``. Written with
+    ``q2m = min(q2, 0)`` in place of q2 the same expression is the bound in all three cases
+    (for ``q2 ≥ 0``, ``S = |k2|`` exactly, and ``(S + k2)/S`` is 2 or exactly 0), so step (5)
+    needs no comparison and no mask. 38 ufunc passes and four reductions over a float32 chunk
+    for the lower bound (the upper bound 3 more; float64 checks its relative thresholds by five
+    reductions instead of two), instead of the 49 of the roots as distances from zf used before, the 63 of
+    the slides' quotient formulation and the ~75 of :func:`_kernel` (docs/bench.md, "Kernel
+    history"). Where B(b) is singular (module docstring) or the result is not finite (a root at
+    infinity, k2 = 0 with q2 ≥ 0, an overflow, a non-finite input), the texels are handed to
+    :func:`_kernel`, which has the limits of all; their indices are returned (None when there
+    are none).
     """
-    ta, tb, y2, inv_w0, cm1, regular = _roots_about_zf(b, zf, c)
-    w0, r0, w1, t = c["ws"][2], cm1, c["ws"][5], c["ws"][6]
-    # Step (4): w0, 1 − w0 = (1/w0 − 1)·w0, and w1 = (y2 − (1 − w0) t_b)/(t_a − t_b).
-    np.divide(1, inv_w0, out=w0)
-    np.multiply(cm1, w0, out=r0)  # NaN for 1/w0 = ∞ (a non-finite zf)
-    np.multiply(r0, tb, out=t)
-    np.subtract(y2, t, out=t)
-    np.subtract(ta, tb, out=w1)
-    np.divide(t, w1, out=w1)
-    # Step (5): lower = [t_a > 0]·(w1 + [t_b > 0]·(1 − w0 − w1)) (zf above z1, above z2). Float rows
-    # times boolean rows: a masked copy (np.copyto where=) of a random mask costs 30 passes.
-    lower = dest[bound] if bound == "lower" else y2
-    above = c["mask"][0]
-    np.subtract(r0, w1, out=lower)
-    np.greater(tb, c["zero"], out=above)
-    np.multiply(lower, above, out=lower)
-    np.add(lower, w1, out=lower)
-    np.greater(ta, c["zero"], out=above)
-    np.multiply(lower, above, out=lower)
+    k2, q2m, inv_w0, cm1, y2, regular = _quadratic_about_zf(b, zf, c)
+    ws = c["ws"]
+    v, s, h, num = ws[1], ws[2], ws[3], ws[6]
+    # S = √(k2² − 4 q2m/w0): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for q2 ≥ 0.
+    np.multiply(q2m, inv_w0, out=v)
+    np.multiply(v, c["four"], out=v)
+    np.multiply(k2, k2, out=s)
+    np.subtract(s, v, out=s)
+    np.sqrt(s, out=s)  # NaN or inf for an overflow: the texel goes to _kernel
+    # (1 − w0)/2 = (1/w0 − 1)/(2/w0); then lower = ((1 − w0)/2·(S + k2) − y2 q2m)/S.
+    np.add(inv_w0, inv_w0, out=h)
+    np.divide(cm1, h, out=h)
+    np.add(s, k2, out=num)
+    np.multiply(num, h, out=num)
+    np.multiply(y2, q2m, out=v)
+    np.subtract(num, v, out=num)
+    lower = dest[bound] if bound == "lower" else num
+    np.divide(num, s, out=lower)
     np.clip(lower, 0, 1, out=lower)  # saturate, and a rounded w1 < 0 (NaN stays NaN)
-    # Irregular: a pivot below the threshold, or a result that is not finite (the sum of a chunk
-    # of values in [0, 1] is finite unless one of them is not: one reduction instead of a mask).
+    # Irregular: a pivot below the threshold, or a result that is not finite (the largest of a
+    # chunk of values in [0, 1] is a NaN if one of them is: one reduction instead of a mask).
     irregular = None
-    if regular is not None or not np.isfinite(np.add.reduce(lower)):
-        finite = np.isfinite(lower, out=above)
+    if regular is not None or not np.maximum.reduce(lower) <= 1:
+        finite = np.isfinite(lower, out=c["mask"][0])
         regular = finite if regular is None else np.logical_and(regular, finite, out=regular)
         irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
+        w0 = v
+        np.divide(1, inv_w0, out=w0)
         np.add(lower, w0, out=dest["upper"])
         np.minimum(dest["upper"], c["one"], out=dest["upper"])
     return irregular if irregular is not None and irregular.size else None

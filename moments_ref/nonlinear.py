@@ -668,6 +668,95 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
     np.absolute(out, out=out)
 
 
+def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
+    """Algorithm 3's bound where no §3.4 clamp acts, in 33 passes (34 with the gap); the texels it leaves, or None.
+
+    In the coordinates of HPG17 §3.4 (y1 → 0, y2 → 1: ``x = z'f``, ``ξ'4 = ξ4/(y2 − y1)⁴``)
+    the moments are those of Algorithm 1 with ``σ² = v1 v2`` (v1 = 1 − v2), ``L32 = 1``, so
+    the forward substitution of step (2) gives ``y2 = x − v2`` and ``y3 = x (x − 1)``, and
+    :func:`moments_ref.msm._bound_rows`'s closed form applies: ``c2 = y2/σ²``, ``q2 = y3/ξ'4``,
+    ``1/w0 − 1 = y2 c2 + y3 q2``, ``k2 = c2 + q2 (2x − 1)`` and, with ``q2m = min(q2, 0)`` and
+    ``S = √(k2² − 4 q2m/w0)``, the bound ``((1 − w0)/2·(S + k2) − y2 q2m)/S``: the weight of
+    the root below zf for ``0 < x < 1`` (Algorithm 3's z_l case), ``1 − w0`` for ``x ≥ 1``
+    (its ``1 − w_l`` with z_l = z'f) and exactly 0 for ``x ≤ 0`` (its early return), without
+    comparisons or masks. A texel whose result is not finite (ξ4 = 0, an overflow) is left
+    to :func:`_shade_kernel`: its flat indices in the chunk are returned.
+    """
+    ws = c["ws"]
+    x, q2, v1, c2, y2n, e, g = ws[:7]
+    np.subtract(zf, y1, out=x)
+    np.divide(x, gap, out=x)
+    np.multiply(gap, gap, out=q2)
+    np.multiply(q2, q2, out=q2)
+    np.divide(xi4, q2, out=q2)  # ξ'4 (q2's row until q2 is known)
+    # Forward substitution in the unit coordinates: y2 = x − v2, y3 = x (x − 1) (in g).
+    np.subtract(1, v2, out=v1)  # array–scalar: one row read, not two
+    np.subtract(x, v2, out=y2n)
+    np.subtract(x, 1, out=e)
+    np.multiply(x, e, out=g)
+    np.add(x, e, out=e)  # 2x − 1 = p'(x)'s factor of q2
+    # Scaling: c2 = y2/(v1 v2), q2 = y3/ξ'4, 1/w0 − 1 = y2 c2 + y3 q2 (v1's row), k2 = c2 + q2 (2x − 1).
+    np.multiply(v1, v2, out=c2)
+    np.divide(y2n, c2, out=c2)
+    np.divide(g, q2, out=q2)
+    cm1 = v1
+    np.multiply(y2n, c2, out=cm1)
+    np.multiply(g, q2, out=x)
+    np.add(cm1, x, out=cm1)
+    k2 = e
+    np.multiply(e, q2, out=k2)
+    np.add(k2, c2, out=k2)
+    inv_w0, q2m, v, s = c2, q2, x, g
+    np.add(cm1, 1, out=inv_w0)
+    np.minimum(q2, c["zero"], out=q2m)
+    # Step (3)–(5) as msm._bound_rows: S = √(k2² − 4 q2m/w0), ((1 − w0)/2·(S + k2) − y2 q2m)/S.
+    np.multiply(q2m, inv_w0, out=v)
+    np.multiply(v, y1.dtype.type(4), out=v)
+    np.multiply(k2, k2, out=s)
+    np.subtract(s, v, out=s)
+    np.sqrt(s, out=s)
+    np.add(inv_w0, inv_w0, out=v)
+    np.divide(cm1, v, out=v)  # (1 − w0)/2
+    num = cm1
+    np.add(s, k2, out=num)
+    np.multiply(num, v, out=num)
+    np.multiply(y2n, q2m, out=v)
+    np.subtract(num, v, out=num)
+    np.divide(num, s, out=out)
+    np.clip(out, 0, 1, out=out)
+    if np.maximum.reduce(out) <= 1:  # NaN propagates: one reduction finds a non-finite result
+        return None
+    return np.flatnonzero(np.logical_not(np.isfinite(out, out=c["mask"]), out=c["mask"]))
+
+
+def _clamped_texels(v2, xi4, gap, c):
+    """Flat indices of the texels of a chunk on which a §3.4 clamp acts (v2, the gap, ξ'4 ≥ tiny)."""
+    act = np.less(v2, c["lo"])
+    act |= v2 > c["hi"]
+    act |= gap < c["lo"]
+    g4 = np.maximum(gap, c["lo"])
+    g4 *= g4
+    g4 *= g4
+    act |= ~(np.divide(xi4, g4) >= c["tiny"])
+    return np.flatnonzero(act)
+
+
+def _shade_rows(cols, zc, out, c, gap, ext, clamp):
+    """One chunk of :func:`shade`: :func:`_shade_about_zf` where no clamp acts, :func:`_shade_kernel` on the rest."""
+    y1, y2, v2, xi4 = cols
+    rest = _clamped_texels(v2, xi4, gap, c) if any(_clamps_needed(ext, c).values()) else None
+    left = _shade_about_zf(y1, v2, xi4, zc, gap, out, c)
+    if rest is None or not rest.size:
+        rest = left
+    elif left is not None:
+        rest = np.union1d(rest, left)
+    if rest is not None and rest.size:
+        sub = _kernel_constants(cols.dtype, rest.size, clamp)
+        res = np.empty(rest.size, dtype=cols.dtype)
+        _shade_kernel(y1[rest], y2[rest], v2[rest], xi4[rest], zc[rest], res, sub)
+        out[rest] = res
+
+
 @fill_doc
 def shade(r, zf, clamp=SHADE_TOLERANCE):
     """HPG17 Algorithm 3: the sharp lower bound of Z(z < zf) from ``(y1, y2, v2, ξ4)``.
@@ -739,10 +828,14 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
     chunk; finiteness and the domain are checked on the loaded chunk by eight
     min/max reductions (the full checks run only to raise), which also tell which
-    §3.4 clamps can act in the chunk (none on filtered moments: 43 in-place ufunc
-    passes, 47 with every clamp); the z_l selection as a three-pass bit blend
-    (``np.where`` cost as much as 15 passes at this chunk size). The result does not depend on the
-    chunk size; the measurements are in docs/bench.md ("Kernel history").
+    §3.4 clamps can act in the chunk. Where no clamp acts on a texel (every texel of
+    filtered moments) the bound is Algorithm 1's closed form in the unit coordinates of
+    §3.4 (``_shade_about_zf``: the three cases above in one expression, 34 ufunc passes with
+    the gap, no selection); the texels where a clamp acts, and those where the closed form
+    is not finite (ξ4 = 0, an overflow), take the clamped algorithm above (``_shade_kernel``,
+    43 passes, 47 with every clamp), decided per texel, so the result does not depend on the
+    chunk size; the two agree within 4 ulps of 1 (tests/test_nonlinear.py). The measurements
+    are in docs/bench.md ("Kernel history").
 
     Examples
     --------
@@ -772,7 +865,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
             ext = _chunk_ok(cols, zc, gap, tol)
             if ext is None:
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
-            _shade_kernel(*cols, zc, out[start:stop], c, gap, ext)
+            _shade_rows(cols, zc, out[start:stop], c, gap, ext, clamp)
     return out.reshape(shape)
 
 

@@ -548,3 +548,23 @@ def test_threads_share_no_workspace():
             for got, want in zip(pool.map(run, jobs), serial):
                 for g, w in zip(got, want):
                     assert g.dtype == w.dtype and np.array_equal(g, w)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_bound_outside_both_roots_is_exact(dtype):
+    # The closed form of msm._bound_rows has no selection: with q2 ≥ 0 its S is |k2| exactly and
+    # (S + k2)/S is 2 or exactly 0. So where the canonical representation (the full kernel, roots
+    # and weights) puts zf below both roots the lower bound is exactly 0, as step (5)'s empty sum
+    # (lit texels stay exactly lit). A form with the same value written as
+    # (1 − w0)/2 + ((1 − w0) k2/2 − y2 q2)/S (cancelling) leaves ulps there and fails here.
+    rng = np.random.default_rng(41)
+    n = 20000
+    z = rng.uniform(-1, 1, (n, 4))
+    b = bias_moments(power_moments(z, weights=rng.dirichlet(np.ones(4), n)), BIAS_FLOAT32).astype(dtype)
+    zf = rng.uniform(-1.5, 1.5, n).astype(dtype)
+    depths, weights = canonical_representation(b, zf)
+    below, above = zf < depths[:, 1], zf > depths[:, 2]
+    assert below.sum() > 1000 and above.sum() > 1000
+    lower = shadow_intensity(b, zf)
+    assert np.all(lower[below] == 0)
+    assert np.all(lower[above] > 0)

@@ -438,21 +438,25 @@ def test_shade_upper_v2_clamp_is_one_minus_1e6():
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_shade_skips_only_the_clamps_that_change_nothing(dtype):
-    # shade skips a §3.4 clamp (v2 ≥ 1e-6, v2 ≤ 1 − 1e-6, gap ≥ 1e-6, ξ'4 ≥ tiny) in a
-    # chunk whose extremes prove it a no-op. Against the kernel with every clamp run
-    # (ext=None), bit for bit, on chunks of filtered moments (no clamp needed) with one
-    # row that needs each clamp, ξ4 around the proven threshold 2·tiny·max(gap)⁴, and a
+    # shade runs the clamped Algorithm 3 (_shade_kernel, every clamp) on the texels where a
+    # §3.4 clamp acts (v2 < 1e-6, v2 > 1 − 1e-6, gap < 1e-6, ξ4/max(gap, 1e-6)⁴ < tiny,
+    # computed here in the dtype) and the closed form of _shade_about_zf on the others, in
+    # chunks whose extremes do not prove every clamp a no-op. Against the kernel with every
+    # clamp run: bit for bit where a clamp acts, within 4 ulps of 1 elsewhere (the two
+    # formulations of the same bound), on chunks of filtered moments (no clamp needed) with
+    # one row that needs each clamp, ξ4 around the proven threshold 2·tiny·max(gap)⁴, and a
     # gap whose fourth power overflows, and ξ4 = 0 with gaps of 1e-6 (where the threshold
-    # computed as 2·tiny·gap⁴ underflowed to 0: seen failing). Each clamp's skip forced
-    # on a chunk that needs it fails this test.
+    # computed as 2·tiny·gap⁴ underflowed to 0: seen failing). Leaving the rows of the v2 or
+    # gap clamps to the closed form fails this test; a ξ'4 below tiny sends the closed form
+    # to an overflow (k2² = ∞), a non-finite result, which goes to the kernel as well.
     rng = np.random.default_rng(12)
     n = 1000
     b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4))), BIAS_FLOAT32).astype(dtype)
     base, zf = nl.phi(b), rng.uniform(-1, 1, n).astype(dtype)
     tiny = float(np.finfo(dtype).tiny)
     g = float(base[:, 1].max() - base[:, 0].min())
-    edits = [(2, 0.0), (2, 1.0), (2, 5e-7), (1, None), (3, 0.0), (3, 3 * tiny), (3, tiny * g**4 * 0.5),
-             (3, tiny * g**4 * 1.99), (3, tiny * g**4 * 2.01), (3, 1e-35)]
+    edits = [(2, 0.0), (2, 1.0), (2, 5e-7), (2, 1 - 5e-7), (1, None), (3, 0.0), (3, 3 * tiny),
+             (3, tiny * g**4 * 0.5), (3, tiny * g**4 * 1.99), (3, tiny * g**4 * 2.01), (3, 1e-35)]
     chunks = [base.copy()] + [base.copy() for _ in edits] + [base.copy()]
     for ch, (col, v) in zip(chunks[1:], edits):
         ch[7, col] = ch[7, 0] if v is None else v
@@ -460,12 +464,22 @@ def test_shade_skips_only_the_clamps_that_change_nothing(dtype):
     chunks[-1][3, 3] = 1e3
     tight = np.tile(np.array([0.0, 1e-6, 0.7734375, 0.0], dtype), (n, 1))  # 2·tiny·gap⁴ underflows
     chunks.append(tight)
+    narrow = base.copy()  # a gap below the clamp's 1e-6 but not 0
+    narrow[7, 1] = narrow[7, 0] + dtype(5e-7)
+    chunks.append(narrow)
     consts, _ = nl._chunk_constants(dtype, n, nl._clamp_offset(nl.SHADE_TOLERANCE))
+    zf[7] = base[7, 0] + 0.25 * (base[7, 1] - base[7, 0])  # between y1 and y2: the edited row's bound is w_l
     for ch in chunks:
         want = np.empty(n, dtype)
         cols = np.ascontiguousarray(ch.T)
         with np.errstate(all="ignore"):
             nl._shade_kernel(*cols, zf.copy(), want, consts)
-        assert nl.shade(ch, zf).tobytes() == want.tobytes()
+            y1, y2, v2, xi4 = np.ascontiguousarray(ch.T)
+            lo, tiny_d = dtype(nl.SHADE_TOLERANCE), dtype(tiny)
+            g4 = np.maximum(y2 - y1, lo) ** 4
+            acts = (v2 < lo) | (v2 > 1 - lo) | (y2 - y1 < lo) | ~(xi4 / g4 >= tiny_d)
+        got = nl.shade(ch, zf)
+        assert got[acts].tobytes() == want[acts].tobytes()
+        assert np.abs(got[~acts] - want[~acts]).max(initial=0) <= 4 * np.finfo(dtype).eps
     ext = nl._chunk_ok(np.ascontiguousarray(base.T), zf, base[:, 1] - base[:, 0], 1e-6)
     assert not any(nl._clamps_needed(ext, consts).values())  # filtered moments skip all four

@@ -22,13 +22,17 @@ __all__ = ["pass_probe", "scatter_probe", "PASSES"]
 #: Ufunc passes per chunk of each kernel's common path, counted in its code (float and
 #: boolean passes alike; the rare singular or out-of-domain texels are handed elsewhere).
 PASSES = {
-    # msm._bound_rows: 9 Cholesky, 11 solve and 1/w0, 5 the quadratic about zf, 11 roots, 6 w0 and w1,
-    # 7 step (5); its three reductions (pivots, finiteness) are not counted
-    "shadow_intensity float32": 49,
-    # nonlinear._shade_kernel: 7 setup, 3 P, 7 h, 9 roots, 4 the z_l blend, 11 w_l, 2 the
-    # returned value; 4 more for the §3.4 clamps, which a chunk whose 8 min/max reductions
-    # prove no-ops skips (every chunk of filtered moments, docs/bench.md)
-    "shade float32": 43,
+    # msm._bound_rows: 9 Cholesky, 5 forward substitution, 5 scaling and 1/w0 − 1, 4 k2 = p'(zf),
+    # 1/w0 and min(q2, 0), 5 the discriminant (its square root one), 2 (1 − w0)/2, 5 the weight
+    # and 1 saturate (issue 41, round six; 49 before); its four reductions (pivots, b4, the
+    # results' finiteness) are not counted
+    "shadow_intensity float32": 38,
+    # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 5 z'f and ξ'4,
+    # 5 the forward substitution in unit coordinates, 8 scaling, 1/w0 − 1 and k2, 2 1/w0 and
+    # min(q2, 0), 5 the discriminant, 2 (1 − w0)/2, 6 the weight and saturate (round six; 43
+    # before); the texels where a §3.4 clamp acts (none of filtered moments) take the clamped
+    # kernel
+    "shade float32": 34,
     # msm6._bounds_kernel: 23 Cholesky, 11 forward substitution, 6 Sturm signs, 21 scaling, back
     # substitution, p(zf) and the Taylor coefficients, 1 w0, 15 Blinn's form, 3 the sign σ,
     # 16 cos(arccos(r)/3), 2 the root, 24 its weight, 6 step (5) and saturate; 5 reductions
