@@ -78,8 +78,10 @@ FILTER_BAND_BYTES = 1 << 20
 #: and sums stay in L2).
 RESOLVE_BYTES = 1 << 17
 #: Texels per band of :func:`moments_ref.gpu.filtering.global_path_nlq` (a band's float64 rows, about
-#: 2–5 MiB, stay in L3 whatever the map size).
-PATH_BAND_TEXELS = 1 << 17
+#: 1.5 MiB at 2048², stay in cache whatever the map size). 2^15 since issue 41 round six: the global
+#: NLQ64 path at 2048² 4× took 0.895, 0.942 and 0.969 of the time with 2^17 (interleaved, order
+#: rotated, 9–12 rounds, load 5), 0.959 at 1024²; 2^14 and 2^18 were no quicker than 2^17.
+PATH_BAND_TEXELS = 1 << 15
 #: (triangle, row, sample) rows per vectorized batch of the rasterizer's span expansion
 #: (:mod:`moments_ref.scene.raster`), and covered samples per yielded batch: 512 KiB per float64
 #: array, so that a batch's temporaries stay in L2 (the in-place span expansion is bandwidth-bound:

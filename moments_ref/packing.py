@@ -597,7 +597,7 @@ def _encoder(fmt, xi_rounding):
     return lambda rows, c, out: _encode64(rows, c, out, xi_rounding)
 
 
-def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
+def nlq_texels(b, fmt="nlq64", *, xi_rounding="up", out=None):
     """``pack64(phi(bias_moments(b, BIAS_FLOAT32)))`` (or pack32) bit for bit, one L2 chunk at a time.
 
     Parameters
@@ -607,6 +607,8 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
     fmt : {"nlq64", "nlq32"}
     xi_rounding : {"up", "nearest"}
         The 64-bit Ψ4 code's rounding (:func:`pack64`); the 32-bit format has one.
+    out : C-contiguous array of the result's shape and dtype, optional
+        Where to write the texels (a band of a larger texture: no copy); returned.
 
     Returns
     -------
@@ -625,7 +627,10 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
         raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
     encode = _encoder(fmt, _choice(xi_rounding, "xi_rounding", XI_ROUNDINGS))
     b = real_input(b, "b", trailing=4, finite=False)
-    out, oflat = _texel_output(b.shape[:-1], fmt)
+    if out is None:
+        out, oflat = _texel_output(b.shape[:-1], fmt)
+    else:
+        oflat = _checked_out(out, b.shape[:-1], fmt)
     flat = b.reshape(-1, 4)
     scale, shift = _bias_rows(b.dtype)
     tol = b.dtype.type(rounding_tolerance(b.dtype))
@@ -636,7 +641,7 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
         m = rows.shape[1]
         c = full if m == _ENCODE_CHUNK else {k: v[:m] for k, v in full.items()}
         if not _all_finite(rows):
-            return _nlq_separately(b, fmt, xi_rounding)
+            return _nlq_separately(b, fmt, xi_rounding, out)
         # Bias: b·(1 − α) + α b* (moments.bias_moments), row k gets α b*_k (a scalar
         # per row: NumPy's array + scalar loop is vectorized, a broadcast column is not).
         rows *= scale
@@ -644,15 +649,28 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up"):
             rows[k] += shift[k]
         phi_rows(rows, res[:, :m])
         if not _saturated(res[:, :m], c, tol, ordered=True):
-            return _nlq_separately(b, fmt, xi_rounding)
+            return _nlq_separately(b, fmt, xi_rounding, out)
         encode(res[:, :m], c, oflat[lo : lo + m])
     return out
 
 
-def _nlq_separately(b, fmt, xi_rounding="up"):
+def _nlq_separately(b, fmt, xi_rounding="up", out=None):
     """The three steps of :func:`nlq_texels` one after the other (the reference, and the error path)."""
     r = phi(bias_moments(b, BIAS_FLOAT32))
-    return pack64(r, xi_rounding=xi_rounding) if fmt == "nlq64" else pack32(r)
+    t = pack64(r, xi_rounding=xi_rounding) if fmt == "nlq64" else pack32(r)
+    if out is None:
+        return t
+    out[...] = t
+    return out
+
+
+def _checked_out(out, lead_shape, fmt):
+    """The flat view (one row or entry per texel) of a caller's ``out`` for ``lead_shape`` texels of ``fmt``."""
+    want, dt = (lead_shape + (4,), np.uint16) if fmt == "nlq64" else (lead_shape, np.uint32)
+    if not isinstance(out, np.ndarray) or out.shape != want or out.dtype != dt or not out.flags.c_contiguous:
+        got = f"shape {out.shape}, dtype {out.dtype}" if isinstance(out, np.ndarray) else type(out).__name__
+        raise InputError(f"out: expected a C-contiguous {np.dtype(dt).name} array of shape {want}, got {got}")
+    return out.reshape(-1, 4) if fmt == "nlq64" else out.reshape(-1)
 
 
 @lru_cache(maxsize=4)

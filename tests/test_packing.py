@@ -422,6 +422,29 @@ def test_nlq_texels_raises_the_errors_of_its_steps():
     assert str(got.value) == str(want.value)
 
 
+@pytest.mark.parametrize("fmt", ["nlq64", "nlq32"])
+def test_nlq_texels_out_is_written_in_place(fmt):
+    # out= (a band of a larger texture, as the global path writes it): the same texels as the
+    # three calls, in the caller's array, also where the chunk loop hands over to the three
+    # steps (a texel Φ refuses: y1 > y2 is impossible here, so an infinite moment's error).
+    rng = np.random.default_rng(11)
+    b = power_moments(rng.uniform(-1, 1, (40000, 3))).astype(np.float32).reshape(200, 200, 4)
+    r = nl.phi(bias_moments(b, BIAS_FLOAT32))
+    want = pk.pack64(r) if fmt == "nlq64" else pk.pack32(r)
+    big = np.zeros((3,) + want.shape, want.dtype)
+    got = pk.nlq_texels(b, fmt, out=big[1])
+    assert got is big[1] or np.shares_memory(got, big)
+    assert np.array_equal(big[1], want) and not big[0].any() and not big[2].any()
+    for bad in (np.zeros(want.shape, np.float32), np.zeros(want.shape[:-1] if fmt == "nlq64" else want.shape + (4,),
+                                                            want.dtype), big[1][:, ::-1]):
+        with pytest.raises(InputError, match="out: expected a C-contiguous"):
+            pk.nlq_texels(b, fmt, out=bad)
+    b2 = b.copy()
+    b2[150, 7, 1] = np.inf
+    with pytest.raises(InputError, match=r"^b: expected finite values, got .*inf\)? at index \(150, 7, 1\)$"):
+        pk.nlq_texels(b2, fmt, out=np.empty_like(want))
+
+
 def test_nlq32_depth_codes_keep_the_constant_bias():
     """HPG17 §3.5's 10-bit depths, read at the upper end of their cell, never eat the 1e-3 bias (§5).
 

@@ -831,3 +831,41 @@ def test_dense_span_rows_are_exact_for_long_edges_through_samples(seed, samples)
                 inside = np.all([s["A"][e][i] * x + s["B"][e][i] * y + s["F0"][e][i] >= 0 for e in range(3)], axis=0)
                 want.append(((i * h + r) * samples + q) * w + cols[inside])
     np.testing.assert_array_equal(got, np.sort(np.concatenate(want)))
+
+
+@pytest.mark.parametrize("samples,cull,dtype", [(1, "none", np.float32), (4, "back", np.float64), (1, "front", np.float32)])
+def test_depth_views_are_rasterize_depth_per_view(samples, cull, dtype):
+    # rasterize_depth_views checks the mesh once (non-finite vertices, zero world area) and
+    # skips those checks per view: every map and every count must be rasterize_depth's, on a
+    # mesh with non-finite, degenerate and clipped triangles, shared (transformed once) and
+    # unshared vertices, and views from all sides (some see nothing).
+    from moments_ref.scene import load_scene
+    from moments_ref.scene.raster import look_at, perspective, rasterize_depth_views
+
+    mesh = load_scene("knot").occluder_mesh(translucent=False)
+    v, t = mesh.vertices.copy(), mesh.triangles[:6000].copy()
+    v[t[::501, 0]] = np.nan
+    v[t[7::613, 1]] = np.inf
+    t[5::409, 2] = t[5::409, 1]  # repeated vertex
+    t[9::397, 2] = t[9::397, 0]
+    centre = v[np.isfinite(v).all(axis=1)].mean(axis=0)
+    eyes = centre + np.array([[3.0, 1.0, 2.0], [-2.0, 4.0, 0.5], [0.2, -0.3, 0.4], [0.0, 0.0, -9.0]])
+    mats = np.stack([perspective(60, 1.2, 0.5, 12.0) @ look_at(e, centre) for e in eyes])
+    for vv, tt in ((v, t), (v[t].reshape(-1, 3), np.arange(3 * t.shape[0]).reshape(-1, 3))):
+        got = list(rasterize_depth_views(vv, tt, mats, (70, 90), samples=samples, cull=cull, dtype=dtype))
+        assert len(got) == len(mats)
+        seen = 0
+        for m, (d, st) in zip(mats, got):
+            want, wst = rasterize_depth(vv, tt, m, (70, 90), samples=samples, cull=cull, dtype=dtype)
+            assert d.dtype == want.dtype and d.tobytes() == want.tobytes() and st == wst
+            seen += int((d < 1).any())
+        assert st.nonfinite > 0 and st.degenerate > 0 and seen >= 2
+
+
+def test_depth_views_refuse_bad_matrices():
+    from moments_ref.scene.raster import rasterize_depth_views
+
+    v = np.array([[-1, -1, 0], [1, -1, 0], [-1, 1, 0]], float)
+    for bad in (np.eye(4), np.zeros((2, 3, 4)), np.full((1, 4, 4), np.nan)):
+        with pytest.raises(InputError, match="clip_from_worlds"):
+            next(rasterize_depth_views(v, [[0, 1, 2]], bad, 4))

@@ -370,9 +370,9 @@ def _vertical_pass(hp, w, final=None):
 _PATH_BAND_TEXELS = PATH_BAND_TEXELS
 
 
-def _quantized(b, fmt):
-    """``pack(phi(bias_moments(b, BIAS_FLOAT32)))`` of a float32 moment band; ``fmt`` "nlq64" or "nlq32"."""
-    return nlq_texels(b, fmt)
+def _quantized(b, fmt, out=None):
+    """``pack(phi(bias_moments(b, BIAS_FLOAT32)))`` of a float32 moment band; ``fmt`` "nlq64" or "nlq32"; into ``out`` if given."""
+    return nlq_texels(b, fmt, out=out)
 
 
 def quantize_nlq(moments, fmt="nlq64"):
@@ -444,9 +444,11 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
         k = min(rows, h - y)
         # Horizontal pass of map rows y − r .. y + k + r − 1 (clamped); the first 2r of
         # them are the previous band's last 2r rows, moved up instead of recomputed.
-        src = np.clip(np.arange(y - r + done, y + k + r), 0, h - 1)
-        _horizontal_pass(_resolve(z[src]), w, pad_rows=done, hp=hp[: k + 2 * r])
-        out[y : y + k] = _quantized(_vertical_pass(hp[: k + 2 * r], w, final=f32[:k]), fmt)
+        lo, hi = y - r + done, y + k + r
+        # A view of the rows where none is clamped (no copy of the samples), else gathered.
+        band = z[lo:hi] if lo >= 0 and hi <= h else z[np.clip(np.arange(lo, hi), 0, h - 1)]
+        _horizontal_pass(_resolve(band), w, pad_rows=done, hp=hp[: k + 2 * r])
+        _quantized(_vertical_pass(hp[: k + 2 * r], w, final=f32[:k]), fmt, out[y : y + k])
         hp[: 2 * r] = hp[k : k + 2 * r].copy()
         done = 2 * r
     return out

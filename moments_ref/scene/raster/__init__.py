@@ -83,14 +83,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..._arrays import InputError, float_dtype
+from ..._arrays import InputError, float_dtype, real_input
 from ..._kernels import RASTER_SETUP_CHUNK
 from ..._shim import renamed_keywords
 from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions, unproject_points)
-from ._triangles import _check_mesh, _setup, _vertices
+from ._triangles import _check_mesh, _setup, _vertices, valid_triangles
 
 __all__ = [
     "SAMPLE_COUNTS",
@@ -106,6 +106,7 @@ __all__ = [
     "RasterStats",
     "Fragments",
     "rasterize_depth",
+    "rasterize_depth_views",
     "rasterize_fragments",
     "bench_raster",
     "small_triangles",
@@ -233,7 +234,7 @@ def _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype):
     return v, t, m, h, w, S, pat[:, 0] * 16, pat[:, 1] * 16, dt
 
 
-def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.float64):
+def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.float64, checked=False):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
     Yields ``(s, flat, z, rcs)``: the chunk's setup ``s``, the flat sample index
@@ -246,7 +247,7 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.fl
     """
     verts = _vertices(v, m, t.shape[0])
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
-        s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world)
+        s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world, checked)
         if s is None:
             continue
         for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world, dtype):
@@ -316,12 +317,48 @@ def rasterize_depth(vertices, triangles, clip_from_world, size, samples=1, cull=
     6
     """
     v, t, m, h, w, S, sx, sy, dt = _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype)
-    stats = RasterStats(triangles=int(t.shape[0]))
-    depth = np.ones(h * w * S, dtype=dt)
-    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt):
+    return _depth_map(v, t, m, h, w, sx, sy, cull, dt, RasterStats(triangles=int(t.shape[0])))
+
+
+def _depth_map(v, t, m, h, w, sx, sy, cull, dt, stats, checked=False):
+    """The depth map of :func:`rasterize_depth` and ``stats``, counted on from the given ones."""
+    depth = np.ones(h * w * sx.shape[0], dtype=dt)
+    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked):
         # Depth test: keep the nearest.
         np.minimum.at(depth, flat, z.astype(dt, copy=False))
-    return depth.reshape(h, w, S), stats
+    return depth.reshape(h, w, sx.shape[0]), stats
+
+
+def rasterize_depth_views(vertices, triangles, clip_from_worlds, size, samples=1, cull="none", dtype=np.float32):
+    """:func:`rasterize_depth` of one mesh for each of many matrices, one view at a time (multi-view rasterization).
+
+    Parameters
+    ----------
+    vertices, triangles, size, samples, cull, dtype
+        As for :func:`rasterize_depth`.
+    clip_from_worlds : (N, 4, 4) float array
+        One ``clip_from_world`` per view.
+
+    Yields
+    ------
+    depth, stats
+        Per view, in order: exactly what ``rasterize_depth(vertices, triangles,
+        clip_from_worlds[i], size, samples, cull, dtype)`` returns (the same map and counts).
+
+    Notes
+    -----
+    The mesh's view-independent checks (non-finite vertices, zero area in world space) run
+    once for all the views instead of once per view (VWSS §2.1's MVR draws one mesh from
+    every light sample). The matrices are checked before the first view.
+    """
+    mats = real_input(clip_from_worlds, "clip_from_worlds", dtype=np.float64)
+    if mats.ndim != 3 or mats.shape[1:] != (4, 4):
+        raise InputError(f"clip_from_worlds: expected an (N, 4, 4) array of matrices, got shape {mats.shape}")
+    v, t, _, h, w, S, sx, sy, dt = _prepare(vertices, triangles, np.eye(4), size, samples, cull, dtype)
+    world = RasterStats(triangles=int(t.shape[0]))
+    t = valid_triangles(v, t, world)
+    for m in mats:
+        yield _depth_map(v, t, m, h, w, sx, sy, cull, dt, RasterStats(**world.as_dict()), checked=True)
 
 
 @renamed_keywords(view_proj="clip_from_world")

@@ -96,7 +96,7 @@ def _count_ids(ids, lo, n) -> int:
     return int(np.count_nonzero(mark))
 
 
-def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
+def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world, checked=False):
     """Clip, snap and set up edge equations for one chunk of triangles.
 
     ``verts`` from :func:`_vertices`. Arrays are component-major ("structure of
@@ -114,7 +114,7 @@ def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
     :func:`_reject`, :func:`_clip`, :func:`_snap_and_cull`, :func:`_edge_equations`.
     """
     n = tri.shape[0]
-    attr, tid = _reject(verts, tri, lo, stats, want_world)
+    attr, tid = _reject(verts, tri, lo, stats, want_world, checked)
     attr, tid = _clip(attr, tid, h, w, lo, n, stats)
     if tid.size == 0:
         return None
@@ -134,6 +134,21 @@ def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world):
     return s
 
 
+def valid_triangles(v, t, stats):
+    """The triangles of the mesh (v, t) whose vertices are finite and not collinear, the others counted in ``stats``.
+
+    The view-independent part of :func:`_reject`, done once for a mesh drawn from many views
+    (chunk by chunk, no array of the mesh's size beyond the result).
+    """
+    vT = np.ascontiguousarray(v.T)
+    keep = [np.ones(0, bool)]
+    for lo in range(0, t.shape[0], 1 << 15):
+        valid = _world_valid(_world_vertices(v, vT, np.ascontiguousarray(t[lo:lo + (1 << 15)].T)), stats)
+        keep.append(np.ones(min(1 << 15, t.shape[0] - lo), bool) if valid is None else valid)
+    keep = np.concatenate(keep)
+    return t if keep.all() else t[keep]
+
+
 def _vertices(v, m, n_triangles):
     """``(v, m, vT, cvT)`` for :func:`_setup`: world and clip-space vertices, component-major (3, V) and (4, V),
     when the mesh shares its vertices (fewer than 1.5 per triangle: transform each once and
@@ -145,28 +160,55 @@ def _vertices(v, m, n_triangles):
     return v, m, vT, _clip_space(vT, m)
 
 
-def _reject(verts, tri, lo, stats, want_world):
-    """Drop non-finite, degenerate and trivially outside triangles; (attributes (k, 3, n), ids)."""
+def _world_vertices(v, vT, triT):
+    """The world vertices of the triangles ``triT`` (3, n), as (3 coords, 3 vertices, n).
+
+    np.take is 2.7 times quicker than the equal fancy index vT[:, triT] (NumPy 2.4); without
+    vT, whole rows of v are gathered and the chunk transposed once (in cache).
+    """
+    n = triT.shape[1]
+    return np.take(vT, triT, axis=1) if vT is not None else np.take(v, triT.ravel(), axis=0).T.reshape(3, 3, n)
+
+
+def _world_valid(p, stats):
+    """Which triangles of world vertices ``p`` (3, 3, n) have finite vertices and a nonzero area; the others counted.
+
+    Returns None when all do. Non-finite triangles count in ``stats.nonfinite``; of the
+    others, those with exactly collinear or repeated vertices in ``stats.degenerate``.
+    """
+    n = p.shape[2]
+    fin = np.isfinite(p).reshape(9, n)
+    ok = None if fin.all() else fin.all(axis=0)
+    if ok is not None:
+        stats.nonfinite += int(ok.size - np.count_nonzero(ok))
+    # Zero area in world space: exactly collinear or repeated vertices (a non-finite triangle
+    # gives False or NaN comparisons here; it is already counted and dropped).
+    with np.errstate(invalid="ignore", over="ignore"):
+        e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        nondeg = ((e1[1] * e2[2] != e1[2] * e2[1]) | (e1[2] * e2[0] != e1[0] * e2[2])
+                  | (e1[0] * e2[1] != e1[1] * e2[0]))
+    if ok is not None:
+        nondeg &= ok
+    stats.degenerate += int(nondeg.size - np.count_nonzero(nondeg)) - (0 if ok is None else int(n - np.count_nonzero(ok)))
+    return None if nondeg.all() else nondeg
+
+
+def _reject(verts, tri, lo, stats, want_world, checked=False):
+    """Drop non-finite, degenerate and trivially outside triangles; (attributes (k, 3, n), ids).
+
+    ``checked``: the triangles are known to pass :func:`_world_valid` (:func:`valid_triangles`
+    dropped the others once for many views), so a depth pass skips their world vertices.
+    """
     v, m, vT, cvT = verts
     n = tri.shape[0]
     tid = np.arange(lo, lo + n)
     triT = np.ascontiguousarray(tri.T)  # a contiguous index makes np.take below quicker
-    # The chunk's world vertices, (3 coords, 3 vertices, n). np.take is 2.7 times quicker
-    # than the equal fancy index vT[:, triT] (NumPy 2.4); without vT, whole rows of v are
-    # gathered and the chunk transposed once (in cache).
-    p = np.take(vT, triT, axis=1) if vT is not None else np.take(v, triT.ravel(), axis=0).T.reshape(3, 3, n)
-    fin = np.isfinite(p).reshape(9, n)
-    bad = None if fin.all() else ~fin.all(axis=0)
-    if bad is not None:
-        stats.nonfinite += int(np.count_nonzero(bad))
-        triT, tid, p = np.compress(~bad, triT, axis=1), tid[~bad], np.compress(~bad, p, axis=2)
-    # Zero area in world space: exactly collinear or repeated vertices.
-    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    nondeg = ((e1[1] * e2[2] != e1[2] * e2[1]) | (e1[2] * e2[0] != e1[0] * e2[2])
-              | (e1[0] * e2[1] != e1[1] * e2[0]))
-    stats.degenerate += int(nondeg.size - np.count_nonzero(nondeg))
-    if not nondeg.all():
-        triT, tid, p = np.compress(nondeg, triT, axis=1), tid[nondeg], np.compress(nondeg, p, axis=2)
+    p = None
+    if not (checked and want_world is False and cvT is not None):
+        p = _world_vertices(v, vT, triT)
+        valid = None if checked else _world_valid(p, stats)
+        if valid is not None:
+            triT, tid, p = np.compress(valid, triT, axis=1), tid[valid], np.compress(valid, p, axis=2)
     # (4, 3, n) clip-space vertices (the same operations whether transformed here or gathered).
     c = np.take(cvT, triT, axis=1) if cvT is not None else _clip_space(p, m)
     x, y, z, cw = c

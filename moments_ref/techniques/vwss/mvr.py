@@ -2,8 +2,8 @@
 
 The brute-force baseline and the reference of VWSS §4: "Light samples are set as
 an eye location, and the GPU rasterizes geometry ... to produce a depth map"
-for every sample. Here each view is one call of
-:func:`moments_ref.scene.raster.rasterize_depth` (one sample per texel, texel-centre
+for every sample. Here each view is one map of
+:func:`moments_ref.scene.raster.rasterize_depth_views` (one sample per texel, texel-centre
 coverage with the top-left rule), so the maps are directly comparable with the
 point-warped maps of :func:`moments_ref.techniques.vwss.warp.warp` (same views, same NDC
 depth convention, empty = 1).
@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 from ..._arrays import InputError
-from ...scene.raster import RasterStats, rasterize_depth
+from ...scene.raster import RasterStats, rasterize_depth_views
 from .lights import LightSamples, check_resolution, check_views
 from .shading import pcf_sum
 
@@ -41,8 +41,8 @@ def mvr_passes(vertices, triangles, views, resolution, cull="none", dtype=np.flo
         from tqdm import tqdm
 
         it = tqdm(it, desc="mvr", unit="view", file=sys.stderr, disable=None, leave=False)
-    for i in it:
-        d, st = rasterize_depth(vertices, triangles, m[i], (h, w), samples=1, cull=cull, dtype=dtype)
+    # One view at a time; the mesh's view-independent checks once for all of them.
+    for i, (d, st) in zip(it, rasterize_depth_views(vertices, triangles, m, (h, w), samples=1, cull=cull, dtype=dtype)):
         yield i, d[..., 0], st
 
 
