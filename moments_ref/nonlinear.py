@@ -699,12 +699,10 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     np.multiply(v1, v2, out=c2)
     np.divide(y2n, c2, out=c2)
     np.divide(g, q2, out=q2)
-    cm1 = v1
-    np.multiply(y2n, c2, out=cm1)
+    cm1 = np.multiply(y2n, c2, out=v1)
     np.multiply(g, q2, out=x)
     np.add(cm1, x, out=cm1)
-    k2 = e
-    np.multiply(e, q2, out=k2)
+    k2 = np.multiply(e, q2, out=e)
     np.add(k2, c2, out=k2)
     inv_w0, q2m, v, s = c2, q2, x, g
     np.add(cm1, 1, out=inv_w0)
@@ -717,8 +715,7 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     np.sqrt(s, out=s)
     np.add(inv_w0, inv_w0, out=v)
     np.divide(cm1, v, out=v)  # (1 − w0)/2
-    num = cm1
-    np.add(s, k2, out=num)
+    num = np.add(s, k2, out=cm1)
     np.multiply(num, v, out=num)
     np.multiply(y2n, q2m, out=v)
     np.subtract(num, v, out=num)
@@ -731,9 +728,7 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
 
 def _clamped_texels(v2, xi4, gap, c):
     """Flat indices of the texels of a chunk on which a §3.4 clamp acts (v2, the gap, ξ'4 ≥ tiny)."""
-    act = np.less(v2, c["lo"])
-    act |= v2 > c["hi"]
-    act |= gap < c["lo"]
+    act = np.less(v2, c["lo"]) | (v2 > c["hi"]) | (gap < c["lo"])
     g4 = np.maximum(gap, c["lo"])
     g4 *= g4
     g4 *= g4
