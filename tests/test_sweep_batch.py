@@ -1,0 +1,243 @@
+"""The sweep's verdict plumbing at its edges, against counts placed by hand (issue 38, round six).
+
+Each test states one thing a user relies on, at the edge where an off-by-one or a dropped argument
+would hide: one confirmed wrong row fails the sweep (``passed``, the exit code), at most
+:data:`~moments_ref.sweep.result.MAX_SHRUNK` failures are shrunk, the first confirmed row is the first
+chunk's and carries its index in the whole sweep, a checkpoint of another seed is not resumed,
+``--adapter both`` sweeps both drivers, a profile's rows are drawn under its key, ``--strict`` reaches the
+shrinker and the measurements, the corpus mutants are measured mutated, and the bias products'
+rounding errors decide a float32 rounding (a row built so that α·t lands next to a float32 midpoint,
+rounded by hand with exact fractions). In process and small (chunks of 40 rows), so each runs in seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from fractions import Fraction
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from moments_ref import golden, msm
+from moments_ref.sweep import STRATA, Port, SweepSpec, command, measure, result, run_chunks, runner, samplers
+from moments_ref.sweep import judge, profiled, shrink as shrink_mod
+from moments_ref.sweep.result import MAX_SHRUNK, SweepResult, sweep_port
+from moments_ref.sweep.runner import STAGES, checkpoint_key, run_chunk
+
+CASE = "shadow_intensity-lower-float32"
+SMALL = 40
+
+
+@pytest.fixture(autouse=True)
+def small_chunks(monkeypatch):
+    monkeypatch.setattr(samplers, "CHUNK", SMALL)
+    monkeypatch.setattr(runner, "CHUNK", SMALL)
+
+
+def _reference(b, zf):
+    return msm.shadow_intensity(np.asarray(b, np.float32), np.asarray(zf, np.float32), bound="lower")
+
+
+def _wrong_at(where, calls=None):
+    """The reference, moved by 1/2 (outside every band) at ``where[call number]`` (row positions of that call)."""
+    seen = [0]
+
+    def port(b, zf):
+        out = _reference(b, zf)
+        k = seen[0]
+        seen[0] += 1
+        if calls is not None:
+            calls.append(len(zf))
+        idx = [p for p in where.get(k, ()) if p < len(zf)]
+        out[idx] = np.where(out[idx] < 0.5, out[idx] + 0.5, out[idx] - 0.5)
+        return out
+
+    return port
+
+
+def _spec(port, rows=100, seed=3, drivers=(None,), strict=True):
+    return SweepSpec(CASE, Port(fn=port), drivers, seed=seed, rows=rows, strict=strict)
+
+
+# --- result.py ---------------------------------------------------------------------------------------------------
+
+def _result(confirmed):
+    drivers = {"gl": {"flagged": confirmed, "confirmed": confirmed, "unconfirmed": 0, "examined": confirmed,
+                      "first_confirmed": 0 if confirmed else None, "per_stratum": {}}}
+    return SweepResult(CASE, 10, 0, {}, drivers, dict.fromkeys(STAGES, 0.0))
+
+
+@pytest.mark.parametrize("confirmed, passed", [(0, True), (1, False), (2, False)])
+def test_one_confirmed_wrong_row_fails_the_sweep(confirmed, passed):
+    res = _result(confirmed)
+    assert res.passed is passed and res.record()["passed"] is passed
+
+
+def test_a_sweep_with_exactly_one_wrong_row_does_not_pass():
+    """Wrong only at row 5 of the second chunk (call 1): one row flagged, confirmed, at index 40 + 5."""
+    res = sweep_port(_spec(_wrong_at({1: [5]})), shrink_failures=False)
+    d = res.drivers["None"]
+    assert (d["flagged"], d["confirmed"], d["first_confirmed"]) == (1, 1, 45)
+    assert res.confirmed == 1 and not res.passed
+
+
+def test_the_first_confirmed_row_is_the_first_chunks_not_the_last():
+    """Wrong at row 3 of chunk 0 and row 6 of chunk 2: the first confirmed row is 3 (not 80 + 6)."""
+    res = sweep_port(_spec(_wrong_at({0: [3], 2: [6]})), shrink_failures=False)
+    d = res.drivers["None"]
+    assert (d["confirmed"], d["first_confirmed"]) == (2, 3)
+
+
+def test_at_most_max_shrunk_failures_are_shrunk():
+    """Wrong at every row on three drivers: one failure per (driver, stratum) up to MAX_SHRUNK = 4, no more."""
+    assert MAX_SHRUNK == 4
+    everywhere = {k: range(SMALL) for k in range(9)}
+    res = sweep_port(_spec(_wrong_at(everywhere), drivers=("a", "b", "c")), shrink_failures=False)
+    strata_hit = {d: {s for s in STRATA if res.drivers[d]["per_stratum"][s]["confirmed"]} for d in ("a", "b", "c")}
+    assert sum(len(v) for v in strata_hit.values()) > MAX_SHRUNK  # more distinct failures than are shrunk
+    assert len(res.failures) == MAX_SHRUNK
+    assert len({(f["driver"], f["stratum"]) for f in res.failures}) == MAX_SHRUNK
+
+
+# --- runner.py ---------------------------------------------------------------------------------------------------
+
+def test_a_chunks_first_confirmed_row_is_its_index_in_the_whole_sweep():
+    """Chunk 2 alone (rows 80..99), wrong at its 7th row: its first confirmed row is 86, not 6."""
+    r = run_chunk(_spec(_wrong_at({0: [6]})), 2)
+    assert r["rows"] == 20 and r["drivers"]["None"]["first_confirmed"] == 86
+
+
+def test_a_checkpoint_of_another_seed_is_not_resumed(tmp_path):
+    assert checkpoint_key(_spec(_reference, seed=3)) != checkpoint_key(_spec(_reference, seed=4))
+    ckpt = tmp_path / "checkpoint.json"
+    run_chunks(_spec(_reference, seed=3), checkpoint=ckpt)
+    calls = []
+    fresh = run_chunks(_spec(_wrong_at({}, calls), seed=4), checkpoint=ckpt)
+    assert calls == [40, 40, 20]  # every chunk of seed 4 ran: nothing of seed 3 was taken
+    want = [np.bincount(samplers.draw_rows(golden.CASES[CASE], 4, c, n)["stratum"], minlength=len(STRATA)).tolist()
+            for c, n in ((0, 40), (1, 40), (2, 20))]
+    assert [r["strata"]["rows"] for r in fresh] == want
+    assert json.loads(ckpt.read_text())["key"] == checkpoint_key(_spec(_reference, seed=4))
+
+
+# --- command.py --------------------------------------------------------------------------------------------------
+
+def _glsl():
+    from moments_ref.conformance import shipped_port
+
+    path, function = shipped_port(CASE, "glsl")
+    return Port(str(path), function, "glsl")
+
+
+def test_adapter_both_sweeps_llvmpipe_and_lavapipe():
+    assert command.make_spec(CASE, _glsl(), "both").drivers == ("gl", "vulkan")
+    assert command.make_spec(CASE, _glsl(), "vulkan").drivers == ("vulkan",)
+
+
+def test_a_profiles_rows_are_drawn_under_its_key():
+    from moments_ref.golden.profile import Profile
+
+    profile = Profile(depth="[0,1]")
+    assert not profile.is_default and profile.key != "default"
+    spec = command.make_spec(CASE, _glsl(), "gl", profile)
+    assert spec.profile_key == profile.key
+    assert checkpoint_key(spec) != checkpoint_key(command.make_spec(CASE, _glsl(), "gl"))
+
+
+@pytest.mark.parametrize("confirmed, code", [(0, 0), (1, 1), (3, 1)])
+def test_the_exit_code_is_1_from_one_confirmed_row(monkeypatch, capsys, confirmed, code):
+    monkeypatch.setattr(result, "sweep_port", lambda spec, *a: SweepResult(
+        CASE, spec.rows, spec.seed, {}, {"gl": {"flagged": confirmed, "confirmed": confirmed, "unconfirmed": 0,
+                                                "examined": confirmed, "first_confirmed": None, "per_stratum": {}}},
+        dict.fromkeys(STAGES, 0.0)))
+    port = _glsl()
+    args = argparse.Namespace(glsl=port.path, function=port.function, case=CASE, rows="100", adapter="gl")
+    assert command.main(args) == code
+    assert f"{confirmed} confirmed wrong" in capsys.readouterr().out
+
+
+# --- measure.py --------------------------------------------------------------------------------------------------
+
+def test_measure_passes_strict_to_the_sweep(monkeypatch):
+    seen = []
+
+    def fake(spec, workers, shrink_failures=True):
+        seen.append(spec.strict)
+        return _result(0)
+
+    monkeypatch.setattr(measure, "sweep_port", fake)
+    measure._run(CASE, "x.glsl", "f", "glsl", ("gl",), 10, 1, strict=True)
+    measure._run(CASE, "x.glsl", "f", "glsl", ("gl",), 10, 1)
+    assert seen == [True, False]
+
+
+def test_the_corpus_mutants_are_measured_mutated_and_their_goldens_column(monkeypatch, tmp_path):
+    """A corpus of two mutants of msm.glsl, one caught by the goldens: each file swept holds its change."""
+    from moments_ref.conformance import PORTS_DIR
+
+    src = (PORTS_DIR / "glsl" / "msm.glsl").read_text()
+    old = next(line for line in src.splitlines() if "return" in line).strip()
+    corpus = tmp_path / "corpus.py"
+    corpus.write_text(f"MUTANTS = [('m-a', 'msm.glsl', 'f', {CASE!r}, {old!r}, '/*A*/' + {old!r}, 'r'),\n"
+                      f"           ('m-b', 'msm.glsl', 'f', {CASE!r}, {old!r}, '/*B*/' + {old!r}, 'r')]\n"
+                      "CAUGHT_BY_THE_GOLDENS = {'m-b'}\n")
+    texts = []
+
+    def fake(case, path, function, language, drivers, rows, workers, shrink=True, strict=False):
+        texts.append(open(path).read())
+        return {"drivers": {"gl": {"flagged": 0, "confirmed": 0, "examined": 0, "first_confirmed": None}},
+                "failures": []}
+
+    monkeypatch.setattr(measure, "_run", fake)
+    out = measure.mutant_runs(corpus, 10, tmp_path, log=lambda *a: None)
+    assert [t.count("/*A*/") for t in texts] == [1, 0] and [t.count("/*B*/") for t in texts] == [0, 1]
+    assert texts[0].replace("/*A*/", "", 1) == src
+    assert [(m["name"], m["caught_by_goldens"]) for m in out] == [("m-a", False), ("m-b", True)]
+
+
+# --- shrink.py: --strict reaches the shrinker ----------------------------------------------------------------------
+
+def test_strict_shrinking_gates_robustness_rows_and_unstrict_does_not(monkeypatch):
+    """The contract declared empty (``judge.contract_rows`` patched: every row a robustness row) and a port wrong
+    everywhere: under --strict the shrinker gates every neighbour, takes steps and returns a judged row; without
+    it no neighbour is gated, so it stops at once and returns the texel unchanged."""
+    monkeypatch.setattr(judge, "contract_rows", lambda case, inputs, contract=None: np.zeros(len(inputs["zf"]), bool))
+    texel = {"depths": [0.123456789, 0.4], "weights": [0.3, 0.7], "zf": 0.5123456, "format": 0}
+    wrong = _wrong_at({k: range(64) for k in range(64)})
+    texel_s, row_s, dispatches_s = shrink_mod.shrink(_spec(wrong, strict=True), None, texel)
+    assert row_s is not None and texel_s != texel and dispatches_s > 1
+    texel_l, row_l, dispatches_l = shrink_mod.shrink(_spec(wrong, strict=False), None, texel)
+    assert (texel_l, row_l, dispatches_l) == (texel, None, 1)
+
+
+# --- profiled.py: the bias products' rounding errors ----------------------------------------------------------------
+
+def _round32(x):
+    """``x`` (a Fraction) rounded to float32 by hand: nearest, ties to even."""
+    r = np.float32(float(x))
+    near = [np.nextafter(r, np.float32(-np.inf)), r, np.nextafter(r, np.float32(np.inf))]
+    dist = [abs(Fraction(float(c)) - x) for c in near]
+    best = [c for c, d in zip(near, dist) if d == min(dist)]
+    return best[0] if len(best) == 1 else next(c for c in best if int(c.view(np.uint32)) % 2 == 0)
+
+
+@pytest.mark.parametrize("sign", [1, -1])
+def test_the_bias_products_rounding_error_decides_a_float32_midpoint(sign):
+    """b = 0 biased toward t = (0, 3, 0, 0) with α chosen so that α·3 is a float32 midpoint M plus δ, |δ| below
+    the float64 product's half ulp: fl(α·3) = M exactly, so only the product's rounding error δ says which way
+    the correctly rounded b2' = α·3 goes (a float32 port biasing in exact arithmetic rounds it so)."""
+    # a midpoint that ties-to-even rounds against δ: down for δ > 0 (1 + 2^-24), up for δ < 0 (1 + 3·2^-24)
+    m = Fraction(2) ** -22 * (1 + (1 if sign > 0 else 3) * Fraction(2) ** -24)
+    alpha = float(m / 3)
+    while (Fraction(alpha) * 3 - m) * sign <= 0:  # δ of the sign asked
+        alpha = float(np.nextafter(alpha, sign * np.inf))
+    exact = Fraction(alpha) * 3
+    assert float(exact) == float(m) and exact != m  # the float64 product is the midpoint itself
+    case = SimpleNamespace(kwargs={"harness_bias": {"alpha": alpha, "target": (0.0, 3.0, 0.0, 0.0)}},
+                           depth_roles={"b": "moments"})
+    got = profiled.convert_inputs(case, {"b": np.zeros((1, 4), np.float32)})["b"]
+    assert got.dtype == np.float32
+    assert got[0, 1] == _round32(exact) and got[0, 1] != _round32(m)
+    assert got[0, 0] == 0 and got[0, 2] == 0 and got[0, 3] == 0
