@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 from fractions import Fraction
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -90,11 +91,12 @@ def test_the_first_confirmed_row_is_the_first_chunks_not_the_last():
     assert (d["confirmed"], d["first_confirmed"]) == (2, 3)
 
 
-def test_at_most_max_shrunk_failures_are_shrunk():
+def test_at_most_max_shrunk_failures_are_shrunk(monkeypatch):
     """Wrong at every row on three drivers: one failure per (driver, stratum) up to MAX_SHRUNK = 4, no more."""
     assert MAX_SHRUNK == 4
-    everywhere = {k: range(SMALL) for k in range(9)}
-    res = sweep_port(_spec(_wrong_at(everywhere), drivers=("a", "b", "c")), shrink_failures=False)
+    monkeypatch.setattr(runner, "CONFIRM_CAP", 12)  # fewer mpmath confirmations: seconds, not tens
+    everywhere = {k: range(SMALL) for k in range(3)}
+    res = sweep_port(_spec(_wrong_at(everywhere), rows=40, drivers=("a", "b", "c")), shrink_failures=False)
     strata_hit = {d: {s for s in STRATA if res.drivers[d]["per_stratum"][s]["confirmed"]} for d in ("a", "b", "c")}
     assert sum(len(v) for v in strata_hit.values()) > MAX_SHRUNK  # more distinct failures than are shrunk
     assert len(res.failures) == MAX_SHRUNK
@@ -241,3 +243,99 @@ def test_the_bias_products_rounding_error_decides_a_float32_midpoint(sign):
     assert got.dtype == np.float32
     assert got[0, 1] == _round32(exact) and got[0, 1] != _round32(m)
     assert got[0, 0] == 0 and got[0, 2] == 0 and got[0, 3] == 0
+
+
+# --- the seconds per stage, the out folder, the shrunk row, the spec's own case, a malformed checkpoint -----------
+
+def _slow(calls):
+    import time
+
+    def port(b, zf):
+        calls.append(len(zf))
+        time.sleep(0.05)
+        return _reference(b, zf)
+
+    return port
+
+
+def test_a_chunks_seconds_per_stage_lie_between_0_and_its_wall_time():
+    import time
+
+    calls = []
+    t0 = time.perf_counter()
+    r = run_chunk(_spec(_slow(calls)), 0)
+    wall = time.perf_counter() - t0
+    assert set(r["seconds"]) == set(STAGES) and calls == [40]
+    assert all(0 <= v <= wall for v in r["seconds"].values()), (r["seconds"], wall)
+    assert r["seconds"]["driver"] >= 0.05 and sum(r["seconds"].values()) <= wall
+
+
+def test_the_merged_seconds_are_the_chunks_sums_and_the_out_folder_is_made(tmp_path):
+    """sweep_port's seconds are the sums of its chunks' (read back from the checkpoint it wrote into ``out``, a
+    folder it makes with its parents); its wall time covers them; a second run into the same folder resumes."""
+    out = tmp_path / "a" / "b"
+    res = sweep_port(_spec(_slow([])), out=out, shrink_failures=False)
+    chunks = json.loads((out / "checkpoint.json").read_text())["chunks"]
+    assert sorted(chunks) == ["0", "1", "2"]
+    for k in STAGES:
+        assert res.seconds[k] == pytest.approx(sum(c["seconds"][k] for c in chunks.values()), rel=1e-12, abs=0)
+    assert res.seconds["driver"] >= 0.15 and 0 < sum(res.seconds.values()) <= res.wall_s < 600
+    calls = []
+    again = sweep_port(_spec(_slow(calls)), out=out, shrink_failures=False)
+    assert calls == [] and again.seconds == res.seconds
+
+
+def test_a_shrunk_failure_carries_the_shrunk_rows_inputs_and_no_visibility_label(tmp_path):
+    """Wrong everywhere: the shrunk failure's inputs, got and band are those of its shrunk texel (not of the
+    original row), and an intensity port's outputs keep their name."""
+    res = sweep_port(_spec(_wrong_at({k: range(64) for k in range(99)}), rows=40), out=tmp_path)
+    assert res.failures and all("labels" not in f for f in res.failures)
+    for f in res.failures:
+        assert f["texel"] != f["original"] and f["dispatches"] >= 1
+        assert f["inputs"]["zf"] == float(np.float32(f["texel"]["zf"]))
+        assert np.asarray(f["got"]["intensity"]) != _reference(np.asarray([f["inputs"]["b"]]), np.asarray([f["inputs"]["zf"]]))[0]
+        assert (tmp_path / Path(f["row_file"]).name).is_dir()
+
+
+def test_a_spec_given_its_own_case_uses_it():
+    import dataclasses
+
+    own = dataclasses.replace(golden.CASES[CASE])  # equal to the registry's, but another object
+    spec = SweepSpec(CASE, Port(fn=_reference), fn_case=own, rows=40)
+    assert spec.case is own and run_chunks(spec)[0]["rows"] == 40
+
+
+def test_a_checkpoint_with_a_chunk_not_numbered_is_refused(tmp_path):
+    from moments_ref._arrays import InputError
+
+    ckpt = tmp_path / "checkpoint.json"
+    ckpt.write_text(json.dumps({"key": checkpoint_key(_spec(_reference)), "chunks": {"0": {}, "x": {}}}))
+    with pytest.raises(InputError, match="not a sweep checkpoint"):
+        run_chunks(_spec(_reference), checkpoint=ckpt)
+    assert "x" in ckpt.read_text()  # not overwritten
+
+
+def test_an_unknown_case_is_named_so():
+    from moments_ref._arrays import InputError
+
+    with pytest.raises(InputError, match="--case: unknown case 'no-such-case'"):
+        command.make_spec("no-such-case", _glsl(), "gl")
+
+
+@pytest.mark.parametrize("extra, code", [(["--seed", "0"], 0), (["--seed", "-1"], 2), (["--workers", "1"], 0),
+                                         (["--workers", "0"], 2)])
+def test_seed_from_0_and_workers_from_1(monkeypatch, capsys, extra, code):
+    from moments_ref import cli
+
+    monkeypatch.setattr(result, "sweep_port", lambda spec, *a: _result(0))
+    port = _glsl()
+    argv = ["sweep", "--glsl", port.path, "--function", port.function, "--case", CASE, "--rows", "100",
+            "--adapter", "gl", *extra]
+    try:
+        got = cli.main(argv)
+    except SystemExit as exc:  # argparse's own exit for a value its type refuses
+        got = exc.code
+    assert got == code
+    if code == 2:
+        err = capsys.readouterr().err
+        assert extra[0] in err and "Traceback" not in err
