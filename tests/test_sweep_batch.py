@@ -170,9 +170,37 @@ def test_measure_passes_strict_to_the_sweep(monkeypatch):
         return _result(0)
 
     monkeypatch.setattr(measure, "sweep_port", fake)
-    measure._run(CASE, "x.glsl", "f", "glsl", ("gl",), 10, 1, strict=True)
+    import time
+
+    t0 = time.perf_counter()
+    rec = measure._run(CASE, "x.glsl", "f", "glsl", ("gl",), 10, 1, strict=True)
+    assert 0 <= rec["wall_s"] <= time.perf_counter() - t0
     measure._run(CASE, "x.glsl", "f", "glsl", ("gl",), 10, 1)
     assert seen == [True, False]
+
+
+def test_measure_main_hands_its_options_to_the_runs(monkeypatch, tmp_path):
+    """Every option of ``python -m moments_ref.sweep.measure`` reaches the runs it names; the records are written."""
+    got = {}
+
+    def shipped(rows, workers=2, cases=(), languages=(), strict=False, **kw):
+        got["shipped"] = dict(rows=rows, workers=workers, cases=list(cases), languages=list(languages), strict=strict)
+        return []
+
+    def mutants(corpus, rows, tmp, **kw):
+        got["mutants"] = dict(corpus=corpus, rows=rows)
+        return []
+
+    monkeypatch.setattr(measure, "shipped_runs", shipped)
+    monkeypatch.setattr(measure, "mutant_runs", mutants)
+    out = tmp_path / "m.json"
+    assert measure.main(["--rows", "1e3", "--mutant-rows", "50", "--workers", "3", "--languages", "glsl,wgsl",
+                         "--cases", CASE, "--strict", "--corpus", "c.py", "--json", str(out)]) == 0
+    assert got["shipped"] == dict(rows=1000, workers=3, cases=[CASE], languages=["glsl", "wgsl"], strict=True)
+    assert got["mutants"] == dict(corpus="c.py", rows=50)
+    assert json.loads(out.read_text()) == {"rows": 1000, "shipped": [], "mutants": [], "mutant_rows": 50}
+    measure.main(["--json", str(out)])
+    assert got["shipped"]["workers"] == 2 and got["shipped"]["strict"] is False and got["mutants"]["rows"] == 50
 
 
 def test_the_corpus_mutants_are_measured_mutated_and_their_goldens_column(monkeypatch, tmp_path):
@@ -180,7 +208,8 @@ def test_the_corpus_mutants_are_measured_mutated_and_their_goldens_column(monkey
     from moments_ref.conformance import PORTS_DIR
 
     src = (PORTS_DIR / "glsl" / "msm.glsl").read_text()
-    old = next(line for line in src.splitlines() if "return" in line).strip()
+    old = "msm_bounds(b, zf, lower, upper);"  # twice in the file: only the first occurrence is changed
+    assert src.count(old) >= 2
     corpus = tmp_path / "corpus.py"
     corpus.write_text(f"MUTANTS = [('m-a', 'msm.glsl', 'f', {CASE!r}, {old!r}, '/*A*/' + {old!r}, 'r'),\n"
                       f"           ('m-b', 'msm.glsl', 'f', {CASE!r}, {old!r}, '/*B*/' + {old!r}, 'r')]\n"
