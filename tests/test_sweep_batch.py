@@ -368,3 +368,23 @@ def test_seed_from_0_and_workers_from_1(monkeypatch, capsys, extra, code):
     if code == 2:
         err = capsys.readouterr().err
         assert extra[0] in err and "Traceback" not in err
+
+
+def test_a_four_component_output_is_judged_row_by_row():
+    """unpack64 (r: (n, 4)): its reference as the port, strict: 40 rows, every band finite (none ungated), no
+    flag; moved by 1/2 in one component of row 9 only: that row alone flagged and confirmed."""
+    name = "unpack64-float32"
+    case = golden.CASES[name]
+
+    def port(q, moved=False):
+        r = np.asarray(case.reference(q=q), np.float32).reshape(len(q), 4).copy()
+        if moved:
+            r[9, 2] += np.float32(0.5)
+        return r
+
+    spec = lambda fn: SweepSpec(name, Port(fn=fn), (None,), seed=5, rows=40, strict=True)  # noqa: E731
+    r = run_chunk(spec(port), 0)
+    assert sum(r["strata"]["rows"]) == 40 and sum(r["strata"]["ungated"]) == 0
+    assert sum(r["drivers"]["None"]["flagged"]) == 0
+    d = run_chunk(spec(lambda q: port(q, True)), 0)["drivers"]["None"]
+    assert (sum(d["flagged"]), sum(d["confirmed"]), d["first_confirmed"]) == (1, 1, 9)
