@@ -388,3 +388,12 @@ def test_a_four_component_output_is_judged_row_by_row():
     assert sum(r["drivers"]["None"]["flagged"]) == 0
     d = run_chunk(spec(lambda q: port(q, True)), 0)["drivers"]["None"]
     assert (sum(d["flagged"]), sum(d["confirmed"]), d["first_confirmed"]) == (1, 1, 9)
+
+
+def test_the_summary_table_has_a_header_naming_the_columns_and_each_driver():
+    res = sweep_port(_spec(_reference, rows=40, drivers=("gl", "vulkan-lavapipe")), shrink_failures=False)
+    lines = res.format().splitlines()
+    head = [line.split() for line in lines if line.strip().startswith("stratum")]
+    assert head == [["stratum", "rows", "ill", "ungated", "gl", "vulkan-lav"]]
+    rows = lines[lines.index(next(x for x in lines if x.strip().startswith("stratum"))) + 1:][:len(STRATA)]
+    assert [x.split()[0] for x in rows] == list(STRATA)
