@@ -397,3 +397,13 @@ def test_the_summary_table_has_a_header_naming_the_columns_and_each_driver():
     assert head == [["stratum", "rows", "ill", "ungated", "gl", "vulkan-lav"]]
     rows = lines[lines.index(next(x for x in lines if x.strip().startswith("stratum"))) + 1:][:len(STRATA)]
     assert [x.split()[0] for x in rows] == list(STRATA)
+
+
+def test_two_wrong_rows_of_one_stratum_are_one_failure():
+    """Wrong at two rows of chunk 0 that the draw puts in the same stratum: two confirmed, one failure kept."""
+    s = samplers.draw_rows(golden.CASES[CASE], 3, 0, SMALL)["stratum"]
+    first = next(i for i in range(SMALL) if (s == s[i]).sum() >= 2)
+    pair = np.flatnonzero(s == s[first])[:2].tolist()
+    res = sweep_port(_spec(_wrong_at({0: pair}), rows=SMALL), shrink_failures=False)
+    assert res.drivers["None"]["confirmed"] == 2
+    assert [f["stratum"] for f in res.failures] == [STRATA[s[first]]]
