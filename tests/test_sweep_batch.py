@@ -309,6 +309,10 @@ def test_the_merged_seconds_are_the_chunks_sums_and_the_out_folder_is_made(tmp_p
     for k in STAGES:
         assert res.seconds[k] == pytest.approx(sum(c["seconds"][k] for c in chunks.values()), rel=1e-12, abs=0)
     assert res.seconds["driver"] >= 0.15 and 0 < sum(res.seconds.values()) <= res.wall_s < 600
+    for key in ("rows", "ill_conditioned", "ungated"):  # the strata's counts: the chunks' sums, from 0
+        want = np.sum([c["strata"][key] for c in chunks.values()], axis=0).tolist()
+        assert [res.strata[s][key] for s in STRATA] == want
+    assert sum(res.strata[s]["rows"] for s in STRATA) == 100
     calls = []
     again = sweep_port(_spec(_slow(calls)), out=out, shrink_failures=False)
     assert calls == [] and again.seconds == res.seconds
