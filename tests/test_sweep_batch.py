@@ -411,3 +411,35 @@ def test_two_wrong_rows_of_one_stratum_are_one_failure():
     res = sweep_port(_spec(_wrong_at({0: pair}), rows=SMALL), shrink_failures=False)
     assert res.drivers["None"]["confirmed"] == 2
     assert [f["stratum"] for f in res.failures] == [STRATA[s[first]]]
+
+
+def test_measure_from_json_takes_the_first_files_rows_and_requires_json(tmp_path, capsys):
+    """Merged record files: the rows are the first file's (100, not the second's 7); no --json is a usage error."""
+    mutant = {"name": "m1", "case": CASE, "region": "r", "flagged": 1, "confirmed": 1, "examined": 1, "first": 3,
+              "shrunk": None, "caught_by_goldens": False}
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps({"rows": 100, "shipped": [], "mutants": [mutant]}))
+    b.write_text(json.dumps({"rows": 7, "shipped": [], "mutants": []}))
+    assert measure.main(["--json", f"{a},{b}", "--from-json"]) == 0
+    out = capsys.readouterr().out
+    assert "100 rows on llvmpipe" in out and "| m1 |" in out
+    with pytest.raises(SystemExit) as exc:
+        measure.main([])
+    assert exc.value.code == 2
+
+
+def test_measure_tables_count_missing_ungated_as_none_and_take_the_first_shrunk_failure(monkeypatch, tmp_path):
+    rec = {"language": "glsl", "path": "msm.glsl", "function": "f", "case": CASE, "rows": 10, "wall_s": 1.0,
+           "drivers": {"gl": {"flagged": 0, "confirmed": 0, "unconfirmed": 0}}, "rows_per_s": {},
+           "strata": {s: {"rows": 1, "ill_conditioned": 0} for s in STRATA}}  # an older record: no "ungated"
+    row = next(x for x in measure.tables([rec], [], 10).splitlines() if x.startswith("| glsl/msm.glsl"))
+    assert [c.strip() for c in row.strip("|").split("|")][6:8] == ["0", "0"]
+    corpus = tmp_path / "corpus.py"
+    corpus.write_text(f"MUTANTS = [('m', 'msm.glsl', 'f', {CASE!r}, 'float', 'float', 'r')]\nCAUGHT_BY_THE_GOLDENS = set()\n")
+    first, second = {"texel": 1}, {"texel": 2}
+    monkeypatch.setattr(measure, "_run", lambda *a, **k: {"drivers": {"gl": {"flagged": 2, "confirmed": 2, "examined": 2,
+                                                                             "first_confirmed": 0}},
+                                                          "failures": [first, second]})
+    logged = []
+    (m,) = measure.mutant_runs(corpus, 10, tmp_path, log=logged.append)
+    assert m["shrunk"] is first and logged == ["m: first 0, confirmed 2"]
