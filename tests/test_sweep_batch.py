@@ -443,3 +443,11 @@ def test_measure_tables_count_missing_ungated_as_none_and_take_the_first_shrunk_
     logged = []
     (m,) = measure.mutant_runs(corpus, 10, tmp_path, log=logged.append)
     assert m["shrunk"] is first and logged == ["m: first 0, confirmed 2"]
+
+
+def test_an_intensity_profiles_failures_keep_their_name():
+    from moments_ref.golden.profile import Profile
+
+    spec = SweepSpec(CASE, Port(fn=_wrong_at({0: [2]})), (None,), seed=3, rows=SMALL, strict=True, profile=Profile())
+    res = sweep_port(spec, shrink_failures=False)
+    assert len(res.failures) == 1 and "labels" not in res.failures[0]
