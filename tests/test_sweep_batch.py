@@ -451,3 +451,21 @@ def test_an_intensity_profiles_failures_keep_their_name():
     spec = SweepSpec(CASE, Port(fn=_wrong_at({0: [2]})), (None,), seed=3, rows=SMALL, strict=True, profile=Profile())
     res = sweep_port(spec, shrink_failures=False)
     assert len(res.failures) == 1 and "labels" not in res.failures[0]
+
+
+def test_a_shipped_glsl_decoder_on_llvmpipe_returns_four_float32_values_per_row():
+    """The shipped GLSL unpack64 on llvmpipe (gl): the port's outputs read back as (40, 4) float32 (r: y1, y2, v2,
+    ξ4), every row within its band. A readback shaped (n, 3) or (n, 5), or float64, mis-assigns the values."""
+    pytest.importorskip("moderngl")
+    from moments_ref.conformance import shipped_port
+
+    name = "unpack64-float32"
+    path, function = shipped_port(name, "glsl")
+    spec = SweepSpec(name, Port(str(path), function, "glsl"), ("gl",), seed=5, rows=SMALL, strict=True)
+    inputs, _ = samplers.draw_chunk(spec.case, 5, 0, SMALL)
+    got = runner.evaluate(spec, inputs, "gl")
+    assert got["r"].shape == (SMALL, 4) and got["r"].dtype == np.float32
+    want = np.asarray(spec.case.reference(q=inputs["q"]), np.float32).reshape(SMALL, 4)
+    assert np.allclose(got["r"], want, rtol=1e-5, atol=1e-6)
+    d = run_chunk(spec, 0)["drivers"]["gl"]
+    assert sum(d["flagged"]) == 0
