@@ -469,3 +469,19 @@ def test_a_shipped_glsl_decoder_on_llvmpipe_returns_four_float32_values_per_row(
     assert np.allclose(got["r"], want, rtol=1e-5, atol=1e-6)
     d = run_chunk(spec, 0)["drivers"]["gl"]
     assert sum(d["flagged"]) == 0
+
+
+def test_a_shipped_glsl_encoder_on_llvmpipe_returns_four_codes_per_row():
+    """The shipped GLSL pack64 on llvmpipe: q read back as (40, 4) codes, each row passing (none flagged)."""
+    pytest.importorskip("moderngl")
+    from moments_ref.conformance import shipped_port
+
+    name = "pack64-float32"
+    path, function = shipped_port(name, "glsl")
+    spec = SweepSpec(name, Port(str(path), function, "glsl"), ("gl",), seed=5, rows=SMALL, strict=True)
+    inputs, _ = samplers.draw_chunk(spec.case, 5, 0, SMALL)
+    got = runner.evaluate(spec, inputs, "gl")
+    assert got["q"].shape == (SMALL, 4)
+    want = np.asarray(spec.case.reference(r=inputs["r"])).reshape(SMALL, 4)
+    assert np.abs(got["q"].astype(np.int64) - want.astype(np.int64)).max() <= 1  # a code off by a tie at most
+    assert sum(run_chunk(spec, 0)["drivers"]["gl"]["flagged"]) == 0
