@@ -485,3 +485,40 @@ def test_a_shipped_glsl_encoder_on_llvmpipe_returns_four_codes_per_row():
     want = np.asarray(spec.case.reference(r=inputs["r"])).reshape(SMALL, 4)
     assert np.abs(got["q"].astype(np.int64) - want.astype(np.int64)).max() <= 1  # a code off by a tie at most
     assert sum(run_chunk(spec, 0)["drivers"]["gl"]["flagged"]) == 0
+
+
+class _Bar:
+    """Stands in for tqdm: records what the progress callback asks of it."""
+
+    made = []
+
+    def __init__(self, **kw):
+        self.kw, self.n, self.postfix, self.closed = kw, 0, [], False
+        _Bar.made.append(self)
+
+    def update(self, k):
+        self.n += k
+
+    def set_postfix(self, **kw):
+        self.postfix.append(kw)
+
+    def close(self):
+        self.closed = True
+
+
+def test_the_progress_bar_counts_rows_and_confirmed_rows_and_closes_at_the_end(monkeypatch):
+    import tqdm
+
+    monkeypatch.setattr(tqdm, "tqdm", _Bar)
+    _Bar.made.clear()
+    step = command._progress(100)
+    (bar,) = _Bar.made
+    assert bar.kw["total"] == 100 and bar.kw["unit_scale"] is True and bar.kw["leave"] is False
+    assert bar.kw["disable"] is None  # shown on a terminal only
+    chunk = lambda rows, *wrong: {"rows": rows, "drivers": {d: {"confirmed": list(w)} for d, w in zip("ab", wrong)}}  # noqa: E731
+    step(chunk(40, (0, 2), (1,)))
+    assert (bar.n, bar.postfix[-1], bar.closed) == (40, {"wrong": 3}, False)
+    step(chunk(40, (0,), (0, 0)))
+    assert (bar.n, bar.postfix[-1], bar.closed) == (80, {"wrong": 3}, False)
+    step(chunk(20, (4,), ()))
+    assert (bar.n, bar.postfix[-1], bar.closed) == (100, {"wrong": 7}, True)
