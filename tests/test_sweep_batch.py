@@ -522,3 +522,11 @@ def test_the_progress_bar_counts_rows_and_confirmed_rows_and_closes_at_the_end(m
     assert (bar.n, bar.postfix[-1], bar.closed) == (80, {"wrong": 3}, False)
     step(chunk(20, (4,), ()))
     assert (bar.n, bar.postfix[-1], bar.closed) == (100, {"wrong": 7}, True)
+
+
+def test_a_hausdorff_bound_profile_is_refused_by_the_sweep():
+    from moments_ref._arrays import InputError
+    from moments_ref.golden.profile import Profile
+
+    with pytest.raises(InputError, match="--profile: bound: the sweep does not honour"):
+        command.make_spec(CASE, _glsl(), "gl", Profile(bound="hausdorff"))
