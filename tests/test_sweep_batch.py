@@ -530,3 +530,10 @@ def test_a_hausdorff_bound_profile_is_refused_by_the_sweep():
 
     with pytest.raises(InputError, match="--profile: bound: the sweep does not honour"):
         command.make_spec(CASE, _glsl(), "gl", Profile(bound="hausdorff"))
+
+
+def test_measure_help_describes_the_command(capsys):
+    with pytest.raises(SystemExit) as exc:
+        measure.main(["--help"])
+    assert exc.value.code == 0
+    assert "The sweep's measurements for docs/sweep.md" in capsys.readouterr().out
