@@ -537,3 +537,17 @@ def test_measure_help_describes_the_command(capsys):
         measure.main(["--help"])
     assert exc.value.code == 0
     assert "The sweep's measurements for docs/sweep.md" in capsys.readouterr().out
+
+
+def test_flags_mpmath_does_not_confirm_are_counted_unconfirmed_and_two_shown(monkeypatch):
+    """judge.confirm patched to confirm nothing (a defect of the tolerance model, not of the port): 5 flagged rows
+    per chunk, none confirmed, all 5 examined and unconfirmed, 4 kept per chunk (KEEP), 2 shown; the sweep passes."""
+    monkeypatch.setattr(judge, "confirm", lambda case, inputs, got, dtype: np.zeros(len(inputs["zf"]), bool))
+    chunks = run_chunks(_spec(_wrong_at({k: [0, 2, 3, 4, 5] for k in range(3)}), rows=80))
+    for r in chunks:
+        d = r["drivers"]["None"]
+        assert (sum(d["flagged"]), d["examined"], sum(d["confirmed"]), sum(d["unconfirmed"])) == (5, 5, 0, 5)
+        assert len(d["unconfirmed_rows"]) == runner.KEEP == 4 and d["confirmed_rows"] == []
+    res = sweep_port(_spec(_wrong_at({k: [0, 2, 3, 4, 5] for k in range(3)}), rows=80), shrink_failures=False)
+    assert res.passed and res.drivers["None"]["unconfirmed"] == 10 and len(res.unconfirmed_examples) == 2
+    assert res.failures == []
