@@ -551,3 +551,28 @@ def test_flags_mpmath_does_not_confirm_are_counted_unconfirmed_and_two_shown(mon
     res = sweep_port(_spec(_wrong_at({k: [0, 2, 3, 4, 5] for k in range(3)}), rows=80), shrink_failures=False)
     assert res.passed and res.drivers["None"]["unconfirmed"] == 10 and len(res.unconfirmed_examples) == 2
     assert res.failures == []
+
+
+@pytest.mark.parametrize("lo, hi", [(-np.inf, np.inf), (0.0, np.inf), (-1.7e308, 1.7e308)])
+def test_a_row_with_one_unbounded_component_band_is_counted_ungated(monkeypatch, lo, hi):
+    """unpack64 (4 components), strict: row 3's band of component 2 made unbounded (infinite, or wider than the
+    float64 range, whose width overflows): that row alone counts as ungated, and is not flagged."""
+    original = judge.legitimate_interval
+
+    def widened(case, inputs, port_dtype, contract):
+        bands, ill = original(case, inputs, port_dtype, contract)
+        b_lo, b_hi = (np.array(x, np.float64) for x in bands["r"])
+        b_lo.reshape(len(ill), -1)[3, 2], b_hi.reshape(len(ill), -1)[3, 2] = lo, hi
+        return {"r": (b_lo, b_hi)}, ill
+
+    monkeypatch.setattr(judge, "legitimate_interval", widened)
+    name = "unpack64-float32"
+    case = golden.CASES[name]
+
+    def port(q):
+        r = np.asarray(case.reference(q=q), np.float32).reshape(len(q), 4).copy()
+        r[3, 2] += np.float32(0.5)  # wrong only where the band is unbounded
+        return r
+
+    r = run_chunk(SweepSpec(name, Port(fn=port), (None,), seed=5, rows=SMALL, strict=True), 0)
+    assert sum(r["strata"]["ungated"]) == 1 and sum(r["drivers"]["None"]["flagged"]) == 0
