@@ -6,10 +6,15 @@ not the code's own output.
 
 from __future__ import annotations
 
+import itertools
+from fractions import Fraction
+
+import mpmath
 import numpy as np
 import pytest
 
 from moments_ref import InputError, golden
+from moments_ref.golden import texel_codes, texel_truth
 from moments_ref.golden.profile import Profile, parse_profile, profile_from_args
 
 MJP_BIAS = {"alpha": 3e-6, "target": [0.5, 0.34375, 0.265625, 0.2265625], "applied": "inside"}
@@ -51,3 +56,42 @@ def test_a_profiled_folder_verified_without_the_profile_keeps_its_ill_rows(tmp_p
     np.savez(tmp_path / "r.npz", **{f"{name}.intensity": got})
     case = golden.verify(tmp_path / "g", tmp_path / "r.npz").cases[0]
     assert case.status == "pass" and case.verdict.row_pass.all()
+
+
+def _psi4_inverse(u):
+    """Ψ4⁻¹(u) at 50 digits, from HPG17 §3.3's Ψ4 (not texel_truth's)."""
+    with mpmath.workdps(50):
+        c0 = mpmath.log(mpmath.log(mpmath.mpf("1.2")))
+        c1 = mpmath.log(mpmath.log(mpmath.mpf("0.25") * 10**7)) - c0
+        return float(mpmath.exp(mpmath.exp(c0 + mpmath.mpf(u.numerator) / u.denominator * c1)) / 10**7)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_a_32bit_word_with_all_four_fields_on_ties_has_all_fifteen_neighbours(dtype):
+    # y1, y2 on 10-bit cell boundaries, sqrt(v2) on a 7-bit one, Psi4 on a 6-bit one: every field on its tie, so
+    # the per-component rule accepts each of the 2**4 - 1 words with a non-empty set of fields taken across.
+    r = np.array([[2 * 300 / 1023 - 1, 2 * 700 / 1023 - 1, (50 / 128) ** 2, _psi4_inverse(Fraction(20, 64))]], dtype)
+    cells, margins, across = texel_truth.pack32(r, components=True)
+    assert (margins <= texel_codes.pack32_tie_band(r)).all() and (across != cells).all()
+    want = {int(texel_truth.fold32(np.where(np.array(pick, bool), across, cells))[0])
+            for pick in itertools.product((0, 1), repeat=4) if any(pick)}
+    got = [int(w[0][0]) for w in texel_codes.pack32_neighbours(r)]
+    assert len(want) == 15 and set(got) == want
+
+
+def test_rows_at_the_tie_bands_edge_decide_as_the_exact_codes():
+    # y1 within a few float64 ulps either side of (boundary +- band): the float64 margin can fall on the other side
+    # of the band than the exact one, so such rows are recomputed exactly (texel_truth, mpmath).
+    band = texel_codes.pack32_tie_band(np.zeros((1, 4)))[0, 0]  # a fraction of the range: |y - boundary| / 2
+    ys = []
+    for k, s in itertools.product((200, 300, 700), (1, -1)):
+        y0 = 2 * k / 1023 - 1 + 2 * s * band
+        ys += list(y0 + np.spacing(y0) * np.arange(-40, 41))
+    y = np.array(ys)
+    r = np.c_[y, np.full_like(y, 0.1), np.full_like(y, 0.3), np.full_like(y, 0.01)]
+    cells, margins, across = texel_codes.pack32_ties(r)
+    band = texel_codes.pack32_tie_band(r)
+    e_cells, e_margins, e_across = texel_truth.pack32(r, components=True)
+    tie = e_margins <= band
+    assert 0 < tie[:, 0].sum() < len(r)  # the rows straddle the edge
+    assert np.array_equal(margins <= band, tie) and np.array_equal(across, np.where(tie, e_across, e_cells))
