@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from moments_ref import InputError, golden
-from moments_ref.golden import texel_codes, texel_truth
+from moments_ref.golden import engine, texel_codes, texel_truth
 from moments_ref.golden.profile import Profile, parse_profile, profile_from_args
+from moments_ref.golden.units import ceil2, ulp
 
 MJP_BIAS = {"alpha": 3e-6, "target": [0.5, 0.34375, 0.265625, 0.2265625], "applied": "inside"}
 
@@ -95,3 +96,26 @@ def test_rows_at_the_tie_bands_edge_decide_as_the_exact_codes():
     tie = e_margins <= band
     assert 0 < tie[:, 0].sum() < len(r)  # the rows straddle the edge
     assert np.array_equal(margins <= band, tie) and np.array_equal(across, np.where(tie, e_across, e_cells))
+
+
+@pytest.mark.parametrize("name", ["engine-lower-float32", "engine-upper-float32"])
+def test_the_engine_bands_and_ill_flags_follow_the_documented_recipe(name):
+    # golden/engine.py's docstring: from the interval [lo, hi] of legitimate values, ill = float32 width > CAP;
+    # half-width ceil2(max(mid - lo, hi - mid) + (CAP if ill else m)), m = max(3 (hi - lo), 4 noise, 8 ulp(1)),
+    # capped at CAP unless ill; the midpoint of the float32 interval is the expected value.
+    case = golden.CASES[name]
+    a, ctx = golden.golden_arrays(case), case.engine
+    b = engine.moments_of_rows(a["support"], a["mass"], np.dtype(case.dtype), bias=ctx.get("before"))
+    intervals, noise = engine.engine_interval(ctx, a, b), engine.case_noise(ctx, case.dtype)
+    lo32, hi32 = intervals["float32"]
+    ill, mid, n = hi32 - lo32 > 0.02, (lo32 + hi32) / 2, len(b)
+    assert np.array_equal(ill, ["wide_spread" in str(f).split(",") for f in a["flags"]])
+    for d, (lo, hi) in intervals.items():
+        m = np.maximum.reduce([3 * (hi - lo), np.full(n, 4 * noise[d]), 8 * ulp(np.ones(n), d)])
+        want = np.where(ill, ceil2(np.fmax(mid - lo, hi - mid) + 0.02),
+                        np.minimum(ceil2(np.fmax(mid - lo, hi - mid) + m), 0.02))
+        np.testing.assert_array_equal(a[f"intensity_tolerance_{d}"], np.where(np.isfinite(mid), want, np.inf))
+    if name == "engine-upper-float32":  # the statement bites: rows between CAP and 2 CAP, rows the noise decides
+        assert ((hi32 - lo32 > 0.02) & (hi32 - lo32 <= 0.04)).any() and noise["float32"] > 0
+        lo, hi = intervals["float32"]
+        assert (4 * noise["float32"] > np.maximum(3 * (hi - lo), 8 * ulp(np.ones(n), "float32")))[~ill].any()
