@@ -13,8 +13,8 @@ import mpmath
 import numpy as np
 import pytest
 
-from moments_ref import InputError, golden
-from moments_ref.golden import engine, texel_codes, texel_truth
+from moments_ref import InputError, golden, precise
+from moments_ref.golden import engine, texel_codes, texel_truth, truth
 from moments_ref.golden.profile import Profile, parse_profile, profile_from_args
 from moments_ref.golden.units import ceil2, ulp
 
@@ -119,3 +119,39 @@ def test_the_engine_bands_and_ill_flags_follow_the_documented_recipe(name):
         assert ((hi32 - lo32 > 0.02) & (hi32 - lo32 <= 0.04)).any() and noise["float32"] > 0
         lo, hi = intervals["float32"]
         assert (4 * noise["float32"] > np.maximum(3 * (hi - lo), 8 * ulp(np.ones(n), "float32")))[~ill].any()
+
+
+def _chain_rows(n=8, seed=7):
+    rng = np.random.default_rng(seed)
+    sup, mass = rng.uniform(-0.9, 0.9, (n, 3)), rng.dirichlet([1, 1, 1], n)
+    return engine.moments_of_rows(sup, mass, np.dtype(np.float64)), np.clip(sup[:, 0] + 0.05, -1, 1)
+
+
+def test_the_affine_chain_with_a_tie_over_half_a_code_spans_all_sixteen_texels():
+    # msm64_chain's docstring: a channel within `tie` of a rounding boundary takes both codes. Every channel lies
+    # within half a code of one, so with a tie over half a code the chain is the bound over all 2**4 texels
+    # {floor(s), floor(s) + 1} per channel (enumerated here, decoded and bounded in mpmath).
+    b, zf = _chain_rows()
+    # every channel 0.4 codes from its half-integer boundary (frac 0.1 or 0.9): inside a tie of 0.52 codes only
+    s = np.clip(texel_truth.to_optimized(b)[0], 0, 1) * 65535
+    s = np.floor(s) + np.where(np.arange(8)[:, None] % 2, 0.1, 0.9)
+    b = texel_truth.from_optimized(s / 65535)[0]
+    lo, hi = truth.msm64_chain(b, zf, dps=30, tie=0.52 / 65535)
+    s = texel_truth.to_optimized(b)[0] * 65535
+    q = np.array([list(itertools.product(*[(int(np.floor(v)), int(np.floor(v)) + 1) for v in row])) for row in s])
+    bq = texel_truth.decode_unorm16(q.reshape(-1, 4).clip(0, 65535).astype(np.uint16))[0]
+    v = precise.shadow_intensity(bq, np.repeat(zf, 16), dps=30).reshape(-1, 16)
+    assert (hi > lo).sum() >= 4
+    np.testing.assert_array_equal(lo, v.min(axis=1))
+    np.testing.assert_array_equal(hi, v.max(axis=1))
+
+
+def test_the_nlq_chain_takes_both_codes_of_every_channel_within_its_tie():
+    # nlq_chain's docstring: both codes where the exact value lies within `tie` of the rounding boundary. Every
+    # channel lies within half a code of its boundary, so any two ties above half a code give the same chain,
+    # and it holds the chain of any smaller tie.
+    b, zf = _chain_rows(6, 11)
+    wide = truth.nlq_chain(b, zf, "64", dps=30, tie=0.95 / 65535)
+    np.testing.assert_array_equal(truth.nlq_chain(b, zf, "64", dps=30, tie=0.55 / 65535), wide)
+    lo, hi = truth.nlq_chain(b, zf, "64", dps=30)
+    assert (wide[0] <= lo).all() and (hi <= wide[1]).all() and (wide[1] - wide[0] > hi - lo).sum() >= 3
