@@ -7,6 +7,7 @@ not the code's own output.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 from fractions import Fraction
 
 import mpmath
@@ -14,7 +15,7 @@ import numpy as np
 import pytest
 
 from moments_ref import InputError, golden, precise
-from moments_ref.golden import engine, texel_codes, texel_truth, truth
+from moments_ref.golden import bands, engine, texel_codes, texel_truth, truth
 from moments_ref.golden.profile import Profile, parse_profile, profile_from_args
 from moments_ref.golden.units import ceil2, ulp
 
@@ -155,3 +156,25 @@ def test_the_nlq_chain_takes_both_codes_of_every_channel_within_its_tie():
     np.testing.assert_array_equal(truth.nlq_chain(b, zf, "64", dps=30, tie=0.55 / 65535), wide)
     lo, hi = truth.nlq_chain(b, zf, "64", dps=30)
     assert (wide[0] <= lo).all() and (hi <= wide[1]).all() and (wide[1] - wide[0] > hi - lo).sum() >= 3
+
+
+@pytest.mark.parametrize("formulation,explained", [(0.29, True), (0.51, True), (0.27, False), (0.53, False)])
+def test_a_formulation_is_kept_within_the_cap_of_the_nearest_exact_value(formulation, explained):
+    # bands.confirm: formulations count only within CAP (0.02 of the range) of the row's exact values, measured
+    # from the nearest (a confirm_truth gives lo and hi). A hand-built case: reference 0.4 everywhere, exact
+    # values lo = 0.3 and hi = 0.5, one formulation; a port returning the formulation is explained iff it lies
+    # within 0.02 of 0.3 or of 0.5.
+    def const(x):
+        return lambda b, zf, **kw: (np.full(len(zf), x),)
+
+    def lo_hi(b, zf):
+        return ((np.full(len(zf), 0.3), np.full(len(zf), 0.5)),)
+
+    def hook(inputs, dt):
+        return [(np.full(len(inputs["zf"]), formulation),)]
+
+    case = replace(golden.CASES["shadow_intensity-lower-float32"], reference=const(0.4), truth=None,
+                   confirm_truth=lo_hi, spread_hook=hook, value_range=(0, 1))
+    inputs = {"b": np.array([[0.1, 0.4, 0.1, 0.3]], np.float32), "zf": np.array([0.2], np.float32)}
+    wrong = bands.confirm(case, inputs, {"intensity": np.array([formulation])})
+    assert wrong.tolist() == [not explained]
