@@ -18,13 +18,15 @@ from moments_ref import InputError, golden, precise
 from moments_ref.golden import bands, engine, texel_codes, texel_truth, truth
 from moments_ref.golden.profile import Profile, parse_profile, profile_from_args
 from moments_ref.golden.units import ceil2, ulp
+from moments_ref.golden.verifier import verify
 
 MJP_BIAS = {"alpha": 3e-6, "target": [0.5, 0.34375, 0.265625, 0.2265625], "applied": "inside"}
 
 
 @pytest.mark.parametrize("value", [8.0, True, 16.0])
 def test_subtexel_bits_is_an_integer_not_a_float_or_bool_that_compares_equal(value):
-    # 8.0 == 8 and True == 1 in Python: a membership test alone would accept them (docs/ports.md: an integer).
+    # 8.0 == 8 and True == 1 in Python: a membership test alone would accept them (docs/ports.md: 4 .. 16, the
+    # integer bits of the filter weights).
     with pytest.raises(InputError, match=r"format\.subtexel_bits.*integer"):
         parse_profile({"format": {"subtexel_bits": value}})
     assert dict(parse_profile({"format": {"subtexel_bits": 8}}).format) == {"subtexel_bits": 8}
@@ -56,7 +58,7 @@ def test_a_profiled_folder_verified_without_the_profile_keeps_its_ill_rows(tmp_p
         got, flags = g["intensity_float32"], g["flags"]
     assert sum("wide_spread" in str(f) for f in flags) >= 5  # the statement has rows to bite on
     np.savez(tmp_path / "r.npz", **{f"{name}.intensity": got})
-    case = golden.verify(tmp_path / "g", tmp_path / "r.npz").cases[0]
+    case = verify(tmp_path / "g", tmp_path / "r.npz").cases[0]
     assert case.status == "pass" and case.verdict.row_pass.all()
 
 
