@@ -27,18 +27,8 @@ from moments_ref.sweep import judge, profiled, shrink as shrink_mod
 from moments_ref.sweep.result import MAX_SHRUNK, SweepResult, sweep_port
 from moments_ref.sweep.runner import STAGES, checkpoint_key, run_chunk
 
-CASE = "shadow_intensity-lower-float32"
-SMALL = 40
-
-
-@pytest.fixture(autouse=True)
-def small_chunks(monkeypatch):
-    monkeypatch.setattr(samplers, "CHUNK", SMALL)
-    monkeypatch.setattr(runner, "CHUNK", SMALL)
-
-
-def _reference(b, zf):
-    return msm.shadow_intensity(np.asarray(b, np.float32), np.asarray(zf, np.float32), bound="lower")
+from _sweep_small import CASE, SMALL, small_chunks  # noqa: F401 (an autouse fixture: chunks of 40 rows)
+from _sweep_small import reference as _reference
 
 
 def _wrong_at(where, calls=None):

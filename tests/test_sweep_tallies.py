@@ -23,18 +23,8 @@ from moments_ref.sweep import STRATA, Port, SweepSpec, run_chunks, runner, sampl
 from moments_ref.sweep.result import describe
 from moments_ref.sweep.samplers import draw_rows
 
-CASE = "shadow_intensity-lower-float32"
-SMALL = 40
-
-
-@pytest.fixture(autouse=True)
-def small_chunks(monkeypatch):
-    monkeypatch.setattr(samplers, "CHUNK", SMALL)
-    monkeypatch.setattr(runner, "CHUNK", SMALL)
-
-
-def _reference(b, zf):
-    return msm.shadow_intensity(np.asarray(b, np.float32), np.asarray(zf, np.float32), bound="lower")
+from _sweep_small import CASE, SMALL, small_chunks  # noqa: F401 (an autouse fixture: chunks of 40 rows)
+from _sweep_small import reference as _reference
 
 
 def _moved(v):
