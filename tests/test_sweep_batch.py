@@ -21,7 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from moments_ref import golden, msm
+from moments_ref import golden
 from moments_ref.sweep import STRATA, Port, SweepSpec, command, measure, result, run_chunks, runner, samplers
 from moments_ref.sweep import judge, profiled, shrink as shrink_mod
 from moments_ref.sweep.result import MAX_SHRUNK, SweepResult, sweep_port

@@ -18,12 +18,12 @@ import json
 import numpy as np
 import pytest
 
-from moments_ref import golden, msm
+from moments_ref import golden
 from moments_ref.sweep import STRATA, Port, SweepSpec, run_chunks, runner, samplers, sweep_port
 from moments_ref.sweep.result import describe
 from moments_ref.sweep.samplers import draw_rows
 
-from _sweep_small import CASE, SMALL, small_chunks  # noqa: F401 (an autouse fixture: chunks of 40 rows)
+from _sweep_small import CASE, small_chunks  # noqa: F401 (an autouse fixture: chunks of 40 rows)
 from _sweep_small import reference as _reference
 
 
