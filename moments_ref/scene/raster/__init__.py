@@ -90,6 +90,7 @@ from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions, unproject_points)
+from ._tiles import tile_depths, tiled_boxes, tiled_row_batches, write_tiles
 from ._triangles import _check_mesh, _setup, _vertices, valid_triangles
 
 __all__ = [
@@ -117,6 +118,9 @@ _ = (_D3D11_PATTERN, MAX_SIZE, SUBPIXEL_BITS, frustum, look_at, orthographic, pe
 
 # Triangles set up per chunk (moments_ref._kernels' table of chunk sizes, with its measurement).
 _SETUP_CHUNK = RASTER_SETUP_CHUNK
+# Depth maps draw the 4×4-pixel tiles inside large triangles as dense blocks (:mod:`._tiles`;
+# the same maps bit for bit; False draws every sample through the spans).
+_TILES = True
 
 
 
@@ -234,7 +238,7 @@ def _prepare(vertices, triangles, clip_from_world, size, samples, cull, dtype):
     return v, t, m, h, w, S, pat[:, 0] * 16, pat[:, 1] * 16, dt
 
 
-def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.float64, checked=False):
+def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.float64, checked=False, tiles=None):
     """Every covered sample with its depth in [-1, 1], chunk by chunk.
 
     Yields ``(s, flat, z, rcs)``: the chunk's setup ``s``, the flat sample index
@@ -243,14 +247,21 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.fl
     else None) the (triangle index into ``s``, row, col, sample) arrays; samples
     clipped by depth are counted in ``stats`` and left out. Shared by
     :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
-    the same coverage.
+    the same coverage. ``tiles(s, i, tr, tc)``, when given, receives the 4×4-pixel tiles
+    inside large triangles (:mod:`._tiles`) instead, whose samples are then not yielded.
     """
     verts = _vertices(v, m, t.shape[0])
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
         s = _setup(verts, t[lo:lo + _SETUP_CHUNK], lo, h, w, sx, sy, cull, stats, want_world, checked)
         if s is None:
             continue
-        for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world, dtype):
+        batches = None
+        if tiles is not None:
+            c0, c1, r0, r1, safe = s["box"]
+            big = tiled_boxes(s, c1 - c0 + 1, r1 - r0 + 1, safe)
+            if big.any():
+                batches = tiled_row_batches(big, lambda i, tr, tc, s=s: tiles(s, i, tr, tc))
+        for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world, dtype, batches):
             ok = None if inside else (z >= -1.0) & (z <= 1.0)
             if ok is not None and not ok.all():
                 stats.samples_depth_clipped += int(ok.size - np.count_nonzero(ok))
@@ -322,11 +333,19 @@ def rasterize_depth(vertices, triangles, clip_from_world, size, samples=1, cull=
 
 def _depth_map(v, t, m, h, w, sx, sy, cull, dt, stats, checked=False):
     """The depth map of :func:`rasterize_depth` and ``stats``, counted on from the given ones."""
-    depth = np.ones(h * w * sx.shape[0], dtype=dt)
-    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked):
+    S = sx.shape[0]
+    depth = np.ones(h * w * S, dtype=dt)
+
+    def tiles(s, i, tr, tc):
+        z = tile_depths(s, i, tr, tc, sx, sy, dt)
+        stats.samples_covered += int(z.size)
+        write_tiles(depth, h, w, S, tr, tc, z)
+
+    for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked,
+                                          tiles if _TILES else None):
         # Depth test: keep the nearest.
         np.minimum.at(depth, flat, z.astype(dt, copy=False))
-    return depth.reshape(h, w, sx.shape[0]), stats
+    return depth.reshape(h, w, S), stats
 
 
 def rasterize_depth_views(vertices, triangles, clip_from_worlds, size, samples=1, cull="none", dtype=np.float32):

@@ -100,8 +100,11 @@ def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
     return pt, r0[pt] + ro, samp, c0[pt] + lo, cnt
 
 
-def _row_batches(s, c0, nc, r0, nr, safe, sx, sy):
+def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
     """Yield _row_spans-like batches (row's triangle index first) over all triangles of ``s``.
+
+    ``taken`` (bool per box, optional): boxes another path draws (:mod:`._tiles`), left out
+    here; they must be ``safe``.
 
     Boxes of up to _DENSE_ROWS rows go, grouped by their exact row count (a bincount,
     no sort), to the dense float path; taller boxes go there too, cut into pieces of
@@ -113,7 +116,9 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy):
     A3, B3, F3 = s["A"], s["B"], s["F0"]
     # Edge functions at the centre of each box's first pixel, exact in int64.
     base3 = F3 + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
-    dense = (nr <= _DENSE_ROWS) & safe
+    mine = np.ones(nr.size, bool) if taken is None else ~taken
+    dense = (nr <= _DENSE_ROWS) & safe & mine
+    safe = safe & mine
     tall = np.flatnonzero(~dense & safe) if _DENSE_ROWS > 0 else np.zeros(0, np.int64)
     # The dense boxes, then the tall boxes' pieces: the triangle of each, its box and edge values.
     if tall.size:
@@ -131,7 +136,7 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy):
             a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3d, B3d, based))
             j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k), sx, sy)
             yield (g if tri is None else tri[g])[j], row, samp, col0, cnt
-    rest = np.flatnonzero(~dense) if _DENSE_ROWS <= 0 else np.flatnonzero(~safe)
+    rest = np.flatnonzero((~dense if _DENSE_ROWS <= 0 else ~safe) & mine)
     for g0, g1 in _groups(nr[rest] * S, _ROW_BUDGET):
         g = rest[g0:g1]
         a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
@@ -159,7 +164,7 @@ def _tall_pieces(small, tall, c0, nc, r0, nr, base3, B3):
             np.concatenate([nr[small], np.minimum(nr[ti] - drow, _DENSE_ROWS)]), based)
 
 
-def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64):
+def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, batches=None):
     """Yield (flat sample index, depth, all in [-1, 1], (setup index, row, col, sample) or None).
 
     Boxes are clamped to the map and nonempty; the flat index is
@@ -171,13 +176,16 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64):
     per row and repeated along the row's covered columns. The depth is float64 where
     some may lie outside [-1, 1] (the caller clips them), else already rounded to
     ``dtype`` by the last addition (the same value as rounding the float64 sum).
+    ``batches``: the span rows to expand, when not those of :func:`_row_batches` of every box
+    (a callable of (s, c0, nc, r0, nr, safe, sx, sy) returning an iterable of batches).
     """
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
     tri_inside = s["inside"]  # every covered sample's depth provably in [-1, 1] (_triangles._depth_inside)
     # Offsets of a box's pixel centres from vertex 0, per triangle (integers, exact).
     cx, cy = _HALF - s["X"][0], _HALF - s["Y"][0]
-    for i_row, row, samp, col0, cnt in _row_batches(s, c0, nc, r0, nr, safe, sx, sy):
+    rows = (batches or _row_batches)(s, c0, nc, r0, nr, safe, sx, sy)
+    for i_row, row, samp, col0, cnt in rows:
         xs0 = col0 * _SUB + sx[samp] + cx[i_row]
         zbY = s["zb"][i_row] * (row * _SUB + sy[samp] + cy[i_row])
         z0, za = s["z0"][i_row], s["za"][i_row]
@@ -245,8 +253,32 @@ def _ramp(n, step, dtype=np.int64):
 def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
     """As :func:`_row_spans` for boxes of at most k rows, on a dense (k, S, n) layout in float64.
 
+    The bounds are :func:`_rect_bounds`'; this keeps the nonempty rows.
+    """
+    S = sx.shape[0]
+    n = nr.size
+    lo, cnt = _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy)
+    if k >= 12:
+        # The nonempty rows in (row, sample, triangle) order: np.nonzero of the 3-d mask gives the
+        # three indices without integer divisions. Quicker for tall boxes (the bench's mid-size
+        # case, 0.8 of the time with the rest of this round's changes); for boxes of a few rows
+        # (its small triangles, 1× and 4×) the flat indices and two divisions are.
+        keep = cnt > 0
+        r, samp, j = np.nonzero(keep)
+        return j, r0[j] + r, samp, c0[j] + lo[keep].astype(np.int64), cnt[keep].astype(np.int64)
+    keep = np.flatnonzero(cnt > 0)
+    rs, j = np.divmod(keep, n)
+    r, samp = np.divmod(rs, S)
+    return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
+            cnt.ravel()[keep].astype(np.int64))
+
+
+def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None):
+    """First covered column and count of every (row, sample, box) of boxes of at most k rows: (k, S, n) float64.
+
     Dense and triangle-innermost: the broadcast ufuncs run over contiguous rows
-    with no gathers or repeats (k is small, the boxes' rows beyond nr are masked).
+    with no gathers or repeats (k is small, the boxes' rows beyond nr, and the first
+    ``skip`` rows where given, are masked: their count is <= 0).
     Float64 is exact here: every L is an integer below 2^53 in magnitude (the caller
     checks), so sums are exact and ceil of the quotient is exact (_EXACT_FLOAT).
     Edges along the rows (a = 0) divide by -2^-40: ceil gives <= 0 for L >= 0 and
@@ -278,7 +310,9 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
         return np.ceil(out, out=out)
 
     # Minus the last covered column starts at 1 - nc, +inf for rows beyond the box (empty).
-    nhi0 = np.where(np.arange(k)[:, None] >= nr, np.inf, 0.0)[:, None, :] + (1.0 - nc)
+    rows = np.arange(k)[:, None]
+    masked = rows >= nr if skip is None else (rows >= nr) | (rows < skip)
+    nhi0 = np.where(masked, np.inf, 0.0)[:, None, :] + (1.0 - nc)
     if ordered:
         lo = np.maximum(bound(0, np.empty((k, S, n))), 0.0, out=np.empty((k, S, n)))
         nhi = np.maximum(bound(1, np.empty((k, S, n))), nhi0, out=np.empty((k, S, n)))
@@ -294,16 +328,4 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
         np.maximum(nhi, np.add(m, np.where(pos, -np.inf, 0.0), out=t), out=nhi)
     cnt = np.subtract(1.0, nhi, out=nhi)
     cnt -= lo
-    if k >= 12:
-        # The nonempty rows in (row, sample, triangle) order: np.nonzero of the 3-d mask gives the
-        # three indices without integer divisions. Quicker for tall boxes (the bench's mid-size
-        # case, 0.8 of the time with the rest of this round's changes); for boxes of a few rows
-        # (its small triangles, 1× and 4×) the flat indices and two divisions are.
-        keep = cnt > 0
-        r, samp, j = np.nonzero(keep)
-        return j, r0[j] + r, samp, c0[j] + lo[keep].astype(np.int64), cnt[keep].astype(np.int64)
-    keep = np.flatnonzero(cnt > 0)
-    rs, j = np.divmod(keep, n)
-    r, samp = np.divmod(rs, S)
-    return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
-            cnt.ravel()[keep].astype(np.int64))
+    return lo, cnt

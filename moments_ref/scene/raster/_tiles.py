@@ -1,0 +1,157 @@
+"""Coarse tiles: the 4×4-pixel tiles a triangle covers entirely, drawn as dense blocks.
+
+Part of :mod:`moments_ref.scene.raster` (see its docstring for the conventions).
+
+llvmpipe (and most hardware) classifies the map's aligned tiles against each triangle
+before testing samples: a tile every sample of which lies inside all three edges needs
+no per-sample test. Here the classification comes from the exact spans themselves
+(:func:`._spans._rect_bounds`): tile (tr, tc) is inside triangle t when the span of every
+one of its 4 S (pixel row, sample) rows is nonempty and contains the columns
+4 tc .. 4 tc + 3, so it is exactly the per-sample test of the top-left rule, in the same
+integer arithmetic. In a row of tiles the inside tiles form one run (the triangle is
+convex), cut out of the spans; the spans' remainders (at most two pieces a row) take
+the span path, the inside tiles the block path below.
+
+Depth. A sample's depth is ``(z0 + za X) + zb Y`` (X, Y its integer offsets from
+vertex 0, :func:`._spans._iter_spans`), in float64, rounded once to the map's dtype.
+Over a tile the first sum depends on (column, sample) only and ``zb Y`` on (row,
+sample) only: each is computed once per tile, and the tile's 16 S depths are one
+broadcast addition of the two, the same operations in the same order on the same
+values as the span path: bit for bit the same depths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._matrices import _HALF, _SUB
+from ._spans import _DENSE_ROWS, _ROW_BUDGET, _rect_bounds
+
+#: Tile side in pixels (a power of two).
+TILE = 4
+_SHIFT = TILE.bit_length() - 1
+#: Boxes at least this many pixels in both directions try the tile path (smaller ones
+#: hold few whole tiles, and the aligned layout would cost them rows).
+TILE_MIN_BOX = 2 * TILE
+
+
+def tiled_boxes(s, nc, nr, safe):
+    """Which boxes take the tile path: large enough, exact in float64, and depths provably in [-1, 1]."""
+    return (nr >= TILE_MIN_BOX) & (nc >= TILE_MIN_BOX) & safe & s["inside"]
+
+
+def tiled_row_batches(big, sink):
+    """A ``batches`` callable for :func:`._spans._iter_spans` drawing the boxes ``big`` through tiles.
+
+    The other boxes' span rows come from :func:`._spans._row_batches`; each ``big`` box's
+    span rows minus its inside tiles follow, and ``sink(i, tr, tc)`` receives the inside
+    tiles (setup index, tile row, tile column; int64 arrays) batch by batch.
+    """
+    from ._spans import _row_batches
+
+    def batches(s, c0, nc, r0, nr, safe, sx, sy):
+        yield from _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=big)
+        yield from _big_batches(s, np.flatnonzero(big), c0, nc, r0, nr, sx, sy, sink)
+
+    return batches
+
+
+def _big_batches(s, idx, c0, nc, r0, nr, sx, sy, sink):
+    """Span rows of the boxes ``idx`` outside their inside tiles; the tiles go to ``sink``."""
+    if idx.size == 0:
+        return
+    S = sx.shape[0]
+    A3, B3 = np.take(s["A"], idx, axis=1), np.take(s["B"], idx, axis=1)
+    # Align each box's first row to a tile row: `skip` rows above the box are masked.
+    off = r0[idx] & (TILE - 1)
+    r0a, nra = r0[idx] - off, nr[idx] + off
+    c0i = c0[idx]
+    base3 = (np.take(s["F0"], idx, axis=1) + A3 * (c0i * _SUB + _HALF) + B3 * (r0a * _SUB + _HALF))
+    # Pieces of _DENSE_ROWS rows (a multiple of TILE: every piece starts on a tile row).
+    pieces = (nra + _DENSE_ROWS - 1) // _DENSE_ROWS
+    p = np.repeat(np.arange(idx.size), pieces)
+    drow = (np.arange(p.size) - np.repeat(np.cumsum(pieces) - pieces, pieces)) * _DENSE_ROWS
+    based = np.take(base3, p, axis=1) + np.take(B3, p, axis=1) * (drow * _SUB)
+    nrp = np.minimum(nra[p] - drow, _DENSE_ROWS)
+    skip = np.where(drow == 0, off[p], 0)
+    r0p = r0a[p] + drow
+    key = (nrp + TILE - 1) >> _SHIFT  # tile rows of the piece
+    for kt in np.flatnonzero(np.bincount(key))[::-1]:
+        sel = np.flatnonzero(key == kt)
+        k = int(kt) * TILE
+        step = max(1, _ROW_BUDGET // (k * S))
+        for a in range(0, sel.size, step):
+            g = sel[a:a + step]
+            pg = p[g]
+            lo, cnt = _rect_bounds(np.take(A3, pg, axis=1), np.take(B3, pg, axis=1), np.take(based, g, axis=1),
+                                   nc[idx[pg]], nrp[g], k, sx, sy, skip[g])
+            j, row, samp, col0, n, blocks = _cut_tiles(lo, cnt, c0i[pg], r0p[g])
+            tri = idx[pg]
+            if blocks is not None:
+                sink(tri[blocks[0]], blocks[1], blocks[2])
+            yield tri[j], row, samp, col0, n
+
+
+def _cut_tiles(lo, cnt, c0, r0):
+    """Cut the inside tiles out of the dense spans (k, S, n) of pieces starting on tile row ``r0 / TILE``.
+
+    Returns the remaining span rows (piece, row, sample, first column, count) and the
+    inside tiles (piece, tile row, tile column), or None for the tiles when there are none.
+    """
+    k, S, n = lo.shape
+    K = k // TILE
+    lo4, cnt4 = lo.reshape(K, TILE * S, n), cnt.reshape(K, TILE * S, n)
+    full = (cnt4 > 0).all(axis=1)  # (K, n): every row of the tile row covered
+    first = np.where(full, lo4.max(axis=1), 0.0).astype(np.int64) + c0  # first column inside every row
+    end = np.where(full, (lo4 + cnt4).min(axis=1), 0.0).astype(np.int64) + c0  # one past the last
+    ta = (first + TILE - 1) >> _SHIFT
+    tb = end >> _SHIFT  # tiles ta .. tb - 1 lie inside every row
+    has = full & (tb > ta)
+    ntile = np.where(has, tb - ta, 0)
+    # Local columns [cl, ce) cut out of each row of a tile row with inside tiles.
+    cl = np.where(has, ta * TILE - c0, 0).astype(np.float64)[:, None, :]
+    ce = np.where(has, tb * TILE - c0, 0).astype(np.float64)[:, None, :]
+    hs = has[:, None, :]
+    left = np.where(hs, cl - lo4, cnt4).reshape(k, S, n)
+    right = np.where(hs, lo4 + cnt4 - ce, 0.0).reshape(k, S, n)
+    out = []
+    for part, start in ((left, lo), (right, np.broadcast_to(ce, (K, TILE * S, n)).reshape(k, S, n))):
+        keep = part > 0
+        r, samp, j = np.nonzero(keep)
+        out.append((j, r0[j] + r, samp, c0[j] + start[keep].astype(np.int64), part[keep].astype(np.int64)))
+    rows = tuple(np.concatenate([a, b]) for a, b in zip(*out))
+    if not has.any():
+        return (*rows, None)
+    q, jt = np.nonzero(has)
+    m = ntile[q, jt]
+    rep = np.repeat(np.arange(q.size), m)
+    tc = ta[q, jt][rep] + (np.arange(rep.size) - np.repeat(np.cumsum(m) - m, m))
+    return (*rows, (jt[rep], (r0[jt] >> _SHIFT)[rep] + q[rep], tc))
+
+
+def tile_depths(s, i, tr, tc, sx, sy, dtype):
+    """Depths (n, TILE, TILE, S) of the samples of tiles (tr, tc) of setup triangles ``i``, in ``dtype``.
+
+    ``(z0 + za X) + zb Y`` as in :func:`._spans._iter_spans`: X, Y the samples' integer
+    offsets from vertex 0 (exact in float64), the last addition rounded to ``dtype``.
+    """
+    S = sx.shape[0]
+    step = (np.arange(TILE) * _SUB)[:, None]
+    # Offsets of the tile's first pixel centre from vertex 0, and of each (column or row, sample) from it.
+    x0 = (tc * (TILE * _SUB) + _HALF - s["X"][0][i]).astype(np.float64)[:, None, None]
+    y0 = (tr * (TILE * _SUB) + _HALF - s["Y"][0][i]).astype(np.float64)[:, None, None]
+    xz = x0 + (step + sx).astype(np.float64)  # (n, TILE columns, S): exact integers
+    xz *= s["za"][i][:, None, None]
+    xz += s["z0"][i][:, None, None]
+    yz = y0 + (step + sy).astype(np.float64)  # (n, TILE rows, S)
+    yz *= s["zb"][i][:, None, None]
+    z = np.empty((i.size, TILE, TILE, S), dtype)
+    return np.add(xz[:, None], yz[:, :, None], out=z)
+
+
+def write_tiles(depth, h, w, S, tr, tc, z):
+    """Depth test of the tiles' depths ``z`` (n, TILE, TILE, S) into the flat map ``depth`` (h w S)."""
+    base = (tr * (TILE * w) + tc * TILE) * S
+    off = ((np.arange(TILE)[:, None] * w + np.arange(TILE)) * S)[:, :, None] + np.arange(S)
+    flat = base[:, None, None, None] + off
+    np.minimum.at(depth, flat.ravel(), z.ravel())
