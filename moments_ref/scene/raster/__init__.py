@@ -90,7 +90,7 @@ from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions, unproject_points)
-from ._tiles import tile_depths, tiled_boxes, tiled_row_batches, write_tiles
+from ._tiles import TILE, tile_depths, tiled_boxes, tiled_row_batches, write_tiles
 from ._triangles import _check_mesh, _setup, _vertices, valid_triangles
 
 __all__ = [
@@ -121,6 +121,7 @@ _SETUP_CHUNK = RASTER_SETUP_CHUNK
 # Depth maps draw the 4×4-pixel tiles inside large triangles as dense blocks (:mod:`._tiles`;
 # the same maps bit for bit; False draws every sample through the spans).
 _TILES = True
+_TILE_BATCH = 4096
 
 
 
@@ -337,9 +338,10 @@ def _depth_map(v, t, m, h, w, sx, sy, cull, dt, stats, checked=False):
     depth = np.ones(h * w * S, dtype=dt)
 
     def tiles(s, i, tr, tc):
-        z = tile_depths(s, i, tr, tc, sx, sy, dt)
-        stats.samples_covered += int(z.size)
-        write_tiles(depth, h, w, S, tr, tc, z)
+        stats.samples_covered += int(i.size) * TILE * TILE * S
+        for a in range(0, i.size, _TILE_BATCH):  # cache-sized batches, as the spans' samples
+            b = slice(a, a + _TILE_BATCH)
+            write_tiles(depth, h, w, S, tr[b], tc[b], tile_depths(s, i[b], tr[b], tc[b], sx, sy, dt))
 
     for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked,
                                           tiles if _TILES else None):

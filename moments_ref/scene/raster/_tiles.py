@@ -35,9 +35,21 @@ _SHIFT = TILE.bit_length() - 1
 TILE_MIN_BOX = 2 * TILE
 
 
+#: Triangles whose inscribed circle has at least this radius (pixels) take the tile path:
+#: thinner ones hold few whole tiles for the cost of the tile layout.
+TILE_MIN_INRADIUS = 3.0
+
+
 def tiled_boxes(s, nc, nr, safe):
     """Which boxes take the tile path: large enough, exact in float64, and depths provably in [-1, 1]."""
-    return (nr >= TILE_MIN_BOX) & (nc >= TILE_MIN_BOX) & safe & s["inside"]
+    big = (nr >= TILE_MIN_BOX) & (nc >= TILE_MIN_BOX) & safe & s["inside"]
+    if TILE_MIN_INRADIUS > 0 and big.any():
+        # Inradius = 2 area / perimeter, in 1/256 pixels (area2 = 2 area, edge (A, B) = (-dy, dx)).
+        X, Y = s["X"], s["Y"]
+        area2 = np.abs((X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])).astype(np.float64)
+        perim = np.hypot(s["A"], s["B"]).sum(axis=0)
+        big &= area2 >= TILE_MIN_INRADIUS * _SUB * perim
+    return big
 
 
 def tiled_row_batches(big, sink):
@@ -100,58 +112,60 @@ def _cut_tiles(lo, cnt, c0, r0):
     """
     k, S, n = lo.shape
     K = k // TILE
-    lo4, cnt4 = lo.reshape(K, TILE * S, n), cnt.reshape(K, TILE * S, n)
-    full = (cnt4 > 0).all(axis=1)  # (K, n): every row of the tile row covered
-    first = np.where(full, lo4.max(axis=1), 0.0).astype(np.int64) + c0  # first column inside every row
-    end = np.where(full, (lo4 + cnt4).min(axis=1), 0.0).astype(np.int64) + c0  # one past the last
+    keep = cnt > 0
+    # Per (tile row, piece): every row covered, and the columns [first, end) inside every row.
+    full = keep.reshape(K, TILE * S, n).all(axis=1)
+    first = np.where(full, lo.reshape(K, TILE * S, n).max(axis=1), 0.0).astype(np.int64) + c0
+    end = np.where(full, (lo + cnt).reshape(K, TILE * S, n).min(axis=1), 0.0).astype(np.int64) + c0
     ta = (first + TILE - 1) >> _SHIFT
     tb = end >> _SHIFT  # tiles ta .. tb - 1 lie inside every row
     has = full & (tb > ta)
-    ntile = np.where(has, tb - ta, 0)
-    # Local columns [cl, ce) cut out of each row of a tile row with inside tiles.
-    cl = np.where(has, ta * TILE - c0, 0).astype(np.float64)[:, None, :]
-    ce = np.where(has, tb * TILE - c0, 0).astype(np.float64)[:, None, :]
-    hs = has[:, None, :]
-    left = np.where(hs, cl - lo4, cnt4).reshape(k, S, n)
-    right = np.where(hs, lo4 + cnt4 - ce, 0.0).reshape(k, S, n)
-    out = []
-    for part, start in ((left, lo), (right, np.broadcast_to(ce, (K, TILE * S, n)).reshape(k, S, n))):
-        keep = part > 0
-        r, samp, j = np.nonzero(keep)
-        out.append((j, r0[j] + r, samp, c0[j] + start[keep].astype(np.int64), part[keep].astype(np.int64)))
-    rows = tuple(np.concatenate([a, b]) for a, b in zip(*out))
+    r, samp, j = np.nonzero(keep)
+    lo_r, cnt_r = lo[keep], cnt[keep]
     if not has.any():
-        return (*rows, None)
-    q, jt = np.nonzero(has)
-    m = ntile[q, jt]
+        return j, r0[j] + r, samp, c0[j] + lo_r.astype(np.int64), cnt_r.astype(np.int64), None
+    # Local columns [cl, ce) cut out of each row (+inf where its tile row has no inside tile).
+    qj = (r >> _SHIFT) * n + j
+    cl = np.where(has, ta * TILE - c0, np.inf).ravel()[qj]
+    ce = np.where(has, tb * TILE - c0, np.inf).ravel()[qj]
+    left = np.minimum(cnt_r, cl - lo_r)
+    right = np.subtract(lo_r + cnt_r, ce, out=cl)
+    kl, kr = np.flatnonzero(left > 0), np.flatnonzero(right > 0)
+    jj = np.concatenate([j[kl], j[kr]])
+    rows = (jj, r0[jj] + np.concatenate([r[kl], r[kr]]), np.concatenate([samp[kl], samp[kr]]),
+            c0[jj] + np.concatenate([lo_r[kl], ce[kr]]).astype(np.int64),
+            np.concatenate([left[kl], right[kr]]).astype(np.int64))
+    jt, q = np.nonzero(has.T)  # piece by piece: a piece's tiles lie together in the map
+    m = (tb - ta)[q, jt]
     rep = np.repeat(np.arange(q.size), m)
     tc = ta[q, jt][rep] + (np.arange(rep.size) - np.repeat(np.cumsum(m) - m, m))
     return (*rows, (jt[rep], (r0[jt] >> _SHIFT)[rep] + q[rep], tc))
 
 
 def tile_depths(s, i, tr, tc, sx, sy, dtype):
-    """Depths (n, TILE, TILE, S) of the samples of tiles (tr, tc) of setup triangles ``i``, in ``dtype``.
+    """Depths (TILE, TILE, S, n) of the samples (row, column, sample) of tiles (tr, tc) of setup triangles ``i``.
 
     ``(z0 + za X) + zb Y`` as in :func:`._spans._iter_spans`: X, Y the samples' integer
     offsets from vertex 0 (exact in float64), the last addition rounded to ``dtype``.
+    The tiles are the innermost axis, so that every pass runs over long rows.
     """
     S = sx.shape[0]
-    step = (np.arange(TILE) * _SUB)[:, None]
+    step = (np.arange(TILE) * _SUB)[:, None, None]
     # Offsets of the tile's first pixel centre from vertex 0, and of each (column or row, sample) from it.
-    x0 = (tc * (TILE * _SUB) + _HALF - s["X"][0][i]).astype(np.float64)[:, None, None]
-    y0 = (tr * (TILE * _SUB) + _HALF - s["Y"][0][i]).astype(np.float64)[:, None, None]
-    xz = x0 + (step + sx).astype(np.float64)  # (n, TILE columns, S): exact integers
-    xz *= s["za"][i][:, None, None]
-    xz += s["z0"][i][:, None, None]
-    yz = y0 + (step + sy).astype(np.float64)  # (n, TILE rows, S)
-    yz *= s["zb"][i][:, None, None]
-    z = np.empty((i.size, TILE, TILE, S), dtype)
-    return np.add(xz[:, None], yz[:, :, None], out=z)
+    x0 = (tc * (TILE * _SUB) + _HALF - s["X"][0][i]).astype(np.float64)
+    y0 = (tr * (TILE * _SUB) + _HALF - s["Y"][0][i]).astype(np.float64)
+    xz = (step + sx[:, None]).astype(np.float64) + x0  # (TILE columns, S, n): exact integers
+    xz *= s["za"][i]
+    xz += s["z0"][i]
+    yz = (step + sy[:, None]).astype(np.float64) + y0  # (TILE rows, S, n)
+    yz *= s["zb"][i]
+    z = np.empty((TILE, TILE, S, i.size), dtype)
+    return np.add(xz[None], yz[:, None], out=z)
 
 
 def write_tiles(depth, h, w, S, tr, tc, z):
-    """Depth test of the tiles' depths ``z`` (n, TILE, TILE, S) into the flat map ``depth`` (h w S)."""
+    """Depth test of the tiles' depths ``z`` (TILE, TILE, S, n) into the flat map ``depth`` (h w S)."""
     base = (tr * (TILE * w) + tc * TILE) * S
     off = ((np.arange(TILE)[:, None] * w + np.arange(TILE)) * S)[:, :, None] + np.arange(S)
-    flat = base[:, None, None, None] + off
+    flat = off[..., None] + base
     np.minimum.at(depth, flat.ravel(), z.ravel())
