@@ -79,6 +79,7 @@ References
 from __future__ import annotations
 
 import time
+from functools import partial
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -90,7 +91,8 @@ from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions, unproject_points)
-from ._tiles import TILE, tile_depths, tiled_boxes, tiled_row_batches, write_tiles
+from ._tiles import draw_tiles, tiled_boxes
+from ._spans import _row_batches
 from ._triangles import _check_mesh, _setup, _vertices, valid_triangles
 
 __all__ = [
@@ -121,7 +123,6 @@ _SETUP_CHUNK = RASTER_SETUP_CHUNK
 # Depth maps draw the 4×4-pixel tiles inside large triangles as dense blocks (:mod:`._tiles`;
 # the same maps bit for bit; False draws every sample through the spans).
 _TILES = True
-_TILE_BATCH = 4096
 
 
 
@@ -248,8 +249,8 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.fl
     else None) the (triangle index into ``s``, row, col, sample) arrays; samples
     clipped by depth are counted in ``stats`` and left out. Shared by
     :func:`rasterize_depth` and :func:`rasterize_fragments`, so both see exactly
-    the same coverage. ``tiles(s, i, tr, tc)``, when given, receives the 4×4-pixel tiles
-    inside large triangles (:mod:`._tiles`) instead, whose samples are then not yielded.
+    the same coverage. ``tiles``, when given, is the flat depth map (h w S) of ``dtype``: the
+    large triangles are drawn into it tile by tile (:mod:`._tiles`), their samples not yielded.
     """
     verts = _vertices(v, m, t.shape[0])
     for lo in range(0, t.shape[0], _SETUP_CHUNK):
@@ -261,7 +262,9 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.fl
             c0, c1, r0, r1, safe = s["box"]
             big = tiled_boxes(s, c1 - c0 + 1, r1 - r0 + 1, safe)
             if big.any():
-                batches = tiled_row_batches(big, lambda i, tr, tc, s=s: tiles(s, i, tr, tc))
+                stats.samples_covered += draw_tiles(tiles, h, w, s, np.flatnonzero(big), c0, c1 - c0 + 1, r0,
+                                                    r1 - r0 + 1, sx, sy, dtype)
+                batches = partial(_row_batches, taken=big)
         for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world, dtype, batches):
             ok = None if inside else (z >= -1.0) & (z <= 1.0)
             if ok is not None and not ok.all():
@@ -337,14 +340,8 @@ def _depth_map(v, t, m, h, w, sx, sy, cull, dt, stats, checked=False):
     S = sx.shape[0]
     depth = np.ones(h * w * S, dtype=dt)
 
-    def tiles(s, i, tr, tc):
-        stats.samples_covered += int(i.size) * TILE * TILE * S
-        for a in range(0, i.size, _TILE_BATCH):  # cache-sized batches, as the spans' samples
-            b = slice(a, a + _TILE_BATCH)
-            write_tiles(depth, h, w, S, tr[b], tc[b], tile_depths(s, i[b], tr[b], tc[b], sx, sy, dt))
-
     for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked,
-                                          tiles if _TILES else None):
+                                          depth if _TILES else None):
         # Depth test: keep the nearest.
         np.minimum.at(depth, flat, z.astype(dt, copy=False))
     return depth.reshape(h, w, S), stats

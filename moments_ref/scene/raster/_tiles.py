@@ -33,6 +33,8 @@ _SHIFT = TILE.bit_length() - 1
 #: Boxes at least this many pixels in both directions try the tile path (smaller ones
 #: hold few whole tiles, and the aligned layout would cost them rows).
 TILE_MIN_BOX = 2 * TILE
+#: Tiles per batch (2^16 samples at 4× MSAA): cache-sized, as the spans' batches.
+TILE_BATCH = 1 << 12
 
 
 #: Triangles whose inscribed circle has at least this radius (pixels) take the tile path:
@@ -52,26 +54,15 @@ def tiled_boxes(s, nc, nr, safe):
     return big
 
 
-def tiled_row_batches(big, sink):
-    """A ``batches`` callable for :func:`._spans._iter_spans` drawing the boxes ``big`` through tiles.
+def draw_tiles(depth, h, w, s, idx, c0, nc, r0, nr, sx, sy, dtype):
+    """Draw the boxes ``idx`` of setup ``s`` tile by tile into the flat depth map ``depth`` (h w S); the covered count.
 
-    The other boxes' span rows come from :func:`._spans._row_batches`; each ``big`` box's
-    span rows minus its inside tiles follow, and ``sink(i, tr, tc)`` receives the inside
-    tiles (setup index, tile row, tile column; int64 arrays) batch by batch.
+    Each box is aligned to tile rows (the rows above it masked) and cut into pieces of
+    _DENSE_ROWS rows (a multiple of TILE), whose exact spans come from
+    :func:`._spans._rect_bounds`. In each row of tiles, the tiles from the one holding the
+    leftmost covered sample to the one holding the rightmost are drawn: the inside tiles
+    as they are, the others with their uncovered samples masked.
     """
-    from ._spans import _row_batches
-
-    def batches(s, c0, nc, r0, nr, safe, sx, sy):
-        yield from _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=big)
-        yield from _big_batches(s, np.flatnonzero(big), c0, nc, r0, nr, sx, sy, sink)
-
-    return batches
-
-
-def _big_batches(s, idx, c0, nc, r0, nr, sx, sy, sink):
-    """Span rows of the boxes ``idx`` outside their inside tiles; the tiles go to ``sink``."""
-    if idx.size == 0:
-        return
     S = sx.shape[0]
     A3, B3 = np.take(s["A"], idx, axis=1), np.take(s["B"], idx, axis=1)
     # Align each box's first row to a tile row: `skip` rows above the box are masked.
@@ -88,6 +79,7 @@ def _big_batches(s, idx, c0, nc, r0, nr, sx, sy, sink):
     skip = np.where(drow == 0, off[p], 0)
     r0p = r0a[p] + drow
     key = (nrp + TILE - 1) >> _SHIFT  # tile rows of the piece
+    covered = 0
     for kt in np.flatnonzero(np.bincount(key))[::-1]:
         sel = np.flatnonzero(key == kt)
         k = int(kt) * TILE
@@ -97,49 +89,72 @@ def _big_batches(s, idx, c0, nc, r0, nr, sx, sy, sink):
             pg = p[g]
             lo, cnt = _rect_bounds(np.take(A3, pg, axis=1), np.take(B3, pg, axis=1), np.take(based, g, axis=1),
                                    nc[idx[pg]], nrp[g], k, sx, sy, skip[g])
-            j, row, samp, col0, n, blocks = _cut_tiles(lo, cnt, c0i[pg], r0p[g])
             tri = idx[pg]
-            if blocks is not None:
-                sink(tri[blocks[0]], blocks[1], blocks[2])
-            yield tri[j], row, samp, col0, n
+            full, part = _tiles_of(lo, cnt, c0i[pg], r0p[g])
+            for (j, tr, tc), masked in ((full, False), (part, True)):
+                for b0 in range(0, j.size, TILE_BATCH):  # cache-sized batches
+                    b = slice(b0, b0 + TILE_BATCH)
+                    z = tile_depths(s, tri[j[b]], tr[b], tc[b], sx, sy, dtype)
+                    if masked:
+                        inside = _tile_masks(lo, cnt, j[b], tr[b] - (r0p[g][j[b]] >> _SHIFT), tc[b] * TILE - c0i[pg][j[b]])
+                        covered += int(np.count_nonzero(inside))
+                        np.copyto(z, np.inf, where=~inside)
+                    else:
+                        covered += int(z.size)
+                    write_tiles(depth, w, S, tr[b], tc[b], z)
+    return covered
 
 
-def _cut_tiles(lo, cnt, c0, r0):
-    """Cut the inside tiles out of the dense spans (k, S, n) of pieces starting on tile row ``r0 / TILE``.
+def _tiles_of(lo, cnt, c0, r0):
+    """The tiles of the dense spans (k, S, n) of pieces starting on tile row ``r0 / TILE``.
 
-    Returns the remaining span rows (piece, row, sample, first column, count) and the
-    inside tiles (piece, tile row, tile column), or None for the tiles when there are none.
+    Returns the inside tiles and the other tiles holding a covered sample, each as
+    (piece, tile row, tile column) int64 arrays, piece by piece.
     """
     k, S, n = lo.shape
     K = k // TILE
-    keep = cnt > 0
-    # Per (tile row, piece): every row covered, and the columns [first, end) inside every row.
-    full = keep.reshape(K, TILE * S, n).all(axis=1)
-    first = np.where(full, lo.reshape(K, TILE * S, n).max(axis=1), 0.0).astype(np.int64) + c0
-    end = np.where(full, (lo + cnt).reshape(K, TILE * S, n).min(axis=1), 0.0).astype(np.int64) + c0
+    keep = (cnt > 0).reshape(K, TILE * S, n)
+    # Per (tile row, piece): the covered columns' hull [lo_min, end_max), and, where every
+    # row is covered, the columns [first, end) inside every row.
+    anyc = keep.any(axis=1)
+    full = keep.all(axis=1) & anyc
+    lo4 = lo.reshape(K, TILE * S, n)
+    end4 = (lo + cnt).reshape(K, TILE * S, n)
+    lo_min = np.where(anyc, np.where(keep, lo4, np.inf).min(axis=1), 0.0).astype(np.int64) + c0
+    end_max = np.where(anyc, end4.max(axis=1), 0.0).astype(np.int64) + c0
+    first = np.where(full, lo4.max(axis=1), 0.0).astype(np.int64) + c0
+    end = np.where(full, end4.min(axis=1), 0.0).astype(np.int64) + c0
+    t0 = lo_min >> _SHIFT
+    t1 = np.where(anyc, ((end_max - 1) >> _SHIFT) + 1, t0)  # tiles t0 .. t1 - 1 hold a covered sample
     ta = (first + TILE - 1) >> _SHIFT
     tb = end >> _SHIFT  # tiles ta .. tb - 1 lie inside every row
     has = full & (tb > ta)
-    r, samp, j = np.nonzero(keep)
-    lo_r, cnt_r = lo[keep], cnt[keep]
-    if not has.any():
-        return j, r0[j] + r, samp, c0[j] + lo_r.astype(np.int64), cnt_r.astype(np.int64), None
-    # Local columns [cl, ce) cut out of each row (+inf where its tile row has no inside tile).
-    qj = (r >> _SHIFT) * n + j
-    cl = np.where(has, ta * TILE - c0, np.inf).ravel()[qj]
-    ce = np.where(has, tb * TILE - c0, np.inf).ravel()[qj]
-    left = np.minimum(cnt_r, cl - lo_r)
-    right = np.subtract(lo_r + cnt_r, ce, out=cl)
-    kl, kr = np.flatnonzero(left > 0), np.flatnonzero(right > 0)
-    jj = np.concatenate([j[kl], j[kr]])
-    rows = (jj, r0[jj] + np.concatenate([r[kl], r[kr]]), np.concatenate([samp[kl], samp[kr]]),
-            c0[jj] + np.concatenate([lo_r[kl], ce[kr]]).astype(np.int64),
-            np.concatenate([left[kl], right[kr]]).astype(np.int64))
-    jt, q = np.nonzero(has.T)  # piece by piece: a piece's tiles lie together in the map
-    m = (tb - ta)[q, jt]
+    ta, tb = np.where(has, ta, t0), np.where(has, tb, t0)
+    return _enumerate(ta, tb - ta, r0), _enumerate(t0, t1 - t0 - (tb - ta), r0, skip_at=ta - t0, skip=tb - ta)
+
+
+def _enumerate(start, count, r0, skip_at=None, skip=None):
+    """(piece, tile row, tile column) of ``count`` tiles from ``start`` per (tile row, piece), piece by piece;
+    ``skip`` columns are jumped over from the ``skip_at``-th tile on."""
+    jt, q = np.nonzero(count.T > 0)
+    m = count[q, jt]
     rep = np.repeat(np.arange(q.size), m)
-    tc = ta[q, jt][rep] + (np.arange(rep.size) - np.repeat(np.cumsum(m) - m, m))
-    return (*rows, (jt[rep], (r0[jt] >> _SHIFT)[rep] + q[rep], tc))
+    u = np.arange(rep.size) - np.repeat(np.cumsum(m) - m, m)
+    if skip is not None:
+        u += np.where(u >= skip_at[q, jt][rep], skip[q, jt][rep], 0)
+    return jt[rep], (r0[jt] >> _SHIFT)[rep] + q[rep], start[q, jt][rep] + u
+
+
+def _tile_masks(lo, cnt, j, q, x0):
+    """Covered samples (TILE, TILE, S, n) of tiles in tile row ``q`` of pieces ``j``, first column ``x0`` (local)."""
+    k, S, n = lo.shape
+    # Rows (TILE, S, m) of each tile in the dense layout.
+    at = ((q * TILE)[None, None] + np.arange(TILE)[:, None, None]) * (S * n) + (np.arange(S) * n)[None, :, None] + j
+    lo_t = np.take(lo, at)
+    end_t = lo_t + np.take(cnt, at)
+    col = (x0 + np.arange(TILE)[:, None]).astype(np.float64)  # (TILE columns, m)
+    col = col[None, :, None, :]
+    return (lo_t[:, None] <= col) & (col < end_t[:, None])
 
 
 def tile_depths(s, i, tr, tc, sx, sy, dtype):
@@ -163,7 +178,7 @@ def tile_depths(s, i, tr, tc, sx, sy, dtype):
     return np.add(xz[None], yz[:, None], out=z)
 
 
-def write_tiles(depth, h, w, S, tr, tc, z):
+def write_tiles(depth, w, S, tr, tc, z):
     """Depth test of the tiles' depths ``z`` (TILE, TILE, S, n) into the flat map ``depth`` (h w S)."""
     base = (tr * (TILE * w) + tc * TILE) * S
     off = ((np.arange(TILE)[:, None] * w + np.arange(TILE)) * S)[:, :, None] + np.arange(S)
