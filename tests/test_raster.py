@@ -869,3 +869,113 @@ def test_depth_views_refuse_bad_matrices():
     for bad in (np.eye(4), np.zeros((2, 3, 4)), np.full((1, 4, 4), np.nan)):
         with pytest.raises(InputError, match="clip_from_worlds"):
             next(rasterize_depth_views(v, [[0, 1, 2]], bad, 4))
+
+
+# ---------------------------------------------------------------------------
+# The tile path (scene/raster/_tiles.py): large triangles drawn tile by tile
+
+
+def _all_tiled(monkeypatch):
+    """Send every triangle whose box allows it through the tile path (not only large ones)."""
+    monkeypatch.setattr(raster._tiles, "TILE_MIN_BOX", 1)
+    monkeypatch.setattr(raster._tiles, "TILE_MIN_INRADIUS", 0.0)
+
+
+@st.composite
+def tile_scenes(draw):
+    # Maps of a few tiles (sides not multiples of the tile), triangles on the 1/16-pixel
+    # grid (samples on edges), quads split along a diagonal (shared edges), slivers and
+    # repeated vertices, vertices beyond the map (clipped boxes).
+    h, w = draw(st.integers(4, 13)), draw(st.integers(4, 13))
+    samples = draw(st.sampled_from([1, 4, 8]))
+    tris = _grid_tris(draw, h, w, draw(st.integers(1, 3)))
+    if draw(st.booleans()):  # a quad: two triangles sharing their diagonal
+        q = _grid_tris(draw, h, w, 1)[0] + _grid_tris(draw, h, w, 1)[0][:1]
+        tris += [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+    if draw(st.booleans()):  # a sliver: the third vertex just off the first edge
+        a, b = _grid_tris(draw, h, w, 1)[0][:2]
+        tris.append([a, b, ((a[0] + b[0]) / 2 + 1e-3, (a[1] + b[1]) / 2, a[2])])
+    if draw(st.booleans()):  # degenerate: a repeated vertex
+        a, b = _grid_tris(draw, h, w, 1)[0][:2]
+        tris.append([a, b, a])
+    return h, w, samples, tris
+
+
+@given(tile_scenes(), st.sampled_from(["none", "back"]))
+@settings(max_examples=40, deadline=None)
+def test_tile_path_matches_brute_force(scene, cull):
+    h, w, samples, tris = scene
+    ref, count = ref_coverage_depth(tris, h, w, samples, cull)
+    v, t = _mesh(tris)
+    with pytest.MonkeyPatch.context() as mp:
+        _all_tiled(mp)
+        got, stats = rasterize_depth(v, t, np.eye(4), (h, w), samples=samples, cull=cull)
+    np.testing.assert_array_equal(got < 1, count > 0)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-7)
+    assert stats.samples_covered == count.sum()
+
+
+def _big_scene():
+    # A large triangle, a quad sharing a diagonal, and a sliver, on a map whose sides are
+    # not multiples of the tile, with vertices beyond the map.
+    tris = [[(-1.2, -0.9, -0.4), (0.95, -1.1, 0.3), (0.1, 1.3, 0.8)],
+            [(-0.8, -0.8, 0.1), (0.7, -0.75, -0.2), (0.75, 0.6, 0.0)],
+            [(-0.8, -0.8, 0.1), (0.75, 0.6, 0.0), (-0.7, 0.65, 0.5)],
+            [(-0.9, 0.9, -0.5), (0.9, -0.85, 0.5), (0.905, -0.84, 0.5)]]
+    return tris, 27, 22
+
+
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_tile_path_is_taken_and_matches_brute_force(monkeypatch, samples):
+    tris, h, w = _big_scene()
+    ref, count = ref_coverage_depth(tris, h, w, samples)
+    covered = []
+    draw = raster._tiles.draw_tiles
+    monkeypatch.setattr(raster, "draw_tiles", lambda *a: covered.append(draw(*a)) or covered[-1])
+    monkeypatch.setattr(raster._tiles, "TILE_MIN_INRADIUS", 1.0)
+    got, stats = rasterize_depth(*_mesh(tris), np.eye(4), (h, w), samples=samples)
+    assert covered and covered[0] > count.sum() // 2  # most samples went through tiles
+    np.testing.assert_array_equal(got < 1, count > 0)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-7)
+    assert stats.samples_covered == count.sum()
+
+
+def test_tile_path_mutants_fail(monkeypatch):
+    # Power: partial tiles drawn without their coverage mask, or every tile treated as
+    # partial with a mask shifted by a column, give a different map.
+    tris, h, w = _big_scene()
+    ref, count = ref_coverage_depth(tris, h, w, 4)
+    v, t = _mesh(tris)
+    monkeypatch.setattr(raster._tiles, "TILE_MIN_INRADIUS", 1.0)
+    masks = raster._tiles._tile_masks
+    for mutant in (lambda *a: np.ones_like(masks(*a)),
+                   lambda lo, cnt, j, q, x0: masks(lo, cnt, j, q, x0 + 1)):
+        monkeypatch.setattr(raster._tiles, "_tile_masks", mutant)
+        got, _ = rasterize_depth(v, t, np.eye(4), (h, w), samples=4)
+        assert not np.array_equal(got < 1, count > 0)
+
+
+def _bench_cases_small():
+    from moments_ref.scene import load_scene
+    from moments_ref.tools.bench._cases import MID_EXTENT
+
+    v, t = raster.small_triangles(300, 384, MID_EXTENT, np.random.default_rng(0))
+    yield "mid", v, t, np.eye(4), 384
+    m = load_scene("railing").occluder_mesh(translucent=False)
+    yield "railing", m.vertices, m.triangles, load_scene("railing").light_clip_from_world(), 512
+
+
+@pytest.mark.parametrize("all_tiled", [False, True])
+def test_tile_path_is_the_span_path_bit_for_bit_on_the_bench_cases(monkeypatch, all_tiled):
+    # The bench's mid-size and railing cases at a small size: the map with tiles and the
+    # map with every sample through the spans (raster._TILES = False) byte for byte.
+    if all_tiled:
+        _all_tiled(monkeypatch)
+    for name, v, t, vp, size in _bench_cases_small():
+        for dtype in (np.float32, np.float64):
+            got, s1 = rasterize_depth(v, t, vp, size, samples=4, dtype=dtype)
+            monkeypatch.setattr(raster, "_TILES", False)
+            want, s2 = rasterize_depth(v, t, vp, size, samples=4, dtype=dtype)
+            monkeypatch.setattr(raster, "_TILES", True)
+            assert got.tobytes() == want.tobytes(), (name, dtype)
+            assert s1 == s2 and s1.samples_covered > 0

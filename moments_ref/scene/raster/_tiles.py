@@ -39,7 +39,7 @@ TILE_BATCH = 1 << 12
 
 #: Triangles whose inscribed circle has at least this radius (pixels) take the tile path:
 #: thinner ones hold few whole tiles for the cost of the tile layout.
-TILE_MIN_INRADIUS = 3.0
+TILE_MIN_INRADIUS = 16.0
 
 
 def tiled_boxes(s, nc, nr, safe):
@@ -182,5 +182,10 @@ def write_tiles(depth, w, S, tr, tc, z):
     """Depth test of the tiles' depths ``z`` (TILE, TILE, S, n) into the flat map ``depth`` (h w S)."""
     base = (tr * (TILE * w) + tc * TILE) * S
     off = ((np.arange(TILE)[:, None] * w + np.arange(TILE)) * S)[:, :, None] + np.arange(S)
-    flat = off[..., None] + base
-    np.minimum.at(depth, flat.ravel(), z.ravel())
+    flat = (off[..., None] + base).ravel()
+    if (int(tr.max()) + 1) * TILE * w * S > depth.size or (int(tc.max()) + 1) * TILE > w:
+        # A partial tile at the map's last rows or columns: its samples beyond the map are
+        # masked (+inf), so any index in the map does for them (beyond the right edge they
+        # already land on the next row's first samples).
+        np.minimum(flat, depth.size - 1, out=flat)
+    np.minimum.at(depth, flat, z.ravel())
