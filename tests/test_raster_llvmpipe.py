@@ -116,6 +116,27 @@ def _mid_and_thin(seed, size):
 
 
 @pytest.mark.parametrize("samples", [1, 4])
+def test_tile_path_matches_llvmpipe_sample_for_sample(monkeypatch, samples):
+    # Every triangle whose box allows it drawn tile by tile (scene/raster/_tiles.py; by default
+    # only large ones are), the same scene against llvmpipe and against the span path.
+    from moments_ref.scene import raster
+
+    size = 256
+    v, t = _mid_and_thin(7 + samples, size)
+    ref = _llvmpipe_depth(v, t, size, samples)
+    monkeypatch.setattr(raster._tiles, "TILE_MIN_BOX", 1)
+    monkeypatch.setattr(raster._tiles, "TILE_MIN_INRADIUS", 0.0)
+    got, stats = rasterize_depth(v, t, np.eye(4), size, samples=samples)
+    covered_gl, covered = ref < 1, got < 1
+    bad = np.argwhere(covered_gl != covered)
+    assert bad.size == 0, f"{len(bad)} samples differ in coverage, first (row, col, sample) {bad[0].tolist()}"
+    np.testing.assert_allclose(got[covered], ref[covered], rtol=0, atol=2e-6)
+    monkeypatch.setattr(raster, "_TILES", False)
+    spans, stats_spans = rasterize_depth(v, t, np.eye(4), size, samples=samples)
+    assert got.tobytes() == spans.tobytes() and stats == stats_spans
+
+
+@pytest.mark.parametrize("samples", [1, 4])
 def test_mid_size_and_long_thin_triangles_match_llvmpipe_sample_for_sample(samples):
     size = 256
     v, t = _mid_and_thin(7 + samples, size)
