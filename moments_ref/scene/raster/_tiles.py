@@ -1,23 +1,32 @@
-"""Coarse tiles: the 4×4-pixel tiles a triangle covers entirely, drawn as dense blocks.
+"""Coarse tiles: large triangles drawn 4×4 pixels at a time, as dense blocks of depths.
 
 Part of :mod:`moments_ref.scene.raster` (see its docstring for the conventions).
 
 llvmpipe (and most hardware) classifies the map's aligned tiles against each triangle
 before testing samples: a tile every sample of which lies inside all three edges needs
 no per-sample test. Here the classification comes from the exact spans themselves
-(:func:`._spans._rect_bounds`): tile (tr, tc) is inside triangle t when the span of every
-one of its 4 S (pixel row, sample) rows is nonempty and contains the columns
-4 tc .. 4 tc + 3, so it is exactly the per-sample test of the top-left rule, in the same
-integer arithmetic. In a row of tiles the inside tiles form one run (the triangle is
-convex), cut out of the spans; the spans' remainders (at most two pieces a row) take
-the span path, the inside tiles the block path below.
+(:func:`._spans._rect_bounds`, the box aligned to tile rows): tile (tr, tc) is inside
+triangle t when the span of every one of its 4 S (pixel row, sample) rows is nonempty and
+contains the columns 4 tc .. 4 tc + 3, which is exactly the per-sample test of the
+top-left rule in the same integer arithmetic. In a row of tiles the inside tiles form one
+run (the triangle is convex); the tiles from the one holding the row's leftmost covered
+sample to the one holding its rightmost, outside the run, are partial: drawn the same way
+with the uncovered samples' depths replaced by +inf, which the depth test (a minimum)
+ignores. No sample goes through the per-sample expansion of the span path.
 
 Depth. A sample's depth is ``(z0 + za X) + zb Y`` (X, Y its integer offsets from
 vertex 0, :func:`._spans._iter_spans`), in float64, rounded once to the map's dtype.
 Over a tile the first sum depends on (column, sample) only and ``zb Y`` on (row,
 sample) only: each is computed once per tile, and the tile's 16 S depths are one
 broadcast addition of the two, the same operations in the same order on the same
-values as the span path: bit for bit the same depths.
+values as the span path: bit for bit the same depths (tests/test_raster.py compares
+the maps byte for byte and against the brute-force reference).
+
+Which triangles: only large ones (inscribed circle of radius >= TILE_MIN_INRADIUS
+pixels) whose depths are proven in [-1, 1] (no depth clip) and whose box is exact in
+float64 (:data:`._spans._FLOAT_SAFE_COORD`). For the bench's triangles of about 150 pixels
+the tiles cost more than the spans (about 1.2 times the time with every triangle tiled,
+1.05 with 2×2-pixel tiles): docs/bench.md, Kernel history, round seven.
 """
 
 from __future__ import annotations
@@ -35,8 +44,6 @@ _SHIFT = TILE.bit_length() - 1
 TILE_MIN_BOX = 2 * TILE
 #: Tiles per batch (2^16 samples at 4× MSAA): cache-sized, as the spans' batches.
 TILE_BATCH = 1 << 12
-
-
 #: Triangles whose inscribed circle has at least this radius (pixels) take the tile path:
 #: thinner ones hold few whole tiles for the cost of the tile layout.
 TILE_MIN_INRADIUS = 16.0
@@ -89,19 +96,27 @@ def draw_tiles(depth, h, w, s, idx, c0, nc, r0, nr, sx, sy, dtype):
             pg = p[g]
             lo, cnt = _rect_bounds(np.take(A3, pg, axis=1), np.take(B3, pg, axis=1), np.take(based, g, axis=1),
                                    nc[idx[pg]], nrp[g], k, sx, sy, skip[g])
-            tri = idx[pg]
-            full, part = _tiles_of(lo, cnt, c0i[pg], r0p[g])
-            for (j, tr, tc), masked in ((full, False), (part, True)):
-                for b0 in range(0, j.size, TILE_BATCH):  # cache-sized batches
-                    b = slice(b0, b0 + TILE_BATCH)
-                    z = tile_depths(s, tri[j[b]], tr[b], tc[b], sx, sy, dtype)
-                    if masked:
-                        inside = _tile_masks(lo, cnt, j[b], tr[b] - (r0p[g][j[b]] >> _SHIFT), tc[b] * TILE - c0i[pg][j[b]])
-                        covered += int(np.count_nonzero(inside))
-                        np.copyto(z, np.inf, where=~inside)
-                    else:
-                        covered += int(z.size)
-                    write_tiles(depth, w, S, tr[b], tc[b], z)
+            covered += _draw_piece_tiles(depth, w, s, idx[pg], lo, cnt, c0i[pg], r0p[g], sx, sy, dtype)
+    return covered
+
+
+def _draw_piece_tiles(depth, w, s, tri, lo, cnt, c0, r0, sx, sy, dtype):
+    """Draw the tiles of pieces of triangles ``tri`` (setup indices) with dense spans ``lo``, ``cnt``; the covered count."""
+    S = sx.shape[0]
+    covered = 0
+    full, part = _tiles_of(lo, cnt, c0, r0)
+    for (j, tr, tc), masked in ((full, False), (part, True)):
+        for b0 in range(0, j.size, TILE_BATCH):  # cache-sized batches
+            b = slice(b0, b0 + TILE_BATCH)
+            jb, trb, tcb = j[b], tr[b], tc[b]
+            z = tile_depths(s, tri[jb], trb, tcb, sx, sy, dtype)
+            if masked:
+                inside = _tile_masks(lo, cnt, jb, trb - (r0[jb] >> _SHIFT), tcb * TILE - c0[jb])
+                covered += int(np.count_nonzero(inside))
+                np.copyto(z, np.inf, where=~inside)
+            else:
+                covered += int(z.size)
+            write_tiles(depth, w, S, trb, tcb, z)
     return covered
 
 
