@@ -262,8 +262,8 @@ def _covered_samples(v, m, t, h, w, sx, sy, cull, stats, want_world, dtype=np.fl
             c0, c1, r0, r1, safe = s["box"]
             big = tiled_boxes(s, c1 - c0 + 1, r1 - r0 + 1, safe)
             if big.any():
-                stats.samples_covered += draw_tiles(tiles, h, w, s, np.flatnonzero(big), c0, c1 - c0 + 1, r0,
-                                                    r1 - r0 + 1, sx, sy, dtype)
+                stats.samples_covered += draw_tiles(tiles, w, s, np.flatnonzero(big), c0, c1 - c0 + 1, r0, r1 - r0 + 1,
+                                                    sx, sy, dtype)
                 batches = partial(_row_batches, taken=big)
         for flat, z, inside, rcs in _iter_spans(s, *s["box"], sx, sy, w, want_world, dtype, batches):
             ok = None if inside else (z >= -1.0) & (z <= 1.0)

@@ -61,8 +61,8 @@ def tiled_boxes(s, nc, nr, safe):
     return big
 
 
-def draw_tiles(depth, h, w, s, idx, c0, nc, r0, nr, sx, sy, dtype):
-    """Draw the boxes ``idx`` of setup ``s`` tile by tile into the flat depth map ``depth`` (h w S); the covered count.
+def draw_tiles(depth, w, s, idx, c0, nc, r0, nr, sx, sy, dtype):
+    """Draw the boxes ``idx`` of setup ``s`` tile by tile into the flat depth map ``depth`` (h w S, row-major); the covered count.
 
     Each box is aligned to tile rows (the rows above it masked) and cut into pieces of
     _DENSE_ROWS rows (a multiple of TILE), whose exact spans come from
