@@ -59,7 +59,12 @@ evaluated together on a dense (rows, samples, triangles) layout in float64
 thin triangles) are cut into pieces of 32 rows that take the same path, and only
 triangles reaching far into the guard band go row by row in int64. A triangle
 whose depths are proven to lie in [−1, 1] from its vertices (with a bound on the
-rounding) skips the depth-clip test of its rows. So the cost is the triangle
+rounding) skips the depth-clip test of its rows. Large triangles (an inscribed
+circle of 16 pixels or more) of a depth map are drawn 4×4 pixels at a time instead
+(:mod:`moments_ref.scene.raster._tiles`): the tiles come from the same exact spans,
+and each tile's depths are one broadcast addition of a per-(column, sample) and a
+per-(row, sample) part, the same operations as the span path, so the map is the
+same bit for bit. So the cost is the triangle
 setup plus the covered samples, never the empty part of a bounding box. The
 depth resolve is ``np.minimum.at`` (NumPy ≥
 1.25 made ``ufunc.at`` fast; on NumPy 2.4 it beats a lexsort + reduceat resolve
