@@ -979,3 +979,18 @@ def test_tile_path_is_the_span_path_bit_for_bit_on_the_bench_cases(monkeypatch, 
             monkeypatch.setattr(raster, "_TILES", True)
             assert got.tobytes() == want.tobytes(), (name, dtype)
             assert s1 == s2 and s1.samples_covered > 0
+
+
+def test_tile_path_does_not_depend_on_batch_and_piece_sizes(monkeypatch):
+    # Pieces of 4 and 8 rows (boxes cut into several, the first one's rows above the box
+    # masked), one piece per group and batches of 3 tiles give the map of the defaults.
+    tris, h, w = _big_scene()
+    v, t = _mesh(tris)
+    _all_tiled(monkeypatch)
+    want, s1 = rasterize_depth(v, t, np.eye(4), (h, w), samples=4)
+    for rows in (4, 8):
+        monkeypatch.setattr(raster._tiles, "_DENSE_ROWS", rows)
+        monkeypatch.setattr(raster._tiles, "_ROW_BUDGET", 1)
+        monkeypatch.setattr(raster._tiles, "TILE_BATCH", 3)
+        got, s2 = rasterize_depth(v, t, np.eye(4), (h, w), samples=4)
+        assert got.tobytes() == want.tobytes() and s1 == s2
