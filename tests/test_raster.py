@@ -994,3 +994,21 @@ def test_tile_path_does_not_depend_on_batch_and_piece_sizes(monkeypatch):
         monkeypatch.setattr(raster._tiles, "TILE_BATCH", 3)
         got, s2 = rasterize_depth(v, t, np.eye(4), (h, w), samples=4)
         assert got.tobytes() == want.tobytes() and s1 == s2
+
+
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_tile_path_is_the_span_path_on_a_clipped_perspective_scene(monkeypatch, samples):
+    # Triangles crossing the near plane and the map's borders, some with depths leaving
+    # [-1, 1] (those stay on the span path), every other one tiled where its box allows.
+    rng = np.random.default_rng(11)
+    v = rng.uniform(-3, 3, (600, 3))
+    t = np.arange(600).reshape(200, 3)
+    vp = perspective(70, 1.3, 0.5, 12) @ look_at((0, 0, 4), (0, 0, 0), (0, 1, 0))
+    _all_tiled(monkeypatch)
+    covered = []
+    draw = raster._tiles.draw_tiles
+    monkeypatch.setattr(raster, "draw_tiles", lambda *a: covered.append(draw(*a)) or covered[-1])
+    got, s1 = rasterize_depth(v, t, vp, (61, 75), samples=samples)
+    monkeypatch.setattr(raster, "_TILES", False)
+    want, s2 = rasterize_depth(v, t, vp, (61, 75), samples=samples)
+    assert sum(covered) > 0 and got.tobytes() == want.tobytes() and s1 == s2
