@@ -62,7 +62,9 @@ def tiled_boxes(s, nc, nr, safe):
 
 
 def draw_tiles(depth, w, s, idx, c0, nc, r0, nr, sx, sy, dtype):
-    """Draw the boxes ``idx`` of setup ``s`` tile by tile into the flat depth map ``depth`` (h w S, row-major); the covered count.
+    """Draw the boxes ``idx`` of setup ``s`` tile by tile into the flat depth map ``depth``; the covered count.
+
+    ``depth`` is the (h, w, S) map, flat.
 
     Each box is aligned to tile rows (the rows above it masked) and cut into pieces of
     _DENSE_ROWS rows (a multiple of TILE), whose exact spans come from
@@ -101,7 +103,7 @@ def draw_tiles(depth, w, s, idx, c0, nc, r0, nr, sx, sy, dtype):
 
 
 def _draw_piece_tiles(depth, w, s, tri, lo, cnt, c0, r0, sx, sy, dtype):
-    """Draw the tiles of pieces of triangles ``tri`` (setup indices) with dense spans ``lo``, ``cnt``; the covered count."""
+    """Draw the tiles of pieces of triangles ``tri`` (setup indices), dense spans ``lo``, ``cnt``; the covered count."""
     S = sx.shape[0]
     covered = 0
     full, part = _tiles_of(lo, cnt, c0, r0)
