@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._msm6_rows import COS_THIRD_POLY, ldl_rows, regular_chunk, regular_mask
+from ._msm6_rows import COS_THIRD_POLY, ldl_rows, regular_mask
 
 __all__ = ["U_MIN", "bound_rows"]
 
@@ -72,26 +72,21 @@ def _solve(b, zf, ldl, w):
     # never turn back from − to +" (neg1 ≤ neg2 ≤ neg3), an odd number is "y3 not negative";
     # σ = −1 there, kept as y3's sign bit for step 3.
     neg1, neg2, neg3 = w["mask"]
-    np.signbit(y1, out=neg1)
-    np.signbit(y2, out=neg2)
-    np.signbit(y3, out=neg3)
+    blk = w["block"]  # consecutive rows (ROWS): y1..y3 are 9:12, D1..D3 0:3, c1..c3 12:15, e, f, g 15:18
+    np.signbit(blk[9:12], out=w["mask"])
     np.less_equal(neg1, neg2, out=neg1)
     np.less_equal(neg2, neg3, out=neg2)
     np.logical_and(neg1, neg2, out=neg1)
     np.logical_not(neg3, out=neg3)
     np.bitwise_and(y3.view(w["bits"].dtype), w["sign"], out=w["bits"])
     # Scaling to solve D c = y; E[(Z − zf)²] = y1² + D1 into D1's row; p(zf) − 1 = Σ y_i c_i.
-    np.divide(y1, d1, out=c1)
-    np.divide(y2, d2, out=c2)
-    np.divide(y3, d3, out=c3)
+    np.divide(blk[9:12], blk[0:3], out=blk[12:15])
     mm = d1
     np.multiply(y1, y1, out=t)
     np.add(mm, t, out=mm)
-    np.multiply(y1, c1, out=cm1)
-    np.multiply(y2, c2, out=t)
-    np.add(cm1, t, out=cm1)
-    np.multiply(y3, c3, out=t)
-    np.add(cm1, t, out=cm1)
+    np.multiply(blk[9:12], blk[12:15], out=blk[15:18])  # y_i c_i into q2's, q1's and the sum's rows
+    np.add(q2, q1, out=q2)
+    np.add(q2, cm1, out=cm1)
     # Back substitution Lᵀ q = c (q3 = c3), then p''(zf)/2 = q2 + 3 q3 zf, p'(zf) = q1 + (q2 + p''/2) zf.
     np.multiply(l32, c3, out=t)
     np.subtract(c2, t, out=q2)
@@ -120,8 +115,8 @@ def _root(cubic, w):
                                                                "c1", "c2", "e"))
     np.add(cm1, 1, out=a0)
     np.multiply(a0, 3, out=e3)
-    np.divide(p1, e3, out=bb)
-    np.divide(p2, e3, out=cc)
+    bb, cc = cc, bb  # p''/2 and p' are rows 6, 7 ("a", "b"): C and B into rows 3, 4 in one call
+    np.divide(w["block"][6:8], e3, out=w["block"][3:5])
     np.divide(q3, a0, out=dd)
     np.multiply(bb, bb, out=dp)
     np.subtract(dp, cc, out=dp)
@@ -161,11 +156,18 @@ def bound_rows(b, zf, w, dest):
     unspecified in ``dest``, for :func:`moments_ref.msm6._bounds_kernel`.
     """
     ldl = ldl_rows(b, w)
+    # float32's singular threshold is 0 (msm6, "Degenerate input"): every pivot positive, by one
+    # reduction over the three pivot rows (a NaN fails the comparison), and D3 < ∞ (b6 = +∞).
+    regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0 and np.maximum.reduce(ldl[2]) < np.inf
+    y1, mm, a3, a2, a1, cm1 = _solve(b, zf, ldl, w)
+    # E[(Z − zf)²] = y1² + D1 is finite and ≥ 0 unless zf (or b1, b2) is not finite or zf overflows it
+    regular = regular and np.maximum.reduce(mm) < np.inf
     pre = None
-    if not regular_chunk(b, zf, ldl, w):  # the exact mask, only in a chunk that needs it (allocates)
+    if not regular:  # the exact mask, only in a chunk that needs it (allocates; the pivots are recomputed)
+        ldl = ldl_rows(b, w)
         ok = regular_mask(b, ldl) & np.isfinite(ldl[2] + zf)  # D3 + zf: b6 = +inf, a non-finite zf
         pre = np.flatnonzero(~ok)
-    y1, mm, a3, a2, a1, cm1 = _solve(b, zf, ldl, w)
+        y1, mm, a3, a2, a1, cm1 = _solve(b, zf, ldl, w)
     nt, s, bb, cc, e3, a0, u = _root((cm1, a1, a2, a3), w)
     umin = np.minimum.reduce(u)
     # (4) w_a = ((p(zf) − 1) t² − A t − a3 y1) / P'(t) with t = −nt, P'(t) = 3p(zf)·((t + 2B) t + C)
@@ -194,18 +196,18 @@ def bound_rows(b, zf, w, dest):
     np.multiply(wt, odd, out=wt)
     lower = dest.get("lower", w["y1"])
     np.add(h, wt, out=lower)
-    lo, hi = np.minimum.reduce(lower), np.maximum.reduce(lower)
+    # Saturate below (rounding leaves 1 − w0 − w a little under 0). lower is finite or NaN (a weight
+    # ±∞ meets a 0 or an opposite ∞ in step 5), and np.maximum keeps the NaN for the reduction.
+    np.maximum(lower, w["zero"], out=lower)
+    hi = np.maximum.reduce(lower)
     rest = pre
-    if not (umin >= U_MIN and np.isfinite(lo) and np.isfinite(hi)):  # NaN fails every comparison
+    if not (umin >= U_MIN and hi < np.inf):  # NaN fails every comparison
         keep, near = w["mask"][0], w["mask"][1]
         np.isfinite(lower, out=keep)
         np.greater_equal(u, U_MIN, out=near)
         np.logical_and(keep, near, out=keep)
         post = np.flatnonzero(np.logical_not(keep, out=keep))
         rest = post if pre is None else np.union1d(pre, post)
-    # Saturate (rounding leaves 1 − w0 − w a little below 0), where a chunk's extremes need it.
-    if not lo >= 0:
-        np.maximum(lower, w["zero"], out=lower)
     if not hi <= 1:
         np.minimum(lower, w["one"], out=lower)
     if "upper" in dest:

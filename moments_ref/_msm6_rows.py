@@ -58,7 +58,8 @@ def workspace(dtype, n):
                       "zero": np.zeros(m, dtype=dtype), "one": np.ones(m, dtype=dtype)}
     full = cache[key]
     ws = {k: v[..., :n] for k, v in full.items()}
-    ws.update(zip(ROWS, ws.pop("rows")))
+    ws["block"] = ws.pop("rows")  # the float rows as one (len(ROWS), n) array: a call on consecutive rows
+    ws.update(zip(ROWS, ws["block"]))
     return ws
 
 
