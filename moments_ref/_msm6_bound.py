@@ -51,73 +51,80 @@ U_MIN = 0.01
 
 
 def _solve(b, zf, ldl, w):
-    """Steps 2–3 into the workspace (old arithmetic for y, c, q): rows ``(y1, y1²+D1, c3, p''/2, p', p(zf)−1)``."""
-    b1, b2, b3 = b[:3]
+    """Steps 2–3 by the recurrence and the Radau cubic (module docstring): rows ``(y1, y1² + D1, K1, K2, ℓ, λ)``.
+
+    Also the case masks (``mask[0]`` two Gauss nodes below zf, ``mask[2]`` an odd number)
+    and σ's sign bit (``bits``).
+    """
+    b1 = b[0]
     d1, d2, d3, l21, l31, l32 = ldl
-    zf2, p1, t, y1, y2, y3, c1, c2, c3, q2, q1, cm1 = (w[k] for k in ("a", "b", "t", "y1", "y2", "y3",
-                                                                     "c1", "c2", "c3", "e", "f", "g"))
-    # Forward substitution to solve L y = (1, zf, zf², zf³).
-    np.multiply(zf, zf, out=zf2)
+    blk = w["block"]  # consecutive rows (ROWS): y1..y3 are 9:12, c1..c3 12:15, e, f, g 15:18
+    e1, e2, t, y1, y2, y3, g, k, h, gam, k1, k2 = (w[x] for x in ("a", "b", "t", "y1", "y2", "y3", "c1", "c2",
+                                                                   "c3", "e", "f", "g"))
+    # Forward substitution by the three-term recurrence: y = (P1, P2, P3)(zf), P_{i+1} = (z − α_i) P_i − β_i P_{i−1}
+    # with α1 = L21 − b1, α2 = L32 − L21, β1 = D1, β2 = D2/D1; e_i = zf − α_i.
     np.subtract(zf, b1, out=y1)
-    np.subtract(zf2, b2, out=y2)
-    np.multiply(l21, y1, out=t)
-    np.subtract(y2, t, out=y2)
-    np.multiply(zf2, zf, out=y3)
-    np.subtract(y3, b3, out=y3)
-    np.multiply(l31, y1, out=t)
-    np.subtract(y3, t, out=y3)
-    np.multiply(l32, y2, out=t)
-    np.subtract(y3, t, out=y3)
+    np.subtract(b1, l21, out=t)
+    np.add(zf, t, out=e1)
+    np.multiply(e1, y1, out=y2)
+    np.subtract(y2, d1, out=y2)
+    np.subtract(l21, l32, out=t)
+    np.add(zf, t, out=e2)
+    beta2 = gam
+    np.divide(d2, d1, out=beta2)
+    np.multiply(beta2, y1, out=h)
+    np.multiply(e2, y2, out=y3)
+    np.subtract(y3, h, out=y3)
     # The Sturm sequence (1, y1, y2, y3) by sign bits: two Gauss nodes below zf is "the signs
     # never turn back from − to +" (neg1 ≤ neg2 ≤ neg3), an odd number is "y3 not negative";
     # σ = −1 there, kept as y3's sign bit for step 3.
     neg1, neg2, neg3 = w["mask"]
-    blk = w["block"]  # consecutive rows (ROWS): y1..y3 are 9:12, D1..D3 0:3, c1..c3 12:15, e, f, g 15:18
     np.signbit(blk[9:12], out=w["mask"])
     np.less_equal(neg1, neg2, out=neg1)
     np.less_equal(neg2, neg3, out=neg2)
     np.logical_and(neg1, neg2, out=neg1)
     np.logical_not(neg3, out=neg3)
     np.bitwise_and(y3.view(w["bits"].dtype), w["sign"], out=w["bits"])
-    # Scaling to solve D c = y; E[(Z − zf)²] = y1² + D1 into D1's row; p(zf) − 1 = Σ y_i c_i.
-    np.divide(blk[9:12], blk[0:3], out=blk[12:15])
-    mm = d1
+    # The derivatives at zf: g = P2' = y1 + e1, k = P3''/2 = g + e2, h = P3' = y2 + e2 g − β2.
+    np.add(y1, e1, out=g)
+    np.add(g, e2, out=k)
+    np.multiply(e2, g, out=h)
+    np.add(y2, h, out=h)
+    np.subtract(h, beta2, out=h)
+    # The Radau cubic: R(d) = d³ + K1 d² + K2 d + ℓ with γ = β3 y2 / y3, β3 = D3/D2.
+    beta3 = e1
+    np.divide(d3, d2, out=beta3)
+    np.divide(y2, y3, out=gam)
+    np.multiply(gam, beta3, out=gam)
+    np.add(k, gam, out=k1)
+    np.multiply(gam, k, out=k2)
+    np.add(k2, h, out=k2)
+    np.subtract(k2, beta3, out=k2)
+    ell = e2
+    np.multiply(gam, h, out=ell)
+    np.add(ell, y3, out=ell)
+    np.multiply(beta3, g, out=t)
+    np.subtract(ell, t, out=ell)
+    # λ = D3/y3 = ℓ w0 (the scale of R against p about zf), E[(Z − zf)²] = y1² + D1.
+    lam, mm = l31, d1
+    np.divide(d3, y3, out=lam)
     np.multiply(y1, y1, out=t)
     np.add(mm, t, out=mm)
-    np.multiply(blk[9:12], blk[12:15], out=blk[15:18])  # y_i c_i into q2's, q1's and the sum's rows
-    np.add(q2, q1, out=q2)
-    np.add(q2, cm1, out=cm1)
-    # Back substitution Lᵀ q = c (q3 = c3), then p''(zf)/2 = q2 + 3 q3 zf, p'(zf) = q1 + (q2 + p''/2) zf.
-    np.multiply(l32, c3, out=t)
-    np.subtract(c2, t, out=q2)
-    np.multiply(l21, q2, out=t)
-    np.subtract(c1, t, out=q1)
-    np.multiply(l31, c3, out=t)
-    np.subtract(q1, t, out=q1)
-    p2 = zf2
-    np.multiply(c3, 3, out=t)
-    np.multiply(t, zf, out=t)
-    np.add(q2, t, out=p2)
-    np.add(q2, p2, out=t)
-    np.multiply(t, zf, out=t)
-    np.add(q1, t, out=p1)
-    return y1, mm, c3, p2, p1, cm1
+    return y1, mm, k1, k2, ell, lam
 
 
 def _root(cubic, w):
-    """Step 3: ``(−t, σ·2m·c, B, C, 3p(zf), p(zf), u)``: the root the bound needs, negated, and what its weight uses.
+    """Step 3: ``(−t, ms·c, B, C, 3ℓ, u)``: the root the bound needs, negated, and what its weight uses.
 
-    ``cubic = (p(zf) − 1, p'(zf), p''(zf)/2, q3)``; Blinn's form as :func:`moments_ref.msm6._blinn`
-    (``Δ0' = B² − C = −Δ0``), σ from the sign bit of y3 (``ms = copysign(2m, y3) = −σ·2m``).
+    ``cubic = (K1, K2, ℓ)``: P(t) = ℓ t³ + K2 t² + K1 t + 1, Blinn's form as
+    :func:`moments_ref.msm6._blinn` (``Δ0' = B² − C = −Δ0``), σ from the sign bit of y3
+    (``ms = copysign(2m, y3) = −σ·2m``).
     """
-    cm1, p1, p2, q3 = cubic
-    a0, e3, bb, cc, dd, dp, h2, dep, ms, den = (w[k] for k in ("d2", "d3", "l21", "l31", "l32", "y2", "y3",
-                                                               "c1", "c2", "e"))
-    np.add(cm1, 1, out=a0)
-    np.multiply(a0, 3, out=e3)
-    bb, cc = cc, bb  # p''/2 and p' are rows 6, 7 ("a", "b"): C and B into rows 3, 4 in one call
-    np.divide(w["block"][6:8], e3, out=w["block"][3:5])
-    np.divide(q3, a0, out=dd)
+    k1, k2, ell = cubic
+    e3, dd, cc, bb, dp, h2, dep, ms, den = (w[x] for x in ("d2", "l32", "c1", "c2", "y2", "y3", "l21", "c3", "t"))
+    np.multiply(ell, 3, out=e3)
+    np.divide(w["block"][16:18], e3, out=w["block"][12:14])  # (K1, K2)/(3ℓ) = (C, B)
+    np.divide(1, ell, out=dd)
     np.multiply(bb, bb, out=dp)
     np.subtract(dp, cc, out=dp)
     np.multiply(dp, 2, out=h2)
@@ -135,7 +142,7 @@ def _root(cubic, w):
     np.add(u, 0.5, out=u)
     np.sqrt(u, out=u)  # NaN for σr < −1 (rounding at a double root): handed back
     # cos(arccos(σr)/3) (msm6._cos_third), Horner in u
-    c = w["f"]
+    c = dep
     np.multiply(u, COS_THIRD_POLY[-1], out=c)
     for a in COS_THIRD_POLY[-2:0:-1]:
         np.add(c, a, out=c)
@@ -145,7 +152,7 @@ def _root(cubic, w):
     s, nt = den, dp
     np.multiply(ms, c, out=s)
     np.add(s, bb, out=nt)
-    return nt, s, bb, cc, e3, a0, u
+    return nt, s, bb, cc, e3, u
 
 
 def bound_rows(b, zf, w, dest):
@@ -159,7 +166,7 @@ def bound_rows(b, zf, w, dest):
     # float32's singular threshold is 0 (msm6, "Degenerate input"): every pivot positive, by one
     # reduction over the three pivot rows (a NaN fails the comparison), and D3 < ∞ (b6 = +∞).
     regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0 and np.maximum.reduce(ldl[2]) < np.inf
-    y1, mm, a3, a2, a1, cm1 = _solve(b, zf, ldl, w)
+    y1, mm, k1, k2, ell, lam = _solve(b, zf, ldl, w)
     # E[(Z − zf)²] = y1² + D1 is finite and ≥ 0 unless zf (or b1, b2) is not finite or zf overflows it
     regular = regular and np.maximum.reduce(mm) < np.inf
     pre = None
@@ -167,20 +174,19 @@ def bound_rows(b, zf, w, dest):
         ldl = ldl_rows(b, w)
         ok = regular_mask(b, ldl) & np.isfinite(ldl[2] + zf)  # D3 + zf: b6 = +inf, a non-finite zf
         pre = np.flatnonzero(~ok)
-        y1, mm, a3, a2, a1, cm1 = _solve(b, zf, ldl, w)
-    nt, s, bb, cc, e3, a0, u = _root((cm1, a1, a2, a3), w)
+        y1, mm, k1, k2, ell, lam = _solve(b, zf, ldl, w)
+    nt, s, bb, cc, e3, u = _root((k1, k2, ell), w)
     umin = np.minimum.reduce(u)
-    # (4) w_a = ((p(zf) − 1) t² − A t − a3 y1) / P'(t) with t = −nt, P'(t) = 3p(zf)·((t + 2B) t + C)
-    A, B, N = w["t"], w["y3"], w["c1"]
-    np.multiply(a3, mm, out=A)
-    np.multiply(a2, y1, out=B)
-    np.subtract(A, B, out=A)
+    # (4) w_a = (ℓ(1 − w0) t² − A t + y1) / P'(t), A = y1² + D1 − K1 y1, with t = −nt,
+    # P'(t) = 3ℓ·((t + 2B) t + C) and ℓ(1 − w0) = ℓ − λ (module docstring).
+    A, cm1, N, Q = w["a"], w["e"], w["c3"], s
+    np.multiply(k1, y1, out=A)
+    np.subtract(mm, A, out=A)
+    np.subtract(ell, lam, out=cm1)
     np.multiply(cm1, nt, out=N)
     np.add(N, A, out=N)
     np.multiply(N, nt, out=N)
-    np.multiply(a3, y1, out=A)
-    np.add(N, A, out=N)
-    Q = s
+    np.add(N, y1, out=N)
     np.subtract(s, bb, out=Q)  # −(t + 2B)
     np.multiply(Q, nt, out=Q)
     np.add(Q, cc, out=Q)
@@ -190,7 +196,7 @@ def bound_rows(b, zf, w, dest):
     # (5) lower = [k ≥ 2]·(1 − w0 − w) + [k odd]·w: 0, w, 1 − w0 − w, 1 − w0 for k = 0..3.
     two, odd = w["mask"][0], w["mask"][2]
     h, omw0 = A, cm1
-    np.divide(cm1, a0, out=omw0)  # 1 − w0 = (p(zf) − 1)/p(zf)
+    np.divide(cm1, ell, out=omw0)  # 1 − w0 = (ℓ − λ)/ℓ
     np.subtract(omw0, wt, out=h)
     np.multiply(h, two, out=h)
     np.multiply(wt, odd, out=wt)
@@ -212,7 +218,7 @@ def bound_rows(b, zf, w, dest):
         np.minimum(lower, w["one"], out=lower)
     if "upper" in dest:
         w0 = w["t"]
-        np.divide(1, a0, out=w0)
+        np.divide(lam, ell, out=w0)  # w0 = λ/ℓ
         np.add(lower, w0, out=dest["upper"])
         np.minimum(dest["upper"], w["one"], out=dest["upper"])
     return rest if rest is not None and rest.size else None
