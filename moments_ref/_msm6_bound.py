@@ -1,40 +1,50 @@
-"""The six-moment lower bound on the regular texels of a chunk, in the fewest passes.
+"""The six-moment bounds on the regular texels of a float32 chunk, in the fewest passes.
 
-:mod:`moments_ref.msm6` steps 1–5 with two changes, on the rows of the workspace of
-:func:`moments_ref._msm6_rows.workspace`:
+:mod:`moments_ref.msm6` steps 1–5, on the rows of the workspace of
+:func:`moments_ref._msm6_rows.workspace`, with steps 2–4 written differently:
 
-* Step 4, the weight of the one root ``t = 1/(z_a − zf)`` the bound needs, from the first
-  moments about zf instead of the Christoffel function ``1 / Σ u_i²/D_i`` (which needs
-  the forward substitution of ``v(z_a)``). The canonical representation puts ``w0`` at zf
-  and ``w_a, w_b, w_c`` at the roots ``d = z − zf`` of ``a3 d³ + a2 d² + a1 d + a0``
-  (``a_i`` the Taylor coefficients of p at zf, ``a0 = p(zf) = 1/w0``). Its moments about
-  zf are those of Z: ``Σ w_l = 1 − w0``, ``Σ w_l d_l = zf' − zf = −y1`` and
-  ``Σ w_l d_l² = E[(Z − zf)²] = y1² + D1`` (``y1 = zf − b1``, ``D1 = b2 − b1²``). The
-  Vandermonde system of the three weights, solved for ``w_a`` with the other two roots
-  eliminated by Vieta (``a3 (d_b + d_c) = −a2 − a3 d_a``, ``a3 d_b d_c = −a0/d_a``) and
-  written in ``t = 1/d_a`` with ``P'(t) = 3 a0 t² + 2 a1 t + a2`` (P the reversed cubic
-  of msm6's step 3), is
+* Step 2 by the three-term recurrence of the monic orthogonal polynomials (Gauss
+  quadrature; ``P_{i+1}(z) = (z − α_i) P_i(z) − β_i P_{i−1}(z)``, here ``α1 = L21 − b1``,
+  ``α2 = L32 − L21``, ``β1 = D1``, ``β_i = D_i/D_{i−1}`` from the Cholesky factors of step 1):
+  ``y = (P1, P2, P3)(zf)`` and the derivatives ``g = P2'(zf)``, ``h = P3'(zf)``,
+  ``k = P3''(zf)/2`` by the same recurrence.
+* Step 3's cubic without the back substitution and the Taylor shift: by the
+  Christoffel–Darboux identity the kernel polynomial of step 2 is
+  ``p(z) = K(zf, z) = (y3/D3)·P4*(z)/(z − zf)`` for the polynomial
+  ``P4* = (z − zf + γ) P3 − β3 P2`` with ``β3 = D3/D2`` and ``γ = β3 y2/y3`` (the
+  Gauss–Radau polynomial: the one with the next recurrence step whose root is zf). With
+  ``d = z − zf``, ``P4*(zf + d)/d = d³ + K1 d² + K2 d + ℓ``, ``K1 = k + γ``,
+  ``K2 = h + γ k − β3``, ``ℓ = y3 + γ h − β3 g``, so the reversed cubic of msm6's step 3 is
+  ``P(t) = ℓ t³ + K2 t² + K1 t + 1`` (msm6's ``(p(zf), p'(zf), p''(zf)/2, q3)`` times
+  ``λ = D3/y3``; ``w0 = 1/p(zf) = λ/ℓ``). Its root is Blinn's closed form as in msm6, σ the
+  sign bit of ``y3`` applied to ``2m`` (one integer AND, one XOR), ``r/2`` with the ½
+  folded into its denominator; the square roots of negative numbers (rounding at a double
+  root: ``Δ0 > 0`` or ``|r| > 1``) give NaN, and the texel is handed back.
+* Step 4, the weight of that root ``t = 1/(z_a − zf)``, from the first moments about zf
+  instead of the Christoffel function ``1 / Σ u_i²/D_i`` (which needs the forward
+  substitution of ``v(z_a)``): the canonical representation puts ``w0`` at zf and
+  ``w_a, w_b, w_c`` at the roots ``d_l`` of ``d³ + K1 d² + K2 d + ℓ``, and its moments about
+  zf are those of Z: ``Σ w_l = 1 − w0``, ``Σ w_l d_l = b1 − zf = −y1``,
+  ``Σ w_l d_l² = E[(Z − zf)²] = y1² + D1``. The Vandermonde system solved for ``w_a`` with
+  the other two roots eliminated by Vieta (``d_b + d_c = −K1 − d_a``, ``d_b d_c = −ℓ/d_a``)
+  and written in t (``K2 t² + 2 K1 t + 3 = −t P'(t)`` at a root) is
 
-      w_a = ((p(zf) − 1)·t² − A·t − a3·y1) / P'(t),   A = a3 (y1² + D1) − a2 y1
+      w_a = (ℓ (1 − w0) t² − A t + y1) / P'(t),   A = y1² + D1 − K1 y1,
 
-  (the sign: ``a1 t² + 2 a2 t + 3 a3 = −t P'(t)`` at a root). ``p(zf) − 1 = Σ y_i c_i``
-  is the sum of squares of step 2, without cancellation. 13 passes instead of 24.
-* Step 3's sign σ as the sign bit of ``y3`` applied to ``2m`` (one integer AND, one XOR),
-  and Blinn's ``r/2`` with the ½ folded into its denominator. Square roots of negative
-  numbers (a double root, where rounding leaves ``Δ0 > 0`` or ``|r| > 1``) give NaN, and
-  the texel is handed back.
+  with ``ℓ (1 − w0) = ℓ − λ`` and ``P'(t) = 3ℓ ((t + 2B) t + C)`` (B, C of Blinn's form).
 
-Where the two roots next to each other nearly meet (``u = √((1 + σr)/2) < U_MIN``, the
-Vandermonde weight's condition grows like ``1/u²``), where B(b) is singular, or where the
-result is not finite, the texels are handed to :func:`moments_ref.msm6._bounds_kernel`
-(the Christoffel weight, the exact singular branches): decided per texel, by reductions
-per chunk, a mask built only in a chunk that has such a texel.
+Where the two roots next to each other nearly meet (``u = √((1 + σr)/2) < U_MIN``: the
+Vandermonde weight divides two small numbers there), where B(b) is singular, or where the
+result is not finite (y3 = 0 exactly, an overflow, a non-finite input), the texels are
+handed to :func:`moments_ref.msm6._bounds_kernel` (the Christoffel weight, the exact
+singular branches): decided per texel, by reductions per chunk, a mask built only in a
+chunk that has such a texel.
 
 Passes over a float32 chunk for the lower bound: 23 Cholesky, 11 forward substitution,
-5 the signs and the case masks, 3 scaling, 2 ``y1² + D1``, 5 ``p(zf) − 1``, 12 the back
-substitution and Taylor coefficients, 2 ``p(zf)`` and ``3p(zf)``, 3 Blinn's B, C, D, 10
-Blinn's form and σ, 4 u, 12 cos(arccos(σr)/3), 2 the root, 13 its weight, 6 step (5):
-113, and four reductions (against 128 and five of the Christoffel kernel).
+8 the signs, the case masks and σ's sign bit, 5 the derivatives at zf, 11 the Radau cubic,
+3 λ and ``y1² + D1``, 4 Blinn's B, C, D, 10 Blinn's form and σ, 3 u, 12
+cos(arccos(σr)/3), 2 the root, 12 its weight, 6 step (5) and saturate: 110, and five
+reductions (the Christoffel kernel: 128 and five). The upper bound 3 more.
 """
 
 from __future__ import annotations
@@ -47,6 +57,9 @@ __all__ = ["U_MIN", "bound_rows"]
 
 #: Smallest ``u = √((1 + σr)/2)`` left to the fast path: below it the root the bound needs and
 #: its neighbour nearly meet and the texel takes the Christoffel weight (module docstring).
+#: Measured on 2^20 biased random rows (2 to 8 depths, zf at and next to support points): none
+#: below 0.01; 133 in [0.01, 0.03), where this path's largest error against mpmath (precise) on
+#: the 40 rows differing most from the Christoffel kernel was 2.1e-4 (that kernel's 4.9e-4).
 U_MIN = 0.01
 
 

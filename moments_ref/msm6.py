@@ -50,6 +50,16 @@ The mpmath twin :func:`moments_ref.precise.shadow_intensity6` does steps 2–4
 literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
+The float32 bounds. :func:`shadow_bounds` and :func:`shadow_intensity` in float32 take a
+shorter path on their regular texels (:mod:`moments_ref._msm6_bound`, 110 passes instead of
+128): the same steps, with the forward substitution by the three-term recurrence, the
+cubic of step 3 from the Gauss–Radau polynomial through zf (Christoffel–Darboux: no back
+substitution, no Taylor shift) and the weight of step 4 from the first moments about zf
+(a Vandermonde solve with two roots eliminated by Vieta) instead of the Christoffel
+function; texels it cannot guarantee (singular B(b), a nearly double root, a non-finite
+result) take the kernel described here. The float32 goldens' worst error/tolerance and the
+accuracy against mpmath are in docs/bench.md ("Kernel history", round seven).
+
 Cubic solver. The trig-free closed form is as accurate as the trigonometric method it
 replaced and more than the companion-matrix eigenvalues, and faster; the kernel's speed
 comes from needing one root and one weight instead of three. float64 takes one Newton
@@ -426,7 +436,8 @@ def _bounds_kernel(b, zf, steps, dest, refuse):
     writes into a reused row (``out=``) and the bounds go straight into ``dest``; the same
     arithmetic in the same order as the expressions of :func:`_ldl`, :func:`_reversed_cubic`,
     :func:`_extreme_root` and :func:`_weights` (bit for bit). 128 passes over a float32
-    chunk for the lower bound (the upper 2 more), and the checks as reductions
+    chunk for the lower bound (the upper 2 more; float32 runs it only on the texels that
+    :mod:`moments_ref._msm6_bound`'s 110 passes hand back, :func:`_bounds`), and the checks as reductions
     (:func:`_regular_chunk`): a chunk needs the exact mask of :func:`_regular` only where
     a texel is singular or not finite. ``steps`` is the dtype's entry of
     :data:`_NEWTON_STEPS`; ``refuse()`` raises the error of a NaN or inf in the input.
