@@ -42,8 +42,8 @@ chunk that has such a texel.
 
 Passes over a float32 chunk for the lower bound: 23 Cholesky, 11 forward substitution,
 8 the signs, the case masks and σ's sign bit, 5 the derivatives at zf, 11 the Radau cubic,
-3 λ and ``y1² + D1``, 4 Blinn's B, C, D, 10 Blinn's form and σ, 3 u, 12
-cos(arccos(σr)/3), 2 the root, 12 its weight, 6 step (5) and saturate: 110, and five
+4 λ and ``A = y1 (y1 − K1) + D1``, 4 Blinn's B, C, D, 10 Blinn's form and σ, 3 u, 12
+cos(arccos(σr)/3), 2 the root, 10 its weight, 6 step (5) and saturate: 109, and four
 reductions (the Christoffel kernel: 128 and five). The upper bound 3 more.
 """
 
@@ -118,12 +118,13 @@ def _solve(b, zf, ldl, w):
     np.add(ell, y3, out=ell)
     np.multiply(beta3, g, out=t)
     np.subtract(ell, t, out=ell)
-    # λ = D3/y3 = ℓ w0 (the scale of R against p about zf), E[(Z − zf)²] = y1² + D1.
-    lam, mm = l31, d1
+    # λ = D3/y3 = ℓ w0 (the scale of R against p about zf); A = E[(Z − zf)²] − K1 y1 = y1 (y1 − K1) + D1.
+    lam, A = l31, d1
     np.divide(d3, y3, out=lam)
-    np.multiply(y1, y1, out=t)
-    np.add(mm, t, out=mm)
-    return y1, mm, k1, k2, ell, lam
+    np.subtract(y1, k1, out=t)
+    np.multiply(t, y1, out=t)
+    np.add(A, t, out=A)
+    return y1, A, k1, k2, ell, lam
 
 
 def _root(cubic, w):
@@ -179,22 +180,18 @@ def bound_rows(b, zf, w, dest):
     # float32's singular threshold is 0 (msm6, "Degenerate input"): every pivot positive, by one
     # reduction over the three pivot rows (a NaN fails the comparison), and D3 < ∞ (b6 = +∞).
     regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0 and np.maximum.reduce(ldl[2]) < np.inf
-    y1, mm, k1, k2, ell, lam = _solve(b, zf, ldl, w)
-    # E[(Z − zf)²] = y1² + D1 is finite and ≥ 0 unless zf (or b1, b2) is not finite or zf overflows it
-    regular = regular and np.maximum.reduce(mm) < np.inf
     pre = None
-    if not regular:  # the exact mask, only in a chunk that needs it (allocates; the pivots are recomputed)
-        ldl = ldl_rows(b, w)
+    if not regular:  # the exact mask, only in a chunk that needs it (allocates)
         ok = regular_mask(b, ldl) & np.isfinite(ldl[2] + zf)  # D3 + zf: b6 = +inf, a non-finite zf
         pre = np.flatnonzero(~ok)
-        y1, mm, k1, k2, ell, lam = _solve(b, zf, ldl, w)
+    # A non-finite zf (or one so large that y2 or y3 overflows) makes y3 NaN (∞ − ∞ through β2 y1 > 0
+    # or γ = ∞/∞), and with it the result: such texels are handed back by the result's check.
+    y1, A, k1, k2, ell, lam = _solve(b, zf, ldl, w)
     nt, s, bb, cc, e3, u = _root((k1, k2, ell), w)
     umin = np.minimum.reduce(u)
     # (4) w_a = (ℓ(1 − w0) t² − A t + y1) / P'(t), A = y1² + D1 − K1 y1, with t = −nt,
     # P'(t) = 3ℓ·((t + 2B) t + C) and ℓ(1 − w0) = ℓ − λ (module docstring).
-    A, cm1, N, Q = w["a"], w["e"], w["c3"], s
-    np.multiply(k1, y1, out=A)
-    np.subtract(mm, A, out=A)
+    cm1, N, Q = w["e"], w["c3"], s
     np.subtract(ell, lam, out=cm1)
     np.multiply(cm1, nt, out=N)
     np.add(N, A, out=N)
@@ -208,7 +205,7 @@ def bound_rows(b, zf, w, dest):
     np.divide(N, Q, out=wt)
     # (5) lower = [k ≥ 2]·(1 − w0 − w) + [k odd]·w: 0, w, 1 − w0 − w, 1 − w0 for k = 0..3.
     two, odd = w["mask"][0], w["mask"][2]
-    h, omw0 = A, cm1
+    h, omw0 = w["a"], cm1
     np.divide(cm1, ell, out=omw0)  # 1 − w0 = (ℓ − λ)/ℓ
     np.subtract(omw0, wt, out=h)
     np.multiply(h, two, out=h)

@@ -91,16 +91,17 @@ def test_fast_path_hands_back_singular_nonfinite_and_near_double_roots(monkeypat
 
 
 def test_fast_path_check_has_power(monkeypatch):
-    # Mutant: the weight's t² term dropped (p(zf) − 1 taken as 0) is caught by the mpmath comparison.
+    # Mutant: w0 dropped from the weight and step (5) (λ = ℓ w0 taken as 0) is caught by the
+    # comparison with mpmath.
     b, zf = _rows(200, 4)
-    real = _msm6_bound._root
+    real = _msm6_bound._solve
 
-    def mutant(cubic, w):
-        out = real(cubic, w)
-        cubic[0][...] = 0
+    def mutant(*args):
+        out = real(*args)
+        out[-1][...] = 0
         return out
 
-    monkeypatch.setattr(_msm6_bound, "_root", mutant)
+    monkeypatch.setattr(_msm6_bound, "_solve", mutant)
     lo, _ = msm6.shadow_bounds(b, zf)
     plo, _ = _precise(b[:40], zf[:40])
     assert np.abs(lo[:40] - plo).max() > F32_TOL
