@@ -35,10 +35,11 @@ PASSES = {
     "shade float32": 34,
     # msm6._bounds on float32 (moments_ref._msm6_bound.bound_rows): 23 Cholesky, 11 forward
     # substitution by the recurrence, 8 the signs, case masks and σ's sign bit, 5 the derivatives
-    # at zf, 11 the Gauss–Radau cubic, 3 λ and y1² + D1, 4 Blinn's B, C, D, 10 Blinn's form and σ,
-    # 3 u, 12 cos(arccos(σr)/3), 2 the root, 12 its weight from the moments about zf, 6 step (5)
-    # and saturate (issue 41, round seven; 128 in msm6._bounds_kernel before); 5 reductions
-    "shadow_intensity six moments float32": 110,
+    # at zf, 11 the Gauss–Radau cubic, 4 λ and y1 (y1 − K1) + D1, 4 Blinn's B, C, D, 10 Blinn's
+    # form and σ, 3 u, 12 cos(arccos(σr)/3), 2 the root, 10 its weight from the moments about zf,
+    # 6 step (5) and saturate (issue 41, round seven; 128 in msm6._bounds_kernel before); 4
+    # reductions
+    "shadow_intensity six moments float32": 109,
 }
 
 
