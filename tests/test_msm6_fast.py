@@ -14,7 +14,6 @@ solve at 50 digits), the exact Z of the drawn distribution, and the Christoffel 
 """
 
 import numpy as np
-import pytest
 
 from moments_ref import msm6, precise
 from moments_ref import _msm6_bound
