@@ -64,7 +64,7 @@ U_MIN = 0.01
 
 
 def _solve(b, zf, ldl, w):
-    """Steps 2–3 by the recurrence and the Radau cubic (module docstring): rows ``(y1, y1² + D1, K1, K2, ℓ, λ)``.
+    """Steps 2–3 by the recurrence and the Radau cubic (module docstring): rows ``(y1, A, K1, K2, ℓ, λ)``.
 
     Also the case masks (``mask[0]`` two Gauss nodes below zf, ``mask[2]`` an odd number)
     and σ's sign bit (``bits``).
