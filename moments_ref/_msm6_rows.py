@@ -17,7 +17,7 @@ import numpy as np
 
 from ._kernels import MSM_CHUNK, singular_thresholds
 
-__all__ = ["BOUNDS_CHUNK", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "regular_chunk", "solve_rows",
+__all__ = ["BOUNDS_CHUNK", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "regular_chunk", "regular_mask", "solve_rows",
            "blinn_rows", "root_rows", "weight_rows"]
 
 #: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
@@ -58,7 +58,8 @@ def workspace(dtype, n):
                       "zero": np.zeros(m, dtype=dtype), "one": np.ones(m, dtype=dtype)}
     full = cache[key]
     ws = {k: v[..., :n] for k, v in full.items()}
-    ws.update(zip(ROWS, ws.pop("rows")))
+    ws["block"] = ws.pop("rows")  # the float rows as one (len(ROWS), n) array: a call on consecutive rows
+    ws.update(zip(ROWS, ws["block"]))
     return ws
 
 
@@ -110,6 +111,20 @@ def regular_chunk(b, zf, ldl, w):
         ok = (mn(d1) > rtol * mx(b[1]) and mn(d2) > rtol * max(mx(b[3]), mx(d1))
               and mn(d3) > rtol * max(mx(b[5]), mx(d2)))
     return bool(ok and mx(d3) < np.inf and np.isfinite(np.add.reduce(zf)))
+
+
+def regular_mask(b, ldl):
+    """True where B(b) is regular: every pivot above its threshold (:mod:`moments_ref.msm6`, "Degenerate input").
+
+    float32: the pivots' signs only (a NaN pivot, after a zero one, is singular); float64
+    ``D1 > τ b2``, ``D2 > τ max(b4, D1)``, ``D3 > τ max(b6, D2)``.
+    """
+    D1, D2, D3 = ldl[:3]
+    rtol = b.dtype.type(singular_thresholds(b.dtype))
+    if rtol == 0:
+        return np.minimum(np.minimum(D1, D2), D3) > 0
+    _, b2, _, b4, _, b6 = b
+    return (D1 > rtol * b2) & (D2 > rtol * np.maximum(b4, D1)) & (D3 > rtol * np.maximum(b6, D2))
 
 
 def solve_rows(b, zf, ldl, w):

@@ -50,6 +50,16 @@ The mpmath twin :func:`moments_ref.precise.shadow_intensity6` does steps 2–4
 literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
+The float32 bounds. :func:`shadow_bounds` and :func:`shadow_intensity` in float32 take a
+shorter path on their regular texels (:mod:`moments_ref._msm6_bound`, 109 passes instead of
+128): the same steps, with the forward substitution by the three-term recurrence, the
+cubic of step 3 from the Gauss–Radau polynomial through zf (Christoffel–Darboux: no back
+substitution, no Taylor shift) and the weight of step 4 from the first moments about zf
+(a Vandermonde solve with two roots eliminated by Vieta) instead of the Christoffel
+function; texels it cannot guarantee (singular B(b), a nearly double root, a non-finite
+result) take the kernel described here. The float32 goldens' worst error/tolerance and the
+accuracy against mpmath are in docs/bench.md ("Kernel history", round seven).
+
 Cubic solver. The trig-free closed form is as accurate as the trigonometric method it
 replaced and more than the companion-matrix eigenvalues, and faster; the kernel's speed
 comes from needing one root and one weight instead of three. float64 takes one Newton
@@ -124,7 +134,8 @@ from ._docs import fill_doc
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
 from ._msm6_rows import BOUNDS_CHUNK, COS_THIRD_POLY as _COS_THIRD_POLY
-from ._msm6_rows import ldl_rows, regular_chunk, root_rows, solve_rows, weight_rows, workspace
+from ._msm6_bound import bound_rows
+from ._msm6_rows import ldl_rows, regular_chunk, regular_mask, root_rows, solve_rows, weight_rows, workspace
 from ._kernels import two_point as _two_point
 
 __all__ = [
@@ -367,12 +378,7 @@ def _forward(g0, g1, g2, g3, b1, b2, b3, L21, L31, L32):
 
 def _regular(b, ldl):
     """True where B(b) is regular: every pivot above its threshold (module docstring)."""
-    D1, D2, D3 = ldl[:3]
-    rtol = b.dtype.type(singular_thresholds(b.dtype))
-    if rtol == 0:  # float32: the pivots' signs only (a NaN pivot, after a zero one, is singular)
-        return np.minimum(np.minimum(D1, D2), D3) > 0
-    _, b2, _, b4, _, b6 = b
-    return (D1 > rtol * b2) & (D2 > rtol * np.maximum(b4, D1)) & (D3 > rtol * np.maximum(b6, D2))
+    return regular_mask(b, ldl)
 
 
 def _reversed_cubic(b, zf):
@@ -430,7 +436,8 @@ def _bounds_kernel(b, zf, steps, dest, refuse):
     writes into a reused row (``out=``) and the bounds go straight into ``dest``; the same
     arithmetic in the same order as the expressions of :func:`_ldl`, :func:`_reversed_cubic`,
     :func:`_extreme_root` and :func:`_weights` (bit for bit). 128 passes over a float32
-    chunk for the lower bound (the upper 2 more), and the checks as reductions
+    chunk for the lower bound (the upper 2 more; float32 runs it only on the texels that
+    :mod:`moments_ref._msm6_bound`'s 109 passes hand back, :func:`_bounds`), and the checks as reductions
     (:func:`_regular_chunk`): a chunk needs the exact mask of :func:`_regular` only where
     a texel is singular or not finite. ``steps`` is the dtype's entry of
     :data:`_NEWTON_STEPS`; ``refuse()`` raises the error of a NaN or inf in the input.
@@ -466,6 +473,25 @@ def _bounds_kernel(b, zf, steps, dest, refuse):
     if "upper" in dest:
         np.add(lower, w0, out=dest["upper"])
         np.fmin(dest["upper"], w["one"], out=dest["upper"])
+
+
+def _bounds(b, zf, steps, dest, refuse):
+    """The bounds named in ``dest`` on a chunk: :func:`~moments_ref._msm6_bound.bound_rows` in float32, the rest by :func:`_bounds_kernel`.
+
+    float32 takes the fast path (the weight from the first moments about zf) and hands
+    its singular, non-finite and nearly-double-root texels to :func:`_bounds_kernel`;
+    float64 (Newton steps on the root) runs :func:`_bounds_kernel` throughout.
+    """
+    if b.dtype != np.float32:
+        _bounds_kernel(b, zf, steps, dest, refuse)
+        return
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        rest = bound_rows(b, zf, workspace(b.dtype, zf.shape[0]), dest)
+    if rest is not None:
+        sub = {k: np.empty(rest.size, dtype=b.dtype) for k in dest}
+        _bounds_kernel(np.ascontiguousarray(b[:, rest]), zf[rest], steps, sub, refuse)
+        for k, v in sub.items():
+            dest[k][rest] = v
 
 
 def _canonical_kernel(b, zf, zero, one):
@@ -546,7 +572,7 @@ def _run(b, zf, want):
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK if "z" in want else BOUNDS_CHUNK):
         if "z" not in want:  # the bounds are written into the output
-            _bounds_kernel(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
+            _bounds(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
             continue
         if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
             refuse()

@@ -468,11 +468,25 @@ def _bounds_by_expressions(b, zf):
     return lower, np.fmin(lower + w0, 1).astype(b.dtype), msm6._regular(bt, ldl)
 
 
+def _christoffel_bounds(b, zf):
+    # msm6._bounds_kernel (the Christoffel weight) over chunks: float64's kernel throughout, and
+    # float32's for the texels its fast path (moments_ref._msm6_bound) hands back.
+    bt, n = np.ascontiguousarray(b.T), len(zf)
+    out = {k: np.empty(n, dtype=b.dtype) for k in ("lower", "upper")}
+    for lo in range(0, n, msm6.BOUNDS_CHUNK):
+        hi = min(n, lo + msm6.BOUNDS_CHUNK)
+        msm6._bounds_kernel(np.ascontiguousarray(bt[:, lo:hi]), zf[lo:hi], msm6._NEWTON_STEPS[b.dtype.name],
+                            {k: v[lo:hi] for k, v in out.items()}, None)
+    return out["lower"], out["upper"]
+
+
 @pytest.mark.parametrize("dt", [np.float32, np.float64])
 def test_bounds_rows_are_the_expressions_bit_for_bit(dt):
-    # The in-place kernel (reused rows, out=, sign flips by bits, checks by reductions) claims the
-    # arithmetic of the expressions above operation for operation: equal bits on regular rows of
-    # several chunks (biased and unbiased, zf at and next to support points, a partial chunk).
+    # The in-place Christoffel kernel (reused rows, out=, sign flips by bits, checks by reductions)
+    # claims the arithmetic of the expressions above operation for operation: equal bits on regular
+    # rows of several chunks (biased and unbiased, zf at and next to support points, a partial
+    # chunk). float64 runs it throughout (checked through shadow_bounds below); float32 runs the
+    # fast path of moments_ref._msm6_bound (tests/test_msm6_fast.py) and this kernel on the rest.
     rng = np.random.default_rng(7)
     n = 2 * msm6.BOUNDS_CHUNK + 1234
     k = rng.integers(4, 7, n)
@@ -486,7 +500,9 @@ def test_bounds_rows_are_the_expressions_bit_for_bit(dt):
     b, zf = b.astype(dt), zf.astype(dt)
     lower, upper, regular = _bounds_by_expressions(b, zf)
     assert regular.mean() > 0.9
-    got = msm6.shadow_bounds(b, zf)
+    got = _christoffel_bounds(b, zf)
+    if dt == np.float64:
+        assert all(np.array_equal(g, c) for g, c in zip(msm6.shadow_bounds(b, zf), got))
     for g, want in zip(got, (lower, upper)):
         assert g.dtype == dt and np.array_equal(g[regular].view(np.uint8), want[regular].view(np.uint8))
 

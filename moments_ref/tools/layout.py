@@ -37,7 +37,7 @@ TOP = ("cli", "__main__")
 FLAT = {
     "_arrays": "base", "_io": "base", "_toml": "base", "_shim": "base", "_docs": "base", "_options": "base",
     "claims": "base",  # the Claim record: techniques and report both write claims
-    "_kernels": "core", "_msm6_rows": "core", "moments": "core", "msm": "core", "msm6": "core", "hausdorff": "core", "affine": "core",
+    "_kernels": "core", "_msm6_rows": "core", "_msm6_bound": "core", "moments": "core", "msm": "core", "msm6": "core", "hausdorff": "core", "affine": "core",
     "nonlinear": "core", "packing": "core", "precise": "core",
     "metrics": "scene",  # image metrics over a G-buffer's pixels: techniques use them
     "__init__": "api",

@@ -33,10 +33,13 @@ PASSES = {
     # before); the texels where a §3.4 clamp acts (none of filtered moments) take the clamped
     # kernel
     "shade float32": 34,
-    # msm6._bounds_kernel: 23 Cholesky, 11 forward substitution, 6 Sturm signs, 21 scaling, back
-    # substitution, p(zf) and the Taylor coefficients, 1 w0, 15 Blinn's form, 3 the sign σ,
-    # 16 cos(arccos(r)/3), 2 the root, 24 its weight, 6 step (5) and saturate; 5 reductions
-    "shadow_intensity six moments float32": 128,
+    # msm6._bounds on float32 (moments_ref._msm6_bound.bound_rows): 23 Cholesky, 11 forward
+    # substitution by the recurrence, 8 the signs, case masks and σ's sign bit, 5 the derivatives
+    # at zf, 11 the Gauss–Radau cubic, 4 λ and y1 (y1 − K1) + D1, 4 Blinn's B, C, D, 10 Blinn's
+    # form and σ, 3 u, 12 cos(arccos(σr)/3), 2 the root, 10 its weight from the moments about zf,
+    # 6 step (5) and saturate (issue 41, round seven; 128 in msm6._bounds_kernel before); 4
+    # reductions
+    "shadow_intensity six moments float32": 109,
 }
 
 

@@ -1,0 +1,234 @@
+"""The six-moment bounds on the regular texels of a float32 chunk, in the fewest passes.
+
+:mod:`moments_ref.msm6` steps 1–5, on the rows of the workspace of
+:func:`moments_ref._msm6_rows.workspace`, with steps 2–4 written differently:
+
+* Step 2 by the three-term recurrence of the monic orthogonal polynomials (Gauss
+  quadrature; ``P_{i+1}(z) = (z − α_i) P_i(z) − β_i P_{i−1}(z)``, here ``α1 = L21 − b1``,
+  ``α2 = L32 − L21``, ``β1 = D1``, ``β_i = D_i/D_{i−1}`` from the Cholesky factors of step 1):
+  ``y = (P1, P2, P3)(zf)`` and the derivatives ``g = P2'(zf)``, ``h = P3'(zf)``,
+  ``k = P3''(zf)/2`` by the same recurrence.
+* Step 3's cubic without the back substitution and the Taylor shift: by the
+  Christoffel–Darboux identity the kernel polynomial of step 2 is
+  ``p(z) = K(zf, z) = (y3/D3)·P4*(z)/(z − zf)`` for the polynomial
+  ``P4* = (z − zf + γ) P3 − β3 P2`` with ``β3 = D3/D2`` and ``γ = β3 y2/y3`` (the
+  Gauss–Radau polynomial: the one with the next recurrence step whose root is zf). With
+  ``d = z − zf``, ``P4*(zf + d)/d = d³ + K1 d² + K2 d + ℓ``, ``K1 = k + γ``,
+  ``K2 = h + γ k − β3``, ``ℓ = y3 + γ h − β3 g``, so the reversed cubic of msm6's step 3 is
+  ``P(t) = ℓ t³ + K2 t² + K1 t + 1`` (msm6's ``(p(zf), p'(zf), p''(zf)/2, q3)`` times
+  ``λ = D3/y3``; ``w0 = 1/p(zf) = λ/ℓ``). Its root is Blinn's closed form as in msm6, σ the
+  sign bit of ``y3`` applied to ``2m`` (one integer AND, one XOR), ``r/2`` with the ½
+  folded into its denominator; the square roots of negative numbers (rounding at a double
+  root: ``Δ0 > 0`` or ``|r| > 1``) give NaN, and the texel is handed back.
+* Step 4, the weight of that root ``t = 1/(z_a − zf)``, from the first moments about zf
+  instead of the Christoffel function ``1 / Σ u_i²/D_i`` (which needs the forward
+  substitution of ``v(z_a)``): the canonical representation puts ``w0`` at zf and
+  ``w_a, w_b, w_c`` at the roots ``d_l`` of ``d³ + K1 d² + K2 d + ℓ``, and its moments about
+  zf are those of Z: ``Σ w_l = 1 − w0``, ``Σ w_l d_l = b1 − zf = −y1``,
+  ``Σ w_l d_l² = E[(Z − zf)²] = y1² + D1``. The Vandermonde system solved for ``w_a`` with
+  the other two roots eliminated by Vieta (``d_b + d_c = −K1 − d_a``, ``d_b d_c = −ℓ/d_a``)
+  and written in t (``K2 t² + 2 K1 t + 3 = −t P'(t)`` at a root) is
+
+      w_a = (ℓ (1 − w0) t² − A t + y1) / P'(t),   A = y1² + D1 − K1 y1,
+
+  with ``ℓ (1 − w0) = ℓ − λ`` and ``P'(t) = 3ℓ ((t + 2B) t + C)`` (B, C of Blinn's form).
+
+Where the two roots next to each other nearly meet (``u = √((1 + σr)/2) < U_MIN``: the
+Vandermonde weight divides two small numbers there), where B(b) is singular, or where the
+result is not finite (y3 = 0 exactly, an overflow, a non-finite input), the texels are
+handed to :func:`moments_ref.msm6._bounds_kernel` (the Christoffel weight, the exact
+singular branches): decided per texel, by reductions per chunk, a mask built only in a
+chunk that has such a texel.
+
+Passes over a float32 chunk for the lower bound: 23 Cholesky, 11 forward substitution,
+8 the signs, the case masks and σ's sign bit, 5 the derivatives at zf, 11 the Radau cubic,
+4 λ and ``A = y1 (y1 − K1) + D1``, 4 Blinn's B, C, D, 10 Blinn's form and σ, 3 u, 12
+cos(arccos(σr)/3), 2 the root, 10 its weight, 6 step (5) and saturate: 109, and four
+reductions (the Christoffel kernel: 128 and five). The upper bound 3 more.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._msm6_rows import COS_THIRD_POLY, ldl_rows, regular_mask
+
+__all__ = ["U_MIN", "bound_rows"]
+
+#: Smallest ``u = √((1 + σr)/2)`` left to the fast path: below it the root the bound needs and
+#: its neighbour nearly meet and the texel takes the Christoffel weight (module docstring).
+#: Measured on 2^20 biased random rows (2 to 8 depths, zf at and next to support points): none
+#: below 0.01; 133 in [0.01, 0.03), where this path's largest error against mpmath (precise) on
+#: the 40 rows differing most from the Christoffel kernel was 2.1e-4 (that kernel's 4.9e-4).
+U_MIN = 0.01
+
+
+def _solve(b, zf, ldl, w):
+    """Steps 2–3 by the recurrence and the Radau cubic (module docstring): rows ``(y1, A, K1, K2, ℓ, λ)``.
+
+    Also the case masks (``mask[0]`` two Gauss nodes below zf, ``mask[2]`` an odd number)
+    and σ's sign bit (``bits``).
+    """
+    b1 = b[0]
+    d1, d2, d3, l21, l31, l32 = ldl
+    blk = w["block"]  # consecutive rows (ROWS): y1..y3 are 9:12, c1..c3 12:15, e, f, g 15:18
+    e1, e2, t, y1, y2, y3, g, k, h, gam, k1, k2 = (w[x] for x in ("a", "b", "t", "y1", "y2", "y3", "c1", "c2",
+                                                                   "c3", "e", "f", "g"))
+    # Forward substitution by the three-term recurrence: y = (P1, P2, P3)(zf), P_{i+1} = (z − α_i) P_i − β_i P_{i−1}
+    # with α1 = L21 − b1, α2 = L32 − L21, β1 = D1, β2 = D2/D1; e_i = zf − α_i.
+    np.subtract(zf, b1, out=y1)
+    np.subtract(b1, l21, out=t)
+    np.add(zf, t, out=e1)
+    np.multiply(e1, y1, out=y2)
+    np.subtract(y2, d1, out=y2)
+    np.subtract(l21, l32, out=t)
+    np.add(zf, t, out=e2)
+    beta2 = gam
+    np.divide(d2, d1, out=beta2)
+    np.multiply(beta2, y1, out=h)
+    np.multiply(e2, y2, out=y3)
+    np.subtract(y3, h, out=y3)
+    # The Sturm sequence (1, y1, y2, y3) by sign bits: two Gauss nodes below zf is "the signs
+    # never turn back from − to +" (neg1 ≤ neg2 ≤ neg3), an odd number is "y3 not negative";
+    # σ = −1 there, kept as y3's sign bit for step 3.
+    neg1, neg2, neg3 = w["mask"]
+    np.signbit(blk[9:12], out=w["mask"])
+    np.less_equal(neg1, neg2, out=neg1)
+    np.less_equal(neg2, neg3, out=neg2)
+    np.logical_and(neg1, neg2, out=neg1)
+    np.logical_not(neg3, out=neg3)
+    np.bitwise_and(y3.view(w["bits"].dtype), w["sign"], out=w["bits"])
+    # The derivatives at zf: g = P2' = y1 + e1, k = P3''/2 = g + e2, h = P3' = y2 + e2 g − β2.
+    np.add(y1, e1, out=g)
+    np.add(g, e2, out=k)
+    np.multiply(e2, g, out=h)
+    np.add(y2, h, out=h)
+    np.subtract(h, beta2, out=h)
+    # The Radau cubic: R(d) = d³ + K1 d² + K2 d + ℓ with γ = β3 y2 / y3, β3 = D3/D2.
+    beta3 = e1
+    np.divide(d3, d2, out=beta3)
+    np.divide(y2, y3, out=gam)
+    np.multiply(gam, beta3, out=gam)
+    np.add(k, gam, out=k1)
+    np.multiply(gam, k, out=k2)
+    np.add(k2, h, out=k2)
+    np.subtract(k2, beta3, out=k2)
+    ell = e2
+    np.multiply(gam, h, out=ell)
+    np.add(ell, y3, out=ell)
+    np.multiply(beta3, g, out=t)
+    np.subtract(ell, t, out=ell)
+    # λ = D3/y3 = ℓ w0 (the scale of R against p about zf); A = E[(Z − zf)²] − K1 y1 = y1 (y1 − K1) + D1.
+    lam, A = l31, d1
+    np.divide(d3, y3, out=lam)
+    np.subtract(y1, k1, out=t)
+    np.multiply(t, y1, out=t)
+    np.add(A, t, out=A)
+    return y1, A, k1, k2, ell, lam
+
+
+def _root(cubic, w):
+    """Step 3: ``(−t, ms·c, B, C, 3ℓ, u)``: the root the bound needs, negated, and what its weight uses.
+
+    ``cubic = (K1, K2, ℓ)``: P(t) = ℓ t³ + K2 t² + K1 t + 1, Blinn's form as
+    :func:`moments_ref.msm6._blinn` (``Δ0' = B² − C = −Δ0``), σ from the sign bit of y3
+    (``ms = copysign(2m, y3) = −σ·2m``).
+    """
+    k1, k2, ell = cubic
+    e3, dd, cc, bb, dp, h2, dep, ms, den = (w[x] for x in ("d2", "l32", "c1", "c2", "y2", "y3", "l21", "c3", "t"))
+    np.multiply(ell, 3, out=e3)
+    np.divide(w["block"][16:18], e3, out=w["block"][12:14])  # (K1, K2)/(3ℓ) = (C, B)
+    np.divide(1, ell, out=dd)
+    np.multiply(bb, bb, out=dp)
+    np.subtract(dp, cc, out=dp)
+    np.multiply(dp, 2, out=h2)
+    # −(B (C + 2Δ0) − D) = D − B (C − 2Δ0'); σr/2 = that / (ms·2Δ0')
+    np.subtract(cc, h2, out=dep)
+    np.multiply(dep, bb, out=dep)
+    np.subtract(dd, dep, out=dep)
+    np.multiply(dp, 4, out=ms)
+    np.sqrt(ms, out=ms)
+    it = w["bits"].dtype
+    np.bitwise_xor(ms.view(it), w["bits"], out=ms.view(it))
+    np.multiply(ms, h2, out=den)
+    u = dd  # D's row, free: u stays until the bound's checks
+    np.divide(dep, den, out=u)
+    np.add(u, 0.5, out=u)
+    np.sqrt(u, out=u)  # NaN for σr < −1 (rounding at a double root): handed back
+    # cos(arccos(σr)/3) (msm6._cos_third), Horner in u
+    c = dep
+    np.multiply(u, COS_THIRD_POLY[-1], out=c)
+    for a in COS_THIRD_POLY[-2:0:-1]:
+        np.add(c, a, out=c)
+        np.multiply(c, u, out=c)
+    np.add(c, COS_THIRD_POLY[0], out=c)
+    # t = σ·2m·c − B, kept as −t = ms·c + B
+    s, nt = den, dp
+    np.multiply(ms, c, out=s)
+    np.add(s, bb, out=nt)
+    return nt, s, bb, cc, e3, u
+
+
+def bound_rows(b, zf, w, dest):
+    """The bounds named in ``dest`` (``lower``, ``upper``) on the regular texels of a chunk; the others' indices, or None.
+
+    b (6, n) rows, zf (n,), ``w`` the workspace of n texels, ``dest`` the output rows. The
+    texels returned (singular, not finite, or ``u < U_MIN``: module docstring) are left
+    unspecified in ``dest``, for :func:`moments_ref.msm6._bounds_kernel`.
+    """
+    ldl = ldl_rows(b, w)
+    # float32's singular threshold is 0 (msm6, "Degenerate input"): every pivot positive, by one
+    # reduction over the three pivot rows (a NaN fails the comparison), and D3 < ∞ (b6 = +∞).
+    regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0 and np.maximum.reduce(ldl[2]) < np.inf
+    pre = None
+    if not regular:  # the exact mask, only in a chunk that needs it (allocates)
+        ok = regular_mask(b, ldl) & np.isfinite(ldl[2] + zf)  # D3 + zf: b6 = +inf, a non-finite zf
+        pre = np.flatnonzero(~ok)
+    # A non-finite zf (or one so large that y2 or y3 overflows) makes y3 NaN (∞ − ∞ through β2 y1 > 0
+    # or γ = ∞/∞), and with it the result: such texels are handed back by the result's check.
+    y1, A, k1, k2, ell, lam = _solve(b, zf, ldl, w)
+    nt, s, bb, cc, e3, u = _root((k1, k2, ell), w)
+    umin = np.minimum.reduce(u)
+    # (4) w_a = (ℓ(1 − w0) t² − A t + y1) / P'(t), A = y1² + D1 − K1 y1, with t = −nt,
+    # P'(t) = 3ℓ·((t + 2B) t + C) and ℓ(1 − w0) = ℓ − λ (module docstring).
+    cm1, N, Q = w["e"], w["c3"], s
+    np.subtract(ell, lam, out=cm1)
+    np.multiply(cm1, nt, out=N)
+    np.add(N, A, out=N)
+    np.multiply(N, nt, out=N)
+    np.add(N, y1, out=N)
+    np.subtract(s, bb, out=Q)  # −(t + 2B)
+    np.multiply(Q, nt, out=Q)
+    np.add(Q, cc, out=Q)
+    np.multiply(Q, e3, out=Q)
+    wt = N
+    np.divide(N, Q, out=wt)
+    # (5) lower = [k ≥ 2]·(1 − w0 − w) + [k odd]·w: 0, w, 1 − w0 − w, 1 − w0 for k = 0..3.
+    two, odd = w["mask"][0], w["mask"][2]
+    h, omw0 = w["a"], cm1
+    np.divide(cm1, ell, out=omw0)  # 1 − w0 = (ℓ − λ)/ℓ
+    np.subtract(omw0, wt, out=h)
+    np.multiply(h, two, out=h)
+    np.multiply(wt, odd, out=wt)
+    lower = dest.get("lower", w["y1"])
+    np.add(h, wt, out=lower)
+    # Saturate below (rounding leaves 1 − w0 − w a little under 0). lower is finite or NaN (a weight
+    # ±∞ meets a 0 or an opposite ∞ in step 5), and np.maximum keeps the NaN for the reduction.
+    np.maximum(lower, w["zero"], out=lower)
+    hi = np.maximum.reduce(lower)
+    rest = pre
+    if not (umin >= U_MIN and hi < np.inf):  # NaN fails every comparison
+        keep, near = w["mask"][0], w["mask"][1]
+        np.isfinite(lower, out=keep)
+        np.greater_equal(u, U_MIN, out=near)
+        np.logical_and(keep, near, out=keep)
+        post = np.flatnonzero(np.logical_not(keep, out=keep))
+        rest = post if pre is None else np.union1d(pre, post)
+    if not hi <= 1:
+        np.minimum(lower, w["one"], out=lower)
+    if "upper" in dest:
+        w0 = w["t"]
+        np.divide(lam, ell, out=w0)  # w0 = λ/ℓ
+        np.add(lower, w0, out=dest["upper"])
+        np.minimum(dest["upper"], w["one"], out=dest["upper"])
+    return rest if rest is not None and rest.size else None
