@@ -63,3 +63,25 @@ def test_figure_png_is_matplotlibs_own_png(layout, monkeypatch, tmp_path):
     path = save_figure(fig, tmp_path / "f.png", dpi=110)
     assert path.read_bytes() == buf.getvalue()
     plt.close(fig)
+
+
+def test_compress_level_changes_the_bytes_not_the_pixels():
+    # The report's PNGs (a lower zlib level, quicker to encode): the pixels of matplotlib's own
+    # savefig, decoded by Pillow; level 0 stores the rows uncompressed, so the file holds at least
+    # every pixel's bytes (the level reaches the encoder).
+    from PIL import Image
+
+    from moments_ref._io import REPORT_PNG_LEVEL
+
+    ref = _figure("tight")
+    buf = io.BytesIO()
+    ref.savefig(buf, format="png", dpi=110, metadata=PNG_METADATA)
+    plt.close(ref)
+    want = np.asarray(Image.open(io.BytesIO(buf.getvalue())))
+    for level in (REPORT_PNG_LEVEL, 0):
+        fig = _figure("tight")
+        got = figure_png(fig, dpi=110, compress_level=level)
+        plt.close(fig)
+        assert got != buf.getvalue()
+        assert np.array_equal(np.asarray(Image.open(io.BytesIO(got))), want)
+    assert len(got) >= want.nbytes

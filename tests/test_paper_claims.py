@@ -74,6 +74,40 @@ def test_three_occluder_claim_counts_footprint_depths():
     assert n.tolist() == [3, 1]
 
 
+def test_occluder_layers_in_blocks_count_as_one_pixel_at_a_time(monkeypatch):
+    # Random 4x MSAA depths with clusters near the 0.01 gap, pixels at the map's border: the count in
+    # blocks of 7 pixels (several blocks and a partial one) equals a per-pixel count in float64 that
+    # follows the definition (sorted occluder depths nearer than the pixel's biased depth; a new layer
+    # where the next depth is more than the gap farther).
+    rng = np.random.default_rng(3)
+    h, w, S, P = 24, 20, 4, 50
+    levels = np.array([-0.6, -0.3, -0.29, -0.28, 0.1, 0.105, 0.4], np.float32)
+    maps = levels[rng.integers(0, levels.size, (h, w, S))] + rng.integers(0, 3, (h, w, S)).astype(np.float32) * 0.004
+    maps[rng.random((h, w, S)) < 0.2] = 1.0  # empty samples
+
+    class G:
+        uv = np.column_stack([rng.uniform(0, w, P), rng.uniform(0, h, P)])
+        z_ndc_light = rng.uniform(-0.5, 0.9, P)
+        slope = rng.uniform(0, 0.01, P)
+
+    class R:
+        values = {"raster_shadow_map": maps}
+        gbuffer = G()
+
+    full = rng.random(P) < 0.8
+    want = []
+    for i in np.flatnonzero(full):
+        x, y = int(np.floor(G.uv[i, 0])), int(np.floor(G.uv[i, 1]))
+        zt = G.z_ndc_light[i] - 4.5 * np.sqrt(2) * G.slope[i] - 1e-3
+        d = sorted(float(maps[min(max(y + dy, 0), h - 1), min(max(x + dx, 0), w - 1), k])
+                   for dy in range(-4, 5) for dx in range(-4, 5) for k in range(S))
+        d = [v for v in d if v < zt]
+        want.append(int(bool(d)) + sum(b - a > 0.01 for a, b in zip(d, d[1:])))
+    monkeypatch.setattr(paper_claims, "_LAYER_BLOCK", 7)
+    got = paper_claims._occluder_layers(R(), full)
+    assert got.tolist() == want and max(want) >= 3 and min(want) <= 1
+
+
 def test_claims_name_rows_of_the_implementation_choices_table(railing):
     """Every choice a claim depends on is a row of docs/formats.md's table, and the table has its eight rows."""
     import re

@@ -261,6 +261,36 @@ def test_ray_march_random_maps(seed, s, n):
     assert (ok | close).all(), (got, want)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_rays_over_empty_texels_skip_the_march_with_the_same_result(seed, monkeypatch):
+    # Maps mostly empty with a few occupied blocks, rays from one eye in every direction: the rays
+    # that ray_march counts lit without marching (no occupied texel between their first and last
+    # sample's texel) give the bytes of marching every ray sample by sample; some rays take the
+    # shortcut, some do not.
+    from moments_ref.techniques.scattering import rays as rays_module
+
+    rng = np.random.default_rng(seed)
+    h, w, s = int(rng.integers(8, 40)), int(rng.integers(8, 40)), int(rng.choice([1, 4]))
+    depth = np.ones((h, w, s), np.float32)
+    for _ in range(3):
+        r, c = rng.integers(0, h - 3), rng.integers(0, w - 3)
+        depth[r:r + 3, c:c + 3] = rng.uniform(-1, 0.5, (3, 3, s))
+    vp = np.eye(4)
+    vp[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * 0.8
+    dirs = rng.normal(size=(60, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    rays = sc.CameraRays(dirs.reshape(6, 10, 3), rng.uniform(0.05, 2.5, (6, 10)), np.ones((6, 10), bool), (10, 6))
+    eye = rng.uniform(-0.4, 0.4, 3)
+    taken = []
+    lit = rays_module._lit_throughout
+    monkeypatch.setattr(rays_module, "_lit_throughout", lambda *a: taken.append(lit(*a)) or taken[-1])
+    got = sc.ray_march(depth, vp, eye, rays, 37)
+    monkeypatch.setattr(rays_module, "_lit_throughout", lambda occupied, a, b, t0, t1: np.zeros(t0.shape, bool))
+    want = sc.ray_march(depth, vp, eye, rays, 37)
+    assert np.array_equal(got, want)
+    assert 0 < taken[0].sum() < taken[0].size
+
+
 def test_six_moment_technique_close_to_reference(small_scene):
     scene, smap, rays, ref = small_scene
     t_max = rays[1]

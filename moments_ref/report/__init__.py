@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arrays import InputError, one_line
-from .._io import figure_png, write_bytes, write_text
+from .._io import REPORT_PNG_LEVEL, figure_png, write_bytes, write_text
 from .._options import add_report_arguments
 from ..metrics import LEAK_THRESHOLD, flip_available, flip_mean, metrics, shaded_image
 from . import paper_claims, scattering_temporal
@@ -215,11 +215,11 @@ def _check_unique(scenes, loaded):
 
 
 def _png(fig):
-    """The PNG bytes :func:`moments_ref._io.save_figure` writes (dpi 110, no timestamp); closes ``fig``."""
+    """The PNG bytes of ``fig`` (dpi 110, no timestamp, zlib level :data:`~moments_ref._io.REPORT_PNG_LEVEL`); closes ``fig``."""
     import matplotlib.pyplot as plt
 
     try:
-        return figure_png(fig, dpi=110)
+        return figure_png(fig, dpi=110, compress_level=REPORT_PNG_LEVEL)
     finally:
         plt.close(fig)
 

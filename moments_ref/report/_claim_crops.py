@@ -78,7 +78,7 @@ def crop_pngs(measured):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .._io import figure_png
+    from .._io import REPORT_PNG_LEVEL, figure_png
 
     out = {}
     for scene in measured.values():
@@ -92,7 +92,7 @@ def crop_pngs(measured):
                 ax.set_yticks([])
             fig.suptitle(f"{cid}: {c['side']} px at {c['pixel']}, exposure x{EXPOSURE:g}", fontsize=8)
             try:
-                out[file_name(cid)] = figure_png(fig, dpi=110)
+                out[file_name(cid)] = figure_png(fig, dpi=110, compress_level=REPORT_PNG_LEVEL)
             finally:
                 plt.close(fig)
     return out

@@ -153,6 +153,12 @@ def pixel_statistic(result, a="nlq64", b="msm128", worst=5):
     return out
 
 
+#: Pixels per block of :func:`_occluder_layers` (each block's (n, 81 S) depths stay in the caches:
+#: 70 200 pixels of patio at 4× MSAA took 1.04 s of CPU in one block, 0.19 s in blocks of 2048; the
+#: counts do not depend on it, each pixel's row is independent).
+_LAYER_BLOCK = 2048
+
+
 def _occluder_layers(result, full, gap=0.01):
     """Distinct occluder depths (clusters ``gap`` apart) in the 9×9 footprint of the pixels ``full``."""
     maps = result.values.get("raster_shadow_map")
@@ -161,17 +167,23 @@ def _occluder_layers(result, full, gap=0.01):
     h, w = maps.shape[:2]
     gb = result.gbuffer
     c = np.floor(gb.uv[full]).astype(np.int64)
+    z_test = z_ndc_lookup(gb, True)[full] - 1e-3
     off = np.arange(-4, 5)
-    rows = np.clip(c[:, 1, None, None] + off[None, :, None], 0, h - 1)
-    cols = np.clip(c[:, 0, None, None] + off[None, None, :], 0, w - 1)
-    z = maps[rows, cols].reshape(c.shape[0], 81 * maps.shape[2])  # (P, 81 S), the map's dtype
-    # Occluders only (the reference's test, compared in float64); sorted in the map's own dtype (a
-    # float32 sort is three times quicker than one of the same values in float64, and the same order).
-    z = np.where(z < z_ndc_lookup(gb, True)[full, None] - 1e-3, z, np.inf)
-    z = np.sort(z, axis=1).astype(np.float64)
-    with np.errstate(invalid="ignore"):
-        step = np.diff(z, axis=1)
-    return np.isfinite(z[:, 0]) + np.sum(np.isfinite(z[:, 1:]) & (step > gap), axis=1)
+    out = np.empty(c.shape[0], np.int64)
+    for lo in range(0, c.shape[0], _LAYER_BLOCK):  # loop over blocks of pixels
+        hi = lo + _LAYER_BLOCK
+        rows = np.clip(c[lo:hi, 1, None, None] + off[None, :, None], 0, h - 1)
+        cols = np.clip(c[lo:hi, 0, None, None] + off[None, None, :], 0, w - 1)
+        z = maps[rows, cols].reshape(rows.shape[0], 81 * maps.shape[2])  # (n, 81 S), the map's dtype
+        # Occluders only (the reference's test, compared in float64); sorted in the map's own dtype (a
+        # float32 sort is three times quicker than one of the same values in float64, and the same order).
+        z = np.where(z < z_test[lo:hi, None], z, np.inf)
+        z.sort(axis=1)
+        finite = np.isfinite(z)
+        with np.errstate(invalid="ignore"):  # inf − inf past the last occluder: NaN, not a step
+            step = np.subtract(z[:, 1:], z[:, :-1], dtype=np.float64)  # the float64 differences
+        out[lo:hi] = finite[:, 0] + np.sum(finite[:, 1:] & (step > gap), axis=1)
+    return out
 
 
 def _full_shadow_leaks(result):
