@@ -668,7 +668,7 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
     np.absolute(out, out=out)
 
 
-def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
+def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
     """Algorithm 3's bound where no §3.4 clamp acts, in 31 passes (32 with the gap); the texels it leaves, or None.
 
     Algorithm 1's closed form (:func:`moments_ref.msm._bound_rows`) in depths measured from y1,
@@ -677,7 +677,8 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     its moments are ``m1 = v2 G``, ``σ² = v1 v2 G²`` (``v1 = 1 − v2``), ``L32 = G``, and ξ4 is the
     input's (HPG17 Eq. (5) scales it by ``G⁴`` into the unit coordinates of §3.4, where
     ``ξ'4 = ξ4/G⁴``). The forward substitution of step (2) at ``X = zf − y1`` gives ``y2 = X − m1``
-    and ``y3 = X (X − G)``, so ``c2 = y2/σ²``, ``q2 = y3/ξ4``, ``1/w0 − 1 = y2 c2 + y3 q2`` (a sum of
+    and ``y3 = X (X − G)`` with ``X − G = zf − y2`` (one rounding, and the signs of both
+    factors exact, so the case of Algorithm 3 that applies is decided exactly), so ``c2 = y2/σ²``, ``q2 = y3/ξ4``, ``1/w0 − 1 = y2 c2 + y3 q2`` (a sum of
     squares: no cancellation near w0 = 1), ``k2 = c2 + q2 (2X − G)`` and, with ``q2m = min(q2, 0)``
     and ``S = √(k2² − 4 q2m/w0)``, the bound ``((1 − w0)/2·(S + k2) − y2 q2m)/S``: the weight of the
     root below zf for ``0 < X < G`` (Algorithm 3's z_l case), ``1 − w0`` for ``X ≥ G`` (its
@@ -691,9 +692,9 @@ def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
     x, m1, y2n, e, g, s2, c2 = ws[:7]
     np.subtract(zf, y1, out=x)  # X = zf − y1
     np.multiply(v2, gap, out=m1)  # m1 = v2 G, the mean about y1
-    # Forward substitution at X: y2 = X − m1, y3 = X (X − G) (in g).
+    # Forward substitution at X: y2 = X − m1, y3 = X (X − G) (in g), X − G = zf − y2.
     np.subtract(x, m1, out=y2n)
-    np.subtract(x, gap, out=e)
+    np.subtract(zf, y2, out=e)
     np.multiply(x, e, out=g)
     np.add(x, e, out=e)  # 2X − G = p'(X)'s factor of q2
     # σ² = v1 v2 G² = (1 − v2)·m1·G (1 − v2 is exact for v2 ≥ 1/2: no cancellation near v2 = 1).
@@ -752,7 +753,7 @@ def _shade_rows(cols, zc, out, c, gap, ext, clamp, refuse):
     """
     y1, y2, v2, xi4 = cols
     rest = _clamped_texels(v2, xi4, gap, c) if any(_clamps_needed(ext, c).values()) else None
-    left = _shade_about_zf(y1, v2, xi4, zc, gap, out, c)
+    left = _shade_about_zf(y1, y2, v2, xi4, zc, gap, out, c)
     if rest is None or not rest.size:
         rest = left
     elif left is not None:
