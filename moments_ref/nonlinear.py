@@ -689,41 +689,43 @@ def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
     is left to :func:`_shade_kernel`: its flat indices in the chunk are returned.
     """
     ws = c["ws"]
-    x, m1, y2n, e, g, s2, c2 = ws[:7]
+    x, m1, e, g, s2, q2, inv_w0 = ws[:7]
+    # Each value goes into the row of a temporary it no longer needs where one exists (a pass
+    # writing a row it reads moves two rows, not three); the inputs are kept for _shade_kernel.
     np.subtract(zf, y1, out=x)  # X = zf − y1
     np.multiply(v2, gap, out=m1)  # m1 = v2 G, the mean about y1
-    # Forward substitution at X: y2 = X − m1, y3 = X (X − G) (in g), X − G = zf − y2.
-    np.subtract(x, m1, out=y2n)
-    np.subtract(zf, y2, out=e)
-    np.multiply(x, e, out=g)
-    np.add(x, e, out=e)  # 2X − G = p'(X)'s factor of q2
     # σ² = v1 v2 G² = (1 − v2)·m1·G (1 − v2 is exact for v2 ≥ 1/2: no cancellation near v2 = 1).
     np.subtract(1, v2, out=s2)  # array–scalar: one row read, not two
     np.multiply(s2, m1, out=s2)
     np.multiply(s2, gap, out=s2)
-    # Scaling: c2 = y2/σ², q2 = y3/ξ4, 1/w0 − 1 = y2 c2 + y3 q2 (σ²'s row), k2 = c2 + q2 (2X − G).
-    np.divide(y2n, s2, out=c2)
-    q2 = np.divide(g, xi4, out=m1)
-    cm1 = np.multiply(y2n, c2, out=s2)
-    np.multiply(g, q2, out=x)
-    np.add(cm1, x, out=cm1)
-    k2 = np.multiply(e, q2, out=e)
+    # Forward substitution at X: y2 = X − m1 (in m1's row), y3 = X (X − G) (in g), X − G = zf − y2.
+    y2n = np.subtract(x, m1, out=m1)
+    np.subtract(zf, y2, out=e)
+    np.multiply(x, e, out=g)
+    e2 = np.add(x, e, out=x)  # 2X − G = p'(X)'s factor of q2
+    # Scaling: c2 = y2/σ², q2 = y3/ξ4, k2 = c2 + q2 (2X − G), 1/w0 − 1 = y2 c2 + y3 q2.
+    c2 = np.divide(y2n, s2, out=s2)
+    np.divide(g, xi4, out=q2)
+    k2 = np.multiply(e2, q2, out=e2)
     np.add(k2, c2, out=k2)
-    inv_w0, q2m, v, s = c2, q2, x, g
+    cm1 = np.multiply(y2n, c2, out=c2)
+    np.multiply(g, q2, out=g)
+    np.add(cm1, g, out=cm1)
     np.add(cm1, 1, out=inv_w0)
-    np.minimum(q2, c["zero"], out=q2m)
+    q2m = np.minimum(q2, c["zero"], out=q2)
     # Step (3)–(5) as msm._bound_rows: S = √(k2² − 4 q2m/w0), ((1 − w0)/2·(S + k2) − y2 q2m)/S.
-    np.multiply(q2m, inv_w0, out=v)
-    np.multiply(v, y1.dtype.type(4), out=v)
+    h, s = e, g
+    np.add(inv_w0, inv_w0, out=h)
+    np.divide(cm1, h, out=h)  # (1 − w0)/2
+    p = np.multiply(q2m, inv_w0, out=inv_w0)
+    np.multiply(p, y1.dtype.type(4), out=p)
     np.multiply(k2, k2, out=s)
-    np.subtract(s, v, out=s)
+    np.subtract(s, p, out=s)
     np.sqrt(s, out=s)
-    np.add(inv_w0, inv_w0, out=v)
-    np.divide(cm1, v, out=v)  # (1 − w0)/2
-    num = np.add(s, k2, out=cm1)
-    np.multiply(num, v, out=num)
-    np.multiply(y2n, q2m, out=v)
-    np.subtract(num, v, out=num)
+    num = np.add(s, k2, out=k2)
+    np.multiply(num, h, out=num)
+    np.multiply(y2n, q2m, out=y2n)
+    np.subtract(num, y2n, out=num)
     np.divide(num, s, out=out)
     # Saturate as msm._bound_rows: a maximum with the zero row (NaN stays NaN), the upper clamp
     # only where the largest value (the finiteness check's reduction) is above 1 or NaN.
