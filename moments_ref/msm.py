@@ -496,7 +496,7 @@ def _pivots_positive(b, sigma2, xi4, t, c):
 
 def _bound(b, zf, bound, c, dest, refuse):
     """``dest[bound]`` := the bound of Algorithm 1 on a chunk: :func:`_bound_rows`, and :func:`_kernel` on the rest."""
-    if not b[3].max() < np.inf:  # b4 = +inf is the one non-finite input that can leave the result finite
+    if not np.maximum.reduce(b[3]) < np.inf:  # b4 = +inf is the one non-finite input that can leave the result finite
         refuse()
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         rest = _bound_rows(b, zf, bound, c, dest)

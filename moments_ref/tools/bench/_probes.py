@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pass_probe", "scatter_probe", "PASSES"]
+__all__ = ["pass_probe", "scatter_probe", "PASSES", "THIRD_ROW"]
 
 #: Ufunc passes per chunk of each kernel's common path, counted in its code (float and
 #: boolean passes alike; the rare singular or out-of-domain texels are handed elsewhere).
@@ -27,29 +27,46 @@ PASSES = {
     # and 1 saturate (issue 41, round six; 49 before); its four reductions (pivots, b4, the
     # results' finiteness) are not counted
     "shadow_intensity float32": 38,
-    # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 5 z'f and ξ'4,
-    # 5 the forward substitution in unit coordinates, 8 scaling, 1/w0 − 1 and k2, 2 1/w0 and
-    # min(q2, 0), 5 the discriminant, 2 (1 − w0)/2, 6 the weight and saturate (round six; 43
-    # before); the texels where a §3.4 clamp acts (none of filtered moments) take the clamped
-    # kernel
-    "shade float32": 34,
+    # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 2 X = zf − y1 and
+    # m1 = v2 G, 3 σ² = (1 − v2) m1 G, 3 the forward substitution about y1 and 1 2X − G, 9 scaling,
+    # k2, 1/w0 − 1, 1/w0 and min(q2, 0), 5 the discriminant, 2 (1 − w0)/2, 5 the weight and 1
+    # saturate (round seven: depths measured from y1; 34 in round six, 43 before); its seven
+    # reductions (the domain and the results' finiteness) are not counted; the texels where a
+    # §3.4 clamp acts (none of filtered moments) take the clamped kernel
+    "shade float32": 32,
     # msm6._bounds_kernel: 23 Cholesky, 11 forward substitution, 6 Sturm signs, 21 scaling, back
     # substitution, p(zf) and the Taylor coefficients, 1 w0, 15 Blinn's form, 3 the sign σ,
     # 16 cos(arccos(r)/3), 2 the root, 24 its weight, 6 step (5) and saturate; 5 reductions
     "shadow_intensity six moments float32": 128,
 }
 
+#: Of :data:`PASSES`, those that write a third row (read two rows and write a row neither of
+#: them is): since round seven the two kernels above write every other value into a row they
+#: read (two rows moved instead of three), and their probes do the same (an in-place add
+#: stands for each of those passes). A kernel missing here counts every pass as a third row.
+THIRD_ROW = {
+    # b1 b2, L32 = (b3 − b1 b2)/σ², y2 = zf − b1, L32 y2, the bound into the output
+    "shadow_intensity float32": 5,
+    # the gap, X, m1, zf − y2, y3 = X (X − G), q2 = y3/ξ4, the bound into the output
+    "shade float32": 7,
+}
 
-def pass_probe(b, zf, passes, chunk):
-    """A callable doing a kernel's data movement on ``(b, zf)`` with ``passes`` multiplications per chunk.
+
+def pass_probe(b, zf, passes, chunk, third_row=None):
+    """A callable doing a kernel's data movement on ``(b, zf)`` with ``passes`` float passes per chunk.
 
     ``b`` is ``(n, k)``, ``zf`` ``(n,)``; per chunk of ``chunk`` rows: the transposing copy
-    into ``k`` reused rows, ``passes`` multiplications of chunk-long rows into a reused
-    temporary, and the chunk's result written into a fresh ``(n,)`` output.
+    into ``k`` reused rows, ``passes`` passes over chunk-long rows, and the chunk's result
+    written into a fresh ``(n,)`` output. The first ``third_row`` passes (default: all) are
+    multiplications of two columns into a reused temporary (three rows moved), the others
+    add a column to that temporary in place (two rows moved), as :data:`THIRD_ROW` counts
+    the kernels' passes.
     """
     n, k = b.shape
     rows = np.empty((k, min(chunk, n)), dtype=b.dtype)
     tmp = np.empty(min(chunk, n), dtype=b.dtype)
+    # at least one product, so that the in-place adds start from finite values
+    third = passes if third_row is None else max(min(third_row, passes), min(passes, 1))
 
     def run():
         out = np.empty(n, dtype=b.dtype)
@@ -58,8 +75,10 @@ def pass_probe(b, zf, passes, chunk):
             cols = rows[:, : hi - lo]
             np.copyto(cols, b[lo:hi].T)
             t = tmp[: hi - lo]
-            for i in range(passes):  # inputs left unchanged: no denormals, no overflow
+            for i in range(third):  # inputs left unchanged: no denormals, no overflow
                 np.multiply(cols[i % k], cols[(i + 1) % k], out=t)
+            for i in range(passes - third):  # a sum of at most a few hundred inputs: no overflow
+                np.add(t, cols[i % k], out=t)
             np.copyto(out[lo:hi], zf[lo:hi] if passes == 0 else t)
         return out
 
