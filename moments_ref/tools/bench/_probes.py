@@ -4,13 +4,14 @@ A shading kernel of this package (Algorithm 1, Algorithm 3, the six-moment bound
 ``(n, k)`` moment rows, copies each chunk of them into ``k`` contiguous columns (one
 transposing copy), runs its ufunc passes over chunk-long rows and writes a fresh ``(n,)``
 result. A probe does exactly that with the arithmetic replaced by ``passes`` float
-multiplications over the same chunk-long rows: with ``passes = 0`` it is the floor of any
+passes over the same chunk-long rows, as many of them writing a third row as the kernel's
+(:data:`THIRD_ROW`; the others add in place): with ``passes = 0`` it is the floor of any
 kernel written this way (the transposing copy and the first touch of the output), with
 the kernel's own count of passes it is that count's floor. The bench measures both in the
 same run as the kernel and prints them beside it, against the same copy, so that a floor
 is a measurement, not a figure in the text.
 
-Nothing here is asserted by the tests: probes are read, not enforced.
+Nothing here asserts a timing in the tests: probes are read, not enforced.
 """
 
 from __future__ import annotations
