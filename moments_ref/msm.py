@@ -127,7 +127,7 @@ def _constants(dtype, n):
         "zero": np.zeros(n, dtype=dtype),
         "one": np.ones(n, dtype=dtype),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
-        "four": np.dtype(dtype).type(4),
+        "two": np.dtype(dtype).type(2),
         "rtol": np.dtype(dtype).type(singular_thresholds(dtype)),
         "ws": np.empty((_ROWS, n), dtype=dtype),
         "bits": np.empty(n, dtype=it),
@@ -427,14 +427,17 @@ def _bound_rows(b, zf, bound, c, dest):
     """
     k2, q2m, inv_w0, cm1, y2, regular = _quadratic_about_zf(b, zf, c)
     ws = c["ws"]
-    v, s, h = ws[1], ws[5], ws[7]
-    # (1 − w0)/2 = (1/w0 − 1)/(2/w0).
-    np.add(inv_w0, inv_w0, out=h)
-    np.divide(cm1, h, out=h)
-    # S = √(k2² − 4 q2m/w0): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for q2 ≥ 0 (q2m/w0 in 1/w0's
-    # row for the lower bound; the upper bound keeps 1/w0 for w0).
-    p = np.multiply(q2m, inv_w0, out=v if bound == "upper" else inv_w0)
-    np.multiply(p, c["four"], out=p)
+    v, s = ws[1], ws[5]
+    # (1 − w0)/2 = (1/w0 − 1)/(2/w0), with 2/w0 doubled in place (an array–scalar pass writing the
+    # row it reads: cheaper than 1/w0 + 1/w0, the same bits) and the quotient into 1/w0 − 1's row.
+    inv2 = np.multiply(inv_w0, c["two"], out=inv_w0)
+    h = np.divide(cm1, inv2, out=cm1)
+    # S = √(k2² − 4 q2m/w0) = √(k2² − 2·q2m·(2/w0)): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for
+    # q2 ≥ 0 (the bits of 4·(q2m/w0): scalings by 2 are exact short of overflow and underflow;
+    # 2/w0 > finfo.max, where 1/w0 + 1/w0 overflowed too, makes S infinite and sends the texel to
+    # _kernel; in 2/w0's row for the lower bound, the upper bound keeps 2/w0 for w0).
+    p = np.multiply(q2m, inv2, out=v if bound == "upper" else inv2)
+    np.multiply(p, c["two"], out=p)
     np.multiply(k2, k2, out=s)
     np.subtract(s, p, out=s)
     np.sqrt(s, out=s)  # NaN or inf for an overflow: the texel goes to _kernel
@@ -462,7 +465,7 @@ def _bound_rows(b, zf, bound, c, dest):
         irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
         w0 = v
-        np.divide(1, inv_w0, out=w0)
+        np.divide(c["two"], inv2, out=w0)  # 2/(2/w0): the bits of 1/(1/w0)
         np.add(lower, w0, out=dest["upper"])
         np.minimum(dest["upper"], c["one"], out=dest["upper"])
     return irregular if irregular is not None and irregular.size else None
