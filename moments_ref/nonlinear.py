@@ -714,11 +714,14 @@ def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
     np.add(cm1, 1, out=inv_w0)
     q2m = np.minimum(q2, c["zero"], out=q2)
     # Step (3)–(5) as msm._bound_rows: S = √(k2² − 4 q2m/w0), ((1 − w0)/2·(S + k2) − y2 q2m)/S.
-    h, s = e, g
-    np.add(inv_w0, inv_w0, out=h)
-    np.divide(cm1, h, out=h)  # (1 − w0)/2
-    p = np.multiply(q2m, inv_w0, out=inv_w0)
-    np.multiply(p, y1.dtype.type(4), out=p)
+    # (1 − w0)/2 = (1/w0 − 1)/(2/w0) with 2/w0 doubled in place and 4 q2m/w0 as 2·q2m·(2/w0): the
+    # same bits as 1/w0 + 1/w0 and 4·(q2m/w0) (scalings by 2 are exact) in two array–scalar passes
+    # writing the rows they read.
+    two, s = y1.dtype.type(2), g
+    inv2 = np.multiply(inv_w0, two, out=inv_w0)
+    h = np.divide(cm1, inv2, out=cm1)
+    p = np.multiply(q2m, inv2, out=inv2)
+    np.multiply(p, two, out=p)
     np.multiply(k2, k2, out=s)
     np.subtract(s, p, out=s)
     np.sqrt(s, out=s)
