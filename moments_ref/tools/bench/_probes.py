@@ -25,15 +25,15 @@ __all__ = ["pass_probe", "scatter_probe", "PASSES", "THIRD_ROW"]
 PASSES = {
     # msm._bound_rows: 9 Cholesky, 5 forward substitution, 5 scaling and 1/w0 − 1, 4 k2 = p'(zf),
     # 1/w0 and min(q2, 0), 5 the discriminant (its square root one), 2 (1 − w0)/2, 5 the weight
-    # and 1 saturate (issue 41, round six; 49 before); its four reductions (pivots, b4, the
-    # results' finiteness) are not counted
+    # and 1 saturate (issue 41, round six; 49 before; since round seven 2/w0 is doubled in place,
+    # the same count); its four reductions (pivots, b4, the results' finiteness) are not counted
     "shadow_intensity float32": 38,
     # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 2 X = zf − y1 and
     # m1 = v2 G, 3 σ² = (1 − v2) m1 G, 3 the forward substitution about y1 and 1 2X − G, 9 scaling,
-    # k2, 1/w0 − 1, 1/w0 and min(q2, 0), 5 the discriminant, 2 (1 − w0)/2, 5 the weight and 1
-    # saturate (round seven: depths measured from y1; 34 in round six, 43 before); its seven
-    # reductions (the domain and the results' finiteness) are not counted; the texels where a
-    # §3.4 clamp acts (none of filtered moments) take the clamped kernel
+    # k2, 1/w0 − 1, 1/w0 and min(q2, 0), 5 the discriminant, 2 (1 − w0)/2 (2/w0 doubled in place),
+    # 5 the weight and 1 saturate (round seven: depths measured from y1; 34 in round six, 43
+    # before); its seven reductions (the domain and the results' finiteness) are not counted;
+    # the texels where a §3.4 clamp acts (none of filtered moments) take the clamped kernel
     "shade float32": 32,
     # msm6._bounds_kernel: 23 Cholesky, 11 forward substitution, 6 Sturm signs, 21 scaling, back
     # substitution, p(zf) and the Taylor coefficients, 1 w0, 15 Blinn's form, 3 the sign σ,
