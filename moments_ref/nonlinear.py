@@ -686,26 +686,27 @@ def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
     comparisons or masks. Unlike the unit coordinates (round six) no division by G and no
     ``G⁴``: three passes fewer. A texel whose result is not finite (ξ4 = 0, an overflow, a
     non-finite zf: ``X = ±∞`` or NaN makes ``S`` or the quotient NaN, tests/test_nonlinear.py)
-    is left to :func:`_shade_kernel`: its flat indices in the chunk are returned.
+    is left to :func:`_shade_kernel`: its flat indices in the chunk are returned. ``y1``, ``y2``,
+    ``v2`` and ``xi4`` are overwritten (in :func:`shade` they are the chunk's transposed copy,
+    and :func:`_shade_rows` gathers the texels it hands on from ``r``).
     """
-    ws = c["ws"]
-    x, m1, e, g, s2, q2, inv_w0 = ws[:7]
-    # Each value goes into the row of a temporary it no longer needs where one exists (a pass
-    # writing a row it reads moves two rows, not three); the inputs are kept for _shade_kernel.
-    np.subtract(zf, y1, out=x)  # X = zf − y1
-    np.multiply(v2, gap, out=m1)  # m1 = v2 G, the mean about y1
+    g, s2, inv_w0 = c["ws"][:3]
+    # Each value goes into the row of an input or a temporary it no longer needs (a pass writing
+    # a row it reads moves two rows, not three): X in y1's, m1 in v2's, zf − y2 in y2's, q2 in ξ4's.
     # σ² = v1 v2 G² = (1 − v2)·m1·G (1 − v2 is exact for v2 ≥ 1/2: no cancellation near v2 = 1).
     np.subtract(1, v2, out=s2)  # array–scalar: one row read, not two
+    x = np.subtract(zf, y1, out=y1)  # X = zf − y1
+    m1 = np.multiply(v2, gap, out=v2)  # m1 = v2 G, the mean about y1
     np.multiply(s2, m1, out=s2)
     np.multiply(s2, gap, out=s2)
     # Forward substitution at X: y2 = X − m1 (in m1's row), y3 = X (X − G) (in g), X − G = zf − y2.
     y2n = np.subtract(x, m1, out=m1)
-    np.subtract(zf, y2, out=e)
+    e = np.subtract(zf, y2, out=y2)
     np.multiply(x, e, out=g)
     e2 = np.add(x, e, out=x)  # 2X − G = p'(X)'s factor of q2
     # Scaling: c2 = y2/σ², q2 = y3/ξ4, k2 = c2 + q2 (2X − G), 1/w0 − 1 = y2 c2 + y3 q2.
     c2 = np.divide(y2n, s2, out=s2)
-    np.divide(g, xi4, out=q2)
+    q2 = np.divide(g, xi4, out=xi4)
     k2 = np.multiply(e2, q2, out=e2)
     np.add(k2, c2, out=k2)
     cm1 = np.multiply(y2n, c2, out=c2)
@@ -750,11 +751,13 @@ def _clamped_texels(v2, xi4, gap, c):
     return np.flatnonzero(act)
 
 
-def _shade_rows(cols, zc, out, c, gap, ext, clamp, refuse):
+def _shade_rows(cols, rchunk, zc, out, c, gap, ext, clamp, refuse):
     """One chunk of :func:`shade`: :func:`_shade_about_zf` where no clamp acts, :func:`_shade_kernel` on the rest.
 
-    ``refuse()`` raises the error of a non-finite zf: :func:`_chunk_ok` does not reduce zf, and
-    only the texels whose closed-form result is not finite (or where a clamp acts) can hold one.
+    ``cols`` is the chunk's transposed copy of ``rchunk`` (its ``(m, 4)`` rows of r), which the
+    closed form overwrites; the texels it leaves are gathered from ``rchunk``. ``refuse()``
+    raises the error of a non-finite zf: :func:`_chunk_ok` does not reduce zf, and only the
+    texels whose closed-form result is not finite (or where a clamp acts) can hold one.
     """
     y1, y2, v2, xi4 = cols
     rest = _clamped_texels(v2, xi4, gap, c) if any(_clamps_needed(ext, c).values()) else None
@@ -768,7 +771,8 @@ def _shade_rows(cols, zc, out, c, gap, ext, clamp, refuse):
             refuse()
         sub = _kernel_constants(cols.dtype, rest.size, clamp)
         res = np.empty(rest.size, dtype=cols.dtype)
-        _shade_kernel(y1[rest], y2[rest], v2[rest], xi4[rest], zc[rest], res, sub)
+        y1r, y2r, v2r, xir = np.ascontiguousarray(rchunk[rest].T)
+        _shade_kernel(y1r, y2r, v2r, xir, zc[rest], res, sub)
         out[rest] = res
 
 
@@ -846,7 +850,8 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     §3.4 clamps can act in the chunk; a non-finite zf shows as a non-finite result. Where no
     clamp acts on a texel (every texel of filtered moments) the bound is Algorithm 1's closed
     form in depths measured from y1 (``_shade_about_zf``: the three cases above in one
-    expression, 32 ufunc passes with the gap, no selection); the texels where a clamp acts,
+    expression, 32 ufunc passes with the gap, no selection, four of them writing into the rows
+    of the chunk's copy of r that they read); the texels where a clamp acts,
     and those where the closed form is not finite (ξ4 = 0, an overflow), take the clamped algorithm above (``_shade_kernel``,
     43 passes, 47 with every clamp), decided per texel, so the result does not depend on the
     chunk size; the two agree within 4 ulps of 1 (tests/test_nonlinear.py). The measurements
@@ -880,7 +885,8 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
             ext = _chunk_ok(cols, zc, gap, tol)
             if ext is None:
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
-            _shade_rows(cols, zc, out[start:stop], c, gap, ext, clamp, lambda: _refuse(r, zf))
+            _shade_rows(cols, rflat[start:stop], zc, out[start:stop], c, gap, ext, clamp,
+                        lambda: _refuse(r, zf))
     return out.reshape(shape)
 
 

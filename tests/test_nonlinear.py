@@ -509,7 +509,8 @@ def test_a_non_finite_zf_makes_the_closed_form_non_finite(dtype):
         out = np.empty(n, dtype)
         c = nl._kernel_constants(dtype, n)
         with np.errstate(all="ignore"):
-            nl._shade_about_zf(y1, y2, v2.copy(), xi4, np.full(n, bad, dtype), (y2 - y1).astype(dtype), out, c)
+            nl._shade_about_zf(y1.copy(), y2.copy(), v2.copy(), xi4.copy(), np.full(n, bad, dtype),
+                               (y2 - y1).astype(dtype), out, c)
         assert not np.isfinite(out).any(), grid[:, np.isfinite(out)].T[:3]
     rng = np.random.default_rng(3)
     n, first = nl.CHUNK + 3000, nl.CHUNK + 17

@@ -48,8 +48,9 @@ PASSES = {
 THIRD_ROW = {
     # b1 b2, L32 = (b3 − b1 b2)/σ², y2 = zf − b1, L32 y2, the bound into the output
     "shadow_intensity float32": 5,
-    # the gap, X, m1, zf − y2, y3 = X (X − G), q2 = y3/ξ4, the bound into the output
-    "shade float32": 7,
+    # the gap, y3 = X (X − G), the bound into the output (since round seven's second pass X, m1,
+    # zf − y2 and q2 go into the rows of the chunk's transposed copy of r: 7 before)
+    "shade float32": 3,
 }
 
 
