@@ -37,8 +37,10 @@ CHUNK = 1 << 14
 #: run, ratio to a copy of the traffic: 2^12 22.4×, 2^13 15.6×, 2^14 13.4×, 2^15 12.5×, 2^16 12.6×.
 MSM_CHUNK = 1 << 15
 #: Texels per chunk of :func:`moments_ref.nonlinear.shade` (Algorithm 3; same trade-off as
-#: MSM_CHUNK: measured fastest of 2^13..2^17 at 2048² for its ~50 passes).
-SHADE_CHUNK = 1 << 15
+#: MSM_CHUNK). 2^16 since issue 41 round seven (32 passes, most of them writing a row they read):
+#: 2048² float32, interleaved, CPU time, 12 and 16 rounds, load 3.2–3.3: 2^16 0.923 and 0.873 of
+#: the time of 2^15, 2^17 0.903, 2^14 1.099.
+SHADE_CHUNK = 1 << 16
 #: Input bytes per band of rows of a map-sized per-texel step of the pipeline (the resolve of a feature,
 #: a texture's quantization: :func:`moments_ref.techniques._steps.in_row_bands`): their float64
 #: temporaries, several times the map, then exist for one band, not the whole map (issue 41: the

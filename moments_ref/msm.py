@@ -127,7 +127,7 @@ def _constants(dtype, n):
         "zero": np.zeros(n, dtype=dtype),
         "one": np.ones(n, dtype=dtype),
         "sign": np.full(n, np.iinfo(it).min, dtype=it),
-        "four": np.dtype(dtype).type(4),
+        "two": np.dtype(dtype).type(2),
         "rtol": np.dtype(dtype).type(singular_thresholds(dtype)),
         "ws": np.empty((_ROWS, n), dtype=dtype),
         "bits": np.empty(n, dtype=it),
@@ -367,36 +367,37 @@ def _quadratic_about_zf(b, zf, c):
     scaling and 1/w0 − 1, 4 k2, 1/w0 and q2m).
     """
     ws, (b1, b2, b3, b4) = c["ws"], b
-    s2, t, l32, xi, y2, y3, c2, q2, cm1 = ws
+    s2, t, l32, xi, y2, y3, inv_w0 = ws[:7]
+    # Each value goes into the row of an input it no longer needs where one exists: a pass
+    # that writes one of the rows it reads moves two rows, not three (the same operations on
+    # the same operands as before, so the same bits; docs/bench.md, Kernel history, round seven).
     # Cholesky, B(b) = L D Lᵀ: L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32·(b3 − b1 b2).
     np.multiply(b1, b1, out=s2)
     np.subtract(b2, s2, out=s2)
     np.multiply(b1, b2, out=t)
     np.subtract(b3, t, out=t)
     np.divide(t, s2, out=l32)
-    np.multiply(l32, t, out=xi)
-    np.multiply(b2, b2, out=y3)
-    np.add(xi, y3, out=xi)
+    np.multiply(l32, t, out=t)
+    np.multiply(b2, b2, out=xi)
+    np.add(t, xi, out=xi)
     np.subtract(b4, xi, out=xi)
     regular = _pivots_positive(b, s2, xi, t, c)
     # Forward substitution to solve L y = (1, zf, zf²): y2 = zf − b1, y3 = zf² − b2 − L32 y2.
     _forward(zf, b1, b2, l32, y2, y3, t)
-    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (Prop. 10).
-    np.divide(y2, s2, out=c2)
-    np.divide(y3, xi, out=q2)
-    np.multiply(y2, c2, out=cm1)
-    np.multiply(y3, q2, out=t)
-    np.add(cm1, t, out=cm1)
     # p(z) = 1 + c2 (z − b1) + q2 (z² − b2 − L32 (z − b1)) (back substitution folded in), so
-    # k2 = p'(zf) = c2 + q2 (2 zf − L32).
-    k2 = y3
-    np.subtract(zf, l32, out=k2)
+    # k2 = p'(zf) = c2 + q2 (2 zf − L32) (in L32's row).
+    k2 = np.subtract(zf, l32, out=l32)
     np.add(k2, zf, out=k2)
+    # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (Prop. 10).
+    c2 = np.divide(y2, s2, out=s2)
+    q2 = np.divide(y3, xi, out=xi)
     np.multiply(k2, q2, out=k2)
     np.add(k2, c2, out=k2)
-    inv_w0, q2m = s2, q2
+    cm1 = np.multiply(y2, c2, out=c2)
+    np.multiply(y3, q2, out=y3)
+    np.add(cm1, y3, out=cm1)
     np.add(cm1, 1, out=inv_w0)  # an array–scalar add reads one row, not two
-    np.minimum(q2, c["zero"], out=q2m)
+    q2m = np.minimum(q2, c["zero"], out=q2)
     return k2, q2m, inv_w0, cm1, y2, regular
 
 
@@ -426,33 +427,45 @@ def _bound_rows(b, zf, bound, c, dest):
     """
     k2, q2m, inv_w0, cm1, y2, regular = _quadratic_about_zf(b, zf, c)
     ws = c["ws"]
-    v, s, h, num = ws[1], ws[2], ws[3], ws[6]
-    # S = √(k2² − 4 q2m/w0): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for q2 ≥ 0.
-    np.multiply(q2m, inv_w0, out=v)
-    np.multiply(v, c["four"], out=v)
+    v, s = ws[1], ws[5]
+    # (1 − w0)/2 = (1/w0 − 1)/(2/w0), with 2/w0 doubled in place (an array–scalar pass writing the
+    # row it reads: cheaper than 1/w0 + 1/w0, the same bits) and the quotient into 1/w0 − 1's row.
+    inv2 = np.multiply(inv_w0, c["two"], out=inv_w0)
+    h = np.divide(cm1, inv2, out=cm1)
+    # S = √(k2² − 4 q2m/w0) = √(k2² − 2·q2m·(2/w0)): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for
+    # q2 ≥ 0 (the bits of 4·(q2m/w0): scalings by 2 are exact short of overflow and underflow;
+    # 2/w0 > finfo.max, where 1/w0 + 1/w0 overflowed too, makes S infinite and sends the texel to
+    # _kernel; in 2/w0's row for the lower bound, the upper bound keeps 2/w0 for w0).
+    p = np.multiply(q2m, inv2, out=v if bound == "upper" else inv2)
+    np.multiply(p, c["two"], out=p)
     np.multiply(k2, k2, out=s)
-    np.subtract(s, v, out=s)
+    np.subtract(s, p, out=s)
     np.sqrt(s, out=s)  # NaN or inf for an overflow: the texel goes to _kernel
-    # (1 − w0)/2 = (1/w0 − 1)/(2/w0); then lower = ((1 − w0)/2·(S + k2) − y2 q2m)/S.
-    np.add(inv_w0, inv_w0, out=h)
-    np.divide(cm1, h, out=h)
-    np.add(s, k2, out=num)
+    # lower = ((1 − w0)/2·(S + k2) − y2 q2m)/S.
+    num = np.add(s, k2, out=k2)
     np.multiply(num, h, out=num)
-    np.multiply(y2, q2m, out=v)
-    np.subtract(num, v, out=num)
+    np.multiply(y2, q2m, out=y2)
+    np.subtract(num, y2, out=num)
     lower = dest[bound] if bound == "lower" else num
     np.divide(num, s, out=lower)
-    np.clip(lower, 0, 1, out=lower)  # saturate, and a rounded w1 < 0 (NaN stays NaN)
+    # Saturate: a rounded w1 < 0 (every chunk of the bench's input has some) by a maximum with
+    # the zero row (NaN stays NaN), the upper end only where the chunk's largest value (one
+    # reduction, which the finiteness check takes anyway) is above 1 or NaN: np.clip's result bit
+    # for bit, in a cheaper pass.
+    np.maximum(lower, c["zero"], out=lower)
+    top = np.maximum.reduce(lower)
+    if not top <= 1:
+        np.minimum(lower, c["one"], out=lower)
     # Irregular: a pivot below the threshold, or a result that is not finite (the largest of a
     # chunk of values in [0, 1] is a NaN if one of them is: one reduction instead of a mask).
     irregular = None
-    if regular is not None or not np.maximum.reduce(lower) <= 1:
+    if regular is not None or not top <= 1:
         finite = np.isfinite(lower, out=c["mask"][0])
         regular = finite if regular is None else np.logical_and(regular, finite, out=regular)
         irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
         w0 = v
-        np.divide(1, inv_w0, out=w0)
+        np.divide(c["two"], inv2, out=w0)  # 2/(2/w0): the bits of 1/(1/w0)
         np.add(lower, w0, out=dest["upper"])
         np.minimum(dest["upper"], c["one"], out=dest["upper"])
     return irregular if irregular is not None and irregular.size else None
@@ -486,7 +499,7 @@ def _pivots_positive(b, sigma2, xi4, t, c):
 
 def _bound(b, zf, bound, c, dest, refuse):
     """``dest[bound]`` := the bound of Algorithm 1 on a chunk: :func:`_bound_rows`, and :func:`_kernel` on the rest."""
-    if not b[3].max() < np.inf:  # b4 = +inf is the one non-finite input that can leave the result finite
+    if not np.maximum.reduce(b[3]) < np.inf:  # b4 = +inf is the one non-finite input that can leave the result finite
         refuse()
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         rest = _bound_rows(b, zf, bound, c, dest)

@@ -558,7 +558,7 @@ def _chunk_constants(dtype, n, clamp):
 
     Kept between calls (fresh chunk-sized arrays are faulted in from the OS on every call: a
     call of one chunk took 4.5 times the per-texel time of a call of 2^20 texels), per thread
-    so that concurrent calls never share them; 2.6 MB (float32) or 5.2 MB (float64) per clamp a thread used.
+    so that concurrent calls never share them; 5.3 MB (float32) or 10.5 MB (float64) per clamp a thread used.
     """
     cache = _LOCAL.__dict__.setdefault("consts", {})
     key = (np.dtype(dtype).name, clamp, CHUNK)
@@ -668,61 +668,76 @@ def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
     np.absolute(out, out=out)
 
 
-def _shade_about_zf(y1, v2, xi4, zf, gap, out, c):
-    """Algorithm 3's bound where no §3.4 clamp acts, in 33 passes (34 with the gap); the texels it leaves, or None.
+def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
+    """Algorithm 3's bound where no §3.4 clamp acts, in 31 passes (32 with the gap); the texels it leaves, or None.
 
-    In the coordinates of HPG17 §3.4 (y1 → 0, y2 → 1: ``x = z'f``, ``ξ'4 = ξ4/(y2 − y1)⁴``)
-    the moments are those of Algorithm 1 with ``σ² = v1 v2`` (v1 = 1 − v2), ``L32 = 1``, so
-    the forward substitution of step (2) gives ``y2 = x − v2`` and ``y3 = x (x − 1)``, and
-    :func:`moments_ref.msm._bound_rows`'s closed form applies: ``c2 = y2/σ²``, ``q2 = y3/ξ'4``,
-    ``1/w0 − 1 = y2 c2 + y3 q2``, ``k2 = c2 + q2 (2x − 1)`` and, with ``q2m = min(q2, 0)`` and
-    ``S = √(k2² − 4 q2m/w0)``, the bound ``((1 − w0)/2·(S + k2) − y2 q2m)/S``: the weight of
-    the root below zf for ``0 < x < 1`` (Algorithm 3's z_l case), ``1 − w0`` for ``x ≥ 1``
-    (its ``1 − w_l`` with z_l = z'f) and exactly 0 for ``x ≤ 0`` (its early return), without
-    comparisons or masks. A texel whose result is not finite (ξ4 = 0, an overflow) is left
-    to :func:`_shade_kernel`: its flat indices in the chunk are returned.
+    Algorithm 1's closed form (:func:`moments_ref.msm._bound_rows`) in depths measured from y1,
+    ``u = z − y1``: the bound is invariant under this shift, and in these coordinates the
+    two-point distribution of HPG17 §3.4 has its support at 0 and the gap ``G = y2 − y1``, so
+    its moments are ``m1 = v2 G``, ``σ² = v1 v2 G²`` (``v1 = 1 − v2``), ``L32 = G``, and ξ4 is the
+    input's (HPG17 Eq. (5) scales it by ``G⁴`` into the unit coordinates of §3.4, where
+    ``ξ'4 = ξ4/G⁴``). The forward substitution of step (2) at ``X = zf − y1`` gives ``y2 = X − m1``
+    and ``y3 = X (X − G)`` with ``X − G = zf − y2`` (one rounding, and the signs of both
+    factors exact, so the case of Algorithm 3 that applies is decided exactly), so ``c2 = y2/σ²``, ``q2 = y3/ξ4``, ``1/w0 − 1 = y2 c2 + y3 q2`` (a sum of
+    squares: no cancellation near w0 = 1), ``k2 = c2 + q2 (2X − G)`` and, with ``q2m = min(q2, 0)``
+    and ``S = √(k2² − 4 q2m/w0)``, the bound ``((1 − w0)/2·(S + k2) − y2 q2m)/S``: the weight of the
+    root below zf for ``0 < X < G`` (Algorithm 3's z_l case), ``1 − w0`` for ``X ≥ G`` (its
+    ``1 − w_l`` with z_l = z'f) and exactly 0 for ``X ≤ 0`` (its early return), without
+    comparisons or masks. Unlike the unit coordinates (round six) no division by G and no
+    ``G⁴``: three passes fewer. A texel whose result is not finite (ξ4 = 0, an overflow, a
+    non-finite zf: ``X = ±∞`` or NaN makes ``S`` or the quotient NaN, tests/test_nonlinear.py)
+    is left to :func:`_shade_kernel`: its flat indices in the chunk are returned. ``y1``, ``y2``,
+    ``v2`` and ``xi4`` are overwritten (in :func:`shade` they are the chunk's transposed copy,
+    and :func:`_shade_rows` gathers the texels it hands on from ``r``).
     """
-    ws = c["ws"]
-    x, q2, v1, c2, y2n, e, g = ws[:7]
-    np.subtract(zf, y1, out=x)
-    np.divide(x, gap, out=x)
-    np.multiply(gap, gap, out=q2)
-    np.multiply(q2, q2, out=q2)
-    np.divide(xi4, q2, out=q2)  # ξ'4 (q2's row until q2 is known)
-    # Forward substitution in the unit coordinates: y2 = x − v2, y3 = x (x − 1) (in g).
-    np.subtract(1, v2, out=v1)  # array–scalar: one row read, not two
-    np.subtract(x, v2, out=y2n)
-    np.subtract(x, 1, out=e)
+    g, s2, inv_w0 = c["ws"][:3]
+    # Each value goes into the row of an input or a temporary it no longer needs (a pass writing
+    # a row it reads moves two rows, not three): X in y1's, m1 in v2's, zf − y2 in y2's, q2 in ξ4's.
+    # σ² = v1 v2 G² = (1 − v2)·m1·G (1 − v2 is exact for v2 ≥ 1/2: no cancellation near v2 = 1).
+    np.subtract(1, v2, out=s2)  # array–scalar: one row read, not two
+    x = np.subtract(zf, y1, out=y1)  # X = zf − y1
+    m1 = np.multiply(v2, gap, out=v2)  # m1 = v2 G, the mean about y1
+    np.multiply(s2, m1, out=s2)
+    np.multiply(s2, gap, out=s2)
+    # Forward substitution at X: y2 = X − m1 (in m1's row), y3 = X (X − G) (in g), X − G = zf − y2.
+    y2n = np.subtract(x, m1, out=m1)
+    e = np.subtract(zf, y2, out=y2)
     np.multiply(x, e, out=g)
-    np.add(x, e, out=e)  # 2x − 1 = p'(x)'s factor of q2
-    # Scaling: c2 = y2/(v1 v2), q2 = y3/ξ'4, 1/w0 − 1 = y2 c2 + y3 q2 (v1's row), k2 = c2 + q2 (2x − 1).
-    np.multiply(v1, v2, out=c2)
-    np.divide(y2n, c2, out=c2)
-    np.divide(g, q2, out=q2)
-    cm1 = np.multiply(y2n, c2, out=v1)
-    np.multiply(g, q2, out=x)
-    np.add(cm1, x, out=cm1)
-    k2 = np.multiply(e, q2, out=e)
+    e2 = np.add(x, e, out=x)  # 2X − G = p'(X)'s factor of q2
+    # Scaling: c2 = y2/σ², q2 = y3/ξ4, k2 = c2 + q2 (2X − G), 1/w0 − 1 = y2 c2 + y3 q2.
+    c2 = np.divide(y2n, s2, out=s2)
+    q2 = np.divide(g, xi4, out=xi4)
+    k2 = np.multiply(e2, q2, out=e2)
     np.add(k2, c2, out=k2)
-    inv_w0, q2m, v, s = c2, q2, x, g
+    cm1 = np.multiply(y2n, c2, out=c2)
+    np.multiply(g, q2, out=g)
+    np.add(cm1, g, out=cm1)
     np.add(cm1, 1, out=inv_w0)
-    np.minimum(q2, c["zero"], out=q2m)
+    q2m = np.minimum(q2, c["zero"], out=q2)
     # Step (3)–(5) as msm._bound_rows: S = √(k2² − 4 q2m/w0), ((1 − w0)/2·(S + k2) − y2 q2m)/S.
-    np.multiply(q2m, inv_w0, out=v)
-    np.multiply(v, y1.dtype.type(4), out=v)
+    # (1 − w0)/2 = (1/w0 − 1)/(2/w0) with 2/w0 doubled in place and 4 q2m/w0 as 2·q2m·(2/w0): the
+    # same bits as 1/w0 + 1/w0 and 4·(q2m/w0) (scalings by 2 are exact) in two array–scalar passes
+    # writing the rows they read.
+    two, s = y1.dtype.type(2), g
+    inv2 = np.multiply(inv_w0, two, out=inv_w0)
+    h = np.divide(cm1, inv2, out=cm1)
+    p = np.multiply(q2m, inv2, out=inv2)
+    np.multiply(p, two, out=p)
     np.multiply(k2, k2, out=s)
-    np.subtract(s, v, out=s)
+    np.subtract(s, p, out=s)
     np.sqrt(s, out=s)
-    np.add(inv_w0, inv_w0, out=v)
-    np.divide(cm1, v, out=v)  # (1 − w0)/2
-    num = np.add(s, k2, out=cm1)
-    np.multiply(num, v, out=num)
-    np.multiply(y2n, q2m, out=v)
-    np.subtract(num, v, out=num)
+    num = np.add(s, k2, out=k2)
+    np.multiply(num, h, out=num)
+    np.multiply(y2n, q2m, out=y2n)
+    np.subtract(num, y2n, out=num)
     np.divide(num, s, out=out)
-    np.clip(out, 0, 1, out=out)
-    if np.maximum.reduce(out) <= 1:  # NaN propagates: one reduction finds a non-finite result
+    # Saturate as msm._bound_rows: a maximum with the zero row (NaN stays NaN), the upper clamp
+    # only where the largest value (the finiteness check's reduction) is above 1 or NaN.
+    np.maximum(out, c["zero"], out=out)
+    top = np.maximum.reduce(out)
+    if top <= 1:  # NaN propagates: one reduction finds a non-finite result
         return None
+    np.minimum(out, c["one"], out=out)
     return np.flatnonzero(np.logical_not(np.isfinite(out, out=c["mask"]), out=c["mask"]))
 
 
@@ -736,19 +751,28 @@ def _clamped_texels(v2, xi4, gap, c):
     return np.flatnonzero(act)
 
 
-def _shade_rows(cols, zc, out, c, gap, ext, clamp):
-    """One chunk of :func:`shade`: :func:`_shade_about_zf` where no clamp acts, :func:`_shade_kernel` on the rest."""
+def _shade_rows(cols, rchunk, zc, out, c, gap, ext, clamp, refuse):
+    """One chunk of :func:`shade`: :func:`_shade_about_zf` where no clamp acts, :func:`_shade_kernel` on the rest.
+
+    ``cols`` is the chunk's transposed copy of ``rchunk`` (its ``(m, 4)`` rows of r), which the
+    closed form overwrites; the texels it leaves are gathered from ``rchunk``. ``refuse()``
+    raises the error of a non-finite zf: :func:`_chunk_ok` does not reduce zf, and only the
+    texels whose closed-form result is not finite (or where a clamp acts) can hold one.
+    """
     y1, y2, v2, xi4 = cols
     rest = _clamped_texels(v2, xi4, gap, c) if any(_clamps_needed(ext, c).values()) else None
-    left = _shade_about_zf(y1, v2, xi4, zc, gap, out, c)
+    left = _shade_about_zf(y1, y2, v2, xi4, zc, gap, out, c)
     if rest is None or not rest.size:
         rest = left
     elif left is not None:
         rest = np.union1d(rest, left)
     if rest is not None and rest.size:
+        if not np.isfinite(zc[rest]).all():
+            refuse()
         sub = _kernel_constants(cols.dtype, rest.size, clamp)
         res = np.empty(rest.size, dtype=cols.dtype)
-        _shade_kernel(y1[rest], y2[rest], v2[rest], xi4[rest], zc[rest], res, sub)
+        y1r, y2r, v2r, xir = np.ascontiguousarray(rchunk[rest].T)
+        _shade_kernel(y1r, y2r, v2r, xir, zc[rest], res, sub)
         out[rest] = res
 
 
@@ -821,13 +845,14 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     in depth.
 
     Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
-    chunk; finiteness and the domain are checked on the loaded chunk by eight
+    chunk; finiteness and the domain of r are checked on the loaded chunk by six
     min/max reductions (the full checks run only to raise), which also tell which
-    §3.4 clamps can act in the chunk. Where no clamp acts on a texel (every texel of
-    filtered moments) the bound is Algorithm 1's closed form in the unit coordinates of
-    §3.4 (``_shade_about_zf``: the three cases above in one expression, 34 ufunc passes with
-    the gap, no selection); the texels where a clamp acts, and those where the closed form
-    is not finite (ξ4 = 0, an overflow), take the clamped algorithm above (``_shade_kernel``,
+    §3.4 clamps can act in the chunk; a non-finite zf shows as a non-finite result. Where no
+    clamp acts on a texel (every texel of filtered moments) the bound is Algorithm 1's closed
+    form in depths measured from y1 (``_shade_about_zf``: the three cases above in one
+    expression, 32 ufunc passes with the gap, no selection, four of them writing into the rows
+    of the chunk's copy of r that they read); the texels where a clamp acts,
+    and those where the closed form is not finite (ξ4 = 0, an overflow), take the clamped algorithm above (``_shade_kernel``,
     43 passes, 47 with every clamp), decided per texel, so the result does not depend on the
     chunk size; the two agree within 4 ulps of 1 (tests/test_nonlinear.py). The measurements
     are in docs/bench.md ("Kernel history").
@@ -860,7 +885,8 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
             ext = _chunk_ok(cols, zc, gap, tol)
             if ext is None:
                 _refuse(r, zf, cols, start, shape)  # raises for every input that is refused
-            _shade_rows(cols, zc, out[start:stop], c, gap, ext, clamp)
+            _shade_rows(cols, rflat[start:stop], zc, out[start:stop], c, gap, ext, clamp,
+                        lambda: _refuse(r, zf))
     return out.reshape(shape)
 
 
@@ -877,7 +903,7 @@ def _clamp_v2_and_gap(v2, gap, need, c):
 def _clamps_needed(ext, c):
     """Which of :func:`_shade_kernel`'s clamps can change a value of a chunk with extremes ``ext``.
 
-    ``ext`` = (min, max) of the gap y2 − y1, of v2, of ξ4 and of zf (:func:`_chunk_ok`),
+    ``ext`` = (min, max) of the gap y2 − y1, of v2 and of ξ4 (:func:`_chunk_ok`),
     or None (every clamp runs). ``max(v2, lo)`` is v2 where v2 ≥ lo, and so on; ξ'4 =
     ξ4 / max(gap, lo)⁴ is at least ``min ξ4 / max(gap, lo)⁴`` up to three roundings of
     the power and one of the quotient (a relative 2^-21 in float32), so a margin of 2
@@ -895,7 +921,7 @@ def _clamps_needed(ext, c):
 
 
 def _chunk_ok(cols, zc, gap, tol):
-    """The chunk's extremes if a chunk of ``shade`` is finite and in the domain, else None (eight reductions).
+    """The chunk's extremes if a chunk of ``shade``'s ``r`` is finite and in the domain, else None (six reductions).
 
     ``gap = y2 − y1``. Minima and maxima are finite exactly when every value is
     (NaN propagates through them); those of the gap cover y1 and y2 (an infinite
@@ -903,12 +929,17 @@ def _chunk_ok(cols, zc, gap, tol):
     so ``max(y1 − y2) > tol`` is ``min(gap) < −tol``. A finite gap that overflows
     only sends the chunk to the full checks. None sends the call to
     :func:`_refuse`, which raises the error of the full checks. The extremes
-    (min and max of the gap, v2, ξ4, zf; empty for an empty chunk) tell
-    :func:`_shade_kernel` which clamps it can skip.
+    (min and max of the gap, v2, ξ4; empty for an empty chunk) tell
+    :func:`_shade_kernel` which clamps it can skip. ``zc`` is not reduced (it was, two
+    reductions, until issue 41 round seven): a non-finite zf makes the closed form's result
+    NaN on every texel whose ``r`` passes these checks (:func:`_shade_about_zf`;
+    tests/test_nonlinear.py enumerates the domain's edges), and :func:`_shade_rows` checks zf
+    on the texels whose result is not finite before the clamped kernel sees them.
     """
     if cols.shape[1] == 0:
         return []
-    ext = [gap.min(), gap.max(), cols[2].min(), cols[2].max(), cols[3].min(), cols[3].max(), zc.min(), zc.max()]
+    lo, hi = np.minimum.reduce, np.maximum.reduce
+    ext = [lo(gap), hi(gap), lo(cols[2]), hi(cols[2]), lo(cols[3]), hi(cols[3])]
     ok = (np.isfinite(ext).all() and ext[0] >= -tol and ext[2] >= -tol and ext[3] <= 1 + tol
           and ext[4] >= -tol)
     return ext if ok else None

@@ -137,6 +137,23 @@ def test_a_floor_probe_does_the_kernels_data_movement():
     assert np.array_equal(pass_probe(b, zf, 6, 64)(), b[:, 1] * b[:, 2])  # pass 5 multiplies columns 1 and 2
 
 
+def test_a_floor_probe_with_in_place_passes_counts_them_as_the_kernel_does():
+    # Round seven: of the kernels' passes only THIRD_ROW write a third row; the probe's others
+    # add a column in place. Its output is the last product plus one column per in-place pass,
+    # in order, and never fewer than one product (the adds start from finite values).
+    from moments_ref.tools.bench._probes import PASSES, THIRD_ROW, pass_probe
+
+    rng = np.random.default_rng(1)
+    b = rng.uniform(-1, 1, (1000, 4)).astype(np.float32)
+    zf = rng.uniform(-1, 1, 1000).astype(np.float32)
+    want = b[:, 1] * b[:, 2]
+    for j in range(5):
+        want = want + b[:, j % 4]
+    assert np.array_equal(pass_probe(b, zf, 7, 64, 2)(), want)
+    assert np.array_equal(pass_probe(b, zf, 2, 64, 0)(), b[:, 0] * b[:, 1] + b[:, 0])
+    assert set(THIRD_ROW) <= set(PASSES) and all(0 < THIRD_ROW[k] <= PASSES[k] for k in THIRD_ROW)
+
+
 def test_the_scatter_min_floor_probe_is_the_rasterizers_depth_test():
     # The probe scatters exactly the covered samples with their depths: its map is the rasterizer's.
     from moments_ref.scene.raster import rasterize_depth, small_triangles

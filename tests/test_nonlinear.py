@@ -483,3 +483,41 @@ def test_shade_skips_only_the_clamps_that_change_nothing(dtype):
         assert np.abs(got[~acts] - want[~acts]).max(initial=0) <= 4 * np.finfo(dtype).eps
     ext = nl._chunk_ok(np.ascontiguousarray(base.T), zf, base[:, 1] - base[:, 0], 1e-6)
     assert not any(nl._clamps_needed(ext, consts).values())  # filtered moments skip all four
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_a_non_finite_zf_makes_the_closed_form_non_finite(dtype):
+    # shade does not reduce zf per chunk (issue 41, round seven): it relies on a non-finite zf
+    # sending _shade_about_zf's result to NaN (then _shade_rows refuses the call before the
+    # clamped kernel sees it). Enumerated over the edges of the domain that _chunk_ok lets
+    # through (y1 ≤ y2, v2 ∈ [0, 1], ξ4 ≥ 0, each up to the rounding tolerance, every value
+    # finite), and through the public function with the bad zf among good texels of a
+    # chunk after the first: InputError naming zf and the first bad index. Dropping the zf
+    # check of _shade_rows fails the second half.
+    fi, tol = np.finfo(dtype), float(nl.rounding_tolerance(dtype))
+    big = float(fi.max) / 4
+    y1s = [-big, -1.0, -0.0, 0.0, float(fi.tiny), 1.0, big]
+    gaps = [0.0, float(fi.smallest_subnormal), float(fi.tiny), 1e-6, 1.0, big]
+    v2s = [-tol, -0.0, 0.0, 1e-7, 0.5, 1 - 1e-7, 1.0, 1 + tol]
+    xis = [-tol, -0.0, 0.0, float(fi.smallest_subnormal), float(fi.tiny), 1e-30, 1.0, big]
+    grid = np.array(np.meshgrid(y1s, gaps, v2s, xis, indexing="ij"), dtype).reshape(4, -1)
+    y1, gap, v2, xi4 = grid
+    y2 = (y1 + gap).astype(dtype)
+    assert np.isfinite(y2).all() and (y2 - y1 >= -tol).all()
+    n = y1.size
+    for bad in (np.inf, -np.inf, np.nan):
+        out = np.empty(n, dtype)
+        c = nl._kernel_constants(dtype, n)
+        with np.errstate(all="ignore"):
+            nl._shade_about_zf(y1.copy(), y2.copy(), v2.copy(), xi4.copy(), np.full(n, bad, dtype),
+                               (y2 - y1).astype(dtype), out, c)
+        assert not np.isfinite(out).any(), grid[:, np.isfinite(out)].T[:3]
+    rng = np.random.default_rng(3)
+    n, first = nl.CHUNK + 3000, nl.CHUNK + 17
+    b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4))), BIAS_FLOAT32).astype(dtype)
+    r, zf = nl.phi(b), rng.uniform(-1, 1, n).astype(dtype)
+    for bad in (np.inf, -np.inf, np.nan):
+        z = zf.copy()
+        z[[first, n - 1]] = bad
+        with pytest.raises(InputError, match=rf"zf: expected finite.*index \({first},\)"):
+            nl.shade(r, z)

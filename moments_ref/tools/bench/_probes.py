@@ -4,35 +4,37 @@ A shading kernel of this package (Algorithm 1, Algorithm 3, the six-moment bound
 ``(n, k)`` moment rows, copies each chunk of them into ``k`` contiguous columns (one
 transposing copy), runs its ufunc passes over chunk-long rows and writes a fresh ``(n,)``
 result. A probe does exactly that with the arithmetic replaced by ``passes`` float
-multiplications over the same chunk-long rows: with ``passes = 0`` it is the floor of any
+passes over the same chunk-long rows, as many of them writing a third row as the kernel's
+(:data:`THIRD_ROW`; the others add in place): with ``passes = 0`` it is the floor of any
 kernel written this way (the transposing copy and the first touch of the output), with
 the kernel's own count of passes it is that count's floor. The bench measures both in the
 same run as the kernel and prints them beside it, against the same copy, so that a floor
 is a measurement, not a figure in the text.
 
-Nothing here is asserted by the tests: probes are read, not enforced.
+Nothing here asserts a timing in the tests: probes are read, not enforced.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pass_probe", "scatter_probe", "PASSES"]
+__all__ = ["pass_probe", "scatter_probe", "PASSES", "THIRD_ROW"]
 
 #: Ufunc passes per chunk of each kernel's common path, counted in its code (float and
 #: boolean passes alike; the rare singular or out-of-domain texels are handed elsewhere).
 PASSES = {
     # msm._bound_rows: 9 Cholesky, 5 forward substitution, 5 scaling and 1/w0 − 1, 4 k2 = p'(zf),
     # 1/w0 and min(q2, 0), 5 the discriminant (its square root one), 2 (1 − w0)/2, 5 the weight
-    # and 1 saturate (issue 41, round six; 49 before); its four reductions (pivots, b4, the
-    # results' finiteness) are not counted
+    # and 1 saturate (issue 41, round six; 49 before; since round seven 2/w0 is doubled in place,
+    # the same count); its four reductions (pivots, b4, the results' finiteness) are not counted
     "shadow_intensity float32": 38,
-    # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 5 z'f and ξ'4,
-    # 5 the forward substitution in unit coordinates, 8 scaling, 1/w0 − 1 and k2, 2 1/w0 and
-    # min(q2, 0), 5 the discriminant, 2 (1 − w0)/2, 6 the weight and saturate (round six; 43
-    # before); the texels where a §3.4 clamp acts (none of filtered moments) take the clamped
-    # kernel
-    "shade float32": 34,
+    # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 2 X = zf − y1 and
+    # m1 = v2 G, 3 σ² = (1 − v2) m1 G, 3 the forward substitution about y1 and 1 2X − G, 9 scaling,
+    # k2, 1/w0 − 1, 1/w0 and min(q2, 0), 5 the discriminant, 2 (1 − w0)/2 (2/w0 doubled in place),
+    # 5 the weight and 1 saturate (round seven: depths measured from y1; 34 in round six, 43
+    # before); its seven reductions (the domain and the results' finiteness) are not counted;
+    # the texels where a §3.4 clamp acts (none of filtered moments) take the clamped kernel
+    "shade float32": 32,
     # msm6._bounds on float32 (moments_ref._msm6_bound.bound_rows): 23 Cholesky, 11 forward
     # substitution by the recurrence, 8 the signs, case masks and σ's sign bit, 5 the derivatives
     # at zf, 11 the Gauss–Radau cubic, 4 λ and y1 (y1 − K1) + D1, 4 Blinn's B, C, D, 10 Blinn's
@@ -42,17 +44,34 @@ PASSES = {
     "shadow_intensity six moments float32": 109,
 }
 
+#: Of :data:`PASSES`, those that write a third row (read two rows and write a row neither of
+#: them is): since round seven the two kernels above write every other value into a row they
+#: read (two rows moved instead of three), and their probes do the same (an in-place add
+#: stands for each of those passes). A kernel missing here counts every pass as a third row.
+THIRD_ROW = {
+    # b1 b2, L32 = (b3 − b1 b2)/σ², y2 = zf − b1, L32 y2, the bound into the output
+    "shadow_intensity float32": 5,
+    # the gap, y3 = X (X − G), the bound into the output (since round seven's second pass X, m1,
+    # zf − y2 and q2 go into the rows of the chunk's transposed copy of r: 7 before)
+    "shade float32": 3,
+}
 
-def pass_probe(b, zf, passes, chunk):
-    """A callable doing a kernel's data movement on ``(b, zf)`` with ``passes`` multiplications per chunk.
+
+def pass_probe(b, zf, passes, chunk, third_row=None):
+    """A callable doing a kernel's data movement on ``(b, zf)`` with ``passes`` float passes per chunk.
 
     ``b`` is ``(n, k)``, ``zf`` ``(n,)``; per chunk of ``chunk`` rows: the transposing copy
-    into ``k`` reused rows, ``passes`` multiplications of chunk-long rows into a reused
-    temporary, and the chunk's result written into a fresh ``(n,)`` output.
+    into ``k`` reused rows, ``passes`` passes over chunk-long rows, and the chunk's result
+    written into a fresh ``(n,)`` output. The first ``third_row`` passes (default: all) are
+    multiplications of two columns into a reused temporary (three rows moved), the others
+    add a column to that temporary in place (two rows moved), as :data:`THIRD_ROW` counts
+    the kernels' passes.
     """
     n, k = b.shape
     rows = np.empty((k, min(chunk, n)), dtype=b.dtype)
     tmp = np.empty(min(chunk, n), dtype=b.dtype)
+    # at least one product, so that the in-place adds start from finite values
+    third = passes if third_row is None else max(min(third_row, passes), min(passes, 1))
 
     def run():
         out = np.empty(n, dtype=b.dtype)
@@ -61,8 +80,10 @@ def pass_probe(b, zf, passes, chunk):
             cols = rows[:, : hi - lo]
             np.copyto(cols, b[lo:hi].T)
             t = tmp[: hi - lo]
-            for i in range(passes):  # inputs left unchanged: no denormals, no overflow
+            for i in range(third):  # inputs left unchanged: no denormals, no overflow
                 np.multiply(cols[i % k], cols[(i + 1) % k], out=t)
+            for i in range(passes - third):  # a sum of at most a few hundred inputs: no overflow
+                np.add(t, cols[i % k], out=t)
             np.copyto(out[lo:hi], zf[lo:hi] if passes == 0 else t)
         return out
 
