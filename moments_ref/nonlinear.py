@@ -728,14 +728,12 @@ def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
     np.sqrt(s, out=s)
     num = np.add(s, k2, out=k2)
     np.multiply(num, h, out=num)
-    np.multiply(y2n, q2m, out=y2n)
-    np.subtract(num, y2n, out=num)
+    np.subtract(num, np.multiply(y2n, q2m, out=y2n), out=num)
     np.divide(num, s, out=out)
     # Saturate as msm._bound_rows: a maximum with the zero row (NaN stays NaN), the upper clamp
     # only where the largest value (the finiteness check's reduction) is above 1 or NaN.
     np.maximum(out, c["zero"], out=out)
-    top = np.maximum.reduce(out)
-    if top <= 1:  # NaN propagates: one reduction finds a non-finite result
+    if np.maximum.reduce(out) <= 1:  # NaN propagates: one reduction finds a non-finite result
         return None
     np.minimum(out, c["one"], out=out)
     return np.flatnonzero(np.logical_not(np.isfinite(out, out=c["mask"]), out=c["mask"]))
