@@ -42,9 +42,9 @@ chunk that has such a texel.
 
 Passes over a float32 chunk for the lower bound: 23 Cholesky, 11 forward substitution,
 8 the signs, the case masks and σ's sign bit, 5 the derivatives at zf, 11 the Radau cubic,
-4 λ and ``A = y1 (y1 − K1) + D1``, 4 Blinn's B, C, D, 10 Blinn's form and σ, 3 u, 8
-cos(arccos(σr)/3) (a rational function, :data:`COS_THIRD_RATIONAL`), 2 the root, 10 its
-weight, 6 step (5) and saturate: 105, and four
+4 λ and ``A = y1 (y1 − K1) + D1``, 4 Blinn's B, C, D, 9 Blinn's form and σ (in halves:
+:func:`_root`), 3 ``v = √2 u``, 8 cos(arccos(σr)/3) (a rational function,
+:data:`COS_THIRD_RATIONAL`), 2 the root, 10 its weight, 6 step (5) and saturate: 104, and four
 reductions (the Christoffel kernel: 128 and five). The upper bound 3 more.
 """
 
@@ -66,6 +66,9 @@ __all__ = ["COS_THIRD_RATIONAL", "U_MIN", "bound_rows"]
 #: at u = −1: the poles stand in for that singularity.
 COS_THIRD_RATIONAL = (0.22876956086134295, 2.0743746258858473, -5.766828281376259, -8.201217143670977,
                       -1.4929475051953751, -0.22728344576288395)
+
+#: :data:`COS_THIRD_RATIONAL` for ``2 cos(⅔·arccos(v/√2))``, v = √2·u (:func:`_root`), same layout.
+_COS_THIRD_V = tuple(float(x * f) for x, f in zip(COS_THIRD_RATIONAL, (2 ** 0.5, 2, 2 ** 0.5, 8 ** 0.5, 2 ** 0.5, 8 ** 0.5)))
 
 #: Smallest ``u = √((1 + σr)/2)`` left to the fast path: below it the root the bound needs and
 #: its neighbour nearly meet and the texel takes the Christoffel weight (module docstring).
@@ -140,49 +143,52 @@ def _solve(b, zf, ldl, w):
 
 
 def _root(cubic, w):
-    """Step 3: ``(−t, ms·c, B, C, 3ℓ, u)``: the root the bound needs, negated, and what its weight uses.
+    """Step 3: ``(−t, ms·c, B, C, 3ℓ, v)``: the root the bound needs, negated, what its weight uses, and ``v = √2·u``.
 
     ``cubic = (K1, K2, ℓ)``: P(t) = ℓ t³ + K2 t² + K1 t + 1, Blinn's form as
     :func:`moments_ref.msm6._blinn` (``Δ0' = B² − C = −Δ0``), σ from the sign bit of y3
-    (``ms = copysign(2m, y3) = −σ·2m``).
+    (``ms = copysign(2m, y3) = −σ·2m``), written in halves: with ``sm = ms/2`` (``m = √Δ0'``),
+    ``H = D/2 − (C/2 − Δ0') B`` (msm6's ``−(B (C + 2Δ0) − D)/2``) and ``X = sm·Δ0'``, msm6's
+    ``σr/2 = H/(2X)``, so ``v² = 2u² = 1 + σr = (H + X)/X`` (no 4Δ0', 2Δ0' or ½ pass), and the
+    factor 2 of ``ms`` and the √2 of ``u = v/√2`` go into the constants of
+    :data:`COS_THIRD_RATIONAL` (``2c(v/√2) = √2 a v + 2k + Σ 2√2 A_i/(v − √2 p_i)``).
     """
     k1, k2, ell = cubic
-    e3, dd, cc, bb, dp, h2, dep, ms, den = (w[x] for x in ("d2", "l32", "c1", "c2", "y2", "y3", "l21", "c3", "t"))
+    e3, dd, cc, bb, dp, x, g, sm, t = (w[n] for n in ("d2", "l32", "c1", "c2", "y2", "y3", "l21", "c3", "t"))
     np.multiply(ell, 3, out=e3)
     np.divide(w["block"][16:18], e3, out=w["block"][12:14])  # (K1, K2)/(3ℓ) = (C, B)
-    np.divide(1, ell, out=dd)
+    np.divide(0.5, ell, out=dd)  # D/2
     np.multiply(bb, bb, out=dp)
-    np.subtract(dp, cc, out=dp)
-    np.multiply(dp, 2, out=h2)
-    # −(B (C + 2Δ0) − D) = D − B (C − 2Δ0'); σr/2 = that / (ms·2Δ0')
-    np.subtract(cc, h2, out=dep)
-    np.multiply(dep, bb, out=dep)
-    np.subtract(dd, dep, out=dep)
-    np.multiply(dp, 4, out=ms)
-    np.sqrt(ms, out=ms)
+    np.subtract(dp, cc, out=dp)  # Δ0'
+    # H = D/2 − (C/2 − Δ0') B
+    np.multiply(cc, 0.5, out=g)
+    np.subtract(g, dp, out=g)
+    np.multiply(g, bb, out=g)
+    np.subtract(dd, g, out=dd)
+    np.sqrt(dp, out=sm)
     it = w["bits"].dtype
-    np.bitwise_xor(ms.view(it), w["bits"], out=ms.view(it))
-    np.multiply(ms, h2, out=den)
-    u = dd  # D's row, free: u stays until the bound's checks
-    np.divide(dep, den, out=u)
-    np.add(u, 0.5, out=u)
-    np.sqrt(u, out=u)  # NaN for σr < −1 (rounding at a double root): handed back
-    # cos(arccos(σr)/3) (msm6._cos_third) as COS_THIRD_RATIONAL's a u + k + A1/(u − p1) + A2/(u − p2)
-    c, t = dep, den
-    a, k, p1, a1, p2, a2 = COS_THIRD_RATIONAL
-    np.subtract(u, p1, out=c)
+    np.bitwise_xor(sm.view(it), w["bits"], out=sm.view(it))  # sm = copysign(√Δ0', y3)
+    np.multiply(sm, dp, out=x)
+    v = dd  # H's row: v stays until the bound's checks
+    np.add(dd, x, out=v)
+    np.divide(v, x, out=v)
+    np.sqrt(v, out=v)  # NaN for σr < −1 (rounding at a double root): handed back
+    # 2 cos(arccos(σr)/3) (msm6._cos_third) by COS_THIRD_RATIONAL in v = √2 u (docstring)
+    c = g
+    a, k, p1, a1, p2, a2 = _COS_THIRD_V
+    np.subtract(v, p1, out=c)
     np.divide(a1, c, out=c)
-    np.subtract(u, p2, out=t)
+    np.subtract(v, p2, out=t)
     np.divide(a2, t, out=t)
     np.add(c, t, out=c)
-    np.multiply(u, a, out=t)
+    np.multiply(v, a, out=t)
     np.add(c, t, out=c)
     np.add(c, k, out=c)
-    # t = σ·2m·c − B, kept as −t = ms·c + B
-    s, nt = den, dp
-    np.multiply(ms, c, out=s)
+    # t = σ·2m·c − B, kept as −t = ms·c + B = sm·2c + B
+    s, nt = t, dp
+    np.multiply(sm, c, out=s)
     np.add(s, bb, out=nt)
-    return nt, s, bb, cc, e3, u
+    return nt, s, bb, cc, e3, v
 
 
 def bound_rows(b, zf, w, dest):
@@ -203,8 +209,8 @@ def bound_rows(b, zf, w, dest):
     # A non-finite zf (or one so large that y2 or y3 overflows) makes y3 NaN (∞ − ∞ through β2 y1 > 0
     # or γ = ∞/∞), and with it the result: such texels are handed back by the result's check.
     y1, A, k1, k2, ell, lam = _solve(b, zf, ldl, w)
-    nt, s, bb, cc, e3, u = _root((k1, k2, ell), w)
-    umin = np.minimum.reduce(u)
+    nt, s, bb, cc, e3, v = _root((k1, k2, ell), w)
+    vmin, v_min = np.minimum.reduce(v), 2 ** 0.5 * U_MIN  # v = √2 u
     # (4) w_a = (ℓ(1 − w0) t² − A t + y1) / P'(t), A = y1² + D1 − K1 y1, with t = −nt,
     # P'(t) = 3ℓ·((t + 2B) t + C) and ℓ(1 − w0) = ℓ − λ (module docstring).
     cm1, N, Q = w["e"], w["c3"], s
@@ -233,10 +239,10 @@ def bound_rows(b, zf, w, dest):
     np.maximum(lower, w["zero"], out=lower)
     hi = np.maximum.reduce(lower)
     rest = pre
-    if not (umin >= U_MIN and hi < np.inf):  # NaN fails every comparison
+    if not (vmin >= v_min and hi < np.inf):  # NaN fails every comparison
         keep, near = w["mask"][0], w["mask"][1]
         np.isfinite(lower, out=keep)
-        np.greater_equal(u, U_MIN, out=near)
+        np.greater_equal(v, v_min, out=near)
         np.logical_and(keep, near, out=keep)
         post = np.flatnonzero(np.logical_not(keep, out=keep))
         rest = post if pre is None else np.union1d(pre, post)
