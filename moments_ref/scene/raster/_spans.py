@@ -113,7 +113,8 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
     _DENSE_ROWS is 0) take the ragged int64 path.
     """
     S = sx.shape[0]
-    A3, B3, F3 = s["A"], s["B"], s["F0"]
+    # The edges in _rect_bounds' order, once for the chunk (the ragged path takes them in any order).
+    A3, B3, F3 = _edge_order(s["A"], s["B"], s["F0"])
     # Edge functions at the centre of each box's first pixel, exact in int64.
     base3 = F3 + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
     mine = np.ones(nr.size, bool) if taken is None else ~taken
@@ -134,7 +135,8 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
         for a in range(0, sel.size, step):
             g = sel[a:a + step]
             a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3d, B3d, based))
-            j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k), sx, sy)
+            j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k), sx, sy,
+                                                  presorted=True)
             yield (g if tri is None else tri[g])[j], row, samp, col0, cnt
     rest = np.flatnonzero((~dense if _DENSE_ROWS <= 0 else ~safe) & mine)
     for g0, g1 in _groups(nr[rest] * S, _ROW_BUDGET):
@@ -250,14 +252,15 @@ def _ramp(n, step, dtype=np.int64):
     return r[:n]
 
 
-def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
+def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy, presorted=False):
     """As :func:`_row_spans` for boxes of at most k rows, on a dense (k, S, n) layout in float64.
 
-    The bounds are :func:`_rect_bounds`'; this keeps the nonempty rows.
+    The bounds are :func:`_rect_bounds`' (``presorted``: the edges already in :func:`_edge_order`'s
+    order); this keeps the nonempty rows.
     """
     S = sx.shape[0]
     n = nr.size
-    lo, cnt = _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy)
+    lo, cnt = _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, presorted=presorted)
     if k >= 12:
         # The nonempty rows in (row, sample, triangle) order: np.nonzero of the 3-d mask gives the
         # three indices without integer divisions. Quicker for tall boxes (the bench's mid-size
@@ -273,7 +276,20 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy):
             cnt.ravel()[keep].astype(np.int64))
 
 
-def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None):
+def _edge_order(A3, B3, F3):
+    """The (3, n) edge arrays with each triangle's edges in the order (one with a > 0, one with a < 0, the third).
+
+    The A of a closed triangle sum to 0 and are not all 0, so both exist (:func:`_rect_bounds`).
+    One fancy index over the three rows: np.take_along_axis costs some 15 µs a call in Python
+    (1.5 ms a call of the bench's mid-size case when it ran per batch).
+    """
+    n = A3.shape[1]
+    i_pos, i_neg = np.argmax(A3, axis=0), np.argmin(A3, axis=0)
+    flat = np.stack([i_pos, i_neg, 3 - i_pos - i_neg]) * n + np.arange(n)
+    return tuple(np.take(x, flat) for x in (A3, B3, F3))
+
+
+def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None, presorted=False):
     """First covered column and count of every (row, sample, box) of boxes of at most k rows: (k, S, n) float64.
 
     Dense and triangle-innermost: the broadcast ufuncs run over contiguous rows
@@ -287,7 +303,7 @@ def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None):
     For larger layouts the edges of each triangle are taken in the order (one with
     a > 0, one with a < 0, the third): the A of a closed triangle sum to 0 and are not
     all 0, so both exist, and the first two bound only the first resp. the last column
-    (no masks).
+    (no masks). ``presorted``: the caller gave them in that order (:func:`_edge_order`).
     The bounds are maxima of the same values in another order, so they are the same.
     """
     S = sx.shape[0]
@@ -296,10 +312,8 @@ def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None):
     # Sorting the edges costs about 15 passes over the n triangles, and saves 6 over the
     # k S n rows: only for k S >= 3.
     ordered = k * S >= 3
-    if ordered:
-        i_pos, i_neg = np.argmax(A3, axis=0), np.argmin(A3, axis=0)
-        order = np.stack([i_pos, i_neg, 3 - i_pos - i_neg])
-        A3, B3, base3 = (np.take_along_axis(x, order, axis=0) for x in (A3, B3, base3))
+    if ordered and not presorted:
+        A3, B3, base3 = _edge_order(A3, B3, base3)
     d3 = np.where(A3 == 0, -2.0 ** -40, -np.abs(A3 * _SUB).astype(np.float64))
 
     def bound(e, out):
