@@ -261,19 +261,15 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy, presorted=False):
     S = sx.shape[0]
     n = nr.size
     lo, cnt = _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, presorted=presorted)
-    if k >= 12:
-        # The nonempty rows in (row, sample, triangle) order: np.nonzero of the 3-d mask gives the
-        # three indices without integer divisions. Quicker for tall boxes (the bench's mid-size
-        # case, 0.8 of the time with the rest of this round's changes); for boxes of a few rows
-        # (its small triangles, 1× and 4×) the flat indices and two divisions are.
-        keep = cnt > 0
-        r, samp, j = np.nonzero(keep)
-        return j, r0[j] + r, samp, c0[j] + lo[keep].astype(np.int64), cnt[keep].astype(np.int64)
+    # The nonempty rows in (row, sample, triangle) order: their flat positions (r S + sample) n + j,
+    # split by one division by the scalar n (NumPy divides by a scalar without a hardware division)
+    # and a shift and a mask (S = 1, 4, 8); lo and cnt gathered at the positions. On the bench's
+    # mid-size case 0.73 of the time of np.nonzero of the 3-d mask with two boolean indexes (which
+    # costs about 5 ns an element of the layout, against 1 for np.flatnonzero).
     keep = np.flatnonzero(cnt > 0)
     rs, j = np.divmod(keep, n)
-    r, samp = np.divmod(rs, S)
-    return (j, r0[j] + r, samp, c0[j] + lo.ravel()[keep].astype(np.int64),
-            cnt.ravel()[keep].astype(np.int64))
+    r, samp = rs >> (S.bit_length() - 1), rs & (S - 1)
+    return j, r0[j] + r, samp, c0[j] + np.take(lo, keep).astype(np.int64), np.take(cnt, keep).astype(np.int64)
 
 
 def _edge_order(A3, B3, F3):
