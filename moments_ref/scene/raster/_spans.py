@@ -184,6 +184,7 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
     tri_inside = s["inside"]  # every covered sample's depth provably in [-1, 1] (_triangles._depth_inside)
+    all_inside = bool(tri_inside.all())  # once for the chunk, not a gather per span row
     # Offsets of a box's pixel centres from vertex 0, per triangle (integers, exact).
     cx, cy = _HALF - s["X"][0], _HALF - s["Y"][0]
     rows = (batches or _row_batches)(s, c0, nc, r0, nr, safe, sx, sy)
@@ -192,8 +193,8 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
         zbY = s["zb"][i_row] * (row * _SUB + sy[samp] + cy[i_row])
         z0, za = s["z0"][i_row], s["za"][i_row]
         flat0 = (row * w + col0) * S + samp
-        if tri_inside[i_row].all():
-            inside = np.ones(cnt.size, bool)
+        if all_inside or tri_inside[i_row].all():
+            inside = None  # every row's depths in [-1, 1]
         else:
             # z is monotone along a row (each rounding step is), so a row whose first and
             # last sample lie in [-1, 1] needs no depth-clip test per sample.
@@ -213,7 +214,7 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
             z += _ramp(n, _SUB, np.float64)
             z *= rep(za[b])
             z += rep(z0[b])
-            ins = bool(inside[b].all())
+            ins = inside is None or bool(inside[b].all())
             # The last addition rounds straight to dtype when no depth needs a clip test.
             z = np.add(z, rep(zbY[b]), out=z if not ins or dtype == np.float64 else np.empty(n, dtype))
             flat = rep(flat0[b] - start * S)
