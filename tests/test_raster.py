@@ -666,6 +666,41 @@ def test_span_rows_are_the_samples_inside_all_three_edges(seed, samples, dense_r
     assert got == want
 
 
+@settings(max_examples=30)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 4, 8]))
+def test_span_edges_presorted_once_give_the_bounds_of_sorting_per_batch(seed, samples):
+    # _row_batches puts the edges in _rect_bounds' order once per chunk (_edge_order) and passes
+    # presorted=True; the bounds must be those _rect_bounds computes when it sorts them itself.
+    # The order itself: per triangle a permutation of its three edges, a > 0 first, a < 0 second.
+    # Power: the same call with the first two edges swapped and presorted=True must differ.
+    from moments_ref.scene.raster import _spans
+    from moments_ref.scene.raster._matrices import _D3D11_PATTERN, _HALF, _SUB
+
+    rng = np.random.default_rng(seed)
+    n, k = 40, int(rng.integers(1, 9))
+    s, X, Y = _setup_from_window(rng.integers(-200, 12 * 256, (3, n)), rng.integers(-200, 12 * 256, (3, n)))
+    A3, B3, F3 = s["A"], s["B"], s["F0"]
+    oA, oB, oF = _spans._edge_order(A3, B3, F3)
+    assert (oA[0] > 0).all() and (oA[1] < 0).all()
+    key = lambda a, b, f: np.sort(np.stack([a, b, f], -1).view([("", a.dtype)] * 3), axis=0)
+    assert (key(oA, oB, oF) == key(A3, B3, F3)).all()
+    pat = np.asarray(_D3D11_PATTERN[samples], dtype=np.int64) * 16
+    sx, sy = pat[:, 0], pat[:, 1]
+    m = oA.shape[1]
+    c0, r0 = rng.integers(0, 10, m), rng.integers(0, 10, m)
+    nc, nr = rng.integers(1, 6, m), np.full(m, k)
+    base = lambda a, b, f: f + a * (c0 * _SUB + _HALF) + b * (r0 * _SUB + _HALF)
+    lo, cnt = _spans._rect_bounds(A3, B3, base(A3, B3, F3), nc, nr, k, sx, sy)
+    lo2, cnt2 = _spans._rect_bounds(oA, oB, base(oA, oB, oF), nc, nr, k, sx, sy, presorted=True)
+    np.testing.assert_array_equal(np.maximum(cnt, 0), np.maximum(cnt2, 0))
+    np.testing.assert_array_equal(np.where(cnt > 0, lo, 0), np.where(cnt2 > 0, lo2, 0))
+    if k * samples >= 3:
+        sw = [1, 0, 2]
+        lo3, cnt3 = _spans._rect_bounds(oA[sw], oB[sw], base(oA, oB, oF)[sw], nc, nr, k, sx, sy, presorted=True)
+        assert not (np.array_equal(np.maximum(cnt3, 0), np.maximum(cnt, 0))
+                    and np.array_equal(np.where(cnt3 > 0, lo3, 0), np.where(cnt > 0, lo, 0)))
+
+
 @settings(max_examples=40)
 @given(st.lists(st.integers(1, 40), min_size=1, max_size=60))
 def test_span_repeater_is_np_repeat(counts):
