@@ -141,13 +141,17 @@ def _resolve_chunk(z, out):
         out[:] = power_moments(z, axis=-1, n=4).T
         return
     zs = np.ascontiguousarray(z.T)
-    p = zs.copy()
+    p = zs  # the powers z^(k+1), one row per sample; z itself is not copied
     acc = np.empty(z.shape[0], z.dtype)
     tmp = np.empty_like(acc)
     for k in range(4):
         if n < 8:
-            np.add(p[0], 0.0, out=acc)  # NumPy's sum starts from +0: -0.0 samples sum to +0.0
-            for s in range(1, n):
+            # NumPy's sum starts from +0: -0.0 samples sum to +0.0. Only odd powers can
+            # be -0.0 (z = -0.0, or z³ underflowing from a tiny negative z); an even
+            # power is +0.0 or positive, so +0 + p[0] is p[0] and its sum starts there.
+            first = 1 if k % 2 == 0 or n == 1 else 2
+            np.add(p[0], 0.0 if first == 1 else p[1], out=acc)
+            for s in range(first, n):
                 acc += p[s]
         else:
             np.add(p[0], p[1], out=acc)
@@ -157,7 +161,9 @@ def _resolve_chunk(z, out):
             acc += pair
             acc += 0.0
         np.divide(acc, n, out=out[k])
-        if k < 3:
+        if k == 0:
+            p = zs * zs
+        elif k < 3:
             p *= zs
 
 
@@ -376,6 +382,8 @@ def _vertical_pass(hp, w, final=None):
 
 #: Texels per band of :func:`global_path_nlq` (moments_ref._kernels' table, with the reason).
 _PATH_BAND_TEXELS = PATH_BAND_TEXELS
+#: Bands of :func:`global_path_nlq`'s horizontal-pass rows kept one after the other.
+_HP_BANDS = 4
 
 
 def _quantized(b, fmt, out=None):
@@ -451,7 +459,10 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
     # resolve stores contiguous rows, the horizontal pass reads contiguous lines and
     # the quantization reads its chunks without a transposition.
     res = np.empty(4 * (rows + 2 * r) * wd, z.dtype)
-    hp = np.empty((4, rows + 2 * r, wd))
+    # The horizontal pass's rows: _HP_BANDS bands one after the other, so that a band's
+    # 2r guard rows (the previous band's last rows) are moved up once every _HP_BANDS bands.
+    hp = np.empty((4, _HP_BANDS * rows + 2 * r, wd))
+    top = 0  # hp's row of map row y − r
     acc, tmp = np.empty((4, rows, wd)), np.empty((4, rows, wd))
     f32 = np.empty(4 * rows * wd, np.float32)
     done = 0  # rows of hp that hold the horizontal pass of this band's first rows
@@ -464,12 +475,14 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
         band = z[lo:hi] if lo >= 0 and hi <= h else z[np.clip(np.arange(lo, hi), 0, h - 1)]
         planes = res[: 4 * (hi - lo) * wd].reshape(4, hi - lo, wd)
         _resolve_planes(band, planes.reshape(4, -1))
-        ndimage.correlate1d(planes, w, axis=2, output=hp[:, done : k + 2 * r], mode="nearest")
+        if top + k + 2 * r > hp.shape[1]:
+            hp[:, : 2 * r] = hp[:, top : top + 2 * r]  # NumPy buffers the copy where they overlap
+            top = 0
+        ndimage.correlate1d(planes, w, axis=2, output=hp[:, top + done : top + k + 2 * r], mode="nearest")
         b32 = f32[: 4 * k * wd].reshape(4, k, wd)
-        _correlate_symmetric(hp[:, : k + 2 * r], w, acc[:, :k], tmp[:, :k], axis=1, final=b32)
+        _correlate_symmetric(hp[:, top : top + k + 2 * r], w, acc[:, :k], tmp[:, :k], axis=1, final=b32)
         nlq_texels(b32, fmt, out=out[y : y + k], planar=True)
-        hp[:, : 2 * r] = hp[:, k : k + 2 * r]  # NumPy buffers the copy where they overlap (k < 2r)
-        done = 2 * r
+        top, done = top + k, 2 * r
     return out
 
 
