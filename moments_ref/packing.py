@@ -648,13 +648,14 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up", out=None, planar=False):
     full = _bounds(b.dtype)
     n = min(_ENCODE_CHUNK, flat.shape[0])
     res = np.empty((4, n), dtype=b.dtype)
-    buf = np.empty((4, n), dtype=b.dtype) if planar else None
+    # Texels whose moments lie in four planes (``planar``, or a transposed view of them)
+    # are read a plane at a time, the scaling doing the copy; others are transposed first.
+    in_planes = flat.strides[0] == flat.itemsize
+    buf = np.empty((4, n), dtype=b.dtype) if in_planes else None
     for lo in range(0, flat.shape[0], _ENCODE_CHUNK):
         # Bias: b·(1 − α) + α b* (moments.bias_moments), row k gets α b*_k (a scalar
         # per row: NumPy's array + scalar loop is vectorized, a broadcast column is not).
-        # Planar rows are scaled straight into the chunk's rows (the scaling is the
-        # copy); interleaved texels are transposed into rows first, then scaled.
-        if planar:
+        if in_planes:
             rows = np.multiply(flat[lo : lo + _ENCODE_CHUNK].T, scale, out=buf[:, : min(n, flat.shape[0] - lo)])
         else:
             rows = np.array(flat[lo : lo + _ENCODE_CHUNK].T, order="C")
