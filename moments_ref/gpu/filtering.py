@@ -442,8 +442,9 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
     the 4 rows above and below (clamped at the border, as :func:`blur` pads), blurs
     them vertically and quantizes them, so no whole-map float64 intermediate
     exists and the cost per texel stays flat as the map grows (the 8 guard rows
-    of a band are the previous band's last rows, kept). Every value is computed by
-    the same operations in the same order as in the separate passes.
+    of a band are the previous band's last rows, kept). A band's moments stay four
+    planes b1..b4 from the resolve to Φ (``nlq_texels(..., planar=True)``). Every
+    value is computed by the same operations in the same order as in the separate passes.
     """
     z = check_depth_samples(depth_samples)
     if fmt not in ("nlq64", "nlq32"):
