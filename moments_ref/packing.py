@@ -597,18 +597,23 @@ def _encoder(fmt, xi_rounding):
     return lambda rows, c, out: _encode64(rows, c, out, xi_rounding)
 
 
-def nlq_texels(b, fmt="nlq64", *, xi_rounding="up", out=None):
+def nlq_texels(b, fmt="nlq64", *, xi_rounding="up", out=None, planar=False):
     """``pack64(phi(bias_moments(b, BIAS_FLOAT32)))`` (or pack32) bit for bit, one L2 chunk at a time.
 
     Parameters
     ----------
-    b : (..., 4) float array
+    b : (..., 4) float array, or (4, ...) with ``planar``
         Moments b1..b4 (float32 in the shader), not yet biased.
     fmt : {"nlq64", "nlq32"}
     xi_rounding : {"up", "nearest"}
         The 64-bit Ψ4 code's rounding (:func:`pack64`); the 32-bit format has one.
     out : C-contiguous array of the result's shape and dtype, optional
         Where to write the texels (a band of a larger texture: no copy); returned.
+    planar : bool
+        ``b`` holds the moments as four planes b1..b4 (structure of arrays, as a
+        band of :func:`moments_ref.gpu.filtering.global_path_nlq`): each chunk's rows
+        are read contiguously, the bias's scaling doing the copy, with no transposition.
+        Errors name the texel and moment as for ``np.moveaxis(b, 0, -1)``.
 
     Returns
     -------
@@ -626,25 +631,39 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up", out=None):
     if fmt not in ("nlq64", "nlq32"):
         raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
     encode = _encoder(fmt, _choice(xi_rounding, "xi_rounding", XI_ROUNDINGS))
-    b = real_input(b, "b", trailing=4, finite=False)
+    if planar:
+        b = real_input(b, "b", finite=False)
+        if b.ndim == 0 or b.shape[0] != 4:
+            raise InputError(f"b: expected four planes b1..b4 on the first axis, got shape {b.shape}")
+        b = np.moveaxis(b, 0, -1)  # a view; the chunks read its planes
+    else:
+        b = real_input(b, "b", trailing=4, finite=False)
     if out is None:
         out, oflat = _texel_output(b.shape[:-1], fmt)
     else:
         oflat = _checked_out(out, b.shape[:-1], fmt)
-    flat = b.reshape(-1, 4)
+    flat = b.reshape(-1, 4)  # planar: (4, N) planes seen transposed (a view when they are contiguous)
     scale, shift = _bias_rows(b.dtype)
     tol = b.dtype.type(rounding_tolerance(b.dtype))
     full = _bounds(b.dtype)
-    res = np.empty((4, min(_ENCODE_CHUNK, flat.shape[0])), dtype=b.dtype)
+    n = min(_ENCODE_CHUNK, flat.shape[0])
+    res = np.empty((4, n), dtype=b.dtype)
+    # Texels whose moments lie in four planes (``planar``, or a transposed view of them)
+    # are read a plane at a time, the scaling doing the copy; others are transposed first.
+    in_planes = flat.strides[0] == flat.itemsize
+    buf = np.empty((4, n), dtype=b.dtype) if in_planes else None
     for lo in range(0, flat.shape[0], _ENCODE_CHUNK):
-        rows = np.array(flat[lo : lo + _ENCODE_CHUNK].T, order="C")
-        m = rows.shape[1]
-        c = full if m == _ENCODE_CHUNK else {k: v[:m] for k, v in full.items()}
-        if not _all_finite(rows):
-            return _nlq_separately(b, fmt, xi_rounding, out)
         # Bias: b·(1 − α) + α b* (moments.bias_moments), row k gets α b*_k (a scalar
         # per row: NumPy's array + scalar loop is vectorized, a broadcast column is not).
-        rows *= scale
+        if in_planes:
+            rows = np.multiply(flat[lo : lo + _ENCODE_CHUNK].T, scale, out=buf[:, : min(n, flat.shape[0] - lo)])
+        else:
+            rows = np.array(flat[lo : lo + _ENCODE_CHUNK].T, order="C")
+            rows *= scale
+        m = rows.shape[1]
+        c = full if m == _ENCODE_CHUNK else {k: v[:m] for k, v in full.items()}
+        if not _all_finite(rows):  # (1 − α)·x is finite exactly where x is
+            return _nlq_separately(b, fmt, xi_rounding, out)
         for k in range(4):
             rows[k] += shift[k]
         phi_rows(rows, res[:, :m])

@@ -214,7 +214,8 @@ def test_resolve_is_bit_identical_to_power_moments_across_chunks(dtype, monkeypa
     # The chunked structure-of-arrays resolve against moments.power_moments (an
     # independent loop over array-of-structures powers and np.mean), bit for bit,
     # for every sample count (sequential sums below 8, pairwise at 8, delegated
-    # above), with signed zeros (NumPy's sum starts from +0) and chunk boundaries.
+    # above), with signed zeros (NumPy's sum starts from +0; odd powers of tiny negative
+    # depths underflow to -0.0) and chunk boundaries.
     from moments_ref.gpu import filtering
     from moments_ref.moments import power_moments
 
@@ -226,6 +227,10 @@ def test_resolve_is_bit_identical_to_power_moments_across_chunks(dtype, monkeypa
         z[0, 0] = -0.0
         z[1, 1] = 1.0
         z[2, 2] = -1.0
+        # tiny negative depths: z³ (and for float32 z²·z) underflows to -0.0, z⁴ to +0.0
+        z[3, 3] = -np.finfo(dtype).tiny ** 0.5
+        z[4, 4] = -np.finfo(dtype).smallest_subnormal
+        z[5, 5, :1] = -np.finfo(dtype).tiny
         got, want = resolve_moments(z), power_moments(z, axis=-1, n=4)
         assert got.dtype == want.dtype and got.tobytes() == want.tobytes(), S
 

@@ -445,6 +445,32 @@ def test_nlq_texels_out_is_written_in_place(fmt):
         pk.nlq_texels(b2, fmt, out=np.empty_like(want))
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("fmt", ["nlq64", "nlq32"])
+def test_nlq_texels_planar_reads_four_planes(dtype, fmt):
+    # planar=True (the global path's bands, b1..b4 as contiguous planes): the texels of the
+    # three calls on the interleaved moments, over several chunks and a short last one, from
+    # contiguous and strided planes; the error path (a non-finite moment) names the texel and
+    # moment as the interleaved layout does; planes not on the first axis are refused.
+    rng = np.random.default_rng(13)
+    parts = [power_moments(rng.uniform(-1, 1, (12000, k))) for k in (1, 2, 4)]
+    b = np.concatenate(parts).astype(dtype).reshape(2, -1, 4)  # 36000 texels
+    r = nl.phi(bias_moments(b, BIAS_FLOAT32))
+    want = pk.pack64(r) if fmt == "nlq64" else pk.pack32(r)
+    planes = np.ascontiguousarray(np.moveaxis(b, -1, 0))
+    assert np.array_equal(pk.nlq_texels(planes, fmt, planar=True), want)
+    got = np.zeros_like(want)
+    assert pk.nlq_texels(planes, fmt, out=got, planar=True) is got and np.array_equal(got, want)
+    assert np.array_equal(pk.nlq_texels(np.moveaxis(b, -1, 0), fmt, planar=True), want)  # strided planes
+    bad = planes.copy()
+    bad[2, 1, 77] = np.nan
+    with pytest.raises(InputError, match=r"at index \(1, 77, 2\)$"):
+        pk.nlq_texels(bad, fmt, planar=True)
+    for shape in [(3, 10), (10, 4), ()]:
+        with pytest.raises(InputError, match="b: expected four planes"):
+            pk.nlq_texels(np.zeros(shape, dtype), fmt, planar=True)
+
+
 def test_nlq32_depth_codes_keep_the_constant_bias():
     """HPG17 §3.5's 10-bit depths, read at the upper end of their cell, never eat the 1e-3 bias (§5).
 

@@ -105,12 +105,21 @@ def resolve_moments(depth_samples):
 def _resolve(z):
     """:func:`resolve_moments` of checked samples (H, W, S), L2-sized chunks at a time."""
     h, w, n = z.shape
-    flat = z.reshape(-1, n)
-    out = np.empty((flat.shape[0], 4), dtype=z.dtype)
-    step = max(1, _RESOLVE_BYTES // (z.itemsize * n))
-    for lo in range(0, flat.shape[0], step):
-        _resolve_chunk(flat[lo : lo + step], out[lo : lo + step])
+    out = np.empty((h * w, 4), dtype=z.dtype)
+    _resolve_planes(z, out.T)
     return out.reshape(h, w, 4)
+
+
+def _resolve_planes(z, planes):
+    """:func:`resolve_moments` of checked samples (H, W, S) into ``planes[k − 1]`` (4, H·W), chunk by chunk.
+
+    ``planes`` may be the transposed view of (H·W, 4) texels or four contiguous planes
+    (the global path's bands): the same values, only their layout differs.
+    """
+    flat = z.reshape(-1, z.shape[-1])
+    step = max(1, _RESOLVE_BYTES // (z.itemsize * z.shape[-1]))
+    for lo in range(0, flat.shape[0], step):
+        _resolve_chunk(flat[lo : lo + step], planes[:, lo : lo + step])
 
 
 #: Input bytes of one chunk of the resolve (moments_ref._kernels' table, with the reason).
@@ -118,7 +127,7 @@ _RESOLVE_BYTES = RESOLVE_BYTES
 
 
 def _resolve_chunk(z, out):
-    """``out[:, k-1] = mean_s z[:, s]^k`` for k = 1..4, bit for bit as :func:`power_moments`.
+    """``out[k-1] = mean_s z[:, s]^k`` for k = 1..4 (out: (4, N)), bit for bit as :func:`power_moments`.
 
     The samples are transposed to one contiguous row per sample (structure of
     arrays), so every power and every partial sum is one contiguous ufunc call.
@@ -129,16 +138,20 @@ def _resolve_chunk(z, out):
     """
     n = z.shape[1]
     if n > 8:
-        out[:] = power_moments(z, axis=-1, n=4)
+        out[:] = power_moments(z, axis=-1, n=4).T
         return
     zs = np.ascontiguousarray(z.T)
-    p = zs.copy()
+    p = zs  # the powers z^(k+1), one row per sample; z itself is not copied
     acc = np.empty(z.shape[0], z.dtype)
     tmp = np.empty_like(acc)
     for k in range(4):
         if n < 8:
-            np.add(p[0], 0.0, out=acc)  # NumPy's sum starts from +0: -0.0 samples sum to +0.0
-            for s in range(1, n):
+            # NumPy's sum starts from +0: -0.0 samples sum to +0.0. Only odd powers can
+            # be -0.0 (z = -0.0, or z³ underflowing from a tiny negative z); an even
+            # power is +0.0 or positive, so +0 + p[0] is p[0] and its sum starts there.
+            first = 1 if k % 2 == 0 or n == 1 else 2
+            np.add(p[0], 0.0 if first == 1 else p[1], out=acc)
+            for s in range(first, n):
                 acc += p[s]
         else:
             np.add(p[0], p[1], out=acc)
@@ -147,9 +160,10 @@ def _resolve_chunk(z, out):
             pair += np.add(p[6], p[7], out=tmp)
             acc += pair
             acc += 0.0
-        acc /= n
-        out[:, k] = acc
-        if k < 3:
+        np.divide(acc, n, out=out[k])
+        if k == 0:
+            p = zs * zs
+        elif k < 3:
             p *= zs
 
 
@@ -368,6 +382,8 @@ def _vertical_pass(hp, w, final=None):
 
 #: Texels per band of :func:`global_path_nlq` (moments_ref._kernels' table, with the reason).
 _PATH_BAND_TEXELS = PATH_BAND_TEXELS
+#: Bands of :func:`global_path_nlq`'s horizontal-pass rows kept one after the other.
+_HP_BANDS = 4
 
 
 def _quantized(b, fmt, out=None):
@@ -426,19 +442,30 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
     the 4 rows above and below (clamped at the border, as :func:`blur` pads), blurs
     them vertically and quantizes them, so no whole-map float64 intermediate
     exists and the cost per texel stays flat as the map grows (the 8 guard rows
-    of a band are the previous band's last rows, kept). Every value is computed by
-    the same operations in the same order as in the separate passes.
+    of a band are the previous band's last rows, kept). A band's moments stay four
+    planes b1..b4 from the resolve to Φ (``nlq_texels(..., planar=True)``). Every
+    value is computed by the same operations in the same order as in the separate passes.
     """
     z = check_depth_samples(depth_samples)
     if fmt not in ("nlq64", "nlq32"):
         raise InputError(f"fmt: expected 'nlq64' or 'nlq32', got {fmt!r}")
+    from scipy import ndimage  # ~0.3 s to import: only once a map is blurred
+
     h, wd, _ = z.shape
-    w = gaussian_weights()
+    w = gaussian_weights()  # exactly symmetric: both passes sum it folded (blur's Notes)
     r = (len(w) - 1) // 2
     out = np.empty((h, wd, 4) if fmt == "nlq64" else (h, wd), np.uint16 if fmt == "nlq64" else np.uint32)
-    rows = max(1, _PATH_BAND_TEXELS // wd)
-    hp = np.empty((min(rows, h) + 2 * r, wd, 4))
-    f32 = np.empty((min(rows, h), wd, 4), np.float32)
+    rows = min(h, max(1, _PATH_BAND_TEXELS // wd))
+    # The band's moments as four planes (4, rows, W) from the resolve to Φ: the
+    # resolve stores contiguous rows, the horizontal pass reads contiguous lines and
+    # the quantization reads its chunks without a transposition.
+    res = np.empty(4 * (rows + 2 * r) * wd, z.dtype)
+    # The horizontal pass's rows: _HP_BANDS bands one after the other, so that a band's
+    # 2r guard rows (the previous band's last rows) are moved up once every _HP_BANDS bands.
+    hp = np.empty((4, _HP_BANDS * rows + 2 * r, wd))
+    top = 0  # hp's row of map row y − r
+    acc, tmp = np.empty((4, rows, wd)), np.empty((4, rows, wd))
+    f32 = np.empty(4 * rows * wd, np.float32)
     done = 0  # rows of hp that hold the horizontal pass of this band's first rows
     for y in range(0, h, rows):
         k = min(rows, h - y)
@@ -447,10 +474,16 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
         lo, hi = y - r + done, y + k + r
         # A view of the rows where none is clamped (no copy of the samples), else gathered.
         band = z[lo:hi] if lo >= 0 and hi <= h else z[np.clip(np.arange(lo, hi), 0, h - 1)]
-        _horizontal_pass(_resolve(band), w, pad_rows=done, hp=hp[: k + 2 * r])
-        _quantized(_vertical_pass(hp[: k + 2 * r], w, final=f32[:k]), fmt, out[y : y + k])
-        hp[: 2 * r] = hp[k : k + 2 * r].copy()
-        done = 2 * r
+        planes = res[: 4 * (hi - lo) * wd].reshape(4, hi - lo, wd)
+        _resolve_planes(band, planes.reshape(4, -1))
+        if top + k + 2 * r > hp.shape[1]:
+            hp[:, : 2 * r] = hp[:, top : top + 2 * r]  # NumPy buffers the copy where they overlap
+            top = 0
+        ndimage.correlate1d(planes, w, axis=2, output=hp[:, top + done : top + k + 2 * r], mode="nearest")
+        b32 = f32[: 4 * k * wd].reshape(4, k, wd)
+        _correlate_symmetric(hp[:, top : top + k + 2 * r], w, acc[:, :k], tmp[:, :k], axis=1, final=b32)
+        nlq_texels(b32, fmt, out=out[y : y + k], planar=True)
+        top, done = top + k, 2 * r
     return out
 
 
