@@ -311,14 +311,21 @@ def test_blur_is_within_a_forward_error_bound_of_the_exact_2d_sum():
     assert np.all(err <= 2 * (len(w) + 3) * 2.0**-53 * scale)
 
 
-def test_vertical_pass_rounds_once_into_float32_for_any_kernel():
-    # _vertical_pass(final=...) of the global path: the float64 sums rounded once on
-    # store, for the folded (symmetric) and the term-by-term (asymmetric) kernels.
+def test_folded_vertical_sum_rounds_once_into_float32():
+    # _correlate_symmetric(final=...) of the global path's vertical pass: the float64 sum
+    # rounded once on store, bit for bit .astype(np.float32) of the sum kept in float64,
+    # which is itself the brute-force correlation (the terms in the folded order).
     from moments_ref.gpu import filtering
 
     hp = np.random.default_rng(8).uniform(-1, 1, (29, 11, 4))
-    for w in (gaussian_weights(), np.array([0.1, 0.2, 0.3, 0.25, 0.15])):
-        f32 = np.empty((29 - len(w) + 1, 11, 4), np.float32)
-        want = filtering._vertical_pass(hp, w).astype(np.float32)
-        assert filtering._vertical_pass(hp, w, final=f32) is f32
-        assert f32.tobytes() == want.tobytes()
+    for w in (gaussian_weights(), np.array([0.15, 0.25, 0.2, 0.25, 0.15]), np.array([1.0])):
+        n, r = 29 - len(w) + 1, (len(w) - 1) // 2
+        acc, tmp = np.empty((n, 11, 4)), np.empty((n, 11, 4))
+        filtering._correlate_symmetric(hp, w, acc, tmp, axis=0)
+        folded = w[r] * hp[r : r + n]
+        for j in range(r):
+            folded = folded + w[j] * (hp[j : j + n] + hp[2 * r - j : 2 * r - j + n])
+        assert acc.tobytes() == folded.tobytes()
+        f32 = np.empty((n, 11, 4), np.float32)
+        filtering._correlate_symmetric(hp, w, np.empty((n, 11, 4)), tmp, axis=0, final=f32)
+        assert f32.tobytes() == acc.astype(np.float32).tobytes()

@@ -323,24 +323,22 @@ def _banded_blur(m, w):
     return out
 
 
-def _horizontal_pass(m, w, pad_rows=0, hp=None):
-    """The horizontal pass of :func:`blur` (float64, clamp-to-edge columns) into rows ``pad_rows..`` of ``hp``.
+def _horizontal_pass(m, w, hp=None):
+    """The horizontal pass of :func:`blur` (float64, clamp-to-edge columns) into ``hp`` (a new array unless given).
 
     A band of rows at a time: the band goes, cast to float64, into a clamp-to-edge
-    padded buffer; the output goes straight into the rows of the vertically padded
-    map (so the vertical pass needs no np.pad). Rows ``:pad_rows`` and the last
-    ``pad_rows`` are left for the caller to fill. ``hp`` is a new array unless given.
+    padded buffer, and the output into the rows of ``hp``.
     """
     h, wd, c = m.shape
     r = (len(w) - 1) // 2
     if hp is None:
-        hp = np.empty((h + 2 * pad_rows, wd, c))
+        hp = np.empty((h, wd, c))
     if _symmetric(w):
         # One C loop per row (scipy.ndimage, mode "nearest" = clamp-to-edge): it reads
         # float32 or float64 rows into float64 line buffers and writes float64.
         from scipy import ndimage  # ~0.3 s to import: only once a map is blurred
 
-        ndimage.correlate1d(m, w, axis=1, output=hp[pad_rows : pad_rows + h], mode="nearest")
+        ndimage.correlate1d(m, w, axis=1, output=hp[:h], mode="nearest")
         return hp
     rows = max(1, _BAND_BYTES // (8 * (wd + 2 * r) * c))
     band = np.empty((min(rows, h), wd + 2 * r, c))
@@ -351,33 +349,8 @@ def _horizontal_pass(m, w, pad_rows=0, hp=None):
         b[:, r : r + wd] = m[y : y + k]
         b[:, :r] = b[:, r : r + 1]
         b[:, r + wd :] = b[:, r + wd - 1 : r + wd]
-        _correlate(b, w, hp[pad_rows + y : pad_rows + y + k], tmp[:k], axis=1)
+        _correlate(b, w, hp[y : y + k], tmp[:k], axis=1)
     return hp
-
-
-def _vertical_pass(hp, w, final=None):
-    """The vertical pass of :func:`blur` on rows already padded by ``(taps − 1)/2`` on each side.
-
-    ``final``: an (H, W, C) float32 array that receives the float64 sums rounded to float32.
-    """
-    r = (len(w) - 1) // 2
-    h, wd, c = hp.shape[0] - 2 * r, hp.shape[1], hp.shape[2]
-    # Each band of output rows sums nine contiguous blocks of hp (into one reused
-    # float64 band when the sums go to ``final``).
-    rows = max(1, _BAND_BYTES // (8 * wd * c))
-    out = np.empty((h if final is None else min(rows, h), wd, c))
-    tmp = np.empty((min(rows, h), wd, c))
-    for y in range(0, h, rows):
-        k = min(rows, h - y)
-        acc = out[y : y + k] if final is None else out[:k]
-        if _symmetric(w):
-            _correlate_symmetric(hp[y : y + k + 2 * r], w, acc, tmp[:k], axis=0,
-                                 final=None if final is None else final[y : y + k])
-        else:
-            _correlate(hp[y : y + k + 2 * r], w, acc, tmp[:k], axis=0)
-            if final is not None:
-                final[y : y + k] = acc
-    return out if final is None else final
 
 
 #: Texels per band of :func:`global_path_nlq` (moments_ref._kernels' table, with the reason).
