@@ -388,11 +388,11 @@ def _encode64(rows, c, out, xi_rounding="up"):
     y1, y2, v2, xi4 = rows
     dt = rows.dtype.type
     scale = dt(_U16)
-    # Channels 0, 1: round(65535 · (y + 1)/2), operations in the order of the formula.
+    # Channels 0, 1: round(65535 · (y + 1)/2). (y + 1)·0.5 is exact (y + 1 is 0 or normal
+    # for |y| ≤ 1), so ((y + 1)·0.5)·65535 and (y + 1)·32767.5 round the same product: one pass.
     for k, y in enumerate((y1, y2)):
         y += 1
-        y *= dt(0.5)
-        y *= scale
+        y *= dt(_U16 / 2)
         out[:, k] = np.rint(y, out=y)
     # Channel 2: round(65535 · v2); channel 3: ceil(65535 · Ψ4(ξ4)) bumped up, or round.
     v2 *= scale

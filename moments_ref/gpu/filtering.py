@@ -140,6 +140,9 @@ def _resolve_chunk(z, out):
     if n > 8:
         out[:] = power_moments(z, axis=-1, n=4).T
         return
+    # The mean's division by n; for n a power of two as the product with 1/n (exact:
+    # both round the same real value acc · 2^-k, subnormals included), a cheaper pass.
+    inv = 1.0 / n if n & (n - 1) == 0 else None
     zs = np.ascontiguousarray(z.T)
     p = zs  # the powers z^(k+1), one row per sample; z itself is not copied
     acc = np.empty(z.shape[0], z.dtype)
@@ -160,7 +163,10 @@ def _resolve_chunk(z, out):
             pair += np.add(p[6], p[7], out=tmp)
             acc += pair
             acc += 0.0
-        np.divide(acc, n, out=out[k])
+        if inv is None:
+            np.divide(acc, n, out=out[k])
+        else:
+            np.multiply(acc, inv, out=out[k])
         if k == 0:
             p = zs * zs
         elif k < 3:
