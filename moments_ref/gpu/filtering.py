@@ -164,9 +164,9 @@ def _resolve_chunk(z, out):
             acc += pair
             acc += 0.0
         if inv is None:
-            np.divide(acc, n, out=out[k], dtype=acc.dtype)
+            np.divide(acc, n, out=out[k])
         else:
-            np.multiply(acc, inv, out=out[k], dtype=acc.dtype)
+            np.multiply(acc, inv, out=out[k])
         if k == 0:
             p = zs * zs
         elif k < 3:
@@ -438,7 +438,7 @@ def global_path_nlq(depth_samples, fmt="nlq64"):
     # The band's moments as four planes (4, rows, W) from the resolve to Φ: the
     # resolve stores contiguous rows, the horizontal pass reads contiguous lines and
     # the quantization reads its chunks without a transposition.
-    res = np.empty(4 * (rows + 2 * r) * wd)
+    res = np.empty(4 * (rows + 2 * r) * wd, z.dtype)
     # The horizontal pass's rows: _HP_BANDS bands one after the other, so that a band's
     # 2r guard rows (the previous band's last rows) are moved up once every _HP_BANDS bands.
     hp = np.empty((4, _HP_BANDS * rows + 2 * r, wd))
