@@ -112,6 +112,12 @@ def tolerance(samples, taps=TAPS) -> float:
 def _addresses(layout):
     pattern = banks.access_pattern()
     addr = {name: banks.shared_index(p.j, p.x, p.y, layout) for name, p in pattern.items()}
+    # The readout's word addresses by destination (moment, row, column of the output block):
+    # the threads' loads (each texel's vector is read once), in the texture's order.
+    ro = pattern["readout"]
+    by_texel = np.full((4, _OUT_H, _OUT_W), -1, dtype=addr["readout"].dtype)
+    by_texel[np.arange(4).reshape(1, 4, 1, 1), ro.texel_y, ro.texel_x] = addr["readout"]
+    addr["readout by texel"] = by_texel
     return pattern, addr
 
 
@@ -215,22 +221,33 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     t3 = time.perf_counter()
 
     # Readout: each thread reads three complete vectors; out-of-map texels are skipped.
-    # The stores of all rows and moments are one scatter into the (4, H·W) rows; every
-    # texel is written once, so the order of stores is immaterial.
-    ro = pattern["readout"]
-    v = shared.take(addr["readout"], axis=0)  # (row i, j, warp, lane, blocks)
-    tx, ty = ro.texel_x[:, :1], ro.texel_y[:, :1]  # (row i, 1, warp, lane)
-    offset = ty * W + tx + np.arange(4).reshape(4, 1, 1) * (H * W)  # (row i, j, warp, lane) in the rows
-    dest = offset[..., None] + (_OUT_H * W * by + _OUT_W * bx)  # (row i, j, warp, lane, blocks)
-    flat = out.reshape(-1)
-    if _OUT_W * bx.max() + _OUT_W <= W and _OUT_H * by.max() + _OUT_H <= H:
-        flat[dest] = v  # interior blocks: every texel is inside the map (no boolean gathers)
-    else:
-        X = tx[..., None] + _OUT_W * bx
-        Y = ty[..., None] + _OUT_H * by
-        inside = np.broadcast_to((X < W) & (Y < H), dest.shape)
-        flat[dest[inside]] = v[inside]
+    # The loads are gathered in the texture's order (the same words, each read once), so
+    # the blocks of a block row are stored by one strided copy instead of a scatter.
+    v = shared.take(addr["readout by texel"], axis=0)  # (moment, row, column, blocks)
+    _store_blocks(v, out.reshape(4, H, W), bx, by)
     _record(timings, (t0, t1, t2, t3, time.perf_counter()))
+
+
+def _store_blocks(v, planes, bx, by):
+    """Write the output blocks ``v`` (4, 24, 32, blocks) into the planes (4, H, W), texels outside the map skipped.
+
+    The blocks of a batch are consecutive in raster order, so those of one block row
+    have consecutive ``bx``: their texels are one (4, rows, blocks, 32) window of the
+    planes (every texel is written once, so this equals the threads' stores).
+    """
+    H, W = planes.shape[1:]
+    starts = np.flatnonzero(np.diff(by, prepend=-1))
+    for s, e in zip(starts, np.append(starts[1:], len(by))):
+        y0 = _OUT_H * int(by[s])
+        ny = min(_OUT_H, H - y0)
+        a, c = int(bx[s]), int(bx[e - 1]) + 1
+        full = max(a, min(c, W // _OUT_W))  # blocks a .. full − 1 lie inside the map's width
+        if full > a:
+            dst = planes[:, y0 : y0 + ny, _OUT_W * a : _OUT_W * full].reshape(4, ny, full - a, _OUT_W)
+            np.copyto(dst, v[:, :ny, :, s : s + full - a].transpose(0, 1, 3, 2))
+        for b in range(full, c):  # the block that the map's right edge cuts
+            x0 = _OUT_W * b
+            planes[:, y0 : y0 + ny, x0:W] = v[:, :ny, : W - x0, s + b - a]
 
 
 def _record(timings, t):
