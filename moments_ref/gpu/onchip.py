@@ -118,6 +118,11 @@ def _addresses(layout):
     by_texel = np.full((4, _OUT_H, _OUT_W), -1, dtype=addr["readout"].dtype)
     by_texel[np.arange(4).reshape(1, 4, 1, 1), ro.texel_y, ro.texel_x] = addr["readout"]
     addr["readout by texel"] = by_texel
+    # The resolve's word addresses by source (moment, row, column of the input block).
+    rs = pattern["resolve"]
+    by_input = np.full((4, _IN_H, _IN_W), -1, dtype=addr["resolve"].dtype)
+    by_input[np.arange(4).reshape(1, 4, 1, 1), rs.texel_y, rs.texel_x] = addr["resolve"]
+    addr["resolve by texel"] = by_input
     return pattern, addr
 
 
@@ -200,13 +205,23 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     # 5 rounds × 4 moments write disjoint words, so their loads and stores are done
     # as one gather from the moment rows and one scatter through the word addresses.
     t0 = time.perf_counter()
-    res = pattern["resolve"]
-    tx, ty = res.texel_x[:, 0], res.texel_y[:, 0]  # (round, warp, lane), same for every j
-    # The clamped coordinates are separable: a row offset per input row, a column per column.
-    col = np.clip(x0 + np.arange(_IN_W)[:, None], 0, W - 1)  # (input column, blocks)
-    row = np.clip(y0 + np.arange(_IN_H)[:, None], 0, H - 1) * W  # (input row, blocks)
-    texel = row[ty] + col[tx]  # (round, warp, lane, blocks)
-    shared[addr["resolve"].swapaxes(0, 1)] = mom.take(texel, axis=1)  # (j, round, warp, lane, blocks)
+    inside = (x0 >= 0) & (x0 + _IN_W <= W) & (y0 >= 0) & (y0 + _IN_H <= H)
+    # Blocks whose input lies inside the map: a block row's run of them reads one window
+    # of the moment planes (overlapping input blocks as a strided view, no clamping).
+    for s, e in _runs(by, inside):
+        planes = mom.reshape(4, H, W)[:, int(y0[s]) :, int(x0[s]) :]
+        win = np.lib.stride_tricks.as_strided(
+            planes, (4, _IN_H, _IN_W, e - s), planes.strides + (_OUT_W * planes.strides[2],), writeable=False)
+        shared[:, s:e][addr["resolve by texel"]] = win
+    edge = np.flatnonzero(~inside)
+    if len(edge):
+        res = pattern["resolve"]
+        tx, ty = res.texel_x[:, 0], res.texel_y[:, 0]  # (round, warp, lane), same for every j
+        # The clamped coordinates are separable: a row offset per input row, a column per column.
+        col = np.clip(x0[edge] + np.arange(_IN_W)[:, None], 0, W - 1)  # (input column, blocks)
+        row = np.clip(y0[edge] + np.arange(_IN_H)[:, None], 0, H - 1) * W  # (input row, blocks)
+        texel = row[ty] + col[tx]  # (round, warp, lane, blocks)
+        shared[addr["resolve"].swapaxes(0, 1)[..., None], edge] = mom.take(texel, axis=1)  # (j, round, warp, lane, blocks)
     t1 = time.perf_counter()
 
     # Horizontal blur: 24 loads per thread, 16 results to the non-read-only columns.
@@ -226,6 +241,13 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
     v = shared.take(addr["readout by texel"], axis=0)  # (moment, row, column, blocks)
     _store_blocks(v, out.reshape(4, H, W), bx, by)
     _record(timings, (t0, t1, t2, t3, time.perf_counter()))
+
+
+def _runs(by, keep):
+    """``(start, stop)`` of the runs of consecutive blocks with the same ``by`` where ``keep`` holds."""
+    cut = np.flatnonzero(np.diff(by, prepend=-1) | np.diff(keep.astype(np.int8), prepend=0))
+    stops = np.append(cut[1:], len(by))
+    return [(int(a), int(b)) for a, b in zip(cut, stops) if keep[a]]
 
 
 def _store_blocks(v, planes, bx, by):
