@@ -72,6 +72,7 @@ References
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -246,19 +247,22 @@ def _saturated(rows, c, tol, ordered=False):
     instead of passes; a skipped clamp would have returned every value unchanged).
     """
     y1, y2, v2, xi4 = rows
-    if not _all_finite(rows) or (not ordered and (y1 > y2 + tol).any()):
-        return False
+    # Each row's extremes, taken before any clamp: a NaN propagates through min and max and
+    # an infinity is an extreme, so finite extremes prove every value finite (no sum needed).
     mn, mx = np.minimum.reduce, np.maximum.reduce
-    for y in (y1, y2):
-        if not (mn(y) >= -1 and mx(y) <= 1):
+    lo, hi = [mn(x) for x in rows], [mx(x) for x in rows]
+    if not all(map(math.isfinite, lo + hi)) or (not ordered and (y1 > y2 + tol).any()):
+        return False
+    for k, y in enumerate((y1, y2)):
+        if not (lo[k] >= -1 and hi[k] <= 1):
             np.maximum(y, c["-1"], out=y)
             np.minimum(y, c["1"], out=y)
     if not ordered:
         np.maximum(y2, y1, out=y2)
-    if not (mn(v2) >= 0 and mx(v2) <= 1):
+    if not (lo[2] >= 0 and hi[2] <= 1):
         np.maximum(v2, c["0"], out=v2)
         np.minimum(v2, c["1"], out=v2)
-    if not mn(xi4) >= 0:
+    if not lo[3] >= 0:
         np.maximum(xi4, c["0"], out=xi4)
     return True
 
