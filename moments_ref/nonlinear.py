@@ -198,11 +198,16 @@ _PHI_CHUNK = PHI_CHUNK  # the value and its reason: moments_ref._kernels
 
 
 def phi_rows(rows, out):
-    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ PHI_CHUNK) into the rows (y1, y2, v2, ξ4) of ``out``."""
+    """Algorithm 2 on the rows b1..b4 (4, m) of a chunk (m ≤ PHI_CHUNK) into the rows (y1, y2, v2, ξ4) of ``out``.
+
+    Returns the output rows' minima and maxima ``([min y1, min y2, min v2, min ξ4],
+    [max ...])``, all finite, where the chunk has no failing texel (the reductions that
+    proved it, for the encoders' saturation); else None.
+    """
     m = rows.shape[1]
     full = _phi_constants(rows.dtype)
     c = full if m == _PHI_CHUNK else {k: v[:m] for k, v in full.items()}
-    _phi_chunk(*rows, out, c)
+    return _phi_chunk(*rows, out, c)
 
 
 @lru_cache(maxsize=4)
@@ -262,21 +267,23 @@ def _phi_chunk(b1, b2, b3, b4, out, c):
         np.multiply(b2, b2, out=xi4)
         np.subtract(b4, xi4, out=xi4)
         xi4 -= t
-    _phi_degenerate(b1, b4, sigma2, out, ordered)
+    return _phi_degenerate(b1, b4, sigma2, out, ordered)
 
 
 def _phi_degenerate(b1, b4, sigma2, out, ordered=False):
     """Where Algorithm 2 fails (see :func:`phi`, Notes): one depth at b1, ξ4 by Eq. (1).
 
     ``ordered``: y2 > y1 was seen on every texel. Then a chunk with ``min σ² > 0`` and finite
-    sums of ξ4, v2, y1 and y2 (a NaN or inf makes a sum non-finite; so may overflow, which only
-    costs the exact masks) has no failing texel: decided by reductions instead of the masks.
+    minima and maxima of y1, y2, v2 and ξ4 (a NaN propagates through them, an infinity is an
+    extreme) has no failing texel: decided by reductions instead of the masks, and those
+    extremes are returned ``(lows, highs)``; None where the masks ran.
     """
     y1, y2, v2, xi4 = out
-    red = np.add.reduce
-    if (ordered and np.minimum.reduce(sigma2) > 0 and np.isfinite(red(xi4)) and np.isfinite(red(v2))
-            and np.isfinite(red(y1)) and np.isfinite(red(y2))):
-        return
+    mn, mx = np.minimum.reduce, np.maximum.reduce
+    if ordered and mn(sigma2) > 0:
+        lows, highs = [mn(x) for x in out], [mx(x) for x in out]
+        if all(map(math.isfinite, lows + highs)):
+            return lows, highs
     single = sigma2 > 0
     single &= np.isfinite(xi4)
     np.logical_not(single, out=single)

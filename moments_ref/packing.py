@@ -229,28 +229,29 @@ def _encoder_rows(r):
 
 
 def _all_finite(rows):
-    """``np.isfinite(rows).all()``, decided by one sum where it is finite.
+    """``np.isfinite(rows).all()`` of a non-empty array, decided by its minimum and maximum.
 
-    Speed: a sum is one vectorized reduction without a boolean temporary; a NaN or
-    infinity makes it non-finite, so a finite sum proves every value finite, and
-    only a non-finite sum (also reachable by overflow) needs the exact test.
+    Speed: a NaN propagates through ``np.minimum``/``np.maximum`` and an infinity is an
+    extreme, so finite extremes prove every value finite; the two vectorized
+    reductions take about half the time of one pairwise sum, and cannot overflow.
     """
-    return bool(np.isfinite(np.add.reduce(rows, axis=None))) or bool(np.isfinite(rows).all())
+    return math.isfinite(np.maximum.reduce(rows, axis=None)) and math.isfinite(np.minimum.reduce(rows, axis=None))
 
 
-def _saturated(rows, c, tol, ordered=False):
+def _saturated(rows, c, tol, ordered=False, extremes=None):
     """Saturate the rows ``(y1, y2, v2, ξ4)`` in place as :func:`_encoder_input` does; False (rows untouched) if they fail its checks.
 
     ``ordered``: y1 ≤ y2 holds on every texel (Φ's output: ``fmin``/``fmax`` of the same
     two roots), so the order check and ``y2 = max(y2, y1)`` (which clamping both keeps)
     are skipped. A clamp runs only where a chunk's extremes leave its range (reductions
     instead of passes; a skipped clamp would have returned every value unchanged).
+    ``extremes``: the rows' ``(minima, maxima)`` where the caller has them (:func:`phi_rows`).
     """
     y1, y2, v2, xi4 = rows
     # Each row's extremes, taken before any clamp: a NaN propagates through min and max and
     # an infinity is an extreme, so finite extremes prove every value finite (no sum needed).
     mn, mx = np.minimum.reduce, np.maximum.reduce
-    lo, hi = [mn(x) for x in rows], [mx(x) for x in rows]
+    lo, hi = extremes if extremes is not None else ([mn(x) for x in rows], [mx(x) for x in rows])
     if not all(map(math.isfinite, lo + hi)) or (not ordered and (y1 > y2 + tol).any()):
         return False
     for k, y in enumerate((y1, y2)):
@@ -670,8 +671,8 @@ def nlq_texels(b, fmt="nlq64", *, xi_rounding="up", out=None, planar=False):
             return _nlq_separately(b, fmt, xi_rounding, out)
         for k in range(4):
             rows[k] += shift[k]
-        phi_rows(rows, res[:, :m])
-        if not _saturated(res[:, :m], c, tol, ordered=True):
+        extremes = phi_rows(rows, res[:, :m])
+        if not _saturated(res[:, :m], c, tol, ordered=True, extremes=extremes):
             return _nlq_separately(b, fmt, xi_rounding, out)
         encode(res[:, :m], c, oflat[lo : lo + m])
     return out
