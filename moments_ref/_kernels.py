@@ -77,8 +77,11 @@ SHADING_BLOCK = 1 << 14
 #: to 4 MiB at 2048² varied within the noise of a shared machine, 1 MiB at its fastest).
 FILTER_BAND_BYTES = 1 << 20
 #: Input bytes of one chunk of the resolve of :mod:`moments_ref.gpu.filtering` (its samples, powers
-#: and sums stay in L2).
-RESOLVE_BYTES = 1 << 17
+#: and sums stay in L2). 2^19 since issue 41 round eight (a band of the global path at 2048² 4× is
+#: one chunk; each chunk's ~25 ufunc calls cost about 1 µs besides their elements): the resolve of a
+#: quarter map, min of 15, 9.14 ms at 2^17, 8.06 at 2^18, 7.86 at 2^19; the global NLQ64 path
+#: 0.961 (quartiles 0.930–0.993) of its time at 2^17, 15 interleaved pairs, load 2.2–2.5.
+RESOLVE_BYTES = 1 << 19
 #: Texels per band of :func:`moments_ref.gpu.filtering.global_path_nlq` (a band's float64 rows, about
 #: 1.5 MiB at 2048², stay in cache whatever the map size). 2^15 since issue 41 round six: the global
 #: NLQ64 path at 2048² 4× took 0.895, 0.942 and 0.969 of the time with 2^17 (interleaved, order
