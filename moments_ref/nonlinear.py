@@ -279,9 +279,8 @@ def _phi_degenerate(b1, b4, sigma2, out, ordered=False):
     extremes are returned ``(lows, highs)``; None where the masks ran.
     """
     y1, y2, v2, xi4 = out
-    mn, mx = np.minimum.reduce, np.maximum.reduce
-    if ordered and mn(sigma2) > 0:
-        lows, highs = [mn(x) for x in out], [mx(x) for x in out]
+    if ordered and np.minimum.reduce(sigma2) > 0:
+        lows, highs = [np.minimum.reduce(x) for x in out], [np.maximum.reduce(x) for x in out]
         if all(map(math.isfinite, lows + highs)):
             return lows, highs
     single = sigma2 > 0
