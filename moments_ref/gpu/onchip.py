@@ -202,8 +202,9 @@ def _run_batch(mom, shape, bx, by, out, pattern, addr, words, w, timings):
 
     # Resolve: 5 rounds; each thread loads all samples of one texel (clamped to the
     # map), averages b(z) (:func:`_thread_moments`) and writes the 4 moments. The
-    # 5 rounds × 4 moments write disjoint words, so their loads and stores are done
-    # as one gather from the moment rows and one scatter through the word addresses.
+    # 5 rounds × 4 moments write disjoint words (each input texel's moments once), so
+    # their stores are done at once: through the table ordered by input texel from a
+    # window of the moment planes, or for blocks at the map's edge from one clamped gather.
     t0 = time.perf_counter()
     inside = (x0 >= 0) & (x0 + _IN_W <= W) & (y0 >= 0) & (y0 + _IN_H <= H)
     # Blocks whose input lies inside the map: a block row's run of them reads one window
