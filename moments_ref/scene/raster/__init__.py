@@ -96,6 +96,7 @@ from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions, unproject_points)
+from ._maps import cleared_map
 from ._tiles import draw_tiles, tiled_boxes
 from ._spans import _row_batches
 from ._triangles import _check_mesh, _setup, _vertices, valid_triangles
@@ -343,7 +344,7 @@ def rasterize_depth(vertices, triangles, clip_from_world, size, samples=1, cull=
 def _depth_map(v, t, m, h, w, sx, sy, cull, dt, stats, checked=False):
     """The depth map of :func:`rasterize_depth` and ``stats``, counted on from the given ones."""
     S = sx.shape[0]
-    depth = np.ones(h * w * S, dtype=dt)
+    depth = cleared_map(h * w * S, dt)  # the far value 1, in a dropped map's memory where one is free (._maps)
 
     for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked,
                                           depth if _TILES else None):
