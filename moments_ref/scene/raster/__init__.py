@@ -38,7 +38,9 @@ Depth. NDC depth ``z_ndc = z_clip / w_clip`` is affine in window space; each
 sample gets the plane through the three snapped vertices, evaluated in float64
 and stored in the map's dtype (float32 by default, a D32_FLOAT buffer). Samples
 with depth outside [−1, 1] are clipped (Direct3D's depth clip). The depth test
-keeps the nearest (smallest) depth; the map is cleared to the far value 1.
+keeps the nearest (smallest) depth; the map is cleared to the far value 1, in
+the memory of a map the caller has dropped where one of its size is free (as
+llvmpipe clears the framebuffer it keeps; :mod:`moments_ref.scene.raster._maps`).
 Geometry is clipped against the near plane (z_clip ≥ −w_clip) before the
 perspective division, and against a guard band of ±2²⁰ pixels so that the
 integer edge functions cannot overflow.
