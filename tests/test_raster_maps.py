@@ -120,3 +120,13 @@ def test_rasterize_depth_maps_do_not_depend_on_reuse():
         gc.collect()
     for k, d in kept:
         assert d.tobytes() == first[k].tobytes()
+
+
+def test_maps_outside_the_kept_sizes_are_not_kept():
+    for n in (MIN_KEPT_BYTES // 4 - 4, _maps.MAX_KEPT_BYTES // 8 + 8):  # float32 below, float64 above
+        dt = np.float32 if n < MIN_KEPT_BYTES else np.float64
+        m = cleared_map(n, dt)
+        assert np.all(m[:: max(1, n // 1000)] == 1.0)
+        del m
+        gc.collect()
+        assert not _maps._FREE

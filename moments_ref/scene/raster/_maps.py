@@ -30,8 +30,10 @@ import numpy as np
 #: Maps at least this large (bytes) take the reused memory: below it first touches are few
 #: (NumPy asks the kernel for huge pages from 4 MiB on) and a finalizer would cost more.
 MIN_KEPT_BYTES = 1 << 22
-#: Largest buffer kept for reuse after its map is dropped (bytes): a 4096² 4× float32 map.
-MAX_KEPT_BYTES = 1 << 28
+#: Largest buffer kept for reuse after its map is dropped (bytes): a 2048² 4× float64 map. Larger
+#: maps (4096² 4× float32 is 256 MiB) are not kept, so that memory held for reuse stays small
+#: beside the memory budget of a 4096² run.
+MAX_KEPT_BYTES = 1 << 27
 
 # The free buffer, keyed by (element count, dtype): at most one is kept.
 _FREE = {}
