@@ -558,6 +558,53 @@ def test_results_do_not_depend_on_chunk_sizes(monkeypatch):
     assert s1.rasterized > 0 and (d1 < 1).mean() > 0.2
 
 
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_merged_row_count_groups_give_the_same_maps(monkeypatch, samples):
+    # Boxes of 1 to about 40 rows (the tallest cut into pieces): the dense groups merged upwards
+    # (the padded rows masked) into few groups, into one, or not at all, give the same maps and
+    # fragments. A merge that gives a group the smallest of its row counts drops rows: it must fail.
+    from moments_ref.scene.raster import _spans as spans
+
+    rng = np.random.default_rng(5)
+    v, t = raster.small_triangles(300, 96, 40.0, rng)
+    got = {}
+    for merge in (0, 1 << 9, 1 << 30):
+        monkeypatch.setattr(spans, "_MERGE_ROWS", merge)
+        d, st = rasterize_depth(v, t, np.eye(4), 96, samples=samples)
+        f, _ = rasterize_fragments(v, t, np.eye(4), 96, samples=samples)
+        got[merge] = d.tobytes(), st, f.texel * samples + f.sample, f.depth
+    base = got[0]
+    assert base[1].samples_covered > 0
+    for merge, (d, st, flat, z) in got.items():
+        assert d == base[0] and st == base[1], merge
+        np.testing.assert_array_equal(flat, base[2])
+        np.testing.assert_array_equal(z, base[3])
+
+    def smallest(key, S):  # the mutant: each merged group takes its smallest row count
+        n = np.bincount(key, minlength=spans._DENSE_ROWS + 1)
+        to = np.arange(n.size)
+        ks = np.flatnonzero(n[1:]) + 1
+        for g in np.array_split(ks, max(1, ks.size // 3)):
+            to[g] = g[0]
+        return to[key]
+
+    monkeypatch.setattr(spans, "_merged_counts", smallest)
+    assert rasterize_depth(v, t, np.eye(4), 96, samples=samples)[0].tobytes() != base[0]
+
+
+def test_merged_counts_take_the_largest_of_consecutive_counts(monkeypatch):
+    from moments_ref.scene.raster import _spans as spans
+
+    key = np.array([0, 3, 1, 1, 2, 5, 3, 0, 9, 2, 30])
+    monkeypatch.setattr(spans, "_MERGE_ROWS", 0)
+    np.testing.assert_array_equal(spans._merged_counts(key, 4), key)
+    monkeypatch.setattr(spans, "_MERGE_ROWS", 20)  # weights k * count * S with S = 4: 1: 8, 2: 16, 3: 24, ...
+    # 1 and 2 together reach 24 >= 20 (-> 2); 3 alone 24 (-> 3); 5: 20 (-> 5); 9: 36 (-> 9); 30 (-> 30)
+    np.testing.assert_array_equal(spans._merged_counts(key, 4), [0, 3, 2, 2, 2, 5, 3, 0, 9, 2, 30])
+    monkeypatch.setattr(spans, "_MERGE_ROWS", 1 << 30)  # one group: the largest count
+    np.testing.assert_array_equal(spans._merged_counts(key, 4), np.where(key > 0, 30, 0))
+
+
 def test_float64_map_and_dense_vs_ragged_paths_agree(monkeypatch):
     # The same large triangle through the ragged int64 span path and (with a huge row
     # limit) the dense float64 span path gives the same map.

@@ -38,7 +38,9 @@ Depth. NDC depth ``z_ndc = z_clip / w_clip`` is affine in window space; each
 sample gets the plane through the three snapped vertices, evaluated in float64
 and stored in the map's dtype (float32 by default, a D32_FLOAT buffer). Samples
 with depth outside [−1, 1] are clipped (Direct3D's depth clip). The depth test
-keeps the nearest (smallest) depth; the map is cleared to the far value 1.
+keeps the nearest (smallest) depth; the map is cleared to the far value 1, in
+the memory of a map the caller has dropped where one of its size is free (as
+llvmpipe clears the framebuffer it keeps; :mod:`moments_ref.scene.raster._maps`).
 Geometry is clipped against the near plane (z_clip ≥ −w_clip) before the
 perspective division, and against a guard band of ±2²⁰ pixels so that the
 integer edge functions cannot overflow.
@@ -96,6 +98,7 @@ from ._spans import _iter_spans
 from ._matrices import (_D3D11_PATTERN, _HALF, _SUB, MAX_SIZE, SAMPLE_COUNTS, SUBPIXEL_BITS, _check_matrix, _check_samples,
                        _check_size, _homogeneous, frustum, look_at, orthographic, perspective,
                        project_points, sample_positions, unproject_points)
+from ._maps import cleared_map
 from ._tiles import draw_tiles, tiled_boxes
 from ._spans import _row_batches
 from ._triangles import _check_mesh, _setup, _vertices, valid_triangles
@@ -343,7 +346,7 @@ def rasterize_depth(vertices, triangles, clip_from_world, size, samples=1, cull=
 def _depth_map(v, t, m, h, w, sx, sy, cull, dt, stats, checked=False):
     """The depth map of :func:`rasterize_depth` and ``stats``, counted on from the given ones."""
     S = sx.shape[0]
-    depth = np.ones(h * w * S, dtype=dt)
+    depth = cleared_map(h * w * S, dt)  # the far value 1, in a dropped map's memory where one is free (._maps)
 
     for _, flat, z, _ in _covered_samples(v, m, t, h, w, sx, sy, cull, stats, False, dt, checked,
                                           depth if _TILES else None):

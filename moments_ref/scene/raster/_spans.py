@@ -32,6 +32,9 @@ _SAMPLE_BUDGET = RASTER_SAMPLE_BUDGET
 _EXACT_FLOAT = float(1 << 53)
 # Boxes up to this many rows take the dense path (_rect_spans).
 _DENSE_ROWS = 32
+# Dense groups of boxes are merged with the next larger row counts up to this many layout rows
+# (_merged_counts).
+_MERGE_ROWS = 1 << 14
 # Triangles whose vertex coordinates (1/256 pixel) lie below this bound in magnitude
 # have edge values below 2^51 at every sample in the map, so the dense path's float64
 # arithmetic is exact: samples lie below 2^22 (16384 pixels), so |A|, |B| and the
@@ -106,8 +109,9 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
     ``taken`` (bool per box, optional): boxes another path draws (:mod:`._tiles`), left out
     here; they must be ``safe``.
 
-    Boxes of up to _DENSE_ROWS rows go, grouped by their exact row count (a bincount,
-    no sort), to the dense float path; taller boxes go there too, cut into pieces of
+    Boxes of up to _DENSE_ROWS rows go, grouped by their row count (a bincount, no sort;
+    groups of few boxes merged with the next larger counts, :func:`_merged_counts`), to the
+    dense float path; taller boxes go there too, cut into pieces of
     _DENSE_ROWS rows (:func:`_tall_pieces`: the same rows, the same exact edge values).
     Only boxes too far into the guard band for float64 to be exact (and every box when
     _DENSE_ROWS is 0) take the ragged int64 path.
@@ -129,6 +133,7 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
     else:  # no pieces: the boxes as they are (the others have key 0)
         tri, c0d, ncd, r0d, nrd, based, A3d, B3d = None, c0, nc, r0, nr, base3, A3, B3
         key = np.where(dense, nr, 0)
+    key = _merged_counts(key, S)
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
         sel = np.flatnonzero(key == k)
         step = max(1, _ROW_BUDGET // (int(k) * S))
@@ -144,6 +149,31 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
         a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
         pt, row, samp, col0, cnt = _row_spans(a3, b3, e3, c0[g], nc[g], r0[g], nr[g], sx, sy)
         yield g[pt], row, samp, col0, cnt
+
+
+def _merged_counts(key, S):
+    """Row counts ``key`` (0: not on the dense path) with small groups merged upwards.
+
+    Ascending, the boxes of consecutive row counts are gathered until they hold _MERGE_ROWS
+    (row, sample, box) rows of the dense layout, and take the largest of their counts (the rows
+    beyond a box's own are masked in _rect_bounds): fewer groups, each a few dozen NumPy calls,
+    for few padded rows. Groups that are large on their own (small triangles by the thousand)
+    stay as they are.
+    """
+    if _MERGE_ROWS <= 0:
+        return key
+    n = np.bincount(key, minlength=_DENSE_ROWS + 1)
+    to = np.arange(n.size)
+    acc, members = 0, []
+    for k in np.flatnonzero(n[1:]) + 1:
+        acc += int(n[k]) * int(k) * S
+        members.append(k)
+        if acc >= _MERGE_ROWS:
+            to[members] = k
+            acc, members = 0, []
+    if members:
+        to[members] = members[-1]
+    return to[key]
 
 
 def _tall_pieces(small, tall, c0, nc, r0, nr, base3, B3):

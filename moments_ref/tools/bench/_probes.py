@@ -92,14 +92,17 @@ def pass_probe(b, zf, passes, chunk, third_row=None):
 
 
 def scatter_probe(vertices, triangles, clip_from_world, size, samples):
-    """The rasterizer's floor on a scene: a fresh cleared depth map and the scatter-min of its covered samples.
+    """The rasterizer's floor on a scene: the clear of a depth map and the scatter-min of its covered samples.
 
     Any rasterizer that writes each covered sample's depth through ``np.minimum.at`` (the
     depth test of :func:`moments_ref.scene.raster.rasterize_depth`) pays at least this: the
-    first touch of the ``size² samples`` map and one scatter-min per covered sample, with
-    the flat sample indices and float32 depths already computed (here from
-    :func:`~moments_ref.scene.raster.rasterize_fragments`, outside the timing). Returns
-    ``(probe, covered)``: a callable returning the map, and the count of covered samples.
+    clear of the ``size² samples`` map to the far value and one scatter-min per covered
+    sample, with the flat sample indices and float32 depths already computed (here from
+    :func:`~moments_ref.scene.raster.rasterize_fragments`, outside the timing). The map's
+    memory is kept between calls, as llvmpipe keeps its framebuffer and as ``rasterize_depth``
+    reuses a dropped map's memory (``moments_ref.scene.raster._maps``): the first touch of
+    fresh pages is not part of the floor. Returns ``(probe, covered)``: a callable returning
+    the map, and the count of covered samples.
     """
     from ...scene.raster import rasterize_fragments
 
@@ -109,8 +112,10 @@ def scatter_probe(vertices, triangles, clip_from_world, size, samples):
     n_map = size * size * samples
     del f
 
+    depth = np.empty(n_map, np.float32)
+
     def probe():
-        depth = np.ones(n_map, np.float32)
+        depth.fill(1.0)
         np.minimum.at(depth, flat, z)
         return depth
 

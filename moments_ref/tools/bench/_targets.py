@@ -91,8 +91,8 @@ def _raster_rows(cases, repeat):
             probe, covered = scatter_probe(v, t, vp, size, samples)
             p = paired(probe, lp.time, repeat)
             del probe
-            rows.append(_row("  floor probe: fresh map + scatter-min of the covered samples", p, limit,
-                             f"CPU {p.kernel:.3f} s: np.ones of {size}² × {samples} and np.minimum.at of "
+            rows.append(_row("  floor probe: map clear + scatter-min of the covered samples", p, limit,
+                             f"CPU {p.kernel:.3f} s: fill of a kept {size}² × {samples} map and np.minimum.at of "
                              f"{covered / 1e6:.2f} M samples (indices and depths given)", p.kernel))
     return rows
 
