@@ -268,3 +268,18 @@ def test_workers_see_the_parents_environment_when_the_pool_is_made(monkeypatch):
     assert list(_run(tasks, jobs=2).values()) == ["after", "set"]
     monkeypatch.delenv("MOMENTS_REF_TEST_OTHER")
     assert list(_run(tasks, jobs=2).values()) == ["after", None]
+
+
+def _gc_young(_):
+    import gc
+
+    return gc.get_threshold()[0]
+
+
+def test_workers_collect_garbage_less_often_and_the_parent_is_left_alone():
+    import gc
+
+    before = gc.get_threshold()
+    done = _run([(("a",), _gc_young, (0,)), (("b",), _gc_young, (0,))], jobs=2)
+    assert list(done.values()) == [_jobs.GC_YOUNG] * 2 and _jobs.GC_YOUNG > 700  # Python's default
+    assert gc.get_threshold() == before
