@@ -137,35 +137,3 @@ def test_visibility_figure_colours_and_bar():
     assert any("visibility" in ax.get_ylabel() for ax in fig.axes)
     assert {t.get_text() for t in fig.legends[0].get_texts()} >= {"occluder"}
     matplotlib.pyplot.close("all")
-
-
-def test_a_crop_panel_has_the_pixels_of_one_with_empty_tick_lists():
-    # _crop hides the axes instead of giving them empty tick lists (no tick artists are made):
-    # the figure's pixels, after tight_layout as the report saves it, must be the same.
-    import io
-
-    import matplotlib.pyplot as plt
-    from PIL import Image
-
-    from moments_ref._io import figure_png
-
-    img = np.random.default_rng(3).random((30, 40))
-
-    def png(hidden):
-        fig, axes = plt.subplots(2, 3, figsize=(6, 4))
-        for i, ax in enumerate(axes.ravel()):
-            if hidden:
-                _crops._crop(ax, img, i, 2 * i, 16, f"panel {i}", cmap="gray", vmin=0, vmax=1)
-            else:
-                ax.imshow(img[i:i + 16, 2 * i:2 * i + 16], interpolation="nearest", cmap="gray", vmin=0, vmax=1)
-                ax.set_xticks([])
-                ax.set_yticks([])
-                ax.set_title(f"panel {i}", fontsize=7)
-        fig.tight_layout(rect=(0, 0, 0.85, 1))
-        try:
-            return np.asarray(Image.open(io.BytesIO(figure_png(fig, dpi=110))))
-        finally:
-            plt.close(fig)
-
-    hidden, ticks = png(True), png(False)
-    assert hidden.shape == ticks.shape and np.array_equal(hidden, ticks)

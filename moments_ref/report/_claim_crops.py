@@ -88,8 +88,8 @@ def crop_pngs(measured):
             for ax, name, img in zip(np.atleast_1d(axes), c["names"], c["images"]):
                 ax.imshow(img.astype(np.float32), cmap="gray", vmin=0, vmax=1, interpolation="nearest")
                 ax.set_title(name, fontsize=9)
-                ax.xaxis.set_visible(False)  # no ticks (the same pixels as empty tick lists, quicker)
-                ax.yaxis.set_visible(False)
+                ax.set_xticks([])
+                ax.set_yticks([])
             fig.suptitle(f"{cid}: {c['side']} px at {c['pixel']}, exposure x{EXPOSURE:g}", fontsize=8)
             try:
                 out[file_name(cid)] = figure_png(fig, dpi=110, compress_level=REPORT_PNG_LEVEL)
