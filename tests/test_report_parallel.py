@@ -199,3 +199,87 @@ def test_workers_get_their_share_of_the_cores_for_openmp(preset, monkeypatch):
     want = preset or str(max(1, _jobs.usable_cores() // 2))
     assert list(done.values()) == [want, want]
     assert os.environ.get("OMP_NUM_THREADS") == preset
+
+
+_ORPHAN = """
+import os, sys, time
+from moments_ref.report import _jobs
+
+def pid_then_sleep(path):
+    with open(path, "a") as f:
+        f.write(f"{os.getpid()}\\n")
+    time.sleep(60)
+
+if __name__ == "__main__":
+    with _jobs.Workers(2) as workers:
+        workers.start(2, "moments_ref.report")
+        workers.run([(("a",), pid_then_sleep, (sys.argv[1],)), (("b",), pid_then_sleep, (sys.argv[1],))])
+"""
+
+
+def _running(pid):
+    """Whether ``pid`` is a process that is not a zombie (Linux: /proc/PID/stat)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc")
+def test_workers_end_when_the_parent_is_killed(tmp_path):
+    # A worker is forked by the fork server, not by the parent, and the server outlives a
+    # killed parent while a worker holds its pipe: each worker must watch the parent itself.
+    import signal
+    import subprocess
+    import sys
+
+    script, pids = tmp_path / "orphan.py", tmp_path / "pids"
+    script.write_text(_ORPHAN)
+    p = subprocess.Popen([sys.executable, str(script), str(pids)], cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and (not pids.exists() or len(pids.read_text().split()) < 2):
+            time.sleep(0.1)
+        workers = [int(x) for x in pids.read_text().split()]
+        assert len(workers) == 2 and p.pid not in workers and all(map(_running, workers))
+    finally:
+        p.send_signal(signal.SIGKILL)
+        p.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(map(_running, workers)):
+        time.sleep(0.1)
+    assert not any(map(_running, workers))
+
+
+def _environment(name):
+    return os.environ.get(name)
+
+
+def test_workers_see_the_parents_environment_when_the_pool_is_made(monkeypatch):
+    # A forked worker starts from the fork server's environment (fixed when the server
+    # started); it must see the parent's, as a spawned worker does.
+    monkeypatch.setenv("MOMENTS_REF_TEST_VARIABLE", "before")
+    _run([(("a",), _sleep, (0.0,)), (("b",), _sleep, (0.0,))], jobs=2)  # the server runs from here on
+    monkeypatch.setenv("MOMENTS_REF_TEST_VARIABLE", "after")
+    monkeypatch.setenv("MOMENTS_REF_TEST_OTHER", "set")
+    tasks = [(("a",), _environment, ("MOMENTS_REF_TEST_VARIABLE",)),
+             (("b",), _environment, ("MOMENTS_REF_TEST_OTHER",))]
+    assert list(_run(tasks, jobs=2).values()) == ["after", "set"]
+    monkeypatch.delenv("MOMENTS_REF_TEST_OTHER")
+    assert list(_run(tasks, jobs=2).values()) == ["after", None]
+
+
+def _gc_young(_):
+    import gc
+
+    return gc.get_threshold()[0]
+
+
+def test_workers_collect_garbage_less_often_and_the_parent_is_left_alone():
+    import gc
+
+    before = gc.get_threshold()
+    done = _run([(("a",), _gc_young, (0,)), (("b",), _gc_young, (0,))], jobs=2)
+    assert list(done.values()) == [_jobs.GC_YOUNG] * 2 and _jobs.GC_YOUNG > 700  # Python's default
+    assert gc.get_threshold() == before
