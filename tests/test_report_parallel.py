@@ -228,8 +228,8 @@ def _running(pid):
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc")
 def test_workers_end_when_the_parent_is_killed(tmp_path):
-    # A worker is forked by the fork server, not by the parent, and the server outlives a
-    # killed parent while a worker holds its pipe: each worker must watch the parent itself.
+    # A parent killed by SIGKILL runs no clean-up: the workers must notice on their own
+    # (the kernel's parent-death signal, the watching thread) and end.
     import signal
     import subprocess
     import sys
@@ -257,10 +257,10 @@ def _environment(name):
 
 
 def test_workers_see_the_parents_environment_when_the_pool_is_made(monkeypatch):
-    # A forked worker starts from the fork server's environment (fixed when the server
-    # started); it must see the parent's, as a spawned worker does.
+    # The workers of each pool see the parent's environment of when the pool was made
+    # (a start method that forked from an earlier state would not).
     monkeypatch.setenv("MOMENTS_REF_TEST_VARIABLE", "before")
-    _run([(("a",), _sleep, (0.0,)), (("b",), _sleep, (0.0,))], jobs=2)  # the server runs from here on
+    _run([(("a",), _sleep, (0.0,)), (("b",), _sleep, (0.0,))], jobs=2)
     monkeypatch.setenv("MOMENTS_REF_TEST_VARIABLE", "after")
     monkeypatch.setenv("MOMENTS_REF_TEST_OTHER", "set")
     tasks = [(("a",), _environment, ("MOMENTS_REF_TEST_VARIABLE",)),

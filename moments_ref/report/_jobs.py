@@ -1,18 +1,10 @@
 """The report's independent tasks (scenes, the temporal claim, the artifacts) on ``--jobs`` worker processes.
 
 :meth:`Workers.run` runs a list of tasks, each a top-level function and its
-arguments (spawn-safe: the workers import the function by name), either one
-after the other in this process (``jobs`` 1, the serial path) or in a
-:class:`concurrent.futures.ProcessPoolExecutor` of ``jobs`` workers (start
-method ``forkserver`` where the system has it, else ``spawn``: no inherited
-threads or locks). The fork server is a fresh interpreter that imports the
-report's modules once (:data:`PRELOAD` and the module given to
-:meth:`Workers.start`) and forks each worker from that state, so the workers
-skip the imports (and, with ``PYTHONDONTWRITEBYTECODE``, the compilation of the
-package) that a spawned worker repeats; ꟻLIP's ``flip_evaluator`` is not among
-them (its libgomp reads ``OMP_NUM_THREADS`` when it loads, which the worker
-sets first). A forked worker takes the parent's environment as it was when the
-pool was made, as a spawned one does. The
+arguments (spawn-safe: the workers start a fresh interpreter and import the
+function by name), either one after the other in this process (``jobs`` 1, the
+serial path) or in a :class:`concurrent.futures.ProcessPoolExecutor` of
+``jobs`` workers (start method ``spawn``: no inherited threads or locks). The
 tasks are submitted in the order given (the caller puts the longest first, so
 that the last task to finish is a short one); the results come back under their
 keys in that same order, whatever order the workers finish in, so what is
@@ -27,10 +19,9 @@ the remedy. The processes stay for a second batch (the report's Pareto-front plo
 which need every scene's rows).
 
 Workers die with the parent, however it ends: each asks the kernel for SIGKILL
-when the process that forked it ends (Linux ``PR_SET_PDEATHSIG``: the parent,
-or the fork server) and watches the parent from a thread (a pidfd where the
-system has one, else its process id every :data:`WATCH_SECONDS`), so that a
-parent killed by SIGTERM or SIGKILL leaves no worker computing for nobody. Workers
+when its parent ends (Linux ``PR_SET_PDEATHSIG``) and watches its parent id
+from a thread (every :data:`WATCH_SECONDS`, on any system), so that a parent
+killed by SIGTERM or SIGKILL leaves no worker computing for nobody. Workers
 ignore SIGINT: Ctrl-C reaches the parent, which stops them. Warnings a task
 raises come back with its result and are raised again in the parent, so that
 none is printed by a worker before the parent's one-line refusal.
@@ -77,47 +68,22 @@ def usable_cores() -> int:
 WATCH_SECONDS = 0.5
 
 
-def _alive(pid):
-    """Whether process ``pid`` still exists (``kill(pid, 0)``; a process of another user counts)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def _die_with_parent(parent):
-    """End this worker when process ``parent`` ends: the kernel's parent-death signal and a watching thread.
-
-    A forked worker's own parent is the fork server, which outlives the report's
-    process: the thread watches ``parent`` itself, through a pidfd (readable once
-    it has ended, a zombie too) where there is one, else by its id.
-    """
+    """End this worker when process ``parent`` ends: the kernel's parent-death signal and a watching thread."""
     if sys.platform.startswith("linux"):
         import ctypes
 
-        try:  # prctl(PR_SET_PDEATHSIG, SIGKILL): the kernel kills this process when its forking parent ends
+        try:  # prctl(PR_SET_PDEATHSIG, SIGKILL): the kernel kills this process when its parent ends
             ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
         except (OSError, AttributeError):
             pass  # the watching thread below still ends it
-    try:
-        fd = os.pidfd_open(parent)
-    except (AttributeError, OSError):  # no pidfd (not Linux 5.3+), or the parent has already ended
-        fd = None
 
     def watch():
-        if fd is not None:
-            import select
-
-            select.select([fd], [], [])  # readable when the parent has ended
-        else:
-            while _alive(parent):
-                time.sleep(WATCH_SECONDS)
+        while os.getppid() == parent:
+            time.sleep(WATCH_SECONDS)
         os._exit(1)
 
-    if not _alive(parent):  # the parent ended before the watch began
+    if os.getppid() != parent:  # the parent ended before the signal was asked for
         os._exit(1)
     threading.Thread(target=watch, name="watch-parent", daemon=True).start()
 
@@ -129,17 +95,13 @@ def _die_with_parent(parent):
 GC_YOUNG = 5000
 
 
-def _init_worker(limit, parent=None, threads=None, environ=None):
+def _init_worker(limit, parent=None, threads=None):
     """Worker start: die with the parent, ignore Ctrl-C (the parent stops the workers), the parent's
-    environment (``environ``: a forked worker has the fork server's), the parent's memory limit
-    (``--max-memory``), :data:`GC_YOUNG`, matplotlib without a display, and the worker's share of
-    the cores (``threads``) for OpenMP code loaded later (ꟻLIP's ``flip-evaluator``) unless the
-    user set ``OMP_NUM_THREADS``."""
+    memory limit (``--max-memory``), :data:`GC_YOUNG`, matplotlib without a display, and the worker's share of the
+    cores (``threads``) for OpenMP code loaded later (ꟻLIP's ``flip-evaluator``) unless the user
+    set ``OMP_NUM_THREADS``."""
     if parent is not None:
         _die_with_parent(parent)
-    if environ is not None and environ != os.environ:
-        os.environ.clear()
-        os.environ.update(environ)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     set_max_memory(limit)
     if threads is not None:
@@ -231,37 +193,12 @@ def _parallel(pool, tasks, bar):
     return {key: f.result() for f, key in futures.items()}
 
 
-#: Modules the fork server imports for every worker (with the module given to :meth:`Workers.start`):
-#: what the report's tasks import on first use. Not ``flip_evaluator``: its libgomp reads
-#: ``OMP_NUM_THREADS`` when it loads, which each worker sets first (:func:`_init_worker`).
-PRELOAD = ("matplotlib.pyplot", "matplotlib.backends.backend_agg", "scipy.ndimage")
-
-
-def _context():
-    """The start method of the workers: ``forkserver`` where the system has it, else ``spawn``."""
-    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
-    return multiprocessing.get_context(method)
-
-
-def _start_server(module=None):
-    """Start the fork server now (it imports :data:`PRELOAD` and ``module`` while the caller goes on).
-
-    The server is one per process and its imports are fixed when it starts: a
-    server already running (an earlier pool in this process) is kept as it is.
-    """
-    from multiprocessing import forkserver
-
-    forkserver.set_forkserver_preload([*([module] if module else []), *PRELOAD])
-    forkserver.ensure_running()
-
-
 class Workers:
     """Up to ``jobs`` worker processes for several batches of tasks (a context manager).
 
     The processes start with the first :meth:`run` of more than one task (at most
     one per task of that batch) and stay for the next batches, whose tasks then
-    skip the start-up (a fork of the server, or a fresh interpreter importing NumPy,
-    SciPy and matplotlib).
+    skip the start-up (a fresh interpreter importing NumPy, SciPy and matplotlib).
     ``jobs`` 1 runs every batch here. Leaving the block ends the idle workers
     (after an error, the running ones are terminated) and waits until the pool's
     manager thread has joined them (:func:`_retire`).
@@ -281,30 +218,22 @@ class Workers:
         return False
 
     def start(self, tasks, module):
-        """Prepare the worker processes for up to ``tasks`` tasks now, without waiting for them.
+        """Start the worker processes for up to ``tasks`` tasks now, without waiting for them.
 
-        ``module`` (the tasks' functions' module) is imported while the caller
-        prepares the tasks, instead of after it: by the fork server (started here,
-        the workers are forked from it at the first :meth:`run`), or, with
-        ``spawn``, by each worker started here (:func:`_warm`). Nothing happens with
-        one job or one task.
+        They import ``module`` (the tasks' functions' module, :func:`_warm`) while the
+        caller prepares their tasks, instead of after it; nothing happens with one job
+        or one task.
         """
         n = min(self.jobs, int(tasks))
-        if self._pool is not None or n < 2:
-            return
-        if _context().get_start_method() == "forkserver":
-            _start_server(module)
-            return
-        self._pool = self._new_pool(n)
-        for _ in range(n):
-            self._pool.submit(_warm, module)
+        if self._pool is None and n > 1:
+            self._pool = self._new_pool(n)
+            for _ in range(n):
+                self._pool.submit(_warm, module)
 
     def _new_pool(self, n):
         threads = max(1, usable_cores() // n)
-        if _context().get_start_method() == "forkserver":
-            _start_server()  # no-op if :meth:`start` started it
-        return ProcessPoolExecutor(max_workers=n, mp_context=_context(), initializer=_init_worker,
-                                   initargs=(max_memory(), os.getpid(), threads, dict(os.environ)))
+        return ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_worker, initargs=(max_memory(), os.getpid(), threads))
 
     def run(self, tasks, progress=False, desc="report", timings=None):
         """Run ``tasks`` (a list of ``(key, function, args)``); return ``{key: result}`` in the tasks' order.
