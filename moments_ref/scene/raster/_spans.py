@@ -255,7 +255,7 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
             # constant ramps k * step (cached), one repeat and one add per array. The
             # column offsets are integers below 2^53, exact in float64, and the depth is
             # (z0 + za Xs) + zb Ys, evaluated in place.
-            z = rep((xs0[b] - start * _SUB).astype(np.float64))
+            z = rep((xs0[b] - start * _SUB).astype(np.float64, copy=False))
             z += _ramp(n, _SUB, np.float64)
             z *= rep(za[b])
             z += rep(z0[b])
@@ -333,18 +333,19 @@ def _rect_values(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w):
     lo, cnt = _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, presorted=True)
     keep = np.flatnonzero(cnt > 0)  # (r S + sample) n + box
     at = keep % (S * n)  # sample n + box
-    lo_k = np.take(lo, keep).astype(np.int64)
+    lo_k = np.take(lo, keep)
     # X of the box's first column and Y of its first row, per (sample, box): exact integers.
-    x_sb = (c0 * _SUB + np.take(_HALF - s["X"][0], tri)) + sx[:, None]
+    x_sb = ((c0 * _SUB + np.take(_HALF - s["X"][0], tri)) + sx[:, None]).astype(np.float64)
     y_sb = ((r0 * _SUB + np.take(_HALF - s["Y"][0], tri)) + sy[:, None]).astype(np.float64)
     zbY = np.add(y_sb[None], (np.arange(k, dtype=np.float64) * _SUB)[:, None, None])
     zbY *= np.take(s["zb"], tri)  # (k, S, n): zb Y, Y exact in float64
     flat_t = ((r0 * w + c0) * S + np.arange(S)[:, None])[None] + (np.arange(k) * (w * S))[:, None, None]
-    xs0 = lo_k * _SUB
+    xs0 = lo_k * _SUB  # float64, exact
     xs0 += np.take(x_sb, at)
-    flat0 = lo_k * S
+    flat0 = lo_k.astype(np.int64) * S
     flat0 += np.take(flat_t, keep)
-    zs = np.tile(np.take(s["z0"], tri), S), np.tile(np.take(s["za"], tri), S)
+    zs = np.empty((2, S, n))  # z0 and za per (sample, box)
+    zs[0], zs[1] = np.take(s["z0"], tri), np.take(s["za"], tri)
     return (xs0, np.take(zbY, keep), np.take(zs[0], at), np.take(zs[1], at), flat0,
             np.take(cnt, keep).astype(np.int64))
 
