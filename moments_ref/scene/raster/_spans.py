@@ -216,7 +216,9 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
     some may lie outside [-1, 1] (the caller clips them), else already rounded to
     ``dtype`` by the last addition (the same value as rounding the float64 sum).
     ``batches``: the span rows to expand, when not those of :func:`_row_batches` of every box
-    (a callable of (s, c0, nc, r0, nr, safe, sx, sy) returning an iterable of batches).
+    (a callable of (s, c0, nc, r0, nr, safe, sx, sy) returning an iterable of batches; given the
+    keyword ``w`` when no fragments and no clip tests are wanted, it may yield the rows' values
+    of :func:`_rect_values` instead of their indices).
     """
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
