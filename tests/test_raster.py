@@ -605,6 +605,39 @@ def test_merged_counts_take_the_largest_of_consecutive_counts(monkeypatch):
     np.testing.assert_array_equal(spans._merged_counts(key, 4), np.where(key > 0, 30, 0))
 
 
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_span_row_values_give_the_maps_of_span_indices(monkeypatch, samples):
+    # The dense path hands _iter_spans each span row's values (_spans._rect_values) instead of
+    # its (triangle, row, sample, column): on a non-square map with boxes of 1 to about 80 rows
+    # (tall ones cut into pieces, groups merged, large triangles tiled), float32 and float64,
+    # the maps must be those of the indices, byte for byte. A row value off by one sample
+    # offset (x without the sample's sx) must fail.
+    from moments_ref.scene.raster import _spans as spans
+
+    rng = np.random.default_rng(11)
+    v, t = raster.small_triangles(400, 160, 70.0, rng)
+    v = v * np.array([1.0, 0.75, 1.0])  # the map is 160 x 120: rows and columns differ
+    big = np.array([[-0.9, -0.8, -0.3], [0.8, -0.7, 0.2], [0.1, 0.9, 0.5]])  # tiled (inradius >= 16 px)
+    v, t = np.concatenate([v, big]), np.concatenate([t, [[v.shape[0], v.shape[0] + 1, v.shape[0] + 2]]])
+    got = {}
+    for values in (False, True):
+        monkeypatch.setattr(spans, "_ROW_VALUES", values)
+        got[values] = [rasterize_depth(v, t, np.eye(4), (120, 160), samples=samples, dtype=dt)
+                       for dt in (np.float32, np.float64)]
+    for (d0, s0), (d1, s1) in zip(got[False], got[True]):
+        assert d0.tobytes() == d1.tobytes() and s0 == s1
+    assert got[True][0][1].samples_covered > 0 and (got[True][0][0] < 1).mean() > 0.3
+
+    real = spans._rect_values
+
+    def off_by_sx(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w):  # the mutant
+        return real(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx * 0, sy, w)
+
+    monkeypatch.setattr(spans, "_rect_values", off_by_sx)
+    if samples > 1:  # the 1x pattern's offset is 0
+        assert rasterize_depth(v, t, np.eye(4), (120, 160), samples=samples)[0].tobytes() != got[False][0][0].tobytes()
+
+
 def test_float64_map_and_dense_vs_ragged_paths_agree(monkeypatch):
     # The same large triangle through the ragged int64 span path and (with a huge row
     # limit) the dense float64 span path gives the same map.

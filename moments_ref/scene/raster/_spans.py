@@ -35,6 +35,8 @@ _DENSE_ROWS = 32
 # Dense groups of boxes are merged with the next larger row counts up to this many layout rows
 # (_merged_counts).
 _MERGE_ROWS = 1 << 14
+# The dense path hands _iter_spans its span rows' values (_rect_values); False: their indices.
+_ROW_VALUES = True
 # Triangles whose vertex coordinates (1/256 pixel) lie below this bound in magnitude
 # have edge values below 2^51 at every sample in the map, so the dense path's float64
 # arithmetic is exact: samples lie below 2^22 (16384 pixels), so |A|, |B| and the
@@ -103,11 +105,12 @@ def _row_spans(A3, B3, base3, c0, nc, r0, nr, sx, sy):
     return pt, r0[pt] + ro, samp, c0[pt] + lo, cnt
 
 
-def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
+def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
     """Yield _row_spans-like batches (row's triangle index first) over all triangles of ``s``.
 
     ``taken`` (bool per box, optional): boxes another path draws (:mod:`._tiles`), left out
-    here; they must be ``safe``.
+    here; they must be ``safe``. ``w`` (the map's width, optional): the dense path's batches
+    are yielded as the span rows' values instead (:func:`_rect_values`).
 
     Boxes of up to _DENSE_ROWS rows go, grouped by their row count (a bincount, no sort;
     groups of few boxes merged with the next larger counts, :func:`_merged_counts`), to the
@@ -140,6 +143,10 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None):
         for a in range(0, sel.size, step):
             g = sel[a:a + step]
             a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3d, B3d, based))
+            if w is not None and _ROW_VALUES:
+                yield _rect_values(s, g if tri is None else tri[g], a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k),
+                                   sx, sy, w)
+                continue
             j, row, samp, col0, cnt = _rect_spans(a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k), sx, sy,
                                                   presorted=True)
             yield (g if tri is None else tri[g])[j], row, samp, col0, cnt
@@ -209,7 +216,9 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
     some may lie outside [-1, 1] (the caller clips them), else already rounded to
     ``dtype`` by the last addition (the same value as rounding the float64 sum).
     ``batches``: the span rows to expand, when not those of :func:`_row_batches` of every box
-    (a callable of (s, c0, nc, r0, nr, safe, sx, sy) returning an iterable of batches).
+    (a callable of (s, c0, nc, r0, nr, safe, sx, sy) returning an iterable of batches; given the
+    keyword ``w`` when no fragments and no clip tests are wanted, it may yield the rows' values
+    of :func:`_rect_values` instead of their indices).
     """
     S = sx.shape[0]
     nc, nr = c1 - c0 + 1, r1 - r0 + 1
@@ -217,12 +226,20 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
     all_inside = bool(tri_inside.all())  # once for the chunk, not a gather per span row
     # Offsets of a box's pixel centres from vertex 0, per triangle (integers, exact).
     cx, cy = _HALF - s["X"][0], _HALF - s["Y"][0]
-    rows = (batches or _row_batches)(s, c0, nc, r0, nr, safe, sx, sy)
-    for i_row, row, samp, col0, cnt in rows:
-        xs0 = col0 * _SUB + sx[samp] + cx[i_row]
-        zbY = s["zb"][i_row] * (row * _SUB + sy[samp] + cy[i_row])
-        z0, za = s["z0"][i_row], s["za"][i_row]
-        flat0 = (row * w + col0) * S + samp
+    # Without fragments and depth clips, the dense path hands over each span row's values,
+    # not its (triangle, row, sample, column) (_rect_values).
+    fast = {"w": w} if all_inside and not want_rcs else {}
+    rows = (batches or _row_batches)(s, c0, nc, r0, nr, safe, sx, sy, **fast)
+    for item in rows:
+        if len(item) == 6:
+            xs0, zbY, z0, za, flat0, cnt = item
+            i_row = row = samp = col0 = None
+        else:
+            i_row, row, samp, col0, cnt = item
+            xs0 = col0 * _SUB + sx[samp] + cx[i_row]
+            zbY = s["zb"][i_row] * (row * _SUB + sy[samp] + cy[i_row])
+            z0, za = s["z0"][i_row], s["za"][i_row]
+            flat0 = (row * w + col0) * S + samp
         if all_inside or tri_inside[i_row].all():
             inside = None  # every row's depths in [-1, 1]
         else:
@@ -240,7 +257,7 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
             # constant ramps k * step (cached), one repeat and one add per array. The
             # column offsets are integers below 2^53, exact in float64, and the depth is
             # (z0 + za Xs) + zb Ys, evaluated in place.
-            z = rep((xs0[b] - start * _SUB).astype(np.float64))
+            z = rep((xs0[b] - start * _SUB).astype(np.float64, copy=False))
             z += _ramp(n, _SUB, np.float64)
             z *= rep(za[b])
             z += rep(z0[b])
@@ -301,6 +318,38 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy, presorted=False):
     rs, j = np.divmod(keep, n)
     r, samp = rs >> (S.bit_length() - 1), rs & (S - 1)  # S a power of two (the D3D11 patterns' 1, 4, 8)
     return j, r0[j] + r, samp, c0[j] + np.take(lo, keep).astype(np.int64), np.take(cnt, keep).astype(np.int64)
+
+
+def _rect_values(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w):
+    """The values :func:`_iter_spans` needs of each nonempty span row of :func:`_rect_spans` (edges presorted).
+
+    Returns (xs0, zbY, z0, za, flat0, cnt) per row in :func:`_rect_spans`' order: xs0 the
+    first covered sample's X offset from vertex 0, ``zbY = zb Y`` of the row, the triangle's
+    z0 and za, the flat index of the first covered sample. The same integers and the same
+    float64 product as :func:`_iter_spans` computes from (triangle, row, sample, column),
+    taken from small (sample, box) tables and two dense (k, S, n) ones, so each row costs
+    about a dozen passes instead of thirty.
+    """
+    S = sx.shape[0]
+    n = nr.size
+    lo, cnt = _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, presorted=True)
+    keep = np.flatnonzero(cnt > 0)  # (r S + sample) n + box
+    at = keep % (S * n)  # sample n + box
+    lo_k = np.take(lo, keep)
+    # X of the box's first column and Y of its first row, per (sample, box): exact integers.
+    x_sb = ((c0 * _SUB + np.take(_HALF - s["X"][0], tri)) + sx[:, None]).astype(np.float64)
+    y_sb = ((r0 * _SUB + np.take(_HALF - s["Y"][0], tri)) + sy[:, None]).astype(np.float64)
+    zbY = np.add(y_sb[None], (np.arange(k, dtype=np.float64) * _SUB)[:, None, None])
+    zbY *= np.take(s["zb"], tri)  # (k, S, n): zb Y, Y exact in float64
+    flat_t = ((r0 * w + c0) * S + np.arange(S)[:, None])[None] + (np.arange(k) * (w * S))[:, None, None]
+    xs0 = lo_k * _SUB  # float64, exact
+    xs0 += np.take(x_sb, at)
+    flat0 = lo_k.astype(np.int64) * S
+    flat0 += np.take(flat_t, keep)
+    zs = np.empty((2, S, n))  # z0 and za per (sample, box)
+    zs[0], zs[1] = np.take(s["z0"], tri), np.take(s["za"], tri)
+    return (xs0, np.take(zbY, keep), np.take(zs[0], at), np.take(zs[1], at), flat0,
+            np.take(cnt, keep).astype(np.int64))
 
 
 def _edge_order(A3, B3, F3):
