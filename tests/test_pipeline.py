@@ -329,3 +329,33 @@ def test_reference_stage_keys_carry_the_bias():
     refs = {t.reference for t in rp.techniques.values()}
     assert refs == {"reference_pcf_bias0.001"}  # one bias, one shared reference stage
     assert g.nodes["reference_pcf_bias0.001"].params == (("bias", 1e-3),)
+
+
+def test_a_given_camera_gbuffer_replaces_the_rendered_one_with_the_same_results(monkeypatch):
+    """Settings.camera_gbuffer (the G-buffer check_shaded rendered): the run does not render it again and
+    its results are the bytes of a run that renders it; one of another resolution is refused."""
+    from moments_ref.pipeline import planner
+    from moments_ref.scene.gbuffer import camera_gbuffer, check_shaded
+
+    sc = load_scene("facade")
+    st = pipeline.Settings(**SMALL)
+    ctx_scene = pipeline.plan(sc, ["pcf", "msm128"], st).context.scene
+    assert ctx_scene is sc  # no texel offsets: the run's scene is the checked one
+    rendered = pipeline.run(sc, ["pcf", "msm128"], st)
+    given = check_shaded(sc, SMALL["resolution"], sc.light_clip_from_world(), (48, 48))
+    fresh = camera_gbuffer(sc, SMALL["resolution"])
+    for f in dataclasses.fields(fresh):
+        a, b = getattr(given, f.name), getattr(fresh, f.name)
+        assert (a is None and b is None) or np.array_equal(np.asarray(a), np.asarray(b)), f.name
+
+    def no_render(*a, **k):
+        raise AssertionError("the camera G-buffer was rendered again")
+
+    monkeypatch.setattr(planner, "camera_gbuffer", no_render)
+    r = pipeline.run(sc, ["pcf", "msm128"], st.replace(camera_gbuffer=given))
+    assert r.values["camera_gbuffer"] is given
+    for name in ("pcf", "msm128"):
+        assert r.shadow[name].tobytes() == rendered.shadow[name].tobytes()
+        assert r.reference[name].tobytes() == rendered.reference[name].tobytes()
+    with pytest.raises(InputError, match="camera_gbuffer: expected the camera G-buffer of the run's resolution"):
+        pipeline.plan(sc, ["pcf"], st.replace(resolution=(40, 25), camera_gbuffer=given))

@@ -119,3 +119,28 @@ def test_translucent_contact_shadow_equals_brute_force():
     want = [_brute_force(occlusion, u, v, z, GRAD) for (u, v), z in zip(pts, zf)]
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
     assert abs(got[-1] - 0.4) < 1e-12 and got[0] > 0.1  # inside the wedge's shadow: its opacity
+
+
+def test_receiver_plane_depths_are_the_documented_sums_bit_for_bit():
+    """Every tap's and sample's plane depth, summed per element by plain Python floats in the documented order:
+    ``min(((zf + gx·(x − u)) + gy·(y − v)) + gx·o_x + gy·o_y, 1)`` (x, y the tap centres, o the 4× offsets)."""
+    from moments_ref.techniques.pcf import _receiver_plane, _sample_offsets, tap_centres
+
+    rng = np.random.default_rng(7)
+    n, size = 6, 40
+    uv = rng.uniform(-3, size + 3, (n, 2))
+    zf = rng.uniform(-1, 1.2, n)
+    grad = rng.normal(0, 0.05, (n, 2))
+    off = _sample_offsets(4)
+    got = _receiver_plane(zf[:, None, None, None], grad, uv, off, size, size)
+    cx, cy = tap_centres(uv[:, 0], size), tap_centres(uv[:, 1], size)
+    assert got.shape == (n, 10, 10, 4)
+    for i in range(n):
+        gx, gy = float(grad[i, 0]), float(grad[i, 1])
+        for r in range(10):
+            for c in range(10):
+                for s in range(4):
+                    want = float(zf[i]) + gx * (float(cx[i, c]) - float(uv[i, 0])) + gy * (float(cy[i, r]) - float(uv[i, 1]))
+                    want = min(want + gx * float(off[s, 0]) + gy * float(off[s, 1]), 1.0)
+                    assert got[i, r, c, s] == want, (i, r, c, s)
+    assert (got == 1.0).any() and (got < 1.0).any()

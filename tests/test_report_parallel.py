@@ -283,3 +283,28 @@ def test_workers_collect_garbage_less_often_and_the_parent_is_left_alone():
     done = _run([(("a",), _gc_young, (0,)), (("b",), _gc_young, (0,))], jobs=2)
     assert list(done.values()) == [_jobs.GC_YOUNG] * 2 and _jobs.GC_YOUNG > 700  # Python's default
     assert gc.get_threshold() == before
+
+
+def test_the_checked_camera_gbuffer_is_handed_to_the_scene_run_with_the_same_outputs(tmp_path, monkeypatch):
+    """The report's check renders each scene's camera G-buffer; the scene's run takes it (Settings.camera_gbuffer)
+    instead of rendering it again, and writes what a run that renders it writes."""
+    from moments_ref.pipeline import planner
+    from moments_ref.scene.gbuffer import check_shaded
+
+    handed = []
+
+    def check(*args):
+        g = check_shaded(*args)
+        handed.append(g)
+        return g
+
+    monkeypatch.setattr(report, "check_shaded", check)
+    rendered = []
+    render = planner.camera_gbuffer
+    monkeypatch.setattr(planner, "camera_gbuffer", lambda *a, **k: rendered.append(1) or render(*a, **k))
+    report.run(scenes=["facade", "translucent"], out_dir=tmp_path / "given", jobs=1, **TINY)
+    assert len(handed) == 2 and all(g is not None for g in handed) and rendered == []
+    monkeypatch.setattr(report, "check_shaded", lambda *args: check_shaded(*args) and None)  # checked, not handed
+    report.run(scenes=["facade", "translucent"], out_dir=tmp_path / "rendered", jobs=1, **TINY)
+    assert len(rendered) == 2
+    _same(_outputs(tmp_path / "given"), _outputs(tmp_path / "rendered"))

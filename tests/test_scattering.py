@@ -261,6 +261,24 @@ def test_ray_march_random_maps(seed, s, n):
     assert (ok | close).all(), (got, want)
 
 
+@pytest.mark.parametrize("s", [1, 2, 3, 4, 8])
+def test_sample_extremes_are_each_texels_nearest_and_farthest_sample(s):
+    # The march's per-texel bounds against a sort of each texel's samples: the first and the
+    # last, as float64; with +inf (empty samples, the border), ±0 and the ends of [−1, 1].
+    from moments_ref.techniques.scattering.rays import _padded_samples, _sample_extremes
+
+    rng = np.random.default_rng(s)
+    special = rng.choice(np.array([-1.0, -0.0, 0.0, 0.25, 1.0, -0.5, 0.999], np.float32), (7, 9, s))
+    depth = np.where(rng.random(special.shape) < 0.5, special, rng.uniform(-1, 1, special.shape).astype(np.float32))
+    flat, _ = _padded_samples(depth)
+    lo, hi = _sample_extremes(flat)
+    ordered = np.sort(flat, axis=1)
+    assert lo.dtype == hi.dtype == np.float64
+    assert np.array_equal(lo, ordered[:, 0].astype(np.float64))
+    assert np.array_equal(hi, ordered[:, -1].astype(np.float64))
+    assert np.isinf(lo).any() and (lo < 1).any() and (hi == np.inf).any()
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_rays_over_empty_texels_skip_the_march_with_the_same_result(seed, monkeypatch):
     # Maps mostly empty with a few occupied blocks, rays from one eye in every direction: the rays

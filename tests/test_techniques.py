@@ -376,3 +376,24 @@ def test_every_shadow_names_the_depth_space_it_takes():
     assert old == pcf.shadow(z, [[1.0, 1.0]], z_ndc_light=[0.5])
     with pytest.raises(InputError, match="z_ndc_light"):
         pcf.shadow(z, [[1.0, 1.0]], ["a"])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_bilinear_filtered_fetches_the_footprints_texels(dtype):
+    """Each result is the einsum of the bilinear weights with the four texels fetched one by one in plain Python
+    (clamped to the edge), for strided textures, 1 to 4 channels, points outside and a batch shape."""
+    from moments_ref.gpu.bluenoise import bilinear_footprint
+
+    rng = np.random.default_rng(3)
+    for c in (1, 3, 4):
+        tex = rng.random((9, 7, c)).astype(np.float32).transpose(1, 0, 2)[::-1]  # (7, 9, c), not contiguous
+        uv = rng.uniform(-2, 11, (2, 5, 2)).astype(dtype)
+        got = T.bilinear_filtered(tex, uv, dtype)
+        rows, cols, w = bilinear_footprint(uv, tex.shape)
+        assert got.shape == (2, 5, c) and got.dtype == dtype
+        for i in range(2):
+            for j in range(5):
+                texels = np.array([[float(tex[rows[i, j, k], cols[i, j, k], ch]) for ch in range(c)] for k in range(4)],
+                                  dtype)
+                want = np.einsum("k,kc->c", w[i, j].astype(dtype), texels)
+                assert np.array_equal(got[i, j], want), (c, i, j)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._arrays import InputError
 from ..gpu.bluenoise import blue_noise_textures, frame_noise
-from ..scene.gbuffer import camera_gbuffer, depth_gbuffer, light_projection
+from ..scene.gbuffer import GBuffer, camera_gbuffer, depth_gbuffer, light_projection
 from .. import techniques as _techniques
 from ..techniques import PlanContext, Stage, Technique, get_reference
 from ..techniques._interface import GBUFFER, NOISE, PROJECTION, SHADOW_MAP, TRANSLUCENCY
@@ -84,11 +84,26 @@ def _depth_gbuffer(scene, resolution):
                          (height, width), scene.occluder.vertices, scene.occluder.triangles)
 
 
-def _base_stages(ctx):
+def _given(gbuffer):
+    return gbuffer
+
+
+def _gbuffer_stage(ctx, given):
+    """The camera G-buffer's stage: rendered, or the one the caller rendered (``Settings.camera_gbuffer``)."""
+    if given is None:
+        return Stage(GBUFFER, camera_gbuffer, bound=(("scene", ctx.scene), ("resolution", ctx.resolution)))
+    if not isinstance(given, GBuffer) or tuple(given.resolution) != tuple(ctx.resolution):
+        got = f"resolution {tuple(given.resolution)}" if isinstance(given, GBuffer) else type(given).__name__
+        raise InputError(f"camera_gbuffer: expected the camera G-buffer of the run's resolution "
+                         f"{tuple(ctx.resolution)} (scene.gbuffer.camera_gbuffer), got {got}")
+    return Stage(GBUFFER, _given, bound=(("gbuffer", given),))
+
+
+def _base_stages(ctx, given=None):
     scene = ctx.scene
     light = ctx.light_clip_from_world
     out = [Stage(SHADOW_MAP, _shadow_map, bound=(("scene", scene), ("size", ctx.size), ("samples", ctx.samples))),
-           Stage(GBUFFER, camera_gbuffer, bound=(("scene", scene), ("resolution", ctx.resolution))),
+           _gbuffer_stage(ctx, given),
            Stage(PROJECTION, light_projection, (GBUFFER,), bound=(("clip_from_world", light), ("size", ctx.size))),
            Stage(GBUFFERS["depth"], _depth_gbuffer, bound=(("scene", scene), ("resolution", ctx.resolution))),
            Stage("bluenoise_textures", blue_noise_textures, bound=(("count", ctx.noise_tiles),)),
@@ -165,7 +180,7 @@ def plan(scene, outputs=None, settings=None, **old) -> RunPlan:
     ctx = _context(scene, st)
     overrides = dict(st.overrides or {})
     g = StageGraph()
-    for stage in _base_stages(ctx):
+    for stage in _base_stages(ctx, st.camera_gbuffer):
         g.add(stage)
     cfgs, targets, plans = {}, [], {}
     for t in techs:

@@ -71,6 +71,11 @@ class Settings:
         techniques' and references' results, the receivers and the stages named here
         (the report keeps only what its claims read: the run's peak memory is then its
         largest live set of stages, not their sum).
+    camera_gbuffer : GBuffer, optional
+        The scene's camera G-buffer at ``resolution`` when the caller has it already
+        (:func:`moments_ref.scene.gbuffer.check_shaded` returns it; the report checks
+        every scene before its run): the run's ``camera_gbuffer`` stage takes it instead
+        of rendering it again. None (default): rendered.
     """
 
     shadow_map_size: object = None
@@ -88,6 +93,7 @@ class Settings:
     clock: str = "wall"
     progress: bool = False
     keep: tuple = None
+    camera_gbuffer: object = None
 
     def replace(self, **changes) -> "Settings":
         """A copy with ``changes``."""

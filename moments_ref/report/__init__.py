@@ -197,7 +197,9 @@ def _scene_plan(acc, sc, full, given, requested, overrides, noise_tiles, all_tec
                            overrides=overrides, full=full, repeats=acc.repeats, clock="cpu")
     p = pipeline.plan(sc, names, st)
     if PROJECTION in p.graph.order(p.targets):
-        check_shaded(sc, res, sc.light_clip_from_world(), size)
+        g = check_shaded(sc, res, sc.light_clip_from_world(), size)
+        if g is not None and p.context.scene is sc:  # the run's own G-buffer: handed to it, not rendered again
+            st = st.replace(camera_gbuffer=g)
     return names, st, (names, (size, samples, res), p.settings, full)
 
 

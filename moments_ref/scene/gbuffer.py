@@ -257,11 +257,14 @@ def check_shaded(scene, resolution, clip_from_world, size, what=None):
     (:func:`camera_gbuffer`) and its projection into the ``size`` shadow map of
     ``clip_from_world`` (:func:`light_projection`) are computed as the pipeline computes
     them, and at least one receiver pixel must be seen (not hidden by an occluder)
-    and inside the shadow map. Costs one G-buffer pass.
+    and inside the shadow map. Costs one G-buffer pass, whose result it returns (a
+    run of the same scene and resolution can take it instead of rendering it again:
+    :class:`moments_ref.pipeline.Settings`'s ``camera_gbuffer``).
     """
     g = camera_gbuffer(scene, resolution)
     _refuse_unshaded(g, _inside_map(g, clip_from_world, size)[2], scene.camera,
                      what or f"the receivers of scene {getattr(scene, 'name', '?')!r}")
+    return g
 
 
 @renamed_keywords(view_proj="clip_from_world")

@@ -188,14 +188,20 @@ def _receiver_plane(z, grad, uv, off, W, H):
     """``min(zf + gx·(x − u) + gy·(y − v) + gx·o_x + gy·o_y, 1)`` per tap and sample (Isidoro 2006), (n, 10, 10, S).
 
     The sums in this order, the full-size ones in place (the far plane, depth 1,
-    bounds the plane: the map's clear depth 1 occludes nothing).
+    bounds the plane: the map's clear depth 1 occludes nothing). The sample terms are
+    added one sample at a time into that sample's strided slice (long passes of 100 n
+    values) instead of broadcasting the (n, 10, 10, 1) rows against (n, 1, 1, S), whose
+    inner loops are S values long: the same operations on the same operands.
     """
     gx, gy = grad[:, 0], grad[:, 1]
     dx = tap_centres(uv[:, 0], W) - uv[:, :1]  # (n, 10) columns
     dy = tap_centres(uv[:, 1], H) - uv[:, 1:]  # (n, 10) rows
-    rows = z + (gx[:, None] * dx)[:, None, :, None] + (gy[:, None] * dy)[:, :, None, None]  # (n, 10, 10, 1)
-    out = np.add(rows, gx[:, None, None, None] * off[:, 0])
-    out += gy[:, None, None, None] * off[:, 1]
+    rows = z[..., 0] + (gx[:, None] * dx)[:, None, :] + (gy[:, None] * dy)[:, :, None]  # (n, 10, 10)
+    sx, sy = gx[:, None] * off[:, 0], gy[:, None] * off[:, 1]  # (n, S)
+    out = np.empty(rows.shape + (off.shape[0],))
+    for s in range(off.shape[0]):  # loop over the MSAA samples
+        np.add(rows, sx[:, s, None, None], out=out[..., s])
+        out[..., s] += sy[:, s, None, None]
     return np.minimum(out, 1.0, out=out)
 
 
