@@ -768,8 +768,8 @@ def _shade_rows(cols, rchunk, zc, out, c, gap, ext, clamp, refuse):
     left = _shade_about_zf(y1, y2, v2, xi4, zc, gap, out, c)
     if rest is None or not rest.size:
         rest = left
-    elif left is not None:
-        rest = np.union1d(rest, left)
+    elif left is not None:  # the union by a count, not union1d's sort (the same sorted, unique indices)
+        rest = np.flatnonzero(np.bincount(np.concatenate((rest, left)), minlength=out.shape[0]))
     if rest is not None and rest.size:
         if not np.isfinite(zc[rest]).all():
             refuse()
