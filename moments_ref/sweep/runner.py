@@ -139,8 +139,9 @@ def run_chunk(spec, chunk):
     n, strata = len(ill), params["stratum"]
     gated = np.ones(n, bool) if spec.strict else contract  # robustness rows: shown, failed only under --strict
     ungated = ~gated
-    for lo, hi in bands.values():
-        ungated |= ~np.isfinite(hi - lo).reshape(n, -1).all(axis=1)
+    with np.errstate(over="ignore"):  # a band wider than the largest float is unbounded: inf, as meant
+        for lo, hi in bands.values():
+            ungated |= ~np.isfinite(hi - lo).reshape(n, -1).all(axis=1)
     out = {"chunk": chunk, "rows": n, "drivers": {}}
     count = lambda m: np.bincount(strata[m], minlength=len(STRATA)).tolist()  # noqa: E731
     out["strata"] = {"rows": count(np.ones(n, bool)), "ill_conditioned": count(ill), "ungated": count(ungated)}
