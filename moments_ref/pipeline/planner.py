@@ -85,6 +85,7 @@ def _depth_gbuffer(scene, resolution):
 
 
 def _given(gbuffer):
+    """The camera G-buffer the caller rendered (``Settings.camera_gbuffer``), as the stage's value."""
     return gbuffer
 
 
