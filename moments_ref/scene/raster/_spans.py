@@ -356,13 +356,36 @@ def _edge_order(A3, B3, F3):
     """The (3, n) edge arrays with each triangle's edges in the order (one with a > 0, one with a < 0, the third).
 
     The A of a closed triangle sum to 0 and are not all 0, so both exist (:func:`_rect_bounds`).
-    One fancy index over the three rows: np.take_along_axis costs some 15 µs a call in Python
-    (1.5 ms a call of the bench's mid-size case when it ran per batch).
+    Which edge of each sign comes first follows from the signs of A0 and A1 alone (the first
+    edge of that sign; the third edge's A is minus their sum): a code 3 sign(A0) + sign(A1) + 4
+    picks the triangle's row order from a table of nine (:data:`_ORDER`), one pass over 2 n
+    values and a gather of 3 n instead of np.argmax and np.argmin over the short axis (each a
+    strided reduction, together about twice the time). The bounds are maxima of the same values
+    in either order, so any edge of the right sign gives the same bounds. One fancy index over
+    the three rows: np.take_along_axis costs some 15 µs a call in Python.
     """
     n = A3.shape[1]
-    i_pos, i_neg = np.argmax(A3, axis=0), np.argmin(A3, axis=0)
-    flat = np.stack([i_pos, i_neg, 3 - i_pos - i_neg]) * n + np.arange(n)
+    code = np.sign(A3[0]) * 3
+    code += np.sign(A3[1])
+    flat = np.take(_ORDER * n, code + 4, axis=1)  # (3, n) row offsets
+    flat += _ramp(n, 1)
     return tuple(np.take(x, flat) for x in (A3, B3, F3))
+
+
+def _orders():
+    """(3, 9): the edge order (first edge with A > 0, first with A < 0, the third) of each sign code of :func:`_edge_order`."""
+    out = np.zeros((3, 9), np.int64)
+    for s0 in (-1, 0, 1):
+        for s1 in (-1, 0, 1):
+            i_pos = 0 if s0 > 0 else 1 if s1 > 0 else 2
+            i_neg = 0 if s0 < 0 else 1 if s1 < 0 else 2
+            if i_pos == i_neg:  # A0 = A1 = 0: an open triangle, never drawn; any order
+                i_neg = 1
+            out[:, 3 * s0 + s1 + 4] = (i_pos, i_neg, 3 - i_pos - i_neg)
+    return out
+
+
+_ORDER = _orders()
 
 
 def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None, presorted=False):
