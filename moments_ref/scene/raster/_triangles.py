@@ -118,18 +118,21 @@ def _setup(verts, tri, lo, h, w, sx, sy, cull, stats, want_world, checked=False)
     attr, tid = _clip(attr, tid, h, w, lo, n, stats)
     if tid.size == 0:
         return None
-    X, Y, zv, area2, keep = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats)
+    X, Y, area2, keep = _snap_and_cull(attr, tid, h, w, cull, lo, n, stats)
     box = _boxes(X, Y, h, w, sx, sy)
     keep &= (box[0] <= box[1]) & (box[2] <= box[3])
-    # The attributes are only needed again for world positions (want_world).
-    snapped = (X, Y, zv, area2, tid, attr if want_world else None)
+    # The attributes are only needed again for the depths (z and w, divided only for the
+    # triangles kept) and for world positions (want_world).
+    snapped = (X, Y, attr if want_world else attr[2:4], area2, tid)
     if not keep.all():
         if not keep.any():
             return None
         # np.compress is twice as quick as a boolean index on the last axis.
-        snapped = tuple(None if a is None else np.compress(keep, a, axis=-1) for a in snapped)
+        snapped = tuple(np.compress(keep, a, axis=-1) for a in snapped)
         box = tuple(np.compress(keep, a) for a in box)
-    s = _edge_equations(*snapped, want_world)
+    X, Y, a, area2, tid = snapped
+    zv = a[2] / a[3] if want_world else a[0] / a[1]  # NDC depth of each vertex (3, n)
+    s = _edge_equations(X, Y, zv, area2, tid, a if want_world else None, want_world)
     s["box"] = box
     return s
 
@@ -246,15 +249,14 @@ def _clip(attr, tid, h, w, lo, n, stats):
 def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
     """Perspective division, viewport transform, snapping to 1/256 pixel, culling.
 
-    Returns X, Y, zv, area2 of every triangle and which to keep (nonzero snapped
+    Returns X, Y, area2 of every triangle and which to keep (nonzero snapped
     area, not culled); the caller drops the others together with those whose box
-    is empty (one np.compress per array).
+    is empty (one np.compress per array) and divides the depths of the rest.
     """
     cw = attr[3]
     # window coordinates in 1/_SUB pixels: those of a map _SUB times the size (exact: _SUB = 2^8)
     X = np.rint(x_window_from_ndc(attr[0] / cw, w * _SUB)).astype(np.int64)  # (3, n)
     Y = np.rint(y_window_from_ndc(attr[1] / cw, h * _SUB)).astype(np.int64)
-    zv = attr[2] / cw
 
     area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
     zero = area2 == 0
@@ -269,7 +271,7 @@ def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
     stats.culled += _count_ids(tid[culled], lo, n)
     keep = ~(zero | culled)
     stats.rasterized += _count_ids(tid if keep.all() else tid[keep], lo, n)
-    return X, Y, zv, area2, keep
+    return X, Y, area2, keep
 
 
 def _edge_equations(X, Y, zv, area2, tid, attr, want_world):
@@ -352,4 +354,5 @@ def _depth_inside(zv, za, zb, dx, dy_neg, pa, pb, fa):
     xm = np.maximum(np.abs(dx[0]), np.abs(dx[2])) + _SUB
     ym = np.maximum(np.abs(dy_neg[0]), np.abs(dy_neg[2])) + _SUB
     err = (ma * xm + mb * ym + np.abs(zv[0]) + 1.0) * 2.0 ** -40
-    return (zv.min(axis=0) - err >= -1.0) & (zv.max(axis=0) + err <= 1.0)
+    zmin, zmax = np.minimum(np.minimum(zv[0], zv[1]), zv[2]), np.maximum(np.maximum(zv[0], zv[1]), zv[2])
+    return (zmin - err >= -1.0) & (zmax + err <= 1.0)
