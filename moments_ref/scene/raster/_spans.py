@@ -427,8 +427,11 @@ def _rect_bounds(A3, B3, base3, nc, nr, k, sx, sy, skip=None, presorted=False):
     masked = rows >= nr if skip is None else (rows >= nr) | (rows < skip)
     nhi0 = np.where(masked, np.inf, 0.0)[:, None, :] + (1.0 - nc)
     if ordered:
-        lo = np.maximum(bound(0, np.empty((k, S, n))), 0.0, out=np.empty((k, S, n)))
-        nhi = np.maximum(bound(1, np.empty((k, S, n))), nhi0, out=np.empty((k, S, n)))
+        # In place: two fresh (k, S, n) arrays fewer (their first touch costs as much as a pass).
+        lo = bound(0, np.empty((k, S, n)))
+        np.maximum(lo, 0.0, out=lo)
+        nhi = bound(1, np.empty((k, S, n)))
+        np.maximum(nhi, nhi0, out=nhi)
     else:
         lo, nhi = np.zeros((k, S, n)), np.broadcast_to(nhi0, (k, S, n)).copy()
     m, t = np.empty((k, S, n)), np.empty((k, S, n))
