@@ -638,6 +638,58 @@ def test_span_row_values_give_the_maps_of_span_indices(monkeypatch, samples):
         assert rasterize_depth(v, t, np.eye(4), (120, 160), samples=samples)[0].tobytes() != got[False][0][0].tobytes()
 
 
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_span_depth_table_gives_the_maps_of_the_row_values(monkeypatch, samples):
+    # Where a dense group's boxes have few columns for their covered samples, _rect_values hands
+    # _iter_spans a table of z0 + za X per (sample, box, column) to look up instead of the rows'
+    # X, z0 and za (_spans._TABLE). On the map of the test above (boxes of 1 to about 80 rows,
+    # tall ones cut into pieces, merged groups, a tiled triangle), 1x/4x/8x, float32 and float64,
+    # the maps must be those without the table, byte for byte, whether some, none or every
+    # group takes it; and the table must be taken. Mutants: a table one column off, or one
+    # built without the sample's x offset, must fail.
+    from moments_ref.scene.raster import _spans as spans
+
+    rng = np.random.default_rng(11)
+    v, t = raster.small_triangles(400, 160, 70.0, rng)
+    v = v * np.array([1.0, 0.75, 1.0])
+    big = np.array([[-0.9, -0.8, -0.3], [0.8, -0.7, 0.2], [0.1, 0.9, 0.5]])
+    v, t = np.concatenate([v, big]), np.concatenate([t, [[v.shape[0], v.shape[0] + 1, v.shape[0] + 2]]])
+    real = spans._rect_values
+    taken = []
+
+    def counting(*a):
+        out = real(*a)
+        taken.append(out[-1] is not None)
+        return out
+
+    monkeypatch.setattr(spans, "_rect_values", counting)
+    got = {}
+    for share in (0, 1.0, 1e9):
+        monkeypatch.setattr(spans, "_TABLE", share)
+        got[share] = [rasterize_depth(v, t, np.eye(4), (120, 160), samples=samples, dtype=dt)
+                      for dt in (np.float32, np.float64)]
+    for share in (1.0, 1e9):
+        for (d0, s0), (d1, s1) in zip(got[0], got[share]):
+            assert d0.tobytes() == d1.tobytes() and s0 == s1
+    assert any(taken) and not all(taken)  # 0 never takes it, 1e9 always
+    assert (got[0][0][0] < 1).mean() > 0.3
+
+    def mutant(kind):
+        def values(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w):
+            if kind == "sx":
+                return real(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx * 0, sy, w)
+            out = list(real(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w))
+            if out[-1] is not None:
+                out[-1] = np.concatenate([out[-1][1:], out[-1][-1:]])  # every entry one column to the right
+            return tuple(out)
+        return values
+
+    monkeypatch.setattr(spans, "_TABLE", 1e9)
+    for kind in ("column", "sx") if samples > 1 else ("column",):  # the 1x pattern's offset is 0
+        monkeypatch.setattr(spans, "_rect_values", mutant(kind))
+        assert rasterize_depth(v, t, np.eye(4), (120, 160), samples=samples)[0].tobytes() != got[0][0][0].tobytes()
+
+
 def test_float64_map_and_dense_vs_ragged_paths_agree(monkeypatch):
     # The same large triangle through the ragged int64 span path and (with a huge row
     # limit) the dense float64 span path gives the same map.

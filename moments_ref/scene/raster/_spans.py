@@ -37,6 +37,9 @@ _DENSE_ROWS = 32
 _MERGE_ROWS = 1 << 14
 # The dense path hands _iter_spans its span rows' values (_rect_values); False: their indices.
 _ROW_VALUES = True
+# _rect_values hands over a table of z0 + za X per (sample, box, column) where it holds at most
+# this many entries per covered sample; 0: never.
+_TABLE = 1.0
 # Triangles whose vertex coordinates (1/256 pixel) lie below this bound in magnitude
 # have edge values below 2^51 at every sample in the map, so the dense path's float64
 # arithmetic is exact: samples lie below 2^22 (16384 pixels), so |A|, |B| and the
@@ -231,8 +234,9 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
     fast = {"w": w} if all_inside and not want_rcs else {}
     rows = (batches or _row_batches)(s, c0, nc, r0, nr, safe, sx, sy, **fast)
     for item in rows:
-        if len(item) == 6:
-            xs0, zbY, z0, za, flat0, cnt = item
+        table = None
+        if len(item) == 7:
+            xs0, zbY, z0, za, flat0, cnt, table = item
             i_row = row = samp = col0 = None
         else:
             i_row, row, samp, col0, cnt = item
@@ -257,10 +261,15 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
             # constant ramps k * step (cached), one repeat and one add per array. The
             # column offsets are integers below 2^53, exact in float64, and the depth is
             # (z0 + za Xs) + zb Ys, evaluated in place.
-            z = rep((xs0[b] - start * _SUB).astype(np.float64, copy=False))
-            z += _ramp(n, _SUB, np.float64)
-            z *= rep(za[b])
-            z += rep(z0[b])
+            if table is not None:  # z0 + za Xs looked up in the table of the rows' columns (_rect_values)
+                z = rep(xs0[b] - start)
+                z += _ramp(n, 1)
+                z = np.take(table, z)
+            else:
+                z = rep((xs0[b] - start * _SUB).astype(np.float64, copy=False))
+                z += _ramp(n, _SUB, np.float64)
+                z *= rep(za[b])
+                z += rep(z0[b])
             ins = inside is None or bool(inside[b].all())
             # The last addition rounds straight to dtype when no depth needs a clip test.
             z = np.add(z, rep(zbY[b]), out=z if not ins or dtype == np.float64 else np.empty(n, dtype))
@@ -323,12 +332,19 @@ def _rect_spans(A3, B3, base3, c0, nc, r0, nr, k, sx, sy, presorted=False):
 def _rect_values(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w):
     """The values :func:`_iter_spans` needs of each nonempty span row of :func:`_rect_spans` (edges presorted).
 
-    Returns (xs0, zbY, z0, za, flat0, cnt) per row in :func:`_rect_spans`' order: xs0 the
-    first covered sample's X offset from vertex 0, ``zbY = zb Y`` of the row, the triangle's
-    z0 and za, the flat index of the first covered sample. The same integers and the same
-    float64 product as :func:`_iter_spans` computes from (triangle, row, sample, column),
-    taken from small (sample, box) tables and two dense (k, S, n) ones, so each row costs
-    about a dozen passes instead of thirty.
+    Returns (xs0, zbY, z0, za, flat0, cnt, table) per row in :func:`_rect_spans`' order: xs0
+    the first covered sample's X offset from vertex 0, ``zbY = zb Y`` of the row, the
+    triangle's z0 and za, the flat index of the first covered sample, and ``table`` None.
+    The same integers and the same float64 product as :func:`_iter_spans` computes from
+    (triangle, row, sample, column), taken from small (sample, box) tables and two dense
+    (k, S, n) ones, so each row costs about a dozen passes instead of thirty.
+
+    Where the boxes' columns are fewer than half the covered samples (boxes of many rows),
+    ``table`` is instead the flat (S, n, W) array of ``z0 + za X`` at every column of every
+    (sample, box) (W the widest box; X depends on the column and the sample, not the row),
+    xs0 the row's index of its first covered sample in it, z0 and za None: each sample then
+    needs one lookup instead of three gathers, a multiplication and an addition, with the
+    same operations in the same order (so the same depths).
     """
     S = sx.shape[0]
     n = nr.size
@@ -336,20 +352,31 @@ def _rect_values(s, tri, A3, B3, base3, c0, nc, r0, nr, k, sx, sy, w):
     keep = np.flatnonzero(cnt > 0)  # (r S + sample) n + box
     at = keep % (S * n)  # sample n + box
     lo_k = np.take(lo, keep)
+    cnt = np.take(cnt, keep).astype(np.int64)
     # X of the box's first column and Y of its first row, per (sample, box): exact integers.
     x_sb = ((c0 * _SUB + np.take(_HALF - s["X"][0], tri)) + sx[:, None]).astype(np.float64)
     y_sb = ((r0 * _SUB + np.take(_HALF - s["Y"][0], tri)) + sy[:, None]).astype(np.float64)
     zbY = np.add(y_sb[None], (np.arange(k, dtype=np.float64) * _SUB)[:, None, None])
     zbY *= np.take(s["zb"], tri)  # (k, S, n): zb Y, Y exact in float64
     flat_t = ((r0 * w + c0) * S + np.arange(S)[:, None])[None] + (np.arange(k) * (w * S))[:, None, None]
+    flat0 = lo_k.astype(np.int64)
+    cols = int(nc.max())
+    if S * n * cols <= _TABLE * int(cnt.sum()):
+        table = np.add(x_sb[:, :, None], _ramp(cols, _SUB, np.float64))  # X (S, n, W), exact
+        table *= np.take(s["za"], tri)[:, None]
+        table += np.take(s["z0"], tri)[:, None]
+        tix0 = at * cols
+        tix0 += flat0
+        flat0 *= S
+        flat0 += np.take(flat_t, keep)
+        return tix0, np.take(zbY, keep), None, None, flat0, cnt, table.reshape(-1)
     xs0 = lo_k * _SUB  # float64, exact
     xs0 += np.take(x_sb, at)
-    flat0 = lo_k.astype(np.int64) * S
+    flat0 *= S
     flat0 += np.take(flat_t, keep)
     zs = np.empty((2, S, n))  # z0 and za per (sample, box)
     zs[0], zs[1] = np.take(s["z0"], tri), np.take(s["za"], tri)
-    return (xs0, np.take(zbY, keep), np.take(zs[0], at), np.take(zs[1], at), flat0,
-            np.take(cnt, keep).astype(np.int64))
+    return xs0, np.take(zbY, keep), np.take(zs[0], at), np.take(zs[1], at), flat0, cnt, None
 
 
 def _edge_order(A3, B3, F3):
