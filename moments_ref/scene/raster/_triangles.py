@@ -91,6 +91,8 @@ def _count_ids(ids, lo, n) -> int:
     """Number of distinct triangle ids in ``ids`` (all within [lo, lo + n))."""
     if ids.size == 0:
         return 0
+    if (ids[1:] > ids[:-1]).all():  # no triangle split by clipping: all distinct (one compare pass)
+        return int(ids.size)
     mark = np.zeros(n, dtype=bool)
     mark[ids - lo] = True
     return int(np.count_nonzero(mark))
@@ -215,8 +217,9 @@ def _reject(verts, tri, lo, stats, want_world, checked=False):
     c = np.take(cvT, triT, axis=1) if cvT is not None else _clip_space(p, m)
     x, y, z, cw = c
     # Trivial reject: all three vertices outside the same plane of the view volume.
-    out = (_all3(x > cw) | _all3(x < -cw) | _all3(y > cw) | _all3(y < -cw)
-           | _all3(z > cw) | _all3(z < -cw) | _all3(cw <= 0))
+    ncw = -cw
+    out = (_all3(x > cw) | _all3(x < ncw) | _all3(y > cw) | _all3(y < ncw)
+           | _all3(z > cw) | _all3(z < ncw) | _all3(cw <= 0))
     stats.outside += int(np.count_nonzero(out))
     attr = np.concatenate([c, p]) if want_world else c  # (k, 3, n), linear in clip space
     if out.any():
@@ -254,8 +257,11 @@ def _snap_and_cull(attr, tid, h, w, cull, lo, n, stats):
     """
     cw = attr[3]
     # window coordinates in 1/_SUB pixels: those of a map _SUB times the size (exact: _SUB = 2^8)
-    X = np.rint(x_window_from_ndc(attr[0] / cw, w * _SUB)).astype(np.int64)  # (3, n)
-    Y = np.rint(y_window_from_ndc(attr[1] / cw, h * _SUB)).astype(np.int64)
+    # (In place in one buffer: the same operations as x_window_from_ndc(attr[0] / cw, ...).)
+    t = np.divide(attr[0], cw)
+    X = np.rint(x_window_from_ndc(t, w * _SUB, out=t), out=t).astype(np.int64)  # (3, n)
+    np.divide(attr[1], cw, out=t)
+    Y = np.rint(y_window_from_ndc(t, h * _SUB, out=t), out=t).astype(np.int64)
     zv = attr[2] / cw
 
     area2 = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
