@@ -1179,3 +1179,22 @@ def test_tile_path_is_the_span_path_on_a_clipped_perspective_scene(monkeypatch, 
     monkeypatch.setattr(raster, "_TILES", False)
     want, s2 = rasterize_depth(v, t, vp, (61, 75), samples=samples)
     assert sum(covered) > 0 and got.tobytes() == want.tobytes() and s1 == s2
+
+
+def test_setup_rewrites_keep_the_values_bit_for_bit():
+    # _clip's near-plane distance (z + w) + 0.0 is the value of sum(k * attr[j]) = (0 + 1 z) + 1 w,
+    # signed zeros included; _boxes' ceiling division (a + 255) >> 8 is -((-a) >> 8). Exhaustive
+    # over special values and over integers around multiples of 256 (negative ones too).
+    # Power: without the + 0.0, (-0) + (-0) keeps its sign and the first check fails.
+    vals = np.array([0.0, -0.0, 1.0, -1.0, 5e-324, -5e-324, 1e308, -1e308, np.inf, -np.inf, 0.5, -0.5])
+    z, w = np.meshgrid(vals, vals)
+    with np.errstate(invalid="ignore", over="ignore"):
+        want = sum(k * a for a, k in ((z, 1), (w, 1)))
+        got = np.add(z, w)
+        got += 0.0
+        bare = np.add(z, w)
+    assert want.tobytes() == got.tobytes()
+    assert want.tobytes() != bare.tobytes()
+    a = np.arange(-5 * 256 - 3, 5 * 256 + 4, dtype=np.int64)
+    np.testing.assert_array_equal((a + 255) >> 8, -((-a) >> 8))
+    np.testing.assert_array_equal((a + 255) >> 8, np.ceil(a / 256).astype(np.int64))

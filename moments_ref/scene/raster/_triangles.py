@@ -235,7 +235,11 @@ def _clip(attr, tid, h, w, lo, n, stats):
     if (np.abs(attr[0]) > gw_).any() or (np.abs(attr[1]) > gw_).any():
         planes += [(-1, 0, 0, g), (1, 0, 0, g), (0, -1, 0, g), (0, 1, 0, g)]
     for pl in planes:
-        dist = sum(k * attr[j] for j, k in enumerate(pl) if k != 0)
+        if pl == (0, 0, 1, 1):  # (z + w) + 0: the value of the sum below, signed zeros too, in two passes
+            dist = np.add(attr[2], attr[3])
+            dist += 0.0
+        else:
+            dist = sum(k * attr[j] for j, k in enumerate(pl) if k != 0)
         need = _any3(dist < 0)
         if need.any():
             ca, ct = _clip_plane(attr[:, :, need].transpose(2, 1, 0), tid[need], dist[:, need].T)
