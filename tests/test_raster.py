@@ -1198,3 +1198,52 @@ def test_setup_rewrites_keep_the_values_bit_for_bit():
     a = np.arange(-5 * 256 - 3, 5 * 256 + 4, dtype=np.int64)
     np.testing.assert_array_equal((a + 255) >> 8, -((-a) >> 8))
     np.testing.assert_array_equal((a + 255) >> 8, np.ceil(a / 256).astype(np.int64))
+
+
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_single_pixel_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monkeypatch, samples):
+    # Boxes of one pixel are tested sample by sample against their three edges
+    # (_spans._single_pixels) instead of going through _rect_bounds: on tiny triangles (many boxes of
+    # one pixel, samples on edges: vertices on the 1/16 pixel grid) mixed with larger ones, maps
+    # (float32 and float64) and fragments must be those of the dense bounds, byte for byte, and
+    # the path must be taken. Mutants: the sample's y offset dropped, or the third edge's test
+    # dropped, must fail.
+    from moments_ref.scene.raster import _spans as spans
+
+    rng = np.random.default_rng(5)
+    v, t = raster.small_triangles(3000, 48, 1.2, rng)
+    v2, t2 = raster.small_triangles(60, 48, 9.0, rng)
+    v = np.concatenate([v, v2])
+    v[:, :2] = np.round(v[:, :2] * 24 * 16) / (24 * 16)  # vertices on a 1/16 pixel grid
+    t = np.concatenate([t, t2 + 3 * 3000])
+    real = spans._single_pixels
+    calls = []
+
+    def counting(*a):
+        calls.append(1)
+        return real(*a)
+
+    monkeypatch.setattr(spans, "_single_pixels", counting)
+    got = {}
+    for single in (False, True):
+        monkeypatch.setattr(spans, "_SINGLE", single)
+        maps = [rasterize_depth(v, t, np.eye(4), 48, samples=samples, dtype=dt) for dt in (np.float32, np.float64)]
+        got[single] = maps, raster.rasterize_fragments(v, t, np.eye(4), 48, samples=samples)
+    assert calls
+    (m0, f0), (m1, f1) = got[False], got[True]
+    for (d0, s0), (d1, s1) in zip(m0, m1):
+        assert d0.tobytes() == d1.tobytes() and s0 == s1
+    for name in ("position", "depth", "texel", "sample", "triangle"):
+        assert getattr(f0[0], name).tobytes() == getattr(f1[0], name).tobytes()
+    assert f0[1] == f1[1] and len(f0[0]) > 300
+
+    def mutant(kind):
+        def single(s, tri, A3, B3, base3, c0, r0, sx, sy, w=None):
+            if kind == "sy":
+                return real(s, tri, A3, B3, base3, c0, r0, sx, sy * 0, w)
+            return real(s, tri, A3[[0, 1, 1]], B3[[0, 1, 1]], base3[[0, 1, 1]], c0, r0, sx, sy, w)
+        return single
+
+    for kind in ("edge", "sy") if samples > 1 else ("edge",):  # the 1x pattern's offset is 0
+        monkeypatch.setattr(spans, "_single_pixels", mutant(kind))
+        assert rasterize_depth(v, t, np.eye(4), 48, samples=samples)[0].tobytes() != m0[0][0].tobytes()

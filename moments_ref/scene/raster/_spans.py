@@ -37,6 +37,8 @@ _DENSE_ROWS = 32
 _MERGE_ROWS = 1 << 14
 # The dense path hands _iter_spans its span rows' values (_rect_values); False: their indices.
 _ROW_VALUES = True
+# Boxes of one pixel take _single_pixels (a test per sample); False: the dense bounds.
+_SINGLE = True
 # _rect_values hands over a table of z0 + za X per (sample, box, column) where it holds at most
 # this many entries per covered sample; 0: never.
 _TABLE = 1.0
@@ -139,6 +141,14 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
     else:  # no pieces: the boxes as they are (the others have key 0)
         tri, c0d, ncd, r0d, nrd, based, A3d, B3d = None, c0, nc, r0, nr, base3, A3, B3
         key = np.where(dense, nr, 0)
+    if _SINGLE:  # boxes of one pixel: each sample tested against the three edges (_single_pixels)
+        single = (key == 1) & (ncd == 1)
+        one = np.flatnonzero(single)
+        if one.size:
+            key = np.where(single, 0, key)  # (a new array: key may be nrd itself)
+            yield _single_pixels(s, one if tri is None else tri[one], np.take(A3d, one, axis=1),
+                                 np.take(B3d, one, axis=1), np.take(based, one, axis=1), c0d[one], r0d[one], sx, sy,
+                                 w if _ROW_VALUES else None)
     key = _merged_counts(key, S)
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
         sel = np.flatnonzero(key == k)
@@ -159,6 +169,32 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
         a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3, B3, base3))
         pt, row, samp, col0, cnt = _row_spans(a3, b3, e3, c0[g], nc[g], r0[g], nr[g], sx, sy)
         yield g[pt], row, samp, col0, cnt
+
+
+def _single_pixels(s, tri, A3, B3, base3, c0, r0, sx, sy, w=None):
+    """The span rows of boxes of one pixel (setup triangles ``tri``): a covered sample is a row of one.
+
+    ``base3`` (3, m): the edge values at the pixel's centre (exact int64). Sample ``q`` is
+    covered when ``base3 + A3 sx_q + B3 sy_q >= 0`` for the three edges: the test of
+    :func:`_rect_bounds` for a box of one column (u = 0), in three integer passes per edge
+    instead of its dozens. Rows in (sample, box) order, as :func:`_rect_values` yields them
+    (``w`` given) or as :func:`_row_batches`' indices (triangle, row, sample, column, count 1).
+    The values are those :func:`_rect_values` computes for the same rows (first column 0).
+    """
+    S, m = sx.shape[0], c0.size
+    cov = np.ones((S, m), bool)
+    for e in range(3):
+        cov &= (base3[e] + A3[e] * sx[:, None] + B3[e] * sy[:, None]) >= 0
+    keep = np.flatnonzero(cov)  # sample m + box
+    samp, j = np.divmod(keep, m)
+    ones = np.ones(keep.size, np.int64)
+    if w is None:
+        return np.take(tri, j), np.take(r0, j), samp, np.take(c0, j), ones
+    t = np.take(tri, j)
+    xs0 = ((np.take(c0, j) * _SUB + np.take(_HALF - s["X"][0], t)) + np.take(sx, samp)).astype(np.float64)
+    y = ((np.take(r0, j) * _SUB + np.take(_HALF - s["Y"][0], t)) + np.take(sy, samp)).astype(np.float64)
+    flat0 = (np.take(r0, j) * w + np.take(c0, j)) * S + samp
+    return xs0, y * np.take(s["zb"], t), np.take(s["z0"], t), np.take(s["za"], t), flat0, ones, None
 
 
 def _merged_counts(key, S):
