@@ -1200,36 +1200,36 @@ def test_setup_rewrites_keep_the_values_bit_for_bit():
     np.testing.assert_array_equal((a + 255) >> 8, np.ceil(a / 256).astype(np.int64))
 
 
-@pytest.mark.parametrize("samples", [1, 4, 8])
-def test_single_pixel_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monkeypatch, samples):
-    # Boxes of one pixel are tested sample by sample against their three edges
-    # (_spans._single_pixels) instead of going through _rect_bounds: on tiny triangles (many boxes of
-    # one pixel, samples on edges: vertices on the 1/16 pixel grid) mixed with larger ones, maps
-    # (float32 and float64) and fragments must be those of the dense bounds, byte for byte, and
-    # the path must be taken. Mutants: the sample's y offset dropped, or the third edge's test
-    # dropped, must fail.
+def test_small_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monkeypatch):
+    # Boxes of up to 2 x 2 pixels are tested sample by sample against their three edges
+    # (_spans._small_boxes, 1x maps only) instead of going through _rect_bounds: on tiny triangles
+    # (boxes of one to four pixels, samples on edges: vertices on the 1/16 pixel grid) mixed with
+    # larger ones, maps (float32 and float64) and fragments must be those of the dense bounds, byte
+    # for byte, and the path must be taken for every box shape. Mutants: the third edge's test
+    # dropped, or the second pixel column's samples dropped, must fail.
     from moments_ref.scene.raster import _spans as spans
 
+    samples = 1
     rng = np.random.default_rng(5)
     v, t = raster.small_triangles(3000, 48, 1.2, rng)
     v2, t2 = raster.small_triangles(60, 48, 9.0, rng)
     v = np.concatenate([v, v2])
     v[:, :2] = np.round(v[:, :2] * 24 * 16) / (24 * 16)  # vertices on a 1/16 pixel grid
     t = np.concatenate([t, t2 + 3 * 3000])
-    real = spans._single_pixels
+    real = spans._small_boxes
     calls = []
 
     def counting(*a):
-        calls.append(1)
+        calls.extend(zip(a[7].tolist(), a[8].tolist()))  # (rows, columns) of every box
         return real(*a)
 
-    monkeypatch.setattr(spans, "_single_pixels", counting)
+    monkeypatch.setattr(spans, "_small_boxes", counting)
     got = {}
     for single in (False, True):
-        monkeypatch.setattr(spans, "_SINGLE", single)
+        monkeypatch.setattr(spans, "_SMALL", 1 if single else 0)
         maps = [rasterize_depth(v, t, np.eye(4), 48, samples=samples, dtype=dt) for dt in (np.float32, np.float64)]
         got[single] = maps, raster.rasterize_fragments(v, t, np.eye(4), 48, samples=samples)
-    assert calls
+    assert set(calls) == {(1, 1), (1, 2), (2, 1), (2, 2)}
     (m0, f0), (m1, f1) = got[False], got[True]
     for (d0, s0), (d1, s1) in zip(m0, m1):
         assert d0.tobytes() == d1.tobytes() and s0 == s1
@@ -1238,12 +1238,12 @@ def test_single_pixel_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monk
     assert f0[1] == f1[1] and len(f0[0]) > 300
 
     def mutant(kind):
-        def single(s, tri, A3, B3, base3, c0, r0, sx, sy, w=None):
-            if kind == "sy":
-                return real(s, tri, A3, B3, base3, c0, r0, sx, sy * 0, w)
-            return real(s, tri, A3[[0, 1, 1]], B3[[0, 1, 1]], base3[[0, 1, 1]], c0, r0, sx, sy, w)
-        return single
+        def small(s, tri, A3, B3, base3, c0, r0, nr, nc, sx, sy, w=None):
+            if kind == "column":  # boxes of two columns drawn as one
+                return real(s, tri, A3, B3, base3, c0, r0, nr, np.minimum(nc, 1), sx, sy, w)
+            return real(s, tri, A3[[0, 1, 1]], B3[[0, 1, 1]], base3[[0, 1, 1]], c0, r0, nr, nc, sx, sy, w)
+        return small
 
-    for kind in ("edge", "sy") if samples > 1 else ("edge",):  # the 1x pattern's offset is 0
-        monkeypatch.setattr(spans, "_single_pixels", mutant(kind))
+    for kind in ("edge", "column"):
+        monkeypatch.setattr(spans, "_small_boxes", mutant(kind))
         assert rasterize_depth(v, t, np.eye(4), 48, samples=samples)[0].tobytes() != m0[0][0].tobytes()

@@ -37,8 +37,10 @@ _DENSE_ROWS = 32
 _MERGE_ROWS = 1 << 14
 # The dense path hands _iter_spans its span rows' values (_rect_values); False: their indices.
 _ROW_VALUES = True
-# Boxes of one pixel take _single_pixels (a test per sample); False: the dense bounds.
-_SINGLE = True
+# Boxes of up to 2 x 2 pixels of 1x maps take _small_boxes (a test per sample) where a chunk has at
+# least this many (fewer cost more as a batch of their own than in the dense groups; with 4 or 8
+# samples the dense rows are quicker, measured); 0: never.
+_SMALL = 1024
 # _rect_values hands over a table of z0 + za X per (sample, box, column) where it holds at most
 # this many entries per covered sample; 0: never.
 _TABLE = 1.0
@@ -125,10 +127,9 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
     _DENSE_ROWS is 0) take the ragged int64 path.
     """
     S = sx.shape[0]
-    # The edges in _rect_bounds' order, once for the chunk (the ragged path takes them in any order).
-    A3, B3, F3 = _edge_order(s["A"], s["B"], s["F0"])
+    A3, B3 = s["A"], s["B"]
     # Edge functions at the centre of each box's first pixel, exact in int64.
-    base3 = F3 + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
+    base3 = s["F0"] + A3 * (c0 * _SUB + _HALF) + B3 * (r0 * _SUB + _HALF)
     mine = np.ones(nr.size, bool) if taken is None else ~taken
     dense = (nr <= _DENSE_ROWS) & safe & mine
     safe = safe & mine
@@ -141,21 +142,28 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
     else:  # no pieces: the boxes as they are (the others have key 0)
         tri, c0d, ncd, r0d, nrd, based, A3d, B3d = None, c0, nc, r0, nr, base3, A3, B3
         key = np.where(dense, nr, 0)
-    if _SINGLE:  # boxes of one pixel: each sample tested against the three edges (_single_pixels)
-        single = (key == 1) & (ncd == 1)
-        one = np.flatnonzero(single)
-        if one.size:
-            key = np.where(single, 0, key)  # (a new array: key may be nrd itself)
-            yield _single_pixels(s, one if tri is None else tri[one], np.take(A3d, one, axis=1),
-                                 np.take(B3d, one, axis=1), np.take(based, one, axis=1), c0d[one], r0d[one], sx, sy,
-                                 w if _ROW_VALUES else None)
+    if _SMALL > 0 and S == 1:  # boxes of up to 2 x 2 pixels: each sample tested against the three edges (_small_boxes)
+        small = (key > 0) & (key <= 2) & (ncd <= 2)
+        if np.count_nonzero(small) >= _SMALL:  # enough of them for a batch of its own
+            key = np.where(small, 0, key)  # (a new array: key may be nrd itself)
+            one = np.flatnonzero(small)
+            edges = (np.take(x, one, axis=1) for x in (A3d, B3d, based))
+            yield _small_boxes(s, one if tri is None else tri[one], *edges, c0d[one], r0d[one], nrd[one], ncd[one],
+                               sx, sy, w if _ROW_VALUES else None)
     key = _merged_counts(key, S)
+    # The dense groups' edges in _rect_bounds' order (_edge_order), once for the chunk; pos maps a
+    # box to its column there.
+    ordered = np.flatnonzero(key)
+    if ordered.size:
+        A3o, B3o, E3o = _edge_order(*(np.take(x, ordered, axis=1) for x in (A3d, B3d, based)))
+        pos = np.zeros(key.size, np.intp)
+        pos[ordered] = np.arange(ordered.size)
     for k in np.flatnonzero(np.bincount(key, minlength=1)[1:]) + 1:
         sel = np.flatnonzero(key == k)
         step = max(1, _ROW_BUDGET // (int(k) * S))
         for a in range(0, sel.size, step):
             g = sel[a:a + step]
-            a3, b3, e3 = (np.take(x, g, axis=1) for x in (A3d, B3d, based))
+            a3, b3, e3 = (np.take(x, pos[g], axis=1) for x in (A3o, B3o, E3o))
             if w is not None and _ROW_VALUES:
                 yield _rect_values(s, g if tri is None else tri[g], a3, b3, e3, c0d[g], ncd[g], r0d[g], nrd[g], int(k),
                                    sx, sy, w)
@@ -171,29 +179,42 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
         yield g[pt], row, samp, col0, cnt
 
 
-def _single_pixels(s, tri, A3, B3, base3, c0, r0, sx, sy, w=None):
-    """The span rows of boxes of one pixel (setup triangles ``tri``): a covered sample is a row of one.
+def _small_boxes(s, tri, A3, B3, base3, c0, r0, nr, nc, sx, sy, w=None):
+    """The span rows of boxes of up to 2 x 2 pixels (setup triangles ``tri``): a covered sample is a row of one.
 
-    ``base3`` (3, m): the edge values at the pixel's centre (exact int64). Sample ``q`` is
-    covered when ``base3 + A3 sx_q + B3 sy_q >= 0`` for the three edges: the test of
-    :func:`_rect_bounds` for a box of one column (u = 0), in three integer passes per edge
-    instead of its dozens. Rows in (sample, box) order, as :func:`_rect_values` yields them
-    (``w`` given) or as :func:`_row_batches`' indices (triangle, row, sample, column, count 1).
-    The values are those :func:`_rect_values` computes for the same rows (first column 0).
+    ``base3`` (3, m): the edge values at the centre of the box's first pixel (exact int64).
+    The sample q of the pixel (dr, dc) of a box is covered when ``base3 + A3 ox + B3 oy >= 0``
+    for the three edges, (ox, oy) = (dc 256 + sx_q, dr 256 + sy_q) its offset: the test
+    :func:`_rect_bounds` solves per row, here in three integer passes per edge over the
+    nr nc S samples of each box (the boxes of each shape together) instead of its dozens per
+    row. Rows in (shape, pixel, sample, box) order, yielded as :func:`_rect_values` yields
+    them (``w`` given; the same values for the same samples) or as :func:`_row_batches`'
+    indices (triangle, row, sample, column, count 1).
     """
-    S, m = sx.shape[0], c0.size
-    cov = np.ones((S, m), bool)
-    for e in range(3):
-        cov &= (base3[e] + A3[e] * sx[:, None] + B3[e] * sy[:, None]) >= 0
-    keep = np.flatnonzero(cov)  # sample m + box
-    samp, j = np.divmod(keep, m)
-    ones = np.ones(keep.size, np.int64)
-    if w is None:
-        return np.take(tri, j), np.take(r0, j), samp, np.take(c0, j), ones
+    S = sx.shape[0]
+    parts = []
+    for R, C in ((1, 1), (1, 2), (2, 1), (2, 2)):
+        sel = np.flatnonzero((nr == R) & (nc == C))
+        if sel.size == 0:
+            continue
+        # The R C S candidate samples: pixel row and column within the box, sample, offset (1/256 pixel).
+        dr, dc, q = (x.ravel() for x in np.meshgrid(np.arange(R), np.arange(C), np.arange(S), indexing="ij"))
+        ox, oy = (dc * _SUB + sx[q])[:, None], (dr * _SUB + sy[q])[:, None]
+        a3, b3, e3 = (np.take(x, sel, axis=1) for x in (A3, B3, base3)) if sel.size < c0.size else (A3, B3, base3)
+        cov = np.ones((q.size, sel.size), bool)
+        for e in range(3):
+            cov &= (e3[e] + a3[e] * ox + b3[e] * oy) >= 0
+        p, j = np.divmod(np.flatnonzero(cov), sel.size)  # candidate, box
+        j = np.take(sel, j)
+        parts.append((j, np.take(r0, j) + np.take(dr, p), np.take(c0, j) + np.take(dc, p), np.take(q, p)))
+    j, row, col, samp = (np.concatenate(x) for x in zip(*parts))
     t = np.take(tri, j)
-    xs0 = ((np.take(c0, j) * _SUB + np.take(_HALF - s["X"][0], t)) + np.take(sx, samp)).astype(np.float64)
-    y = ((np.take(r0, j) * _SUB + np.take(_HALF - s["Y"][0], t)) + np.take(sy, samp)).astype(np.float64)
-    flat0 = (np.take(r0, j) * w + np.take(c0, j)) * S + samp
+    ones = np.ones(j.size, np.int64)
+    if w is None:
+        return t, row, samp, col, ones
+    xs0 = ((col * _SUB + np.take(_HALF - s["X"][0], t)) + np.take(sx, samp)).astype(np.float64)
+    y = ((row * _SUB + np.take(_HALF - s["Y"][0], t)) + np.take(sy, samp)).astype(np.float64)
+    flat0 = (row * w + col) * S + samp
     return xs0, y * np.take(s["zb"], t), np.take(s["z0"], t), np.take(s["za"], t), flat0, ones, None
 
 
