@@ -59,7 +59,9 @@ covered samples are written out from the intervals. Boxes of up to 32 rows are
 evaluated together on a dense (rows, samples, triangles) layout in float64
 (exact: the edge values are integers below 2^53); taller boxes (mid-size and long
 thin triangles) are cut into pieces of 32 rows that take the same path, and only
-triangles reaching far into the guard band go row by row in int64. A triangle
+triangles reaching far into the guard band go row by row in int64. Boxes of up to
+2×2 pixels of a 1× map (a finely tessellated mesh seen from afar) test each sample
+against the three edges instead. A triangle
 whose depths are proven to lie in [−1, 1] from its vertices (with a bound on the
 rounding) skips the depth-clip test of its rows. Large triangles (an inscribed
 circle of 16 pixels or more) of a depth map are drawn 4×4 pixels at a time instead

@@ -10,6 +10,13 @@ for ``a_e > 0``, ``u <= floor(-L_e / a_e)`` for ``a_e < 0``, all or nothing for
 ``a_e = 0``. So the work per row is a constant, and the covered samples are
 written out from their intervals without testing the empty ones: the fill
 rate of a large triangle costs only its covered samples.
+
+Two shortcuts give the same samples and depths: boxes of up to 2 x 2 pixels of 1x maps
+(a view of a finely tessellated mesh: 99 % of the knot's boxes at 512²) test each of
+their samples against the three edges directly (:func:`_small_boxes`); and where a dense
+group's boxes have few columns for their covered samples, ``z0 + za X`` is tabulated per
+(sample, box, column), since X does not depend on the row, and each sample looks it up
+(:func:`_rect_values`).
 """
 
 from __future__ import annotations
