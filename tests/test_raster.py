@@ -1200,16 +1200,18 @@ def test_setup_rewrites_keep_the_values_bit_for_bit():
     np.testing.assert_array_equal((a + 255) >> 8, np.ceil(a / 256).astype(np.int64))
 
 
-def test_small_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monkeypatch):
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_small_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monkeypatch, samples):
     # Boxes of up to 2 x 2 pixels are tested sample by sample against their three edges
-    # (_spans._small_boxes, 1x maps only) instead of going through _rect_bounds: on tiny triangles
+    # (_spans._small_boxes; 1x maps by default, here 4x and 8x too) instead of going through
+    # _rect_bounds: on tiny triangles
     # (boxes of one to four pixels, samples on edges: vertices on the 1/16 pixel grid) mixed with
     # larger ones, maps (float32 and float64) and fragments must be those of the dense bounds, byte
     # for byte, and the path must be taken for every box shape. Mutants: the third edge's test
-    # dropped, or the second pixel column's samples dropped, must fail.
+    # dropped, the second pixel column's samples dropped, or (4x, 8x) the sample offsets dropped, must fail.
     from moments_ref.scene.raster import _spans as spans
 
-    samples = 1
+    monkeypatch.setattr(spans, "_SMALL_SAMPLES", (1, 4, 8))
     rng = np.random.default_rng(5)
     v, t = raster.small_triangles(3000, 48, 1.2, rng)
     v2, t2 = raster.small_triangles(60, 48, 9.0, rng)
@@ -1239,11 +1241,13 @@ def test_small_boxes_give_the_maps_and_fragments_of_the_dense_bounds(monkeypatch
 
     def mutant(kind):
         def small(s, tri, A3, B3, base3, c0, r0, nr, nc, sx, sy, w=None):
+            if kind == "offsets":
+                return real(s, tri, A3, B3, base3, c0, r0, nr, nc, sx * 0, sy * 0, w)
             if kind == "column":  # boxes of two columns drawn as one
                 return real(s, tri, A3, B3, base3, c0, r0, nr, np.minimum(nc, 1), sx, sy, w)
             return real(s, tri, A3[[0, 1, 1]], B3[[0, 1, 1]], base3[[0, 1, 1]], c0, r0, nr, nc, sx, sy, w)
         return small
 
-    for kind in ("edge", "column"):
+    for kind in ("edge", "column", "offsets") if samples > 1 else ("edge", "column"):  # 1x: offset 0
         monkeypatch.setattr(spans, "_small_boxes", mutant(kind))
         assert rasterize_depth(v, t, np.eye(4), 48, samples=samples)[0].tobytes() != m0[0][0].tobytes()

@@ -46,8 +46,9 @@ _MERGE_ROWS = 1 << 14
 _ROW_VALUES = True
 # Boxes of up to 2 x 2 pixels of 1x maps take _small_boxes (a test per sample) where a chunk has at
 # least this many (fewer cost more as a batch of their own than in the dense groups; with 4 or 8
-# samples the dense rows are quicker, measured); 0: never.
+# samples the dense rows are quicker, measured); 0: never. _SMALL_SAMPLES: the sample counts it serves.
 _SMALL = 1024
+_SMALL_SAMPLES = (1,)
 # _rect_values hands over a table of z0 + za X per (sample, box, column) where it holds at most
 # this many entries per covered sample; 0: never.
 _TABLE = 1.0
@@ -149,7 +150,7 @@ def _row_batches(s, c0, nc, r0, nr, safe, sx, sy, taken=None, w=None):
     else:  # no pieces: the boxes as they are (the others have key 0)
         tri, c0d, ncd, r0d, nrd, based, A3d, B3d = None, c0, nc, r0, nr, base3, A3, B3
         key = np.where(dense, nr, 0)
-    if _SMALL > 0 and S == 1:  # boxes of up to 2 x 2 pixels: each sample tested against the three edges (_small_boxes)
+    if _SMALL > 0 and S in _SMALL_SAMPLES:  # boxes of up to 2 x 2 pixels: each sample tested against the three edges (_small_boxes)
         small = (key > 0) & (key <= 2) & (ncd <= 2)
         if np.count_nonzero(small) >= _SMALL:  # enough of them for a batch of its own
             key = np.where(small, 0, key)  # (a new array: key may be nrd itself)
@@ -204,13 +205,19 @@ def _small_boxes(s, tri, A3, B3, base3, c0, r0, nr, nc, sx, sy, w=None):
         sel = np.flatnonzero((nr == R) & (nc == C))
         if sel.size == 0:
             continue
-        # The R C S candidate samples: pixel row and column within the box, sample, offset (1/256 pixel).
+        # The R C S candidate samples: pixel row and column within the box, sample (in cov's order).
         dr, dc, q = (x.ravel() for x in np.meshgrid(np.arange(R), np.arange(C), np.arange(S), indexing="ij"))
-        ox, oy = (dc * _SUB + sx[q])[:, None], (dr * _SUB + sy[q])[:, None]
         a3, b3, e3 = (np.take(x, sel, axis=1) for x in (A3, B3, base3)) if sel.size < c0.size else (A3, B3, base3)
-        cov = np.ones((q.size, sel.size), bool)
+        cov = np.ones((R, C, S, sel.size), bool)
         for e in range(3):
-            cov &= (e3[e] + a3[e] * ox + b3[e] * oy) >= 0
+            # The edge at each pixel's samples: the first pixel's plus 256 A per column, 256 B per row.
+            v = e3[e] + a3[e] * sx[:, None] + b3[e] * sy[:, None] if sx.any() or sy.any() else e3[e][None]
+            for r in range(R):
+                if r:
+                    v = v + b3[e] * _SUB
+                cov[r, 0] &= v >= 0
+                if C == 2:
+                    cov[r, 1] &= (v + a3[e] * _SUB) >= 0
         p, j = np.divmod(np.flatnonzero(cov), sel.size)  # candidate, box
         j = np.take(sel, j)
         parts.append((j, np.take(r0, j) + np.take(dr, p), np.take(c0, j) + np.take(dc, p), np.take(q, p)))
@@ -347,10 +354,13 @@ def _iter_spans(s, c0, c1, r0, r1, safe, sx, sy, w, want_rcs, dtype=np.float64, 
 
 
 def _repeater(c, n):
-    """``rep(a)`` = ``np.repeat(a, c)`` (n = c.sum(), every c >= 1): for short rows as a gather by one
+    """``rep(a)`` = ``np.repeat(a, c)`` (n = c.sum(), every c >= 1; ``a`` itself where every c is 1, so callers
+    write only into results of arrays they made): for short rows as a gather by one
     repeated row index (np.take), quicker than np.repeat's per-row copies below about 8 samples a row
     (measured). The row index is the running count of row starts (a cumsum of marks at the starts:
     2.5 ms instead of 3.8 ms for np.repeat of the row numbers on the bench's mid-size case)."""
+    if n == c.size:  # every row one sample (_small_boxes' rows): the rows themselves (callers only read them)
+        return lambda a: a
     if n >= 8 * c.size:
         return lambda a: np.repeat(a, c)
     ri = np.zeros(n, np.intp)
