@@ -201,12 +201,14 @@ def _small_boxes(s, tri, A3, B3, base3, c0, r0, nr, nc, sx, sy, w=None):
     """
     S = sx.shape[0]
     parts = []
+    shape = nr * 2 + nc  # 3, 4, 5, 6 for 1 x 1, 1 x 2, 2 x 1, 2 x 2
     for R, C in ((1, 1), (1, 2), (2, 1), (2, 2)):
-        sel = np.flatnonzero((nr == R) & (nc == C))
+        sel = np.flatnonzero(shape == 2 * R + C)
         if sel.size == 0:
             continue
         # The R C S candidate samples: pixel row and column within the box, sample (in cov's order).
-        dr, dc, q = (x.ravel() for x in np.meshgrid(np.arange(R), np.arange(C), np.arange(S), indexing="ij"))
+        k = np.arange(R * C * S)
+        dr, dc, q = k // (C * S), k // S % C, k % S
         a3, b3, e3 = (np.take(x, sel, axis=1) for x in (A3, B3, base3)) if sel.size < c0.size else (A3, B3, base3)
         cov = np.ones((R, C, S, sel.size), bool)
         for e in range(3):
