@@ -553,7 +553,8 @@ def _run(b, zf, shape, want, keys):
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
             for start, stop, bc, zc in broadcast_chunks(b, zf, shape, chunk):
                 m = stop - start
-                c = consts if m == chunk or n <= chunk else {k: v[..., :m] if np.ndim(v) else v for k, v in consts.items()}
+                c = consts if m == chunk or n <= chunk else {k: v[..., :m] if np.ndim(v) else v
+                                                             for k, v in consts.items()}
                 _bound(bc, zc, bound, c, {bound: outs[bound][start:stop]}, refuse, errors)
         return outs
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, chunk):

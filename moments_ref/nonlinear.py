@@ -925,7 +925,9 @@ def _clamps_needed(ext, c):
 
 
 def _chunk_ok(cols, zc, gap, tol):
-    """The chunk's extremes if a chunk of ``shade``'s ``r`` is finite and in the domain, else None (six reductions).
+    """The chunk's extremes if a chunk of ``shade``'s ``r`` is finite and in the domain, else None.
+
+    Six reductions in four calls.
 
     ``gap = y2 − y1``. Minima and maxima are finite exactly when every value is
     (NaN propagates through them); those of the gap cover y1 and y2 (an infinite

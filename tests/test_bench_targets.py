@@ -210,7 +210,8 @@ class _Counting:
             def __call__(self, *args, **kw):
                 rows = []  # the distinct chunk-long rows read
                 for a in args[:f.nin]:
-                    if isinstance(a, np.ndarray) and a.size == outer.m and not any(a is r or np.shares_memory(a, r) for r in rows):
+                    new = not any(np.shares_memory(a, r) for r in rows) if isinstance(a, np.ndarray) else False
+                    if new and a.size == outer.m:
                         rows.append(a)
                 out = kw.get("out", args[f.nin] if len(args) > f.nin else None)
                 out = out[0] if isinstance(out, tuple) else out

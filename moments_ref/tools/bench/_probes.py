@@ -5,11 +5,14 @@ A shading kernel of this package (Algorithm 1, Algorithm 3, the six-moment bound
 transposing copy), runs its ufunc passes over chunk-long rows and writes a fresh ``(n,)``
 result. A probe does exactly that with the arithmetic replaced by ``passes`` float
 passes over the same chunk-long rows, as many of them writing a third row as the kernel's
-(:data:`THIRD_ROW`; the others add in place): with ``passes = 0`` it is the floor of any
+(:data:`THIRD_ROW`; the others work in place): with ``passes = 0`` it is the floor of any
 kernel written this way (the transposing copy and the first touch of the output), with
-the kernel's own count of passes it is that count's floor. The bench measures both in the
-same run as the kernel and prints them beside it, against the same copy, so that a floor
-is a measurement, not a figure in the text.
+the kernel's own passes it is their floor. For Algorithms 1 and 3 those are the kernel's
+own ufuncs (:data:`UFUNCS`: divisions and a square root cost more than the multiplications
+that stood for them until round nine) and its min/max reductions (:data:`REDUCTIONS`),
+checked against the calls the kernels make by tests/test_bench_targets.py. The bench
+measures both in the same run as the kernel and prints them beside it, against the same
+copy, so that a floor is a measurement, not a figure in the text.
 
 Nothing here asserts a timing in the tests: probes are read, not enforced.
 """
@@ -26,13 +29,13 @@ PASSES = {
     # msm._bound_rows: 9 Cholesky, 5 forward substitution, 5 scaling and 1/w0 − 1, 4 k2 = p'(zf),
     # 1/w0 and min(q2, 0), 5 the discriminant (its square root one), 2 (1 − w0)/2, 5 the weight
     # and 1 saturate (issue 41, round six; 49 before; since round seven 2/w0 is doubled in place,
-    # the same count); its four reductions (pivots, b4, the results' finiteness) are not counted
+    # the same count); its four reductions (pivots, b4, the results' finiteness): REDUCTIONS
     "shadow_intensity float32": 38,
     # nonlinear._shade_about_zf with the gap of shade's domain check: 1 gap, 2 X = zf − y1 and
     # m1 = v2 G, 3 σ² = (1 − v2) m1 G, 3 the forward substitution about y1 and 1 2X − G, 9 scaling,
     # k2, 1/w0 − 1, 1/w0 and min(q2, 0), 5 the discriminant, 2 (1 − w0)/2 (2/w0 doubled in place),
     # 5 the weight and 1 saturate (round seven: depths measured from y1; 34 in round six, 43
-    # before); its seven reductions (the domain and the results' finiteness) are not counted;
+    # before); its seven reductions (the domain and the results' finiteness): REDUCTIONS;
     # the texels where a §3.4 clamp acts (none of filtered moments) take the clamped kernel
     "shade float32": 32,
     # msm6._bounds on float32 (moments_ref._msm6_bound.bound_rows): 23 Cholesky, 11 forward
