@@ -203,11 +203,11 @@ def _singular_rows(b, sigma2, xi4, finite, c):
 def _forward(zf, b1, b2, l32, y2, y3, t):
     """Forward substitution L y = (1, zf, zf²) of HPG17 Algorithm 1, step 2, into ``y2``, ``y3`` (``t`` scratch):
     y2 = zf − b1, y3 = zf² − b2 − L32 y2 (y1 = 1)."""
-    np.subtract(zf, b1, out=y2)
-    np.multiply(zf, zf, out=y3)
-    np.subtract(y3, b2, out=y3)
-    np.multiply(l32, y2, out=t)
-    np.subtract(y3, t, out=y3)
+    np.subtract(zf, b1, y2)
+    np.multiply(zf, zf, y3)
+    np.subtract(y3, b2, y3)
+    np.multiply(l32, y2, t)
+    np.subtract(y3, t, y3)
 
 
 def _solve(b, zf, sigma2, l32, xi4, ws):
@@ -372,31 +372,31 @@ def _quadratic_about_zf(b, zf, c):
     # that writes one of the rows it reads moves two rows, not three (the same operations on
     # the same operands as before, so the same bits; docs/bench.md, Kernel history, round seven).
     # Cholesky, B(b) = L D Lᵀ: L32 = (b3 − b1 b2)/σ², ξ4 = b4 − b2² − L32·(b3 − b1 b2).
-    np.multiply(b1, b1, out=s2)
-    np.subtract(b2, s2, out=s2)
-    np.multiply(b1, b2, out=t)
-    np.subtract(b3, t, out=t)
-    np.divide(t, s2, out=l32)
-    np.multiply(l32, t, out=t)
-    np.multiply(b2, b2, out=xi)
-    np.add(t, xi, out=xi)
-    np.subtract(b4, xi, out=xi)
+    np.multiply(b1, b1, s2)
+    np.subtract(b2, s2, s2)
+    np.multiply(b1, b2, t)
+    np.subtract(b3, t, t)
+    np.divide(t, s2, l32)
+    np.multiply(l32, t, t)
+    np.multiply(b2, b2, xi)
+    np.add(t, xi, xi)
+    np.subtract(b4, xi, xi)
     regular = _pivots_positive(b, s2, xi, t, c)
     # Forward substitution to solve L y = (1, zf, zf²): y2 = zf − b1, y3 = zf² − b2 − L32 y2.
     _forward(zf, b1, b2, l32, y2, y3, t)
     # p(z) = 1 + c2 (z − b1) + q2 (z² − b2 − L32 (z − b1)) (back substitution folded in), so
     # k2 = p'(zf) = c2 + q2 (2 zf − L32) (in L32's row).
-    k2 = np.subtract(zf, l32, out=l32)
-    np.add(k2, zf, out=k2)
+    k2 = np.subtract(zf, l32, l32)
+    np.add(k2, zf, k2)
     # Scaling to solve D c = y: c2 = y2/σ², q2 = c3 = y3/ξ4; 1/w0 − 1 = y2 c2 + y3 q2 (Prop. 10).
-    c2 = np.divide(y2, s2, out=s2)
-    q2 = np.divide(y3, xi, out=xi)
-    np.multiply(k2, q2, out=k2)
-    np.add(k2, c2, out=k2)
-    cm1 = np.multiply(y2, c2, out=c2)
-    np.multiply(y3, q2, out=y3)
-    np.add(cm1, y3, out=cm1)
-    np.add(cm1, 1, out=inv_w0)  # an array–scalar add reads one row, not two
+    c2 = np.divide(y2, s2, s2)
+    q2 = np.divide(y3, xi, xi)
+    np.multiply(k2, q2, k2)
+    np.add(k2, c2, k2)
+    cm1 = np.multiply(y2, c2, c2)
+    np.multiply(y3, q2, y3)
+    np.add(cm1, y3, cm1)
+    np.add(cm1, 1, inv_w0)  # an array–scalar add reads one row, not two
     q2m = np.minimum(q2, c["zero"], out=q2)
     return k2, q2m, inv_w0, cm1, y2, regular
 
@@ -430,24 +430,24 @@ def _bound_rows(b, zf, bound, c, dest):
     v, s = ws[1], ws[5]
     # (1 − w0)/2 = (1/w0 − 1)/(2/w0), with 2/w0 doubled in place (an array–scalar pass writing the
     # row it reads: cheaper than 1/w0 + 1/w0, the same bits) and the quotient into 1/w0 − 1's row.
-    inv2 = np.multiply(inv_w0, c["two"], out=inv_w0)
-    h = np.divide(cm1, inv2, out=cm1)
+    inv2 = np.multiply(inv_w0, c["two"], inv_w0)
+    h = np.divide(cm1, inv2, cm1)
     # S = √(k2² − 4 q2m/w0) = √(k2² − 2·q2m·(2/w0)): k2² + 4|q2| /w0 for q2 < 0, exactly |k2| for
     # q2 ≥ 0 (the bits of 4·(q2m/w0): scalings by 2 are exact short of overflow and underflow;
     # 2/w0 > finfo.max, where 1/w0 + 1/w0 overflowed too, makes S infinite and sends the texel to
     # _kernel; in 2/w0's row for the lower bound, the upper bound keeps 2/w0 for w0).
-    p = np.multiply(q2m, inv2, out=v if bound == "upper" else inv2)
-    np.multiply(p, c["two"], out=p)
-    np.multiply(k2, k2, out=s)
-    np.subtract(s, p, out=s)
-    np.sqrt(s, out=s)  # NaN or inf for an overflow: the texel goes to _kernel
+    p = np.multiply(q2m, inv2, v if bound == "upper" else inv2)
+    np.multiply(p, c["two"], p)
+    np.multiply(k2, k2, s)
+    np.subtract(s, p, s)
+    np.sqrt(s, s)  # NaN or inf for an overflow: the texel goes to _kernel
     # lower = ((1 − w0)/2·(S + k2) − y2 q2m)/S.
-    num = np.add(s, k2, out=k2)
-    np.multiply(num, h, out=num)
-    np.multiply(y2, q2m, out=y2)
-    np.subtract(num, y2, out=num)
+    num = np.add(s, k2, k2)
+    np.multiply(num, h, num)
+    np.multiply(y2, q2m, y2)
+    np.subtract(num, y2, num)
     lower = dest[bound] if bound == "lower" else num
-    np.divide(num, s, out=lower)
+    np.divide(num, s, lower)
     # Saturate: a rounded w1 < 0 (every chunk of the bench's input has some) by a maximum with
     # the zero row (NaN stays NaN), the upper end only where the chunk's largest value (one
     # reduction, which the finiteness check takes anyway) is above 1 or NaN: np.clip's result bit
@@ -465,8 +465,8 @@ def _bound_rows(b, zf, bound, c, dest):
         irregular = np.flatnonzero(np.logical_not(regular, out=regular))
     if bound == "upper":
         w0 = v
-        np.divide(c["two"], inv2, out=w0)  # 2/(2/w0): the bits of 1/(1/w0)
-        np.add(lower, w0, out=dest["upper"])
+        np.divide(c["two"], inv2, w0)  # 2/(2/w0): the bits of 1/(1/w0)
+        np.add(lower, w0, dest["upper"])
         np.minimum(dest["upper"], c["one"], out=dest["upper"])
     return irregular if irregular is not None and irregular.size else None
 
@@ -497,15 +497,19 @@ def _pivots_positive(b, sigma2, xi4, t, c):
     return regular
 
 
-def _bound(b, zf, bound, c, dest, refuse):
-    """``dest[bound]`` := the bound of Algorithm 1 on a chunk: :func:`_bound_rows`, and :func:`_kernel` on the rest."""
+def _bound(b, zf, bound, c, dest, refuse, errors):
+    """``dest[bound]`` := the bound of Algorithm 1 on a chunk: :func:`_bound_rows`, and :func:`_kernel` on the rest.
+
+    Called with NumPy's floating-point errors ignored (:func:`_run`, once per call); ``errors``, the
+    caller's settings (``np.geterr()``), are restored for :func:`_kernel`.
+    """
     if not np.maximum.reduce(b[3]) < np.inf:  # b4 = +inf is the one non-finite input that can leave the result finite
         refuse()
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        rest = _bound_rows(b, zf, bound, c, dest)
+    rest = _bound_rows(b, zf, bound, c, dest)
     if rest is not None:
         sub = _constants(b.dtype, rest.size)
-        dest[bound][rest] = _kernel(np.ascontiguousarray(b[:, rest]), zf[rest], {bound}, sub, {}, refuse)[bound]
+        with np.errstate(**errors):
+            dest[bound][rest] = _kernel(np.ascontiguousarray(b[:, rest]), zf[rest], {bound}, sub, {}, refuse)[bound]
 
 
 def _unique_distribution(b, zf, singular, rtol, lower, w0, z, w):
@@ -544,13 +548,19 @@ def _run(b, zf, shape, want, keys):
     chunk = chunk_texels(b.dtype)
     consts = _chunk_constants(b.dtype, min(chunk, max(n, 1)))
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
+    if want <= {"lower", "upper"}:
+        bound, errors = keys[0], np.geterr()
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            for start, stop, bc, zc in broadcast_chunks(b, zf, shape, chunk):
+                m = stop - start
+                c = consts if m == chunk or n <= chunk else {k: v[..., :m] if np.ndim(v) else v
+                                                             for k, v in consts.items()}
+                _bound(bc, zc, bound, c, {bound: outs[bound][start:stop]}, refuse, errors)
+        return outs
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, chunk):
         m = stop - start
         c = consts if m == chunk or n <= chunk else {k: v[..., :m] if np.ndim(v) else v for k, v in consts.items()}
         dest = {k: outs[k][start:stop] for k in keys if k in ("lower", "upper")}
-        if want <= {"lower", "upper"}:
-            _bound(bc, zc, keys[0], c, dest, refuse)
-            continue
         res = _kernel(bc, zc, want, c, dest, refuse)
         for k in keys:
             if k not in dest:

@@ -700,42 +700,42 @@ def _shade_about_zf(y1, y2, v2, xi4, zf, gap, out, c):
     # Each value goes into the row of an input or a temporary it no longer needs (a pass writing
     # a row it reads moves two rows, not three): X in y1's, m1 in v2's, zf − y2 in y2's, q2 in ξ4's.
     # σ² = v1 v2 G² = (1 − v2)·m1·G (1 − v2 is exact for v2 ≥ 1/2: no cancellation near v2 = 1).
-    np.subtract(1, v2, out=s2)  # array–scalar: one row read, not two
-    x = np.subtract(zf, y1, out=y1)  # X = zf − y1
-    m1 = np.multiply(v2, gap, out=v2)  # m1 = v2 G, the mean about y1
-    np.multiply(s2, m1, out=s2)
-    np.multiply(s2, gap, out=s2)
+    np.subtract(1, v2, s2)  # array–scalar: one row read, not two
+    x = np.subtract(zf, y1, y1)  # X = zf − y1
+    m1 = np.multiply(v2, gap, v2)  # m1 = v2 G, the mean about y1
+    np.multiply(s2, m1, s2)
+    np.multiply(s2, gap, s2)
     # Forward substitution at X: y2 = X − m1 (in m1's row), y3 = X (X − G) (in g), X − G = zf − y2.
-    y2n = np.subtract(x, m1, out=m1)
-    e = np.subtract(zf, y2, out=y2)
-    np.multiply(x, e, out=g)
-    e2 = np.add(x, e, out=x)  # 2X − G = p'(X)'s factor of q2
+    y2n = np.subtract(x, m1, m1)
+    e = np.subtract(zf, y2, y2)
+    np.multiply(x, e, g)
+    e2 = np.add(x, e, x)  # 2X − G = p'(X)'s factor of q2
     # Scaling: c2 = y2/σ², q2 = y3/ξ4, k2 = c2 + q2 (2X − G), 1/w0 − 1 = y2 c2 + y3 q2.
-    c2 = np.divide(y2n, s2, out=s2)
-    q2 = np.divide(g, xi4, out=xi4)
-    k2 = np.multiply(e2, q2, out=e2)
-    np.add(k2, c2, out=k2)
-    cm1 = np.multiply(y2n, c2, out=c2)
-    np.multiply(g, q2, out=g)
-    np.add(cm1, g, out=cm1)
-    np.add(cm1, 1, out=inv_w0)
+    c2 = np.divide(y2n, s2, s2)
+    q2 = np.divide(g, xi4, xi4)
+    k2 = np.multiply(e2, q2, e2)
+    np.add(k2, c2, k2)
+    cm1 = np.multiply(y2n, c2, c2)
+    np.multiply(g, q2, g)
+    np.add(cm1, g, cm1)
+    np.add(cm1, 1, inv_w0)
     q2m = np.minimum(q2, c["zero"], out=q2)
     # Step (3)–(5) as msm._bound_rows: S = √(k2² − 4 q2m/w0), ((1 − w0)/2·(S + k2) − y2 q2m)/S.
     # (1 − w0)/2 = (1/w0 − 1)/(2/w0) with 2/w0 doubled in place and 4 q2m/w0 as 2·q2m·(2/w0): the
     # same bits as 1/w0 + 1/w0 and 4·(q2m/w0) (scalings by 2 are exact) in two array–scalar passes
     # writing the rows they read.
     two, s = y1.dtype.type(2), g
-    inv2 = np.multiply(inv_w0, two, out=inv_w0)
-    h = np.divide(cm1, inv2, out=cm1)
-    p = np.multiply(q2m, inv2, out=inv2)
-    np.multiply(p, two, out=p)
-    np.multiply(k2, k2, out=s)
-    np.subtract(s, p, out=s)
-    np.sqrt(s, out=s)
-    num = np.add(s, k2, out=k2)
-    np.multiply(num, h, out=num)
-    np.subtract(num, np.multiply(y2n, q2m, out=y2n), out=num)
-    np.divide(num, s, out=out)
+    inv2 = np.multiply(inv_w0, two, inv_w0)
+    h = np.divide(cm1, inv2, cm1)
+    p = np.multiply(q2m, inv2, inv2)
+    np.multiply(p, two, p)
+    np.multiply(k2, k2, s)
+    np.subtract(s, p, s)
+    np.sqrt(s, s)
+    num = np.add(s, k2, k2)
+    np.multiply(num, h, num)
+    np.subtract(num, np.multiply(y2n, q2m, y2n), num)
+    np.divide(num, s, out)
     # Saturate as msm._bound_rows: a maximum with the zero row (NaN stays NaN), the upper clamp
     # only where the largest value (the finiteness check's reduction) is above 1 or NaN.
     np.maximum(out, c["zero"], out=out)
@@ -925,7 +925,9 @@ def _clamps_needed(ext, c):
 
 
 def _chunk_ok(cols, zc, gap, tol):
-    """The chunk's extremes if a chunk of ``shade``'s ``r`` is finite and in the domain, else None (six reductions).
+    """The chunk's extremes if a chunk of ``shade``'s ``r`` is finite and in the domain, else None.
+
+    Six reductions in four calls.
 
     ``gap = y2 − y1``. Minima and maxima are finite exactly when every value is
     (NaN propagates through them); those of the gap cover y1 and y2 (an infinite
@@ -942,10 +944,13 @@ def _chunk_ok(cols, zc, gap, tol):
     """
     if cols.shape[1] == 0:
         return []
-    lo, hi = np.minimum.reduce, np.maximum.reduce
-    ext = [lo(gap), hi(gap), lo(cols[2]), hi(cols[2]), lo(cols[3]), hi(cols[3])]
-    ok = (np.isfinite(ext).all() and ext[0] >= -tol and ext[2] >= -tol and ext[3] <= 1 + tol
-          and ext[4] >= -tol)
+    # v2's and ξ4's extremes by one call each over their two adjacent rows (the same reductions).
+    (vmin, xmin), (vmax, xmax) = np.minimum.reduce(cols[2:], axis=1), np.maximum.reduce(cols[2:], axis=1)
+    ext = [np.minimum.reduce(gap), np.maximum.reduce(gap), vmin, vmax, xmin, xmax]
+    # Finite and in the domain: min ≤ max, so a finite lower bound on each minimum and a finite
+    # upper bound on each maximum (comparisons fail for NaN) make all six finite.
+    ok = (ext[0] >= -tol and ext[1] < np.inf and vmin >= -tol and vmax <= 1 + tol
+          and xmin >= -tol and xmax < np.inf)
     return ext if ok else None
 
 

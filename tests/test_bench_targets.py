@@ -191,3 +191,81 @@ def test_bench_only_names_a_target_group_or_exits_2(capsys):
     assert main(["bench", "--only", "targets-nothing"]) == 2
     err = capsys.readouterr().err
     assert "targets-raster" in err and len(err.strip().splitlines()) == 1
+
+
+class _Counting:
+    """A stand-in for a kernel module's ``np``: counts the ufunc calls and reductions over chunk-long rows."""
+
+    def __init__(self, m):
+        self.m, self.calls, self.reductions, self.third = m, {}, 0, 0
+
+    def __getattr__(self, name):
+        f = getattr(np, name)
+        return self._ufunc(f) if isinstance(f, np.ufunc) else f
+
+    def _ufunc(self, f):
+        outer = self
+
+        class Counted:
+            def __call__(self, *args, **kw):
+                rows = []  # the distinct chunk-long rows read
+                for a in args[:f.nin]:
+                    new = not any(np.shares_memory(a, r) for r in rows) if isinstance(a, np.ndarray) else False
+                    if new and a.size == outer.m:
+                        rows.append(a)
+                out = kw.get("out", args[f.nin] if len(args) > f.nin else None)
+                out = out[0] if isinstance(out, tuple) else out
+                if isinstance(out, np.ndarray) and out.size == outer.m:
+                    outer.calls[f.__name__] = outer.calls.get(f.__name__, 0) + 1
+                    # a third row: two rows read and a row written that is neither of them
+                    outer.third += len(rows) == 2 and not any(np.shares_memory(out, r) for r in rows)
+                return f(*args, **kw)
+
+            def reduce(self, a, *args, **kw):
+                if isinstance(a, np.ndarray) and a.size % outer.m == 0 and a.size:
+                    outer.reductions += a.size // outer.m  # one per chunk-long row
+                return f.reduce(a, *args, **kw)
+
+        return Counted()
+
+
+@pytest.mark.parametrize("name", ["shadow_intensity float32", "shadow_intensity float64", "shade float32"])
+def test_the_pass_probes_count_the_kernels_ufuncs_and_reductions(name, monkeypatch):
+    # The floor probe of a kernel runs the ufuncs, reductions and third-row writes that the kernel's
+    # common path calls per chunk: counted here on two full chunks of the bench's input, with every
+    # `np.<ufunc>` of the kernel's module replaced by a counter. A kernel changed without its probe fails.
+    from moments_ref import msm, nonlinear
+    from moments_ref.tools.bench._probes import PASSES, REDUCTIONS, THIRD_ROW, UFUNCS
+
+    module = msm if name.startswith("shadow") else nonlinear
+    m = _targets._CHUNKS[name]
+    key = name.replace("float64", "float32")  # the bench casts float32's input (_kernel_rows)
+    fn, args, _ = _targets.kernel_inputs(2 * m)[key]
+    args = tuple(a.astype(name.split()[-1]) for a in args)
+    want = fn(*args)
+    counter = _Counting(m)
+    monkeypatch.setattr(module, "np", counter)
+    assert np.array_equal(fn(*args), want)
+    monkeypatch.undo()
+    assert {k: v / 2 for k, v in counter.calls.items()} == UFUNCS[key]
+    assert sum(UFUNCS[key].values()) == PASSES[key]
+    assert counter.reductions / 2 == REDUCTIONS[name]
+    assert counter.third / 2 == THIRD_ROW[key]
+
+
+def test_a_floor_probe_with_the_kernels_ufuncs_calls_them():
+    # With ufuncs given, the probe's passes are those ufuncs: the binary ones into the third row
+    # first (here a division of columns 0 and 1, then a subtraction of columns 1 and 2), then in
+    # place against the ones row (× and ÷ keep the value) or a column (+, −, min, max), sqrt last.
+    from moments_ref.tools.bench._probes import pass_probe
+
+    rng = np.random.default_rng(2)
+    b = rng.uniform(0.5, 1, (1000, 4)).astype(np.float32)
+    zf = rng.uniform(-1, 1, 1000).astype(np.float32)
+    probe = pass_probe(b, zf, 6, 64, 2, ufuncs={"divide": 1, "sqrt": 1, "subtract": 1, "multiply": 2, "add": 1},
+                       reductions=3)
+    # third row: divide(c0, c1), subtract(c1, c2); in place (counting from 0 again): multiply(t, 1),
+    # multiply(t, 1), add(t, c2), sqrt(t)
+    np.testing.assert_array_equal(probe(), np.sqrt((b[:, 1] - b[:, 2]) + b[:, 2]))
+    with pytest.raises(ValueError, match="ufuncs"):
+        pass_probe(b, zf, 5, 64, 2, ufuncs={"add": 1})

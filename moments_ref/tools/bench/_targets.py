@@ -38,7 +38,7 @@ from ...scene.raster import rasterize_depth
 from ..._kernels import SHADE_CHUNK
 from ._cases import raster_case
 from ._memory import pipeline_peak_bytes
-from ._probes import PASSES, THIRD_ROW, pass_probe, scatter_probe
+from ._probes import PASSES, REDUCTIONS, THIRD_ROW, UFUNCS, pass_probe, scatter_probe
 from ._timing import PAIRS, Ratio, paired
 
 __all__ = ["raster_case", "copier", "run_targets", "TARGET_GROUPS", "targets_markdown", "agreement_markdown", "GROWTH_LIMIT", "AGREEMENT"]
@@ -168,14 +168,23 @@ _CHUNKS = {"shadow_intensity float32": chunk_texels(np.float32), "shadow_intensi
 
 
 def _probe_rows(name, args, copy, repeat):
-    """The floors of ``name`` measured against the same copy: data movement alone, and with the kernel's passes."""
+    """The floors of ``name`` measured against the same copy: data movement alone, and with the kernel's passes.
+
+    With the kernel's ufuncs and reductions where :data:`~._probes.UFUNCS` counts them (Algorithms
+    1 and 3), else as many multiplications and additions.
+    """
     b, zf = args
     key = name if name in PASSES else name.replace("float64", "float32")
     passes, third = PASSES[key], THIRD_ROW.get(key)
+    ufuncs, reductions = UFUNCS.get(key), REDUCTIONS.get(name, REDUCTIONS.get(key, 0))
     rows = []
     for p, what in ((0, "transposing copy + output"), (passes, f"+ {passes} passes")):
-        r = paired(pass_probe(b, zf, p, _CHUNKS[name], third), copy, repeat)
+        kind = dict(ufuncs=ufuncs, reductions=reductions) if p and ufuncs else {}
+        r = paired(pass_probe(b, zf, p, _CHUNKS[name], third, **kind), copy, repeat)
         into = f" ({min(third, p)} into a third row)" if third is not None and p else ""
+        if kind:
+            what += f" and {reductions} reductions"
+            into += ", the kernel's ufuncs (" + ", ".join(f"{c} {u}" for u, c in ufuncs.items()) + ")"
         rows.append(_row(f"  floor probe: {what}", r, KERNEL_LIMITS[name],
                          f"CPU {r.kernel:.4f} s: {what}{into} per chunk of {_CHUNKS[name]}", r.kernel))
     return rows
