@@ -480,18 +480,19 @@ def _bounds(b, zf, steps, dest, refuse):
 
     float32 takes the fast path (the weight from the first moments about zf) and hands
     its singular, non-finite and nearly-double-root texels to :func:`_bounds_kernel`;
-    float64 (Newton steps on the root) runs :func:`_bounds_kernel` throughout.
+    float64 (Newton steps on the root) runs :func:`_bounds_kernel` throughout. Called
+    under :func:`_run`'s ``np.errstate`` (one per call, not one per chunk).
     """
-    if b.dtype != np.float32:
-        _bounds_kernel(b, zf, steps, dest, refuse)
-        return
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+    if b.dtype.type is np.float32:
         rest = bound_rows(b, zf, workspace(b.dtype, zf.shape[0]), dest)
-    if rest is not None:
+        if rest is None:
+            return
         sub = {k: np.empty(rest.size, dtype=b.dtype) for k in dest}
         _bounds_kernel(np.ascontiguousarray(b[:, rest]), zf[rest], steps, sub, refuse)
         for k, v in sub.items():
             dest[k][rest] = v
+        return
+    _bounds_kernel(b, zf, steps, dest, refuse)
 
 
 def _canonical_kernel(b, zf, zero, one):
@@ -570,10 +571,12 @@ def _run(b, zf, want):
     steps = _NEWTON_STEPS[b.dtype.name]
     zeros, ones = (np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)) if "z" in want else (None, None)
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
-    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK if "z" in want else BOUNDS_CHUNK):
-        if "z" not in want:  # the bounds are written into the output
-            _bounds(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
-            continue
+    if "z" not in want:  # the bounds are written into the output
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            for start, stop, bc, zc in broadcast_chunks(b, zf, shape, BOUNDS_CHUNK):
+                _bounds(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
+        return outs, zf, shape
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
         if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
             refuse()
         w0, z, w = _canonical_kernel(bc, zc, zeros[: stop - start], ones[: stop - start])
