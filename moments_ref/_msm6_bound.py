@@ -161,7 +161,7 @@ def _solve(b, zf, ldl, w):
 
 
 def _root(cubic, w):
-    """Step 3: ``(−t, ms·c, B, C, 3ℓ, v)``: the root the bound needs, negated, what its weight uses, and ``v = √2·u``.
+    """Step 3: ``(−t, s, Δ0', 3ℓ, v)``: the root the bound needs, negated, what its weight uses, and ``v = √2·u``.
 
     ``cubic = (K1, K2, ℓ)``: P(t) = ℓ t³ + K2 t² + K1 t + 1, Blinn's form as
     :func:`moments_ref.msm6._blinn` (``Δ0' = B² − C = −Δ0``), σ from the sign bit of y3
@@ -202,10 +202,10 @@ def _root(cubic, w):
     np.add(c, t, c)
     np.add(c, k, c)
     # t = σ·2m·c − B, kept as −t = ms·c + B = sm·2c + B
-    s, nt = t, dp
+    s, nt = t, x
     np.multiply(sm, c, s)
     np.add(s, bb, nt)
-    return nt, s, bb, cc, e3, v
+    return nt, s, dp, e3, v
 
 
 def bound_rows(b, zf, w, dest):
@@ -226,19 +226,18 @@ def bound_rows(b, zf, w, dest):
     # A non-finite zf (or one so large that y2 or y3 overflows) makes y3 NaN (∞ − ∞ through β2 y1 > 0
     # or γ = ∞/∞), and with it the result: such texels are handed back by the result's check.
     y1, A, k1, k2, ell, lam = _solve(b, zf, ldl, w)
-    nt, s, bb, cc, e3, v = _root((k1, k2, ell), w)
+    nt, s, dp, e3, v = _root((k1, k2, ell), w)
     vmin, v_min = np.minimum.reduce(v), 2 ** 0.5 * U_MIN  # v = √2 u
     # (4) w_a = (ℓ(1 − w0) t² − A t + y1) / P'(t), A = y1² + D1 − K1 y1, with t = −nt,
-    # P'(t) = 3ℓ·((t + 2B) t + C) and ℓ(1 − w0) = ℓ − λ (module docstring).
+    # P'(t) = 3ℓ·((t + 2B) t + C) = 3ℓ·(s² − Δ0') and ℓ(1 − w0) = ℓ − λ (module docstring).
     cm1, N, Q = w["e"], w["c3"], s
     np.subtract(ell, lam, cm1)
     np.multiply(cm1, nt, N)
     np.add(N, A, N)
     np.multiply(N, nt, N)
     np.add(N, y1, N)
-    np.subtract(s, bb, Q)  # −(t + 2B)
-    np.multiply(Q, nt, Q)
-    np.add(Q, cc, Q)
+    np.multiply(s, s, Q)  # (t + 2B) t + C = (B − s)(−s − B) + C = s² − Δ0' (t = −s − B, Δ0' = B² − C)
+    np.subtract(Q, dp, Q)
     np.multiply(Q, e3, Q)
     wt = N
     np.divide(N, Q, wt)

@@ -54,7 +54,7 @@ def workspace(dtype, n):
     views of a full chunk and of the last shorter one are kept too (a chunk builds no views).
     """
     cache = _LOCAL.__dict__.setdefault("ws", {})
-    key = (np.dtype(dtype).name, BOUNDS_CHUNK)
+    key = (np.dtype(dtype), BOUNDS_CHUNK)  # the dtype itself: its .name is a Python property (about 1 µs)
     views = cache.get(key)
     if views is None:
         if len(cache) >= 4:  # float32 and float64 (the chunk size only guards a changed CHUNK)
