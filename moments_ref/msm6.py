@@ -51,7 +51,7 @@ literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
 The float32 bounds. :func:`shadow_bounds` and :func:`shadow_intensity` in float32 take a
-shorter path on their regular texels (:mod:`moments_ref._msm6_bound`, 104 passes instead of
+shorter path on their regular texels (:mod:`moments_ref._msm6_bound`, 103 passes instead of
 128): the same steps, with the forward substitution by the three-term recurrence, the
 cubic of step 3 from the Gauss–Radau polynomial through zf (Christoffel–Darboux: no back
 substitution, no Taylor shift) and the weight of step 4 from the first moments about zf
@@ -437,7 +437,7 @@ def _bounds_kernel(b, zf, steps, dest, refuse):
     arithmetic in the same order as the expressions of :func:`_ldl`, :func:`_reversed_cubic`,
     :func:`_extreme_root` and :func:`_weights` (bit for bit). 128 passes over a float32
     chunk for the lower bound (the upper 2 more; float32 runs it only on the texels that
-    :mod:`moments_ref._msm6_bound`'s 104 passes hand back, :func:`_bounds`), and the checks as reductions
+    :mod:`moments_ref._msm6_bound`'s 103 passes hand back, :func:`_bounds`), and the checks as reductions
     (:func:`_regular_chunk`): a chunk needs the exact mask of :func:`_regular` only where
     a texel is singular or not finite. ``steps`` is the dtype's entry of
     :data:`_NEWTON_STEPS`; ``refuse()`` raises the error of a NaN or inf in the input.
