@@ -224,8 +224,10 @@ def bound_rows(b, zf, w, dest):
     """
     ldl = ldl_rows(b, w)
     # float32's singular threshold is 0 (msm6, "Degenerate input"): every pivot positive, by one
-    # reduction over the three pivot rows (a NaN fails the comparison), and D3 < ∞ (b6 = +∞).
-    regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0 and np.maximum.reduce(ldl[2]) < np.inf
+    # reduction over the three pivot rows (a NaN fails the comparison). D3 = +∞ (b6 = +∞, or an
+    # overflow) needs no reduction: β3 = D3/D2 = ∞ makes ℓ = y3 + γh − β3 g and K1 = k + γ infinite
+    # or NaN, so C = K1/(3ℓ), Δ0' and v are NaN, and the result's check hands the texel back.
+    regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0
     pre = None
     if not regular:  # the exact mask, only in a chunk that needs it (allocates)
         ok = regular_mask(b, ldl) & np.isfinite(ldl[2] + zf)  # D3 + zf: b6 = +inf, a non-finite zf
