@@ -49,7 +49,8 @@ Passes over a float32 chunk for the lower bound: 23 Cholesky, 11 forward substit
 4 λ and ``A = y1 (y1 − K1) + D1``, 4 Blinn's B, C, D, 9 Blinn's form and σ (in halves:
 :func:`_root`), 3 ``v = √2 u``, 8 cos(arccos(σr)/3) (a rational function,
 :data:`COS_THIRD_RATIONAL`), 2 the root, 9 its weight (``P'(t)/(3ℓ) = s² − Δ0'``, :func:`bound_rows`),
-6 step (5) and saturate: 103, and four reductions (the Christoffel kernel: 128 and five). The upper
+6 step (5) and saturate: 103, and three reductions (the pivots, min v, max of the saturated bound;
+four until round nine; the Christoffel kernel: 128 and five). The upper
 bound 3 more. Every call takes its output positionally and its constants as 0-d float32 arrays
 (the values a Python float rounds to in a float32 call, so the same bits; about 0.35 µs less per
 call), except ``np.maximum`` and ``np.minimum``, whose positional output NumPy deprecates.

@@ -41,7 +41,8 @@ PASSES = {
     # form and σ (10 until round seven's second wave), 3 v = √2 u, 8 cos(arccos(σr)/3) (a
     # rational function in partial fractions: 12 as a polynomial before), 2 the root, 9 its
     # weight from the moments about zf (P'(t)/3ℓ = s² − Δ0': 10 until round nine), 6 step (5)
-    # and saturate (issue 41, round seven; 128 in msm6._bounds_kernel before); 4 reductions
+    # and saturate (issue 41, round seven; 128 in msm6._bounds_kernel before); 3 reductions (4
+    # until round nine), not counted
     "shadow_intensity six moments float32": 103,
 }
 
