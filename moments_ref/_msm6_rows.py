@@ -18,7 +18,7 @@ import numpy as np
 
 from ._kernels import MSM_CHUNK, singular_thresholds
 
-__all__ = ["BOUNDS_CHUNK", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "regular_chunk", "regular_mask", "solve_rows",
+__all__ = ["BOUNDS_CHUNK", "BOUNDS_CHUNK64", "bounds_chunk", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "regular_chunk", "regular_mask", "solve_rows",
            "blinn_rows", "root_rows", "weight_rows"]
 
 #: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
@@ -26,9 +26,16 @@ __all__ = ["BOUNDS_CHUNK", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "r
 COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
                   -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
 
-#: Texels per chunk of the bounds kernel: Algorithm 1's (2^15; measured on the 2048² bench input,
-#: median of 5 interleaved calls, loaded machine: 2^13 0.130 s, 2^14 0.104 s, 2^15 0.094 s, 2^16 0.098 s).
-BOUNDS_CHUNK = MSM_CHUNK
+#: Texels per chunk of the float32 bounds (the fast path of :mod:`moments_ref._msm6_bound`): 2^16
+#: since issue 41 round nine (2048² bench input, CPU time, interleaved, load 2.6–2.7: 0.919
+#: (0.864–0.964) of the time of 2^15 over 25 pairs, and 0.901 against 0.961 of the round's starting
+#: code over 21; 2^17 0.948 against 2^16's 0.884 in one run). Before: Algorithm 1's 2^15 (round
+#: five, the Christoffel kernel: 2^13 0.130 s, 2^14 0.104 s, 2^15 0.094 s, 2^16 0.098 s).
+BOUNDS_CHUNK = 1 << 16
+
+#: Texels per chunk of the float64 bounds (the Christoffel kernel throughout): Algorithm 1's 2^15
+#: (round nine: 2^16 took 1.155 (1.108–1.174) of its time, 15 pairs, load 3–4).
+BOUNDS_CHUNK64 = MSM_CHUNK
 
 #: Float rows of the bounds kernel's workspace (:func:`_workspace`), named by what they first hold.
 ROWS = ("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t", "y1", "y2", "y3", "c1", "c2", "c3", "e", "f", "g")
@@ -40,8 +47,13 @@ _LDL_ROWS = itemgetter("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t")
 _LOCAL = threading.local()
 
 
+def bounds_chunk(dtype):
+    """Texels per chunk of the bounds in ``dtype``: :data:`BOUNDS_CHUNK` for float32, else :data:`BOUNDS_CHUNK64`."""
+    return BOUNDS_CHUNK if np.dtype(dtype).type is np.float32 else BOUNDS_CHUNK64
+
+
 def workspace(dtype, n):
-    """The kernel's rows for ``n ≤ BOUNDS_CHUNK`` texels: views of one set per thread and dtype, kept between calls.
+    """The kernel's rows for ``n ≤ bounds_chunk(dtype)`` texels: views of one set per thread and dtype, kept between calls.
 
     Float rows (:data:`ROWS`), three boolean rows, an integer row for sign bits, the
     constant rows 0 and 1 (``np.maximum``, ``np.minimum`` and ``np.fmax`` are fast only
@@ -49,25 +61,25 @@ def workspace(dtype, n):
     than array–array), and each float row's integer view (``"i" + name``). Every step
     writes into them (``out``): a chunk allocates nothing and its rows stay in cache;
     kept between calls because fresh chunk-sized arrays are faulted in from the OS on
-    every call (as :mod:`moments_ref.msm` measured). 2.6 MB in float32, 5.1 MB in float64
-    per thread that called; per thread, so that concurrent calls never share one. The
+    every call (as :mod:`moments_ref.msm` measured). 5.7 MB in float32 (2^16 texels), 5.6 MB
+    in float64 (2^15) per thread that called; per thread, so that concurrent calls never share one. The
     views of a full chunk and of the last shorter one are kept too (a chunk builds no views).
     """
     cache = _LOCAL.__dict__.setdefault("ws", {})
-    key = (np.dtype(dtype), BOUNDS_CHUNK)  # the dtype itself: its .name is a Python property (about 1 µs)
+    m = bounds_chunk(dtype)
+    key = (np.dtype(dtype), m)  # the dtype itself: its .name is a Python property (about 1 µs)
     views = cache.get(key)
     if views is None:
         if len(cache) >= 4:  # float32 and float64 (the chunk size only guards a changed CHUNK)
             cache.clear()
         it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
-        m = BOUNDS_CHUNK
         base = {"block": np.empty((len(ROWS), m), dtype=dtype), "mask": np.empty((3, m), dtype=bool),
                 "bits": np.empty(m, dtype=it), "zero": np.zeros(m, dtype=dtype), "one": np.ones(m, dtype=dtype)}
         views = cache[key] = {m: _views(base, np.array(np.iinfo(it).min, dtype=it), m)}
     ws = views.get(n)
     if ws is None:
-        full = views[BOUNDS_CHUNK]
-        for k in [k for k in views if k != BOUNDS_CHUNK]:  # keep one shorter chunk's views
+        full = views[m]
+        for k in [k for k in views if k != m]:  # keep one shorter chunk's views
             del views[k]
         ws = views[n] = _views({k: full[k] for k in ("block", "mask", "bits", "zero", "one")}, full["sign"], n)
     return ws

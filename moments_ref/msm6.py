@@ -133,7 +133,7 @@ from ._arrays import InputError, brief, check_broadcast, first_index, lookup_inp
 from ._docs import fill_doc
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
-from ._msm6_rows import BOUNDS_CHUNK, COS_THIRD_POLY as _COS_THIRD_POLY
+from ._msm6_rows import BOUNDS_CHUNK, COS_THIRD_POLY as _COS_THIRD_POLY, bounds_chunk
 from ._msm6_bound import bound_rows
 from ._msm6_rows import ldl_rows, regular_chunk, regular_mask, root_rows, solve_rows, weight_rows, workspace
 from ._kernels import two_point as _two_point
@@ -573,7 +573,7 @@ def _run(b, zf, want):
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
     if "z" not in want:  # the bounds are written into the output
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-            for start, stop, bc, zc in broadcast_chunks(b, zf, shape, BOUNDS_CHUNK):
+            for start, stop, bc, zc in broadcast_chunks(b, zf, shape, bounds_chunk(b.dtype)):
                 _bounds(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
         return outs, zf, shape
     for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
