@@ -18,8 +18,8 @@ import numpy as np
 
 from ._kernels import MSM_CHUNK, singular_thresholds
 
-__all__ = ["BOUNDS_CHUNK", "BOUNDS_CHUNK64", "bounds_chunk", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "regular_chunk", "regular_mask", "solve_rows",
-           "blinn_rows", "root_rows", "weight_rows"]
+__all__ = ["BOUNDS_CHUNK", "BOUNDS_CHUNK64", "bounds_chunk", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows",
+           "regular_chunk", "regular_mask", "solve_rows", "blinn_rows", "root_rows", "weight_rows"]
 
 #: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
 #: 4001 Chebyshev points of [0, 1], largest error 1.6e-7 (2.2e-7 evaluated in float32).
@@ -53,7 +53,7 @@ def bounds_chunk(dtype):
 
 
 def workspace(dtype, n):
-    """The kernel's rows for ``n ≤ bounds_chunk(dtype)`` texels: views of one set per thread and dtype, kept between calls.
+    """The kernel's rows for ``n ≤ bounds_chunk(dtype)`` texels: one set per thread and dtype, kept between calls.
 
     Float rows (:data:`ROWS`), three boolean rows, an integer row for sign bits, the
     constant rows 0 and 1 (``np.maximum``, ``np.minimum`` and ``np.fmax`` are fast only
