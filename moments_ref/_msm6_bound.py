@@ -31,7 +31,11 @@
 
       w_a = (ℓ (1 − w0) t² − A t + y1) / P'(t),   A = y1² + D1 − K1 y1,
 
-  with ``ℓ (1 − w0) = ℓ − λ`` and ``P'(t) = 3ℓ ((t + 2B) t + C)`` (B, C of Blinn's form).
+  with ``ℓ (1 − w0) = ℓ − λ`` and ``P'(t) = 3ℓ ((t + 2B) t + C)`` (B, C of Blinn's form). With
+  the root written as ``t = −s − B`` (``s = σ·2m·cos(arccos(σr)/3)``, ``m² = Δ0' = B² − C``),
+  ``(t + 2B) t + C = s² − Δ0' = Δ0' (4cos²(·) − 1)`` (a third of the product of the root's
+  distances to the other two), two passes from s instead of three from t, and free of the
+  cancellation of ``B²`` against ``C`` where ``Δ0' ≪ B²``.
 
 Where the two roots next to each other nearly meet (``u = √((1 + σr)/2) < U_MIN``: the
 Vandermonde weight divides two small numbers there), where B(b) is singular, or where the
@@ -44,11 +48,17 @@ Passes over a float32 chunk for the lower bound: 23 Cholesky, 11 forward substit
 8 the signs, the case masks and σ's sign bit, 5 the derivatives at zf, 11 the Radau cubic,
 4 λ and ``A = y1 (y1 − K1) + D1``, 4 Blinn's B, C, D, 9 Blinn's form and σ (in halves:
 :func:`_root`), 3 ``v = √2 u``, 8 cos(arccos(σr)/3) (a rational function,
-:data:`COS_THIRD_RATIONAL`), 2 the root, 10 its weight, 6 step (5) and saturate: 104, and four
-reductions (the Christoffel kernel: 128 and five). The upper bound 3 more.
+:data:`COS_THIRD_RATIONAL`), 2 the root, 9 its weight (``P'(t)/(3ℓ) = s² − Δ0'``, :func:`bound_rows`),
+6 step (5) and saturate: 103, and three reductions (the pivots, min v, max of the saturated bound;
+four until round nine; the Christoffel kernel: 128 and five). The upper
+bound 3 more. Every call takes its output positionally and its constants as 0-d float32 arrays
+(the values a Python float rounds to in a float32 call, so the same bits; about 0.35 µs less per
+call), except ``np.maximum`` and ``np.minimum``, whose positional output NumPy deprecates.
 """
 
 from __future__ import annotations
+
+from operator import itemgetter
 
 import numpy as np
 
@@ -78,6 +88,23 @@ _COS_THIRD_V = tuple(float(x * f) for x, f in zip(COS_THIRD_RATIONAL, (2 ** 0.5,
 U_MIN = 0.01
 
 
+def _const(x):
+    """``x`` as a read-only 0-d float32 array: the value a Python float rounds to in a float32 ufunc
+    call (NEP 50), so the same bits, at a cheaper call (about 0.35 µs a call on a chunk)."""
+    a = np.array(x, dtype=np.float32)
+    a.flags.writeable = False
+    return a
+
+
+#: The constants of :func:`_root` as 0-d float32 arrays: 3, ½ and :data:`_COS_THIRD_V`.
+_THREE, _HALF = _const(3), _const(0.5)
+_COS_THIRD_K = tuple(_const(x) for x in _COS_THIRD_V)
+
+#: The workspace rows :func:`_solve` and :func:`_root` use, in their order of unpacking.
+_SOLVE_ROWS = itemgetter("a", "b", "t", "y1", "y2", "y3", "c1", "c2", "c3", "e", "f", "g")
+_ROOT_ROWS = itemgetter("d2", "l32", "c1", "c2", "y2", "y3", "l21", "c3", "t", "ic3")
+
+
 def _solve(b, zf, ldl, w):
     """Steps 2–3 by the recurrence and the Radau cubic (module docstring): rows ``(y1, A, K1, K2, ℓ, λ)``.
 
@@ -87,63 +114,62 @@ def _solve(b, zf, ldl, w):
     b1 = b[0]
     d1, d2, d3, l21, l31, l32 = ldl
     blk = w["block"]  # consecutive rows (ROWS): y1..y3 are 9:12, c1..c3 12:15, e, f, g 15:18
-    e1, e2, t, y1, y2, y3, g, k, h, gam, k1, k2 = (w[x] for x in ("a", "b", "t", "y1", "y2", "y3", "c1", "c2",
-                                                                   "c3", "e", "f", "g"))
+    e1, e2, t, y1, y2, y3, g, k, h, gam, k1, k2 = _SOLVE_ROWS(w)
     # Forward substitution by the three-term recurrence: y = (P1, P2, P3)(zf), P_{i+1} = (z − α_i) P_i − β_i P_{i−1}
     # with α1 = L21 − b1, α2 = L32 − L21, β1 = D1, β2 = D2/D1; e_i = zf − α_i.
-    np.subtract(zf, b1, out=y1)
-    np.subtract(b1, l21, out=t)
-    np.add(zf, t, out=e1)
-    np.multiply(e1, y1, out=y2)
-    np.subtract(y2, d1, out=y2)
-    np.subtract(l21, l32, out=t)
-    np.add(zf, t, out=e2)
+    np.subtract(zf, b1, y1)
+    np.subtract(b1, l21, t)
+    np.add(zf, t, e1)
+    np.multiply(e1, y1, y2)
+    np.subtract(y2, d1, y2)
+    np.subtract(l21, l32, t)
+    np.add(zf, t, e2)
     beta2 = gam
-    np.divide(d2, d1, out=beta2)
-    np.multiply(beta2, y1, out=h)
-    np.multiply(e2, y2, out=y3)
-    np.subtract(y3, h, out=y3)
+    np.divide(d2, d1, beta2)
+    np.multiply(beta2, y1, h)
+    np.multiply(e2, y2, y3)
+    np.subtract(y3, h, y3)
     # The Sturm sequence (1, y1, y2, y3) by sign bits: two Gauss nodes below zf is "the signs
     # never turn back from − to +" (neg1 ≤ neg2 ≤ neg3), an odd number is "y3 not negative";
     # σ = −1 there, kept as y3's sign bit for step 3.
     neg1, neg2, neg3 = w["mask"]
-    np.signbit(blk[9:12], out=w["mask"])
-    np.less_equal(neg1, neg2, out=neg1)
-    np.less_equal(neg2, neg3, out=neg2)
-    np.logical_and(neg1, neg2, out=neg1)
-    np.logical_not(neg3, out=neg3)
-    np.bitwise_and(y3.view(w["bits"].dtype), w["sign"], out=w["bits"])
+    np.signbit(blk[9:12], w["mask"])
+    np.less_equal(neg1, neg2, neg1)
+    np.less_equal(neg2, neg3, neg2)
+    np.logical_and(neg1, neg2, neg1)
+    np.logical_not(neg3, neg3)
+    np.bitwise_and(w["iy3"], w["sign"], w["bits"])
     # The derivatives at zf: g = P2' = y1 + e1, k = P3''/2 = g + e2, h = P3' = y2 + e2 g − β2.
-    np.add(y1, e1, out=g)
-    np.add(g, e2, out=k)
-    np.multiply(e2, g, out=h)
-    np.add(y2, h, out=h)
-    np.subtract(h, beta2, out=h)
+    np.add(y1, e1, g)
+    np.add(g, e2, k)
+    np.multiply(e2, g, h)
+    np.add(y2, h, h)
+    np.subtract(h, beta2, h)
     # The Radau cubic: R(d) = d³ + K1 d² + K2 d + ℓ with γ = β3 y2 / y3, β3 = D3/D2.
     beta3 = e1
-    np.divide(d3, d2, out=beta3)
-    np.divide(y2, y3, out=gam)
-    np.multiply(gam, beta3, out=gam)
-    np.add(k, gam, out=k1)
-    np.multiply(gam, k, out=k2)
-    np.add(k2, h, out=k2)
-    np.subtract(k2, beta3, out=k2)
+    np.divide(d3, d2, beta3)
+    np.divide(y2, y3, gam)
+    np.multiply(gam, beta3, gam)
+    np.add(k, gam, k1)
+    np.multiply(gam, k, k2)
+    np.add(k2, h, k2)
+    np.subtract(k2, beta3, k2)
     ell = e2
-    np.multiply(gam, h, out=ell)
-    np.add(ell, y3, out=ell)
-    np.multiply(beta3, g, out=t)
-    np.subtract(ell, t, out=ell)
+    np.multiply(gam, h, ell)
+    np.add(ell, y3, ell)
+    np.multiply(beta3, g, t)
+    np.subtract(ell, t, ell)
     # λ = D3/y3 = ℓ w0 (the scale of R against p about zf); A = E[(Z − zf)²] − K1 y1 = y1 (y1 − K1) + D1.
     lam, A = l31, d1
-    np.divide(d3, y3, out=lam)
-    np.subtract(y1, k1, out=t)
-    np.multiply(t, y1, out=t)
-    np.add(A, t, out=A)
+    np.divide(d3, y3, lam)
+    np.subtract(y1, k1, t)
+    np.multiply(t, y1, t)
+    np.add(A, t, A)
     return y1, A, k1, k2, ell, lam
 
 
 def _root(cubic, w):
-    """Step 3: ``(−t, ms·c, B, C, 3ℓ, v)``: the root the bound needs, negated, what its weight uses, and ``v = √2·u``.
+    """Step 3: ``(−t, s, Δ0', 3ℓ, v)``: the root the bound needs, negated, what its weight uses, and ``v = √2·u``.
 
     ``cubic = (K1, K2, ℓ)``: P(t) = ℓ t³ + K2 t² + K1 t + 1, Blinn's form as
     :func:`moments_ref.msm6._blinn` (``Δ0' = B² − C = −Δ0``), σ from the sign bit of y3
@@ -154,41 +180,40 @@ def _root(cubic, w):
     :data:`COS_THIRD_RATIONAL` (``2c(v/√2) = √2 a v + 2k + Σ 2√2 A_i/(v − √2 p_i)``).
     """
     k1, k2, ell = cubic
-    e3, dd, cc, bb, dp, x, g, sm, t = (w[n] for n in ("d2", "l32", "c1", "c2", "y2", "y3", "l21", "c3", "t"))
-    np.multiply(ell, 3, out=e3)
-    np.divide(w["block"][16:18], e3, out=w["block"][12:14])  # (K1, K2)/(3ℓ) = (C, B)
-    np.divide(0.5, ell, out=dd)  # D/2
-    np.multiply(bb, bb, out=dp)
-    np.subtract(dp, cc, out=dp)  # Δ0'
+    e3, dd, cc, bb, dp, x, g, sm, t, ism = _ROOT_ROWS(w)
+    np.multiply(ell, _THREE, e3)
+    np.divide(w["block"][16:18], e3, w["block"][12:14])  # (K1, K2)/(3ℓ) = (C, B)
+    np.divide(_HALF, ell, dd)  # D/2
+    np.multiply(bb, bb, dp)
+    np.subtract(dp, cc, dp)  # Δ0'
     # H = D/2 − (C/2 − Δ0') B
-    np.multiply(cc, 0.5, out=g)
-    np.subtract(g, dp, out=g)
-    np.multiply(g, bb, out=g)
-    np.subtract(dd, g, out=dd)
-    np.sqrt(dp, out=sm)
-    it = w["bits"].dtype
-    np.bitwise_xor(sm.view(it), w["bits"], out=sm.view(it))  # sm = copysign(√Δ0', y3)
-    np.multiply(sm, dp, out=x)
+    np.multiply(cc, _HALF, g)
+    np.subtract(g, dp, g)
+    np.multiply(g, bb, g)
+    np.subtract(dd, g, dd)
+    np.sqrt(dp, sm)
+    np.bitwise_xor(ism, w["bits"], ism)  # sm = copysign(√Δ0', y3)
+    np.multiply(sm, dp, x)
     v = dd  # H's row: v stays until the bound's checks
-    np.add(dd, x, out=v)
-    np.divide(v, x, out=v)
-    np.sqrt(v, out=v)  # NaN for σr < −1 (rounding at a double root): handed back
+    np.add(dd, x, v)
+    np.divide(v, x, v)
+    np.sqrt(v, v)  # NaN for σr < −1 (rounding at a double root): handed back
     # 2 cos(arccos(σr)/3) (msm6._cos_third) by COS_THIRD_RATIONAL in v = √2 u (docstring)
     c = g
-    a, k, p1, a1, p2, a2 = _COS_THIRD_V
-    np.subtract(v, p1, out=c)
-    np.divide(a1, c, out=c)
-    np.subtract(v, p2, out=t)
-    np.divide(a2, t, out=t)
-    np.add(c, t, out=c)
-    np.multiply(v, a, out=t)
-    np.add(c, t, out=c)
-    np.add(c, k, out=c)
+    a, k, p1, a1, p2, a2 = _COS_THIRD_K
+    np.subtract(v, p1, c)
+    np.divide(a1, c, c)
+    np.subtract(v, p2, t)
+    np.divide(a2, t, t)
+    np.add(c, t, c)
+    np.multiply(v, a, t)
+    np.add(c, t, c)
+    np.add(c, k, c)
     # t = σ·2m·c − B, kept as −t = ms·c + B = sm·2c + B
-    s, nt = t, dp
-    np.multiply(sm, c, out=s)
-    np.add(s, bb, out=nt)
-    return nt, s, bb, cc, e3, v
+    s, nt = t, x
+    np.multiply(sm, c, s)
+    np.add(s, bb, nt)
+    return nt, s, dp, e3, v
 
 
 def bound_rows(b, zf, w, dest):
@@ -200,8 +225,10 @@ def bound_rows(b, zf, w, dest):
     """
     ldl = ldl_rows(b, w)
     # float32's singular threshold is 0 (msm6, "Degenerate input"): every pivot positive, by one
-    # reduction over the three pivot rows (a NaN fails the comparison), and D3 < ∞ (b6 = +∞).
-    regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0 and np.maximum.reduce(ldl[2]) < np.inf
+    # reduction over the three pivot rows (a NaN fails the comparison). D3 = +∞ (b6 = +∞, or an
+    # overflow) needs no reduction: β3 = D3/D2 = ∞ makes ℓ = y3 + γh − β3 g and K1 = k + γ infinite
+    # or NaN, so C = K1/(3ℓ), Δ0' and v are NaN, and the result's check hands the texel back.
+    regular = np.minimum.reduce(w["block"][0:3], axis=None) > 0
     pre = None
     if not regular:  # the exact mask, only in a chunk that needs it (allocates)
         ok = regular_mask(b, ldl) & np.isfinite(ldl[2] + zf)  # D3 + zf: b6 = +inf, a non-finite zf
@@ -209,31 +236,30 @@ def bound_rows(b, zf, w, dest):
     # A non-finite zf (or one so large that y2 or y3 overflows) makes y3 NaN (∞ − ∞ through β2 y1 > 0
     # or γ = ∞/∞), and with it the result: such texels are handed back by the result's check.
     y1, A, k1, k2, ell, lam = _solve(b, zf, ldl, w)
-    nt, s, bb, cc, e3, v = _root((k1, k2, ell), w)
+    nt, s, dp, e3, v = _root((k1, k2, ell), w)
     vmin, v_min = np.minimum.reduce(v), 2 ** 0.5 * U_MIN  # v = √2 u
     # (4) w_a = (ℓ(1 − w0) t² − A t + y1) / P'(t), A = y1² + D1 − K1 y1, with t = −nt,
-    # P'(t) = 3ℓ·((t + 2B) t + C) and ℓ(1 − w0) = ℓ − λ (module docstring).
+    # P'(t) = 3ℓ·((t + 2B) t + C) = 3ℓ·(s² − Δ0') and ℓ(1 − w0) = ℓ − λ (module docstring).
     cm1, N, Q = w["e"], w["c3"], s
-    np.subtract(ell, lam, out=cm1)
-    np.multiply(cm1, nt, out=N)
-    np.add(N, A, out=N)
-    np.multiply(N, nt, out=N)
-    np.add(N, y1, out=N)
-    np.subtract(s, bb, out=Q)  # −(t + 2B)
-    np.multiply(Q, nt, out=Q)
-    np.add(Q, cc, out=Q)
-    np.multiply(Q, e3, out=Q)
+    np.subtract(ell, lam, cm1)
+    np.multiply(cm1, nt, N)
+    np.add(N, A, N)
+    np.multiply(N, nt, N)
+    np.add(N, y1, N)
+    np.multiply(s, s, Q)  # (t + 2B) t + C = (B − s)(−s − B) + C = s² − Δ0' (t = −s − B, Δ0' = B² − C)
+    np.subtract(Q, dp, Q)
+    np.multiply(Q, e3, Q)
     wt = N
-    np.divide(N, Q, out=wt)
+    np.divide(N, Q, wt)
     # (5) lower = [k ≥ 2]·(1 − w0 − w) + [k odd]·w: 0, w, 1 − w0 − w, 1 − w0 for k = 0..3.
     two, odd = w["mask"][0], w["mask"][2]
     h, omw0 = w["a"], cm1
-    np.divide(cm1, ell, out=omw0)  # 1 − w0 = (ℓ − λ)/ℓ
-    np.subtract(omw0, wt, out=h)
-    np.multiply(h, two, out=h)
-    np.multiply(wt, odd, out=wt)
+    np.divide(cm1, ell, omw0)  # 1 − w0 = (ℓ − λ)/ℓ
+    np.subtract(omw0, wt, h)
+    np.multiply(h, two, h)
+    np.multiply(wt, odd, wt)
     lower = dest.get("lower", w["y1"])
-    np.add(h, wt, out=lower)
+    np.add(h, wt, lower)
     # Saturate below (rounding leaves 1 − w0 − w a little under 0). lower is finite or NaN (a weight
     # ±∞ meets a 0 or an opposite ∞ in step 5), and np.maximum keeps the NaN for the reduction.
     np.maximum(lower, w["zero"], out=lower)
@@ -241,16 +267,16 @@ def bound_rows(b, zf, w, dest):
     rest = pre
     if not (vmin >= v_min and hi < np.inf):  # NaN fails every comparison
         keep, near = w["mask"][0], w["mask"][1]
-        np.isfinite(lower, out=keep)
-        np.greater_equal(v, v_min, out=near)
-        np.logical_and(keep, near, out=keep)
-        post = np.flatnonzero(np.logical_not(keep, out=keep))
+        np.isfinite(lower, keep)
+        np.greater_equal(v, v_min, near)
+        np.logical_and(keep, near, keep)
+        post = np.flatnonzero(np.logical_not(keep, keep))
         rest = post if pre is None else np.union1d(pre, post)
     if not hi <= 1:
         np.minimum(lower, w["one"], out=lower)
     if "upper" in dest:
         w0 = w["t"]
-        np.divide(lam, ell, out=w0)  # w0 = λ/ℓ
-        np.add(lower, w0, out=dest["upper"])
+        np.divide(lam, ell, w0)  # w0 = λ/ℓ
+        np.add(lower, w0, dest["upper"])
         np.minimum(dest["upper"], w["one"], out=dest["upper"])
     return rest if rest is not None and rest.size else None

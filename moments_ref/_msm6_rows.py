@@ -12,84 +12,115 @@ results are theirs bit for bit (tests/test_msm6.py). A chunk allocates nothing.
 from __future__ import annotations
 
 import threading
+from operator import itemgetter
 
 import numpy as np
 
 from ._kernels import MSM_CHUNK, singular_thresholds
 
-__all__ = ["BOUNDS_CHUNK", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows", "regular_chunk", "regular_mask", "solve_rows",
-           "blinn_rows", "root_rows", "weight_rows"]
+__all__ = ["BOUNDS_CHUNK", "BOUNDS_CHUNK64", "bounds_chunk", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows",
+           "regular_chunk", "regular_mask", "solve_rows", "blinn_rows", "root_rows", "weight_rows"]
 
 #: ``cos(⅔·arccos u)`` for u ∈ [0, 1] as a polynomial in u, ascending powers: least squares on
 #: 4001 Chebyshev points of [0, 1], largest error 1.6e-7 (2.2e-7 evaluated in float32).
 COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
                   -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
 
-#: Texels per chunk of the bounds kernel: Algorithm 1's (2^15; measured on the 2048² bench input,
-#: median of 5 interleaved calls, loaded machine: 2^13 0.130 s, 2^14 0.104 s, 2^15 0.094 s, 2^16 0.098 s).
-BOUNDS_CHUNK = MSM_CHUNK
+#: Texels per chunk of the float32 bounds (the fast path of :mod:`moments_ref._msm6_bound`): 2^16
+#: since issue 41 round nine (2048² bench input, CPU time, interleaved, load 2.6–2.7: 0.919
+#: (0.864–0.964) of the time of 2^15 over 25 pairs, and 0.901 against 0.961 of the round's starting
+#: code over 21; 2^17 0.948 against 2^16's 0.884 in one run). Before: Algorithm 1's 2^15 (round
+#: five, the Christoffel kernel: 2^13 0.130 s, 2^14 0.104 s, 2^15 0.094 s, 2^16 0.098 s).
+BOUNDS_CHUNK = 1 << 16
+
+#: Texels per chunk of the float64 bounds (the Christoffel kernel throughout): Algorithm 1's 2^15
+#: (round nine: 2^16 took 1.155 (1.108–1.174) of its time, 15 pairs, load 3–4).
+BOUNDS_CHUNK64 = MSM_CHUNK
 
 #: Float rows of the bounds kernel's workspace (:func:`_workspace`), named by what they first hold.
 ROWS = ("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t", "y1", "y2", "y3", "c1", "c2", "c3", "e", "f", "g")
+
+#: The rows :func:`ldl_rows` writes (an itemgetter: one call instead of a generator per chunk).
+_LDL_ROWS = itemgetter("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t")
 
 #: Per thread, the bounds kernel's workspace of a whole chunk per dtype (:func:`_workspace`).
 _LOCAL = threading.local()
 
 
-def workspace(dtype, n):
-    """The kernel's rows for ``n ≤ BOUNDS_CHUNK`` texels: views of one set per thread and dtype, kept between calls.
+def bounds_chunk(dtype):
+    """Texels per chunk of the bounds in ``dtype``: :data:`BOUNDS_CHUNK` for float32, else :data:`BOUNDS_CHUNK64`."""
+    return BOUNDS_CHUNK if np.dtype(dtype).type is np.float32 else BOUNDS_CHUNK64
 
-    Float rows (:data:`ROWS`), three boolean rows, an integer row for sign bits and the
-    constant rows 0, 1 and the sign bit (array–array loops are the fast ones). Every step
-    writes into them (``out=``): a chunk allocates nothing and its rows stay in cache;
+
+def workspace(dtype, n):
+    """The kernel's rows for ``n ≤ bounds_chunk(dtype)`` texels: one set per thread and dtype, kept between calls.
+
+    Float rows (:data:`ROWS`), three boolean rows, an integer row for sign bits, the
+    constant rows 0 and 1 (``np.maximum``, ``np.minimum`` and ``np.fmax`` are fast only
+    array–array) and the sign bit as a 0-d integer (an array–0-d bitwise loop is faster
+    than array–array), and each float row's integer view (``"i" + name``). Every step
+    writes into them (``out``): a chunk allocates nothing and its rows stay in cache;
     kept between calls because fresh chunk-sized arrays are faulted in from the OS on
-    every call (as :mod:`moments_ref.msm` measured). 2.6 MB in float32, 5.1 MB in float64
-    per thread that called; per thread, so that concurrent calls never share one.
+    every call (as :mod:`moments_ref.msm` measured). 5.7 MB in float32 (2^16 texels), 5.6 MB
+    in float64 (2^15) per thread that called; per thread, so that concurrent calls never share one. The
+    views of a full chunk and of the last shorter one are kept too (a chunk builds no views).
     """
     cache = _LOCAL.__dict__.setdefault("ws", {})
-    key = (np.dtype(dtype).name, BOUNDS_CHUNK)
-    if key not in cache:
+    m = bounds_chunk(dtype)
+    key = (np.dtype(dtype), m)  # the dtype itself: its .name is a Python property (about 1 µs)
+    views = cache.get(key)
+    if views is None:
         if len(cache) >= 4:  # float32 and float64 (the chunk size only guards a changed CHUNK)
             cache.clear()
         it = np.int32 if np.dtype(dtype) == np.float32 else np.int64
-        m = BOUNDS_CHUNK
-        cache[key] = {"rows": np.empty((len(ROWS), m), dtype=dtype), "mask": np.empty((3, m), dtype=bool),
-                      "bits": np.empty(m, dtype=it), "sign": np.full(m, np.iinfo(it).min, dtype=it),
-                      "zero": np.zeros(m, dtype=dtype), "one": np.ones(m, dtype=dtype)}
-    full = cache[key]
-    ws = {k: v[..., :n] for k, v in full.items()}
-    ws["block"] = ws.pop("rows")  # the float rows as one (len(ROWS), n) array: a call on consecutive rows
+        base = {"block": np.empty((len(ROWS), m), dtype=dtype), "mask": np.empty((3, m), dtype=bool),
+                "bits": np.empty(m, dtype=it), "zero": np.zeros(m, dtype=dtype), "one": np.ones(m, dtype=dtype)}
+        views = cache[key] = {m: _views(base, np.array(np.iinfo(it).min, dtype=it), m)}
+    ws = views.get(n)
+    if ws is None:
+        full = views[m]
+        for k in [k for k in views if k != m]:  # keep one shorter chunk's views
+            del views[k]
+        ws = views[n] = _views({k: full[k] for k in ("block", "mask", "bits", "zero", "one")}, full["sign"], n)
+    return ws
+
+
+def _views(base, sign, n):
+    """The workspace of :func:`workspace` on the first ``n`` texels of the full rows ``base``."""
+    ws = {k: v[..., :n] for k, v in base.items()}  # "block": the float rows as one (len(ROWS), n) array
+    ws["sign"] = sign
     ws.update(zip(ROWS, ws["block"]))
+    ws.update(("i" + k, r.view(ws["bits"].dtype)) for k, r in zip(ROWS, ws["block"]))
     return ws
 
 
 def ldl_rows(b, w):
     """Step 1 into the workspace ``w``: :func:`moments_ref.msm6._ldl`, operation for operation (23 passes)."""
     b1, b2, b3, b4, b5, b6 = b
-    d1, d2, d3, l21, l31, l32, a, c, t = (w[k] for k in ("d1", "d2", "d3", "l21", "l31", "l32", "a", "b", "t"))
-    np.multiply(b1, b1, out=d1)  # D1 = b2 − b1²
-    np.subtract(b2, d1, out=d1)
-    np.multiply(b1, b2, out=a)  # L21 D1 = b3 − b1 b2
-    np.subtract(b3, a, out=a)
-    np.multiply(b1, b3, out=c)  # L31 D1 = b4 − b1 b3
-    np.subtract(b4, c, out=c)
-    np.divide(a, d1, out=l21)
-    np.divide(c, d1, out=l31)
-    np.multiply(b2, b2, out=d2)  # D2 = b4 − b2² − L21·(L21 D1)
-    np.subtract(b4, d2, out=d2)
-    np.multiply(l21, a, out=t)
-    np.subtract(d2, t, out=d2)
-    np.multiply(b2, b3, out=a)  # L32 D2 = b5 − b2 b3 − L21·(L31 D1)
-    np.subtract(b5, a, out=a)
-    np.multiply(l21, c, out=t)
-    np.subtract(a, t, out=a)
-    np.divide(a, d2, out=l32)
-    np.multiply(b3, b3, out=d3)  # D3 = b6 − b3² − L31·(L31 D1) − L32·(L32 D2)
-    np.subtract(b6, d3, out=d3)
-    np.multiply(l31, c, out=t)
-    np.subtract(d3, t, out=d3)
-    np.multiply(l32, a, out=t)
-    np.subtract(d3, t, out=d3)
+    d1, d2, d3, l21, l31, l32, a, c, t = _LDL_ROWS(w)
+    np.multiply(b1, b1, d1)  # D1 = b2 − b1²
+    np.subtract(b2, d1, d1)
+    np.multiply(b1, b2, a)  # L21 D1 = b3 − b1 b2
+    np.subtract(b3, a, a)
+    np.multiply(b1, b3, c)  # L31 D1 = b4 − b1 b3
+    np.subtract(b4, c, c)
+    np.divide(a, d1, l21)
+    np.divide(c, d1, l31)
+    np.multiply(b2, b2, d2)  # D2 = b4 − b2² − L21·(L21 D1)
+    np.subtract(b4, d2, d2)
+    np.multiply(l21, a, t)
+    np.subtract(d2, t, d2)
+    np.multiply(b2, b3, a)  # L32 D2 = b5 − b2 b3 − L21·(L31 D1)
+    np.subtract(b5, a, a)
+    np.multiply(l21, c, t)
+    np.subtract(a, t, a)
+    np.divide(a, d2, l32)
+    np.multiply(b3, b3, d3)  # D3 = b6 − b3² − L31·(L31 D1) − L32·(L32 D2)
+    np.subtract(b6, d3, d3)
+    np.multiply(l31, c, t)
+    np.subtract(d3, t, d3)
+    np.multiply(l32, a, t)
+    np.subtract(d3, t, d3)
     return d1, d2, d3, l21, l31, l32
 
 

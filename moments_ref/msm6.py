@@ -51,7 +51,7 @@ literally (``lu_solve``, ``polyroots`` on q, a Vandermonde solve) and serves as
 the independent check.
 
 The float32 bounds. :func:`shadow_bounds` and :func:`shadow_intensity` in float32 take a
-shorter path on their regular texels (:mod:`moments_ref._msm6_bound`, 104 passes instead of
+shorter path on their regular texels (:mod:`moments_ref._msm6_bound`, 103 passes instead of
 128): the same steps, with the forward substitution by the three-term recurrence, the
 cubic of step 3 from the Gauss–Radau polynomial through zf (Christoffel–Darboux: no back
 substitution, no Taylor shift) and the weight of step 4 from the first moments about zf
@@ -133,7 +133,8 @@ from ._arrays import InputError, brief, check_broadcast, first_index, lookup_inp
 from ._docs import fill_doc
 from .moments import BiasPreset, power_moments
 from ._kernels import CHUNK, SINGULAR_RTOL, broadcast_chunks, singular_thresholds
-from ._msm6_rows import BOUNDS_CHUNK, COS_THIRD_POLY as _COS_THIRD_POLY
+from ._msm6_rows import BOUNDS_CHUNK  # noqa: F401 (float32's chunk, read by the bench)
+from ._msm6_rows import COS_THIRD_POLY as _COS_THIRD_POLY, bounds_chunk
 from ._msm6_bound import bound_rows
 from ._msm6_rows import ldl_rows, regular_chunk, regular_mask, root_rows, solve_rows, weight_rows, workspace
 from ._kernels import two_point as _two_point
@@ -437,7 +438,7 @@ def _bounds_kernel(b, zf, steps, dest, refuse):
     arithmetic in the same order as the expressions of :func:`_ldl`, :func:`_reversed_cubic`,
     :func:`_extreme_root` and :func:`_weights` (bit for bit). 128 passes over a float32
     chunk for the lower bound (the upper 2 more; float32 runs it only on the texels that
-    :mod:`moments_ref._msm6_bound`'s 104 passes hand back, :func:`_bounds`), and the checks as reductions
+    :mod:`moments_ref._msm6_bound`'s 103 passes hand back, :func:`_bounds`), and the checks as reductions
     (:func:`_regular_chunk`): a chunk needs the exact mask of :func:`_regular` only where
     a texel is singular or not finite. ``steps`` is the dtype's entry of
     :data:`_NEWTON_STEPS`; ``refuse()`` raises the error of a NaN or inf in the input.
@@ -480,18 +481,19 @@ def _bounds(b, zf, steps, dest, refuse):
 
     float32 takes the fast path (the weight from the first moments about zf) and hands
     its singular, non-finite and nearly-double-root texels to :func:`_bounds_kernel`;
-    float64 (Newton steps on the root) runs :func:`_bounds_kernel` throughout.
+    float64 (Newton steps on the root) runs :func:`_bounds_kernel` throughout. Called
+    under :func:`_run`'s ``np.errstate`` (one per call, not one per chunk).
     """
-    if b.dtype != np.float32:
-        _bounds_kernel(b, zf, steps, dest, refuse)
-        return
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+    if b.dtype.type is np.float32:
         rest = bound_rows(b, zf, workspace(b.dtype, zf.shape[0]), dest)
-    if rest is not None:
+        if rest is None:
+            return
         sub = {k: np.empty(rest.size, dtype=b.dtype) for k in dest}
         _bounds_kernel(np.ascontiguousarray(b[:, rest]), zf[rest], steps, sub, refuse)
         for k, v in sub.items():
             dest[k][rest] = v
+        return
+    _bounds_kernel(b, zf, steps, dest, refuse)
 
 
 def _canonical_kernel(b, zf, zero, one):
@@ -570,10 +572,12 @@ def _run(b, zf, want):
     steps = _NEWTON_STEPS[b.dtype.name]
     zeros, ones = (np.zeros(min(n, CHUNK), b.dtype), np.ones(min(n, CHUNK), b.dtype)) if "z" in want else (None, None)
     refuse = lambda: refuse_lookup(b, "b", zf)  # noqa: E731 (raises: a value is NaN or inf)
-    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK if "z" in want else BOUNDS_CHUNK):
-        if "z" not in want:  # the bounds are written into the output
-            _bounds(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
-            continue
+    if "z" not in want:  # the bounds are written into the output
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            for start, stop, bc, zc in broadcast_chunks(b, zf, shape, bounds_chunk(b.dtype)):
+                _bounds(bc, zc, steps, {k: outs[k][start:stop] for k in want}, refuse)
+        return outs, zf, shape
+    for start, stop, bc, zc in broadcast_chunks(b, zf, shape, CHUNK):
         if not (np.isfinite(bc).all() and np.isfinite(zc).all()):
             refuse()
         w0, z, w = _canonical_kernel(bc, zc, zeros[: stop - start], ones[: stop - start])

@@ -27,6 +27,7 @@ from hypothesis import strategies as st
 
 from moments_ref import InputError, msm, msm6, precise
 from moments_ref.moments import bias_moments, power_moments
+from moments_ref._msm6_rows import bounds_chunk
 from moments_ref.tools.strategies import depth_distributions, depths, exact_shadow
 
 from _oracles import check_bounds, lp_grid, lp_lower, zf_candidates
@@ -473,8 +474,9 @@ def _christoffel_bounds(b, zf):
     # float32's for the texels its fast path (moments_ref._msm6_bound) hands back.
     bt, n = np.ascontiguousarray(b.T), len(zf)
     out = {k: np.empty(n, dtype=b.dtype) for k in ("lower", "upper")}
-    for lo in range(0, n, msm6.BOUNDS_CHUNK):
-        hi = min(n, lo + msm6.BOUNDS_CHUNK)
+    chunk = bounds_chunk(b.dtype)  # 2^16 in float32, 2^15 in float64
+    for lo in range(0, n, chunk):
+        hi = min(n, lo + chunk)
         msm6._bounds_kernel(np.ascontiguousarray(bt[:, lo:hi]), zf[lo:hi], msm6._NEWTON_STEPS[b.dtype.name],
                             {k: v[lo:hi] for k, v in out.items()}, None)
     return out["lower"], out["upper"]

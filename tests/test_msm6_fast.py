@@ -11,6 +11,9 @@ solve at 50 digits), the exact Z of the drawn distribution, and the Christoffel 
   (their forward substitutions, cubics and weights are evaluated differently in float32:
   measured largest excess 2.2e-5, on a row whose bound is 2.2e-4);
 * a texel's bounds do not depend on its chunk: equal bits alone and among others.
+* the in-place kernel is its formulas written as plain float32 expressions with Python
+  scalars, bit for bit on every texel it keeps (so a rearrangement of its calls, outputs or
+  constants that changes a bit is caught);
 * the rational cos(arccos(σr)/3) (COS_THIRD_RATIONAL, and its constants in v = √2 u) against
   mpmath: 4e-7 and 5e-7 (measured 2.6e-7 and 3.7e-7 in float32 on 2001 points).
 """
@@ -129,3 +132,62 @@ def test_cos_third_rational_against_mpmath():
     off = list(_msm6_bound.COS_THIRD_RATIONAL)
     off[3] *= 1 + 1e-5  # one residue perturbed: caught
     assert np.abs(_rational(off, u.astype(np.float32)) - ref).max() > 4e-7
+
+
+def _fast_by_expressions(b, zf):
+    # The fast path's arithmetic (module docstring of _msm6_bound) as plain float32 expressions
+    # with Python scalars, in the kernel's order of operations: (lower, upper, the texels it keeps).
+    b1, b2, b3, b4, b5, b6 = b.T
+    D1 = b2 - b1 * b1
+    a, c = b3 - b1 * b2, b4 - b1 * b3
+    L21, L31 = a / D1, c / D1
+    D2 = (b4 - b2 * b2) - L21 * a
+    a32 = (b5 - b2 * b3) - L21 * c
+    L32 = a32 / D2
+    D3 = ((b6 - b3 * b3) - L31 * c) - L32 * a32
+    y1 = zf - b1  # the recurrence, e_i = zf − α_i
+    e1, e2 = zf + (b1 - L21), zf + (L21 - L32)
+    beta2, beta3 = D2 / D1, D3 / D2
+    y2 = e1 * y1 - D1
+    y3 = e2 * y2 - beta2 * y1
+    n1, n2, n3 = np.signbit(y1), np.signbit(y2), np.signbit(y3)
+    two, odd = (n1 <= n2) & (n2 <= n3), ~n3
+    g = y1 + e1
+    k = g + e2
+    h = (y2 + e2 * g) - beta2
+    gam = (y2 / y3) * beta3  # the Radau cubic
+    K1, K2 = k + gam, (gam * k + h) - beta3
+    ell = (gam * h + y3) - beta3 * g
+    lam, A = D3 / y3, D1 + (y1 - K1) * y1
+    e3 = ell * 3  # Blinn's form in halves
+    C, B = K1 / e3, K2 / e3
+    dp = B * B - C
+    H = 0.5 / ell - (C * 0.5 - dp) * B
+    sm = np.copysign(np.sqrt(dp), y3)
+    X = sm * dp
+    v = np.sqrt((H + X) / X)
+    ka, kk, p1, a1, p2, a2 = _msm6_bound._COS_THIRD_V
+    cv = ((a1 / (v - p1) + a2 / (v - p2)) + v * ka) + kk
+    s = sm * cv
+    nt = s + B
+    cm1 = ell - lam  # the weight from the moments about zf
+    wt = ((cm1 * nt + A) * nt + y1) / ((s * s - dp) * e3)
+    lower = np.minimum(np.maximum((cm1 / ell - wt) * two + wt * odd, 0), 1)
+    upper = np.minimum(lower + lam / ell, 1)
+    keep = (D1 > 0) & (D2 > 0) & (D3 > 0) & (D3 < np.inf) & np.isfinite(lower) & (v >= 2 ** 0.5 * _msm6_bound.U_MIN)
+    return lower, upper, keep
+
+
+def test_fast_path_is_its_expressions_bit_for_bit():
+    # The in-place fast path (reused rows, positional outputs, 0-d constants, sign bits, checks by
+    # reductions) claims the arithmetic of the expressions above operation for operation: equal
+    # bits on every texel it keeps, over several chunks and a partial one (biased and unbiased
+    # rows, zf at and next to support points). Seen failing on a reassociated sum and on a
+    # constant rounded differently (0.5 as its float32 neighbour).
+    b, zf = _rows(2 * msm6.BOUNDS_CHUNK + 777, 9, unbiased=0.2)
+    with np.errstate(all="ignore"):
+        lower, upper, keep = _fast_by_expressions(b, zf)
+    assert keep.mean() > 0.75
+    lo, up = msm6.shadow_bounds(b, zf)
+    assert np.array_equal(lo[keep].view(np.uint32), lower[keep].view(np.uint32))
+    assert np.array_equal(up[keep].view(np.uint32), upper[keep].view(np.uint32))

@@ -42,10 +42,11 @@ PASSES = {
     # substitution by the recurrence, 8 the signs, case masks and σ's sign bit, 5 the derivatives
     # at zf, 11 the Gauss–Radau cubic, 4 λ and y1 (y1 − K1) + D1, 4 Blinn's B, C, D, 9 Blinn's
     # form and σ (10 until round seven's second wave), 3 v = √2 u, 8 cos(arccos(σr)/3) (a
-    # rational function in partial fractions: 12 as a polynomial before), 2 the root, 10 its
-    # weight from the moments about zf, 6 step (5) and saturate (issue 41, round seven; 128 in
-    # msm6._bounds_kernel before); 4 reductions
-    "shadow_intensity six moments float32": 104,
+    # rational function in partial fractions: 12 as a polynomial before), 2 the root, 9 its
+    # weight from the moments about zf (P'(t)/3ℓ = s² − Δ0': 10 until round nine), 6 step (5)
+    # and saturate (issue 41, round seven; 128 in msm6._bounds_kernel before); 3 reductions (4
+    # until round nine), not counted
+    "shadow_intensity six moments float32": 103,
 }
 
 #: Of :data:`PASSES`, those that write a third row (read two rows and write a row neither of
