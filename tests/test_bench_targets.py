@@ -269,3 +269,22 @@ def test_a_floor_probe_with_the_kernels_ufuncs_calls_them():
     np.testing.assert_array_equal(probe(), np.sqrt((b[:, 1] - b[:, 2]) + b[:, 2]))
     with pytest.raises(ValueError, match="ufuncs"):
         pass_probe(b, zf, 5, 64, 2, ufuncs={"add": 1})
+
+
+def test_the_six_moment_probe_counts_the_kernels_third_row_passes(monkeypatch):
+    # The six-moment kernel's passes over single chunk-long rows that read two rows and write a
+    # third: THIRD_ROW (its block calls over several rows and its boolean ones are in place or
+    # narrower, and the probe's other passes work in place).
+    from moments_ref import _msm6_bound, _msm6_rows
+    from moments_ref.tools.bench._probes import THIRD_ROW
+
+    name = "shadow_intensity six moments float32"
+    m = _targets._CHUNKS[name]
+    fn, args, _ = _targets.kernel_inputs(2 * m)[name]
+    want = fn(*args)
+    counter = _Counting(m)
+    monkeypatch.setattr(_msm6_bound, "np", counter)
+    monkeypatch.setattr(_msm6_rows, "np", counter)
+    assert np.array_equal(fn(*args), want)
+    monkeypatch.undo()
+    assert counter.third / 2 == THIRD_ROW[name]

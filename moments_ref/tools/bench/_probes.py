@@ -59,6 +59,10 @@ THIRD_ROW = {
     # the gap, y3 = X (X − G), the bound into the output (since round seven's second pass X, m1,
     # zf − y2 and q2 go into the rows of the chunk's transposed copy of r: 7 before)
     "shade float32": 3,
+    # the Cholesky's products b_i b_j and L·(L D) terms, the recurrence's, the Radau cubic's, Blinn's
+    # and the weight's products and quotients of two rows into a third, the bound into the output:
+    # counted per chunk like the others (tests/test_bench_targets.py; round nine, all 103 before)
+    "shadow_intensity six moments float32": 37,
 }
 
 
@@ -83,6 +87,14 @@ UFUNCS = {
 #: thresholds take five reductions instead of the two of the signs). Each reads a row as a pass
 #: does; :func:`pass_probe` does as many (round nine: uncounted before).
 REDUCTIONS = {"shadow_intensity float32": 4, "shadow_intensity float64": 7, "shade float32": 7}
+
+
+def _binary(f, x, y, out):
+    """``f(x, y)`` into ``out`` as the kernels call it: ``out`` positional (cheaper), ``out=`` for the
+    extrema (NumPy 2.4 deprecates their positional output)."""
+    if f is np.maximum or f is np.minimum:
+        return f(x, y, out=out)
+    return f(x, y, out)
 
 
 def pass_probe(b, zf, passes, chunk, third_row=None, ufuncs=None, reductions=0):
@@ -126,14 +138,14 @@ def pass_probe(b, zf, passes, chunk, third_row=None, ufuncs=None, reductions=0):
                     (np.maximum if i % 2 else np.minimum).reduce(cols[i % k])
                 for i, f in enumerate(calls[:third]):  # inputs left unchanged: no denormals, no overflow
                     if f is np.sqrt:
-                        f(cols[i % k], out=t)
+                        f(cols[i % k], t)
                     else:
-                        f(cols[i % k], cols[(i + 1) % k], out=t)
+                        _binary(f, cols[i % k], cols[(i + 1) % k], t)
                 for i, f in enumerate(calls[third:]):  # a sum of at most a few hundred inputs: no overflow
                     if f is np.sqrt:
-                        f(t, out=t)
+                        f(t, t)
                     else:
-                        f(t, one if f in (np.multiply, np.divide) else cols[i % k], out=t)
+                        _binary(f, t, one if f in (np.multiply, np.divide) else cols[i % k], t)
                 np.copyto(out[lo:hi], zf[lo:hi] if passes == 0 else t)
         return out
 
