@@ -448,6 +448,26 @@ def test_pcf_sum_reads_the_views_in_float64():
     assert pcf.pcf_sum(q, dmap, view, _NEAR, _FAR, 1e-3, taps=[[0, 0]]).tolist() == [0.0]
 
 
+def test_project_is_the_homogeneous_product_bit_for_bit():
+    # _project adds the translation to the x and y columns alone: the same values (and signs of zero, NaN
+    # and inf) as the straightforward homogeneous product x_clip = M[:3] · (p, 1), divided by w_clip
+    from moments_ref.scene.depth import x_window_from_ndc, y_window_from_ndc
+
+    rng = np.random.default_rng(11)
+    for k in range(12):
+        p = rng.normal(size=(300, 3)) * 10.0 ** rng.uniform(-3, 3)
+        m = rng.normal(size=(4, 4)) * 10.0 ** rng.uniform(-2, 2, (4, 4))
+        p[:4] = [np.inf, np.nan, 0.0, -0.0][k % 4]
+        m[k % 4, 3] = (-0.0, 0.0, 1e300, -2.5)[k % 4]
+        with np.errstate(all="ignore"):
+            clip = p @ m[:3, :3].T + m[:3, 3]
+            cw = p @ m[3, :3] + m[3, 3]
+            want = (x_window_from_ndc(clip[:, 0] / cw, 64), y_window_from_ndc(clip[:, 1] / cw, 32), cw)
+            got = pcf._project(p, m, 32, 64)
+        for g, e in zip(got, want):
+            assert g.tobytes() == e.tobytes()
+
+
 def test_offset_floors_equal_the_padded_floor_of_each_offset():
     # _offset_floors (the PCF block's rows and columns) against _padded_floor of v + d, offset by offset:
     # NaN, ±inf, values just below an integer (v + d rounds up to it), far beyond the map, ±0

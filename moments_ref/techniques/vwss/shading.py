@@ -67,11 +67,13 @@ __getattr__ = renamed("techniques.vwss.shading")
 
 def _project(positions, clip_from_world, h, w):
     """Continuous window coordinates and view depth (w_clip) of positions in one view."""
-    hom = positions @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    hom = positions @ clip_from_world[:3, :3].T
     cw = positions @ clip_from_world[3, :3] + clip_from_world[3, 3]
+    # The translation added to the x and y columns alone (the same sums as adding the (3,) row to
+    # the (P, 3) product, whose 3-long inner loops cost more than the product; z is not needed).
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = x_window_from_ndc(hom[:, 0] / cw, w)
-        y = y_window_from_ndc(hom[:, 1] / cw, h)
+        x = x_window_from_ndc((hom[:, 0] + clip_from_world[0, 3]) / cw, w)
+        y = y_window_from_ndc((hom[:, 1] + clip_from_world[1, 3]) / cw, h)
     return x, y, cw
 
 
