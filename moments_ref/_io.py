@@ -42,8 +42,8 @@ import threading
 from pathlib import Path
 
 __all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
-           "save_figure", "tight_layout", "write_files", "write_output", "check_output", "check_own", "read_own", "folder_lock",
-           "marked_incomplete", "INCOMPLETE"]
+           "save_figure", "tight_layout", "write_files", "write_output", "check_output", "check_own", "read_own",
+           "folder_lock", "marked_incomplete", "INCOMPLETE"]
 
 #: The tag of a temporary's name (``.<name>.<pid>.mrtmp<8 random><suffix>``).
 _TAG = "mrtmp"
