@@ -42,8 +42,8 @@ import threading
 from pathlib import Path
 
 __all__ = ["atomic_path", "clean_stale", "remove_temporaries", "write_bytes", "write_text", "save_npz",
-           "save_figure", "write_files", "write_output", "check_output", "check_own", "read_own", "folder_lock",
-           "marked_incomplete", "INCOMPLETE"]
+           "save_figure", "tight_layout", "write_files", "write_output", "check_output", "check_own", "read_own",
+           "folder_lock", "marked_incomplete", "INCOMPLETE"]
 
 #: The tag of a temporary's name (``.<name>.<pid>.mrtmp<8 random><suffix>``).
 _TAG = "mrtmp"
@@ -263,6 +263,41 @@ def _without_placeholder_layout(fig):
     placeholder = getattr(layout_engine, "PlaceHolderLayoutEngine", None)  # matplotlib >= 3.6.1
     if placeholder is not None and isinstance(fig.get_layout_engine(), placeholder):
         fig.set_layout_engine(None)
+
+
+def tight_layout(fig, rect=None):
+    """``fig.tight_layout(rect=rect)`` measuring each Axes' tight box once, not once per pass.
+
+    With a ``rect`` matplotlib's tight layout runs its margin computation twice
+    (the second time with the margins the first found folded into ``rect``), and
+    each run measures the tight box of every Axes again (its title, tick labels
+    and texts laid out by the renderer), although nothing changed in between:
+    the figure is only adjusted after the second run. Here each Axes' box is
+    measured on the first request and handed back on the second (the same
+    ``Bbox``, so the same subplot parameters and pixels; tested against
+    ``fig.tight_layout``); the memo lives only during the call.
+    """
+    axes = list(fig.axes)
+    for ax in axes:
+        ax.get_tightbbox = _measured_once(ax.get_tightbbox)  # an instance attribute over the method
+    try:
+        fig.tight_layout(rect=rect)
+    finally:
+        for ax in axes:
+            ax.__dict__.pop("get_tightbbox", None)
+
+
+def _measured_once(get_tightbbox):
+    """``get_tightbbox`` answering a repeated request (same renderer and arguments) from its first answer."""
+    memo = {}
+
+    def once(renderer=None, *args, **kwargs):
+        key = (id(renderer), args, tuple(sorted(kwargs.items())))
+        if key not in memo:
+            memo[key] = (renderer, get_tightbbox(renderer, *args, **kwargs))  # keeps the renderer (its id) alive
+        return memo[key][1]
+
+    return once
 
 
 #: zlib level of the report's PNG files (:func:`figure_png`'s ``compress_level``). Pillow's default, 6,

@@ -413,6 +413,27 @@ def test_nearest_keeps_texel_format_and_batch_shape():
     assert np.array_equal(out[1, 0], tex[0, 4]) and np.array_equal(out[1, 1], tex[1, 2])
 
 
+@pytest.mark.parametrize("shape", [(7, 11), (7, 11, 4), (11, 7, 2, 3), (1, 5, 2), (6, 1)])
+def test_lookups_fetch_the_texels_of_the_two_dimensional_index(shape):
+    # The three lookups gather by a flat texel index; the texels of texture[rows, cols] whatever the
+    # texel format (trailing axes), a non-square texture, batch shapes and the clamped border
+    rng = np.random.default_rng(2)
+    tex = rng.integers(0, 2 ** 16, shape).astype(np.uint16)
+    h, w = shape[:2]
+    uv = rng.uniform(-3, [w + 3, h + 3], (5, 8, 2))
+    rows = np.clip(np.floor(uv[..., 1]), 0, h - 1).astype(int)
+    cols = np.clip(np.floor(uv[..., 0]), 0, w - 1).astype(int)
+    assert np.array_equal(bn.lookup_nearest(tex, uv), tex[rows, cols])
+    noise = rng.random((5, 8, 2))
+    s = (uv - 0.5) + noise
+    want = tex[np.clip(np.floor(s[..., 1]), 0, h - 1).astype(int), np.clip(np.floor(s[..., 0]), 0, w - 1).astype(int)]
+    assert np.array_equal(bn.lookup_dithered(tex, uv, noise), want)
+    seen = []
+    bn.lookup_bilinear(tex, uv, lambda t, z: seen.append(t) or np.zeros(z.shape), np.zeros((5, 8)))
+    r4, c4, _ = bn.bilinear_footprint(uv, tex.shape)
+    assert np.array_equal(seen[0], tex[r4, c4]) and seen[0].dtype == tex.dtype
+
+
 @given(u=coords, v=coords)
 def test_dithered_fetch_frequencies_equal_bilinear_weights(u, v):
     # Stratified quadrature of U[0,1)²: per-axis frequency error <= 1/K, so the

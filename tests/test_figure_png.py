@@ -85,3 +85,77 @@ def test_compress_level_changes_the_bytes_not_the_pixels():
         assert got != buf.getvalue()
         assert np.array_equal(np.asarray(Image.open(io.BytesIO(got))), want)
     assert len(got) >= want.nbytes
+
+
+def _crop_like():
+    # Axes of the report's crop figures: images with titles, a text panel, a ticked overview, a suptitle.
+    fig = plt.figure(figsize=(7, 5))
+    grid = fig.add_gridspec(3, 4, height_ratios=[1.4, 1, 1])
+    rng = np.random.default_rng(3)
+    over = fig.add_subplot(grid[0, :2])
+    over.imshow(rng.random((27, 48)), extent=(0, 48, 27, 0))
+    over.set_xlabel("camera pixel x", fontsize=7)
+    note = fig.add_subplot(grid[0, 2:])
+    note.axis("off")
+    note.text(0.0, 1.0, "a legend\nof several lines that reach\nbeyond the panel's right edge", va="top", fontsize=7,
+              transform=note.transAxes)
+    for i in range(1, 3):
+        for j in range(4):
+            ax = fig.add_subplot(grid[i, j])
+            ax.imshow(rng.random((8, 8)), interpolation="nearest")
+            ax.set(xticks=[], yticks=[])
+            ax.set_title(f"{i}: technique {j}\nmax |e| {rng.random():.2g}", fontsize=7)
+    fig.suptitle("a title\nof two lines", fontsize="medium")
+    return fig
+
+
+@pytest.mark.parametrize("rect", [(0, 0, 0.85, 1), (0, 0.05, 0.88, 1), None])
+def test_tight_layout_measures_each_axes_once_and_lays_out_as_matplotlib(rect, monkeypatch):
+    from matplotlib.axes import Axes
+
+    from moments_ref._io import tight_layout
+
+    ref = _crop_like()
+    ref.tight_layout(rect=rect)
+    want = (ref.subplotpars.left, ref.subplotpars.right, ref.subplotpars.bottom, ref.subplotpars.top,
+            ref.subplotpars.wspace, ref.subplotpars.hspace)
+    png = figure_png(ref, dpi=110)
+    plt.close(ref)
+    calls = []
+    measure = Axes.get_tightbbox
+
+    def counted(self, *args, **kwargs):
+        calls.append(self)
+        return measure(self, *args, **kwargs)
+
+    monkeypatch.setattr(Axes, "get_tightbbox", counted)
+    fig = _crop_like()
+    tight_layout(fig, rect=rect)
+    got = (fig.subplotpars.left, fig.subplotpars.right, fig.subplotpars.bottom, fig.subplotpars.top,
+           fig.subplotpars.wspace, fig.subplotpars.hspace)
+    assert got == want  # the same floats: the same layout
+    # matplotlib asks twice per Axes with a rect (once without); here each Axes is measured once.
+    assert len(calls) == len(fig.axes) and set(calls) == set(fig.axes)
+    assert all("get_tightbbox" not in ax.__dict__ for ax in fig.axes)  # the memo is gone after the call
+    monkeypatch.undo()
+    assert figure_png(fig, dpi=110) == png
+    plt.close(fig)
+
+
+def test_tight_layout_with_a_rect_asks_matplotlib_twice(monkeypatch):
+    # What tight_layout saves: without the memo, matplotlib's layout with a rect measures every Axes twice
+    # (if a matplotlib release measures once, the memo is harmless and this says so).
+    from matplotlib.axes import Axes
+
+    calls = []
+    measure = Axes.get_tightbbox
+
+    def counted(self, *args, **kwargs):
+        calls.append(self)
+        return measure(self, *args, **kwargs)
+
+    monkeypatch.setattr(Axes, "get_tightbbox", counted)
+    fig = _crop_like()
+    fig.tight_layout(rect=(0, 0, 0.85, 1))
+    assert len(calls) == 2 * len(fig.axes)
+    plt.close(fig)

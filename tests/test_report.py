@@ -103,10 +103,19 @@ def test_light_metrics_by_hand():
     assert m["leak_fraction"] == 0.25  # only the first is brighter by more than 0.05; the last by 0.025
 
 
-def test_flip_of_identical_images_is_zero():
-    pytest.importorskip("flip_evaluator")
+def test_flip_of_identical_images_is_zero(monkeypatch):
+    flip_evaluator = pytest.importorskip("flip_evaluator")
     img = np.random.default_rng(0).random((20, 30, 3)).astype(np.float32)
-    assert report.flip_mean(img, img) == 0.0
+    # ꟻLIP's own value for equal images, which flip_mean returns without calling it
+    for pair in ((img, img.copy()), (np.zeros_like(img), np.zeros_like(img)), (np.ones_like(img), np.ones_like(img))):
+        assert flip_evaluator.evaluate(*pair, "LDR", applyMagma=False)[1] == 0.0
+    calls = []
+    evaluate = flip_evaluator.evaluate
+    monkeypatch.setattr(flip_evaluator, "evaluate", lambda *a, **k: calls.append(1) or evaluate(*a, **k))
+    assert report.flip_mean(img, img.copy()) == 0.0 and not calls
+    one = img.copy()
+    one[3, 4, 1] += 0.25  # one channel of one pixel differs: ꟻLIP is asked, and sees it
+    assert report.flip_mean(img, one) > 0 and len(calls) == 1
     assert report.flip_mean(img, 1 - img) > 0.1
 
 

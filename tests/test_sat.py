@@ -267,3 +267,31 @@ def test_out_of_range_values_are_clamped_like_unorm():
     got = sat.rectangle_sum(s, [0, 1], [0, 2])
     assert int(got[0]) == sat.code_scale(2)
     assert math.isclose(sat.rectangle_mean(s, [0, 1], [0, 1])[0], 0.0)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_interpolated_mean_loads_the_texels_of_the_four_by_four_index(dtype):
+    # The slides' steps written out with the 2-D index table[lines_y, lines_x] (what the flat gather of
+    # interpolated_mean loads): the same values bit for bit, at the map's edges (clamp) and inside, on a
+    # non-square map with 3 channels (a wrong row stride reads other texels)
+    rng = np.random.default_rng(4)
+    h, w = 13, 21
+    s = sat.build(rng.random((h, w, 3)), 36)
+    lo = rng.uniform(-2, [w + 1, h + 1], (500, 2))
+    hi = lo + rng.uniform(0.05, 5.5, (500, 2))
+    lo[:20], hi[:20] = [0, 0], [w, h]  # whole map: lines at the last row and column
+    lo[20:40], hi[20:40] = [w - 0.5, h - 0.5], [w + 3.0, h + 3.0]
+    keep = ((np.minimum(hi, [w, h]) - np.maximum(lo, [0, 0])) > 0).all(axis=1)
+    keep &= (np.minimum(hi, [w, h]) - np.maximum(lo, 0)).clip(1).prod(axis=1) <= 36
+    lo, hi = lo[keep], hi[keep]
+    got = sat.interpolated_mean(s, lo, hi, clamp=True, dtype=dtype)
+    lo_c, hi_c = np.clip(lo, 0, [w, h]), np.clip(hi, 0, [w, h])
+    lx, wx = sat._axis_lines(lo_c[:, 0], hi_c[:, 0], w)
+    ly, wy = sat._axis_lines(lo_c[:, 1], hi_c[:, 1], h)
+    g = s.table[ly[:, :, None], lx[:, None, :]]
+    band = (g[:, 1:, 1:] - g[:, :-1, 1:]) - g[:, 1:, :-1] + g[:, :-1, :-1]
+    dt = np.dtype(dtype)
+    want = np.einsum("nk,nl,nklc->nc", wy.astype(dt), wx.astype(dt), band.astype(dt))
+    want /= ((hi_c[:, 0] - lo_c[:, 0]) * (hi_c[:, 1] - lo_c[:, 1])).astype(dt)[:, None] * dt.type(s.scale)
+    assert len(lo) > 300
+    assert got.tobytes() == want.tobytes()

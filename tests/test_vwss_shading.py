@@ -448,6 +448,56 @@ def test_pcf_sum_reads_the_views_in_float64():
     assert pcf.pcf_sum(q, dmap, view, _NEAR, _FAR, 1e-3, taps=[[0, 0]]).tolist() == [0.0]
 
 
+def test_project_is_the_homogeneous_product_bit_for_bit():
+    # _project adds the translation to the x and y columns alone: the same values (and signs of zero, NaN
+    # and inf) as the straightforward homogeneous product x_clip = M[:3] · (p, 1), divided by w_clip
+    from moments_ref.scene.depth import x_window_from_ndc, y_window_from_ndc
+
+    rng = np.random.default_rng(11)
+    for k in range(12):
+        p = rng.normal(size=(300, 3)) * 10.0 ** rng.uniform(-3, 3)
+        m = rng.normal(size=(4, 4)) * 10.0 ** rng.uniform(-2, 2, (4, 4))
+        p[:4] = [np.inf, np.nan, 0.0, -0.0][k % 4]
+        m[k % 4, 3] = (-0.0, 0.0, 1e300, -2.5)[k % 4]
+        with np.errstate(all="ignore"):
+            clip = p @ m[:3, :3].T + m[:3, 3]
+            cw = p @ m[3, :3] + m[3, 3]
+            want = (x_window_from_ndc(clip[:, 0] / cw, 64), y_window_from_ndc(clip[:, 1] / cw, 32), cw)
+            got = pcf._project(p, m, 32, 64)
+        for g, e in zip(got, want):
+            assert g.tobytes() == e.tobytes()
+
+
+def test_offset_floors_equal_the_padded_floor_of_each_offset():
+    # _offset_floors (the PCF block's rows and columns) against _padded_floor of v + d, offset by offset:
+    # NaN, ±inf, values just below an integer (v + d rounds up to it), far beyond the map, ±0
+    rng = np.random.default_rng(5)
+    n = 6
+    v = np.concatenate([[np.nan, np.inf, -np.inf, -0.0, 0.0, np.nextafter(1.0, 0), np.nextafter(n, 0), n, n + 0.5,
+                         n + 1.0, n + 2.0, n + 9.5, 1e300, -1e300, -1.0, -1.5, np.nextafter(-1.0, 0), -2.0],
+                        rng.uniform(-12, 12, 400), rng.integers(-10, 12, 100).astype(float)])
+    for offsets in ([-1, 0, 1], [0], [2, 5], [-9, -3], [-4, 0, 7]):
+        offsets = np.array(offsets, np.int64)
+        for scale, shift in ((1, 0), (n + 2, n + 3)):
+            got = pcf._offset_floors(v, n, offsets, scale, shift)
+            for d in offsets:
+                want = (pcf._padded_floor(v + d, n) - 1) * scale + shift
+                assert got[d].dtype == np.intp
+                assert got[d].tolist() == want.tolist(), (offsets, d)
+
+
+@pytest.mark.parametrize("taps", [300, 5])
+def test_pcf_sum_counts_many_taps(taps):
+    # More than 255 taps: the count leaves the byte counter for a wide one (the lit fraction of a map
+    # whose texels all lie nearer than the points is 0, of an empty map 1, whatever T)
+    offsets = np.zeros((taps, 2), np.int64)
+    p = np.array([[0.0, 0.0, 0.0]])
+    view = _exact_view()
+    for value, want in ((-1.0, 0.0), (1.0, 1.0)):
+        dmap = np.full((_H, _W), value)
+        assert pcf.pcf_sum(p, dmap, view, _NEAR, _FAR, 1e-3, taps=offsets).tolist() == [want]
+
+
 def test_padded_index_and_threshold_keep_their_documented_ranges():
     # _padded_floor: floor(v) + 1 clipped to [0, n + 1], NaN and ±inf on the border
     v = np.array([-7.5, -1.0, -0.5, -1e-300, 0.0, 2.999, 4.0, 4.5, 1e300, np.inf, -np.inf, np.nan])

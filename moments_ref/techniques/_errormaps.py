@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._io import tight_layout
 from ..metrics import shaded_image
 
 __all__ = ["MASK", "VISIBILITY_MASK", "OCCLUDER_COLOUR", "error_maps", "visibility_maps"]
@@ -93,7 +94,7 @@ def error_maps(result, names, reference="reference", title=""):
             a.set_yticks([])
     fig.suptitle((title or f"{result.scene.name}: signed error against {reference}")
                  + f"\ncamera view, {w}×{h} pixels", fontsize="medium")
-    fig.tight_layout(rect=(0, 0, 0.86, 1))
+    tight_layout(fig, rect=(0, 0, 0.86, 1))
     if im is not None:
         cax = fig.add_axes((0.88, 0.15, 0.015, 0.7))
         fig.colorbar(im, cax=cax).set_label("signed error e (shadow intensity)", fontsize=8)
@@ -148,7 +149,7 @@ def visibility_maps(result, names, reference="reference", title=""):
                         Patch(color=VISIBILITY_MASK, label="no receiver inside the shadow map "
                               "(background, outside the light's map)")],
                loc="lower center", ncol=2, fontsize="small", frameon=False)
-    fig.tight_layout(rect=(0, 0.05, 0.88, 1))
+    tight_layout(fig, rect=(0, 0.05, 0.88, 1))
     cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
     fig.colorbar(ScalarMappable(Normalize(0, 1), cmap), cax=cax).set_label("visibility (1 = fully lit)", fontsize=8)
     return fig

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._arrays import InputError
+from ..._io import tight_layout
 from ..._shim import renamed_keywords
 from ...gpu.filtering import check_depth_samples
 from ...metrics import flip_mean, light_metrics
@@ -277,7 +278,7 @@ def scattering_figure(images, t_max):
         ax.set_ylabel("camera pixel y")
     fig.suptitle("in-scattered light along each view ray / t_max (t_max: the longest view ray, world units)",
                  fontsize=9)
-    fig.tight_layout(rect=(0, 0, 0.93, 1))
+    tight_layout(fig, rect=(0, 0, 0.93, 1))
     if im is not None:
         cax = fig.add_axes((0.945, 0.18, 0.012, 0.64))
         fig.colorbar(im, cax=cax).set_label("scattering term / t_max (dimensionless)", fontsize=8)

@@ -67,11 +67,13 @@ __getattr__ = renamed("techniques.vwss.shading")
 
 def _project(positions, clip_from_world, h, w):
     """Continuous window coordinates and view depth (w_clip) of positions in one view."""
-    hom = positions @ clip_from_world[:3, :3].T + clip_from_world[:3, 3]
+    hom = positions @ clip_from_world[:3, :3].T
     cw = positions @ clip_from_world[3, :3] + clip_from_world[3, 3]
+    # The translation added to the x and y columns alone (the same sums as adding the (3,) row to
+    # the (P, 3) product, whose 3-long inner loops cost more than the product; z is not needed).
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = x_window_from_ndc(hom[:, 0] / cw, w)
-        y = y_window_from_ndc(hom[:, 1] / cw, h)
+        x = x_window_from_ndc((hom[:, 0] + clip_from_world[0, 3]) / cw, w)
+        y = y_window_from_ndc((hom[:, 1] + clip_from_world[1, 3]) / cw, h)
     return x, y, cw
 
 
@@ -173,13 +175,40 @@ def _pcf_block(occ, p, clip_from_world, h, w, bias, taps):
     """Lit fraction of the PCF taps of one view for a block of points (exact count / T)."""
     x, y, cw = _project(p, clip_from_world, h, w)
     thr = _threshold(cw, bias)
-    # floor(x + dx) once per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps)
-    cols = {dx: _padded_floor(x + dx, w) for dx in np.unique(taps[:, 0])}
-    rows = {dy: _padded_floor(y + dy, h) * (w + 2) for dy in np.unique(taps[:, 1])}
-    shadowed = np.zeros(p.shape[0], np.intp)
-    for dx, dy in taps:  # loop over the taps
-        shadowed += _shadowed(occ, rows[dy], cols[dx], thr)
-    return (taps.shape[0] - shadowed) / taps.shape[0]
+    # floor(x + dx) once per distinct offset (PCF5: 3 columns and 3 rows serve the 5 taps); the padded
+    # index (row + 1)(W + 2) + col + 1 as row (W + 2) + col + (W + 3), the constant added to the rows
+    cols = _offset_floors(x, w, np.unique(taps[:, 0]), 1, 0)
+    rows = _offset_floors(y, h, np.unique(taps[:, 1]), w + 2, w + 3)
+    t = taps.shape[0]
+    shadowed = np.zeros(p.shape[0], np.uint8 if t < 256 else np.intp)  # counts up to T
+    index, depth, nearer = np.empty(p.shape[0], np.intp), np.empty(p.shape[0]), np.empty(p.shape[0], bool)
+    for dx, dy in taps:  # loop over the taps: _shadowed into buffers
+        np.add(rows[dy], cols[dx], out=index)
+        occ.take(index, out=depth)
+        np.add(shadowed, np.less(depth, thr, out=nearer), out=shadowed)
+    return (t - shadowed) / t
+
+
+def _offset_floors(v, n, offsets, scale, shift):
+    """``{d: clip(floor(v + d), −1, n) · scale + shift}`` as intp, for each integer offset ``d``.
+
+    :func:`_padded_floor` without its ``+ 1`` (folded into ``shift``) and with one clip:
+    ``v`` is first capped at ``n + 1 − min(d, 0)``, which takes NaN there (``fmin`` returns
+    the other operand) and changes no result (from there on ``v + d ≥ n + 1`` for every
+    offset, clipped to ``n`` as NaN is by :func:`_padded_floor`), so ``clip`` sees no NaN.
+    """
+    v = np.fmin(v, n + 1 - min(int(offsets.min()), 0))
+    out = {}
+    for d in offsets:  # loop over the distinct offsets
+        c = np.add(v, d) if d else v.copy()
+        np.floor(c, out=c)
+        np.clip(c, -1, n, out=c)
+        if scale != 1:
+            c *= scale
+        if shift:
+            c += shift
+        out[d] = c.astype(np.intp)
+    return out
 
 
 def multiview_visibility(positions, depth_maps, samples: LightSamples, bias, views=None, taps=PCF5):
