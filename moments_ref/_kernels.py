@@ -23,7 +23,7 @@ import numpy as np
 
 from ._arrays import float_dtype
 
-__all__ = ["CHUNK", "MSM_CHUNK", "SHADE_CHUNK", "PHI_CHUNK", "ENCODE_CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "SWEEP_CHUNK", "WARP_BLOCK",
+__all__ = ["CHUNK", "MSM_CHUNK", "MSM6_CHUNK", "SHADE_CHUNK", "PHI_CHUNK", "ENCODE_CHUNK", "SAT_QUERY_CHUNK", "PCF_CHUNK", "RESOLVE_CHUNK", "RASTER_SETUP_CHUNK", "SWEEP_CHUNK", "WARP_BLOCK",
            "SHADING_BLOCK", "FILTER_BAND_BYTES", "ROW_BAND_BYTES", "RESOLVE_BYTES", "PATH_BAND_TEXELS", "RASTER_ROW_BUDGET", "RASTER_SAMPLE_BUDGET", "SINGULAR_RTOL", "singular_thresholds", "two_point", "copysign_inplace", "copysign_exact",
            "broadcast_chunks"]
 
@@ -41,6 +41,12 @@ MSM_CHUNK = 1 << 15
 #: 2048² float32, interleaved, CPU time, 12 and 16 rounds, load 3.2–3.3: 2^16 0.923 and 0.873 of
 #: the time of 2^15, 2^17 0.903, 2^14 1.099.
 SHADE_CHUNK = 1 << 16
+#: Texels per chunk of the six-moment bounds in float32 (the fast path of :mod:`moments_ref._msm6_bound`): 2^16
+#: since issue 41 round nine (2048² bench input, CPU time, interleaved, load 2.6–2.7: 0.919
+#: (0.864–0.964) of the time of 2^15 over 25 pairs, and 0.901 against 0.961 of the round's starting
+#: code over 21; 2^17 0.948 against 2^16's 0.884 in one run). Before: Algorithm 1's 2^15 (round
+#: five, the Christoffel kernel: 2^13 0.130 s, 2^14 0.104 s, 2^15 0.094 s, 2^16 0.098 s).
+MSM6_CHUNK = 1 << 16
 #: Input bytes per band of rows of a map-sized per-texel step of the pipeline (the resolve of a feature,
 #: a texture's quantization: :func:`moments_ref.techniques._steps.in_row_bands`): their float64
 #: temporaries, several times the map, then exist for one band, not the whole map (issue 41: the

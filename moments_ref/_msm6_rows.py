@@ -16,7 +16,7 @@ from operator import itemgetter
 
 import numpy as np
 
-from ._kernels import MSM_CHUNK, singular_thresholds
+from ._kernels import MSM6_CHUNK, MSM_CHUNK, singular_thresholds
 
 __all__ = ["BOUNDS_CHUNK", "BOUNDS_CHUNK64", "bounds_chunk", "COS_THIRD_POLY", "ROWS", "workspace", "ldl_rows",
            "regular_chunk", "regular_mask", "solve_rows", "blinn_rows", "root_rows", "weight_rows"]
@@ -26,12 +26,9 @@ __all__ = ["BOUNDS_CHUNK", "BOUNDS_CHUNK64", "bounds_chunk", "COS_THIRD_POLY", "
 COS_THIRD_POLY = (0.5000001629519066, 0.5773334661660559, -0.11082308230793778, 0.051548030727594105,
                   -0.02653837949755497, 0.010623147312699203, -0.0021434685253637615)
 
-#: Texels per chunk of the float32 bounds (the fast path of :mod:`moments_ref._msm6_bound`): 2^16
-#: since issue 41 round nine (2048² bench input, CPU time, interleaved, load 2.6–2.7: 0.919
-#: (0.864–0.964) of the time of 2^15 over 25 pairs, and 0.901 against 0.961 of the round's starting
-#: code over 21; 2^17 0.948 against 2^16's 0.884 in one run). Before: Algorithm 1's 2^15 (round
-#: five, the Christoffel kernel: 2^13 0.130 s, 2^14 0.104 s, 2^15 0.094 s, 2^16 0.098 s).
-BOUNDS_CHUNK = 1 << 16
+#: Texels per chunk of the float32 bounds (the fast path of :mod:`moments_ref._msm6_bound`):
+#: ``_kernels.MSM6_CHUNK`` (measured there).
+BOUNDS_CHUNK = MSM6_CHUNK
 
 #: Texels per chunk of the float64 bounds (the Christoffel kernel throughout): Algorithm 1's 2^15
 #: (round nine: 2^16 took 1.155 (1.108–1.174) of its time, 15 pairs, load 3–4).
