@@ -109,10 +109,22 @@ def _crop_like():
     return fig
 
 
-@pytest.mark.parametrize("rect", [(0, 0, 0.85, 1), (0, 0.05, 0.88, 1), None])
-def test_tight_layout_measures_each_axes_once_and_lays_out_as_matplotlib(rect, monkeypatch):
+def _count_tight_boxes(monkeypatch):
+    """The Axes whose tight box is measured from now on, in order, one entry per measurement."""
     from matplotlib.axes import Axes
 
+    calls, measure = [], Axes.get_tightbbox
+
+    def counted(self, *args, **kwargs):
+        calls.append(self)
+        return measure(self, *args, **kwargs)
+
+    monkeypatch.setattr(Axes, "get_tightbbox", counted)
+    return calls
+
+
+@pytest.mark.parametrize("rect", [(0, 0, 0.85, 1), (0, 0.05, 0.88, 1), None])
+def test_tight_layout_measures_each_axes_once_and_lays_out_as_matplotlib(rect, monkeypatch):
     from moments_ref._io import tight_layout
 
     ref = _crop_like()
@@ -121,14 +133,7 @@ def test_tight_layout_measures_each_axes_once_and_lays_out_as_matplotlib(rect, m
             ref.subplotpars.wspace, ref.subplotpars.hspace)
     png = figure_png(ref, dpi=110)
     plt.close(ref)
-    calls = []
-    measure = Axes.get_tightbbox
-
-    def counted(self, *args, **kwargs):
-        calls.append(self)
-        return measure(self, *args, **kwargs)
-
-    monkeypatch.setattr(Axes, "get_tightbbox", counted)
+    calls = _count_tight_boxes(monkeypatch)
     fig = _crop_like()
     tight_layout(fig, rect=rect)
     got = (fig.subplotpars.left, fig.subplotpars.right, fig.subplotpars.bottom, fig.subplotpars.top,
@@ -145,16 +150,7 @@ def test_tight_layout_measures_each_axes_once_and_lays_out_as_matplotlib(rect, m
 def test_tight_layout_with_a_rect_asks_matplotlib_twice(monkeypatch):
     # What tight_layout saves: without the memo, matplotlib's layout with a rect measures every Axes twice
     # (if a matplotlib release measures once, the memo is harmless and this says so).
-    from matplotlib.axes import Axes
-
-    calls = []
-    measure = Axes.get_tightbbox
-
-    def counted(self, *args, **kwargs):
-        calls.append(self)
-        return measure(self, *args, **kwargs)
-
-    monkeypatch.setattr(Axes, "get_tightbbox", counted)
+    calls = _count_tight_boxes(monkeypatch)
     fig = _crop_like()
     fig.tight_layout(rect=(0, 0, 0.85, 1))
     assert len(calls) == 2 * len(fig.axes)
