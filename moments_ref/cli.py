@@ -233,28 +233,13 @@ def _cmd_banks(args):
     return 0
 
 
-def _cmd_report(args):
-    from . import report
+def _main_of(module):
+    """A command that runs ``module``'s ``main(args)``, imported only when the command runs (a fast --help)."""
+    def run(args):
+        import importlib
 
-    return report.main(args)
-
-
-def _cmd_vwss(args):
-    from .report import vwss
-
-    return vwss.main(args)
-
-
-def _cmd_sweep(args):
-    from .sweep.command import main as sweep_main
-
-    return sweep_main(args)
-
-
-def _cmd_conformance(args):
-    from . import conformance
-
-    return conformance.main(args)
+        return importlib.import_module(module, __package__).main(args)
+    return run
 
 
 class _Parser(argparse.ArgumentParser):
@@ -282,7 +267,7 @@ def _add_jobs(sub):
     """The main jobs: the report and the VWSS comparison."""
     rp = sub.add_parser("report", help="error against run time of every technique on the shipped scenes (main job)")
     add_report_arguments(rp)
-    rp.set_defaults(func=_cmd_report)
+    rp.set_defaults(func=_main_of(".report"))
 
     vw = sub.add_parser("vwss", help="view-warped soft shadows against MVR and PCSS (VWSS Tables 1 and 2)")
     vw.add_argument("--scene", default="knot", help="scene name or file with an area light (default knot)")
@@ -292,7 +277,7 @@ def _add_jobs(sub):
                     help="the light's near plane z_n in world units (VWSS Listing 1 light.nearZ; default: the "
                          "scene's params.light_near)")
     vw.add_argument("--out", required=True, type=folder_arg, help="output folder")
-    vw.set_defaults(func=_cmd_vwss)
+    vw.set_defaults(func=_main_of(".report.vwss"))
 
 
 def _add_oracle(sub):
@@ -337,8 +322,11 @@ def _add_oracle(sub):
     cf.add_argument("--all", action="store_true", help="every shipped port of every language on every driver")
     _add_profile(cf)
     cf.add_argument("--out", type=folder_arg, help="with --all: also write conformance.md here")
+    for flag, text in (("--record", "also write this run, kernels and probes included, to FILE (.npz)"),
+                       ("--gpu-record", "a --record FILE of a GPU: its run and its differences from this one")):
+        cf.add_argument(flag, type=Path, metavar="FILE", help=f"with --all: {text} (docs/ports.md)")
     _add_source_options(cf)
-    cf.set_defaults(func=_cmd_conformance)
+    cf.set_defaults(func=_main_of(".conformance"))
 
     sw = sub.add_parser("sweep", help="judge a port on millions of engine-like rows; confirm and shrink each failure "
                                       "(docs/sweep.md)")
@@ -349,7 +337,7 @@ def _add_oracle(sub):
     add_options(sw, _int_in, folder_arg)
     sw.add_argument("--json", type=Path, metavar="FILE", help="write the result as JSON")
     _add_source_options(sw)
-    sw.set_defaults(func=_cmd_sweep)
+    sw.set_defaults(func=_main_of(".sweep.command"))
 
 
 def _add_port(sp):
@@ -444,10 +432,12 @@ def _run(args) -> int:
 
         check_memory(shadow_map_memory(args.size, args.samples), f"figure4 --size {args.size} --samples {args.samples}")
     check_outputs(getattr(args, "out", None))
-    if getattr(args, "json", None) is not None:  # a folder, socket or dangling link: refused before any work
-        from ._io import check_output
+    from ._io import check_output
 
-        check_output(args.json, "--json")
+    for name in ("json", "record"):  # a folder, socket or dangling link: refused before any work
+        if getattr(args, name, None) is not None:
+            check_output(getattr(args, name), f"--{name}")
+    if getattr(args, "json", None) is not None:
         _json_is_no_input(args)
     code = args.func(args)
     sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at exit

@@ -57,6 +57,32 @@ def _existing_file(tmp):
     (tmp / "file").write_text("not a folder")
 
 
+def _meta(**meta):
+    import json
+
+    return list(json.dumps(meta).encode())
+
+
+def _record_bomb(tmp):
+    """A record whose one output array inflates to 80 MB from a few hundred kB."""
+    import numpy as np
+
+    np.savez_compressed(tmp / "r.npz", meta=np.array(_meta(version=1), np.uint8),
+                        **{"f|glsl|gl|c|y": np.zeros(20 << 20, np.float32)})
+
+
+def _npz(tmp, cut=None, **arrays):
+    """``tmp/r.npz`` holding ``arrays`` (uint8 lists, or objects, which need a pickle); ``cut`` bytes off its end."""
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.savez(buf, **{k: np.array(v, np.uint8 if isinstance(v[0], int) else object) for k, v in arrays.items()})
+    data = buf.getvalue()
+    (tmp / "r.npz").write_bytes(data[:-cut] if cut else data)
+
+
 _OBJ_W0 = _files(s_DOT_toml=_LIGHT + _CAMERA + _REC + "[[objects]]\nname = \"m\"\nobj = \"m.obj\"\nrole = \"occluder\"\n",
                  m_DOT_obj="v 0 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
 _AWAY = "[camera]\neye = [0, 2, 5]\ntarget = [0, 2, 20]\nresolution = [64, 48]\n"
@@ -149,6 +175,24 @@ PROBES = [
      _files(manifest_DOT_json="{}")),
     ("conformance-glsl-missing", ["conformance", "--glsl", "{tmp}/none.glsl", "--function", "f",
                                   "--case", "shade-float32"], None),
+    # conformance --all --record / --gpu-record (a record of another machine's run)
+    ("conformance-record-without-all", ["conformance", "--glsl", "msm.glsl", "--function", "f", "--case",
+                                        "shade-float32", "--record", "{tmp}/r.npz"], None),
+    ("conformance-gpu-record-with-kernel", ["conformance", "--kernel", "--glsl", "hpg17_filter_nlq64.glsl", "--entry",
+                                            "main", "--case", "kernel-filter-nlq64", "--gpu-record", "{tmp}/r.npz"],
+     None),
+    ("conformance-record-is-folder", ["conformance", "--all", "--record", "{tmp}"], None),
+    ("conformance-record-folder-missing", ["conformance", "--all", "--record", "{tmp}/none/r.npz"], None),
+    *[(f"conformance-gpu-record-{kind}", ["conformance", "--all", "--gpu-record", "{tmp}/r.npz"], setup)
+      for kind, setup in [("missing", None), ("text", _files(r_DOT_npz="not a zip")),
+                          ("no-meta", lambda tmp: _npz(tmp, **{"k|glsl|gl|c": [1, 2]})),
+                          ("foreign-array", lambda tmp: _npz(tmp, meta=_meta(version=1), x=[1, 2])),
+                          ("zip-bomb", _record_bomb),
+                          ("other-version", lambda tmp: _npz(tmp, meta=_meta(version=99))),
+                          ("meta-not-json", lambda tmp: _npz(tmp, meta=list(b"{oops"))),
+                          ("meta-incomplete", lambda tmp: _npz(tmp, meta=_meta(version=1))),
+                          ("truncated", lambda tmp: _npz(tmp, meta=_meta(version=1), cut=40)),
+                          ("pickled", lambda tmp: _npz(tmp, meta=_meta(version=1), **{"f|glsl|gl|c|y": [{"a": 1}]}))]],
 ]
 
 #: Probes of ``verify``'s manifest parsing; fixed together with the strict verifier.

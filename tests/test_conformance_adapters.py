@@ -100,3 +100,23 @@ def test_summary_markdown_on_two_cases(drivers, monkeypatch):
     for lang, drv in refused:
         assert f"| {lang} | {drv} | sample_bilinear-float32 | " in text
         assert re.search(rf"^\| {lang} \| {drv} \| .*? \| 3 \| 2 \| 1 \| 0 \| ", text, re.M)
+
+
+def test_a_record_compared_with_its_own_run_differs_nowhere(drivers, monkeypatch, tmp_path):
+    """``--all --record`` then ``--all --gpu-record`` on the same drivers: the section finds no difference."""
+    from moments_ref.conformance.kernel import cli as kernel_cli
+
+    monkeypatch.setattr(_cli, "shipped_cases", lambda: ["psi4-float32", "pack32-float32"])
+    monkeypatch.setattr(kernel_cli, "SHIPPED_KERNELS", {"kernel-vwss-points": ("vwss_points", {"glsl": "main"})})
+    record = tmp_path / "r.npz"
+    first = _cli.summary_markdown(probes=False, record=record)
+    assert "## On a GPU" not in first and record.is_file()
+    text = _cli.summary_markdown(probes=False, gpu_record=record)
+    assert f"--gpu-record {record.as_posix()}`" in text.splitlines()[2]
+    section = text.split("## On a GPU\n", 1)[1]
+    for lang in (x for x in conformance.ALL_LANGUAGES if languages.available(x)):
+        for drv in ("gl", "vulkan"):
+            assert re.search(rf"^\| {lang} \| {drv} \| \d+ \| 0 \| 0 \| 0 \| none \| – \|$", section, re.M), lang
+    for drv in ("gl", "vulkan"):
+        assert f"| kernel-vwss-points | glsl | {drv} | pass | " in section
+        assert re.search(rf"^\| kernel-vwss-points \| glsl \| {drv} \| pass \| .* \| pass \| 0 \| 0 \|$", section, re.M)

@@ -263,24 +263,24 @@ def test_json_nesting_is_counted_before_parsing(tmp_path, depth):
     text = _nested(depth)
     if depth > loader.MAX_JSON_DEPTH:
         _refused(rf"^manifest: objects or arrays nested more than {loader.MAX_JSON_DEPTH} deep \(offset "
-                 rf"{6 + loader.MAX_JSON_DEPTH - 1}\)$", loader._parse_json, text.encode(), "manifest")
+                 rf"{6 + loader.MAX_JSON_DEPTH - 1}\)$", loader.parse_json, text.encode(), "manifest")
     else:
-        assert loader._parse_json(text.encode(), "manifest") == json.loads(text)
+        assert loader.parse_json(text.encode(), "manifest") == json.loads(text)
 
 
 def test_json_brackets_in_strings_and_closed_siblings_do_not_count():
     deep_string = '{"x": "' + "[{" * 100 + '\\"]"}'
-    assert loader._parse_json(deep_string.encode(), "m") == {"x": "[{" * 100 + '"]'}
+    assert loader.parse_json(deep_string.encode(), "m") == {"x": "[{" * 100 + '"]'}
     siblings = "[" + ",".join(["[[]]"] * 100) + "]"  # depth 3, a hundred times
-    assert loader._parse_json(siblings.encode(), "m") == [[[]]] * 100
+    assert loader.parse_json(siblings.encode(), "m") == [[[]]] * 100
     deep_after_siblings = "[" + "[]," * 40 + "[" * loader.MAX_JSON_DEPTH + "]" * loader.MAX_JSON_DEPTH + "]"
-    _refused(r"nested more than 32 deep", loader._parse_json, deep_after_siblings.encode(), "m")
+    _refused(r"nested more than 32 deep", loader.parse_json, deep_after_siblings.encode(), "m")
 
 
 def test_json_that_is_no_utf8_or_no_json_is_named():
-    _refused(r"^m: expected UTF-8 JSON, got byte 0xff at offset 2$", loader._parse_json, b'{"\xff"}', "m")
-    _refused(r"^m: expected JSON, could not parse", loader._parse_json, b"{not json", "m")
-    _refused(r"^m: expected JSON, could not parse", loader._parse_json, ("[" + "9" * 5000 + "]").encode(), "m")
+    _refused(r"^m: expected UTF-8 JSON, got byte 0xff at offset 2$", loader.parse_json, b'{"\xff"}', "m")
+    _refused(r"^m: expected JSON, could not parse", loader.parse_json, b"{not json", "m")
+    _refused(r"^m: expected JSON, could not parse", loader.parse_json, ("[" + "9" * 5000 + "]").encode(), "m")
 
 
 def _with(entry):

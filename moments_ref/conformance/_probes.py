@@ -3,7 +3,9 @@
 Each probe is a one-line function in each language, run through the same harness
 as the ports: is ``fma`` fused, is ``a*b + c`` contracted into a fused
 multiply-add, does ``precise`` stop that, what ``clamp`` makes of NaN, and whether
-division and ``sqrt`` round correctly (against NumPy's float32 on random inputs);
+division and ``sqrt`` round correctly (against NumPy's float32 on random inputs),
+how far ``exp`` and ``log`` are from correctly rounded, whether denormals survive a store, a
+multiplication by one, a product of normals and a comparison;
 and how often the shipped ports' ``pack64``/``pack32`` ξ4 code, which goes through the
 driver's ``log`` (HPG17 §3.3, Ψ4), differs from ``packing.py``'s.
 
@@ -32,19 +34,23 @@ from ._toolchain import ToolError
 from .verdict import ulp_distance
 
 __all__ = ["PROBES", "measure", "rules", "spirv_counts", "hlsl_contraction", "xi4_codes", "xi4_markdown",
-           "probe_markdown"]
+           "probe_markdown", "DENORMAL", "denormal_findings", "transcendental_findings"]
 
 _GLSL = """vec4 p_rules(vec4 x) { return vec4(mix(x.x, x.y, x.z), x.x / 3.0, (1.5 * x.x - 2.0 * x.y) + 0.5,
     x.w * x.w * x.w * x.w); }
 vec4 p_round(vec4 x) { precise float r = x.x * x.y + x.z;
     return vec4(fma(x.x, x.y, x.z), x.x * x.y + x.z, r, clamp(x.w, 0.0, 1.0)); }
 vec2 p_ops(vec4 x) { return vec2(x.x / x.y, sqrt(x.x)); }
+vec2 p_transc(vec4 x) { return vec2(exp(x.x), log(x.y)); }
+vec4 p_denorm(vec4 x) { return vec4(x.x, x.x * x.y, x.z * x.w, x.x > 0.0 ? 1.0 : 0.0); }
 """
 _HLSL = """float4 p_rules(float4 x) { return float4(lerp(x.x, x.y, x.z), x.x / 3.0, (1.5 * x.x - 2.0 * x.y) + 0.5,
     x.w * x.w * x.w * x.w); }
 float4 p_round(float4 x) { precise float r = x.x * x.y + x.z;
     return float4(mad(x.x, x.y, x.z), x.x * x.y + x.z, r, clamp(x.w, 0.0, 1.0)); }
 float2 p_ops(float4 x) { return float2(x.x / x.y, sqrt(x.x)); }
+float2 p_transc(float4 x) { return float2(exp(x.x), log(x.y)); }
+float4 p_denorm(float4 x) { return float4(x.x, x.x * x.y, x.z * x.w, x.x > 0.0 ? 1.0 : 0.0); }
 float p_contract(float4 x) { return x.x * x.y + x.z; }
 float p_precise(float4 x) { precise float r = x.x * x.y + x.z; return r; }
 """
@@ -53,6 +59,8 @@ _WGSL = """fn p_rules(x: vec4<f32>) -> vec4<f32> { return vec4<f32>(mix(x.x, x.y
 fn p_round(x: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(fma(x.x, x.y, x.z), x.x * x.y + x.z, 0.0, clamp(x.w, 0.0, 1.0)); }
 fn p_ops(x: vec4<f32>) -> vec2<f32> { return vec2<f32>(x.x / x.y, sqrt(x.x)); }
+fn p_transc(x: vec4<f32>) -> vec2<f32> { return vec2<f32>(exp(x.x), log(x.y)); }
+fn p_denorm(x: vec4<f32>) -> vec4<f32> { return vec4<f32>(x.x, x.x * x.y, x.z * x.w, select(0.0, 1.0, x.x > 0.0)); }
 """
 #: Probe sources per language (HLSL ``mad`` for ``fma``; WGSL has no ``precise``;
 #: HLSL's ``p_contract``/``p_precise`` are compiled alone to count glslang's ``Fma``).
@@ -70,6 +78,47 @@ def _random_rows(n=20000, seed=3):
     rng = np.random.default_rng(seed)
     x = (10.0 ** rng.uniform(-6, 6, (n, 2)) * rng.choice([-1, 1], (n, 2))).astype(np.float32)
     return np.column_stack([np.abs(x[:, 0]), x[:, 1], x[:, 1], x[:, 1]]).astype(np.float32)
+
+
+#: The denormal probe's row: d = 2^-140 (a float32 denormal), 1, and two normals whose product is d.
+DENORMAL = np.array([[2.0 ** -140, 1.0, 2.0 ** -70, 2.0 ** -70]], np.float32)
+
+
+def _transcendental_rows(n=20000, seed=4):
+    # exp's argument uniform in [-87, 88] (its float32 range); log's 10^u with u uniform in [-30, 30] in
+    # the first half and uniform in [0.5, 2] in the second, where a small absolute error is many ulps.
+    rng = np.random.default_rng(seed)
+    lg = np.concatenate([10.0 ** rng.uniform(-30, 30, n - n // 2), rng.uniform(0.5, 2, n // 2)])
+    return np.column_stack([rng.uniform(-87, 88, n), lg, np.zeros(n), np.zeros(n)]).astype(np.float32)
+
+
+def _share(u):
+    """``'k of n (max U ulp; 95 % interval lo % to hi %)'``: rows not correctly rounded."""
+    k, n = int((u > 0).sum()), len(u)
+    lo, hi = wilson_interval(k, n)
+    return f"{k} of {n} (max {u.max():.0f} ulp; 95 % interval {100 * lo:.2g} % to {100 * hi:.2g} %)"
+
+
+def denormal_findings(y):
+    """What the denormal probe's four outputs (:data:`DENORMAL`) say, as table cells.
+
+    ``stored``: the input read and written back unchanged; ``x·1``: a denormal operand kept
+    by a multiplication; ``product``: a denormal result of two normals kept; ``x > 0``: the
+    comparison of a positive denormal.
+    """
+    d = np.float32(2.0 ** -140)
+    kept = lambda v: "kept" if np.float32(v) == d else ("flushed to 0" if np.float32(v) == 0 else f"{float(v):g}")  # noqa: E731
+    return {"stored": "unchanged" if np.float32(y[0]) == d else kept(y[0]), "x·1": kept(y[1]), "product": kept(y[2]),
+            "x > 0": {1.0: "true", 0.0: "false"}.get(float(y[3]), f"{float(y[3]):g}")}
+
+
+def transcendental_findings(x, y):
+    """Table cells of ``exp`` and ``log`` (columns of :func:`_transcendental_rows`) against float64 rounded to
+    float32: rows not correctly rounded, and ``log``'s largest absolute error on its rows in [0.5, 2]."""
+    e, lg = np.exp(x[:, 0].astype(np.float64)), np.log(x[:, 1].astype(np.float64))
+    near = (x[:, 1] >= 0.5) & (x[:, 1] <= 2)
+    return {"p_exp": _share(ulp_distance(y[:, 0], e)), "p_log": _share(ulp_distance(y[:, 1], lg)),
+            "p_log_abs": f"{np.abs(y[near, 1].astype(np.float64) - lg[near]).max():.2g}"}
 
 
 def measure(language, adapter):
@@ -90,6 +139,11 @@ def measure(language, adapter):
             k = int((u > 0).sum())
             lo, hi = wilson_interval(k, len(x))
             found[fn] = f"{k} of {len(x)} (max {int(u.max())} ulp; 95 % interval {100 * lo:.2g} % to {100 * hi:.2g} %)"
+        x = _transcendental_rows()
+        got, _ = run_function(path, "p_transc", {"x": x}, {"y": (np.float32, (len(x), 2))}, language, adapter)
+        found.update(transcendental_findings(x, got["y"]))
+        got, _ = run_function(path, "p_denorm", {"x": DENORMAL}, {"y": (np.float32, (1, 4))}, language, adapter)
+        found["denormal"] = denormal_findings(got["y"][0])
     return found
 
 
@@ -222,15 +276,29 @@ def probe_markdown():
              "random sign, magnitudes 10^u, u uniform in [-6, 6]), with the 95 % Wilson interval of the share.", "",
              "| language | driver | fma | a*b + c | precise a*b + c | clamp(NaN, 0, 1) | x / y not correctly rounded |"
              " sqrt not correctly rounded |", "|---|---|---|---|---|---|---|---|"]
+    more = ["", "## exp, log and denormals (measured)", "",
+            "`exp` on 20 000 arguments uniform in [-87, 88] and `log` on 20 000 (seed 4: 10 000 of 10^u, u uniform",
+            "in [-30, 30], and 10 000 uniform in [0.5, 2]): results differing from float64 rounded to float32,",
+            "with the 95 % Wilson interval of the share, and `log`'s largest absolute error on [0.5, 2] (near 1",
+            "a small absolute error is many ulps; HPG17's Ψ4 takes `log` of values near 1). Denormals:",
+            "d = 2^-140 read and written back, d·1, the product 2^-70·2^-70 (a denormal result of normals),",
+            "and d > 0.", "",
+            "| language | driver | exp not correctly rounded | log not correctly rounded | log on [0.5, 2]: largest absolute error |"
+            " d stored | d·1 | 2^-70·2^-70 | d > 0 |", "|---|---|---|---|---|---|---|---|---|"]
     for language in (x for x in LANGUAGES if TABLE[x].probed):
         for driver in DRIVERS:
             try:
                 f = measure(language, driver)
             except (ContextError, ToolError) as exc:
                 lines.append(f"| {language} | {driver} | skipped: {exc} ||||||")
+                more.append(f"| {language} | {driver} | skipped: {exc} |||||||")
                 continue
             lines.append(f"| {language} | {driver} | {f['p_fma']} | {f['p_contract']} | {f['p_precise']} | "
                          f"{f['p_clamp']} | {f['p_div']} | {f['p_sqrt']} |")
+            d = f["denormal"]
+            more.append(f"| {language} | {driver} | {f['p_exp']} | {f['p_log']} | {f['p_log_abs']} | {d['stored']} | "
+                        f"{d['x·1']} | {d['product']} | {d['x > 0']} |")
+    lines += more
     lines += ["", "## What the drivers' compilers change (measured)", "",
               "Which evaluation each path gives, on 4096 random inputs in [-2, 2] (`mixed`: none of the two",
               "fits every row). `as-written` is glslang's SPIR-V on OpenGL with every operation `NoContraction`",

@@ -53,7 +53,8 @@ from .._io import INCOMPLETE
 from .values import check_case_values
 from .writer import SCHEMA_VERSION
 
-__all__ = ["MAX_MANIFEST", "MAX_JSON_DEPTH", "MAX_ROWS", "MAX_ELEMENTS", "read_regular", "load_manifest",
+__all__ = ["MAX_MANIFEST", "MAX_JSON_DEPTH", "MAX_ROWS", "MAX_ELEMENTS", "read_regular", "parse_json", "read_npz",
+           "load_manifest",
            "check_entry", "load_case_arrays", "load_case", "load_results", "results_limit"]
 
 #: Largest manifest accepted (bytes).
@@ -100,7 +101,8 @@ def read_regular(path, limit, what):
     return data
 
 
-def _parse_json(blob, what):
+def parse_json(blob, what):
+    """The JSON document ``blob`` (UTF-8 bytes), nested at most :data:`MAX_JSON_DEPTH` deep."""
     try:
         text = blob.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -118,7 +120,7 @@ def _parse_json(blob, what):
     try:
         return json.loads(text)
     except (ValueError, RecursionError) as exc:  # JSONDecodeError, an integer of over 4300 digits
-        raise InputError(f"{what}: expected JSON, could not parse manifest.json: {str(exc)[:100]}") from None
+        raise InputError(f"{what}: expected JSON, could not parse it: {str(exc)[:100]}") from None
 
 
 def load_manifest(golden_dir):
@@ -129,7 +131,7 @@ def load_manifest(golden_dir):
     if os.path.lexists(golden_dir / INCOMPLETE):
         raise InputError(f"golden_dir: {str(golden_dir)!r} is incomplete: its writing was interrupted or is under "
                          f"way ({INCOMPLETE} marks it); rerun moments-ref golden --out on it")
-    manifest = _parse_json(read_regular(golden_dir / "manifest.json", MAX_MANIFEST, "golden_dir"), "manifest")
+    manifest = parse_json(read_regular(golden_dir / "manifest.json", MAX_MANIFEST, "golden_dir"), "manifest")
     if not isinstance(manifest, dict) or not isinstance(manifest.get("cases"), dict):
         raise InputError("manifest: expected an object with a 'cases' object")
     version = manifest.get("schema_version")
@@ -265,9 +267,11 @@ class _Expect:
                            for k in dict.fromkeys(self.kind.replace("u", "i")))
 
 
-def _read_npz(blob, what, expect):
-    """``{name: array}`` of the ``.npz`` bytes ``blob``; ``expect(name)`` is the member's :class:`_Expect` or a
-    message why the name is refused."""
+def read_npz(blob, what, expect):
+    """``{name: array}`` of the ``.npz`` bytes ``blob``; ``expect(name)`` is the member's :class:`_Expect` (or an
+    object with its ``max_bytes`` and ``refusal(dtype, shape)``) or a message why the name is refused.
+
+    Nothing is decompressed before every member's declared size is checked, and no pickle is read."""
     try:
         zf = zipfile.ZipFile(io.BytesIO(blob))
         infos = zf.infolist()
@@ -361,7 +365,7 @@ def load_case_arrays(golden_dir, name, meta):
     blob = read_regular(Path(golden_dir) / meta["file"], case_file_limit(meta), f"golden file of {name}")
     if hashlib.sha256(blob).hexdigest() != meta["sha256"]:
         raise InputError(f"golden: {meta['file']} does not match the sha256 in manifest.json")
-    arrays = _read_npz(blob, what, _case_expect(meta))
+    arrays = read_npz(blob, what, _case_expect(meta))
     check_case_values(meta, arrays, what)
     return arrays
 
@@ -402,4 +406,4 @@ def load_results(path, manifest):
         return _Expect("biuf", shape=known[key])
 
     blob = read_regular(path, results_limit(manifest), "results")
-    return _read_npz(blob, f"results {str(path)!r}", expect)
+    return read_npz(blob, f"results {str(path)!r}", expect)
