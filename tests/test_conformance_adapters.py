@@ -120,3 +120,37 @@ def test_a_record_compared_with_its_own_run_differs_nowhere(drivers, monkeypatch
     for drv in ("gl", "vulkan"):
         assert f"| kernel-vwss-points | glsl | {drv} | pass | " in section
         assert re.search(rf"^\| kernel-vwss-points \| glsl \| {drv} \| pass \| .* \| pass \| 0 \| 0 \|$", section, re.M)
+
+
+def test_all_keeps_running_when_a_driver_is_missing_or_a_port_does_not_compile(drivers, monkeypatch):
+    """A target without its driver leaves its rows "not run" (exit 2 from the CLI); the others still run; a
+    shipped port a driver refuses to compile is a failing row, not the end of the run."""
+    from moments_ref.conformance import ContextError
+    from moments_ref.conformance._source import ShaderError
+
+    real = _cli.run_case
+
+    def run_case(path, function, name, golden_dir, language, spec, **kw):
+        if spec == "vulkan":
+            raise ContextError("no Vulkan adapter here")
+        if language == "hlsl":
+            raise ShaderError("port.hlsl:3: 'expression' : Expected")
+        return real(path, function, name, golden_dir, language, spec, **kw)
+
+    monkeypatch.setattr(_cli, "shipped_cases", lambda: ["psi4-float32"])
+    monkeypatch.setattr(_cli, "run_case", run_case)
+    text = _cli.summary_markdown(probes=False)
+    assert text.count("| psi4-float32 | `psi4` | – | – | – | – | not run: ContextError: no Vulkan adapter here |") \
+        == len([x for x in conformance.ALL_LANGUAGES if languages.available(x)])
+    assert "| psi4-float32 | `psi4` | – | – | – | ShaderError: port.hlsl:3: 'expression' : Expected | FAIL |" in text
+    gl = text.split("## GLSL on gl\n", 1)[1].split("\n## ", 1)[0]
+    assert re.search(r"^\| psi4-float32 \| `psi4` \| .* \| pass \|$", gl, re.M)
+
+
+@pytest.mark.parametrize("row, code", [("| c | `f` | 0.1 | – | – | m | pass |", 0), ("| c | `f` | 2 | – | – | m | FAIL |", 1),
+                                       ("| c | `f` | – | – | – | – | not run: ContextError: none |", 2)])
+def test_the_exit_status_of_all(monkeypatch, capsys, row, code):
+    import argparse
+
+    monkeypatch.setattr(_cli, "summary_markdown", lambda **kw: f"# x\n\n{row}\n")
+    assert _cli.main(argparse.Namespace(all=True)) == code
