@@ -104,6 +104,9 @@ def test_a_target_or_kernel_missing_here_is_said_so(record):
     (lambda m: m["kernels"][0].__setitem__("case", 3), "kernels[0] lacks 'case'"),
     (lambda m: m.__setitem__("probes", None), "lacks 'probes'"),
     (lambda m: m.__setitem__("targets", [1]), "targets[0] lacks 'language'"),
+    (lambda m: m["kernels"][0].__setitem__("passed", "yes"), "kernels[0] has 'passed' 'yes'"),
+    (lambda m: m["kernels"][0].pop("passed"), "kernels[0] has 'passed' 'missing'"),
+    (lambda m: m["kernels"][0].__setitem__("passed", 0), "kernels[0] has 'passed' 0"),
 ])
 def test_a_record_with_a_malformed_meta_is_refused(record, tmp_path, edit, message):
     import json
@@ -157,3 +160,13 @@ def test_transcendental_findings_count_rows_off_correct_rounding():
     assert found["p_exp"].startswith("7 of 2000 (max 1 ulp") and found["p_log"].startswith("1 of 2000 (max 5 ulp")
     err = abs(float(off[near[0], 1]) - np.log(float(x[near[0], 1])))
     assert found["p_log_abs"] == f"{err:.2g}"
+
+
+def test_a_record_array_that_is_a_single_number_is_refused(record, tmp_path):
+    path, _ = record
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["f|glsl|gl|case-a|y"] = np.float32(1.0)
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(InputError, match="is a single number; expected rows"):
+        _record.load(tmp_path / "bad.npz")

@@ -18,6 +18,7 @@ from ._gl import ContextError
 from ._report import fmt
 from ._run import ALL_LANGUAGES, DRIVERS, SourceOptions, language_of, parse_adapter, run_case, run_function
 from ._shipped import not_available, shipped_cases, shipped_port
+from ._source import ShaderError
 from ._supervisor import using_watchdog
 from ._toolchain import ToolError
 from .languages import available, compiler_versions, options_phrase
@@ -153,7 +154,7 @@ def _run_all(golden_dir, adapter, progress):
             except (ContextError, ToolError) as exc:  # no driver or compiler here: the rest of the target still runs
                 rows.append(f"| {name} | `{function}` | – | – | – | – | not run: {harness_failure(exc)} |")
                 continue
-            except InputError as exc:  # a shipped port this driver does not compile: a failure of the port
+            except ShaderError as exc:  # a shipped port this driver does not compile: a failure of the port
                 rows.append(f"| {name} | `{function}` | – | – | – | {harness_failure(exc)} | FAIL |")
                 continue
             except Exception as exc:  # noqa: BLE001 - a harness failure is no verdict on the port

@@ -114,6 +114,8 @@ class _Member:
     def refusal(self, dtype, shape):
         if dtype.hasobject or dtype.kind not in "biuf" or dtype.itemsize > 8:
             return f"expected numbers, found dtype {dtype}"
+        if len(shape) == 0:
+            return "is a single number; expected rows"
         if np.prod(shape, dtype=np.float64) * dtype.itemsize > self.max_bytes:
             return f"holds {tuple(shape)} values of {dtype.itemsize} bytes, more than {self.max_bytes} bytes"
         return None
@@ -163,9 +165,13 @@ def _check_entries(meta, what):
                        None)
             if bad is not None:
                 raise InputError(f"{what}: {group}[{i}] lacks '{bad}' or it is not a {spec[bad].__name__}")
-            if group == "targets" and not all(isinstance(r, str) for r in entry["rows"]) or \
-                    group == "targets" and not all(isinstance(t, (int, float)) for t in entry["times"]):
+            if group == "targets" and not (all(isinstance(r, str) for r in entry["rows"])
+                                           and all(isinstance(t, (int, float)) for t in entry["times"])):
                 raise InputError(f"{what}: targets[{i}] has rows that are not text or times that are not numbers")
+            if group == "kernels" and not (entry.get("passed") is None and "passed" in entry
+                                           or isinstance(entry.get("passed"), bool)):
+                raise InputError(f"{what}: kernels[{i}] has 'passed' {entry.get('passed', 'missing')!r}; expected "
+                                 "true, false or null")
 
 
 def _compare(a, b):
