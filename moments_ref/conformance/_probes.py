@@ -96,7 +96,7 @@ def _share(u):
     """``'k of n (max U ulp; 95 % interval lo % to hi %)'``: rows not correctly rounded."""
     k, n = int((u > 0).sum()), len(u)
     lo, hi = wilson_interval(k, n)
-    return f"{k} of {n} (max {u.max():.0f} ulp; 95 % interval {100 * lo:.2g} % to {100 * hi:.2g} %)"
+    return f"{k} of {n} (max {u.max():.0f} ulp; 95 % interval {100 * lo:.3g} % to {100 * hi:.3g} %)"
 
 
 def denormal_findings(y):
