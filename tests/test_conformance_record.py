@@ -29,17 +29,19 @@ def _target(language, driver, outputs, verdicts):
 
 def _mesa_outputs():
     rng = np.random.default_rng(1)
-    return {"case-a": {"y": rng.uniform(-1, 1, (10, 2)).astype(np.float32)},
+    return {"case-a": {"y": rng.uniform(-1, 1, (10, 2)).astype(np.float32),
+                       "z": rng.uniform(-1, 1, (10,)).astype(np.float32)},
             "case-b": {"q": rng.integers(0, 65535, (5, 4)).astype(np.uint16)}}
 
 
 def _gpu_outputs():
     out = _mesa_outputs()
-    y, q = out["case-a"]["y"].copy(), out["case-b"]["q"].copy()
+    y, z, q = out["case-a"]["y"].copy(), out["case-a"]["z"].copy(), out["case-b"]["q"].copy()
     y[3, 1] = _up(y[3, 1], 2)  # one row, two ulps
-    y[7] = _up(y[7], 1)  # one row, both outputs, one ulp: a row counts once
+    y[7] = _up(y[7], 1)  # one row, both columns and the other output too, one ulp: a row counts once
+    z[[5, 7]] = _up(z[[5, 7]], 1)  # row 5 differs only here
     q[2, 3] += 1  # one code
-    return {"case-a": {"y": y}, "case-b": {"q": q}}
+    return {"case-a": {"y": y, "z": z}, "case-b": {"q": q}}
 
 
 def _kernel(output, passed=True):
@@ -80,11 +82,11 @@ def test_the_gpu_section_counts_the_planted_differences(record):
             _target("glsl", "vulkan", _mesa_outputs(), {"case-a": "pass", "case-b": "pass"})]
     local_kernel = _kernel(np.arange(12, dtype=np.float32).reshape(6, 2))
     text = "\n".join(_record.gpu_markdown(meta, arrays, here, [local_kernel], "docs/x.npz"))
-    # 15 rows (10 + 5); rows 3 and 7 of case-a and row 2 of case-b differ; 2 ulps at most; one code.
-    assert "| glsl | gl | 15 | 3 | 2 | 1 | case-b: GPU FAIL, here pass | case-a (2), case-b (1) |" in text
+    # 15 rows (10 + 5); rows 3, 5 and 7 of case-a and row 2 of case-b differ; 2 ulps at most; one code.
+    assert "| glsl | gl | 15 | 4 | 2 | 1 | case-b: GPU FAIL, here pass | case-a (3), case-b (1) |" in text
     assert "| glsl | vulkan | 15 | 0 | 0 | 0 | none | – |" in text
     # The GPU's own drivers: gl carries the planted rows, vulkan does not.
-    assert "between the GPU's OpenGL and its Vulkan: glsl 3 of 15." in text
+    assert "between the GPU's OpenGL and its Vulkan: glsl 4 of 15." in text
     assert "| kernel-x | glsl | gl | pass | random 0.1 | – | pass | 1 | 3 |" in text
     assert "Failing cases on the GPU:" in text and "| glsl | gl | case-b |" in text
     assert "### Floating-point behaviour of the drivers on the GPU (measured)" in text
@@ -170,3 +172,11 @@ def test_a_record_array_that_is_a_single_number_is_refused(record, tmp_path):
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(InputError, match="is a single number; expected rows"):
         _record.load(tmp_path / "bad.npz")
+
+
+def test_the_two_drivers_table_counts_a_row_once_over_its_outputs():
+    from moments_ref.conformance import _cli
+
+    a, b = _mesa_outputs(), _gpu_outputs()
+    assert _cli._differing_rows(a, b) == {"case-a": 3, "case-b": 1}
+    assert _cli._differing_rows(a, _mesa_outputs()) == {}

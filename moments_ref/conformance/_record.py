@@ -175,17 +175,25 @@ def _check_entries(meta, what):
 
 
 def _compare(a, b):
-    """``(rows differing in any bit, largest float32 ulp distance or None, integer rows differing)``."""
+    """``(rows differing in any bit (a mask), largest float32 ulp distance or None, integer rows differing)``."""
     a, b = np.asarray(a), np.asarray(b)
     n = len(a)
     if a.shape != b.shape:
-        return n, None, 0
+        return np.ones(n, bool), None, 0
     if a.dtype.kind == "f":
         diff = (a.reshape(n, -1).view(np.uint32) != b.reshape(n, -1).view(np.uint32)).any(axis=1)
         u = ulp_distance(a, b.astype(np.float64)) if diff.any() else np.zeros(1)
-        return int(diff.sum()), float(np.max(u)), 0
+        return diff, float(np.max(u)), 0
     diff = (a.reshape(n, -1) != b.reshape(n, -1)).any(axis=1)
-    return int(diff.sum()), None, int(diff.sum())
+    return diff, None, int(diff.sum())
+
+
+def _rows_differing(x, y):
+    """Rows of a case whose outputs (``{name: array}`` on both sides) differ in any bit, over every output: a mask."""
+    rows = np.zeros(len(next(iter(x.values()))), bool)
+    for name in (k for k in x if k in y):
+        rows |= _compare(x[name], y[name])[0]
+    return rows
 
 
 def _verdicts(rows):
@@ -225,14 +233,11 @@ def _disagreement_lines(meta, arrays, results):
         gpu = _outputs(arrays, "f", lang, drv)
         compared, differing, worst, codes, cases = 0, 0, 0.0, 0, []
         for case in (c for c in gpu if c in mesa):
-            n_case = 0
-            for name, arr in gpu[case].items():
-                if name not in mesa[case]:
-                    continue
-                d, u, c = _compare(arr, mesa[case][name])
-                n_case = max(n_case, d)
+            for name in (k for k in gpu[case] if k in mesa[case]):
+                _, u, c = _compare(gpu[case][name], mesa[case][name])
                 worst = max(worst, u or 0.0)
                 codes += c
+            n_case = int(_rows_differing(gpu[case], mesa[case]).sum())
             compared += len(next(iter(gpu[case].values())))
             differing += n_case
             if n_case:
@@ -253,7 +258,7 @@ def _agreement(arrays, meta):
         if not both:
             continue
         rows = sum(len(next(iter(gl[c].values()))) for c in both)
-        diff = sum(max((_compare(gl[c][n], vk[c][n])[0] for n in gl[c] if n in vk[c]), default=0) for c in both)
+        diff = sum(int(_rows_differing(gl[c], vk[c]).sum()) for c in both)
         cells.append(f"{lang} {diff} of {rows}")
     return cells or ["no language ran on both"]
 
@@ -270,7 +275,7 @@ def _kernel_lines(meta, arrays, kernels):
         other = None if mine is None else mine["output"]
         if gpu is not None and other is not None:
             d, u, _ = _compare(gpu.reshape(len(gpu), -1), other.reshape(len(other), -1))
-            diff, ulp = str(d), "–" if u is None else f"{u:.0f}"
+            diff, ulp = str(int(d.sum())), "–" if u is None else f"{u:.0f}"
         else:
             diff, ulp = "–", "–"
         note = f" ({k['note'].split(' (')[0]})" if k["note"] else ""  # the reason's first clause
