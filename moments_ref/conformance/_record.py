@@ -292,8 +292,8 @@ def gpu_markdown(meta, arrays, results, kernels, source):
              f"Measured on {meta['date']} by `moments-ref conformance --all --record FILE` on a machine with a GPU, "
              f"kept in `{source}` and compared here with this machine's run above. Renderers: "
              f"{'; '.join(renderers) or 'none'}. Compilers there: "
-             f"{', '.join(f'{k}: {v}' for k, v in meta['compilers'].items()) or 'none found'}. Whole run there: "
-             f"{meta['total']:.1f} s.", "",
+             f"{', '.join(f'{k}: {v}' for k, v in meta['compilers'].items()) or 'none found'}. Whole run there "
+             f"(goldens, ports, probes and kernels): {meta['total']:.1f} s.", "",
              "### Verdicts on the GPU", "",
              "| language | driver | cases | run | failed | first run s | later runs: median s |",
              "|---|---|---:|---:|---:|---:|---:|"]
