@@ -9,7 +9,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 from .._arrays import InputError
 from ..ports import PORTS_DIR

@@ -16,14 +16,11 @@ import json
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 from .._arrays import InputError
-from ._gl import ContextError
 from ._report import fmt
-from ._toolchain import ToolError
 from .verdict import ulp_distance
 
 __all__ = ["RECORD_VERSION", "kernel_runs", "save", "load", "gpu_markdown"]
