@@ -1163,6 +1163,65 @@ def test_tile_path_does_not_depend_on_batch_and_piece_sizes(monkeypatch):
         assert got.tobytes() == want.tobytes() and s1 == s2
 
 
+def _core_samples(monkeypatch):
+    """Record the samples each call of the tile path's dense cores draws."""
+    drawn = []
+    draw = raster._tiles._draw_cores
+    monkeypatch.setattr(raster._tiles, "_draw_cores", lambda *a: drawn.append(draw(*a)) or drawn[-1])
+    return drawn
+
+
+@given(tile_scenes(), st.sampled_from([1, 2]))
+@settings(max_examples=30, deadline=None)
+def test_tile_cores_match_brute_force(scene, core_min):
+    # Every piece's core drawn as a dense block down to one tile wide, on the tile scenes.
+    h, w, samples, tris = scene
+    ref, count = ref_coverage_depth(tris, h, w, samples)
+    with pytest.MonkeyPatch.context() as mp:
+        _all_tiled(mp)
+        mp.setattr(raster._tiles, "CORE_MIN_TILES", core_min)
+        got, stats = rasterize_depth(*_mesh(tris), np.eye(4), (h, w), samples=samples)
+    np.testing.assert_array_equal(got < 1, count > 0)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=2e-7)
+    assert stats.samples_covered == count.sum()
+
+
+@pytest.mark.parametrize("samples", [1, 4, 8])
+def test_tile_cores_are_the_span_path_bit_for_bit(monkeypatch, samples):
+    # Large overlapping triangles with random depths on a map whose sides are not multiples
+    # of the tile: most inside tiles lie in cores, and the map is the spans' byte for byte.
+    rng = np.random.default_rng(samples)
+    v = rng.uniform(-1.5, 1.5, (60, 3))
+    v[:, 2] = rng.uniform(-0.9, 0.9, 60)
+    t = np.arange(60).reshape(20, 3)
+    for dtype in (np.float32, np.float64):
+        drawn = _core_samples(monkeypatch)
+        got, s1 = rasterize_depth(v, t, np.eye(4), (203, 166), samples=samples, dtype=dtype)
+        monkeypatch.setattr(raster, "_TILES", False)
+        want, s2 = rasterize_depth(v, t, np.eye(4), (203, 166), samples=samples, dtype=dtype)
+        monkeypatch.setattr(raster, "_TILES", True)
+        assert sum(drawn) > s1.samples_covered // 3  # the cores hold a large share
+        assert got.tobytes() == want.tobytes() and s1 == s2
+
+
+def test_tile_core_mutants_fail(monkeypatch):
+    # Power: a core drawn one tile column narrower or from one tile row lower (its tiles
+    # still skipped by the enumeration) leaves samples undrawn.
+    tris, h, w = _big_scene()
+    v, t = _mesh(tris)
+    _all_tiled(monkeypatch)
+    monkeypatch.setattr(raster._tiles, "CORE_MIN_TILES", 1)
+    want, _ = rasterize_depth(v, t, np.eye(4), (h, w), samples=4)
+    cores = raster._tiles._cores
+    for shift in ((0, 0, 0, -1), (1, 0, 0, 0)):
+        def mutant(has, ta, tb, shift=shift):
+            (j, qa, qb, ca, cb), ca_rows, cw = cores(has, ta, tb)
+            return (j, qa + shift[0], qb + shift[1], ca + shift[2], cb + shift[3]), ca_rows, cw
+        monkeypatch.setattr(raster._tiles, "_cores", mutant)
+        got, _ = rasterize_depth(v, t, np.eye(4), (h, w), samples=4)
+        assert got.tobytes() != want.tobytes(), shift
+
+
 @pytest.mark.parametrize("samples", [1, 4, 8])
 def test_tile_path_is_the_span_path_on_a_clipped_perspective_scene(monkeypatch, samples):
     # Triangles crossing the near plane and the map's borders, some with depths leaving
