@@ -1187,9 +1187,13 @@ def test_tile_cores_match_brute_force(scene, core_min):
 
 
 @pytest.mark.parametrize("samples", [1, 4, 8])
-def test_tile_cores_are_the_span_path_bit_for_bit(monkeypatch, samples):
+@pytest.mark.parametrize("block", [None, 1])
+def test_tile_cores_are_the_span_path_bit_for_bit(monkeypatch, samples, block):
     # Large overlapping triangles with random depths on a map whose sides are not multiples
-    # of the tile: most inside tiles lie in cores, and the map is the spans' byte for byte.
+    # of the tile: most inside tiles lie in cores, and the map is the spans' byte for byte,
+    # with the cores in blocks of the default size and in blocks of one tile column.
+    if block is not None:
+        monkeypatch.setattr(raster._tiles, "CORE_BLOCK", block)
     rng = np.random.default_rng(samples)
     v = rng.uniform(-1.5, 1.5, (60, 3))
     v[:, 2] = rng.uniform(-0.9, 0.9, 60)

@@ -60,6 +60,8 @@ TILE_MIN_INRADIUS = 16.0
 #: A piece's core (module docstring) at least this many tiles wide is drawn as a dense block
 #: (narrower ones go through the flat indices and the scatter-min with the other tiles).
 CORE_MIN_TILES = 4
+#: Samples per block of a core (:func:`_draw_cores`): bounds its temporaries (1 MiB of float32 depths).
+CORE_BLOCK = 1 << 18
 
 
 def tiled_boxes(s, nc, nr, safe):
@@ -185,7 +187,7 @@ def _cores(has, ta, tb):
     core = (has | ~rows).all(axis=0) & has.any(axis=0) & (cb - ca >= CORE_MIN_TILES)
     cw = np.where(rows & core, cb - ca, 0)
     j = np.flatnonzero(core)
-    return (j, qa[j], qb[j], ca[j], cb[j]), np.broadcast_to(ca, ta.shape), cw
+    return (j, qa[j], qb[j], ca[j], cb[j]), np.broadcast_to(np.where(core, ca, 0), ta.shape), cw
 
 
 def _draw_cores(depth, w, s, tri, cores, r0, sx, sy, dtype):
@@ -203,19 +205,22 @@ def _draw_cores(depth, w, s, tri, cores, r0, sx, sy, dtype):
     row0 = ((r0[j] >> _SHIFT) + qa) * TILE
     covered = 0
     for m in range(j.size):
-        y0, nr, x0, nc = int(row0[m]), int(qb[m] - qa[m]) * TILE, int(ca[m]) * TILE, int(cb[m] - ca[m]) * TILE
-        # Offsets from vertex 0 of each (column or row, sample): exact integers in float64.
-        xz = (np.arange(x0, x0 + nc)[:, None] * _SUB + (_HALF - X0[m]) + sx).astype(np.float64)
-        xz *= za[m]
-        xz += z0[m]
+        y0, nr, x0, x1 = int(row0[m]), int(qb[m] - qa[m]) * TILE, int(ca[m]) * TILE, int(cb[m]) * TILE
+        # Offsets from vertex 0 of each (row or column, sample): exact integers in float64.
         yz = (np.arange(y0, y0 + nr)[:, None] * _SUB + (_HALF - Y0[m]) + sy).astype(np.float64)
         yz *= zb[m]
-        z = np.empty((nr, nc, S), dtype)
-        for k in range(S):
-            np.add(xz[:, k], yz[:, k, None], out=z[:, :, k])
-        view = d3[y0:y0 + nr, x0:x0 + nc]
-        np.minimum(view, z, out=view)
-        covered += z.size
+        step = max(TILE, CORE_BLOCK // (nr * S) // TILE * TILE)  # columns a block: the temporaries cache-sized
+        for c in range(x0, x1, step):
+            nc = min(step, x1 - c)
+            xz = (np.arange(c, c + nc)[:, None] * _SUB + (_HALF - X0[m]) + sx).astype(np.float64)
+            xz *= za[m]
+            xz += z0[m]
+            z = np.empty((nr, nc, S), dtype)
+            for k in range(S):
+                np.add(xz[:, k], yz[:, k, None], out=z[:, :, k])
+            view = d3[y0:y0 + nr, c:c + nc]
+            np.minimum(view, z, out=view)
+        covered += nr * (x1 - x0) * S
     return covered
 
 
