@@ -54,11 +54,14 @@ def test_a_quick_call_timed_by_another_process_is_repeated_and_its_own_times_ave
 
 
 def test_agreement_table_flags_runs_that_differ():
-    row = lambda t, x: {"target": t, "ratio": x}  # noqa: E731
+    row = lambda t, x: {"target": t, "ratio": x, "limit": 2.2}  # noqa: E731
     runs = [[row("a", 1.0), row("b", 2.0), row("c", None)], [row("a", 1.1), row("b", 2.5), row("c", None)]]
     text = _targets.agreement_markdown(runs)
-    assert "| a | 1.00× | 1.10× | 1.100 | yes |" in text
-    assert "| b | 2.00× | 2.50× | 1.250 | NO |" in text and "not measured" in text
+    assert "| a | 1.00× | 1.10× | 1.100 | yes | 2 of 2 |" in text
+    assert "| b | 2.00× | 2.50× | 1.250 | NO | 1 of 2 |" in text and "not measured" in text
+    # A ratio equal to the limit is not under it.
+    runs = [[row("d", 2.2)], [row("d", 2.1)], [row("d", 2.3)]]
+    assert "| 1 of 3 |" in _targets.agreement_markdown(runs)
 
 
 def test_every_target_has_a_ratio_and_a_mark(monkeypatch):
