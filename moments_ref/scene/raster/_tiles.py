@@ -180,10 +180,11 @@ def _cores(has, ta, tb):
     K = has.shape[0]
     qa = np.argmax(has, axis=0)
     qb = K - np.argmax(has[::-1], axis=0)
-    rows = (np.arange(K)[:, None] >= qa) & (np.arange(K)[:, None] < qb)
-    big = np.iinfo(np.int64).max
-    ca = np.where(rows, ta, -big).max(axis=0)
-    cb = np.where(rows, tb, big).min(axis=0)
+    q = np.arange(K)[:, None]
+    rows = (q >= qa) & (q < qb)
+    far = np.iinfo(np.int64).max
+    ca = np.where(rows, ta, -far).max(axis=0)
+    cb = np.where(rows, tb, far).min(axis=0)
     core = (has | ~rows).all(axis=0) & has.any(axis=0) & (cb - ca >= CORE_MIN_TILES)
     cw = np.where(rows & core, cb - ca, 0)
     j = np.flatnonzero(core)
