@@ -96,8 +96,14 @@ def test_crop_figure_of_receivers():
     fig = figs["crops_toy_pcf.png"]
     bars = [ax for ax in fig.axes if ax.get_ylabel().startswith("signed error")]
     assert len(bars) == 1 and bars[0].get_ylim() == pytest.approx((-0.4, 0.4))  # the largest |e| in the windows
-    titles = [ax.get_title() for ax in fig.axes]
+    titles = [t.get_text() for ax in fig.axes for t in ax.texts]  # each crop's title above it
     assert "1: reference" in titles and "2: b" in titles and "b: e\nmax |e| 0.3" in titles
+    grid = next(ax for ax in fig.axes if "1: reference" in [t.get_text() for t in ax.texts])
+    assert len(grid.get_images()) == 2 * (3 + 2)  # per window the reference, a and b above the errors of a and b
+    x, y = grid.get_xlim(), grid.get_ylim()
+    for im in grid.get_images():  # every crop inside the grid's box: none cut off by the layout
+        left, right, bottom, top = im.get_extent()
+        assert x[0] <= left < right <= x[1] and y[1] <= top < bottom <= y[0]
     assert len([t for t in titles if t.startswith("3:")]) == 0  # two places differ: two windows
     assert _crops.crop_figures(_receiver_result({"a": np.zeros((h, w))}), {"pcf": ["a"]}) == {}
     lines = "\n".join(_crops.crop_lines(list(figs)))

@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._io import tight_layout
 from ..metrics import shaded_image
 from ..techniques import get_reference
 from ..techniques._errormaps import MASK
@@ -150,7 +149,17 @@ _WORDS = {"shaded": ("shadow intensity, 1 = fully shadowed", "darker than the re
           "scattering": ("scattering term / t_max", "more scattered light than the reference", "less")}
 
 
-def _legend(ax, kind, side, vmax, reference):
+#: The crops figure's layout in inches, fixed instead of measured: a tight layout of its ~40 panels (each an
+#: Axes with its title measured by the renderer) took half of the figure's time, and creating the Axes most
+#: of the rest; here the crops are images in one Axes whose data unit is the inch.
+PAD = 0.12  # the figure's edges
+TITLES = (0.24, 0.36)  # room above a crop for a one-line (pictures) and a two-line (errors) title, 7 pt
+ROW_GAP = 0.16  # between one window's errors and the next window's pictures
+BARS = 1.05  # right of the crops: the colour bar(s) and their labels
+TOP = 0.6  # the two lines of the figure's title
+
+
+def _legend_text(kind, side, vmax, reference):
     what, red, blue = _WORDS[kind]
     text = (f"Windows: {side}×{side} camera pixels where the signed\nerrors differ most (the mean over the window "
             "of\nmax − min of the techniques' errors and 0), chosen\ngreedily, half a window apart; "
@@ -159,8 +168,7 @@ def _legend(ax, kind, side, vmax, reference):
             f"one range ±{vmax:.3g}: the largest |e| in the windows\n(nothing clipped)")
     if kind == "shaded":
         text += "\n\ngrey: no receiver inside the shadow map"
-    ax.axis("off")
-    ax.text(0.0, 1.0, text, va="top", fontsize=7, transform=ax.transAxes)
+    return text
 
 
 def _outlined():
@@ -186,26 +194,32 @@ def _overview(ax, picture, windows, side, kind):
     ax.set_title("reference, windows outlined and numbered", fontsize=7)
 
 
-def _crop(ax, img, r, c, side, title, **kw):
-    im = ax.imshow(img[r:r + side, c:c + side], interpolation="nearest", **kw)
-    ax.set_xticks([])
-    ax.set_yticks([])
-    ax.set_title(title, fontsize=7)
-    return im
+def _geometry(shape, side, ncols, nwin):
+    """Inches of the crops figure: ``(width, height, cell, panel, top columns, overview (w, h), band, grid height)``.
 
-
-def _layout(pictures, windows, side, ncols):
-    """``(figure, gridspec, overview columns)``: panels of ~3 screen pixels per camera pixel (1.5–2.4 in)."""
-    import matplotlib.pyplot as plt
-
+    A column of crops is ``cell`` wide (~3 screen pixels per camera pixel at 110 dpi, 1.5–2.4 in), its
+    crop ``panel`` = 0.8 ``cell`` square; the overview spans the first ``top`` columns of the band above
+    the crops, the legend the others.
+    """
     cols = max(ncols, 4)
     cell = float(np.clip(3 * side / 110, 1.5, 2.4))
-    h, w = next(iter(pictures.values())).shape[:2]
+    panel = 0.8 * cell
     top = -(-cols // 2)
-    first = max(top * h / w, 1.4)  # the legend's ~12 lines need ~1.4 panels
-    fig = plt.figure(figsize=(cell * cols + 1.3, cell * (first + 2.3 * len(windows)) + 0.6))
-    grid = fig.add_gridspec(1 + 2 * len(windows), cols, height_ratios=[first] + [1] * 2 * len(windows))
-    return fig, grid, top
+    h, w = shape[:2]
+    ov_w = top * cell - 0.7  # the y label and tick labels on its left
+    ov_h = ov_w * h / w
+    band = max(0.25 + ov_h + 0.5, 1.6)  # its title above, the x label below; the legend's ~12 lines
+    grid = nwin * (2 * panel + sum(TITLES) + ROW_GAP) - ROW_GAP
+    return (PAD + cols * cell + BARS, TOP + band + grid + 2 * PAD, cell, panel, top, (ov_w, ov_h), band, grid)
+
+
+def _crop_cell(ax, img, r, c, side, box, title, **kw):
+    """One crop at ``box = (x, y, size)`` inches of the grid's Axes, its title above it."""
+    x, y, size = box
+    im = ax.imshow(img[r:r + side, c:c + side], interpolation="nearest", extent=(x, x + size, y + size, y),
+                   aspect="auto", **kw)
+    ax.text(x + size / 2, y - 0.04, title, ha="center", va="bottom", fontsize=7)
+    return im
 
 
 def crop_figure(title, kind, pictures, errors, windows, side, reference="reference"):
@@ -214,48 +228,68 @@ def crop_figure(title, kind, pictures, errors, windows, side, reference="referen
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Rectangle
 
     names = list(errors)
     boxes = [e[r:r + side, c:c + side] for e in errors.values() for r, c, _ in windows]
     vmax = max([float(np.nanmax(np.abs(b))) for b in boxes if np.any(np.isfinite(b))] + [1e-3])
-    fig, grid, top = _layout(pictures, windows, side, 1 + len(names))
-    _overview(fig.add_subplot(grid[0, :top]), pictures["reference"], windows, side, kind)
-    _legend(fig.add_subplot(grid[0, top:]), kind, side, vmax, reference)
+    width, height, cell, panel, top, (ov_w, ov_h), band, grid_h = _geometry(
+        pictures["reference"].shape, side, 1 + len(names), len(windows))
+    fig = plt.figure(figsize=(width, height))
+    y_band = height - TOP  # the band's top, inches from the bottom
+    _overview(fig.add_axes(((PAD + 0.6) / width, (y_band - 0.25 - ov_h) / height, ov_w / width, ov_h / height)),
+              pictures["reference"], windows, side, kind)
+    fig.text((PAD + top * cell + 0.1) / width, (y_band - 0.1) / height, _legend_text(kind, side, vmax, reference),
+             va="top", ha="left", fontsize=7)
+    cols = max(1 + len(names), 4)
+    ax = fig.add_axes((PAD / width, PAD / height, cols * cell / width, grid_h / height))
+    ax.set_axis_off()
     err_kw = {"cmap": plt.get_cmap("RdBu_r").with_extremes(bad=MASK), "vmin": -vmax, "vmax": vmax}
     pic_kw = {"cmap": "magma", "vmin": 0, "vmax": 1} if kind == "scattering" else {}
     shown = err = None
+    frames = []
+    x0 = (cell - panel) / 2
     for i, (r, c, mean) in enumerate(windows):
+        y_pic = i * (2 * panel + sum(TITLES) + ROW_GAP) + TITLES[0]
+        y_err = y_pic + panel + TITLES[1]
         for j, (label, pic) in enumerate(pictures.items()):
-            shown = _crop(fig.add_subplot(grid[1 + 2 * i, j]), pic, r, c, side, f"{i + 1}: {label}", **pic_kw)
-        note = fig.add_subplot(grid[2 + 2 * i, 0])
-        note.axis("off")
-        note.text(0.0, 0.9, f"window {i + 1}\nx {c}–{c + side - 1}, y {r}–{r + side - 1}\nmean spread {mean:.3g}"
-                  "\n\nbelow each: its\nsigned error e", va="top", fontsize=7, transform=note.transAxes)
+            box = (x0 + j * cell, y_pic, panel)
+            shown = _crop_cell(ax, pic, r, c, side, box, f"{i + 1}: {label}", **pic_kw)
+            frames.append(box)
+        ax.text(x0, y_err + 0.05, f"window {i + 1}\nx {c}–{c + side - 1}, y {r}–{r + side - 1}\nmean spread "
+                f"{mean:.3g}\n\nbelow each: its\nsigned error e", va="top", ha="left", fontsize=7)
         for j, n in enumerate(names, 1):
             box = errors[n][r:r + side, c:c + side]
             big = float(np.nanmax(np.abs(box))) if np.any(np.isfinite(box)) else 0.0
-            err = _crop(fig.add_subplot(grid[2 + 2 * i, j]), errors[n], r, c, side, f"{n}: e\nmax |e| {big:.2g}",
-                        **err_kw)
-    fig.suptitle(title, fontsize="medium")
-    tight_layout(fig, rect=(0, 0, 0.85, 1))  # each panel measured once, not twice (._io)
-    _bars(fig, kind, shown, err)
+            cell_box = (x0 + j * cell, y_err, panel)
+            err = _crop_cell(ax, errors[n], r, c, side, cell_box, f"{n}: e\nmax |e| {big:.2g}", **err_kw)
+            frames.append(cell_box)
+    ax.add_collection(PatchCollection([Rectangle((x, y), s, s) for x, y, s in frames], facecolor="none",
+                                      edgecolor="black", linewidth=0.8, clip_on=False))
+    ax.set_xlim(0, cols * cell)
+    ax.set_ylim(grid_h, 0)
+    fig.suptitle(title, fontsize="medium", y=1 - 0.1 / height, va="top")
+    # The bars right of the last column of crops (with fewer than four, the band above is wider).
+    _bars(fig, kind, shown, err, ((PAD + (1 + len(names)) * cell + 0.1) / width, PAD / height, grid_h / height))
     return fig
 
 
-def _bars(fig, kind, shown, err):
-    """Colour bars right of the crops: the signed error, and for scattering the term's values above it."""
+def _bars(fig, kind, shown, err, where):
+    """Colour bars right of the crops (``where``: their left edge, bottom and height as figure fractions): the
+    signed error, and for scattering the term's values above it."""
     if err is None:
         return
-    crops = [a.get_position() for a in fig.axes if a.get_images() and not a.get_xlabel()]
-    x = max(b.x1 for b in crops) + 0.015
-    y0, y1 = min(b.y0 for b in crops), max(b.y1 for b in crops)
+    x, y0, span = where
+    w = 0.15 / fig.get_figwidth()
+    y1 = y0 + span
     if kind == "scattering" and shown is not None:
         mid = (y0 + y1) / 2
-        fig.colorbar(shown, cax=fig.add_axes((x, mid + 0.02, 0.012, y1 - mid - 0.02))).set_label(
+        fig.colorbar(shown, cax=fig.add_axes((x, mid + 0.01, w, y1 - mid - 0.01))).set_label(
             "scattering term / t_max (dimensionless)", fontsize=7)
-        y1 = mid - 0.02
-    fig.colorbar(err, cax=fig.add_axes((x, y0, 0.012, y1 - y0))).set_label(
-        f"signed error e ({_WORDS[kind][0]})", fontsize=7)
+        y1 = mid - 0.01
+    fig.colorbar(err, cax=fig.add_axes((x, y0, w, y1 - y0))).set_label(f"signed error e ({_WORDS[kind][0]})",
+                                                                      fontsize=7)
 
 
 def crop_figures(result, groups):
