@@ -143,3 +143,21 @@ def test_visibility_figure_colours_and_bar():
     assert any("visibility" in ax.get_ylabel() for ax in fig.axes)
     assert {t.get_text() for t in fig.legends[0].get_texts()} >= {"occluder"}
     matplotlib.pyplot.close("all")
+
+
+def test_claim_crops_drawn_from_the_crops_alone():
+    """The report sends a worker only each scene's claim crops (report._claim_crops_only): the same PNGs."""
+    from moments_ref import report
+    from moments_ref.report import _claim_crops, paper_claims
+
+    rng = np.random.default_rng(3)
+    crops = {"hpg17-nlq32-close-to-nlq64": {"names": ["reference", "nlq64", "nlq32"], "side": 24, "pixel": [40, 30],
+                                            "images": rng.random((3, 24, 24)).astype(np.float16)}}
+    measured = {"railing": {"crops": crops, "rmse": {"nlq64": 0.1}}, "facade": {"rmse": {"nlq64": 0.2}}}
+    sent = report._claim_crops_only(measured)
+    assert sent == {"railing": {"crops": crops}, "facade": {"crops": None}}
+    got = paper_claims.crop_pngs(sent)
+    assert list(got) == [_claim_crops.file_name("hpg17-nlq32-close-to-nlq64")]
+    assert got == paper_claims.crop_pngs(measured)
+    png = next(iter(got.values()))
+    assert png.startswith(b"\x89PNG")

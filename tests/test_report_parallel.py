@@ -66,6 +66,7 @@ def test_two_jobs_give_the_serial_results(tmp_path):
     assert "one scene at a time" in (tmp_path / "jobs1" / "report.md").read_text()
     # the second batch (the Pareto-front plots, one task per reference) runs on the workers
     assert ("front", "pcf") in res[2]["tasks"] and res[2]["tasks"][("front", "pcf")]["pid"] != os.getpid()
+    assert res[2]["tasks"][report.CLAIM_CROPS]["pid"] != os.getpid()  # and the claims' crops
     png = (tmp_path / "jobs2" / "front_pcf.png").read_bytes()
     assert png.startswith(b"\x89PNG") and "front_pcf.png" in md
 

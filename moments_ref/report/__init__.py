@@ -332,8 +332,9 @@ def _front_tasks(rows):
     return [(("front", ref), _fronts_task, ([r for r in rows if truth_of(r) == ref],)) for ref in refs]
 
 
-def _write(acc, out, flip_ok, done, fronts):
-    """Write every file of the report to ``out``; ``done``: the results of :func:`_tasks`; ``fronts``: PNG bytes."""
+def _write(acc, out, flip_ok, done, fronts, claim_crops):
+    """Write every file of the report to ``out``; ``done``: the results of :func:`_tasks`; ``fronts`` and
+    ``claim_crops`` (side-by-side crops of the claims about images): PNG bytes by file name."""
     statements = {name: {s: get_reference(name).statements(acc.rows, s) for s in scenes}
                   for name, scenes in acc.references.items() if get_reference(name).statements}
     refs = [(get_reference(n), cfg, statements.get(n, {})) for n, cfg in acc.references.items()]
@@ -351,7 +352,6 @@ def _write(acc, out, flip_ok, done, fronts):
                                    {"fronts": list(fronts), **acc.images}, flip_ok, refs, lines,
                                    answer=acc.machine + winner_lines(found, own) + front_lines(acc.rows)
                                    + summary_lines(acc.rows), repeats=acc.repeats)}
-    claim_crops = paper_claims.crop_pngs(acc.measured)  # side-by-side crops of the claims about images
     texts["claims.json"], texts["report.md"] = paper_claims.gather(
         acc.rows, acc.measured, texts["report.md"], acc.full, extra=() if temporal is None else (temporal,),
         temporal=False, images=tuple(claim_crops))
@@ -502,11 +502,22 @@ def run(scenes=None, full=False, out_dir="report", progress=True, *, techniques=
         for sc, _ in plans:
             _collect(acc, sc, done[("scene", sc.name)])
         mark_pareto(acc.rows)
-        # The front plots need every scene's rows: a second batch on the same (warm) workers.
-        fronts = {}
-        for part in workers.run(_front_tasks(acc.rows), timings=timings).values():
-            fronts.update(part)
-    return {**_write(acc, out, flip_ok, done, fronts), "tasks": timings}
+        # The front plots need every scene's rows, the claims' crops every scene's crops: a second batch on
+        # the same (warm) workers, which have matplotlib loaded (this process then never imports it).
+        second = _front_tasks(acc.rows) + [(CLAIM_CROPS, paper_claims.crop_pngs, (_claim_crops_only(acc.measured),))]
+        fronts, claim_crops = {}, {}
+        for key, part in workers.run(second, timings=timings).items():
+            (claim_crops if key == CLAIM_CROPS else fronts).update(part)
+    return {**_write(acc, out, flip_ok, done, fronts, claim_crops), "tasks": timings}
+
+
+#: The key of the task drawing the claims' side-by-side crops (:func:`paper_claims.crop_pngs`).
+CLAIM_CROPS = ("claim crops",)
+
+
+def _claim_crops_only(measured):
+    """The part of each scene's claim measurements that :func:`paper_claims.crop_pngs` reads (sent to a worker)."""
+    return {s: {"crops": m.get("crops")} for s, m in measured.items()}
 
 
 #: The arguments of ``moments-ref report`` on a parser (their one definition, shared with the command line).
