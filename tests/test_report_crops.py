@@ -161,3 +161,28 @@ def test_claim_crops_drawn_from_the_crops_alone():
     assert got == paper_claims.crop_pngs(measured)
     png = next(iter(got.values()))
     assert png.startswith(b"\x89PNG")
+
+
+def test_error_maps_panels_titles_and_bar():
+    h, w = 10, 16
+    kind = np.full(h * w, RECEIVER)
+    kind[:w] = BACKGROUND
+    pixel = np.flatnonzero(kind == RECEIVER)
+    gb = SimpleNamespace(resolution=(w, h), kind=kind, pixel=pixel, lambert=np.ones(len(pixel)))
+    ref = np.full(len(pixel), 0.5)
+    shadow = {"a": ref + 0.2, "b": ref - np.linspace(0, 0.4, len(pixel))}
+    res = SimpleNamespace(scene=SimpleNamespace(name="toy"), gbuffer=gb, shadow=shadow, reference={n: ref for n in shadow})
+    fig = _errormaps.error_maps(res, ["a", "b"], "PCF")
+    grid = next(ax for ax in fig.axes if ax.texts)
+    titles = [t.get_text() for t in grid.texts]
+    assert "PCF (shaded)" in titles and "a (shaded)" in titles and "b: e, max |e| 0.4, 1.4% clipped" in titles  # 2 of 144 above the 99th percentile
+    assert any(t.startswith("signed error e = technique − PCF") for t in titles)  # the legend in the second slot
+    assert len(grid.get_images()) == 1 + 2 * 2
+    x, y = grid.get_xlim(), grid.get_ylim()
+    for im in grid.get_images():  # every panel inside the grid's box
+        left, right, bottom, top = im.get_extent()
+        assert x[0] <= left < right <= x[1] and y[1] <= top < bottom <= y[0]
+    bar = next(ax for ax in fig.axes if ax.get_ylabel().startswith("signed error e"))
+    # one range for both: the largest 99th percentile of |e| (b's errors reach 0.4; a's are 0.2)
+    assert bar.get_ylim()[1] == pytest.approx(np.percentile(np.linspace(0, 0.4, len(pixel)), 99))
+    matplotlib.pyplot.close("all")

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._panels import frames, panel, panel_axes
 from ..metrics import shaded_image
 from ..techniques import get_reference
 from ..techniques._errormaps import MASK
@@ -149,9 +150,7 @@ _WORDS = {"shaded": ("shadow intensity, 1 = fully shadowed", "darker than the re
           "scattering": ("scattering term / t_max", "more scattered light than the reference", "less")}
 
 
-#: The crops figure's layout in inches, fixed instead of measured: a tight layout of its ~40 panels (each an
-#: Axes with its title measured by the renderer) took half of the figure's time, and creating the Axes most
-#: of the rest; here the crops are images in one Axes whose data unit is the inch.
+#: The crops figure's layout in inches, fixed (:mod:`moments_ref._panels`: the crops are images in one Axes).
 PAD = 0.12  # the figure's edges
 TITLES = (0.24, 0.36)  # room above a crop for a one-line (pictures) and a two-line (errors) title, 7 pt
 ROW_GAP = 0.16  # between one window's errors and the next window's pictures
@@ -195,31 +194,22 @@ def _overview(ax, picture, windows, side, kind):
 
 
 def _geometry(shape, side, ncols, nwin):
-    """Inches of the crops figure: ``(width, height, cell, panel, top columns, overview (w, h), band, grid height)``.
+    """Inches of the crops figure: ``(width, height, cell, size, top columns, overview (w, h), band, grid height)``.
 
     A column of crops is ``cell`` wide (~3 screen pixels per camera pixel at 110 dpi, 1.5–2.4 in), its
-    crop ``panel`` = 0.8 ``cell`` square; the overview spans the first ``top`` columns of the band above
+    crop ``size`` = 0.8 ``cell`` square; the overview spans the first ``top`` columns of the band above
     the crops, the legend the others.
     """
     cols = max(ncols, 4)
     cell = float(np.clip(3 * side / 110, 1.5, 2.4))
-    panel = 0.8 * cell
+    size = 0.8 * cell
     top = -(-cols // 2)
     h, w = shape[:2]
     ov_w = top * cell - 0.7  # the y label and tick labels on its left
     ov_h = ov_w * h / w
     band = max(0.25 + ov_h + 0.5, 1.6)  # its title above, the x label below; the legend's ~12 lines
-    grid = nwin * (2 * panel + sum(TITLES) + ROW_GAP) - ROW_GAP
-    return (PAD + cols * cell + BARS, TOP + band + grid + 2 * PAD, cell, panel, top, (ov_w, ov_h), band, grid)
-
-
-def _crop_cell(ax, img, r, c, side, box, title, **kw):
-    """One crop at ``box = (x, y, size)`` inches of the grid's Axes, its title above it."""
-    x, y, size = box
-    im = ax.imshow(img[r:r + side, c:c + side], interpolation="nearest", extent=(x, x + size, y + size, y),
-                   aspect="auto", **kw)
-    ax.text(x + size / 2, y - 0.04, title, ha="center", va="bottom", fontsize=7)
-    return im
+    grid = nwin * (2 * size + sum(TITLES) + ROW_GAP) - ROW_GAP
+    return (PAD + cols * cell + BARS, TOP + band + grid + 2 * PAD, cell, size, top, (ov_w, ov_h), band, grid)
 
 
 def crop_figure(title, kind, pictures, errors, windows, side, reference="reference"):
@@ -228,13 +218,11 @@ def crop_figure(title, kind, pictures, errors, windows, side, reference="referen
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-    from matplotlib.collections import PatchCollection
-    from matplotlib.patches import Rectangle
 
     names = list(errors)
-    boxes = [e[r:r + side, c:c + side] for e in errors.values() for r, c, _ in windows]
-    vmax = max([float(np.nanmax(np.abs(b))) for b in boxes if np.any(np.isfinite(b))] + [1e-3])
-    width, height, cell, panel, top, (ov_w, ov_h), band, grid_h = _geometry(
+    shown_e = [e[r:r + side, c:c + side] for e in errors.values() for r, c, _ in windows]
+    vmax = max([float(np.nanmax(np.abs(b))) for b in shown_e if np.any(np.isfinite(b))] + [1e-3])
+    width, height, cell, size, top, (ov_w, ov_h), band, grid_h = _geometry(
         pictures["reference"].shape, side, 1 + len(names), len(windows))
     fig = plt.figure(figsize=(width, height))
     y_band = height - TOP  # the band's top, inches from the bottom
@@ -242,33 +230,26 @@ def crop_figure(title, kind, pictures, errors, windows, side, reference="referen
               pictures["reference"], windows, side, kind)
     fig.text((PAD + top * cell + 0.1) / width, (y_band - 0.1) / height, _legend_text(kind, side, vmax, reference),
              va="top", ha="left", fontsize=7)
-    cols = max(1 + len(names), 4)
-    ax = fig.add_axes((PAD / width, PAD / height, cols * cell / width, grid_h / height))
-    ax.set_axis_off()
+    ax = panel_axes(fig, (PAD, PAD, max(1 + len(names), 4) * cell, grid_h))
     err_kw = {"cmap": plt.get_cmap("RdBu_r").with_extremes(bad=MASK), "vmin": -vmax, "vmax": vmax}
     pic_kw = {"cmap": "magma", "vmin": 0, "vmax": 1} if kind == "scattering" else {}
     shown = err = None
-    frames = []
-    x0 = (cell - panel) / 2
+    boxes = []
+    x0 = (cell - size) / 2
     for i, (r, c, mean) in enumerate(windows):
-        y_pic = i * (2 * panel + sum(TITLES) + ROW_GAP) + TITLES[0]
-        y_err = y_pic + panel + TITLES[1]
+        y_pic = i * (2 * size + sum(TITLES) + ROW_GAP) + TITLES[0]
+        y_err = y_pic + size + TITLES[1]
         for j, (label, pic) in enumerate(pictures.items()):
-            box = (x0 + j * cell, y_pic, panel)
-            shown = _crop_cell(ax, pic, r, c, side, box, f"{i + 1}: {label}", **pic_kw)
-            frames.append(box)
+            boxes.append((x0 + j * cell, y_pic, size, size))
+            shown = panel(ax, pic[r:r + side, c:c + side], boxes[-1], f"{i + 1}: {label}", **pic_kw)
         ax.text(x0, y_err + 0.05, f"window {i + 1}\nx {c}–{c + side - 1}, y {r}–{r + side - 1}\nmean spread "
                 f"{mean:.3g}\n\nbelow each: its\nsigned error e", va="top", ha="left", fontsize=7)
         for j, n in enumerate(names, 1):
             box = errors[n][r:r + side, c:c + side]
             big = float(np.nanmax(np.abs(box))) if np.any(np.isfinite(box)) else 0.0
-            cell_box = (x0 + j * cell, y_err, panel)
-            err = _crop_cell(ax, errors[n], r, c, side, cell_box, f"{n}: e\nmax |e| {big:.2g}", **err_kw)
-            frames.append(cell_box)
-    ax.add_collection(PatchCollection([Rectangle((x, y), s, s) for x, y, s in frames], facecolor="none",
-                                      edgecolor="black", linewidth=0.8, clip_on=False))
-    ax.set_xlim(0, cols * cell)
-    ax.set_ylim(grid_h, 0)
+            boxes.append((x0 + j * cell, y_err, size, size))
+            err = panel(ax, box, boxes[-1], f"{n}: e\nmax |e| {big:.2g}", **err_kw)
+    frames(ax, boxes)
     fig.suptitle(title, fontsize="medium", y=1 - 0.1 / height, va="top")
     # The bars right of the last column of crops (with fewer than four, the band above is wider).
     _bars(fig, kind, shown, err, ((PAD + (1 + len(names)) * cell + 0.1) / width, PAD / height, grid_h / height))

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._io import tight_layout
+from .._panels import frames, panel, panel_axes
 from ..metrics import shaded_image
 
 __all__ = ["MASK", "VISIBILITY_MASK", "OCCLUDER_COLOUR", "error_maps", "visibility_maps"]
@@ -46,13 +46,37 @@ def _range(errors):
     return max(max(p, default=0.0), 1e-3)
 
 
-def _legend(ax, reference, vmax):
-    ax.axis("off")
-    ax.text(0.02, 1.0, f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n"
+def _legend_text(reference, vmax):
+    return (f"signed error e = technique − {reference}\n(shadow intensity, 1 = fully shadowed)\n"
             "red: darker than the reference\nblue: lighter (light leaks)\n"
             f"range ±{vmax:.3g}: the largest 99th\npercentile of |e|; beyond it clipped\n"
-            "grey: no receiver inside the shadow\nmap (background, occluder, outside it)",
-            va="top", fontsize=7, transform=ax.transAxes)
+            "grey: no receiver inside the shadow\nmap (background, occluder, outside it)")
+
+
+#: Layout of the error and visibility figures in inches (:mod:`moments_ref._panels`: the panels are
+#: images in one Axes): a panel's title above it, the figure's title, the colour bar on the right.
+TITLE, HEAD, BAR = 0.26, 0.62, 1.3
+
+
+def _grid(ncols, nrows, aspect, pitch, below=0.0):
+    """``(figure size, panel (w, h), slot(k) -> (x, y), grid (w, h))``: ``nrows × ncols`` panels ``pitch`` inches
+    apart (``aspect`` = height / width), the grid ``0.1 + below`` inches above the figure's bottom."""
+    pw = pitch - 0.2
+    ph = pw * aspect
+    gw, gh = ncols * pitch, nrows * (TITLE + ph) + (nrows - 1) * 0.1
+
+    def slot(k):
+        return (k % ncols) * pitch + 0.1, (k // ncols) * (TITLE + ph + 0.1) + TITLE
+
+    return (0.1 + gw + BAR, HEAD + gh + 0.1 + below), (pw, ph), slot, (gw, gh)
+
+
+def _bar_axes(fig, size, bottom, gw, gh):
+    """The colour bar's Axes right of a grid ``gw × gh`` inches at ``bottom``: as tall as its panels (no title)."""
+    fw, fh = size
+    cax = fig.add_axes(((0.25 + gw) / fw, bottom / fh, 0.15 / fw, (gh - TITLE) / fh))
+    cax.tick_params(labelsize=8)
+    return cax
 
 
 def error_maps(result, names, reference="reference", title=""):
@@ -67,37 +91,31 @@ def error_maps(result, names, reference="reference", title=""):
     errors = [np.asarray(result.shadow[n], np.float64) - np.asarray(result.reference[n], np.float64) for n in names]
     vmax = _range(errors)
     cmap = plt.get_cmap("RdBu_r").with_extremes(bad=MASK)
-    slots = 2 + 2 * len(names)
     ncols = 4
-    nrows = -(-slots // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(2.6 * ncols + 1.0, 2.6 * nrows * h / w + 0.9), squeeze=False)
-    ax = axes.ravel()
-    for a in ax:
-        a.axis("off")
-    ax[0].imshow(shaded_image(gb, result.reference[names[0]]), interpolation="nearest")
-    ax[0].set_title(f"{reference} (shaded)", fontsize=7)
-    _legend(ax[1], reference, vmax)
+    nrows = -(-(2 + 2 * len(names)) // ncols)
+    size, (pw, ph), slot, (gw, gh) = _grid(ncols, nrows, h / w, 2.6)
+    fig = plt.figure(figsize=size)
+    ax = panel_axes(fig, (0.1, 0.1, gw, gh))
+    boxes = [(*slot(0), pw, ph)]
+    panel(ax, shaded_image(gb, result.reference[names[0]]), boxes[0], f"{reference} (shaded)")
+    x, y = slot(1)
+    ax.text(x, y - TITLE, _legend_text(reference, vmax), va="top", ha="left", fontsize=7)
     im = None
     for i, (n, e) in enumerate(zip(names, errors)):
-        ax[2 + 2 * i].imshow(shaded_image(gb, result.shadow[n]), interpolation="nearest")
-        ax[2 + 2 * i].set_title(f"{n} (shaded)", fontsize=7)
+        boxes += [(*slot(2 + 2 * i), pw, ph), (*slot(3 + 2 * i), pw, ph)]
+        panel(ax, shaded_image(gb, result.shadow[n]), boxes[-2], f"{n} (shaded)")
         img = np.full(h * w, np.nan)
         img[gb.pixel] = e
-        im = ax[3 + 2 * i].imshow(img.reshape(h, w), cmap=cmap, vmin=-vmax, vmax=vmax, interpolation="nearest")
         big = float(np.nanmax(np.abs(e))) if e.size else 0.0
         beyond = float(np.mean(np.abs(e) > vmax)) if e.size else 0.0
-        ax[3 + 2 * i].set_title(f"{n}: e, max |e| {big:.2g}, {beyond:.1%} clipped", fontsize=7)
-    for a in ax:
-        if a.get_images():  # a frame: a white floor (lit, or e = 0) reaches the edge
-            a.axis("on")
-            a.set_xticks([])
-            a.set_yticks([])
+        im = panel(ax, img.reshape(h, w), boxes[-1], f"{n}: e, max |e| {big:.2g}, {beyond:.1%} clipped", cmap=cmap,
+                   vmin=-vmax, vmax=vmax)
+    frames(ax, boxes)  # a frame: a white floor (lit, or e = 0) reaches the edge
     fig.suptitle((title or f"{result.scene.name}: signed error against {reference}")
-                 + f"\ncamera view, {w}×{h} pixels", fontsize="medium")
-    tight_layout(fig, rect=(0, 0, 0.86, 1))
+                 + f"\ncamera view, {w}×{h} pixels", fontsize="medium", y=1 - 0.08 / size[1], va="top")
     if im is not None:
-        cax = fig.add_axes((0.88, 0.15, 0.015, 0.7))
-        fig.colorbar(im, cax=cax).set_label("signed error e (shadow intensity)", fontsize=8)
+        fig.colorbar(im, cax=_bar_axes(fig, size, 0.1, gw, gh)).set_label("signed error e\n(shadow intensity)",
+                                                                          fontsize=8)
     return fig
 
 
@@ -131,25 +149,23 @@ def visibility_maps(result, names, reference="reference", title=""):
     gb = result.gbuffer
     w, h = gb.resolution
     cmap = plt.get_cmap("gray")
-    panels = [(reference, result.reference.get(names[0]))] + [(n, result.shadow[n]) for n in names]
-    panels = [(t, v) for t, v in panels if v is not None]
-    ncols = min(len(panels), 3)
-    nrows = -(-len(panels) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.4 * ncols + 1.2, 3.4 * nrows * h / w + 1.3), squeeze=False)
-    for ax in axes.ravel():
-        ax.axis("off")
-    for ax, (t, inten) in zip(axes.ravel(), panels):
-        ax.axis("on")  # a frame: the lit floor is white up to the edge
-        ax.set(xticks=[], yticks=[])
-        ax.imshow(_visibility_rgb(gb, inten, cmap), interpolation="nearest")
-        ax.set_title(t, fontsize="small")
+    shown = [(reference, result.reference.get(names[0]))] + [(n, result.shadow[n]) for n in names]
+    shown = [(t, v) for t, v in shown if v is not None]
+    ncols = min(len(shown), 3)
+    nrows = -(-len(shown) // ncols)
+    size, (pw, ph), slot, (gw, gh) = _grid(ncols, nrows, h / w, 3.4, below=0.35)
+    fig = plt.figure(figsize=size)
+    ax = panel_axes(fig, (0.1, 0.45, gw, gh))
+    boxes = [(*slot(k), pw, ph) for k in range(len(shown))]
+    for box, (t, inten) in zip(boxes, shown):
+        panel(ax, _visibility_rgb(gb, inten, cmap), box, t, fontsize="small")
+    frames(ax, boxes)  # a frame: the lit floor is white up to the edge
     fig.suptitle((title or f"{result.scene.name}: visibility (camera view, {w}×{h} pixels)")
-                 + "\nvisibility = 1 − shadow intensity", fontsize="medium")
+                 + "\nvisibility = 1 − shadow intensity", fontsize="medium", y=1 - 0.08 / size[1], va="top")
     fig.legend(handles=[Patch(color=OCCLUDER_COLOUR, label="occluder"),
                         Patch(color=VISIBILITY_MASK, label="no receiver inside the shadow map "
                               "(background, outside the light's map)")],
                loc="lower center", ncol=2, fontsize="small", frameon=False)
-    tight_layout(fig, rect=(0, 0.05, 0.88, 1))
-    cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
-    fig.colorbar(ScalarMappable(Normalize(0, 1), cmap), cax=cax).set_label("visibility (1 = fully lit)", fontsize=8)
+    fig.colorbar(ScalarMappable(Normalize(0, 1), cmap), cax=_bar_axes(fig, size, 0.45, gw, gh)).set_label(
+        "visibility\n(1 = fully lit)", fontsize=8)
     return fig

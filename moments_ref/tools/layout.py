@@ -36,6 +36,7 @@ TOP = ("cli", "__main__")
 #: The flat modules at the top of the package and their layer.
 FLAT = {
     "_arrays": "base", "_io": "base", "_toml": "base", "_shim": "base", "_docs": "base", "_options": "base",
+    "_panels": "base",  # image panels of the report's figures in one matplotlib Axes
     "claims": "base",  # the Claim record: techniques and report both write claims
     "_kernels": "core", "_msm6_rows": "core", "_msm6_bound": "core", "moments": "core", "msm": "core", "msm6": "core", "hausdorff": "core", "affine": "core",
     "nonlinear": "core", "packing": "core", "precise": "core",
