@@ -37,9 +37,13 @@ CHUNK = 1 << 14
 #: run, ratio to a copy of the traffic: 2^12 22.4×, 2^13 15.6×, 2^14 13.4×, 2^15 12.5×, 2^16 12.6×.
 MSM_CHUNK = 1 << 15
 #: Texels per chunk of :func:`moments_ref.nonlinear.shade` (Algorithm 3; same trade-off as
-#: MSM_CHUNK). 2^16 since issue 41 round seven (32 passes, most of them writing a row they read):
-#: 2048² float32, interleaved, CPU time, 12 and 16 rounds, load 3.2–3.3: 2^16 0.923 and 0.873 of
-#: the time of 2^15, 2^17 0.903, 2^14 1.099.
+#: MSM_CHUNK) in float64, twice as many in float32 (``nonlinear.shade_chunk``). 2^16 since issue 41
+#: round seven (32 passes, most of them writing a row they read): 2048² float32, interleaved, CPU
+#: time, 12 and 16 rounds, load 3.2–3.3: 2^16 0.923 and 0.873 of the time of 2^15, 2^17 0.903,
+#: 2^14 1.099. Float32 2^17 since round twelve, on the quiet machine (the bench's representation,
+#: 21 interleaved rounds, CPU time): 0.963 (0.959–0.966) and 0.980 (0.973–0.983) of the time of
+#: 2^16 at load 0.9 and 1.7, 0.980 (0.948–1.018) beside a process streaming memory on the other
+#: core; float64 2^17 1.058 (1.049–1.064), so float64 keeps 2^16.
 SHADE_CHUNK = 1 << 16
 #: Texels per chunk of the six-moment bounds in float32 (the fast path of :mod:`moments_ref._msm6_bound`): 2^16
 #: since issue 41 round nine (2048² bench input, CPU time, interleaved, load 2.6–2.7: 0.919

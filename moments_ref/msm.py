@@ -101,7 +101,7 @@ _two_point = two_point
 CHUNK = MSM_CHUNK
 
 def chunk_texels(dtype):
-    """Texels per chunk of the kernel for ``dtype``: ``2·CHUNK`` (2^16) in float32 and float64.
+    """Texels per chunk of the kernel for ``dtype``: ``4·CHUNK`` (2^17) in float32, ``2·CHUNK`` (2^16) in float64.
 
     Each ufunc call per chunk costs about 0.65 µs besides its elements (measured: 2048² float32
     from chunks of 2^12 to 2^17, 17.8, 13.4, 11.0, 10.0, 9.5, 9.4 ns a texel, load 10.6), and a
@@ -110,10 +110,14 @@ def chunk_texels(dtype):
     rows keep the kernel's working set near L2 wins. For the 38-pass bounds (issue 41, round
     six), interleaved A/B at 2048², 15 pairs, CPU time, load 12–14: float32 2^16 0.91
     (quartiles 0.86–0.93) of the time of 2^17 and 2^15 1.03 (1.01–1.05) of 2^16; float64 2^16
-    0.91 (0.88–0.92) of 2^15. The results do not depend on the chunk. docs/bench.md, "Where
-    Algorithm 1's time goes".
+    0.91 (0.88–0.92) of 2^15. Round twelve, on the quiet machine (the bench's 2048² input, 21
+    interleaved rounds, CPU time): float32 2^17 0.962 (0.956–0.975) and 0.987 (0.984–0.995) of
+    the time of 2^16 at load 1.0 and 1.7, 0.996 (0.914–1.031) beside a process streaming memory
+    on the other core; so float32 takes 2^17 (the loaded machine of round six, where other
+    sessions shared the L3, no longer decides it). The results do not depend on the chunk.
+    docs/bench.md, "Where Algorithm 1's time goes".
     """
-    return 2 * CHUNK
+    return 4 * CHUNK if np.dtype(dtype) == np.float32 else 2 * CHUNK
 
 
 def _constants(dtype, n):
@@ -147,7 +151,7 @@ def _chunk_constants(dtype, n):
 
     Fresh chunk-sized arrays are faulted in from the OS on every call (measured: a call of one
     chunk of float32 took 4.5 times the per-texel time of a call of 2^20 texels); kept, they cost
-    3.5 MB (float32) or 6.9 MB (float64) per thread that called. Per
+    7 MB (float32, 2^17 texels) or 6.9 MB (float64, 2^16) per thread that called. Per
     thread, so that concurrent calls never share a workspace.
     """
     chunk = chunk_texels(dtype)

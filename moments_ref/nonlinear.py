@@ -76,8 +76,8 @@ __all__ = [
     "validate_representation",
 ]
 
-#: Texels per chunk in :func:`shade` (the value and its reason:
-#: :data:`moments_ref._kernels.SHADE_CHUNK`).
+#: Texels per chunk in :func:`shade` in float64, twice as many in float32 (:func:`shade_chunk`; the
+#: values and their reason: :data:`moments_ref._kernels.SHADE_CHUNK`).
 CHUNK = SHADE_CHUNK
 
 #: HPG17 §3.3: ξ4 is clamped to at least 1.2e-7 before the warp Ψ4.
@@ -559,21 +559,27 @@ _SHADE_ROWS = 8
 _LOCAL = threading.local()
 
 
+def shade_chunk(dtype):
+    """Texels per chunk of :func:`shade` for ``dtype``: ``2·CHUNK`` in float32, ``CHUNK`` in float64."""
+    return 2 * CHUNK if np.dtype(dtype) == np.float32 else CHUNK
+
+
 def _chunk_constants(dtype, n, clamp):
-    """:func:`_kernel_constants` for ``n ≤ CHUNK`` texels, and the chunk's rows: views of one set per thread.
+    """:func:`_kernel_constants` for ``n ≤ shade_chunk(dtype)`` texels, and the chunk's rows: views of one set per thread.
 
     Kept between calls (fresh chunk-sized arrays are faulted in from the OS on every call: a
     call of one chunk took 4.5 times the per-texel time of a call of 2^20 texels), per thread
-    so that concurrent calls never share them; 5.3 MB (float32) or 10.5 MB (float64) per clamp a thread used.
+    so that concurrent calls never share them; 10.5 MB (float32, 2^17 texels, or float64, 2^16) per clamp a
+    thread used.
     """
-    cache = _LOCAL.__dict__.setdefault("consts", {})
-    key = (np.dtype(dtype).name, clamp, CHUNK)
+    cache, chunk = _LOCAL.__dict__.setdefault("consts", {}), shade_chunk(dtype)
+    key = (np.dtype(dtype).name, clamp, chunk)
     if key not in cache:
         if len(cache) >= 4:  # a few clamps at most in practice; never grow without bound
             cache.clear()
-        cache[key] = (_kernel_constants(dtype, CHUNK, clamp), np.empty((4, CHUNK), dtype=dtype))
+        cache[key] = (_kernel_constants(dtype, chunk, clamp), np.empty((4, chunk), dtype=dtype))
     full, rows = cache[key]
-    return (full, rows) if n == CHUNK else ({k: v[..., :n] for k, v in full.items()}, rows[:, :n])
+    return (full, rows) if n == chunk else ({k: v[..., :n] for k, v in full.items()}, rows[:, :n])
 
 
 def _shade_kernel(y1, y2, v2, xi4, zf, out, c, gap=None, ext=None):
@@ -848,7 +854,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     HPG17 §3.4 states; for ``y2 − y1 < 1e-6`` the steps move by less than 1e-6
     in depth.
 
-    Performance: chunks of ``CHUNK`` (``_kernels.SHADE_CHUNK``) texels, one transposing copy per
+    Performance: chunks of :func:`shade_chunk` texels (``_kernels.SHADE_CHUNK``), one transposing copy per
     chunk; finiteness and the domain of r are checked on the loaded chunk by six
     min/max reductions (the full checks run only to raise), which also tell which
     §3.4 clamps can act in the chunk; a non-finite zf shows as a non-finite result. Where no
@@ -872,7 +878,7 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     n = zflat.size
     out = np.empty(n, dtype=r.dtype)
     tol = r.dtype.type(rounding_tolerance(r.dtype))
-    chunk = CHUNK
+    chunk = shade_chunk(r.dtype)
     clamp = _clamp_offset(clamp)
     consts, rows = _chunk_constants(r.dtype, min(chunk, n), clamp)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):

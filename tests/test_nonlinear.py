@@ -513,7 +513,7 @@ def test_a_non_finite_zf_makes_the_closed_form_non_finite(dtype):
                                (y2 - y1).astype(dtype), out, c)
         assert not np.isfinite(out).any(), grid[:, np.isfinite(out)].T[:3]
     rng = np.random.default_rng(3)
-    n, first = nl.CHUNK + 3000, nl.CHUNK + 17
+    n, first = nl.shade_chunk(dtype) + 3000, nl.shade_chunk(dtype) + 17  # the second chunk
     b = bias_moments(power_moments(rng.uniform(-1, 1, (n, 4))), BIAS_FLOAT32).astype(dtype)
     r, zf = nl.phi(b), rng.uniform(-1, 1, n).astype(dtype)
     for bad in (np.inf, -np.inf, np.nan):

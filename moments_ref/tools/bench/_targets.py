@@ -33,9 +33,8 @@ from ...gpu import filtering, onchip
 from ...moments import BIAS_FLOAT32, bias_moments, power_moments
 from ...msm import chunk_texels, shadow_intensity
 from ...msm6 import BIAS6_FLOAT32, BOUNDS_CHUNK
-from ...nonlinear import phi, shade
+from ...nonlinear import phi, shade, shade_chunk
 from ...scene.raster import rasterize_depth
-from ..._kernels import SHADE_CHUNK
 from ._cases import raster_case
 from ._memory import pipeline_peak_bytes
 from ._probes import PASSES, REDUCTIONS, THIRD_ROW, UFUNCS, pass_probe, scatter_probe
@@ -163,7 +162,7 @@ def peak_memory(fn, *args):
 KERNEL_LIMITS = {"shadow_intensity float32": 8, "shadow_intensity float64": 9, "shade float32": 7,
                  "shadow_intensity six moments float32": 12}
 _CHUNKS = {"shadow_intensity float32": chunk_texels(np.float32), "shadow_intensity float64": chunk_texels(np.float64),
-           "shade float32": SHADE_CHUNK,
+           "shade float32": shade_chunk(np.float32),
            "shadow_intensity six moments float32": BOUNDS_CHUNK}
 
 
