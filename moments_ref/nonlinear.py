@@ -875,15 +875,13 @@ def shade(r, zf, clamp=SHADE_TOLERANCE):
     r, zf, shape = lookup_inputs(r, "r", zf)
     rflat = np.broadcast_to(r, shape + (4,)).reshape(-1, 4)
     zflat = np.broadcast_to(zf, shape).reshape(-1)
-    n = zflat.size
-    out = np.empty(n, dtype=r.dtype)
+    out = np.empty(zflat.size, dtype=r.dtype)
     tol = r.dtype.type(rounding_tolerance(r.dtype))
-    chunk = shade_chunk(r.dtype)
-    clamp = _clamp_offset(clamp)
-    consts, rows = _chunk_constants(r.dtype, min(chunk, n), clamp)
+    chunk, clamp = shade_chunk(r.dtype), _clamp_offset(clamp)
+    consts, rows = _chunk_constants(r.dtype, min(chunk, out.size), clamp)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        for start in range(0, n, chunk):
-            stop = min(start + chunk, n)
+        for start in range(0, out.size, chunk):
+            stop = min(start + chunk, out.size)
             # One transposing copy per chunk into the same rows: contiguous columns for the
             # ufuncs (always a copy: the kernel works in place and r may be read-only).
             cols = rows[:, : stop - start]
