@@ -354,8 +354,12 @@ def test_shade_broadcasting_and_chunks(monkeypatch):
     assert full.shape == (5, 6)
     np.testing.assert_array_equal(full[2], nl.shade(r, zf[2, 0]))
     assert nl.shade(r[0], zf).shape == (5, 1)
+    r32, zf32 = r.astype(np.float32), zf.astype(np.float32)
+    full32 = nl.shade(r32, zf32)
     monkeypatch.setattr(nl, "CHUNK", 7)
+    assert (nl.shade_chunk(np.float64), nl.shade_chunk(np.float32)) == (7, 14)  # float32 takes twice as many
     np.testing.assert_array_equal(nl.shade(r, zf), full)
+    np.testing.assert_array_equal(nl.shade(r32, zf32), full32)  # 30 texels in chunks of 14: the same bits
     assert nl.shade(np.zeros((0, 4)), np.zeros(0)).shape == (0,)
     # The input is never modified (the kernel works in place on a copy).
     one = np.array([[-0.5, 0.5, 0.0, 1e-4]])

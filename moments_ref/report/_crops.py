@@ -194,7 +194,7 @@ def _overview(ax, picture, windows, side, kind):
 
 
 def _geometry(shape, side, ncols, nwin):
-    """Inches of the crops figure: ``(width, height, cell, size, top columns, overview (w, h), band, grid height)``.
+    """Inches of the crops figure: ``(width, height, cell, size, top columns, overview (w, h), grid height)``.
 
     A column of crops is ``cell`` wide (~3 screen pixels per camera pixel at 110 dpi, 1.5–2.4 in), its
     crop ``size`` = 0.8 ``cell`` square; the overview spans the first ``top`` columns of the band above
@@ -209,7 +209,7 @@ def _geometry(shape, side, ncols, nwin):
     ov_h = ov_w * h / w
     band = max(0.25 + ov_h + 0.5, 1.6)  # its title above, the x label below; the legend's ~12 lines
     grid = nwin * (2 * size + sum(TITLES) + ROW_GAP) - ROW_GAP
-    return (PAD + cols * cell + BARS, TOP + band + grid + 2 * PAD, cell, size, top, (ov_w, ov_h), band, grid)
+    return PAD + cols * cell + BARS, TOP + band + grid + 2 * PAD, cell, size, top, (ov_w, ov_h), grid
 
 
 def crop_figure(title, kind, pictures, errors, windows, side, reference="reference"):
@@ -222,7 +222,7 @@ def crop_figure(title, kind, pictures, errors, windows, side, reference="referen
     names = list(errors)
     shown_e = [e[r:r + side, c:c + side] for e in errors.values() for r, c, _ in windows]
     vmax = max([float(np.nanmax(np.abs(b))) for b in shown_e if np.any(np.isfinite(b))] + [1e-3])
-    width, height, cell, size, top, (ov_w, ov_h), band, grid_h = _geometry(
+    width, height, cell, size, top, (ov_w, ov_h), grid_h = _geometry(
         pictures["reference"].shape, side, 1 + len(names), len(windows))
     fig = plt.figure(figsize=(width, height))
     y_band = height - TOP  # the band's top, inches from the bottom
