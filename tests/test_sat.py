@@ -144,8 +144,9 @@ def rectangles(h, w):
     def rect(draw):
         x0 = draw(coord) * (w - 0.01)
         y0 = draw(coord) * (h - 0.01)
-        x1 = x0 + 0.01 + draw(coord) * (w - x0 - 0.01)
-        y1 = y0 + 0.01 + draw(coord) * (h - y0 - 0.01)
+        # min: x0 + 0.01 + (w − x0 − 0.01) can round above w (the thorough profile drew 9.000000000000002)
+        x1 = min(x0 + 0.01 + draw(coord) * (w - x0 - 0.01), w)
+        y1 = min(y0 + 0.01 + draw(coord) * (h - y0 - 0.01), h)
         return np.array([x0, y0]), np.array([x1, y1])
 
     return rect()
