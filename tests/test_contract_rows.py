@@ -566,3 +566,121 @@ def test_a_default_bias_under_unit_depth_biases_toward_the_same_distribution(nam
     r_ndc = np.asarray(case.reference(b=b)[0], np.float64)
     r_unit = np.asarray(unit.reference(b=moments_affine(b, 0.5, 0.5))[0], np.float64)
     assert np.abs(r_unit - moments_affine(r_ndc, 0.5, 0.5)).max() < 1e-15  # rounding only
+
+
+def _at_the_threshold(width, threshold, rng, count=24):
+    """Rows whose eigensolver λ_min lies within a few units of roundoff of ``threshold``: singular two-point
+    moments biased toward the interior by the α that bisection finds at the crossing, then the α's float64
+    neighbours on both sides (the rows a certificate with too little margin would decide wrongly)."""
+    from moments_ref.golden.contract import hankel_lambda_min
+
+    b = _power_moments(rng.uniform(-0.9, 0.9, (count, 2)), rng.dirichlet(np.ones(2), count), width)
+    t = np.asarray(_target(width))
+    lo, hi = np.zeros(count), np.ones(count)
+    for _ in range(80):
+        mid = (lo + hi) / 2
+        above = hankel_lambda_min((1 - mid[:, None]) * b + mid[:, None] * t) > threshold
+        hi, lo = np.where(above, mid, hi), np.where(above, lo, mid)
+    out = []
+    for k in range(-4, 5):
+        a = hi * (1 + k * 2.0**-50)
+        out.append((1 - a[:, None]) * b + a[:, None] * t)
+    return np.concatenate(out)
+
+
+@pytest.mark.parametrize("width", [4, 6])
+def test_the_certificate_decides_as_the_eigensolver(width):
+    """``hankel_above`` equals ``hankel_lambda_min(b) > threshold`` on every row: interior, singular and outside
+    rows, rows whose eigensolver value is within a few roundoffs of the threshold (both thresholds of the
+    contracts), large and small scales, float32 input and non-finite moments; and the Cholesky certificate alone
+    never calls a row inside that the eigensolver puts outside, while deciding the clearly interior rows itself."""
+    from moments_ref.golden.contract import CERTIFY_MARGIN, _cholesky_succeeds, _hankel, hankel_above, hankel_lambda_min
+
+    rng = np.random.default_rng(7 + width)
+    base = _rows(width)
+    scaled = [base * np.array([s ** j for j in range(1, width + 1)]) for s in (1e-3, 1e3)]
+    odd = base[:6].copy()
+    odd[0, 1], odd[1, -1], odd[2, 0] = np.nan, np.inf, -np.inf
+    for threshold in (PD_MIN, -PD_MIN):
+        rows = np.concatenate([base, *scaled, odd, _at_the_threshold(width, threshold, rng)])
+        with np.errstate(invalid="ignore"):
+            want = np.array([np.all(np.isfinite(r)) and hankel_lambda_min(r[None])[0] > threshold for r in rows])
+        got = hankel_above(rows, threshold)
+        assert np.array_equal(got, want)
+        assert np.array_equal(hankel_above(rows.reshape(-1, 1, width), threshold).reshape(-1), want)
+        h = _hankel(rows)
+        with np.errstate(invalid="ignore"):  # the non-finite rows: inf − inf
+            s = threshold + CERTIFY_MARGIN * np.abs(np.trace(h, axis1=-2, axis2=-1))
+            cert = _cholesky_succeeds(h - s[:, None, None] * np.eye(h.shape[-1]))
+        assert not (cert & ~want).any()
+        # The fast path decides every row whose λ_min clears the threshold by 100 margins (relative to the trace:
+        # below that the eigensolver's own rounding decides, and only it can reproduce itself).
+        finite = np.isfinite(h).all(axis=(1, 2))
+        lam = np.linalg.eigvalsh(np.where(finite[:, None, None], h, 0))[:, 0]
+        clear = finite & (lam - threshold > 100 * CERTIFY_MARGIN * np.abs(np.trace(h, axis1=1, axis2=2)))
+        assert clear.sum() >= len(base) // 4 and cert[clear].all()
+    b32 = _rows(width).astype(np.float32)
+    assert np.array_equal(hankel_above(b32, PD_MIN), hankel_lambda_min(b32) > PD_MIN)
+    inf2 = _rows(width)[:1].copy()
+    inf2[0, 1] = np.inf  # b2 = +inf: the eigensolver does not converge; the row is outside without asking it
+    assert not hankel_above(inf2, PD_MIN)[0]
+
+
+def _localizing_min(z, w):
+    """Smallest eigenvalue of Σ w z (1 − z) [[1, z], [z, z²]] (the localizing matrix of z (1 − z) of a
+    distribution, from its points), by the 2×2 closed form."""
+    a, c, d = ((w * z * (1 - z) * z**k).sum(axis=-1) for k in (0, 1, 2))
+    return (a + d) / 2 - np.sqrt(((a - d) / 2) ** 2 + c**2)
+
+
+def test_the_hausdorff_contract_is_a_distribution_on_the_unit_interval_and_a_receiver_on_it():
+    """Peters and Klein 2015's Hausdorff contract against statements computed from the distributions: B(b) positive
+    definite (the written-out Cholesky), the localizing matrix of z (1 − z) positive semidefinite up to float32
+    rounding (its eigenvalue from the points), zf in [0, 1] with both ends included."""
+    from moments_ref.golden.contract import HAUSDORFF_SLACK
+
+    rng = np.random.default_rng(41)
+    n = 60
+    z = rng.uniform(0, 1, (n, 4))
+    w = rng.dirichlet(np.ones(4), n)
+    z[:10, 0], z[10:20, 1] = 0.0, 1.0  # texels touching the ends of [0, 1]
+    z[20:30, 2] = rng.uniform(1.05, 1.5, 10)  # a depth behind the far plane: outside where its weight tells
+    z[30:40, 3] = rng.uniform(-0.5, -0.05, 10)  # and one in front of the near plane
+    z[40:45, 1:] = z[40:45, :1]  # one point: B(b) singular, outside
+    zf = rng.uniform(0, 1, n)
+    zf[:5], zf[5:10], zf[50:55], zf[55:] = 0.0, 1.0, -1e-3, 1 + 1e-3
+    b = _power_moments(z, w, 4).astype(np.float32)
+    want = (_inside(b) & (_localizing_min(z, w) >= -HAUSDORFF_SLACK) & (zf >= 0) & (zf <= 1))
+    assert want[10:20].all() and (~want[20:40]).sum() >= 10 and not want[40:45].any() and not want[50:].any()
+    assert np.array_equal(rows_inside("hausdorff", {"b": b, "zf": zf.astype(np.float32)}), want)
+    # float32 rounding of a texel on the boundary: depths 0, 1 and one interior depth have a localizing matrix
+    # of rank one (λ_min 0); stored in float32 its λ_min is a few 1e-8 negative: inside. Pushed by 1e-5: outside.
+    edge = _power_moments(np.array([[0.0, 0.37, 1.0]]), np.array([[0.3, 0.3, 0.4]]), 4)
+    pushed = edge.copy()
+    pushed[0, 0] -= 1e-5  # b1 − b2 below its value by 1e-5: λ_min of the localizing matrix about −1e-5
+    rows = np.concatenate([edge, pushed]).astype(np.float32)
+    assert rows_inside("hausdorff", {"b": rows, "zf": np.float32([0.5, 0.5])}).tolist() == [True, False]
+    # float64 input is judged in float64 (a receiver 1e-9 past 1 is not rounded onto it), and leading axes broadcast
+    b64, zf64 = _power_moments(z[:3], w[:3], 4), np.array([1 + 1e-9, -1e-9, 0.5])
+    assert rows_inside("hausdorff", {"b": b64, "zf": zf64}).tolist() == [False, False, True]
+    got = rows_inside("hausdorff", {"b": b.reshape(3, 20, 4), "zf": zf.astype(np.float32).reshape(3, 20)})
+    assert got.shape == (3, 20) and np.array_equal(got.reshape(-1), want)
+
+
+def test_the_eigensolver_sees_only_the_rows_the_certificate_leaves(monkeypatch):
+    """Interior rows are decided by the factorization alone: the eigensolver is called on the singular and
+    outside rows of the sample (and the rows at the threshold), never on a row clear of it."""
+    from moments_ref.golden import contract
+
+    seen = []
+    real = contract.hankel_lambda_min
+    monkeypatch.setattr(contract, "hankel_lambda_min", lambda b: seen.append(np.array(b)) or real(b))
+    for width in (4, 6):
+        rows = _rows(width)
+        lam = real(rows)
+        clear = lam - PD_MIN > 1e-9
+        seen.clear()
+        assert np.array_equal(contract.hankel_above(rows, PD_MIN), lam > PD_MIN)
+        asked = np.concatenate(seen) if seen else np.empty((0, width))
+        assert clear.sum() >= len(rows) // 4 and len(asked) == (~clear).sum()
+        assert {tuple(x) for x in asked} == {tuple(x) for x in rows[~clear]}

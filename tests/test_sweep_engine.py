@@ -77,14 +77,13 @@ def test_the_band_is_derive_engines_and_holds_the_exact_bound():
 def test_wide_spread_rows_are_ill_and_never_wrong(monkeypatch):
     case = CASES[CASE]
     inputs, _ = draw_chunk(case, 0, 0, rows=50)
-    real = engine.derive_engine
+    real = engine.engine_band
 
     def flagged(*args, **kw):  # the derivation flags row 3 ill-conditioned (as the band model's next version will)
-        out = real(*args, **kw)
-        out["flags"] = np.array(["wide_spread" if i == 3 else "" for i in range(len(out["flags"]))])
-        return out
+        b, mid, half, ill = real(*args, **kw)
+        return b, mid, half, np.arange(len(ill)) == 3
 
-    monkeypatch.setattr(engine, "derive_engine", flagged)
+    monkeypatch.setattr(engine, "engine_band", flagged)
     _, ill = judge.legitimate_interval(case, inputs)
     assert ill.tolist() == [i == 3 for i in range(50)] and not judge.judges_ill(case)
 

@@ -204,10 +204,15 @@ def contract_reach(case, inputs):
     inside = contract_rows(case, inputs, n)
     if case.contract is None or inside.all():
         return inside
-    free = ~equal_inputs(case, inputs, n) if case.row_inputs else np.zeros(n, bool)
+    # Row by row: only the rows outside the contract look at their neighbours (in a sweep's chunk, a few in 10^4).
+    rows = np.flatnonzero(~inside)
+    inputs, m = {k: np.asarray(v)[rows] for k, v in inputs.items()}, rows.size
+    free = ~equal_inputs(case, inputs, m) if case.row_inputs else np.zeros(m, bool)
+    reach = np.zeros(m, bool)
     for p in _neighbours(case, inputs, np.float32, free):
         p32 = {k: (v if k in case.integer_inputs else np.asarray(v).astype(np.float32)) for k, v in p.items()}
-        inside |= contract_rows(case, p32, n)
+        reach |= contract_rows(case, p32, m)
+    inside[rows] = reach
     return inside
 
 

@@ -72,10 +72,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..moments import BIAS_FLOAT32, BIAS_UNORM16, BiasPreset
+from ._ddmoments import moments_of_rows
 from ._rows import Rows
-from .contract import PD_MIN, hankel_lambda_min
+from .contract import PD_MIN, hankel_above
 
-__all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "singular_target_rows", "target_support", "moments_of_rows",
+__all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "engine_band", "singular_target_rows", "target_support", "moments_of_rows",
            "legit_biases", "papers_chain32", "engine_interval", "case_noise", "port_input_evaluations", "CAP",
            "NEIGHBOUR_ULPS"]
 
@@ -165,77 +166,6 @@ def _engine_rows(rng, dtype):
     b = moments_of_rows(support, mass, np.dtype(dtype))  # rounded once
     inputs = {"b": b.astype(np.float64), "zf": np.array(zf), "support": support, "mass": mass}
     return Rows(inputs, cat, com, flags)
-
-
-_SPLIT = 134217729.0  # 2^27 + 1 (Dekker)
-
-
-def _two_sum(a, b):
-    s = a + b
-    v = s - a
-    return s, (a - (s - v)) + (b - v)
-
-
-def _two_prod(a, b):
-    p = a * b
-    ah = a * _SPLIT
-    ah = ah - (ah - a)
-    bh = b * _SPLIT
-    bh = bh - (bh - b)
-    al, bl = a - ah, b - bh
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
-def _dd_add(x, y):
-    s, e = _two_sum(x[0], y[0])
-    e = e + x[1] + y[1]
-    return _two_sum(s, e)
-
-
-def _dd_mul(x, y):
-    p, e = _two_prod(x[0], y[0])
-    e = e + (x[0] * y[1] + x[1] * y[0])
-    return _two_sum(p, e)
-
-
-def _dd_round(hi, lo, dtype):
-    """A normalized double-double rounded once to ``dtype`` (float32: no double rounding at ties)."""
-    if np.dtype(dtype) == np.float64:
-        return hi + lo
-    x = hi.astype(np.float32)
-    r = (hi - x.astype(np.float64)) + lo  # what x misses, about exactly
-    up = np.nextafter(x, np.float32(np.inf)).astype(np.float64) - x
-    down = x - np.nextafter(x, np.float32(-np.inf)).astype(np.float64)
-    x = np.where(r > up / 2, np.nextafter(x, np.float32(np.inf)), x)
-    return np.where(r < -down / 2, np.nextafter(x, np.float32(-np.inf)), x)
-
-
-def moments_of_rows(support, mass, dtype, bias=None):
-    """``(n, 4)``: each row's distribution's moments ``Σ m z^k / Σ m`` (``support``, ``mass``: ``(n, K)``, points of
-    mass 0 for padding), biased (``bias``: a BiasPreset applied as ``b − α (b − b*)``), in double-double
-    arithmetic (about 2^-100 relative) and rounded once to ``dtype``."""
-    z, w = np.asarray(support, np.float64), np.asarray(mass, np.float64)
-    n, k = z.shape
-    zero = np.zeros(n)
-    tot, acc = (zero, zero), [(zero, zero)] * 4
-    for j in range(k):  # compensated sums over each row's points, vectorized over rows
-        u = (z[:, j], zero)
-        p = u
-        wj = (w[:, j], zero)
-        tot = _dd_add(tot, wj)
-        for m in range(4):
-            acc[m] = _dd_add(acc[m], _dd_mul(wj, p))
-            p = _dd_mul(p, u)
-    out = np.empty((n, 4), dtype=dtype)
-    for m in range(4):
-        q0 = acc[m][0] / tot[0]  # b = acc / tot with one correction step
-        r = _dd_add(acc[m], _dd_mul((-q0, zero), tot))
-        b = _two_sum(q0, (r[0] + r[1]) / tot[0])
-        if bias is not None:
-            d = _dd_add(b, (np.full(n, -bias.target[m]), zero))
-            b = _dd_add(b, _dd_mul((np.full(n, -bias.alpha), zero), d))
-        out[:, m] = _dd_round(b[0], b[1], dtype)
-    return out
 
 
 # ---------------------------------------------------------------------------
@@ -521,6 +451,17 @@ def _bands(intervals, noise):
     return np.where(np.isfinite(mid), mid, 0.0), half, ill
 
 
+def engine_band(case, arrays):
+    """``(b, mid, half, ill)`` of engine rows: the port's input, the band's midpoint (the intensity), its
+    half-width per port precision (dict) and the ill-conditioned rows; :func:`derive_engine` without the rows'
+    texts (the sweep's reference, :mod:`moments_ref.sweep.engine`). ``arrays`` as there."""
+    ctx = case.engine
+    sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
+    b = moments_of_rows(sup, mass, np.dtype(case.dtype), bias=ctx.get("before"))
+    mid, half, ill = _bands(engine_interval(ctx, arrays, b), case_noise(ctx, case.dtype))
+    return b, mid, half, ill
+
+
 def derive_engine(case, arrays, category, comment, flags, contract=None):
     """Arrays of an engine case: the port's input b, the band's midpoint, its half-width per port precision, the
     rows' flags (``wide_spread``: ill-conditioned; module docstring).
@@ -533,9 +474,7 @@ def derive_engine(case, arrays, category, comment, flags, contract=None):
 
     ctx = case.engine
     n = len(category)
-    sup, mass = np.asarray(arrays["support"]), np.asarray(arrays["mass"])
-    b = moments_of_rows(sup, mass, np.dtype(case.dtype), bias=ctx.get("before"))
-    mid, half, ill = _bands(engine_interval(ctx, arrays, b), case_noise(ctx, case.dtype))
+    b, mid, half, ill = engine_band(case, arrays)
     z = _exact_z(arrays, ctx.get("bound") == "upper")
     vis = bool(ctx.get("visibility"))
     out = {"b": b, "intensity": 1 - mid if vis else mid, "tc_id": np.arange(1, n + 1, dtype=np.int32)}
@@ -585,7 +524,7 @@ def singular_target_rows(arrays, bias, unit=False):
     n = len(arrays["zf"])
     b = moments_of_rows(arrays["support"], arrays["mass"], np.dtype(np.float64))
     biased = (1 - bias.alpha) * b + bias.alpha * np.asarray(bias.target, np.float64)
-    return hankel_lambda_min(biased) <= PD_MIN
+    return ~hankel_above(biased, PD_MIN)
 
 
 # ---------------------------------------------------------------------------

@@ -49,7 +49,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import precise
-from ..golden.engine import derive_engine, engine_reference, legit_biases, moments_of_rows, port_input_evaluations
+from ..golden.engine import engine_band, engine_reference, legit_biases, moments_of_rows, port_input_evaluations
 
 __all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS",
            "NEIGHBOUR_ULPS"]
@@ -90,21 +90,16 @@ def band(arrays, port_dtype):
     return e - t, e + t
 
 
-def _ill(arrays):
-    """Rows whose derivation flags them ``wide_spread`` (comma-separated flag names), vectorised."""
-    flags = np.char.add(np.char.add(",", np.asarray(arrays["flags"]).astype(str)), ",")
-    return np.char.find(flags, ",wide_spread,") >= 0
-
-
 def interval(case, inputs, port_dtype="float32"):
-    """``(bands, ill_conditioned)`` of engine rows (``inputs`` from :func:`engine_inputs`), by ``derive_engine``."""
-    n = len(inputs["zf"])
-    arrays = derive_engine(case, {k: np.asarray(v) for k, v in inputs.items()}, np.full(n, "random"), [""] * n,
-                           [()] * n)
-    if not np.array_equal(np.asarray(arrays["b"]).view(np.uint32 if case.dtype == "float32" else np.uint64),
+    """``(bands, ill_conditioned)`` of engine rows (``inputs`` from :func:`engine_inputs`), by ``derive_engine``'s
+    band (:func:`moments_ref.golden.engine.engine_band`: its rows' ``wide_spread`` flag is the ill mask)."""
+    b, mid, half, ill = engine_band(case, {k: np.asarray(v) for k, v in inputs.items()})
+    if not np.array_equal(b.view(np.uint32 if case.dtype == "float32" else np.uint64),
                           np.asarray(inputs["b"]).view(np.uint32 if case.dtype == "float32" else np.uint64)):
         raise RuntimeError(f"{case.name}: the sweep's port input b differs from derive_engine's")
-    return {"intensity": band(arrays, str(np.dtype(port_dtype)))}, _ill(arrays)
+    dt = str(np.dtype(port_dtype))  # derive_engine's arrays, less the rows' texts, read by the one band function
+    arrays = {"intensity": 1 - mid if case.engine.get("visibility") else mid, f"intensity_tolerance_{dt}": half[dt]}
+    return {"intensity": band(arrays, dt)}, np.asarray(ill, bool)
 
 
 def _exact(ctx, b, zf):
