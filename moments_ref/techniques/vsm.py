@@ -67,8 +67,11 @@ def cantelli_shadow(mean, mean_sq, t, min_variance):
     dt = np.result_type(mean, np.float32)
     variance = np.maximum(mean_sq - mean * mean, np.asarray(min_variance, dtype=dt))
     d = t - mean
+    den = variance + d * d
     with np.errstate(invalid="ignore", divide="ignore"):
-        bound = d * d / (variance + d * d)
+        bound = d * d / den
+    # σ² = 0 and d² under the smallest subnormal (d > 0 by less than 1e-162): the limit d²/d² = 1, not 0/0
+    bound = np.where(den == 0, dt.type(1), bound)
     return np.where(d > 0, np.clip(bound, 0, 1), dt.type(0))
 
 
