@@ -113,8 +113,9 @@ def hankel_above(b, threshold):
     LAPACK's symmetric eigenvalues are within a modest multiple of ``u·‖B(b)‖₂ ≤ u·tr B(b)`` of the exact
     ones (LAPACK Users' Guide §4.7), far inside the margin of ``1e-13·tr`` (about 900 u). Every other row
     (singular or indefinite moments, λ_min within the margin of the threshold) takes
-    :func:`hankel_lambda_min`; a row with a non-finite moment is outside (the eigensolver refuses it). tests/test_contract_rows.py checks the equality on rows built to lie on
-    both sides of the threshold within a few units of roundoff.
+    :func:`hankel_lambda_min`; a row with a non-finite moment is outside (the eigensolver refuses it).
+    tests/test_contract_rows.py checks the equality on rows built to lie on both sides of the threshold
+    within a few units of roundoff.
     """
     h = _hankel(b)
     with np.errstate(invalid="ignore", over="ignore"):
