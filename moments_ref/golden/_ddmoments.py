@@ -23,28 +23,23 @@ def _two_sum(a, b):
     return s, (a - (s - v)) + (b - v)
 
 
-def _two_prod(a, b):
-    p = a * b
-    ah = a * _SPLIT
-    ah = ah - (ah - a)
-    bh = b * _SPLIT
-    bh = bh - (bh - b)
-    al, bl = a - ah, b - bh
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
 def _split(a):
-    """Dekker's split of ``a`` into ``(hi, lo)``, each of at most 26 significant bits (as :func:`_two_prod`)."""
+    """Dekker's split of ``a`` into ``(hi, lo)``, each of at most 26 significant bits."""
     ah = a * _SPLIT
     ah = ah - (ah - a)
     return ah, a - ah
 
 
 def _two_prod_split(a, a_split, b, b_split):
-    """:func:`_two_prod` of ``a`` and ``b`` given their :func:`_split` (the same bits, a factor used twice split once)."""
+    """``(a·b, its rounding error)`` (Dekker's two-product) given the factors' :func:`_split` (a factor used
+    twice is split once)."""
     (ah, al), (bh, bl) = a_split, b_split
     p = a * b
     return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def _two_prod(a, b):
+    return _two_prod_split(a, _split(a), b, _split(b))
 
 
 def _dd_add(x, y):
