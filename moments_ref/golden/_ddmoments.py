@@ -12,46 +12,46 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["moments_of_rows", "MOMENT_ROWS"]
+__all__ = ["moments_of_rows", "MOMENT_ROWS", "two_sum", "split", "two_prod", "two_prod_split"]
 
 _SPLIT = 134217729.0  # 2^27 + 1 (Dekker)
 
 
-def _two_sum(a, b):
+def two_sum(a, b):
     s = a + b
     v = s - a
     return s, (a - (s - v)) + (b - v)
 
 
-def _split(a):
+def split(a):
     """Dekker's split of ``a`` into ``(hi, lo)``, each of at most 26 significant bits."""
     ah = a * _SPLIT
     ah = ah - (ah - a)
     return ah, a - ah
 
 
-def _two_prod_split(a, a_split, b, b_split):
-    """``(a·b, its rounding error)`` (Dekker's two-product) given the factors' :func:`_split` (a factor used
+def two_prod_split(a, a_split, b, b_split):
+    """``(a·b, its rounding error)`` (Dekker's two-product) given the factors' :func:`split` (a factor used
     twice is split once)."""
     (ah, al), (bh, bl) = a_split, b_split
     p = a * b
     return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
 
 
-def _two_prod(a, b):
-    return _two_prod_split(a, _split(a), b, _split(b))
+def two_prod(a, b):
+    return two_prod_split(a, split(a), b, split(b))
 
 
 def _dd_add(x, y):
-    s, e = _two_sum(x[0], y[0])
+    s, e = two_sum(x[0], y[0])
     e = e + x[1] + y[1]
-    return _two_sum(s, e)
+    return two_sum(s, e)
 
 
 def _dd_mul(x, y):
-    p, e = _two_prod(x[0], y[0])
+    p, e = two_prod(x[0], y[0])
     e = e + (x[0] * y[1] + x[1] * y[0])
-    return _two_sum(p, e)
+    return two_sum(p, e)
 
 
 def _dd_round(hi, lo, dtype):
@@ -90,20 +90,20 @@ def _moments_block(z, w, dtype, bias):
     for j in range(k):  # compensated sums over each row's points, vectorized over rows
         # _dd_mul(wj, p) and _dd_mul(p, u) with u = (z_j, 0), wj = (w_j, 0), each factor split once (the same bits)
         u, wj = z[:, j], w[:, j]
-        us, ws = _split(u), _split(wj)
+        us, ws = split(u), split(wj)
         p = (u, zero)
         tot = _dd_add(tot, (wj, zero))
         for m in range(4):
-            ps = _split(p[0])
-            q, e = _two_prod_split(wj, ws, p[0], ps)
-            acc[m] = _dd_add(acc[m], _two_sum(q, e + (wj * p[1] + zero * p[0])))
-            q, e = _two_prod_split(p[0], ps, u, us)
-            p = _two_sum(q, e + (p[0] * zero + p[1] * u))
+            ps = split(p[0])
+            q, e = two_prod_split(wj, ws, p[0], ps)
+            acc[m] = _dd_add(acc[m], two_sum(q, e + (wj * p[1] + zero * p[0])))
+            q, e = two_prod_split(p[0], ps, u, us)
+            p = two_sum(q, e + (p[0] * zero + p[1] * u))
     out = np.empty((n, 4), dtype=dtype)
     for m in range(4):
         q0 = acc[m][0] / tot[0]  # b = acc / tot with one correction step
         r = _dd_add(acc[m], _dd_mul((-q0, zero), tot))
-        b = _two_sum(q0, (r[0] + r[1]) / tot[0])
+        b = two_sum(q0, (r[0] + r[1]) / tot[0])
         if bias is not None:
             d = _dd_add(b, (np.full(n, -bias.target[m]), zero))
             b = _dd_add(b, _dd_mul((np.full(n, -bias.alpha), zero), d))

@@ -40,12 +40,10 @@ from math import comb
 
 import numpy as np
 
+from ..golden._ddmoments import two_prod as _two_product, two_sum as _two_sum
 from ..scene.depth import z_unit_from_ndc
 
 __all__ = ["convert_inputs", "harness_bias", "unit_depth"]
-
-_SPLIT = 134217729.0  # 2^27 + 1: Dekker's splitter for float64
-
 
 def unit_depth(case):
     """Whether the profiled ``case`` receives [0, 1] depths (its profile declares ``depth = "[0,1]"``)."""
@@ -56,26 +54,6 @@ def harness_bias(case):
     """``(alpha, target)`` of the bias the harness applies just before the call (engine frame), or None."""
     kw = case.kwargs.get("harness_bias")
     return None if kw is None else (float(kw["alpha"]), tuple(float(t) for t in kw["target"]))
-
-
-def _two_sum(a, b):
-    s = a + b
-    bb = s - a
-    return s, (a - (s - bb)) + (b - bb)
-
-
-def _split(a):
-    c = _SPLIT * a
-    hi = c - (c - a)
-    return hi, a - hi
-
-
-def _two_product(a, b):
-    """``(p, e)`` with p + e = a·b exactly (a a float, b an array)."""
-    p = a * b
-    ah, al = _split(np.float64(a))
-    bh, bl = _split(b)
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
 
 
 def _sum_rounded(terms):
