@@ -172,6 +172,22 @@ def test_float32_receiver_on_a_depth_at_the_ends_of_the_range():
         assert (abs(float(shadow_intensity(b, np.float32(zf))) - exact) > 0.4) == wrong
 
 
+def test_stability_category_at_the_ends_samples_the_float32_breakdown():
+    """docs/stability.md's "zf at a depth at ±1" draws the receivers of the test above: on 2000 of its rows
+    float32 Algorithm 1 errs by more than 0.4 against mpmath on the same float32 moments, only with zf at ±1 or
+    one float32 step inside (every row has one of those), and float64 Algorithm 1 on the same inputs does not
+    (so the error is float32's arithmetic, not the input or the bound)."""
+    b64, zf64 = stability.MSM_CATEGORIES["zf at a depth at ±1"](np.random.default_rng(11), 2000)
+    assert set(np.abs(zf64.astype(np.float32))) == {np.float32(1), np.float32(1 - 2.0**-24)}
+    b = bias_moments(b64.astype(np.float32), BIAS_FLOAT32)
+    zf = zf64.astype(np.float32)
+    exact = precise.shadow_bounds(b, zf)
+    for bound, x in zip(("lower", "upper"), exact):
+        assert np.abs(shadow_intensity(b, zf, bound) - x).max() > 0.4, bound
+        assert np.abs(shadow_intensity(b.astype(np.float64), zf.astype(np.float64), bound) - x).max() \
+            <= F64_VS_PRECISE, bound
+
+
 def test_float32_threshold_regression():
     # Z = 0.4 δ−0.3 + 0.6 δ0.5; zf = 0.5 exactly: Z(z < zf) = 0.4. float32 msm returns 1.0
     # (its rounded y2 = 0.49999998 < zf); the exact bound of the same float32 moments is 0.4.
