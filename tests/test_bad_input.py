@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 import moments_ref as m
-from moments_ref import InputError, msm6, packing, precise
+from moments_ref import InputError, msm6, nonlinear, packing, precise
 
 _B = m.bias_moments(m.power_moments([[-0.5, 0.1, 0.7], [0.2, 0.3, 0.9]]))
 _R = m.phi(_B)
@@ -316,6 +316,9 @@ def test_atomic_write_permissions_cleanup_and_stale_temporaries(tmp_path):
 
 @given(z=st.lists(st.floats(-1, 1), min_size=1, max_size=6), zf=st.floats(-1, 1),
        dtype=st.sampled_from([np.float32, np.float64, ">f4"]))
+# Found by the thorough profile: one depth (three equal ones), float32 Φ gives ξ4 = −2.8e-14, inside the range
+# phi documents (unclamped: ξ4 and v2 may leave [0, ...] by rounding_tolerance; the test asserted ξ4 ≥ 0).
+@example(z=[0.9624499248712657] * 3, zf=0.0, dtype=np.float32)
 def test_extreme_depths_through_every_stage_stay_finite_and_in_range(z, zf, dtype):
     """Depths anywhere in [-1, 1] (equal, at ±1, clustered): Φ, Algorithm 3, the texel
     formats and six moments give finite results in their documented ranges, in the
@@ -325,7 +328,8 @@ def test_extreme_depths_through_every_stage_stay_finite_and_in_range(z, zf, dtyp
     b = m.bias_moments(m.power_moments(zz), m.BIAS_FLOAT32)
     r = m.phi(b)
     assert r.dtype == want and np.isfinite(r).all()
-    assert r[0] <= r[1] and 0 <= r[2] <= 1 and r[3] >= 0
+    tol = nonlinear.rounding_tolerance(want)
+    assert r[0] <= r[1] and -tol <= r[2] <= 1 + tol and r[3] >= -tol
     s = m.shade(r, zf)
     assert s.dtype == want and 0 <= s <= 1
     for packed, unpack in ((m.pack64(r), m.unpack64), (m.pack32(r), m.unpack32)):

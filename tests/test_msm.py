@@ -114,7 +114,7 @@ def test_bounds_biased_precise(dist, zf):
 F32_RESOLUTION = 4 * BIAS_FLOAT32.alpha ** 0.5
 
 
-def _resolvable(z, zf, dtype, eps=F32_RESOLUTION):
+def _resolvable(z, w, zf, dtype, eps=F32_RESOLUTION):
     """The candidates with at most one distinct support point within ``eps`` of the depth the kernel sees, and
     not every point there: a distribution that is one point at z_f to within ``eps`` has biased float32
     moments whose variance is the bias's (docs/stability.md, "variance near the bias floor": float32 errors up
@@ -122,11 +122,19 @@ def _resolvable(z, zf, dtype, eps=F32_RESOLUTION):
     zx = zf.astype(dtype).astype(np.float64)
     u = np.unique(z)
     near = np.abs(u[None, :] - zx[:, None]) < eps
-    # And a receiver within a float32 step of a depth at ±1, where the bias target has atoms too: float32
-    # Algorithm 1 then errs by up to 0.94 against the exact bound of the same float32 moments on about 1 % of
-    # such texels (test_float32_receiver_on_a_depth_at_the_ends_of_the_range below).
-    ends = ((np.abs(np.abs(zx) - 1) <= 2.0**-23) & np.isin(np.abs(u), 1.0).any())
-    return zf[(near.sum(axis=1) <= 1) & ~near.all(axis=1) & ~ends]
+    keep = (near.sum(axis=1) <= 1) & ~near.all(axis=1)
+    # And a receiver at a support point of a texel whose last pivot ξ4 (exact, of the biased float32 moments) is
+    # below two float32 units of b4: float32's ξ4 = b4 − b2² − L32·(b3 − b1 b2), a difference of terms of b4's
+    # size, is then mostly rounding, and so is the side of zf its roots fall on. Measured on 6 000 texels of 2 or
+    # 3 depths (half with one at or within 2 % of ±1) with zf on a depth: the bracket failed on 6, all with ξ4
+    # under 0.86 units (test_float32_receiver_on_a_depth_at_the_ends_of_the_range below: at ±1 the bias
+    # target's atom sits on the depth and lifts ξ4 least).
+    if near.any():
+        b = bias_moments(power_moments(z, w).astype(dtype), BIAS_FLOAT32).astype(np.float64)
+        sigma2, xi4 = precise.pivots(b[None])[0]
+        if xi4 < 2 * float(np.finfo(dtype).eps) * max(b[3], sigma2):
+            keep &= ~near.any(axis=1)
+    return zf[keep]
 
 
 @given(depth_distributions(), depths())
@@ -137,9 +145,12 @@ def _resolvable(z, zf, dtype, eps=F32_RESOLUTION):
 # Found by the thorough profile: one point, z_f at its float32 value (float32 msm returns 1, the exact bound of
 # the same float32 moments is 1.5e-7): unresolvable, as above.
 @example(dist=(np.array([0.83433474]), np.array([1.0])), zf=-1.0)
+# Found by the thorough profile: depths 1 and −0.609375, the receiver on −0.609375 (float32 msm returns 0.5, the
+# exact bound of the same float32 moments is 1.3e-9): ξ4 0.57 float32 units of b4, unresolvable as above.
+@example(dist=(np.array([1.0, -0.609375]), np.array([0.5, 0.5])), zf=-1.0)
 def test_bounds_biased_float32(dist, zf):
     z, w = dist
-    _check(_msm, z, w, _resolvable(z, zf_candidates(z, zf), np.float32), np.float32, F32_SLACK)
+    _check(_msm, z, w, _resolvable(z, w, zf_candidates(z, zf), np.float32), np.float32, F32_SLACK)
 
 
 def test_float32_unresolvable_pair_is_excluded_and_would_fail():
@@ -148,23 +159,33 @@ def test_float32_unresolvable_pair_is_excluded_and_would_fail():
     zf = zf_candidates(z, 0.0)
     with pytest.raises(AssertionError):
         _check(_msm, z, w, zf, np.float32, F32_SLACK)
-    assert list(_resolvable(z, zf, np.float32)) == [0.0]
-    assert len(_resolvable(np.array([0.5, 0.875]), zf_candidates(np.array([0.5, 0.875]), 0.0), np.float32)) == 7
+    assert list(_resolvable(z, w, zf, np.float32)) == [0.0]
+    z2 = np.array([0.5, 0.875])
+    assert len(_resolvable(z2, w, zf_candidates(z2, 0.0), np.float32)) == 7
     # one point: the candidates at it fail the bracket, and only they are dropped
     z1, w1 = np.array([0.83433474]), np.array([1.0])
     zf1 = zf_candidates(z1, -1.0)
     with pytest.raises(AssertionError):
         _check(_msm, z1, w1, zf1, np.float32, F32_SLACK)
-    assert list(_resolvable(z1, zf1, np.float32)) == [-1.0]
+    assert list(_resolvable(z1, w1, zf1, np.float32)) == [-1.0]
+    # ξ4 below two float32 units of b4: the candidates on a depth fail the bracket, and only they are dropped
+    z3 = np.array([1.0, -0.609375])
+    zf3 = zf_candidates(z3, 0.25)
+    with pytest.raises(AssertionError):
+        _check(_msm, z3, w, zf3[1:], np.float32, F32_SLACK)
+    assert list(_resolvable(z3, w, zf3, np.float32)) == [0.25]
 
 
 def test_float32_receiver_on_a_depth_at_the_ends_of_the_range():
     """Found by the thorough profile: depths 1 and −0.609375 (equal weights), zf = 1, biased float32 moments.
     The exact bound of those float32 moments is 0.5000001 (mpmath), float64 Algorithm 1 on them agrees, float32
-    Algorithm 1 returns 1: at ±1 the texel's depth and the bias target's atom coincide, and float32 cannot tell
-    the receiver from the depth. One float32 step inside (1 − 2^-24) the same; 10^-5 inside, 0.5 again."""
+    Algorithm 1 returns 1: at ±1 the texel's depth and the bias target's atom coincide, the bias lifts the last
+    pivot ξ4 least there (0.57 float32 units of b4 here), and float32, whose ξ4 is then mostly rounding, cannot
+    tell the receiver from the depth. One float32 step inside (1 − 2^-24) the same; 10^-5 inside, 0.5 again."""
     b = bias_moments(power_moments(np.array([1.0, -0.609375]), np.array([0.5, 0.5])).astype(np.float32),
                      BIAS_FLOAT32)
+    sigma2, xi4 = precise.pivots(b.astype(np.float64)[None])[0]
+    assert 0.5 < xi4 / (float(np.finfo(np.float32).eps) * b[3]) < 0.6
     for zf, wrong in ((1.0, True), (1 - 2.0**-24, True), (1 - 1e-5, False)):
         exact = float(precise.shadow_intensity(b.astype(np.float64), float(np.float32(zf))))
         assert abs(exact - 0.5) < 1e-6

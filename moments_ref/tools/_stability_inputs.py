@@ -94,7 +94,8 @@ def _cat_near_pm1(rng, n):
 
 def _cat_zf_at_pm1(rng, n):
     # A depth at an end of the range (1: the far plane a cleared map stores) and the receiver on it or one
-    # float32 step inside: the bias target's atoms at ±1 (HPG17 §3.2) sit on that depth too.
+    # float32 step inside. The bias target's atoms at ±1 (HPG17 §3.2) sit on that depth and lift the last pivot
+    # ξ4 least, so on some texels ξ4 falls below float32's resolution of b4 (docs/testing.md, the thorough profile).
     k = rng.integers(2, 4, n)
     z = rng.uniform(-1, 1, (n, 3))
     w = rng.uniform(1e-3, 1, (n, 3)) * (np.arange(3) < k[:, None])
