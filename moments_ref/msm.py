@@ -51,6 +51,13 @@ discriminant marks such a texel singular; biased moments never get there
 (``ξ4 ≥ 6e-8`` keeps the coefficients below 10⁸). Rounding can also put
 ``w0 + w1`` just above 1 (seen: ``w2 = −4.5e−6``); w2 is clamped at 0.
 
+The regular branch has the same limit in float32: where the bias lifts ξ4 by a
+float32 unit of b4 or less (near two-point texels; least where a depth sits on one
+of the bias target's atoms at ±1), float32's ξ4 is mostly rounding, and a receiver on
+one of the texel's depths may be put on either side of it (measured: 0.906 where the
+exact bound of the same float32 moments is 5e-8; docs/stability.md, "zf at a depth
+at ±1"). float64 stays within 3e-11 there.
+
 Negative σ² or ξ4 (moments just outside the moment space after rounding)
 fall into the same branches: they are projected onto the boundary of the moment
 space, which keeps b1..b3 (or b1) and lowers b4 (or b2). Further outside the
