@@ -73,17 +73,41 @@ def _two_point_weight_error(z, w):
         return 2 * float(np.finfo(np.float64).eps) / sigma**3
 
 
+def _exact_pivots(z, w):
+    """``(σ², ξ4, b4)`` of the distribution (z, w) itself (not of its rounded moments), in 50-digit mpmath."""
+    import mpmath
+
+    with mpmath.workdps(50):
+        zs, ws = [mpmath.mpf(float(x)) for x in z], [mpmath.mpf(float(x)) for x in w]
+        total = mpmath.fsum(ws)
+        b = [mpmath.fsum(wi * zi**k for zi, wi in zip(zs, ws)) / total for k in range(5)]
+        s2 = b[2] - b[1] ** 2
+        xi4 = b[4] - b[2] ** 2 - (b[3] - b[1] * b[2]) ** 2 / s2 if s2 > 0 else mpmath.mpf(0)
+        return float(s2), float(xi4), float(b[4])
+
+
 @given(depth_distributions(kind="random") | depth_distributions(kind="boundary"), depths())
 # Found by the thorough profile: two points 2.3e-4 apart (σ = 1.1e-4, 2 eps/σ³ = 3e-4), equal weights: the
 # bound between them is 0.5000058 in float64 (precise on the same rounded moments: 0.5000083).
 @example(dist=(np.array([0.640625, 0.64039512]), np.array([0.5, 0.5])), zf=-1.0)
+# Found by the thorough profile: 1, 0.999999 and 0.999 (and a weight of 2.4e-4 at 0.999 in the second): ξ4 of
+# 1.8e-19 and 8.5e-17, under float64's unit of b4 (2.2e-16), so the rounded moments have ξ4 < 0 and are those of
+# two points; the bound was 1.2e-6 and 2.4e-4 off Z (precise on the same moments agrees with the kernel).
+@example(dist=(np.array([1.0, 1.0, 0.999999, 0.999]), np.array([8, 8, 8, 5]) / 29.0), zf=-1.0)
+@example(dist=(np.array([1.0, 1.0, 1.0, 1.0, 0.999999, 0.999]),
+               np.array([0.24236548715462916, 0.24236548715462916, 0.24236548715462916, 0.15147842947164322,
+                         0.12118274357731458, 0.00024236548715462916])), zf=-1.0)
 def test_bounds_unbiased_float64(dist, zf):
     # Unbiased float64 moments cannot resolve a support point from zf closer than their
     # rounding (e.g. depths {−1, 7e-18} give the moments of {−1, 0}): zf keeps 1e-6 away.
     # Tolerance UNBIASED_TOL, plus for two points what their rounded moments cannot know of the weights
     # (_two_point_weight_error): depths {1, 1 − 1e-6} (weights 1/3, 2/3) fall into msm's two-point branch with
     # y1 = 0.999004 and a bound 2.2e-7 above Z at zf = 0.999998 (precise on the same input: 2e-16).
+    # Nor a third point whose ξ4 is under a few float64 units of b4 (more than two points, but ξ4 < 16 eps b4):
+    # the rounded moments are then those of two points (or just outside the moment space).
     z, w = dist
+    s2, xi4, b4 = _exact_pivots(z, w)
+    assume(not 0 < xi4 < 16 * float(np.finfo(np.float64).eps) * max(b4, s2))
     zf = np.concatenate([[zf], z + 1e-6, z - 1e-6])
     zf = zf[(np.abs(zf[:, None] - z).min(axis=1) >= 1e-6 * (1 - 1e-9)) & (np.abs(zf) <= 1)]
     b = power_moments(z, w)
