@@ -103,11 +103,11 @@ def test_bounds_unbiased_float64(dist, zf):
     # Tolerance UNBIASED_TOL, plus for two points what their rounded moments cannot know of the weights
     # (_two_point_weight_error): depths {1, 1 − 1e-6} (weights 1/3, 2/3) fall into msm's two-point branch with
     # y1 = 0.999004 and a bound 2.2e-7 above Z at zf = 0.999998 (precise on the same input: 2e-16).
-    # Nor a third point whose ξ4 is under a few float64 units of b4 (more than two points, but ξ4 < 16 eps b4):
+    # Nor a third point whose ξ4 is under two float64 units of b4 (more than two points, but ξ4 < 2 eps b4):
     # the rounded moments are then those of two points (or just outside the moment space).
     z, w = dist
     s2, xi4, b4 = _exact_pivots(z, w)
-    assume(not 0 < xi4 < 16 * float(np.finfo(np.float64).eps) * max(b4, s2))
+    assume(not 0 < xi4 < 2 * float(np.finfo(np.float64).eps) * max(b4, s2))
     zf = np.concatenate([[zf], z + 1e-6, z - 1e-6])
     zf = zf[(np.abs(zf[:, None] - z).min(axis=1) >= 1e-6 * (1 - 1e-9)) & (np.abs(zf) <= 1)]
     b = power_moments(z, w)
