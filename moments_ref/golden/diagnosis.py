@@ -23,7 +23,7 @@ import numpy as np
 from .notes import ROBUSTNESS, cause
 
 __all__ = ["bound_groups", "Group", "groups", "group_lines", "json_rows", "write_json", "target_groups",
-           "convention_groups", "hazard_groups", "PRINTED_MATCH",
+           "convention_groups", "hazard_groups", "PRINTED_MATCH", "PRINTED_ADVICE",
            "unchanged_band", "OFFSET_CANDIDATES", "SAMPLE_ROWS",
            "CLAMP_CANDIDATES"]
 
@@ -283,12 +283,15 @@ def convention_groups(name, verdict, base_arrays, got, profile, port_dtype="floa
     return found + hazard_groups(name, verdict, base_arrays, got, profile, taken)
 
 
+#: Why a printed formulation cancels, and the remedy (:data:`PRINTED_MATCH`; the sweep's ``PRINTED_CAUSE``).
+PRINTED_ADVICE = ("in float32 the printed root -p/2 - sqrt(p^2/4 - q) or Algorithm 1's pivot xi4 from the raw moments "
+                  "(below float32's resolution of b4 after the bias) loses every digit; take the root without "
+                  "cancellation (t = -(q1 + sign(q1) sqrt(disc))/2, z = t/q2 and q0/t) and give xi4 <= 0 the "
+                  "singular branch (or compute the pivots with fma)")
+
 #: The cause of a failing ``printed_hazard`` row whose output is a printed formulation's value there.
-PRINTED_MATCH = ("your result matches the papers' printed formulation, which cancels on this row (hazard): in "
-                 "float32 the printed root -p/2 - sqrt(p^2/4 - q) or Algorithm 1's pivot xi4 from the raw moments "
-                 "(below float32's resolution of b4 after BIAS_FLOAT32) loses every digit; take the root without "
-                 "cancellation (t = -(q1 + sign(q1) sqrt(disc))/2, z = t/q2 and q0/t) and give xi4 <= 0 the "
-                 "singular branch (or compute the pivots with fma)")
+PRINTED_MATCH = ("your result matches the papers' printed formulation, which cancels on this row (hazard): "
+                 + PRINTED_ADVICE)
 
 
 def hazard_groups(name, verdict, base_arrays, got, profile, taken=()):

@@ -51,8 +51,8 @@ import numpy as np
 from .. import precise
 from ..golden.engine import engine_band, engine_reference, legit_biases, moments_of_rows, port_input_evaluations
 
-__all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "MARGIN_ULPS",
-           "NEIGHBOUR_ULPS"]
+__all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "printed_values",
+           "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
 
 #: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
 MARGIN_ULPS = 8
@@ -161,3 +161,24 @@ def confirm(case, inputs, got, port_dtype="float32"):
     g = np.asarray(got["intensity"], np.float64).reshape(n)
     with np.errstate(invalid="ignore"):
         return ~((g >= lo - m) & (g <= hi + m))
+
+
+def printed_values(case, inputs):
+    """The papers' printed Algorithm 1 (the slides' code, Algorithm 1 as printed) in float32 on the port's own
+    input, after its bias inside if declared, as the port reports it (intensity or visibility): a list of
+    ``(n,)`` float64 arrays, NaN where the formulation has no value; uncapped, for the hazard diagnosis
+    (:func:`moments_ref.sweep.judge.printed_rows`). Empty for the NLQ chains (their printed Algorithm 3 runs
+    behind decoding, which the chain's stages cover)."""
+    from ..golden.paper import printed_bound, slides_bound
+    from ..moments import bias_moments
+
+    ctx = case.engine
+    if ctx.get("fmt") is not None:
+        return []
+    b = np.asarray(inputs["b"]).astype(np.float32)
+    zf = np.asarray(inputs["zf"]).astype(np.float32)
+    if ctx.get("inside") is not None:
+        b = bias_moments(b, ctx["inside"])
+    bound = ctx.get("bound", "lower")
+    values = [np.asarray(f(b, zf, bound, np.float32), np.float64) for f in (slides_bound, printed_bound)]
+    return [1 - v for v in values] if ctx.get("visibility") else values

@@ -30,9 +30,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..golden import bands as _bands
+from ..golden.diagnosis import PRINTED_ADVICE as _PRINTED_ADVICE
 from . import engine as _engine
 
-__all__ = ["legitimate_interval", "contract_rows", "wrong_rows", "flagged_rows", "confirm", "judges_ill"]
+__all__ = ["legitimate_interval", "contract_rows", "wrong_rows", "flagged_rows", "confirm", "judges_ill",
+           "printed_rows", "PRINTED_CAUSE"]
 
 
 def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
@@ -122,3 +124,43 @@ def flagged_rows(case, inputs, bands, ill, got, gated=None, port_dtype="float32"
     if look.size:
         flagged[look[_bands.tie_accepted(case, sub(inputs, look), sub(got, look))]] = False
     return flagged
+
+
+#: The cause the sweep prints beside a confirmed row on which the port returns a printed formulation's value.
+PRINTED_CAUSE = ("the papers' printed formulation (the slides' code or the algorithm as printed, in float32 on this "
+                 "input) returns this value too: it cancels on this row, a hazard of the formulation, not a slip of "
+                 "the port; a correct port must not return it (the verdict stands): " + _PRINTED_ADVICE)
+
+
+def printed_rows(case, inputs, got, bands, port_dtype="float32"):
+    """``(n,)`` bool: the rows on which a float32 port returns the value of one of the papers' printed formulations.
+
+    Applied to the rows mpmath confirmed wrong, it says which of them are the printed formulation's own
+    cancellation (docs/sweep.md, "Printed formulations that cancel"): the goldens' rule for their
+    ``printed_hazard`` rows (:func:`moments_ref.golden.diagnosis.hazard_groups`): within the row's tolerance
+    (half its band) of the formulation's value, or, where the formulation has no value (NaN), NaN or an end of
+    the output's range (what ``saturate`` or ``clamp`` make of it). The formulations: for an engine case
+    :func:`moments_ref.sweep.engine.printed_values`, else the case's ``spread_hook.printed`` (Algorithms 1 and
+    3); none for other cases or a float64 port.
+    """
+    n = len(np.asarray(next(iter(inputs.values()))))
+    out = np.zeros(n, bool)
+    if n == 0 or np.dtype(port_dtype) != np.float32 or len(case.outputs) != 1 or case.integer_output:
+        return out
+    if _engine.is_engine(case):
+        values = _engine.printed_values(case, inputs)
+    else:
+        hook = getattr(case.spread_hook, "printed", None)
+        with np.errstate(all="ignore"):
+            values = [] if hook is None else [v[0] for v in hook({k: np.asarray(inputs[k]) for k in case.inputs},
+                                                                   np.dtype(np.float32))]
+    o = case.outputs[0]
+    g = np.asarray(got[o], np.float64).reshape(n, -1)[:, 0]
+    lo, hi = (np.asarray(x, np.float64).reshape(n, -1)[:, 0] for x in bands[o])
+    ends = np.asarray(case.value_range or (0, 1), np.float64)
+    with np.errstate(invalid="ignore"):
+        for h in values:
+            h = np.asarray(h, np.float64).reshape(n, -1)[:, 0]
+            none = ~np.isfinite(h)
+            out |= (~none & (np.abs(g - h) <= (hi - lo) / 2)) | (none & (~np.isfinite(g) | np.isin(g, ends)))
+    return out

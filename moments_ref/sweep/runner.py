@@ -161,11 +161,18 @@ def run_chunk(spec, chunk):
         t["confirm"] += time.perf_counter() - t0
         mask = np.zeros(n, bool)
         mask[confirmed] = True
+        printed = np.zeros(n, bool)  # confirmed rows on which the port returns a printed formulation's value
+        if confirmed.size:
+            pick = lambda d: {k: np.asarray(v)[confirmed] for k, v in d.items()}  # noqa: E731
+            cut = {o: tuple(np.asarray(x)[confirmed] for x in lohi) for o, lohi in bands.items()}
+            printed[confirmed] = judge.printed_rows(case, pick(inputs), pick(got), cut, spec.port_dtype)
         umask = np.zeros(n, bool)
         umask[unconfirmed] = True
         out["drivers"][str(driver)] = {
             "flagged": count(flagged), "examined": int(look.size), "confirmed": count(mask), "unconfirmed": count(umask),
-            "confirmed_rows": [_row(case, params, inputs, got, bands, i) for i in confirmed[:KEEP]],
+            "printed": count(printed),
+            "confirmed_rows": [dict(_row(case, params, inputs, got, bands, i), printed=bool(printed[i]))
+                               for i in confirmed[:KEEP]],
             "unconfirmed_rows": [_row(case, params, inputs, got, bands, i) for i in unconfirmed[:KEEP]],
             "first_confirmed": int(confirmed[0]) + chunk * CHUNK if confirmed.size else None}
     out["seconds"] = t

@@ -1,0 +1,130 @@
+"""The sweep's hazard diagnosis: confirmed rows on which a port returns the papers' printed formulation's own value.
+
+The slides' Algorithm 1 (what most engines ship) cancels in float32 on some engine rows (a pivot
+D33D22 rounding to 0 where a depth sits near the end of the range, docs/sweep.md, "Printed
+formulations that cancel"): those rows stay wrong (a correct port must not return that value) and
+the sweep says whose value it is. Checked against an independent float32 transliteration of the
+engine port the suite reproduces (tests/fixtures/wild/engine01.glsl) and mutants that return
+something else.
+"""
+
+import numpy as np
+import pytest
+
+from moments_ref import golden, moments, oracle
+from moments_ref.golden.paper import printed_shade, slides_bound
+from moments_ref.golden.profile import Bias, Profile
+from moments_ref.sweep import judge
+from moments_ref.sweep.command import make_spec
+from moments_ref.sweep.engine import engine_inputs
+from moments_ref.sweep.runner import Port
+
+ENGINE01 = Profile(depth="[0,1]", output="visibility",
+                   bias=Bias(3e-6, (0.5, 0.34375, 0.265625, 0.2265625), "inside"))
+TARGET = np.array([0.5, 0.34375, 0.265625, 0.2265625], np.float32)
+
+
+def _engine01(b, zf):
+    """tests/fixtures/wild/engine01.glsl in NumPy float32, written apart from golden.paper: the caller's
+    bias ``(1 − α) b + α b*``, the slides' code operation by operation, ``clamp(NaN)`` = 0 as on Mesa, visibility."""
+    f, a = np.float32, np.float32(3e-6)
+    b = (f(1) - a) * np.asarray(b, f) + a * TARGET
+    z0 = np.asarray(zf, f)
+    b0, b1, b2, b3 = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
+    with np.errstate(all="ignore"):
+        l32d22, d22, var2 = -b0 * b1 + b2, -b0 * b0 + b1, -b1 * b1 + b3
+        d33d22 = var2 * d22 + (-l32d22) * l32d22
+        inv = f(1) / d22
+        l32 = l32d22 * inv
+        c1 = z0 - b0
+        c2 = z0 * z0 - (b1 + l32 * c1)
+        c1 = c1 * inv
+        c2 = c2 * (d22 / d33d22)
+        c1 = c1 - l32 * c2
+        c0 = f(1) - (c1 * b0 + c2 * b1)
+        ic = f(1) / c2
+        p, q = c1 * ic, c0 * ic
+        r = np.sqrt(p * p * f(0.25) - q)
+        z1, z2 = -p * f(0.5) - r, -p * f(0.5) + r
+        far, mid = z2 < z0, (z2 >= z0) & (z1 < z0)
+        s0 = np.where(far, z1, np.where(mid, z0, f(0)))
+        s1 = np.where(far, z0, np.where(mid, z1, f(0)))
+        quotient = (s0 * z2 - b0 * (s0 + z2) + b1) / ((z2 - s1) * (z0 - z1))
+        out = np.where(far, f(1), f(0)) + np.where(far | mid, f(1), f(0)) * quotient
+    return (f(1) - np.nan_to_num(np.clip(out, 0, 1), nan=0.0)).astype(f)
+
+
+def _rows(case, depths, weights, zf):
+    """One row per texel, in the papers' frame [−1, 1] (as the sweep draws them), for ``case``."""
+    z = np.array([list(d) + [d[0]] * (6 - len(d)) for d in depths], np.float64)
+    w = np.array([list(v) + [0.0] * (6 - len(v)) for v in weights], np.float64)
+    return engine_inputs(case, z, w, np.asarray(zf, np.float64))
+
+
+def test_the_slides_cancelling_on_an_engine_row_is_named_and_stays_wrong():
+    case = make_spec("engine-lower-float32", Port(fn=_engine01), None, ENGINE01, 0, 10).case
+    # The sweep's shrunk row (docs/sweep.md): depths 0.999866935 and −0.680386793, zf just in front of the first.
+    inputs = _rows(case, [(0.999866935, -0.680386793)], [(0.607114, 0.392886)], [0.999866])
+    d22 = inputs["b"][0, 1] - inputs["b"][0, 0] ** 2
+    assert d22 > 0.1  # not a singular texel: the exact visibility is the occluder at −0.68's weight left over
+    got = _engine01(inputs["b"], inputs["zf"])
+    assert got[0] == 1.0  # the slides' code: D33D22 rounds to 0, NaN, clamped to 0 intensity
+    bands, ill = judge.legitimate_interval(case, inputs)
+    lo, hi = bands["intensity"]
+    assert not ill[0] and lo[0] <= 0.60711 <= hi[0] and hi[0] - lo[0] < 1e-4
+    assert judge.confirm(case, inputs, {"intensity": got})[0]  # wrong, and mpmath says so
+    assert judge.printed_rows(case, inputs, {"intensity": got}, bands)[0]
+    # A wrong value the printed formulation does not give: no excuse named (where it has no value, either end of the
+    # range counts as what a clamp makes of its NaN, as for the goldens' hazard rows).
+    for other in (0.5, 0.2, 0.99):
+        assert not judge.printed_rows(case, inputs, {"intensity": np.float32([other])}, bands)[0]
+    assert not judge.printed_rows(case, inputs, {"intensity": got}, bands, "float64")[0]
+
+
+def test_the_goldens_hazard_row_is_the_printed_formulations_value():
+    """shadow_intensity-lower's ``printed_hazard`` row (one depth −0.9908, zf = −0.98, BIAS_FLOAT32 in float32):
+    the slides' code returns 0 there (D22 cancels), and a port returning it is named; a port returning 0.7 is not."""
+    case = golden.CASES["shadow_intensity-lower-float32"]
+    stored = np.float32([[-0.9908193349838257, 0.9817230105400085, -0.9727101922035217, 0.9637800455093384]])
+    b = moments.bias_moments(stored, moments.BIAS_FLOAT32)
+    inputs = {"b": b, "zf": np.float32([-0.98])}
+    assert np.isnan(slides_bound(b, inputs["zf"])[0])
+    bands, _ = judge.legitimate_interval(case, inputs)
+    lo, _ = bands["intensity"]
+    assert lo[0] > 0.9  # the bound is about 0.9998
+    assert judge.printed_rows(case, inputs, {"intensity": np.float32([0.0])}, bands)[0]
+    assert not judge.printed_rows(case, inputs, {"intensity": np.float32([0.7])}, bands)[0]
+
+
+def test_a_finite_printed_value_is_matched_within_the_rows_tolerance():
+    """shade's hazard row (y1 = 0.1, y2 = 0.10001, v2 = 0.5, ξ4 = 1e-6, zf just below y2): HPG17's printed root of
+    Algorithm 3 cancels to 0.5 where the bound is 0.265; a port within the row's tolerance of 0.5 is named, one
+    farther from it is not."""
+    case = golden.CASES["shade-float32"]
+    inputs = {"r": np.float32([[0.1, 0.10001, 0.5, 1e-6]]), "zf": np.float32([0.10000800341367722])}
+    h = float(printed_shade(inputs["r"], inputs["zf"])[0])
+    bands, _ = judge.legitimate_interval(case, inputs)
+    lo, hi = (float(x[0]) for x in bands["intensity"])
+    assert lo <= 0.2651 <= hi and not lo <= h <= hi  # the printed value lies outside the band
+    half = (hi - lo) / 2
+    for got, named in ((h, True), (h + 0.6 * half, True), (h - 0.6 * half, True), (h + 1.5 * half, False), (0.4, False)):
+        assert judge.printed_rows(case, inputs, {"intensity": np.float32([got])}, bands)[0] == named, got
+
+
+@pytest.mark.parametrize("mutant", [False, True], ids=["slides", "slides-plus-0.01"])
+def test_a_sweep_counts_and_names_the_printed_hazard(mutant):
+    """20 000 engine rows of the engine01 profile: the slides' port fails only rows where the printed formulation
+    cancels, every one of them named so; a mutant off by 0.01 fails rows no formulation explains."""
+    port = (lambda b, zf: np.clip(_engine01(b, zf) + np.float32(0.01), 0, 1)) if mutant else _engine01
+    res = oracle.sweep(port, "engine-lower-float32", rows=20000, seed=0, shrink=True, profile=ENGINE01)
+    d = next(iter(res.drivers.values()))
+    assert not res.passed and d["confirmed"] > 0
+    text = res.format()
+    if mutant:
+        assert d["printed"] < d["confirmed"]
+        assert all(not f.get("printed") or f["got"]["intensity"] in (0.0, 1.0) for f in res.failures)
+    else:
+        assert d["printed"] == d["confirmed"] == d["examined"]  # every flag confirmed, every one the printed value
+        assert all(f.get("printed") for f in res.failures)  # the shrunk rows too
+        assert f"({d['confirmed']} of them the papers' printed formulation's own value" in text
+        assert judge.PRINTED_CAUSE in text
