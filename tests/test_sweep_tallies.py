@@ -72,7 +72,7 @@ def test_rows_flagged_and_confirmed_are_counted_exactly_at_the_chunk_boundaries(
     assert d["first_confirmed"] == 0
     want = sum(_strata(3, c, n, positions) for c, n in ((0, 40), (1, 40), (2, 20)))
     for s, k in zip(STRATA, want):
-        assert d["per_stratum"][s] == {"flagged": k, "confirmed": k, "unconfirmed": 0, "printed": 0}
+        assert d["per_stratum"][s] == {"flagged": k, "confirmed": k, "unconfirmed": 0, "printed": 0, "envelope": 0}
     assert sum(v["rows"] for v in res.strata.values()) == 100
     rows = [sum(r) for r in zip(*(np.bincount(draw_rows(golden.CASES[CASE], 3, c, n)["stratum"],
                                               minlength=len(STRATA)) for c, n in ((0, 40), (1, 40), (2, 20))))]

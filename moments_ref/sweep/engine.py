@@ -51,7 +51,7 @@ import numpy as np
 from .. import precise
 from ..golden.engine import engine_band, engine_reference, legit_biases, moments_of_rows, port_input_evaluations
 
-__all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "printed_values",
+__all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "printed_values", "rounding_envelope",
            "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
 
 #: Confirmation's widening, in ulps of 1 in the port's precision (the band model's floor, golden.bands.FLOOR_ULPS).
@@ -182,3 +182,21 @@ def printed_values(case, inputs):
     bound = ctx.get("bound", "lower")
     values = [np.asarray(f(b, zf, bound, np.float32), np.float64) for f in (slides_bound, printed_bound)]
     return [1 - v for v in values] if ctx.get("visibility") else values
+
+
+def rounding_envelope(case, inputs):
+    """``(lo, hi)`` of the slides' code over arrangements rounding each operation differently
+    (:func:`moments_ref.golden.paper.slides_envelope`) on the port's own input and its bias inside if declared,
+    as the port reports it, widened by :data:`MARGIN_ULPS`; None for the NLQ chains."""
+    from ..golden.paper import slides_envelope
+
+    ctx = case.engine
+    if ctx.get("fmt") is not None:
+        return None
+    inside = ctx.get("inside")
+    bias = None if inside is None else (inside.alpha, inside.target)
+    lo, hi = slides_envelope(inputs["b"], inputs["zf"], ctx.get("bound", "lower"), bias)
+    if ctx.get("visibility"):
+        lo, hi = 1 - hi, 1 - lo
+    m = MARGIN_ULPS * float(np.finfo(np.float32).eps)
+    return lo - m, hi + m

@@ -34,7 +34,7 @@ from ..golden.diagnosis import PRINTED_ADVICE as _PRINTED_ADVICE
 from . import engine as _engine
 
 __all__ = ["legitimate_interval", "contract_rows", "wrong_rows", "flagged_rows", "confirm", "judges_ill",
-           "printed_rows", "PRINTED_CAUSE"]
+           "printed_rows", "envelope_rows", "PRINTED_CAUSE", "ENVELOPE_CAUSE"]
 
 
 def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
@@ -164,3 +164,41 @@ def printed_rows(case, inputs, got, bands, port_dtype="float32"):
             none = ~np.isfinite(h)
             out |= (~none & (np.abs(g - h) <= (hi - lo) / 2)) | (none & (~np.isfinite(g) | np.isin(g, ends)))
     return out
+
+
+#: The cause the sweep prints beside a confirmed row whose value lies in the printed formulation's rounding envelope.
+ENVELOPE_CAUSE = ("the slides' code, with each operation rounded one ulp either way as another arrangement of it (a "
+                  "compiler's reassociation, a reciprocal for a quotient) may round it, spans this value: on this row "
+                  "the formulation, not the input, is ill-conditioned, and the band does not hold those arrangements "
+                  "yet (docs/sweep.md, \"Known gap\"). For a port of the slides' code the row may be a wrong verdict; "
+                  "any port's deviation here is no larger than that code's own rounding. The verdict stands")
+
+
+def envelope_rows(case, inputs, got, port_dtype="float32"):
+    """``(n,)`` bool: the rows on which a float32 port's value lies within the rounding envelope of the slides' code.
+
+    The envelope (:func:`moments_ref.golden.paper.slides_envelope`, widened by the confirmation's margin) spans the
+    code as written and 256 arrangements with each operation's result one float32 ulp up, down or unchanged, on
+    the port's own input (an engine case's bias inside applied). Applied to the confirmed rows that are not a
+    printed formulation's own value (:func:`printed_rows`), it tells the known gap of the tolerance model from a
+    port's deviation. Algorithm 1's cases only (the engine cases of Algorithm 1, ``shadow_intensity-*``).
+    """
+    n = len(np.asarray(next(iter(inputs.values()))))
+    out = np.zeros(n, bool)
+    if n == 0 or np.dtype(port_dtype) != np.float32:
+        return out
+    if _engine.is_engine(case):
+        span = _engine.rounding_envelope(case, inputs)
+    elif case.name.startswith("shadow_intensity-") and getattr(case.spread_hook, "printed", None) is not None:
+        from ..golden.paper import slides_envelope
+
+        lo, hi = slides_envelope(inputs["b"], inputs["zf"], "upper" if "-upper" in case.name else "lower")
+        m = _engine.MARGIN_ULPS * float(np.finfo(np.float32).eps)
+        span = (lo - m, hi + m)
+    else:
+        span = None
+    if span is None:
+        return out
+    g = np.asarray(got[case.outputs[0]], np.float64).reshape(n)
+    with np.errstate(invalid="ignore"):
+        return (g >= span[0]) & (g <= span[1])

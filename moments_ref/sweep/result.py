@@ -52,8 +52,12 @@ class SweepResult:
         lines = [f"sweep {self.case}: {self.rows} rows, seed {self.seed}, {self.wall_s:.1f} s"]
         why = "unconfirmed flags (a defect of the tolerance model, not of the port)"
         for d, c in self.drivers.items():
-            hazard = (f" ({c['printed']} of them the papers' printed formulation's own value, which cancels there)"
-                      if c.get("printed") else "")
+            named = [f"{c['printed']} of them the papers' printed formulation's own value, which cancels there"
+                     ] if c.get("printed") else []
+            if c.get("envelope"):
+                named.append(f"{c['envelope']} within the slides' code's rounding envelope: the tolerance model's "
+                             "known gap")
+            hazard = f" ({'; '.join(named)})" if named else ""
             lines.append(f"  driver {d}: {c['flagged']} flagged, {c['confirmed']} confirmed wrong (mpmath){hazard}, "
                          f"{c['unconfirmed']} {why}, "
                          f"{c['flagged'] - c['examined']} flagged beyond the confirmation cap; first confirmed row "
@@ -70,6 +74,10 @@ class SweepResult:
             from .judge import PRINTED_CAUSE
 
             lines += ["", "printed formulation: on the rows counted above as its own value, " + PRINTED_CAUSE]
+        if any(c.get("envelope") for c in self.drivers.values()):
+            from .judge import ENVELOPE_CAUSE
+
+            lines += ["", "rounding envelope: on the rows counted above as within it, " + ENVELOPE_CAUSE]
         for f in self.unconfirmed_examples[:2]:
             lines += ["", "unconfirmed flag (tolerance model): " + describe(f)]
         return "\n".join(lines)
@@ -89,6 +97,8 @@ def describe(f):
     out.append(f"  inputs: {f['inputs']}")
     if f.get("printed"):
         out.append("  cause: the papers' printed formulation returns this value too (a hazard of the formulation, below)")
+    elif f.get("envelope"):
+        out.append("  cause: within the slides' code's rounding envelope (the tolerance model's known gap, below)")
     if "dispatches" in f:
         out.append(f"  shrunk in {f['dispatches']} dispatches; rerun: {f.get('row_file', '')}")
     return "\n".join(out)
@@ -105,11 +115,13 @@ def _merge(spec, chunks):
         for k, v in c["seconds"].items():
             seconds[k] += v
         for d, r in c["drivers"].items():
-            m = drivers.setdefault(d, {"flagged": 0, "confirmed": 0, "unconfirmed": 0, "printed": 0, "examined": 0,
+            m = drivers.setdefault(d, {"flagged": 0, "confirmed": 0, "unconfirmed": 0, "printed": 0, "envelope": 0,
+                                       "examined": 0,
                                        "first_confirmed": None, "per_stratum": {s: dict.fromkeys(
-                                           ("flagged", "confirmed", "unconfirmed", "printed"), 0) for s in STRATA},
+                                           ("flagged", "confirmed", "unconfirmed", "printed", "envelope"), 0)
+                                           for s in STRATA},
                                        "rows": [], "unconfirmed_rows": []})
-            for k in ("flagged", "confirmed", "unconfirmed", "printed"):
+            for k in ("flagged", "confirmed", "unconfirmed", "printed", "envelope"):
                 m[k] += sum(r.get(k, ()))  # "printed": not in a checkpoint written before the hazard diagnosis
                 for s, v in zip(STRATA, r.get(k, ())):
                     m["per_stratum"][s][k] += v
@@ -151,12 +163,14 @@ def _shrunk(spec, driver, row, out, k):
     texel, judged, dispatches = shrink(spec, drv, row["texel"])
     f = dict(row, **(judged or {}), texel=texel, dispatches=dispatches, original=row["texel"])
     if judged:  # the shrunk row's own diagnosis
-        from .judge import printed_rows
+        from .judge import envelope_rows, printed_rows
 
         one = lambda d: {k: np.asarray([v]) for k, v in d.items()}  # noqa: E731
         cut = {o: (np.asarray([judged["lo"][o]]), np.asarray([judged["hi"][o]])) for o in judged["lo"]}
         f["printed"] = bool(printed_rows(spec.case, one(judged["inputs"]), one(judged["got"]), cut,
                                          spec.port_dtype)[0])
+        f["envelope"] = not f["printed"] and bool(envelope_rows(spec.case, one(judged["inputs"]), one(judged["got"]),
+                                                                spec.port_dtype)[0])
     if out is not None:
         from ..golden.writer import write_rows
 

@@ -166,13 +166,18 @@ def run_chunk(spec, chunk):
             pick = lambda d: {k: np.asarray(v)[confirmed] for k, v in d.items()}  # noqa: E731
             cut = {o: tuple(np.asarray(x)[confirmed] for x in lohi) for o, lohi in bands.items()}
             printed[confirmed] = judge.printed_rows(case, pick(inputs), pick(got), cut, spec.port_dtype)
+        envelope = np.zeros(n, bool)  # the others within the slides' code's rounding envelope: the known gap
+        rest = confirmed[~printed[confirmed]]
+        if rest.size:
+            pick = lambda d: {k: np.asarray(v)[rest] for k, v in d.items()}  # noqa: E731
+            envelope[rest] = judge.envelope_rows(case, pick(inputs), pick(got), spec.port_dtype)
         umask = np.zeros(n, bool)
         umask[unconfirmed] = True
         out["drivers"][str(driver)] = {
             "flagged": count(flagged), "examined": int(look.size), "confirmed": count(mask), "unconfirmed": count(umask),
-            "printed": count(printed),
-            "confirmed_rows": [dict(_row(case, params, inputs, got, bands, i), printed=bool(printed[i]))
-                               for i in confirmed[:KEEP]],
+            "printed": count(printed), "envelope": count(envelope),
+            "confirmed_rows": [dict(_row(case, params, inputs, got, bands, i), printed=bool(printed[i]),
+                                    envelope=bool(envelope[i])) for i in confirmed[:KEEP]],
             "unconfirmed_rows": [_row(case, params, inputs, got, bands, i) for i in unconfirmed[:KEEP]],
             "first_confirmed": int(confirmed[0]) + chunk * CHUNK if confirmed.size else None}
     out["seconds"] = t
