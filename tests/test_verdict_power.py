@@ -93,7 +93,7 @@ EXAMPLES = [
     (DIAGNOSIS, "_candidates::'receiver_depth' in usable -> 'receiver_depth' not in usable#0",
      advice.test_a_ports_known_convention_is_named_on_every_failing_row_and_declaring_it_passes,
      ("tmp_path", "receiver in [0, 1]")),
-    (DIAGNOSIS, "target_groups::len(support) == 1 -> len(support) != 1#0",
+    (DIAGNOSIS, "singular_target_cause::len(support) == 1 -> len(support) != 1#0",
      advice.test_a_singular_target_is_named_on_exactly_the_rows_it_leaves_singular,
      ("[-1,1]", [(0.3, 1.0)], "intensity", "1·δ(0.3), a one-point distribution", 3e-6)),
 ]

@@ -23,7 +23,7 @@ import numpy as np
 from .notes import ROBUSTNESS, cause
 
 __all__ = ["bound_groups", "Group", "groups", "group_lines", "json_rows", "write_json", "target_groups",
-           "convention_groups", "hazard_groups", "PRINTED_MATCH", "PRINTED_ADVICE",
+           "convention_groups", "hazard_groups", "PRINTED_MATCH", "PRINTED_ADVICE", "singular_target_cause",
            "unchanged_band", "OFFSET_CANDIDATES", "SAMPLE_ROWS",
            "CLAMP_CANDIDATES"]
 
@@ -120,12 +120,17 @@ def target_groups(verdict, arrays, declared, ctx):
     hit = [int(i) for i in np.flatnonzero(fail & own & ~legit)]
     if not hit:
         return []
+    return [Group("target", f"bias target {list(declared.target)}", hit, singular_target_cause(support))]
+
+
+def singular_target_cause(support):
+    """Why a bias toward a singular target fails: ``support`` is its unique distribution ((z, w) pairs,
+    :func:`moments_ref.golden.engine.target_support`)."""
     what = " + ".join(f"{w:.3g}·δ({round(z, 9):.3g})" for z, w in support)
     kind = "a one-point" if len(support) == 1 else "a two-point"
-    return [Group("target", f"bias target {list(declared.target)}", hit,
-                  f"the bias target is singular: the moments of {what}, {kind} distribution on the boundary of the "
-                  "moment space; distributions on or near its support stay (nearly) singular after biasing, where "
-                  "the bound divides by zero (with a target strictly inside the moment space these rows pass)")]
+    return (f"the bias target is singular: the moments of {what}, {kind} distribution on the boundary of the "
+            "moment space; distributions on or near its support stay (nearly) singular after biasing, where "
+            "the bound divides by zero (with a target strictly inside the moment space these rows pass)")
 
 
 def _plain(x):

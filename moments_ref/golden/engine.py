@@ -78,7 +78,7 @@ from .contract import PD_MIN, hankel_above
 
 __all__ = ["engine_specs", "LEGIT_TARGETS", "derive_engine", "engine_band", "singular_target_rows", "target_support", "moments_of_rows",
            "legit_biases", "papers_chain32", "engine_interval", "case_noise", "port_input_evaluations", "CAP",
-           "NEIGHBOUR_ULPS"]
+           "NEIGHBOUR_ULPS", "own_bias_is_legitimate"]
 
 #: Targets strictly inside the moment space (papers' frame): the presets' and the uniform distribution's.
 LEGIT_TARGETS = ((0.0, 0.375, 0.0, 0.375), (0.0, 0.628, 0.0, 0.628), (0.0, 1 / 3, 0.0, 0.2),
@@ -272,6 +272,12 @@ def _own_pipeline(ctx, legit):
     """The port's own bias (its caller's, or inside its function; None: it biases nothing), if legitimate."""
     own = ctx.get("before") if ctx.get("before") is not None else ctx.get("inside")
     return own is None or any(_same_bias(own, p) for p in legit)
+
+
+def own_bias_is_legitimate(ctx):
+    """Whether the port's own bias (its caller's or inside its function) is one of :func:`legit_biases`: a bias
+    toward a singular target is not, and then nothing evaluated with it is a legitimate value."""
+    return _own_pipeline(ctx, legit_biases(ctx))
 
 
 def _across_depth(sup, mass, zf, dt):

@@ -112,14 +112,16 @@ def _slides_nudged(b, z0, bound, r, bias):
     return np.where(np.isnan(out), out, np.clip(out, 0, 1))
 
 
-def slides_envelope(b, zf, bound="lower", bias=None, draws=ENVELOPE_DRAWS):
+def slides_envelope(b, zf, bound="lower", bias=None, draws=ENVELOPE_DRAWS, ref=None, cap=None):
     """``(lo, hi)`` of the slides' code in float32 over arrangements that round each operation differently.
 
     The code as written, and ``draws`` evaluations in which the float32 result of each operation is moved by
     −1, 0 or +1 ulp (a fixed table per operation, seeded, the same for every row, so that a row's envelope
     depends on that row alone): the rounding a compiler's reassociation, a reciprocal in place of a quotient
     or another order of a sum gives a formulation that cancels. ``bias``: ``(α, b*)`` applied first, as an
-    engine biasing inside does. float64 arrays, NaN where no arrangement has a value. A diagnosis of the sweep
+    engine biasing inside does. With ``ref`` and ``cap``, an arrangement counts on a row only within ``cap`` of
+    ``ref`` there (the band model's rule for a legitimate evaluation: one that cancels beyond the cap explains
+    nothing). float64 arrays, NaN where no arrangement counts. A diagnosis of the sweep
     (:func:`moments_ref.sweep.judge.envelope_rows`), not a band: the goldens and the sweep's bands do not hold
     it (docs/sweep.md, "Known gap").
     """
@@ -138,6 +140,8 @@ def slides_envelope(b, zf, bound="lower", bias=None, draws=ENVELOPE_DRAWS):
                 return x if d == 0 else np.nextafter(x, np.float32(np.inf if d > 0 else -np.inf))
 
             v = _slides_nudged(b, z0, bound, r, bias).astype(np.float64)
+            if cap is not None:
+                v = np.where(np.abs(v - ref) <= cap, v, np.nan)
             lo, hi = np.fmin(lo, v), np.fmax(hi, v)
     none = ~np.isfinite(lo)
     return np.where(none, np.nan, lo), np.where(none, np.nan, hi)

@@ -49,7 +49,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import precise
-from ..golden.engine import engine_band, engine_reference, legit_biases, moments_of_rows, port_input_evaluations
+from ..golden.engine import (CAP, engine_band, engine_reference, legit_biases, moments_of_rows, own_bias_is_legitimate,
+                             port_input_evaluations)
 
 __all__ = ["is_engine", "engine_inputs", "band", "interval", "exact_span", "confirm", "printed_values", "rounding_envelope",
            "MARGIN_ULPS", "NEIGHBOUR_ULPS"]
@@ -123,21 +124,25 @@ def exact_span(case, inputs, port_dtype=None):
     ctx = case.engine
     sup, mass = np.asarray(inputs["support"], np.float64), np.asarray(inputs["mass"], np.float64)
     zf = np.asarray(inputs["zf"], np.float64)
-    values = [v for p in legit_biases(ctx) for v in _exact(ctx, moments_of_rows(sup, mass, np.dtype(np.float64),
-                                                                                bias=p), zf)]
+    legit = legit_biases(ctx)
+    values = [v for p in legit for v in _exact(ctx, moments_of_rows(sup, mass, np.dtype(np.float64), bias=p), zf)]
     b = np.asarray(inputs["b"])
     eps = float(np.finfo(b.dtype).eps)
+    # the port's input under its own bias inside; under the legitimate ones instead where its own is not (a singular
+    # target), as the band takes the port's own pipeline only where its bias is legitimate (derive_engine)
+    own = own_bias_is_legitimate(ctx)
+    inside = ctx.get("inside")
+    biases = [inside] if inside is None or own else legit
     for f in [1.0] + [1 + s * k * eps for k in range(1, NEIGHBOUR_ULPS + 1) for s in (1, -1)]:
         bk = (b.astype(np.float64) * f).astype(b.dtype).astype(np.float64)
         zk = (zf * f).astype(b.dtype).astype(np.float64)
-        if ctx.get("inside") is not None:
-            bk = precise.bias_moments(bk, ctx["inside"])
-        values.extend(_exact(ctx, bk, zk))
+        for p in biases:
+            values.extend(_exact(ctx, bk if p is None else precise.bias_moments(bk, p), zk))
     v = np.stack(values)
     lo, hi = v.min(axis=0), v.max(axis=0)
     if ctx.get("visibility"):
         lo, hi = 1 - hi, 1 - lo
-    if ctx.get("fmt") is not None:  # legitimate float evaluations, already in the port's output convention
+    if ctx.get("fmt") is not None and own:  # legitimate float evaluations, already in the port's output convention
         ref = engine_reference(ctx)
         own = [np.asarray(ref(b.astype(d), np.asarray(inputs["zf"]).astype(d))[0], np.float64)
                for d in (b.dtype, np.float64)]
@@ -145,7 +150,7 @@ def exact_span(case, inputs, port_dtype=None):
     # the shipped ports' float32 evaluation on the port's input, as the goldens' confirm takes the legitimate
     # evaluations (within the cap of the exact value: golden.engine.port_input_evaluations)
     float32_port = np.dtype(case.dtype if port_dtype is None else port_dtype) == np.float32
-    for v in port_input_evaluations(ctx, b, inputs["zf"]) if float32_port else ():
+    for v in port_input_evaluations(ctx, b, inputs["zf"]) if float32_port and own else ():
         v = 1 - v if ctx.get("visibility") else v
         lo, hi = np.fmin(lo, v), np.fmax(hi, v)
     return lo, hi
@@ -173,7 +178,7 @@ def printed_values(case, inputs):
     from ..moments import bias_moments
 
     ctx = case.engine
-    if ctx.get("fmt") is not None:
+    if ctx.get("fmt") is not None or not own_bias_is_legitimate(ctx):  # a singular target: its own cause
         return []
     b = np.asarray(inputs["b"]).astype(np.float32)
     zf = np.asarray(inputs["zf"]).astype(np.float32)
@@ -187,15 +192,21 @@ def printed_values(case, inputs):
 def rounding_envelope(case, inputs):
     """``(lo, hi)`` of the slides' code over arrangements rounding each operation differently
     (:func:`moments_ref.golden.paper.slides_envelope`) on the port's own input and its bias inside if declared,
-    as the port reports it, widened by :data:`MARGIN_ULPS`; None for the NLQ chains."""
+    each within the band's cap of this package's float64 value of that input (an arrangement that cancels
+    beyond it explains nothing), as the port reports it, widened by :data:`MARGIN_ULPS`; None for the NLQ
+    chains and for a singular bias target."""
     from ..golden.paper import slides_envelope
 
     ctx = case.engine
-    if ctx.get("fmt") is not None:
+    if ctx.get("fmt") is not None or not own_bias_is_legitimate(ctx):
         return None
     inside = ctx.get("inside")
     bias = None if inside is None else (inside.alpha, inside.target)
-    lo, hi = slides_envelope(inputs["b"], inputs["zf"], ctx.get("bound", "lower"), bias)
+    b, zf = np.asarray(inputs["b"]), np.asarray(inputs["zf"])
+    ref = np.asarray(engine_reference(ctx)(b.astype(np.float64), zf.astype(np.float64))[0], np.float64)
+    if ctx.get("visibility"):  # engine_reference reports as the port does; the slides' code gives intensities
+        ref = 1 - ref
+    lo, hi = slides_envelope(b, zf, ctx.get("bound", "lower"), bias, ref=ref, cap=CAP)
     if ctx.get("visibility"):
         lo, hi = 1 - hi, 1 - lo
     m = MARGIN_ULPS * float(np.finfo(np.float32).eps)

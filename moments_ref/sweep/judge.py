@@ -181,7 +181,9 @@ def envelope_rows(case, inputs, got, port_dtype="float32"):
     code as written and 256 arrangements with each operation's result one float32 ulp up, down or unchanged, on
     the port's own input (an engine case's bias inside applied). Applied to the confirmed rows that are not a
     printed formulation's own value (:func:`printed_rows`), it tells the known gap of the tolerance model from a
-    port's deviation. Algorithm 1's cases only (the engine cases of Algorithm 1, ``shadow_intensity-*``).
+    port's deviation. An arrangement counts only within the band's cap of this package's float64 value on that
+    input (the band model's rule: one that cancels beyond it explains nothing). Algorithm 1's cases only (the
+    engine cases of Algorithm 1, ``shadow_intensity-*``).
     """
     n = len(np.asarray(next(iter(inputs.values()))))
     out = np.zeros(n, bool)
@@ -192,7 +194,11 @@ def envelope_rows(case, inputs, got, port_dtype="float32"):
     elif case.name.startswith("shadow_intensity-") and getattr(case.spread_hook, "printed", None) is not None:
         from ..golden.paper import slides_envelope
 
-        lo, hi = slides_envelope(inputs["b"], inputs["zf"], "upper" if "-upper" in case.name else "lower")
+        from ..msm import shadow_intensity
+
+        bound = "upper" if "-upper" in case.name else "lower"
+        ref = shadow_intensity(np.asarray(inputs["b"], np.float64), np.asarray(inputs["zf"], np.float64), bound)
+        lo, hi = slides_envelope(inputs["b"], inputs["zf"], bound, ref=ref, cap=_bands.CAP)
         m = _engine.MARGIN_ULPS * float(np.finfo(np.float32).eps)
         span = (lo - m, hi + m)
     else:

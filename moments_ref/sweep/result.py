@@ -32,6 +32,7 @@ class SweepResult:
     failures: list = field(default_factory=list)
     unconfirmed_examples: list = field(default_factory=list)
     wall_s: float = 0.0
+    notes: list = field(default_factory=list)  # causes that hold for the whole sweep (a singular bias target)
 
     @property
     def confirmed(self):
@@ -46,7 +47,8 @@ class SweepResult:
         rate = {k: (self.rows / v if v > 0 else None) for k, v in self.seconds.items()}
         return {"case": self.case, "rows": self.rows, "seed": self.seed, "passed": self.passed,
                 "strata": self.strata, "drivers": self.drivers, "seconds": self.seconds, "rows_per_s": rate,
-                "wall_s": self.wall_s, "failures": self.failures, "unconfirmed_examples": self.unconfirmed_examples}
+                "wall_s": self.wall_s, "failures": self.failures, "unconfirmed_examples": self.unconfirmed_examples,
+                "notes": self.notes}
 
     def format(self):
         lines = [f"sweep {self.case}: {self.rows} rows, seed {self.seed}, {self.wall_s:.1f} s"]
@@ -78,6 +80,8 @@ class SweepResult:
             from .judge import ENVELOPE_CAUSE
 
             lines += ["", "rounding envelope: on the rows counted above as within it, " + ENVELOPE_CAUSE]
+        if self.notes and not self.passed:
+            lines += [""] + [f"cause: {n}" for n in self.notes]
         for f in self.unconfirmed_examples[:2]:
             lines += ["", "unconfirmed flag (tolerance model): " + describe(f)]
         return "\n".join(lines)
@@ -155,7 +159,21 @@ def sweep_port(spec, workers=1, scheduler=None, out=None, progress=None, shrink_
         for f in failures + unconfirmed:
             f["labels"] = {"intensity": "visibility"}
     return SweepResult(spec.case.name, spec.rows, spec.seed, strata, drivers, seconds, failures, unconfirmed,
-                       time.perf_counter() - t0)
+                       time.perf_counter() - t0, _notes(spec.case))
+
+
+def _notes(case):
+    """The causes that hold for every row of the sweep: a declared bias target that is singular (the goldens'
+    diagnosis, :func:`moments_ref.golden.diagnosis.target_groups`), which the band replaces by the legitimate ones."""
+    ctx = case.engine or {}
+    inside = ctx.get("inside")
+    if not case.name.startswith("engine-") or inside is None:
+        return []
+    from ..golden.diagnosis import singular_target_cause
+    from ..golden.engine import target_support
+
+    support = target_support(inside.target)  # in the engine's frame, as the goldens' diagnosis names it
+    return [] if support is None else [f"bias target {list(inside.target)}: " + singular_target_cause(support)]
 
 
 def _shrunk(spec, driver, row, out, k):
