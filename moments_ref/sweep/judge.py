@@ -34,7 +34,7 @@ from ..golden.diagnosis import PRINTED_ADVICE as _PRINTED_ADVICE
 from . import engine as _engine
 
 __all__ = ["legitimate_interval", "contract_rows", "wrong_rows", "flagged_rows", "confirm", "judges_ill",
-           "printed_rows", "envelope_rows", "PRINTED_CAUSE", "ENVELOPE_CAUSE"]
+           "printed_rows", "envelope_rows", "named_rows", "PRINTED_CAUSE", "ENVELOPE_CAUSE"]
 
 
 def legitimate_interval(case, inputs, port_dtype="float32", contract=None):
@@ -208,3 +208,15 @@ def envelope_rows(case, inputs, got, port_dtype="float32"):
     g = np.asarray(got[case.outputs[0]], np.float64).reshape(n)
     with np.errstate(invalid="ignore"):
         return (g >= span[0]) & (g <= span[1])
+
+
+def named_rows(case, inputs, got, bands, port_dtype="float32"):
+    """``(printed, envelope)``, ``(n,)`` bool each, of confirmed rows: the printed formulation's own value
+    (:func:`printed_rows`), else within the slides' code's rounding envelope (:func:`envelope_rows`)."""
+    printed = printed_rows(case, inputs, got, bands, port_dtype)
+    envelope = np.zeros_like(printed)
+    rest = np.flatnonzero(~printed)
+    if rest.size:
+        pick = lambda d: {k: np.asarray(v)[rest] for k, v in d.items()}  # noqa: E731
+        envelope[rest] = envelope_rows(case, pick(inputs), pick(got), port_dtype)
+    return printed, envelope

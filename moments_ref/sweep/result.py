@@ -181,14 +181,12 @@ def _shrunk(spec, driver, row, out, k):
     texel, judged, dispatches = shrink(spec, drv, row["texel"])
     f = dict(row, **(judged or {}), texel=texel, dispatches=dispatches, original=row["texel"])
     if judged:  # the shrunk row's own diagnosis
-        from .judge import envelope_rows, printed_rows
+        from .judge import named_rows
 
         one = lambda d: {k: np.asarray([v]) for k, v in d.items()}  # noqa: E731
         cut = {o: (np.asarray([judged["lo"][o]]), np.asarray([judged["hi"][o]])) for o in judged["lo"]}
-        f["printed"] = bool(printed_rows(spec.case, one(judged["inputs"]), one(judged["got"]), cut,
-                                         spec.port_dtype)[0])
-        f["envelope"] = not f["printed"] and bool(envelope_rows(spec.case, one(judged["inputs"]), one(judged["got"]),
-                                                                spec.port_dtype)[0])
+        printed, envelope = named_rows(spec.case, one(judged["inputs"]), one(judged["got"]), cut, spec.port_dtype)
+        f["printed"], f["envelope"] = bool(printed[0]), bool(envelope[0])
     if out is not None:
         from ..golden.writer import write_rows
 

@@ -161,16 +161,14 @@ def run_chunk(spec, chunk):
         t["confirm"] += time.perf_counter() - t0
         mask = np.zeros(n, bool)
         mask[confirmed] = True
-        printed = np.zeros(n, bool)  # confirmed rows on which the port returns a printed formulation's value
+        # confirmed rows on which the port returns a printed formulation's value, or one within the slides' code's
+        # rounding envelope (the tolerance model's known gap)
+        printed, envelope = np.zeros(n, bool), np.zeros(n, bool)
         if confirmed.size:
             pick = lambda d: {k: np.asarray(v)[confirmed] for k, v in d.items()}  # noqa: E731
             cut = {o: tuple(np.asarray(x)[confirmed] for x in lohi) for o, lohi in bands.items()}
-            printed[confirmed] = judge.printed_rows(case, pick(inputs), pick(got), cut, spec.port_dtype)
-        envelope = np.zeros(n, bool)  # the others within the slides' code's rounding envelope: the known gap
-        rest = confirmed[~printed[confirmed]]
-        if rest.size:
-            pick = lambda d: {k: np.asarray(v)[rest] for k, v in d.items()}  # noqa: E731
-            envelope[rest] = judge.envelope_rows(case, pick(inputs), pick(got), spec.port_dtype)
+            printed[confirmed], envelope[confirmed] = judge.named_rows(case, pick(inputs), pick(got), cut,
+                                                                       spec.port_dtype)
         umask = np.zeros(n, bool)
         umask[unconfirmed] = True
         out["drivers"][str(driver)] = {
