@@ -314,7 +314,7 @@ def test_the_algorithm_3_spread_hook_built_afresh_is_the_printed_formula():
 def test_kept_mutants_the_cholesky_roots_sign_choice_and_the_slides_switch_are_seen():
     from _mutants import kept_mutant
 
-    for mid, name in (("cholesky_bound::q1 < 0 -> q1 <= 0#0", "cholesky"), ("slides_bound::0 -> 1#3", "slides")):
+    for mid, name in (("cholesky_bound::q1 < 0 -> q1 <= 0#0", "cholesky"), ("_slides_nudged::0 -> 1#2", "slides")):
         with kept_mutant("moments_ref/golden/paper.py", mid):
             with pytest.raises(AssertionError):
                 test_each_algorithm_1_formulation_is_the_printed_formula_bit_for_bit(name, "lower", np.float32)

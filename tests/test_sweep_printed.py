@@ -25,8 +25,16 @@ TARGET = np.array([0.5, 0.34375, 0.265625, 0.2265625], np.float32)
 
 
 def _engine01(b, zf):
-    """tests/fixtures/wild/engine01.glsl in NumPy float32, written apart from golden.paper: the caller's
-    bias ``(1 − α) b + α b*``, the slides' code operation by operation, ``clamp(NaN)`` = 0 as on Mesa, visibility."""
+    """tests/fixtures/wild/engine01.glsl in NumPy float32: :func:`_engine01_intensity`, ``clamp(NaN)`` = 0 as on
+    Mesa, as visibility."""
+    f = np.float32
+    return (f(1) - np.nan_to_num(_engine01_intensity(b, zf), nan=0.0)).astype(f)
+
+
+def _engine01_intensity(b, zf, reciprocal=True):
+    """engine01's bias ``(1 − α) b + α b*`` and the slides' code operation by operation in float32, written apart
+    from golden.paper; the intensity clipped to [0, 1], NaN where the code divides by zero. ``reciprocal``: p and q
+    through ``1/c2`` as engine01 (and the author's demo) writes them, else divided by c2 as the slides do."""
     f, a = np.float32, np.float32(3e-6)
     b = (f(1) - a) * np.asarray(b, f) + a * TARGET
     z0 = np.asarray(zf, f)
@@ -43,7 +51,7 @@ def _engine01(b, zf):
         c1 = c1 - l32 * c2
         c0 = f(1) - (c1 * b0 + c2 * b1)
         ic = f(1) / c2
-        p, q = c1 * ic, c0 * ic
+        p, q = (c1 * ic, c0 * ic) if reciprocal else (c1 / c2, c0 / c2)
         r = np.sqrt(p * p * f(0.25) - q)
         z1, z2 = -p * f(0.5) - r, -p * f(0.5) + r
         far, mid = z2 < z0, (z2 >= z0) & (z1 < z0)
@@ -51,7 +59,7 @@ def _engine01(b, zf):
         s1 = np.where(far, z0, np.where(mid, z1, f(0)))
         quotient = (s0 * z2 - b0 * (s0 + z2) + b1) / ((z2 - s1) * (z0 - z1))
         out = np.where(far, f(1), f(0)) + np.where(far | mid, f(1), f(0)) * quotient
-    return (f(1) - np.nan_to_num(np.clip(out, 0, 1), nan=0.0)).astype(f)
+    return np.clip(out, 0, 1).astype(f)
 
 
 def _rows(case, depths, weights, zf):
@@ -121,15 +129,19 @@ def test_a_finite_printed_value_is_matched_within_the_rows_tolerance():
 
 
 def test_the_envelope_is_the_slides_code_and_narrow_where_it_is_well_conditioned():
-    """The envelope's arrangement as written is :func:`slides_bound` bit for bit; on biased random texels it holds
+    """The envelope's arrangement as written (and so :func:`slides_bound`, the same code) is an independent float32
+    transliteration's value bit for bit, NaN where it divides by zero; on biased random texels the envelope holds
     that value and is narrow (the rounding of a well-conditioned evaluation), where a broken port is far outside."""
     rng = np.random.default_rng(5)
     b = moments.bias_moments(moments.power_moments(rng.uniform(-1, 1, (3000, 3)), rng.random((3000, 3)))
                              .astype(np.float32), moments.BIAS_FLOAT32)
     zf = rng.uniform(-1, 1, 3000).astype(np.float32)
-    lo, hi = slides_envelope(b, zf, draws=0)
+    zf[0] = np.nan  # no value
+    lo, hi = slides_envelope(b, zf, draws=0, bias=(3e-6, tuple(TARGET.tolist())))
+    want = _engine01_intensity(b, zf, reciprocal=False).astype(np.float64)
+    assert np.isnan(want).any() and np.array_equal(lo, want, equal_nan=True) and np.array_equal(hi, want, equal_nan=True)
+    zf[0] = 0.5
     v = slides_bound(b, zf).astype(np.float64)
-    assert np.array_equal(lo, v, equal_nan=True) and np.array_equal(hi, v, equal_nan=True)
     lo, hi = slides_envelope(b, zf)
     ok = np.isfinite(v)
     assert ok.mean() > 0.99 and np.all((lo[ok] <= v[ok]) & (v[ok] <= hi[ok]))

@@ -43,39 +43,10 @@ def slides_bound(b, zf, bound="lower", dtype=np.float32):
     in ``dtype``, saturated; NaN where the formula divides by zero (no ``saturate``
     is applied to NaN here, so that the caller can leave those rows out).
     """
-    t = np.dtype(dtype).type
     b = np.asarray(b).astype(dtype)
     z0 = np.asarray(zf).astype(dtype)
-    b0, b1, b2, b3 = (b[..., k] for k in range(4))
     with np.errstate(all="ignore"):
-        l32d22 = -b0 * b1 + b2
-        d22 = -b0 * b0 + b1
-        var2 = -b1 * b1 + b3
-        d33d22 = var2 * d22 + (-l32d22) * l32d22
-        inv_d22 = t(1) / d22
-        l32 = l32d22 * inv_d22
-        c1 = z0 - b0
-        c2 = z0 * z0 - (b1 + l32 * c1)
-        c1 = c1 * inv_d22
-        c2 = c2 * (d22 / d33d22)
-        c1 = c1 - l32 * c2
-        c0 = t(1) - (c1 * b0 + c2 * b1)
-        p = c1 / c2
-        q = c0 / c2
-        r = np.sqrt(p * p * t(0.25) - q)
-        z1 = -p * t(0.5) - r
-        z2 = -p * t(0.5) + r
-        far = z2 < z0
-        mid = ~far & (z1 < z0)
-        s0 = np.where(far, z1, np.where(mid, z0, t(0)))
-        s1 = np.where(far, z0, np.where(mid, z1, t(0)))
-        s2 = np.where(far, t(1), t(0))
-        s3 = np.where(far | mid, t(1), t(0))
-        quotient = (s0 * z2 - b0 * (s0 + z2) + b1) / ((z2 - s1) * (z0 - z1))
-        out = s2 + s3 * quotient
-        if bound == "upper":
-            out = out + (z1 * z2 - b0 * (z1 + z2) + b1) / ((z0 - z1) * (z0 - z2))
-        return np.where(np.isnan(out), out, np.clip(out, 0, 1)).astype(dtype)
+        return _slides_nudged(b, z0, bound, lambda x: x, None).astype(dtype)
 
 
 #: Arrangements drawn by :func:`slides_envelope` (besides the code as written).
@@ -83,8 +54,9 @@ ENVELOPE_DRAWS = 256
 
 
 def _slides_nudged(b, z0, bound, r, bias):
-    """The slides' code in float32 as :func:`slides_bound` writes it, each operation's result passed through ``r``."""
-    t = np.float32
+    """The slides' code in the dtype of ``b`` and ``z0``, each operation's result passed through ``r`` (the identity
+    for :func:`slides_bound`; a one-ulp move for :func:`slides_envelope`), ``bias`` ``(α, b*)`` applied first."""
+    t = b.dtype.type
     if bias is not None:  # the engine's own bias, (1 − α) b + α b*
         b = r(r(r(t(1) - t(bias[0])) * b) + r(t(bias[0]) * np.asarray(bias[1], t)))
     b0, b1, b2, b3 = (b[..., k] for k in range(4))

@@ -174,18 +174,17 @@ def printed_values(case, inputs):
     ``(n,)`` float64 arrays, NaN where the formulation has no value; uncapped, for the hazard diagnosis
     (:func:`moments_ref.sweep.judge.printed_rows`). Empty for the NLQ chains (their printed Algorithm 3 runs
     behind decoding, which the chain's stages cover)."""
-    from ..golden.paper import printed_bound, slides_bound
+    from ..golden.paper import alg1_paper_spread
     from ..moments import bias_moments
 
     ctx = case.engine
     if ctx.get("fmt") is not None or not own_bias_is_legitimate(ctx):  # a singular target: its own cause
         return []
     b = np.asarray(inputs["b"]).astype(np.float32)
-    zf = np.asarray(inputs["zf"]).astype(np.float32)
     if ctx.get("inside") is not None:
         b = bias_moments(b, ctx["inside"])
-    bound = ctx.get("bound", "lower")
-    values = [np.asarray(f(b, zf, bound, np.float32), np.float64) for f in (slides_bound, printed_bound)]
+    printed = alg1_paper_spread(ctx.get("bound", "lower")).printed  # the moment cases' list of printed formulations
+    values = [np.asarray(v[0], np.float64) for v in printed({"b": b, "zf": inputs["zf"]}, np.dtype(np.float32))]
     return [1 - v for v in values] if ctx.get("visibility") else values
 
 
@@ -193,8 +192,7 @@ def rounding_envelope(case, inputs):
     """``(lo, hi)`` of the slides' code over arrangements rounding each operation differently
     (:func:`moments_ref.golden.paper.slides_envelope`) on the port's own input and its bias inside if declared,
     each within the band's cap of this package's float64 value of that input (an arrangement that cancels
-    beyond it explains nothing), as the port reports it, widened by :data:`MARGIN_ULPS`; None for the NLQ
-    chains and for a singular bias target."""
+    beyond it explains nothing), as the port reports it; None for the NLQ chains and for a singular bias target."""
     from ..golden.paper import slides_envelope
 
     ctx = case.engine
@@ -207,7 +205,4 @@ def rounding_envelope(case, inputs):
     if ctx.get("visibility"):  # engine_reference reports as the port does; the slides' code gives intensities
         ref = 1 - ref
     lo, hi = slides_envelope(b, zf, ctx.get("bound", "lower"), bias, ref=ref, cap=CAP)
-    if ctx.get("visibility"):
-        lo, hi = 1 - hi, 1 - lo
-    m = MARGIN_ULPS * float(np.finfo(np.float32).eps)
-    return lo - m, hi + m
+    return (1 - hi, 1 - lo) if ctx.get("visibility") else (lo, hi)
